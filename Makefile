@@ -1,0 +1,50 @@
+# vpcontact: setup, demo, tests.  `make help` lists the targets.
+SHELL := /bin/bash
+.DEFAULT_GOAL := help
+
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.vpcontact-installed
+CASE   ?= cases/wang_cheng_2021.yaml
+
+# Debian bookworm packages (the platform is fixed: dolfinx 0.5.2 from Debian).
+DEB_PACKAGES := python3-dolfinx-real python3-petsc4py-real python3-mpi4py python3-gmsh gmsh \
+                python3-yaml python3-jsonschema python3-numpy python3-pytest python3-venv \
+                python3-pip python3-setuptools python3-wheel python3-dev openmpi-bin
+
+# mpirun as root (CI and these machines run as root); small dense algebra single-threaded.
+export OMPI_ALLOW_RUN_AS_ROOT := 1
+export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
+export OPENBLAS_NUM_THREADS := 1
+export OMP_NUM_THREADS := 1
+
+.PHONY: help setup demo test clean
+
+help:
+	@echo "make setup   install Debian packages, create $(VENV), pip install -e . (idempotent)"
+	@echo "make demo    run $(CASE) (the paper's Section 4 example) into results/"
+	@echo "make test    run the test suite (serial and mpirun -n 2)"
+
+setup:
+	@missing=$$(for p in $(DEB_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q "install ok installed" || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+	  echo "setup: installing Debian packages:" $$missing; \
+	  apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y $$missing; \
+	fi
+	@$(MAKE) --no-print-directory $(STAMP)
+
+$(STAMP): pyproject.toml
+	[ -x $(PY) ] || /usr/bin/python3 -m venv --system-site-packages $(VENV)
+	$(PY) -m pip install --quiet --no-build-isolation --no-deps -e .
+	@$(PY) -c "import dolfinx, petsc4py, gmsh, yaml, jsonschema, app; print('setup: dolfinx', dolfinx.__version__, 'ok')"
+	@touch $(STAMP)
+
+demo: setup
+	$(PY) -m app run $(CASE) --overwrite
+
+test: setup
+	$(PY) -m pytest -ra tests
+
+clean:
+	rm -rf results .pytest_cache

@@ -1,0 +1,145 @@
+"""Command line: ``python3 -m app run CASE.yaml`` (or the ``vpcontact`` console script).
+
+Arguments of the form ``-snes_rtol 1e-12`` / ``-ksp_view`` (one leading dash) are PETSc
+options: they are passed unchanged to PETSc under our prefix (``vpcontact_``) and override
+the case file's ``petsc`` section.  Exit codes: 0 done, 1 solver failure, 2 bad input.
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import re
+import shutil
+import sys
+from pathlib import Path
+
+from . import __version__
+from .case import CaseError, load_case
+
+log = logging.getLogger("vpcontact")
+_PETSC_OPT = re.compile(r"^-[A-Za-z][A-Za-z0-9_]*$")
+_NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
+def split_petsc_args(argv: list[str]) -> tuple[list[str], dict]:
+    """Separate PETSc options (single dash, e.g. -snes_monitor, -snes_rtol 1e-12) from ours.
+
+    A PETSc option takes the next token as its value unless that token is itself an option
+    (a negative number counts as a value)."""
+    ours, petsc = [], {}
+    i = 0
+    while i < len(argv):
+        tok = argv[i]
+        if _PETSC_OPT.match(tok) and tok not in ("-h",):
+            value = None
+            if i + 1 < len(argv) and (not argv[i + 1].startswith("-") or _NUMBER.match(argv[i + 1])):
+                value = argv[i + 1]
+                i += 1
+            petsc[tok[1:]] = value
+        else:
+            ours.append(tok)
+        i += 1
+    return ours, petsc
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="vpcontact",
+        description="Quasistatic contact of a viscoplastic body with a foundation: normal "
+                    "compliance, unilateral constraint u_nu <= g, nonmonotone friction "
+                    "(Wang & Cheng 2021, scheme (3.2)-(3.4)), solved with dolfinx + PETSc.",
+        epilog="PETSc options (e.g. -snes_monitor, -snes_rtol 1e-12, -pc_factor_mat_solver_type "
+               "superlu_dist) may be added anywhere; they reach PETSc with the prefix "
+               "vpcontact_. Run in parallel with: mpirun -n 2 python3 -m app run CASE.yaml")
+    p.add_argument("--version", action="version", version=f"vpcontact {__version__}")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    run = sub.add_parser("run", help="run a case file",
+                         description="Run a case: solve every time step, write "
+                                     "solution.xdmf, summary.json and contact.csv.")
+    run.add_argument("case", help="YAML case file (see cases/)")
+    run.add_argument("--out", metavar="DIR", help="output directory (default: results/<case name>)")
+    run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                     help="override a case key, e.g. --set mesh.n=32 --set time.N=32 (repeatable)")
+    run.add_argument("--overwrite", action="store_true",
+                     help="replace the outputs of an earlier run in the output directory")
+    run.add_argument("--quiet", action="store_true", help="only warnings and errors")
+    return p
+
+
+def _setup_logging(comm, quiet: bool) -> None:
+    level = logging.WARNING if quiet else logging.INFO
+    if comm.rank != 0:
+        level = logging.ERROR
+    handler = logging.StreamHandler(sys.stdout)
+    handler.setFormatter(logging.Formatter("[vpcontact] %(message)s"))
+    log.handlers[:] = [handler]
+    log.setLevel(level)
+    log.propagate = False
+
+
+def _prepare_outdir(comm, outdir: Path, overwrite: bool) -> None:
+    """Refuse to overwrite an earlier run unless asked; create the directory."""
+    from .output import OUTPUT_FILES
+
+    existing = [f for f in OUTPUT_FILES if (outdir / f).exists()]
+    if existing and not overwrite:
+        raise CaseError(f"{outdir}: holds the outputs of an earlier run ({', '.join(existing)}); "
+                        "pass --overwrite to replace them or --out DIR for another directory")
+    comm.barrier()
+    if comm.rank == 0:
+        outdir.mkdir(parents=True, exist_ok=True)
+        for f in existing:
+            (outdir / f).unlink()
+    comm.barrier()
+
+
+def cmd_run(args, petsc_cli: dict) -> int:
+    from mpi4py import MPI
+
+    comm = MPI.COMM_WORLD
+    _setup_logging(comm, args.quiet)
+    try:
+        case = load_case(args.case, args.overrides)
+        outdir = Path(args.out) if args.out else Path("results") / case.name
+        _prepare_outdir(comm, outdir, args.overwrite)
+    except CaseError as exc:
+        if comm.rank == 0:
+            print(f"vpcontact: error: {exc}", file=sys.stderr)
+        return 2
+
+    from .solver import set_petsc_options
+    from .timeloop import run
+
+    petsc = {**case.petsc, **petsc_cli}
+    set_petsc_options(petsc)
+    case = case.__class__(**{**case.__dict__, "petsc": petsc})
+    log.info("vpcontact %s: case %s -> %s (%d MPI rank%s)", __version__, args.case, outdir,
+             comm.size, "s" if comm.size > 1 else "")
+    result = run(case, outdir, comm)
+    s = result.summary
+    if result.status == "completed":
+        log.info("done: %d steps, %d Newton iterations, wall %.2f s (set-up %.2f s, steps %.2f s)",
+                 len(s["steps"]), s["newton_iterations_total"], s["wall_s"], s["setup_s"],
+                 s["loop_s"])
+        if "contact_states" in s:
+            log.info("Gamma3 nodes at T: %s", s["contact_states"])
+        log.info("outputs: %s/{solution.xdmf, summary.json, contact.csv}", outdir)
+        return 0
+    if comm.rank == 0:
+        print(f"vpcontact: error: {s['failure']['reason']} at step {s['failure']['step']} "
+              f"(t = {s['failure']['t']:g}); outputs up to step {s['last_good_step']} are in "
+              f"{outdir}. Hint: {s['failure']['hint']}", file=sys.stderr)
+    return 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    ours, petsc_cli = split_petsc_args(argv)
+    args = _parser().parse_args(ours)
+    if args.command == "run":
+        return cmd_run(args, petsc_cli)
+    return 2  # pragma: no cover (argparse enforces a command)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

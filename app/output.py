@@ -1,0 +1,83 @@
+"""Outputs of a run: solution.xdmf (+ .h5), summary.json, contact.csv.
+
+JSON and CSV are written atomically (temporary file + rename) by rank 0; the XDMF file is
+written collectively, its mesh once and the fields at every output time.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+from dolfinx import io as dio
+
+OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv")
+CONTACT_COLUMNS = ("x", "y", "u_x", "u_y", "u_nu", "u_tau", "neg_sigma_nu", "neg_sigma_tau",
+                   "state")
+
+
+def atomic_write(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file and a rename."""
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    with open(tmp, "w") as fh:
+        fh.write(text)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
+def write_json(comm, path: Path, data: dict) -> None:
+    if comm.rank == 0:
+        atomic_write(path, json.dumps(data, indent=2) + "\n")
+    comm.barrier()
+
+
+class FieldWriter:
+    """solution.xdmf: u (P1 vector), sigma (DG0 tensor), sigma_vm, kappa (DG0) per time."""
+
+    def __init__(self, comm, path: Path, mesh, fields):
+        self.fields = fields
+        self.file = dio.XDMFFile(comm, str(path), "w")
+        self.file.write_mesh(mesh)
+
+    def write(self, t: float) -> None:
+        for f in self.fields:
+            self.file.write_function(f, t)
+
+    def close(self) -> None:
+        self.file.close()
+
+
+def classify(u_nu: np.ndarray, g: float | None, tol: float) -> np.ndarray:
+    """Node state from u_nu: 'bound' (u_nu = g), 'compliance' (0 < u_nu < g), 'separated'."""
+    state = np.where(u_nu > tol, "compliance", "separated").astype(object)
+    if g is not None:
+        state[u_nu >= g - tol] = "bound"
+    return state
+
+
+def write_contact_csv(comm, path: Path, table: dict, g: float | None) -> dict:
+    """Gather the per-node contact table on rank 0, sort by x and write it.  Returns counts
+    of node states (on every rank)."""
+    tol = 1e-9 * (g if g else 1.0)
+    local = {k: np.asarray(v) for k, v in table.items()}
+    parts = comm.gather(local, root=0)
+    counts = None
+    if comm.rank == 0:
+        data = {k: np.concatenate([p[k] for p in parts]) for k in local}
+        order = np.lexsort((data["y"], data["x"]))
+        data = {k: v[order] for k, v in data.items()}
+        data["state"] = classify(data["u_nu"], g, tol)
+        buf = io.StringIO()
+        writer = csv.writer(buf, lineterminator="\n")
+        writer.writerow(CONTACT_COLUMNS)
+        for i in range(len(data["x"])):
+            writer.writerow([repr(float(data[c][i])) if c != "state" else data[c][i]
+                             for c in CONTACT_COLUMNS])
+        atomic_write(path, buf.getvalue())
+        counts = {s: int(np.sum(data["state"] == s)) for s in ("bound", "compliance", "separated")}
+        counts["nodes"] = int(len(data["x"]))
+    return comm.bcast(counts, root=0)

@@ -1,0 +1,135 @@
+"""The time loop of scheme (3.2)-(3.4): for n = 1..N build H_n, kappa_n from step n-1,
+solve the step inequality for u_n (SNES VI), set sigma_n = E eps(u_n) + H_n, record, write.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from meshes import build_rectangle
+
+from .case import Case
+from .history import ViscoplasticHistory
+from .output import FieldWriter, write_contact_csv, write_json
+from .problem import ContactProblem
+from .solver import SNESVISolver, StepFailure
+
+log = logging.getLogger("vpcontact")
+
+
+@dataclass
+class RunResult:
+    status: str
+    summary: dict
+    problem: ContactProblem = field(repr=False)
+    history: ViscoplasticHistory | None = field(repr=False, default=None)
+
+
+def build_mesh(case: Case, comm):
+    m = case.mesh
+    if m.kind == "structured":
+        return build_rectangle(comm, m.L1, m.L2, n=m.n, diagonal=m.diagonal)
+    return build_rectangle(comm, m.L1, m.L2, h=m.h)
+
+
+def _step_record(problem, history, n, t, its, wall):
+    kappa = history.kappa if history else None
+    return {
+        "n": n, "t": t,
+        "norm_u_V": problem.norm("V"),
+        "norm_sigma_Q": problem.norm("Q"),
+        "norm_kappa_Y": problem.cell_norm(kappa) if kappa else 0.0,
+        "max_vm": problem.cell_max(problem.sigma_vm),
+        "max_kappa": problem.cell_max(kappa) if kappa else 0.0,
+        "newton_iterations": its,
+        "wall_s": wall,
+    }
+
+
+def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True) -> RunResult:
+    """Run the case; write outputs to ``outdir`` (created by the caller) if asked."""
+    t_start = time.perf_counter()
+    rect = build_mesh(case, comm)
+    problem = ContactProblem(case, rect)
+    vp = case.material.viscoplastic
+    history = ViscoplasticHistory(problem, vp.lambda1, vp.lambda2, vp.kappa0) if vp else None
+    solver = SNESVISolver(problem)
+    t_setup = time.perf_counter() - t_start
+    log.info("case %s: %d cells, %d vertices, %d dofs, %d steps (k = %g)", case.name,
+             problem.num_cells, problem.num_vertices, problem.num_dofs, case.time.N,
+             case.time.T / case.time.N)
+    log.info("active terms: %s", ", ".join(case.active_terms()))
+    log.info("step solver: SNES %s, set-up (mesh, JIT, matrices) %.2f s",
+             solver.snes.getType(), t_setup)
+
+    writer = None
+    if write_outputs:
+        fields = [problem.u, problem.sigma, problem.sigma_vm]
+        if history:
+            fields.append(history.kappa)
+        writer = FieldWriter(comm, outdir / "solution.xdmf", problem.mesh, fields)
+        problem.update_sigma()
+        writer.write(0.0)
+
+    times = case.time.times
+    N = case.time.N
+    steps, status, failure = [], "completed", None
+    loop_start = time.perf_counter()
+    for n in range(1, N + 1):
+        t, k = times[n], times[n] - times[n - 1]
+        t0 = time.perf_counter()
+        if history:
+            history.advance(problem.sigma, k)   # H_n, kappa_n from sigma_{n-1}, kappa_{n-1}
+        try:
+            its = solver.solve()                # u_n in U^h, (3.4)
+        except StepFailure as exc:
+            status = "failed"
+            failure = {"step": n, "t": t, "reason": str(exc), "snes_reason": exc.reason,
+                       "hint": "try a smaller time step (time.N), a larger solver.delta, "
+                               "or other PETSc options (-snes_monitor to see the iterations)"}
+            log.error("step %d/%d (t = %g) failed: %s; the last good state is step %d",
+                      n, N, t, exc, n - 1)
+            break
+        problem.update_sigma()                  # sigma_n = E eps(u_n) + H_n, (3.2)
+        rec = _step_record(problem, history, n, t, its, time.perf_counter() - t0)
+        steps.append(rec)
+        if writer and (n % case.output.every == 0 or n == N):
+            writer.write(t)
+        log.info("step %3d/%d  t = %-8.5g newton %2d  |u|_V = %.6e  |sigma|_Q = %.6e  "
+                 "max vm = %.5g  max kappa = %.5g  (%.3f s)", n, N, t, its, rec["norm_u_V"],
+                 rec["norm_sigma_Q"], rec["max_vm"], rec["max_kappa"], rec["wall_s"])
+    t_loop = time.perf_counter() - loop_start
+    if writer:
+        writer.close()
+
+    summary = {
+        "case": case.name,
+        "source": case.source,
+        "status": status,
+        "mesh": {"cells": problem.num_cells, "vertices": problem.num_vertices,
+                 "dofs": problem.num_dofs, "kind": case.mesh.kind, "n": case.mesh.n,
+                 "h": rect.h, "diagonal": rect.diagonal},
+        "time": {"T": case.time.T, "N": N},
+        "mpi_ranks": comm.size,
+        "active_terms": case.active_terms(),
+        "solver": {"method": case.numerics.method, "delta": case.numerics.delta,
+                   "quadrature": case.numerics.quadrature,
+                   "petsc_options": {k: v for k, v in case.petsc.items()}},
+        "last_good_step": steps[-1]["n"] if steps else 0,
+        "steps": steps,
+        "newton_iterations_total": sum(s["newton_iterations"] for s in steps),
+        "setup_s": t_setup,
+        "loop_s": t_loop,
+        "wall_s": time.perf_counter() - t_start,
+    }
+    if failure:
+        summary["failure"] = failure
+    if write_outputs:
+        if problem.gamma3 is not None and steps:
+            summary["contact_states"] = write_contact_csv(
+                comm, outdir / "contact.csv", problem.contact_table(), case.contact.g)
+        write_json(comm, outdir / "summary.json", summary)
+    solver.destroy()
+    return RunResult(status, summary, problem, history)

@@ -1,0 +1,77 @@
+"""The energy J_n of one time step of scheme (3.2)-(3.4) and its derivatives.
+
+u_n is the stationary point over U^h = {v in V^h : v_nu <= g at Gamma3 nodes} of
+  J_n(v) = 1/2 (E eps(v), eps(v)) + (H_n, eps(v)) - f_n(v)
+           + int_Gamma3 [ P(v_nu) + j_tau(v_tau) ]                        (MODEL.md section 3)
+with H_n the DG0 pre-stress (viscoplastic history).  The residual F = dJ_n/du gives (3.4)
+with sigma_n = E eps(u_n) + H_n; the constraint is imposed by SNES VI bounds, not here.
+Terms a case does not enable are simply not added (no friction form when frictionless).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import ufl
+
+from . import contact
+from .elasticity import elasticity_operator, eps
+
+
+@dataclass
+class StepForms:
+    """UFL forms of one step: energy, residual, Jacobian, and the bulk residual.
+
+    ``bulk_residual`` is (E eps(u) + H, eps(v)) - f(v): at a Gamma3 node its value divided by
+    the node's weight int phi_i ds is minus the contact force density (sigma nu at the node).
+    """
+
+    energy: ufl.Form
+    residual: ufl.Form
+    jacobian: ufl.Form
+    bulk_residual: ufl.Form
+    terms: list = field(default_factory=list)
+
+
+def build_step_forms(u, H, *, E: float, nu: float, f0, tractions, ds, ds_c=None,
+                     normal=None, c_nu=None, friction=None, delta: float = 0.0) -> StepForms:
+    """Build J_n and its derivatives.
+
+    u: P1 displacement Function; H: DG0 tensor Function (pre-stress H_n) or None;
+    f0: body force (UFL vector) or None; tractions: list of (traction UFL vector, subdomain
+    id) on Gamma2 parts, integrated with ``ds``; ds_c: Gamma3 measure; normal: nu (tuple);
+    c_nu: normal compliance stiffness or None; friction: dict(b, c1, c2, u1) or None.
+    """
+    V = u.function_space
+    v = ufl.TestFunction(V)
+    du = ufl.TrialFunction(V)
+    C = elasticity_operator(E, nu)
+    dx = ufl.dx(domain=V.mesh)
+
+    bulk = 0.5 * ufl.inner(C(eps(u)), eps(u)) * dx
+    terms = ["elasticity"]
+    if H is not None:
+        bulk += ufl.inner(H, eps(u)) * dx
+        terms.append("pre-stress H_n")
+    if f0 is not None:
+        bulk -= ufl.dot(f0, u) * dx
+        terms.append("body force f0")
+    for traction, tag in tractions:
+        bulk -= ufl.dot(traction, u) * ds(tag)
+        terms.append(f"traction on part {tag}")
+
+    boundary = 0
+    if c_nu is not None or friction is not None:
+        nu_vec = ufl.as_vector(normal)
+        u_nu = ufl.dot(u, nu_vec)
+        if c_nu is not None:
+            boundary += contact.normal_compliance_energy(u_nu, c_nu) * ds_c
+            terms.append("normal compliance")
+        if friction is not None:
+            u_tau = u - u_nu * nu_vec
+            boundary += contact.friction_energy(u_tau, delta, **friction) * ds_c
+            terms.append("friction (regularised Clarke term)")
+
+    energy = bulk + boundary if boundary != 0 else bulk
+    residual = ufl.derivative(energy, u, v)
+    jacobian = ufl.derivative(residual, u, du)
+    return StepForms(energy, residual, jacobian, ufl.derivative(bulk, u, v), terms)

@@ -1,0 +1,97 @@
+"""The paper's rectangle Omega = (0, L1) x (0, L2) (Section 4, Fig. 1), built with gmsh.
+
+Facets are tagged per side (``BOUNDARY_TAGS``); the case file maps sides to the boundary
+parts: Gamma1 = left (clamped), Gamma2 = right and top (tractions), Gamma3 = bottom (contact,
+outward normal nu = (0, -1), tangent tau = (1, 0)).
+
+Structured meshes are transfinite n x n with every square cut along the same diagonal, so a
+mesh with 2n cells per side is a refinement of the one with n (each coarse triangle is a union
+of fine ones): the convergence study relies on this.  Gmsh runs on one rank only; dolfinx's
+``gmshio.model_to_mesh`` distributes the mesh.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+BOUNDARY_TAGS = {"left": 1, "bottom": 2, "right": 3, "top": 4}
+DOMAIN_TAG = 10
+# Our diagonal names follow dolfinx's create_rectangle: "right" cuts each square from
+# (x0, y0) to (x1, y1), "left" from (x0, y1) to (x1, y0).  Gmsh's transfinite arrangement
+# names agree with ours when the corners are given counter-clockwise from (0, 0)
+# (checked by tests/unit/test_mesh.py).
+_GMSH_ARRANGEMENT = {"right": "Right", "left": "Left"}
+
+
+@dataclass
+class RectangleMesh:
+    """A distributed dolfinx mesh with its cell and facet tags and geometry data."""
+
+    mesh: object
+    cell_tags: object
+    facet_tags: object
+    L1: float
+    L2: float
+    structured: bool
+    n: int | None
+    h: float | None
+    diagonal: str | None
+
+    # Gamma3 is the bottom side; its outward unit normal and unit tangent (MODEL.md sec. 1).
+    normal = (0.0, -1.0)
+    tangent = (1.0, 0.0)
+
+
+def _gmsh_model(L1: float, L2: float, n: int | None, h: float | None, diagonal: str | None):
+    import gmsh
+
+    gmsh.model.add("rectangle")
+    geo = gmsh.model.geo
+    size = h if h is not None else max(L1, L2) / max(n or 1, 1)
+    p = [geo.addPoint(0, 0, 0, size), geo.addPoint(L1, 0, 0, size),
+         geo.addPoint(L1, L2, 0, size), geo.addPoint(0, L2, 0, size)]
+    bottom = geo.addLine(p[0], p[1])
+    right = geo.addLine(p[1], p[2])
+    top = geo.addLine(p[2], p[3])
+    left = geo.addLine(p[3], p[0])
+    loop = geo.addCurveLoop([bottom, right, top, left])
+    surface = geo.addPlaneSurface([loop])
+    if n is not None:
+        for line in (bottom, right, top, left):
+            geo.mesh.setTransfiniteCurve(line, n + 1)
+        geo.mesh.setTransfiniteSurface(surface, _GMSH_ARRANGEMENT[diagonal], p)
+    geo.synchronize()
+    for name, line in (("left", left), ("bottom", bottom), ("right", right), ("top", top)):
+        gmsh.model.addPhysicalGroup(1, [line], BOUNDARY_TAGS[name])
+        gmsh.model.setPhysicalName(1, BOUNDARY_TAGS[name], name)
+    gmsh.model.addPhysicalGroup(2, [surface], DOMAIN_TAG)
+    gmsh.model.mesh.generate(2)
+
+
+def build_rectangle(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, *, n: int | None = None,
+                    h: float | None = None, diagonal: str = "right") -> RectangleMesh:
+    """Build the rectangle mesh: structured n x n (``n`` given) or unstructured of size ``h``.
+
+    Returns a :class:`RectangleMesh`; collective on ``comm``.
+    """
+    if (n is None) == (h is None):
+        raise ValueError("give exactly one of n (structured) or h (unstructured)")
+    if n is not None and diagonal not in _GMSH_ARRANGEMENT:
+        raise ValueError(f"diagonal must be one of {sorted(_GMSH_ARRANGEMENT)}, got {diagonal!r}")
+    import gmsh
+    from dolfinx.io import gmshio
+
+    if comm.rank == 0:
+        gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
+        try:
+            _gmsh_model(L1, L2, n, h, diagonal)
+            msh, ct, ft = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=2)
+        finally:
+            gmsh.finalize()
+    else:
+        msh, ct, ft = gmshio.model_to_mesh(None, comm, 0, gdim=2)
+    return RectangleMesh(msh, ct, ft, float(L1), float(L2), n is not None, n,
+                         h if n is None else max(L1, L2) / n, diagonal if n is not None else None)
