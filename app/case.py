@@ -6,6 +6,7 @@ PETSc options and output settings are separate objects (STYLE.md).
 from __future__ import annotations
 
 import copy
+import re
 import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,6 +15,27 @@ import jsonschema
 import yaml
 
 from .schema import DEFAULT_PETSC, SCHEMA
+
+
+class CaseLoader(yaml.SafeLoader):
+    """yaml.SafeLoader that also reads 1e-4 / 5E+3 as floats (YAML 1.1 wants a dot)."""
+
+
+CaseLoader.yaml_implicit_resolvers = {k: list(v) for k, v in
+                                      yaml.SafeLoader.yaml_implicit_resolvers.items()}
+CaseLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                    |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                    |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                    |[-+]?\.(?:inf|Inf|INF)
+                    |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
+
+
+def safe_load(text: str):
+    """Parse YAML with :class:`CaseLoader` (safe: plain data only, no Python objects)."""
+    return yaml.load(text, Loader=CaseLoader)
 
 
 class CaseError(ValueError):
@@ -72,7 +94,7 @@ def parse_override(text: str) -> tuple[str, object]:
     if not key or any(not part for part in key.split(".")):
         raise CaseError(f"--set {text!r}: expected section.key=value")
     try:
-        value = yaml.safe_load(raw) if raw.strip() else None
+        value = safe_load(raw) if raw.strip() else None
     except yaml.YAMLError as exc:
         raise CaseError(f"--set {key}: cannot read value {raw!r}: {exc}") from None
     return key, value
@@ -86,7 +108,7 @@ def load_raw(path: str | Path, overrides: list[str] = ()) -> dict:
     except OSError as exc:
         raise CaseError(f"{path}: cannot read case file: {exc.strerror}") from None
     try:
-        data = yaml.safe_load(text)
+        data = safe_load(text)
     except yaml.YAMLError as exc:
         raise CaseError(f"{path}: not valid YAML: {exc}") from None
     if not isinstance(data, dict):

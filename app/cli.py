@@ -7,6 +7,7 @@ the case file's ``petsc`` section.  Exit codes: 0 done, 1 solver failure, 2 bad 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 import re
 import shutil
@@ -66,6 +67,15 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def quiet_jit_log() -> None:
+    """FFCx installs a root log handler (logging.basicConfig) and cffi's distutils build
+    lowers the root level to log every compiler call; keep those lines out of the run log."""
+    import ffcx  # noqa: F401  (installs the handler on import)
+
+    for handler in logging.getLogger().handlers:
+        handler.setLevel(logging.WARNING)
+
+
 def _setup_logging(comm, quiet: bool) -> None:
     level = logging.WARNING if quiet else logging.INFO
     if comm.rank != 0:
@@ -73,6 +83,7 @@ def _setup_logging(comm, quiet: bool) -> None:
     handler = logging.StreamHandler(sys.stdout)
     handler.setFormatter(logging.Formatter("[vpcontact] %(message)s"))
     log.handlers[:] = [handler]
+    quiet_jit_log()
     log.setLevel(level)
     log.propagate = False
 
@@ -107,12 +118,9 @@ def cmd_run(args, petsc_cli: dict) -> int:
             print(f"vpcontact: error: {exc}", file=sys.stderr)
         return 2
 
-    from .solver import set_petsc_options
     from .timeloop import run
 
-    petsc = {**case.petsc, **petsc_cli}
-    set_petsc_options(petsc)
-    case = case.__class__(**{**case.__dict__, "petsc": petsc})
+    case = dataclasses.replace(case, petsc={**case.petsc, **petsc_cli})
     log.info("vpcontact %s: case %s -> %s (%d MPI rank%s)", __version__, args.case, outdir,
              comm.size, "s" if comm.size > 1 else "")
     result = run(case, outdir, comm)

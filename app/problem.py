@@ -34,6 +34,19 @@ class Gamma3Nodes:
     weight: np.ndarray   # int_Gamma3 phi_i ds (the nodal rule's weight)
 
 
+class _Constants(dict):
+    """Named dolfinx Constants of the forms (physical parameters, loads, delta)."""
+
+    def __init__(self, mesh):
+        super().__init__()
+        self._mesh = mesh
+
+    def __call__(self, name, value):
+        self[name] = fem.Constant(self._mesh, PETSc.ScalarType(value) if np.ndim(value) == 0
+                                  else np.asarray(value, dtype=PETSc.ScalarType))
+        return self[name]
+
+
 class ContactProblem:
     """Forms and data of the step problem for a case on a mesh (a ``RectangleMesh``)."""
 
@@ -64,22 +77,27 @@ class ContactProblem:
         c = case.contact
         self.ds_c = gamma3_measure(msh, ft, BOUNDARY_TAGS[GAMMA3], case.numerics.quadrature,
                                    case.numerics.gauss_degree)
-        f0 = ufl.as_vector(case.loads.f0) if any(case.loads.f0) else None
-        tractions = [(ufl.as_vector(t), BOUNDARY_TAGS[name])
+        # Parameters enter the forms as Constants: one compiled form serves every value.
+        const = self.constants = _Constants(msh)
+        E, nu = const("E", case.material.E), const("nu", case.material.nu)
+        f0 = const("f0", case.loads.f0) if any(case.loads.f0) else None
+        tractions = [(const(f"traction_{name}", t), BOUNDARY_TAGS[name])
                      for name, t in case.loads.traction.items() if any(t)]
         friction = None
         if c.friction is not None:
-            friction = dict(b=c.friction.b, c1=c.friction.c1, c2=c.friction.c2, u1=c.friction.u1)
+            friction = {k: const(k, getattr(c.friction, k)) for k in ("b", "c1", "c2", "u1")}
         self.forms = build_step_forms(
-            self.u, self.H, E=case.material.E, nu=case.material.nu, f0=f0,
-            tractions=tractions, ds=ds, ds_c=self.ds_c, normal=tuple(self.normal),
-            c_nu=c.c_nu, friction=friction, delta=case.numerics.delta)
+            self.u, self.H, E=E, nu=nu, f0=f0, tractions=tractions, ds=ds, ds_c=self.ds_c,
+            normal=tuple(self.normal),
+            c_nu=const("c_nu", c.c_nu) if c.c_nu is not None else None,
+            friction=friction,
+            delta=const("delta", case.numerics.delta) if friction else None)
         self.F_form = fem.form(self.forms.residual)
         self.J_form = fem.form(self.forms.jacobian)
         self._bulk_form = fem.form(self.forms.bulk_residual)
 
         # sigma_n = E eps(u_n) + H_n evaluated per cell (exact: eps(u) is constant on cells).
-        C = elasticity_operator(case.material.E, case.material.nu)
+        C = elasticity_operator(E, nu)
         expr = C(eps(self.u)) + (self.H if self.H is not None else 0)
         self._sigma_expr = fem.Expression(expr, self.Q.element.interpolation_points())
         self._norm_forms = {

@@ -38,10 +38,16 @@ def set_petsc_options(options: dict, prefix: str = PREFIX) -> None:
             db.setValue(prefix + key, str(value))
 
 
+def clear_petsc_options(options: dict, prefix: str = PREFIX) -> None:
+    db = PETSc.Options()
+    for key in options:
+        db.delValue(prefix + key)
+
+
 class SNESVISolver:
     """Solves one step: u_n = argmin J_n over U^h, starting from the current ``problem.u``."""
 
-    def __init__(self, problem, prefix: str = PREFIX):
+    def __init__(self, problem, options: dict, prefix: str = PREFIX):
         self.problem = problem
         self.u = problem.u
         self.b = fem.petsc.create_vector(problem.F_form)
@@ -51,7 +57,13 @@ class SNESVISolver:
         snes.setOptionsPrefix(prefix)
         snes.setFunction(self._F, self.b)
         snes.setJacobian(self._J, self.A, self.A)
-        snes.setFromOptions()
+        # Options pass through unchanged under our prefix; removed again once read so that
+        # they cannot leak into another solver created in the same process.
+        set_petsc_options(options, prefix)
+        try:
+            snes.setFromOptions()
+        finally:
+            clear_petsc_options(options, prefix)
         if snes.getType().startswith("vi"):
             self.lb, self.ub = problem.bounds()
             snes.setVariableBounds(self.lb, self.ub)

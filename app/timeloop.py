@@ -55,7 +55,7 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True) -> Ru
     problem = ContactProblem(case, rect)
     vp = case.material.viscoplastic
     history = ViscoplasticHistory(problem, vp.lambda1, vp.lambda2, vp.kappa0) if vp else None
-    solver = SNESVISolver(problem)
+    solver = SNESVISolver(problem, case.petsc)
     t_setup = time.perf_counter() - t_start
     log.info("case %s: %d cells, %d vertices, %d dofs, %d steps (k = %g)", case.name,
              problem.num_cells, problem.num_vertices, problem.num_dofs, case.time.N,

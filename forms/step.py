@@ -32,11 +32,12 @@ class StepForms:
     terms: list = field(default_factory=list)
 
 
-def build_step_forms(u, H, *, E: float, nu: float, f0, tractions, ds, ds_c=None,
-                     normal=None, c_nu=None, friction=None, delta: float = 0.0) -> StepForms:
+def build_step_forms(u, H, *, E, nu, f0, tractions, ds, ds_c=None, normal=None, c_nu=None,
+                     friction=None, delta=None) -> StepForms:
     """Build J_n and its derivatives.
 
-    u: P1 displacement Function; H: DG0 tensor Function (pre-stress H_n) or None;
+    Parameters may be floats or dolfinx Constants (Constants keep one compiled form for all
+    values).  u: P1 displacement Function; H: DG0 tensor Function (pre-stress H_n) or None;
     f0: body force (UFL vector) or None; tractions: list of (traction UFL vector, subdomain
     id) on Gamma2 parts, integrated with ``ds``; ds_c: Gamma3 measure; normal: nu (tuple);
     c_nu: normal compliance stiffness or None; friction: dict(b, c1, c2, u1) or None.
