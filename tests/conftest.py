@@ -1,0 +1,59 @@
+"""Shared helpers: the paper case as a dict, in-process runs and CLI runs (serial / mpirun)."""
+import copy
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import pytest  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER_CASE = ROOT / "cases" / "wang_cheng_2021.yaml"
+MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+           "OMPI_MCA_rmaps_base_oversubscribe": "1", "OPENBLAS_NUM_THREADS": "1"}
+
+
+def paper_raw() -> dict:
+    from app.case import load_raw
+    return load_raw(PAPER_CASE)
+
+
+def make_case(raw: dict | None = None, **sections):
+    """Validate the paper case, with whole sections or keys replaced: make_case(time={'N': 2})
+    merges into the section; a value of None removes the section."""
+    from app.case import validate
+    raw = copy.deepcopy(raw if raw is not None else paper_raw())
+    for name, value in sections.items():
+        if value is None:
+            raw.pop(name, None)
+        elif isinstance(value, dict) and isinstance(raw.get(name), dict):
+            raw[name].update(value)
+        else:
+            raw[name] = value
+    return validate(raw, "test-case")
+
+
+def run_case(case):
+    """Run in this process without writing outputs; returns the RunResult."""
+    from mpi4py import MPI
+    from app.timeloop import run
+    return run(case, None, MPI.COMM_WORLD, write_outputs=False)
+
+
+def run_cli(args, nprocs: int = 1, cwd=None, timeout=600):
+    """Run ``python -m app`` (under mpirun -n nprocs if > 1); returns CompletedProcess."""
+    cmd = [sys.executable, "-m", "app", *map(str, args)]
+    if nprocs > 1:
+        cmd = ["mpirun", "-n", str(nprocs), *cmd]
+    env = {**os.environ, **MPI_ENV, "PYTHONPATH": str(ROOT)}
+    return subprocess.run(cmd, cwd=cwd or ROOT, env=env, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+@pytest.fixture(scope="session")
+def paper_run():
+    """The paper case (h = k = 1/16) run once in-process."""
+    return run_case(make_case())

@@ -1,0 +1,74 @@
+"""The gmsh rectangle: boundary tags, diagonal direction, nesting, unstructured meshes."""
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from meshes import BOUNDARY_TAGS, build_rectangle
+
+
+def _cells(rect):
+    x = rect.mesh.geometry.x[:, :2]
+    dm = rect.mesh.geometry.dofmap
+    n = rect.mesh.topology.index_map(2).size_local
+    return np.array([x[dm.links(c)] for c in range(n)])
+
+
+@pytest.mark.parametrize("diagonal", ["right", "left"])
+def test_structured_diagonal(diagonal):
+    rect = build_rectangle(MPI.COMM_SELF, 2.0, 1.0, n=4, diagonal=diagonal)
+    cells = _cells(rect)
+    assert len(cells) == 2 * 4 * 4
+    hx, hy = 0.5, 0.25
+    for tri in cells:
+        lo = tri.min(axis=0)
+        corners = {tuple(np.round((p - lo) / (hx, hy)).astype(int)) for p in tri}
+        # "right": the diagonal joins (x0,y0)-(x1,y1); "left": (x0,y1)-(x1,y0)
+        diag = {(0, 0), (1, 1)} if diagonal == "right" else {(0, 1), (1, 0)}
+        assert diag <= corners, (diagonal, tri)
+
+
+def test_boundary_tags():
+    rect = build_rectangle(MPI.COMM_SELF, 1.0, 1.0, n=8)
+    ft = rect.facet_tags
+    msh = rect.mesh
+    msh.topology.create_connectivity(1, 0)
+    f2v = msh.topology.connectivity(1, 0)
+    x = msh.geometry.x
+    for name, tag in BOUNDARY_TAGS.items():
+        facets = ft.indices[ft.values == tag]
+        assert len(facets) == 8, name
+        pts = np.array([x[f2v.links(f)] for f in facets]).reshape(-1, 3)
+        coord, val = {"left": (0, 0.0), "right": (0, 1.0), "bottom": (1, 0.0), "top": (1, 1.0)}[name]
+        np.testing.assert_allclose(pts[:, coord], val, atol=1e-12)
+
+
+def test_refined_structured_mesh_is_nested():
+    """Every fine cell lies inside one coarse cell (barycentric coordinates in [0, 1])."""
+    coarse = _cells(build_rectangle(MPI.COMM_SELF, 1.0, 1.0, n=4))
+    fine = _cells(build_rectangle(MPI.COMM_SELF, 1.0, 1.0, n=8))
+    for tri in fine:
+        inside = False
+        for c in coarse:
+            T = np.column_stack([c[1] - c[0], c[2] - c[0]])
+            lam = np.linalg.solve(T, (tri - c[0]).T)
+            bary = np.vstack([1 - lam.sum(axis=0), lam])
+            if np.all(bary > -1e-9):
+                inside = True
+                break
+        assert inside
+
+
+def test_unstructured_mesh():
+    rect = build_rectangle(MPI.COMM_SELF, 1.0, 1.0, h=0.1)
+    assert not rect.structured and rect.h == 0.1
+    ncell = rect.mesh.topology.index_map(2).size_local
+    assert 150 < ncell < 600
+    ft = rect.facet_tags
+    assert set(np.unique(ft.values)) == set(BOUNDARY_TAGS.values())
+
+
+def test_bad_arguments():
+    with pytest.raises(ValueError, match="exactly one"):
+        build_rectangle(MPI.COMM_SELF, 1.0, 1.0)
+    with pytest.raises(ValueError, match="diagonal"):
+        build_rectangle(MPI.COMM_SELF, 1.0, 1.0, n=2, diagonal="up")
