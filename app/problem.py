@@ -98,7 +98,7 @@ class ContactProblem:
 
         # sigma_n = E eps(u_n) + H_n evaluated per cell (exact: eps(u) is constant on cells).
         C = elasticity_operator(E, nu)
-        expr = C(eps(self.u)) + (self.H if self.H is not None else 0)
+        expr = C(eps(self.u)) if self.H is None else C(eps(self.u)) + self.H
         self._sigma_expr = fem.Expression(expr, self.Q.element.interpolation_points())
         self._norm_forms = {
             "V": fem.form(ufl.inner(eps(self.u), eps(self.u)) * ufl.dx),

@@ -57,3 +57,8 @@ def run_cli(args, nprocs: int = 1, cwd=None, timeout=600):
 def paper_run():
     """The paper case (h = k = 1/16) run once in-process."""
     return run_case(make_case())
+
+
+def validate_raw(raw: dict):
+    from app.case import validate
+    return validate(raw, "test-case")

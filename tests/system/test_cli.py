@@ -1,0 +1,97 @@
+"""The command line: the demo case writes its outputs; bad input exits 2 before any work;
+earlier results are not overwritten; PETSc options reach the solver; failures exit 1."""
+import csv
+import json
+import shutil
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import PAPER_CASE, ROOT, run_cli
+
+STEP_KEYS = {"t", "norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa",
+             "newton_iterations", "wall_s"}
+
+
+@pytest.fixture(scope="module")
+def demo_out(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo") / "paper"
+    proc = run_cli(["run", PAPER_CASE, "--out", out])
+    assert proc.returncode == 0, proc.stderr
+    assert "step  16/16" in proc.stdout and "newton" in proc.stdout
+    return out
+
+
+def test_demo_writes_the_three_outputs(demo_out):
+    assert (demo_out / "solution.xdmf").is_file() and (demo_out / "solution.h5").is_file()
+    root = ET.parse(demo_out / "solution.xdmf").getroot()
+    names = {g.get("Name") for g in root.iter("Grid") if g.get("GridType") == "Collection"}
+    assert names == {"u", "sigma", "sigma_vm", "kappa"}
+    collection = next(g for g in root.iter("Grid")
+                      if g.get("Name") == "u" and g.get("GridType") == "Collection")
+    times = [float(g.find("Time").get("Value")) for g in collection.findall("Grid")]
+    assert times == pytest.approx([n / 16 for n in range(17)])
+
+    s = json.loads((demo_out / "summary.json").read_text())
+    assert s["case"] == "wang_cheng_2021" and s["status"] == "completed"
+    assert s["mesh"] == {**s["mesh"], "cells": 512, "vertices": 289, "dofs": 578}
+    assert len(s["steps"]) == 16 and all(STEP_KEYS <= set(st) for st in s["steps"])
+    assert s["wall_s"] > 0 and s["steps"][-1]["t"] == pytest.approx(1.0)
+    kappa = [st["max_kappa"] for st in s["steps"]]
+    assert kappa[0] == 0.0 and np.all(np.diff(kappa) > 0)   # kappa grows from kappa0 = 0
+
+    rows = list(csv.DictReader(open(demo_out / "contact.csv")))
+    assert list(rows[0])[:8] == ["x", "y", "u_x", "u_y", "u_nu", "u_tau", "neg_sigma_nu",
+                                 "neg_sigma_tau"]
+    x = [float(r["x"]) for r in rows]
+    assert len(rows) == 16 and x == sorted(x)
+    u_nu = np.array([float(r["u_nu"]) for r in rows])
+    np.testing.assert_allclose(u_nu, -np.array([float(r["u_y"]) for r in rows]))
+
+
+def test_existing_results_are_not_overwritten(demo_out):
+    before = (demo_out / "summary.json").read_text()
+    proc = run_cli(["run", PAPER_CASE, "--out", demo_out, "--set", "time.N=1"])
+    assert proc.returncode == 2 and "--overwrite" in proc.stderr
+    assert (demo_out / "summary.json").read_text() == before
+
+
+def test_bad_case_exits_2_and_writes_nothing(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(PAPER_CASE.read_text().replace("lambda1:", "lamda1:"))
+    out = tmp_path / "out"
+    proc = run_cli(["run", bad, "--out", out])
+    assert proc.returncode == 2
+    assert "bad.yaml" in proc.stderr and "material.viscoplastic.lamda1" in proc.stderr
+    assert "did you mean 'lambda1'" in proc.stderr and "Traceback" not in proc.stderr
+    assert not out.exists()
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--set", "mesh.diagonal=up"])
+    assert proc.returncode == 2 and "mesh.diagonal" in proc.stderr and not out.exists()
+
+
+def test_petsc_options_reach_the_solver(tmp_path):
+    proc = run_cli(["run", PAPER_CASE, "--out", tmp_path / "o", "--set", "time.N=1",
+                    "-snes_monitor", "-snes_rtol", "1e-12"])
+    assert proc.returncode == 0, proc.stderr
+    assert "SNES Function norm" in proc.stdout
+
+
+def test_solver_failure_names_the_step(tmp_path):
+    out = tmp_path / "o"
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--set", "time.N=3", "-snes_max_it", "1"])
+    assert proc.returncode == 1
+    assert "step 1" in proc.stderr and "DIVERGED_MAX_IT" in proc.stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "failed" and s["last_good_step"] == 0
+    assert s["failure"]["step"] == 1
+
+
+def test_console_script_help():
+    script = Path(ROOT) / ".venv" / "bin" / "vpcontact"
+    if not script.exists():
+        pytest.skip("console script is installed by make setup")
+    import subprocess
+    proc = subprocess.run([script, "run", "--help"], capture_output=True, text=True)
+    assert proc.returncode == 0 and "--set" in proc.stdout and "--overwrite" in proc.stdout
