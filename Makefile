@@ -10,7 +10,8 @@ CASE   ?= cases/wang_cheng_2021.yaml
 # Debian bookworm packages (the platform is fixed: dolfinx 0.5.2 from Debian).
 DEB_PACKAGES := python3-dolfinx-real python3-petsc4py-real python3-mpi4py python3-gmsh gmsh \
                 python3-yaml python3-jsonschema python3-numpy python3-pytest python3-venv \
-                python3-pip python3-setuptools python3-wheel python3-dev openmpi-bin
+                python3-pip python3-setuptools python3-wheel python3-dev openmpi-bin \
+                python3-h5py python3-matplotlib
 
 # mpirun as root (CI and these machines run as root); small dense algebra single-threaded.
 export OMPI_ALLOW_RUN_AS_ROOT := 1
@@ -18,12 +19,13 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OPENBLAS_NUM_THREADS := 1
 export OMP_NUM_THREADS := 1
 
-.PHONY: help setup demo test clean
+.PHONY: help setup demo test convergence clean
 
 help:
 	@echo "make setup   install Debian packages, create $(VENV), pip install -e . (idempotent)"
 	@echo "make demo    run $(CASE) (the paper's Section 4 example) into results/"
 	@echo "make test    run the test suite (serial and mpirun -n 2)"
+	@echo "make convergence  the paper's Table 1 study (h = k = 1/8..1/64 vs 1/128) for three deltas"
 
 setup:
 	@missing=$$(for p in $(DEB_PACKAGES); do \
@@ -45,6 +47,13 @@ demo: setup
 
 test: setup
 	$(PY) -m pytest -ra tests
+
+# The paper's Table 1 configuration, for the default delta and two larger ones (work-precision
+# view across the friction regularisation). Runs are cached in ~/.cache/vpcontact.
+CONV_DELTAS ?= 1e-7 1e-3 1e-2
+convergence: setup
+	$(PY) -m app convergence $(CASE) --levels 8 16 32 64 --reference 128 --vary both \
+	  --deltas $(CONV_DELTAS) --overwrite
 
 clean:
 	rm -rf results .pytest_cache

@@ -64,6 +64,33 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--overwrite", action="store_true",
                      help="replace the outputs of an earlier run in the output directory")
     run.add_argument("--quiet", action="store_true", help="only warnings and errors")
+
+    conv = sub.add_parser(
+        "convergence", help="convergence study: Error against h, k and wall time",
+        description="Run a case at several resolutions and a reference, and report "
+                    "Error = max_n (||sigma_n - sigma_n^ref||_Q + ||u_n - u_n^ref||_V + "
+                    "||kappa_n - kappa_n^ref||_Y) per level with observed rates and wall times "
+                    "(convergence.csv, convergence.md, convergence.png). Runs are cached.")
+    conv.add_argument("case", help="YAML case file with a structured mesh")
+    conv.add_argument("--levels", type=int, nargs="+", default=[8, 16, 32, 64], metavar="L",
+                      help="levels: 1/h and/or 1/k of each run (default: 8 16 32 64)")
+    conv.add_argument("--reference", type=int, default=128, metavar="R",
+                      help="the reference run has n = N = R (default: 128)")
+    conv.add_argument("--vary", choices=["both", "h", "k"], default="both",
+                      help="refine h and k together, or one with the other at the reference")
+    conv.add_argument("--deltas", type=float, nargs="+", metavar="D",
+                      help="friction regularisation widths to study (default: the case's); "
+                           "the reference uses the smallest of these and the case's")
+    conv.add_argument("--out", metavar="DIR",
+                      help="output directory (default: results/<case name>/convergence)")
+    conv.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                      help="override a case key (repeatable)")
+    conv.add_argument("--cache-dir", metavar="DIR",
+                      help="run cache (default: $VPCONTACT_CACHE or ~/.cache/vpcontact)")
+    conv.add_argument("--no-cache", action="store_true", help="recompute every run")
+    conv.add_argument("--overwrite", action="store_true",
+                      help="replace the outputs of an earlier study in the output directory")
+    conv.add_argument("--quiet", action="store_true", help="only warnings and errors")
     return p
 
 
@@ -88,11 +115,11 @@ def _setup_logging(comm, quiet: bool) -> None:
     log.propagate = False
 
 
-def _prepare_outdir(comm, outdir: Path, overwrite: bool) -> None:
+def _prepare_outdir(comm, outdir: Path, overwrite: bool, files=None) -> None:
     """Refuse to overwrite an earlier run unless asked; create the directory."""
     from .output import OUTPUT_FILES
 
-    existing = [f for f in OUTPUT_FILES if (outdir / f).exists()]
+    existing = [f for f in (files or OUTPUT_FILES) if (outdir / f).exists()]
     if existing and not overwrite:
         raise CaseError(f"{outdir}: holds the outputs of an earlier run ({', '.join(existing)}); "
                         "pass --overwrite to replace them or --out DIR for another directory")
@@ -140,12 +167,68 @@ def cmd_run(args, petsc_cli: dict) -> int:
     return 1
 
 
+CONVERGENCE_FILES = ("convergence.csv", "convergence.md", "convergence.png")
+
+
+def cmd_convergence(args, petsc_cli: dict) -> int:
+    from mpi4py import MPI
+
+    from .case import load_raw, validate
+
+    comm = MPI.COMM_WORLD
+    _setup_logging(comm, args.quiet)
+    try:
+        raw = load_raw(args.case, args.overrides)
+        case = validate(raw, args.case)
+        from .convergence import plan_runs
+        plan_runs(args.levels, args.reference, args.vary, case)
+        outdir = Path(args.out) if args.out else Path("results") / case.name / "convergence"
+        _prepare_outdir(comm, outdir, args.overwrite, CONVERGENCE_FILES)
+    except CaseError as exc:
+        if comm.rank == 0:
+            print(f"vpcontact: error: {exc}", file=sys.stderr)
+        return 2
+
+    from . import convergence as cv
+    from .runcache import default_cache_dir
+
+    cache_dir = None if args.no_cache else Path(args.cache_dir or default_cache_dir())
+    log.info("vpcontact %s: convergence study of %s -> %s (cache: %s, %d MPI rank%s)",
+             __version__, args.case, outdir, cache_dir or "off", comm.size,
+             "s" if comm.size > 1 else "")
+    try:
+        res = cv.study(raw, args.case, args.levels, args.reference, args.vary, args.deltas,
+                       comm, cache_dir, petsc_cli)
+    except CaseError as exc:
+        if comm.rank == 0:
+            print(f"vpcontact: error: {exc}", file=sys.stderr)
+        return 2
+    except RuntimeError as exc:
+        if comm.rank == 0:
+            print(f"vpcontact: error: {exc}", file=sys.stderr)
+        return 1
+    if comm.rank == 0:
+        cv.write_csv(outdir / "convergence.csv", res)
+        cv.write_markdown(outdir / "convergence.md", res, case.name)
+        cv.write_plot(outdir / "convergence.png", res)
+        for r in res["rows"]:
+            log.info("delta %-8g h %-9.5g k %-9.5g Error %.6g  rate %s  wall %.3f s%s",
+                     r["delta"], r["h"], r["k"], r["error"],
+                     "-" if r["rate"] is None else f"{r['rate']:.3f}", r["solve_s"],
+                     " (cached)" if r["cached"] else "")
+        log.info("done in %.1f s: %s/{%s}", res["total_s"], outdir, ", ".join(CONVERGENCE_FILES))
+    comm.barrier()
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     ours, petsc_cli = split_petsc_args(argv)
     args = _parser().parse_args(ours)
     if args.command == "run":
         return cmd_run(args, petsc_cli)
+    if args.command == "convergence":
+        return cmd_convergence(args, petsc_cli)
     return 2  # pragma: no cover (argparse enforces a command)
 
 
