@@ -206,7 +206,15 @@ def study(raw: dict, source: str, levels: list[int], reference: int, vary: str,
                          "n_max": e["n_max"], "t_max": e["t_max"], "rate": rate,
                          "solve_s": r.solve_s, "setup_s": r.setup_s, "newton_total": r.newton,
                          "cached": r.cached})
-    return {"rows": rows, "reference": ref, "vary": vary, "levels": levels,
+    ref_norms = None
+    if comm.rank == 0:
+        ref_norms = {
+            "sigma_Q": max(cell_l2_norm(sn["sigma"], ref.grid) for sn in ref.snaps),
+            "u_V": max(strain_norm(sn["u"], ref.grid) for sn in ref.snaps),
+            "kappa_Y": max(cell_l2_norm(sn["kappa"], ref.grid) for sn in ref.snaps)}
+    ref_norms = comm.bcast(ref_norms, root=0)
+    return {"rows": rows, "reference": ref, "ref_norms": ref_norms, "vary": vary,
+            "levels": levels,
             "reference_level": reference, "deltas": deltas, "ref_delta": ref_delta,
             "paper": matches_paper(raw) and vary == "both" and reference == 128,
             "total_s": time.perf_counter() - t0}
@@ -288,7 +296,38 @@ def write_markdown(path: Path, res: dict, case_name: str) -> None:
         lines.append("")
         if paper:
             lines += [paper_sentence(rows), ""]
+    lines += explain(res)
     atomic_write(path, "\n".join(lines) + "\n")
+
+
+def explain(res: dict) -> list[str]:
+    """Facts that explain where the Error comes from (and, for Table 1, the differences)."""
+    rows = [r for r in res["rows"] if r["delta"] == res["deltas"][0]]
+    if not rows:
+        return []
+    fin = rows[-1]
+    nr = res["ref_norms"]
+    share = fin["e_sigma"] / fin["error"]
+    out = ["## Where the error comes from", "",
+           f"- At the finest level the stress part is {100 * share:.1f}% of the Error "
+           f"(sigma {fin['e_sigma']:.4g}, u {fin['e_u']:.4g}, kappa {fin['e_kappa']:.4g}); the "
+           "maximum over n is reached at step(s) n_max = "
+           + ", ".join(str(r["n_max"]) for r in rows) + " (t = "
+           + ", ".join(f"{r['t_max']:.4g}" for r in rows) + ").",
+           f"- Size of the reference solution: max_n ||sigma_n||_Q = {nr['sigma_Q']:.4g}, "
+           f"max_n ||u_n||_V = {nr['u_V']:.4g}, max_n ||kappa_n||_Y = {nr['kappa_Y']:.4g}.",
+           "- The observed rate at the finest level is measured against a reference only "
+           f"{res['reference_level'] // rows[-1]['level']}x finer; the reference's own error is "
+           "then not negligible and this last rate is biased (for an error C h^p it "
+           "overestimates p)."]
+    if res["paper"]:
+        big = max(PAPER_TABLE1.values())
+        out.append(f"- The paper's Errors ({big} at h = 1/8) exceed the size of the solution "
+                   f"itself (max_n ||sigma_n||_Q = {nr['sigma_Q']:.3g}); an error of that size "
+                   "cannot be this Error in these norms for this solution, so the paper's norms "
+                   "(or their scaling) must differ from MODEL.md section 5; the paper does not "
+                   "say how they were computed. Compare the rates, not the magnitudes.")
+    return out + [""]
 
 
 def write_plot(path: Path, res: dict) -> None:
@@ -312,6 +351,11 @@ def write_plot(path: Path, res: dict) -> None:
     if res["paper"]:
         ax1.loglog([1 / L for L in PAPER_TABLE1], list(PAPER_TABLE1.values()), "x:",
                    color="grey", label="paper Table 1")
+    ticks = sorted({r[xkey] for r in res["rows"]})
+    ax1.set_xticks(ticks)
+    ax1.set_xticklabels([f"1/{round(1 / x)}" if abs(1 / x - round(1 / x)) < 1e-9 else f"{x:g}"
+                         for x in ticks])
+    ax1.minorticks_off()
     ax1.set_xlabel(xkey if res["vary"] != "both" else "h = k")
     ax1.set_ylabel("Error")
     ax1.set_title(f"Error against {xkey} (reference 1/{res['reference_level']})")
