@@ -14,6 +14,8 @@ from pathlib import Path
 import jsonschema
 import yaml
 
+from meshes.rectangle import SIDES
+
 from .schema import DEFAULT_PETSC, SCHEMA
 
 
@@ -123,8 +125,10 @@ def load_raw(path: str | Path, overrides: list[str] = ()) -> dict:
 # ----------------------------------------------------------------------------- the case
 @dataclass(frozen=True)
 class MeshSpec:
+    dim: int
     L1: float
     L2: float
+    L3: float
     kind: str
     n: int | None
     h: float | None
@@ -135,7 +139,7 @@ class MeshSpec:
 class Viscoplastic:
     lambda1: float
     lambda2: float
-    kappa0: float
+    kappa0: float | str
 
 
 @dataclass(frozen=True)
@@ -146,11 +150,29 @@ class Material:
 
 
 @dataclass(frozen=True)
+class Slip:
+    theta_inf: float
+    s0: float
+
+
+@dataclass(frozen=True)
 class Friction:
     b: float
     c1: float
     c2: float
     u1: float
+    slip: Slip | None = None
+
+
+@dataclass(frozen=True)
+class Memory:
+    b0: float
+    beta: float
+    kernel: str
+    alpha: float | None
+    tau: float | None
+    table: tuple | None
+    sum: str
 
 
 @dataclass(frozen=True)
@@ -158,27 +180,37 @@ class Contact:
     g: float | None
     c_nu: float | None
     friction: Friction | None
+    memory: Memory | None = None
 
     @property
     def active(self) -> bool:
-        return self.g is not None or self.c_nu is not None or self.friction is not None
+        return any(x is not None for x in (self.g, self.c_nu, self.friction, self.memory))
 
 
 @dataclass(frozen=True)
 class Loads:
-    f0: tuple
+    f0: tuple | None
     traction: dict
 
 
 @dataclass(frozen=True)
+class Initial:
+    u0: tuple | None
+    sigma0: tuple | None
+
+
+@dataclass(frozen=True)
 class TimeGrid:
-    T: float
-    N: int
+    times: tuple
+    uniform: bool
 
     @property
-    def times(self) -> list[float]:
-        """t_0 = 0 < t_1 < ... < t_N = T (uniform)."""
-        return [self.T * n / self.N for n in range(self.N + 1)]
+    def T(self) -> float:
+        return self.times[-1]
+
+    @property
+    def N(self) -> int:
+        return len(self.times) - 1
 
 
 @dataclass(frozen=True)
@@ -202,23 +234,90 @@ class Case:
     material: Material
     contact: Contact
     loads: Loads
+    initial: Initial
     time: TimeGrid
     numerics: Numerics
     petsc: dict
     output: OutputSpec
     raw: dict = field(repr=False)
 
+    @property
+    def dim(self) -> int:
+        return self.mesh.dim
+
     def active_terms(self) -> list[str]:
-        terms = ["plane-stress elasticity"]
+        terms = ["plane-stress elasticity" if self.dim == 2 else "isotropic elasticity (3D)"]
         if self.material.viscoplastic:
             terms.append("Perzyna viscoplastic history H_n, kappa_n")
         if self.contact.c_nu is not None:
             terms.append("normal compliance")
         if self.contact.g is not None:
             terms.append("unilateral constraint u_nu <= g")
+        if self.contact.memory is not None:
+            terms.append(f"memory term xi_n ({self.contact.memory.kernel} kernel)")
         if self.contact.friction is not None:
             terms.append("nonmonotone friction (4.2)")
+            if self.contact.friction.slip is not None:
+                terms.append("slip-dependent friction theta(s_n)")
         return terms
+
+
+def _check_components(items, path: str, dim: int, source: str, names=("t", "x", "y", "z")):
+    """Length = dim; expressions parse with the allowed names; tables increase in t."""
+    from . import expressions
+
+    if len(items) != dim:
+        raise CaseError(f"{source}: {path}: expected {dim} components (the mesh dimension), "
+                        f"got {len(items)}")
+    for i, c in enumerate(items):
+        if isinstance(c, str):
+            try:
+                expressions.parse(c, names)
+            except expressions.ExpressionError as exc:
+                raise CaseError(f"{source}: {path}[{i}]: {exc}") from None
+        elif isinstance(c, dict):
+            ts = [row[0] for row in c["table"]]
+            if any(b <= a for a, b in zip(ts, ts[1:])):
+                raise CaseError(f"{source}: {path}[{i}].table: times must increase strictly")
+
+
+def _time_grid(t: dict, source: str) -> TimeGrid:
+    import math
+
+    if "times" in t:
+        extra = [k for k in ("N", "k", "grading") if k in t]
+        if extra:
+            raise CaseError(f"{source}: time.{extra[0]}: not allowed together with time.times")
+        ts = [float(x) for x in t["times"]]
+        if ts[0] != 0.0 or any(b <= a for a, b in zip(ts, ts[1:])):
+            raise CaseError(f"{source}: time.times: must start at 0 and increase strictly")
+        if "T" in t and abs(t["T"] - ts[-1]) > 1e-12 * ts[-1]:
+            raise CaseError(f"{source}: time.T: {t['T']} differs from the last of time.times "
+                            f"({ts[-1]})")
+        k = [b - a for a, b in zip(ts, ts[1:])]
+        return TimeGrid(tuple(ts), max(k) - min(k) <= 1e-12 * ts[-1])
+    if "T" not in t:
+        raise CaseError(f"{source}: time.T: required (or give time.times)")
+    T = float(t["T"])
+    if ("N" in t) == ("k" in t):
+        raise CaseError(f"{source}: time: give exactly one of time.N and time.k")
+    if "k" in t:
+        if "grading" in t:
+            raise CaseError(f"{source}: time.grading: needs time.N, not time.k")
+        N = round(T / t["k"])
+        if N < 1 or abs(N * t["k"] - T) > 1e-9 * T:
+            raise CaseError(f"{source}: time.k: {t['k']} does not divide T = {T} into whole steps")
+        return TimeGrid(tuple(T * n / N for n in range(N + 1)), True)
+    N = int(t["N"])
+    r = float(t.get("grading", 1.0))
+    if r == 1.0:
+        return TimeGrid(tuple(T * n / N for n in range(N + 1)), True)
+    k1 = T * (1.0 - r) / (1.0 - r**N)
+    ts = [0.0] + [k1 * (1.0 - r**n) / (1.0 - r) for n in range(1, N + 1)]
+    ts[-1] = T
+    if not all(math.isfinite(x) for x in ts) or any(b <= a for a, b in zip(ts, ts[1:])):
+        raise CaseError(f"{source}: time.grading: {r} with N = {N} gives steps that underflow")
+    return TimeGrid(tuple(ts), False)
 
 
 def validate(data: dict, source: str = "<case>") -> Case:
@@ -230,39 +329,93 @@ def validate(data: dict, source: str = "<case>") -> Case:
         raise CaseError(f"{source}: invalid case:\n  " + "\n  ".join(_explain(e) for e in errors))
     _fill_defaults(SCHEMA, data)
     mesh = data["mesh"]
+    dim = mesh["dim"]
     if mesh["kind"] == "unstructured" and "h" not in mesh:
         raise CaseError(f"{source}: mesh.h: required when mesh.kind is 'unstructured'")
     contact = data.get("contact", {})
-    traction = data["loads"].get("traction", {})
+    loads = data["loads"]
+    traction = loads.get("traction", {})
     if contact and "bottom" in traction:
         raise CaseError(f"{source}: loads.traction.bottom: the bottom side is Gamma3 (contact); "
                         "a traction there is only allowed in a case without a contact section")
-    if contact and not any(k in contact for k in ("g", "normal_compliance", "friction")):
-        raise CaseError(f"{source}: contact: give at least one of g, normal_compliance, friction")
+    sides = SIDES[dim]
+    for side in traction:
+        if side not in sides:
+            raise CaseError(f"{source}: loads.traction.{side}: no such side in {dim}D "
+                            f"(allowed: {', '.join(s for s in sides if s != 'left')})")
+        _check_components(traction[side], f"loads.traction.{side}", dim, source)
+    if "f0" in loads:
+        _check_components(loads["f0"], "loads.f0", dim, source)
+    if contact and not any(k in contact for k in ("g", "normal_compliance", "friction", "memory")):
+        raise CaseError(f"{source}: contact: give at least one of g, normal_compliance, "
+                        "memory, friction")
     vp = data["material"].get("viscoplastic")
+    if vp and isinstance(vp["kappa0"], str):
+        _check_components([vp["kappa0"]], "material.viscoplastic.kappa0", 1, source,
+                          ("x", "y", "z"))
     fr = contact.get("friction")
     if fr and fr["b"] - fr["c1"] * fr["u1"] < 0:
         raise CaseError(f"{source}: contact.friction: b - c1 u1 must be >= 0 (the friction "
                         f"force of law (4.2) may not change sign), got "
                         f"{fr['b'] - fr['c1'] * fr['u1']:g}")
+    mem = contact.get("memory")
+    if mem:
+        need = {"power": ("alpha", "tau"), "table": ("table",)}.get(mem["kernel"], ())
+        for key in need:
+            if key not in mem:
+                raise CaseError(f"{source}: contact.memory.{key}: required for the "
+                                f"{mem['kernel']} kernel")
+        if mem["sum"] == "recursion" and mem["kernel"] != "exponential":
+            raise CaseError(f"{source}: contact.memory.sum: the recursion is exact only for the "
+                            "exponential kernel (allowed here: auto, direct)")
+        if mem["kernel"] == "table":
+            ts = [row[0] for row in mem["table"]]
+            if ts[0] != 0.0 or any(b <= a for a, b in zip(ts, ts[1:])) \
+                    or any(row[1] < 0 for row in mem["table"]):
+                raise CaseError(f"{source}: contact.memory.table: times must start at 0 and "
+                                "increase strictly; values must be >= 0")
+    init = data.get("initial", {})
+    if "u0" in init:
+        _check_components(init["u0"], "initial.u0", dim, source, ("x", "y", "z"))
+    if "sigma0" in init:
+        rows = init["sigma0"]
+        if len(rows) != dim or any(len(r) != dim for r in rows):
+            raise CaseError(f"{source}: initial.sigma0: expected a {dim} x {dim} matrix")
+        for i, r in enumerate(rows):
+            _check_components(r, f"initial.sigma0[{i}]", dim, source, ("x", "y", "z"))
+            for j in range(i):
+                if rows[i][j] != rows[j][i]:
+                    raise CaseError(f"{source}: initial.sigma0: must be symmetric "
+                                    f"([{i}][{j}] != [{j}][{i}])")
+    time_grid = _time_grid(data["time"], source)
     petsc = {**DEFAULT_PETSC, **data.get("petsc", {})}
+    slip = fr.get("slip") if fr else None
     return Case(
         name=data.get("name") or Path(source).stem,
         source=source,
-        mesh=MeshSpec(float(mesh["L1"]), float(mesh["L2"]), mesh["kind"],
-                      int(mesh["n"]) if mesh["kind"] == "structured" else None,
+        mesh=MeshSpec(dim, float(mesh["L1"]), float(mesh["L2"]), float(mesh["L3"]),
+                      mesh["kind"], int(mesh["n"]) if mesh["kind"] == "structured" else None,
                       float(mesh["h"]) if mesh["kind"] == "unstructured" else None,
                       mesh["diagonal"]),
         material=Material(float(data["material"]["E"]), float(data["material"]["nu"]),
                           Viscoplastic(float(vp["lambda1"]), float(vp["lambda2"]),
-                                       float(vp["kappa0"])) if vp else None),
-        contact=Contact(float(contact["g"]) if "g" in contact else None,
-                        float(contact["normal_compliance"]["c_nu"])
-                        if "normal_compliance" in contact else None,
-                        Friction(*(float(fr[k]) for k in ("b", "c1", "c2", "u1"))) if fr else None),
-        loads=Loads(tuple(float(x) for x in data["loads"]["f0"]),
-                    {k: tuple(float(x) for x in v) for k, v in traction.items()}),
-        time=TimeGrid(float(data["time"]["T"]), int(data["time"]["N"])),
+                                       vp["kappa0"] if isinstance(vp["kappa0"], str)
+                                       else float(vp["kappa0"])) if vp else None),
+        contact=Contact(
+            float(contact["g"]) if "g" in contact else None,
+            float(contact["normal_compliance"]["c_nu"]) if "normal_compliance" in contact
+            else None,
+            Friction(*(float(fr[k]) for k in ("b", "c1", "c2", "u1")),
+                     Slip(float(slip["theta_inf"]), float(slip["s0"])) if slip else None)
+            if fr else None,
+            Memory(float(mem["b0"]), float(mem["beta"]), mem["kernel"], mem.get("alpha"),
+                   mem.get("tau"), tuple(map(tuple, mem["table"])) if "table" in mem else None,
+                   mem["sum"]) if mem else None),
+        loads=Loads(tuple(loads["f0"]) if "f0" in loads else None,
+                    {k: tuple(v) for k, v in traction.items()}),
+        initial=Initial(tuple(init["u0"]) if "u0" in init else None,
+                        tuple(map(tuple, init["sigma0"])) if "sigma0" in init else None),
+        time=time_grid,
         numerics=Numerics(**data["solver"]),
         petsc=petsc,
         output=OutputSpec(**data["output"]),

@@ -11,19 +11,18 @@ from __future__ import annotations
 
 from dolfinx import fem
 
-from .material import Perzyna, from_voigt, to_voigt
+from .material import Perzyna
 
 
 class ViscoplasticHistory:
-    """Holds H_n (the problem's DG0 function ``H``) and kappa_n, and advances them."""
+    """Holds H_n (the problem's DG0 function ``H``) and kappa_n, and advances them.
+    H_0 = sigma0 - E eps(u0) and kappa_0 are set by ``problem.set_initial_values``."""
 
-    def __init__(self, problem, lambda1: float, lambda2: float, kappa0: float):
+    def __init__(self, problem, lambda1: float, lambda2: float):
+        self.elasticity = problem.law
         self.law = Perzyna(problem.law, lambda1, lambda2)
         self.H = problem.H
         self.kappa = fem.Function(problem.Y, name="kappa")
-        self.kappa.x.array[:] = kappa0
-        # sigma0 = 0 and u0 = 0 here, so H_0 = sigma0 - E eps(u0) = 0.
-        self.H.x.array[:] = 0.0
 
     def advance(self, sigma_prev, k: float) -> None:
         """H_n = H_{n-1} + k_n Gfun(sigma_{n-1}, kappa_{n-1}), same for kappa (3.2)-(3.3).
@@ -32,7 +31,7 @@ class ViscoplasticHistory:
         on entry and kappa_n on exit.  All local cells (owned and ghost) are updated with the
         same data, so ghosts stay consistent without communication.
         """
-        t = to_voigt(sigma_prev.x.array)
+        t = self.elasticity.to_voigt(sigma_prev.x.array)
         g_sigma, g_kappa = self.law.rates(t, self.kappa.x.array)
-        self.H.x.array[:] += k * from_voigt(g_sigma).reshape(-1)
+        self.H.x.array[:] += k * self.elasticity.from_voigt(g_sigma).reshape(-1)
         self.kappa.x.array[:] += k * g_kappa

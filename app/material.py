@@ -1,17 +1,17 @@
-"""Plane-stress Perzyna viscoplasticity of the paper (Section 4; MODEL.md section 2).
+"""Perzyna viscoplasticity of the paper (Section 4; MODEL.md section 2), in 2D and 3D.
 
-Stresses are stored per cell (DG0) as 2x2 arrays; the per-cell algebra uses the coordinates
-t = (t11, t22, t12) and is vectorised over cells with numpy.  In these coordinates
-- E acts as  (E tau) = Cmat t,      Cmat = [[l+m2, l, 0], [l, l+m2, 0], [0, 0, m2]],
-- the energy form (E tau):tau = t^T A t,  A = diag(1, 1, 2) Cmat  (shear counted twice),
-- the von Mises form ||tau||_VM^2 = t^T M t,  M = [[1, -1/2, 0], [-1/2, 1, 0], [0, 0, 3]],
-with l = E s/(1-s^2), m2 = E/(1+s).
+Stresses are stored per cell (DG0) as d x d arrays; the per-cell algebra uses coordinates
+t = (t11, t22, t12) in 2D and t = (t11, t22, t33, t23, t13, t12) in 3D, vectorised over cells:
+- E acts as  (E tau) = Cmat t;  E tau = lmbda tr(tau) I + two_mu tau (plane stress in 2D,
+  isotropic Hooke in 3D, see forms/elasticity.py);
+- the energy form (E tau):tau = t^T A t,  A = diag(1.., 2..) Cmat  (shears counted twice);
+- the von Mises form ||tau||_VM^2 = t^T M t: in 2D t11^2 + t22^2 - t11 t22 + 3 t12^2 (the
+  paper), in 3D 3/2 dev(tau):dev(tau).
 
 Perzyna law: Gfun(sigma, kappa) = -1/(2 lambda1) E (sigma - P sigma),
              Gk(sigma, kappa)   = 2/(3 lambda2) ||sigma - P sigma||_VM,
 P = P_K(kappa) the projection onto K(kappa) = {||tau||_VM <= kappa} in the energy inner
-product.  The projection is exact: P sigma = (A + mu M)^-1 A sigma with mu >= 0 the root of
-||P sigma||_VM = kappa, found through the simultaneous diagonalisation of (A, M).
+product, exact in both dimensions (VonMisesProjection in 2D, RadialReturn in 3D).
 """
 from __future__ import annotations
 
@@ -19,50 +19,121 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from forms.elasticity import plane_stress_constants
+from forms.elasticity import lame_constants
+
+# (row, col) of the coordinates t_i in the d x d tensor
+_PAIRS = {2: [(0, 0), (1, 1), (0, 1)],
+          3: [(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)]}
 
 
-def to_voigt(tau: np.ndarray) -> np.ndarray:
-    """(n, 2, 2) symmetric tensors -> (n, 3) coordinates (t11, t22, t12)."""
-    tau = np.asarray(tau).reshape(-1, 2, 2)
-    return np.stack([tau[:, 0, 0], tau[:, 1, 1], 0.5 * (tau[:, 0, 1] + tau[:, 1, 0])], axis=1)
+def to_voigt(tau: np.ndarray, dim: int = 2) -> np.ndarray:
+    """(n, d, d) symmetric tensors -> (n, m) coordinates (m = 3 in 2D, 6 in 3D)."""
+    tau = np.asarray(tau).reshape(-1, dim, dim)
+    return np.stack([0.5 * (tau[:, i, j] + tau[:, j, i]) for i, j in _PAIRS[dim]], axis=1)
 
 
-def from_voigt(t: np.ndarray) -> np.ndarray:
-    """(n, 3) coordinates -> (n, 2, 2) symmetric tensors."""
-    t = np.asarray(t).reshape(-1, 3)
-    out = np.empty((t.shape[0], 2, 2))
-    out[:, 0, 0], out[:, 1, 1] = t[:, 0], t[:, 1]
-    out[:, 0, 1] = out[:, 1, 0] = t[:, 2]
+def from_voigt(t: np.ndarray, dim: int = 2) -> np.ndarray:
+    """(n, m) coordinates -> (n, d, d) symmetric tensors."""
+    pairs = _PAIRS[dim]
+    t = np.asarray(t).reshape(-1, len(pairs))
+    out = np.empty((t.shape[0], dim, dim))
+    for k, (i, j) in enumerate(pairs):
+        out[:, i, j] = out[:, j, i] = t[:, k]
     return out
 
 
+def _von_mises_matrix(dim: int) -> np.ndarray:
+    if dim == 2:
+        return np.array([[1.0, -0.5, 0.0], [-0.5, 1.0, 0.0], [0.0, 0.0, 3.0]])
+    M = np.zeros((6, 6))
+    M[:3, :3] = -0.5
+    np.fill_diagonal(M[:3, :3], 1.0)
+    M[3:, 3:] = 3.0 * np.eye(3)
+    return M
+
+
 @dataclass(frozen=True)
-class PlaneStress:
-    """The plane-stress elasticity operator and the quadratic forms in t-coordinates."""
+class Elasticity:
+    """The elasticity operator and the quadratic forms in t-coordinates (d = 2 or 3)."""
 
     E: float
     nu: float
+    dim: int = 2
+
+    @property
+    def m(self) -> int:
+        return len(_PAIRS[self.dim])
 
     @property
     def Cmat(self) -> np.ndarray:
-        lmbda, two_mu = plane_stress_constants(self.E, self.nu)
-        return np.array([[lmbda + two_mu, lmbda, 0.0], [lmbda, lmbda + two_mu, 0.0],
-                         [0.0, 0.0, two_mu]])
+        lmbda, two_mu = lame_constants(self.E, self.nu, self.dim)
+        d, m = self.dim, self.m
+        C = two_mu * np.eye(m)
+        C[:d, :d] += lmbda
+        return C
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Frobenius weights of the coordinates: tau:sigma = sum w_i t_i s_i."""
+        return np.array([1.0] * self.dim + [2.0] * (self.m - self.dim))
 
     @property
     def A(self) -> np.ndarray:
-        return np.diag([1.0, 1.0, 2.0]) @ self.Cmat
+        return np.diag(self.weights) @ self.Cmat
 
-    M = np.array([[1.0, -0.5, 0.0], [-0.5, 1.0, 0.0], [0.0, 0.0, 3.0]])
+    @property
+    def M(self) -> np.ndarray:
+        return _von_mises_matrix(self.dim)
 
     def apply(self, t: np.ndarray) -> np.ndarray:
-        """E tau for rows t (n, 3)."""
+        """E tau for rows t (n, m)."""
         return t @ self.Cmat.T
 
     def von_mises(self, t: np.ndarray) -> np.ndarray:
-        """||tau||_VM for rows t (n, 3)."""
+        """||tau||_VM for rows t (n, m)."""
         return np.sqrt(np.maximum(np.einsum("ni,ij,nj->n", t, self.M, t), 0.0))
+
+    def to_voigt(self, tau):
+        return to_voigt(tau, self.dim)
+
+    def from_voigt(self, t):
+        return from_voigt(t, self.dim)
+
+
+def PlaneStress(E: float, nu: float) -> Elasticity:
+    """The paper's plane-stress law (d = 2)."""
+    return Elasticity(E, nu, 2)
+
+
+class RadialReturn:
+    """Closed-form projection onto K(kappa) in 3D for isotropic E.
+
+    With tau = dev(tau) + tr(tau)/3 I, both forms split: (E tau):tau = two_mu dev:dev +
+    (lmbda + two_mu/3) tr^2 and ||tau||_VM^2 = 3/2 dev:dev.  On deviators the energy form is
+    a multiple of the Frobenius one, so the closest point in the energy norm keeps the
+    hydrostatic part and scales the deviator radially:
+        P tau = tr(tau)/3 I + min(1, kappa / ||tau||_VM) dev(tau).
+    """
+
+    def __init__(self, law: Elasticity):
+        if law.dim != 3:
+            raise ValueError("RadialReturn is the 3D projection")
+        self.law = law
+
+    def __call__(self, s: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+        s = np.asarray(s, dtype=float).reshape(-1, 6)
+        kappa = np.broadcast_to(np.asarray(kappa, dtype=float), (s.shape[0],))
+        vm = self.law.von_mises(s)
+        scale = np.where(vm > kappa, kappa / np.where(vm > 0, vm, 1.0), 1.0)
+        mean = s[:, :3].mean(axis=1, keepdims=True)
+        out = s * scale[:, None]
+        out[:, :3] = mean + (s[:, :3] - mean) * scale[:, None]
+        return out
+
+
+def make_projection(law: Elasticity):
+    """The exact energy-norm projection onto the von Mises ball for this law."""
+    return VonMisesProjection(law) if law.dim == 2 else RadialReturn(law)
 
 
 class VonMisesProjection:
@@ -75,19 +146,20 @@ class VonMisesProjection:
     monotonically (as for the trust-region subproblem); iterations are vectorised over cells.
     """
 
-    def __init__(self, law: PlaneStress, rtol: float = 1e-14, max_iter: int = 100):
+    def __init__(self, law: Elasticity, rtol: float = 1e-14, max_iter: int = 100):
         A, M = law.A, law.M
+        self.m = A.shape[0]
         L = np.linalg.cholesky(A)
         Linv = np.linalg.inv(L)
         lam, W = np.linalg.eigh(Linv @ M @ Linv.T)
-        self.lam = np.clip(lam, 0.0, None)
+        self.lam = np.where(lam > 1e-12 * lam.max(), lam, 0.0)   # M may be singular (3D)
         self.V = Linv.T @ W
         self.A, self.M = A, M
         self.rtol, self.max_iter = rtol, max_iter
 
     def __call__(self, s: np.ndarray, kappa: np.ndarray) -> np.ndarray:
         """Project rows s (n, 3) onto K(kappa) (kappa: (n,) >= 0); returns (n, 3)."""
-        s = np.asarray(s, dtype=float).reshape(-1, 3)
+        s = np.asarray(s, dtype=float).reshape(-1, self.m)
         kappa = np.broadcast_to(np.asarray(kappa, dtype=float), (s.shape[0],))
         out = s.copy()
         vm = np.sqrt(np.maximum(np.einsum("ni,ij,nj->n", s, self.M, s), 0.0))
@@ -105,7 +177,7 @@ class VonMisesProjection:
                 break
             za, ma, ka = z[active], mu[active], k[active]
             d = 1.0 + ma[:, None] * lam[None, :]
-            q = np.sum(lam * za**2 / d**2, axis=1)
+            q = np.sum(lam * za**2 / d**2, axis=1)   # ||P s||_VM^2 at mu
             dq = -2.0 * np.sum(lam**2 * za**2 / d**3, axis=1)
             phi = 1.0 / np.sqrt(q) - 1.0 / ka
             dphi = -0.5 * q ** (-1.5) * dq
@@ -127,12 +199,12 @@ class VonMisesProjection:
 class Perzyna:
     """Perzyna rates of the paper: (Gfun, Gk) at (sigma, kappa), rows in t-coordinates."""
 
-    law: PlaneStress
+    law: Elasticity
     lambda1: float
     lambda2: float
 
     def __post_init__(self):
-        object.__setattr__(self, "_project", VonMisesProjection(self.law))
+        object.__setattr__(self, "_project", make_projection(self.law))
 
     def project(self, t: np.ndarray, kappa: np.ndarray) -> np.ndarray:
         return self._project(t, kappa)

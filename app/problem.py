@@ -1,9 +1,10 @@
-"""The discrete step problem of scheme (3.2)-(3.4) on one mesh.
+"""The discrete step problem of scheme (3.2)-(3.4) on one mesh (2D or 3D).
 
 Spaces (MODEL.md section 3): V^h = continuous P1 vectors, Q^h = DG0 tensors (sigma, H_n),
 Y^h = DG0 scalars (kappa).  The problem object holds the unknown u, the pre-stress H_n, the
-compiled forms, the Dirichlet condition on Gamma1, the box bounds of U^h on the normal dofs
-of Gamma3 nodes, and computes the derived quantities: sigma_n, norms, contact forces.
+Gamma3 nodal fields xi_n (memory) and theta(s_n) (slip dependence) when the case has them,
+the compiled forms, the Dirichlet condition on Gamma1, the box bounds of U^h on the normal
+dofs of Gamma3 nodes, and computes derived quantities: sigma_n, norms, contact forces.
 """
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from forms.contact import gamma3_measure
@@ -19,97 +21,119 @@ from forms.elasticity import elasticity_operator, eps
 from forms.step import build_step_forms
 from meshes import BOUNDARY_TAGS
 
-from .case import Case
-from .material import PlaneStress, to_voigt
+from . import expressions
+from .case import Case, CaseError
+from .gamma3 import NodalField
+from .loads import TimeData
+from .material import Elasticity
 
 GAMMA1, GAMMA3 = "left", "bottom"
 
 
 @dataclass
 class Gamma3Nodes:
-    """The locally owned Gamma3 nodes (not on Gamma1), with their dof indices and weights."""
+    """The locally owned Gamma3 nodes (not on Gamma1), with their weights."""
 
-    nodes: np.ndarray    # local node (block) indices, owned, sorted by x
-    x: np.ndarray        # (m, 2) coordinates
+    nodes: np.ndarray    # local node (block) indices, owned, sorted by coordinates
+    x: np.ndarray        # (m, d) coordinates
     weight: np.ndarray   # int_Gamma3 phi_i ds (the nodal rule's weight)
 
 
 class _Constants(dict):
-    """Named dolfinx Constants of the forms (physical parameters, loads, delta)."""
+    """Named dolfinx Constants of the forms (physical parameters, delta)."""
 
     def __init__(self, mesh):
         super().__init__()
         self._mesh = mesh
 
     def __call__(self, name, value):
-        self[name] = fem.Constant(self._mesh, PETSc.ScalarType(value) if np.ndim(value) == 0
-                                  else np.asarray(value, dtype=PETSc.ScalarType))
+        self[name] = fem.Constant(self._mesh, PETSc.ScalarType(value))
         return self[name]
 
 
 class ContactProblem:
-    """Forms and data of the step problem for a case on a mesh (a ``RectangleMesh``)."""
+    """Forms and data of the step problem for a case on a mesh (Rectangle/BoxMesh)."""
 
     def __init__(self, case: Case, rect):
         self.case, self.rect = case, rect
         msh = self.mesh = rect.mesh
         self.comm = msh.comm
-        self.law = PlaneStress(case.material.E, case.material.nu)
+        d = self.dim = rect.dim
+        self.law = Elasticity(case.material.E, case.material.nu, d)
         self.V = fem.VectorFunctionSpace(msh, ("CG", 1))
         self.Q = fem.TensorFunctionSpace(msh, ("DG", 0))
         self.Y = fem.FunctionSpace(msh, ("DG", 0))
         self.u = fem.Function(self.V, name="u")
         self.sigma = fem.Function(self.Q, name="sigma")
         self.sigma_vm = fem.Function(self.Y, name="sigma_vm")
-        # H_n exists only when there is a history (viscoplastic law); see history.py.
-        self.H = fem.Function(self.Q, name="H") if case.material.viscoplastic else None
+        # H_n exists only with a history (viscoplastic law) or nonzero initial values.
+        init = case.initial
+        has_H = case.material.viscoplastic is not None or init.u0 is not None \
+            or init.sigma0 is not None
+        self.H = fem.Function(self.Q, name="H") if has_H else None
         self.normal = np.array(rect.normal)
-        self.tangent = np.array(rect.tangent)
+        self.tangents = np.array(rect.tangent)
+        self.time_data = TimeData(msh)
 
         fdim = msh.topology.dim - 1
         ft = rect.facet_tags
         self._facets = {name: ft.indices[ft.values == tag] for name, tag in BOUNDARY_TAGS.items()}
         clamped = fem.locate_dofs_topological(self.V, fdim, self._facets[GAMMA1])
-        self.bcs = [fem.dirichletbc(np.zeros(2, dtype=PETSc.ScalarType), clamped, self.V)]
+        self.bcs = [fem.dirichletbc(np.zeros(d, dtype=PETSc.ScalarType), clamped, self.V)]
         self._clamped_nodes = clamped
 
-        ds = ufl.Measure("ds", domain=msh, subdomain_data=ft)
         c = case.contact
+        self.gamma3 = None
+        self.xi = self.theta = None
+        if c.active:
+            self.gamma3 = self._gamma3_nodes()
+            if c.memory is not None:
+                self.xi = NodalField(self.V, self.gamma3_local_nodes, "xi")
+            if c.friction is not None and c.friction.slip is not None:
+                self.theta = NodalField(self.V, self.gamma3_local_nodes, "theta")
+                self.theta.function.x.array[:] = 1.0
+
+        ds = ufl.Measure("ds", domain=msh, subdomain_data=ft)
         self.ds_c = gamma3_measure(msh, ft, BOUNDARY_TAGS[GAMMA3], case.numerics.quadrature,
                                    case.numerics.gauss_degree)
         # Parameters enter the forms as Constants: one compiled form serves every value.
         const = self.constants = _Constants(msh)
         E, nu = const("E", case.material.E), const("nu", case.material.nu)
-        f0 = const("f0", case.loads.f0) if any(case.loads.f0) else None
-        tractions = [(const(f"traction_{name}", t), BOUNDARY_TAGS[name])
-                     for name, t in case.loads.traction.items() if any(t)]
+        f0 = self.time_data.vector(case.loads.f0) if case.loads.f0 else None
+        tractions = []
+        for name, comps in case.loads.traction.items():
+            vec = self.time_data.vector(comps)
+            if vec is not None:
+                tractions.append((vec, BOUNDARY_TAGS[name]))
         friction = None
         if c.friction is not None:
             friction = {k: const(k, getattr(c.friction, k)) for k in ("b", "c1", "c2", "u1")}
+        needs_delta = c.friction is not None or c.memory is not None
         self.forms = build_step_forms(
-            self.u, self.H, E=E, nu=nu, f0=f0, tractions=tractions, ds=ds, ds_c=self.ds_c,
-            normal=tuple(self.normal),
+            self.u, self.H, E=E, nu=nu, dim=d, f0=f0, tractions=tractions, ds=ds,
+            ds_c=self.ds_c, normal=tuple(self.normal),
             c_nu=const("c_nu", c.c_nu) if c.c_nu is not None else None,
             friction=friction,
-            delta=const("delta", case.numerics.delta) if friction else None)
+            theta=self.theta.function if self.theta else None,
+            xi=self.xi.function if self.xi else None,
+            delta=const("delta", case.numerics.delta) if needs_delta else None)
         self.F_form = fem.form(self.forms.residual)
         self.J_form = fem.form(self.forms.jacobian)
         self._bulk_form = fem.form(self.forms.bulk_residual)
 
         # sigma_n = E eps(u_n) + H_n evaluated per cell (exact: eps(u) is constant on cells).
-        C = elasticity_operator(E, nu)
-        expr = C(eps(self.u)) if self.H is None else C(eps(self.u)) + self.H
+        self._C = elasticity_operator(E, nu, d)
+        expr = self._C(eps(self.u)) if self.H is None else self._C(eps(self.u)) + self.H
         self._sigma_expr = fem.Expression(expr, self.Q.element.interpolation_points())
         self._norm_forms = {
             "V": fem.form(ufl.inner(eps(self.u), eps(self.u)) * ufl.dx),
             "Q": fem.form(ufl.inner(self.sigma, self.sigma) * ufl.dx),
         }
-        self.gamma3 = self._gamma3_nodes() if c.active else None
 
     # ------------------------------------------------------------------ sizes
     @property
     def num_cells(self) -> int:
-        return self.mesh.topology.index_map(2).size_global
+        return self.mesh.topology.index_map(self.dim).size_global
 
     @property
     def num_vertices(self) -> int:
@@ -121,25 +145,75 @@ class ContactProblem:
 
     @property
     def num_owned_cells(self) -> int:
-        return self.mesh.topology.index_map(2).size_local
+        return self.mesh.topology.index_map(self.dim).size_local
+
+    # ------------------------------------------------------------------ initial values
+    def set_initial_values(self, kappa=None) -> None:
+        """u = u0, H_0 = sigma0 - E eps(u0) (3.2), kappa = kappa0 (cell averages)."""
+        init, sym = self.case.initial, self.time_data.symbols
+        if init.u0 is not None:
+            vec = ufl.as_vector([_ufl_component(c, sym) for c in init.u0])
+            self.u.interpolate(fem.Expression(vec, self.V.element.interpolation_points()))
+            self.u.x.scatter_forward()
+            self._check_initial_u()
+        if self.H is not None:
+            H0 = -self._C(eps(self.u))
+            if init.sigma0 is not None:
+                H0 = H0 + ufl.as_matrix([[_ufl_component(c, sym) for c in row]
+                                         for row in init.sigma0])
+            self._cell_average(H0, self.H)
+        if kappa is not None:
+            k0 = self.case.material.viscoplastic.kappa0
+            if isinstance(k0, str):
+                self._cell_average(_ufl_component(k0, sym), kappa)
+                if np.any(kappa.x.array < 0):
+                    raise CaseError(f"{self.case.source}: material.viscoplastic.kappa0: "
+                                    "must be >= 0 everywhere")
+            else:
+                kappa.x.array[:] = k0
+
+    def _cell_average(self, expr, f) -> None:
+        """f = P_{Q^h} expr, the L2 projection onto DG0 (cell averages)."""
+        w = ufl.TestFunction(f.function_space)
+        vec = fem.petsc.assemble_vector(fem.form(ufl.inner(expr, w) * ufl.dx))
+        bs = f.function_space.dofmap.index_map_bs
+        owned = vec.array.size
+        vol = np.repeat(self._cell_volumes()[:owned // bs], bs)
+        f.x.array[:owned] = vec.array / vol
+        f.x.scatter_forward()
+        vec.destroy()
+
+    def _check_initial_u(self) -> None:
+        src = self.case.source
+        uu = self.u.x.array.reshape(-1, self.dim)
+        if np.abs(uu[self._clamped_nodes]).max(initial=0.0) > 1e-12:
+            bad = True
+        else:
+            bad = False
+        if self.comm.allreduce(bad, op=MPI.LOR):
+            raise CaseError(f"{src}: initial.u0: must vanish on Gamma1 (x = 0)")
+        g = self.case.contact.g
+        if g is not None and self.gamma3 is not None:
+            viol = (uu[self.gamma3_local_nodes] @ self.normal > g * (1 + 1e-12)).any()
+            if self.comm.allreduce(bool(viol), op=MPI.LOR):
+                raise CaseError(f"{src}: initial.u0: violates u_nu <= g on Gamma3")
 
     # ------------------------------------------------------------------ Gamma3 and bounds
     def _gamma3_nodes(self) -> Gamma3Nodes:
         fdim = self.mesh.topology.dim - 1
         nodes = fem.locate_dofs_topological(self.V, fdim, self._facets[GAMMA3])
         nodes = np.setdiff1d(nodes, self._clamped_nodes)
-        self._gamma3_local = nodes  # owned and ghost
+        self.gamma3_local_nodes = nodes  # owned and ghost
         owned = nodes[nodes < self.V.dofmap.index_map.size_local]
         # weights w_i = int_Gamma3 phi_i ds, exact (phi_i is linear on each facet)
         v = ufl.TestFunction(self.V)
-        wvec = fem.petsc.assemble_vector(fem.form(ufl.inner(ufl.as_vector([1.0, 1.0]), v)
-                                                  * gamma3_measure(self.mesh, self.rect.facet_tags,
-                                                                   BOUNDARY_TAGS[GAMMA3])))
+        ds3 = gamma3_measure(self.mesh, self.rect.facet_tags, BOUNDARY_TAGS[GAMMA3], "gauss", 2)
+        wvec = fem.petsc.assemble_vector(fem.form(v[0] * ds3))
         wvec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        weight = wvec.array_r[2 * owned]
+        weight = wvec.array_r[self.dim * owned]
         wvec.destroy()
-        x = self.V.tabulate_dof_coordinates()[owned, :2]
-        order = np.lexsort((x[:, 1], x[:, 0]))
+        x = self.V.tabulate_dof_coordinates()[owned, :self.dim]
+        order = np.lexsort(tuple(x[:, i] for i in reversed(range(self.dim))))
         return Gamma3Nodes(owned[order], x[order], weight[order])
 
     def bounds(self) -> tuple[PETSc.Vec, PETSc.Vec]:
@@ -152,7 +226,7 @@ class ContactProblem:
             if g is not None:
                 comp = int(np.argmax(np.abs(self.normal)))
                 sign = self.normal[comp]
-                dofs = 2 * self._gamma3_local + comp
+                dofs = self.dim * self.gamma3_local_nodes + comp
                 if sign > 0:   # u_nu = +u_comp <= g
                     up.array[dofs] = g
                 else:          # u_nu = -u_comp <= g  <=>  u_comp >= -g
@@ -164,11 +238,10 @@ class ContactProblem:
         """sigma_n = E eps(u_n) + H_n (3.2) and its von Mises norm, per cell."""
         self.sigma.interpolate(self._sigma_expr)
         self.sigma.x.scatter_forward()
-        self.sigma_vm.x.array[:] = self.law.von_mises(to_voigt(self.sigma.x.array))
+        self.sigma_vm.x.array[:] = self.law.von_mises(self.law.to_voigt(self.sigma.x.array))
         self.sigma_vm.x.scatter_forward()
 
     def _reduce(self, value: float, op) -> float:
-        from mpi4py import MPI
         return self.comm.allreduce(value, op=getattr(MPI, op))
 
     def norm(self, which: str) -> float:
@@ -195,23 +268,40 @@ class ContactProblem:
         return self._vol
 
     def contact_table(self) -> dict[str, np.ndarray]:
-        """Per owned Gamma3 node: coordinates, displacement, u_nu, u_tau and the contact
-        force densities -sigma_nu, -sigma_tau.
+        """Per owned Gamma3 node: coordinates, displacement, u_nu, tangential components and
+        the contact force densities -sigma_nu, -sigma_tau (and xi, s when active).
 
         The force at node i is minus the bulk residual r_i = (sigma_n, eps(phi_i)) - f(phi_i)
         divided by the node's weight w_i = int phi_i ds: with the nodal rule this is exactly
-        p(u_nu) + (bound multiplier)/w_i in the normal direction and the friction force in
-        the tangential one.
+        p(u_nu) + memory force + (bound multiplier)/w_i in the normal direction and the
+        friction force in the tangential ones.
         """
-        gm = self.gamma3
+        gm, d = self.gamma3, self.dim
         r = fem.petsc.assemble_vector(self._bulk_form)
         r.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        rr = r.array_r.reshape(-1, 2)[gm.nodes]
+        rr = r.array_r.reshape(-1, d)[gm.nodes]
         r.destroy()
-        uu = self.u.x.array.reshape(-1, 2)[gm.nodes]
-        return {
-            "x": gm.x[:, 0], "y": gm.x[:, 1], "u_x": uu[:, 0], "u_y": uu[:, 1],
-            "u_nu": uu @ self.normal, "u_tau": uu @ self.tangent,
-            "neg_sigma_nu": -(rr @ self.normal) / gm.weight,
-            "neg_sigma_tau": -(rr @ self.tangent) / gm.weight,
-        }
+        uu = self.u.x.array.reshape(-1, d)[gm.nodes]
+        axes = "xyz"[:d]
+        table = {a: gm.x[:, i] for i, a in enumerate(axes)}
+        table.update({f"u_{a}": uu[:, i] for i, a in enumerate(axes)})
+        table["u_nu"] = uu @ self.normal
+        suffix = [""] if d == 2 else ["1", "2"]
+        for s, t in zip(suffix, self.tangents):
+            table[f"u_tau{s}"] = uu @ t
+        table["neg_sigma_nu"] = -(rr @ self.normal) / gm.weight
+        for s, t in zip(suffix, self.tangents):
+            table[f"neg_sigma_tau{s}"] = -(rr @ t) / gm.weight
+        pos = np.searchsorted(self.gamma3_local_nodes, gm.nodes)
+        if self.xi is not None:
+            table["xi"] = self.xi.function.x.array[self.xi.dofs[pos]]
+        if self.theta is not None:
+            table["theta"] = self.theta.function.x.array[self.theta.dofs[pos]]
+        return table
+
+
+def _ufl_component(c, symbols):
+    """UFL for a number or an expression string (initial values: no tables)."""
+    if isinstance(c, (int, float)):
+        return float(c)
+    return expressions.to_ufl(expressions.parse(c), symbols)

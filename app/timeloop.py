@@ -1,5 +1,6 @@
-"""The time loop of scheme (3.2)-(3.4): for n = 1..N build H_n, kappa_n from step n-1,
-solve the step inequality for u_n (SNES VI), set sigma_n = E eps(u_n) + H_n, record, write.
+"""The time loop of scheme (3.2)-(3.4): for n = 1..N build H_n, kappa_n, xi_n, s_n from step
+n-1, set the loads f_n, solve the step inequality for u_n (SNES VI), set
+sigma_n = E eps(u_n) + H_n, record, write.  Steps k_n = t_n - t_{n-1} may vary.
 """
 from __future__ import annotations
 
@@ -8,9 +9,10 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from meshes import build_rectangle
+from meshes import build_box, build_rectangle
 
 from .case import Case
+from .gamma3 import Gamma3History, Kernel
 from .history import ViscoplasticHistory
 from .output import FieldWriter, write_contact_csv, write_json
 from .problem import ContactProblem
@@ -25,13 +27,32 @@ class RunResult:
     summary: dict
     problem: ContactProblem = field(repr=False)
     history: ViscoplasticHistory | None = field(repr=False, default=None)
+    gamma3_history: Gamma3History | None = field(repr=False, default=None)
 
 
 def build_mesh(case: Case, comm):
     m = case.mesh
-    if m.kind == "structured":
-        return build_rectangle(comm, m.L1, m.L2, n=m.n, diagonal=m.diagonal)
-    return build_rectangle(comm, m.L1, m.L2, h=m.h)
+    size = {"n": m.n} if m.kind == "structured" else {"h": m.h}
+    if m.dim == 3:
+        return build_box(comm, m.L1, m.L2, m.L3, **size)
+    return build_rectangle(comm, m.L1, m.L2, diagonal=m.diagonal, **size)
+
+
+def build_gamma3_history(case: Case, problem) -> Gamma3History | None:
+    """The memory term and accumulated slip, only if the case enables them."""
+    c = case.contact
+    memory = slip = None
+    if c.memory is not None:
+        mk = c.memory
+        kernel = Kernel(mk.kernel, mk.b0, beta=mk.beta, alpha=mk.alpha or 1.0,
+                        tau=mk.tau or 1.0, table=mk.table)
+        memory = {"kernel": kernel,
+                  "recursion": None if mk.sum == "auto" else mk.sum == "recursion"}
+    if c.friction is not None and c.friction.slip is not None:
+        slip = {"theta_inf": c.friction.slip.theta_inf, "s0": c.friction.slip.s0}
+    if memory is None and slip is None:
+        return None
+    return Gamma3History(problem, memory=memory, slip=slip)
 
 
 def _step_record(problem, history, n, t, its, wall):
@@ -60,12 +81,15 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
     rect = build_mesh(case, comm)
     problem = ContactProblem(case, rect)
     vp = case.material.viscoplastic
-    history = ViscoplasticHistory(problem, vp.lambda1, vp.lambda2, vp.kappa0) if vp else None
+    history = ViscoplasticHistory(problem, vp.lambda1, vp.lambda2) if vp else None
+    problem.set_initial_values(history.kappa if history else None)
+    g3 = build_gamma3_history(case, problem)
     solver = SNESVISolver(problem, case.petsc)
     t_setup = time.perf_counter() - t_start
-    log.info("case %s: %d cells, %d vertices, %d dofs, %d steps (k = %g)", case.name,
-             problem.num_cells, problem.num_vertices, problem.num_dofs, case.time.N,
-             case.time.T / case.time.N)
+    ks = [b - a for a, b in zip(case.time.times, case.time.times[1:])]
+    log.info("case %s (%dD): %d cells, %d vertices, %d dofs, %d steps (k = %s)", case.name,
+             problem.dim, problem.num_cells, problem.num_vertices, problem.num_dofs,
+             case.time.N, f"{ks[0]:g}" if case.time.uniform else f"{min(ks):g}..{max(ks):g}")
     log.info("active terms: %s", ", ".join(case.active_terms()))
     log.info("step solver: SNES %s, set-up (mesh, JIT, matrices) %.2f s",
              solver.snes.getType(), t_setup)
@@ -91,6 +115,9 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
         t0 = time.perf_counter()
         if history:
             history.advance(problem.sigma, k)   # H_n, kappa_n from sigma_{n-1}, kappa_{n-1}
+        if g3:
+            g3.advance(times[n - 1], t)         # xi_n, s_n from u_{n-1}
+        problem.time_data.set_time(t)           # f_n
         try:
             its = solver.solve()                # u_n in U^h, (3.4)
         except StepFailure as exc:
@@ -122,7 +149,7 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
         "mesh": {"cells": problem.num_cells, "vertices": problem.num_vertices,
                  "dofs": problem.num_dofs, "kind": case.mesh.kind, "n": case.mesh.n,
                  "h": rect.h, "diagonal": rect.diagonal},
-        "time": {"T": case.time.T, "N": N},
+        "time": {"T": case.time.T, "N": N, "uniform": case.time.uniform},
         "mpi_ranks": comm.size,
         "active_terms": case.active_terms(),
         "solver": {"method": case.numerics.method, "delta": case.numerics.delta,
@@ -144,4 +171,4 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
                 comm, outdir / "contact.csv", problem.contact_table(), case.contact.g)
         write_json(comm, outdir / "summary.json", summary)
     solver.destroy()
-    return RunResult(status, summary, problem, history)
+    return RunResult(status, summary, problem, history, g3)

@@ -3,24 +3,32 @@
 All terms enter as energies whose derivative gives the step residual:
 - normal compliance P(r) = c_nu / 2 (r^+)^2, P' = p(r) = c_nu r^+;
 - friction j_tau(xi) = psi(|xi|_delta), psi of law (4.2), |xi|_delta = sqrt(|xi|^2 + delta^2)
-  (the regularised Clarke term: the kink of |xi| at 0 is smoothed over a width delta).
+  (the regularised Clarke term: the kink of |xi| at 0 is smoothed over a width delta), times
+  theta(s_n) with slip dependence;
+- memory term xi_n r^+ with r^+ regularised as (r + sqrt(r^2 + delta^2)) / 2.
 The bound u_nu <= g is not a form: it is a box constraint on the normal dofs (SNES VI).
 """
 from __future__ import annotations
 
+import numpy as np
 import ufl
 
 # Quadrature for Gamma3 integrals.  "vertex" is the nodal (trapezoid) rule: it lumps every
 # boundary term to the Gamma3 nodes, so the discrete contact and friction laws hold node by
-# node.  FFCx 0.5.0's own "vertex" scheme fails on facet integrals (AssertionError), and
-# the 2-point Gauss-Lobatto rule (GLL, degree 1) on an interval is exactly the trapezoid rule.
+# node.  FFCx 0.5.0's own "vertex" scheme fails on facet integrals (AssertionError); the
+# 2-point Gauss-Lobatto rule (GLL, degree 1) on an interval is exactly the trapezoid rule, and
+# on triangle facets (3D) a custom rule puts weight 1/6 on each reference vertex.
 QUADRATURE = ("vertex", "gauss")
 
 
 def gamma3_measure(mesh, facet_tags, tag: int, quadrature: str = "vertex", degree: int = 2):
     """The measure ds restricted to Gamma3 with the selected quadrature rule."""
-    if quadrature == "vertex":
+    if quadrature == "vertex" and mesh.topology.dim == 2:
         md = {"quadrature_rule": "GLL", "quadrature_degree": 1}
+    elif quadrature == "vertex":   # triangle facets: weight 1/6 at each reference vertex
+        md = {"quadrature_rule": "custom",
+              "quadrature_points": np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]),
+              "quadrature_weights": np.full(3, 1.0 / 6.0)}
     elif quadrature == "gauss":
         md = {"quadrature_degree": int(degree)}
     else:
@@ -31,6 +39,11 @@ def gamma3_measure(mesh, facet_tags, tag: int, quadrature: str = "vertex", degre
 def positive_part(r):
     """r^+ = max(r, 0)."""
     return ufl.conditional(ufl.gt(r, 0.0), r, 0.0)
+
+
+def regularised_positive_part(r, delta):
+    """r^+ regularised as (r + sqrt(r^2 + delta^2)) / 2 (MODEL.md section 4)."""
+    return 0.5 * (r + ufl.sqrt(r**2 + delta**2))
 
 
 def normal_compliance_energy(u_nu, c_nu):

@@ -2,7 +2,7 @@
 
 u_n is the stationary point over U^h = {v in V^h : v_nu <= g at Gamma3 nodes} of
   J_n(v) = 1/2 (E eps(v), eps(v)) + (H_n, eps(v)) - f_n(v)
-           + int_Gamma3 [ P(v_nu) + j_tau(v_tau) ]                        (MODEL.md section 3)
+           + int_Gamma3 [ P(v_nu) + xi_n v_nu^+ + theta(s_n) psi(|v_tau|) ]  (MODEL.md section 3)
 with H_n the DG0 pre-stress (viscoplastic history).  The residual F = dJ_n/du gives (3.4)
 with sigma_n = E eps(u_n) + H_n; the constraint is imposed by SNES VI bounds, not here.
 Terms a case does not enable are simply not added (no friction form when frictionless).
@@ -32,20 +32,22 @@ class StepForms:
     terms: list = field(default_factory=list)
 
 
-def build_step_forms(u, H, *, E, nu, f0, tractions, ds, ds_c=None, normal=None, c_nu=None,
-                     friction=None, delta=None) -> StepForms:
+def build_step_forms(u, H, *, E, nu, dim=2, f0, tractions, ds, ds_c=None, normal=None,
+                     c_nu=None, friction=None, theta=None, xi=None, delta=None) -> StepForms:
     """Build J_n and its derivatives.
 
     Parameters may be floats or dolfinx Constants (Constants keep one compiled form for all
     values).  u: P1 displacement Function; H: DG0 tensor Function (pre-stress H_n) or None;
     f0: body force (UFL vector) or None; tractions: list of (traction UFL vector, subdomain
     id) on Gamma2 parts, integrated with ``ds``; ds_c: Gamma3 measure; normal: nu (tuple);
-    c_nu: normal compliance stiffness or None; friction: dict(b, c1, c2, u1) or None.
+    c_nu: normal compliance stiffness or None; friction: dict(b, c1, c2, u1) or None;
+    theta: P1 Function theta(s_n) of the slip law or None; xi: P1 Function xi_n (memory
+    term) or None; delta: regularisation width of |u_tau| and u_nu^+.
     """
     V = u.function_space
     v = ufl.TestFunction(V)
     du = ufl.TrialFunction(V)
-    C = elasticity_operator(E, nu)
+    C = elasticity_operator(E, nu, dim)
     dx = ufl.dx(domain=V.mesh)
 
     bulk = 0.5 * ufl.inner(C(eps(u)), eps(u)) * dx
@@ -61,15 +63,22 @@ def build_step_forms(u, H, *, E, nu, f0, tractions, ds, ds_c=None, normal=None, 
         terms.append(f"traction on part {tag}")
 
     boundary = 0
-    if c_nu is not None or friction is not None:
+    if c_nu is not None or friction is not None or xi is not None:
         nu_vec = ufl.as_vector(normal)
         u_nu = ufl.dot(u, nu_vec)
         if c_nu is not None:
             boundary += contact.normal_compliance_energy(u_nu, c_nu) * ds_c
             terms.append("normal compliance")
+        if xi is not None:
+            boundary += xi * contact.regularised_positive_part(u_nu, delta) * ds_c
+            terms.append("memory term xi_n u_nu^+ (regularised)")
         if friction is not None:
             u_tau = u - u_nu * nu_vec
-            boundary += contact.friction_energy(u_tau, delta, **friction) * ds_c
+            j = contact.friction_energy(u_tau, delta, **friction)
+            if theta is not None:
+                j = theta * j
+                terms.append("slip dependence theta(s_n)")
+            boundary += j * ds_c
             terms.append("friction (regularised Clarke term)")
 
     energy = bulk + boundary if boundary != 0 else bulk

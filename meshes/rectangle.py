@@ -16,7 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-BOUNDARY_TAGS = {"left": 1, "bottom": 2, "right": 3, "top": 4}
+BOUNDARY_TAGS = {"left": 1, "bottom": 2, "right": 3, "top": 4, "front": 5, "back": 6}
+# 2D uses left/bottom/right/top; the 3D box (meshes/box.py) adds front {y = 0}, back {y = L2}.
+SIDES = {2: ("left", "bottom", "right", "top"),
+         3: ("left", "bottom", "right", "top", "front", "back")}
 DOMAIN_TAG = 10
 # Our diagonal names follow dolfinx's create_rectangle: "right" cuts each square from
 # (x0, y0) to (x1, y1), "left" from (x0, y1) to (x1, y0).  Gmsh's transfinite arrangement
@@ -39,9 +42,13 @@ class RectangleMesh:
     h: float | None
     diagonal: str | None
 
-    # Gamma3 is the bottom side; its outward unit normal and unit tangent (MODEL.md sec. 1).
+    # Gamma3 is the bottom side; its outward unit normal and unit tangent(s) (MODEL.md sec. 1).
     normal = (0.0, -1.0)
-    tangent = (1.0, 0.0)
+    tangent = ((1.0, 0.0),)
+
+    @property
+    def dim(self) -> int:
+        return len(self.normal)
 
 
 def _gmsh_model(L1: float, L2: float, n: int | None, h: float | None, diagonal: str | None):

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from meshes import BOUNDARY_TAGS, build_rectangle
+from meshes import BOUNDARY_TAGS, SIDES, build_box, build_rectangle
 
 
 def _cells(rect):
@@ -34,8 +34,8 @@ def test_boundary_tags():
     msh.topology.create_connectivity(1, 0)
     f2v = msh.topology.connectivity(1, 0)
     x = msh.geometry.x
-    for name, tag in BOUNDARY_TAGS.items():
-        facets = ft.indices[ft.values == tag]
+    for name in SIDES[2]:
+        facets = ft.indices[ft.values == BOUNDARY_TAGS[name]]
         assert len(facets) == 8, name
         pts = np.array([x[f2v.links(f)] for f in facets]).reshape(-1, 3)
         coord, val = {"left": (0, 0.0), "right": (0, 1.0), "bottom": (1, 0.0), "top": (1, 1.0)}[name]
@@ -64,7 +64,7 @@ def test_unstructured_mesh():
     ncell = rect.mesh.topology.index_map(2).size_local
     assert 150 < ncell < 600
     ft = rect.facet_tags
-    assert set(np.unique(ft.values)) == set(BOUNDARY_TAGS.values())
+    assert set(np.unique(ft.values)) == {BOUNDARY_TAGS[s] for s in SIDES[2]}
 
 
 def test_bad_arguments():
@@ -72,3 +72,23 @@ def test_bad_arguments():
         build_rectangle(MPI.COMM_SELF, 1.0, 1.0)
     with pytest.raises(ValueError, match="diagonal"):
         build_rectangle(MPI.COMM_SELF, 1.0, 1.0, n=2, diagonal="up")
+
+
+@pytest.mark.parametrize("size", [{"n": 3}, {"h": 0.4}])
+def test_box_faces(size):
+    box = build_box(MPI.COMM_SELF, 2.0, 1.0, 0.5, **size)
+    assert box.dim == 3 and box.normal == (0.0, 0.0, -1.0)
+    msh, ft = box.mesh, box.facet_tags
+    msh.topology.create_connectivity(2, 0)
+    f2v = msh.topology.connectivity(2, 0)
+    x = msh.geometry.x
+    where = {"left": (0, 0.0), "right": (0, 2.0), "front": (1, 0.0), "back": (1, 1.0),
+             "bottom": (2, 0.0), "top": (2, 0.5)}
+    for name in SIDES[3]:
+        facets = ft.indices[ft.values == BOUNDARY_TAGS[name]]
+        assert len(facets) > 0, name
+        pts = x[np.concatenate([f2v.links(f) for f in facets])]
+        axis, value = where[name]
+        np.testing.assert_allclose(pts[:, axis], value, atol=1e-12)
+    if "n" in size:
+        assert msh.topology.index_map(3).size_local == 6 * 27   # 6 tets per hex

@@ -68,3 +68,65 @@ def test_projection_is_energy_closest_point(law, proj):
     dx = (x - s[0]) @ law.A @ (x - s[0])
     assert dx <= d.min() + 1e-12 * d.min()
     assert d.min() - dx < 1e-3 * dx  # the sampled minimum approaches the exact one
+
+
+# ----------------------------------------------------------------------------- 3D
+from app.material import Elasticity, RadialReturn, make_projection  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def law3():
+    return Elasticity(1000.0, 0.3, 3)
+
+
+def test_3d_closed_form_against_numerical_minimisation(law3):
+    """min (y - s)^T A (y - s) s.t. y^T M y <= kappa^2, solved by scipy's SLSQP."""
+    from scipy.optimize import minimize
+
+    proj = RadialReturn(law3)
+    rng = np.random.default_rng(11)
+    M = law3.M
+    A = law3.A / np.linalg.norm(law3.A)          # scaled: SLSQP wants O(1) numbers
+    for _ in range(20):
+        s = rng.normal(size=6) * 20.0
+        kappa = rng.uniform(0.5, 15.0)
+        x = proj(s[None], np.array([kappa]))[0]
+        c = np.linalg.norm(s)
+        sc, kc = s / c, kappa / c
+        res = minimize(lambda z: (z - sc) @ A @ (z - sc), np.zeros(6),
+                       jac=lambda z: 2 * A @ (z - sc),
+                       constraints=[{"type": "ineq", "fun": lambda z: kc**2 - z @ M @ z,
+                                     "jac": lambda z: -2 * M @ z}],
+                       method="SLSQP", options={"ftol": 1e-12, "maxiter": 1000})
+        assert res.success, res.message
+        y = c * res.x
+        fx, fy = (x - s) @ A @ (x - s), (y - s) @ A @ (y - s)
+        assert law3.von_mises(x[None])[0] <= kappa * (1 + 1e-12)
+        assert law3.von_mises(y[None])[0] <= kappa * (1 + 1e-6)
+        assert fx <= fy * (1 + 1e-8)                   # nothing feasible is closer
+        np.testing.assert_allclose(x, y, atol=1e-5 * c)
+
+
+def test_3d_closed_form_equals_generic_projection(law3):
+    rng = np.random.default_rng(12)
+    s = rng.normal(size=(500, 6)) * 10.0
+    kappa = rng.uniform(0.0, 20.0, 500)
+    kappa[:5] = 0.0
+    closed = RadialReturn(law3)(s, kappa)
+    generic = VonMisesProjection(law3)(s, kappa)
+    np.testing.assert_allclose(closed, generic, atol=1e-10 * np.abs(s).max())
+    # kappa = 0 keeps exactly the hydrostatic part
+    mean = s[:5, :3].mean(axis=1)
+    np.testing.assert_allclose(closed[:5, :3], np.repeat(mean[:, None], 3, axis=1), atol=1e-13)
+    np.testing.assert_allclose(closed[:5, 3:], 0.0, atol=1e-13)
+    assert isinstance(make_projection(law3), RadialReturn)
+
+
+def test_3d_von_mises_is_three_halves_dev_dev(law3):
+    from app.material import from_voigt
+    rng = np.random.default_rng(13)
+    t = rng.normal(size=(50, 6))
+    tau = from_voigt(t, 3)
+    dev = tau - np.einsum("nii->n", tau)[:, None, None] / 3 * np.eye(3)
+    np.testing.assert_allclose(law3.von_mises(t) ** 2, 1.5 * np.einsum("nij,nij->n", dev, dev),
+                               rtol=1e-13)

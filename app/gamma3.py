@@ -1,0 +1,134 @@
+"""History terms on Gamma3 (MODEL.md sections 3-4): the memory term xi_n and the
+accumulated slip s_n, per Gamma3 node.
+
+xi_n = sum_{j=1..n} k_j b(t_n - t_{j-1}) u_{j-1,nu}^+,     s_n = sum_{j=1..n} k_j |u_{j-1,tau}|.
+
+For the exponential kernel b(t) = b0 exp(-beta t) the sum obeys the exact recursion
+    xi_n = exp(-beta k_n) (xi_{n-1} + k_n b0 u_{n-1,nu}^+)
+(split off the j = n term and factor exp(-beta (t_n - t_{n-1})) out of the rest; exact for
+non-uniform steps), so it costs O(1) per node and step.  A general kernel keeps the history
+of u_nu^+ per node and sums directly (O(n) per node and step).  The slip obeys
+s_n = s_{n-1} + k_n |u_{n-1,tau}|.  Each term exists only if the case enables it.
+"""
+from __future__ import annotations
+
+import numpy as np
+from dolfinx import fem
+
+
+# ----------------------------------------------------------------------------- kernels
+class Kernel:
+    """b(t) of the memory term: exponential, power law or a piecewise-linear table."""
+
+    def __init__(self, kind: str, b0: float, beta: float = 0.0, alpha: float = 1.0,
+                 tau: float = 1.0, table=None):
+        self.kind, self.b0, self.beta, self.alpha, self.tau = kind, b0, beta, alpha, tau
+        if kind == "table":
+            pts = np.asarray(table, dtype=float)
+            self._ts, self._bs = pts[:, 0], pts[:, 1]
+        elif kind not in ("exponential", "power"):
+            raise ValueError(f"unknown kernel {kind!r}")
+
+    def __call__(self, t):
+        t = np.asarray(t, dtype=float)
+        if self.kind == "exponential":
+            return self.b0 * np.exp(-self.beta * t)
+        if self.kind == "power":
+            return self.b0 * (1.0 + t / self.tau) ** (-self.alpha)
+        return self.b0 * np.interp(t, self._ts, self._bs)
+
+
+class MemorySum:
+    """xi_n at m nodes; ``advance`` takes u_{n-1,nu}^+ (m,), t_{n-1}, t_n and returns xi_n."""
+
+    def __init__(self, kernel: Kernel, m: int, recursion: bool | None = None):
+        self.kernel = kernel
+        self.recursion = kernel.kind == "exponential" if recursion is None else recursion
+        if self.recursion and kernel.kind != "exponential":
+            raise ValueError("the recursion is exact only for the exponential kernel")
+        self.xi = np.zeros(m)
+        self._t_prev: list[float] = []       # t_{j-1}
+        self._k: list[float] = []            # k_j
+        self._r: list[np.ndarray] = []       # u_{j-1,nu}^+
+
+    @property
+    def stored_steps(self) -> int:
+        return len(self._r)
+
+    def advance(self, r_plus: np.ndarray, t_prev: float, t_n: float) -> np.ndarray:
+        k = t_n - t_prev
+        if self.recursion:
+            decay = np.exp(-self.kernel.beta * k)
+            self.xi = decay * (self.xi + k * self.kernel.b0 * r_plus)
+        else:
+            self._t_prev.append(t_prev)
+            self._k.append(k)
+            self._r.append(np.array(r_plus, dtype=float))
+            w = np.asarray(self._k) * self.kernel(t_n - np.asarray(self._t_prev))
+            self.xi = w @ np.asarray(self._r)
+        return self.xi
+
+
+class SlipSum:
+    """s_n = s_{n-1} + k_n |u_{n-1,tau}| at m nodes, and theta(s) of the slip law."""
+
+    def __init__(self, m: int, theta_inf: float, s0: float):
+        self.s = np.zeros(m)
+        self.theta_inf, self.s0 = theta_inf, s0
+
+    def advance(self, abs_tau: np.ndarray, k: float) -> np.ndarray:
+        self.s = self.s + k * abs_tau
+        return self.s
+
+    def theta(self) -> np.ndarray:
+        """theta(s) = theta_inf + (1 - theta_inf) exp(-s / s0) (MODEL.md section 4)."""
+        return self.theta_inf + (1.0 - self.theta_inf) * np.exp(-self.s / self.s0)
+
+
+# ----------------------------------------------------------------------------- wiring
+class NodalField:
+    """A P1 scalar Function whose values at the Gamma3 nodes (given as nodes of the vector
+    space V, owned and ghost) are set from numpy arrays."""
+
+    def __init__(self, V, nodes: np.ndarray, name: str):
+        W, parent = V.sub(0).collapse()
+        bs = V.dofmap.index_map_bs
+        node_to_w = np.empty(V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts,
+                             dtype=np.int64)
+        node_to_w[np.asarray(parent) // bs] = np.arange(len(parent))
+        self.function = fem.Function(W, name=name)
+        self.dofs = node_to_w[nodes]
+
+    def set(self, values: np.ndarray) -> None:
+        self.function.x.array[self.dofs] = values
+
+
+class Gamma3History:
+    """xi_n and theta(s_n) as P1 Functions on Gamma3, advanced from u_{n-1} before step n."""
+
+    def __init__(self, problem, memory=None, slip=None):
+        self.u = problem.u
+        self.nodes = problem.gamma3_local_nodes
+        self.normal = problem.normal
+        self.dim = len(self.normal)
+        m = len(self.nodes)
+        self.memory = self.slip = None
+        if memory is not None:
+            self.memory = MemorySum(memory["kernel"], m, memory.get("recursion"))
+            self.xi = problem.xi
+            self.xi.set(self.memory.xi)
+        if slip is not None:
+            self.slip = SlipSum(m, slip["theta_inf"], slip["s0"])
+            self.theta = problem.theta
+            self.theta.set(self.slip.theta())
+
+    def advance(self, t_prev: float, t_n: float) -> None:
+        """xi_n, s_n from u_{n-1} (the current u), before solving step n."""
+        u = self.u.x.array.reshape(-1, self.dim)[self.nodes]
+        u_nu = u @ self.normal
+        if self.memory is not None:
+            self.xi.set(self.memory.advance(np.maximum(u_nu, 0.0), t_prev, t_n))
+        if self.slip is not None:
+            u_tau = u - np.outer(u_nu, self.normal)
+            self.slip.advance(np.linalg.norm(u_tau, axis=1), t_n - t_prev)
+            self.theta.set(self.slip.theta())

@@ -1,0 +1,57 @@
+"""Memory term and accumulated slip on Gamma3 (MODEL.md sections 3-4)."""
+import numpy as np
+import pytest
+
+from app.gamma3 import Kernel, MemorySum, SlipSum
+
+
+def _steps(rng, n=40):
+    k = rng.uniform(0.001, 0.2, n)          # non-uniform steps
+    return np.concatenate([[0.0], np.cumsum(k)])
+
+
+def test_recursion_equals_direct_sum_on_nonuniform_steps():
+    rng = np.random.default_rng(0)
+    t = _steps(rng)
+    kern = Kernel("exponential", b0=3.0, beta=2.5)
+    rec, direct = MemorySum(kern, 7, recursion=True), MemorySum(kern, 7, recursion=False)
+    r_hist = []
+    for n in range(1, len(t)):
+        r = np.maximum(rng.normal(size=7), 0.0)
+        r_hist.append(r)
+        a = rec.advance(r, t[n - 1], t[n])
+        b = direct.advance(r, t[n - 1], t[n])
+        # the definition, term by term
+        ref = sum((t[j] - t[j - 1]) * 3.0 * np.exp(-2.5 * (t[n] - t[j - 1])) * r_hist[j - 1]
+                  for j in range(1, n + 1))
+        np.testing.assert_allclose(a, ref, rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(b, ref, rtol=1e-13, atol=1e-15)
+    assert rec.stored_steps == 0 and direct.stored_steps == len(t) - 1
+
+
+@pytest.mark.parametrize("kind,kw", [("power", {"alpha": 0.7, "tau": 0.3}),
+                                     ("table", {"table": [[0, 1.0], [0.5, 0.2], [2, 0.0]]})])
+def test_general_kernels_direct_sum(kind, kw):
+    rng = np.random.default_rng(1)
+    t = _steps(rng, 15)
+    kern = Kernel(kind, b0=2.0, **kw)
+    mem = MemorySum(kern, 3)
+    assert not mem.recursion
+    rs = [np.abs(rng.normal(size=3)) for _ in range(len(t) - 1)]
+    for n in range(1, len(t)):
+        xi = mem.advance(rs[n - 1], t[n - 1], t[n])
+    n = len(t) - 1
+    ref = sum((t[j] - t[j - 1]) * kern(t[n] - t[j - 1]) * rs[j - 1] for j in range(1, n + 1))
+    np.testing.assert_allclose(xi, ref, rtol=1e-13)
+    with pytest.raises(ValueError, match="recursion"):
+        MemorySum(kern, 3, recursion=True)
+
+
+def test_slip_sum_and_theta():
+    slip = SlipSum(2, theta_inf=0.4, s0=0.01)
+    np.testing.assert_allclose(slip.theta(), 1.0)
+    slip.advance(np.array([0.01, 0.0]), 0.5)
+    slip.advance(np.array([0.03, 0.0]), 0.25)
+    np.testing.assert_allclose(slip.s, [0.5 * 0.01 + 0.25 * 0.03, 0.0])
+    np.testing.assert_allclose(slip.theta()[0], 0.4 + 0.6 * np.exp(-0.0125 / 0.01))
+    assert slip.theta()[1] == 1.0
