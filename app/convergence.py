@@ -63,6 +63,12 @@ def plan_runs(levels: list[int], reference: int, vary: str, case=None) -> list[t
     if case is not None and case.mesh.kind != "structured":
         raise CaseError(f"{case.source}: mesh.kind: the convergence study needs nested meshes "
                         "(structured); got 'unstructured'")
+    if case is not None and case.dim != 2:
+        raise CaseError(f"{case.source}: mesh.dim: the convergence study is for 2D cases "
+                        "(nested structured rectangles)")
+    if case is not None and ("times" in case.raw["time"] or "grading" in case.raw["time"]):
+        raise CaseError(f"{case.source}: time: the convergence study refines uniform steps; "
+                        "give time.T and time.N")
     if vary not in ("both", "h", "k"):
         raise CaseError(f"--vary: {vary!r} is not allowed (allowed: both, h, k)")
     if not levels or any(L < 1 for L in levels) or reference < 1:
@@ -80,6 +86,7 @@ def plan_runs(levels: list[int], reference: int, vary: str, case=None) -> list[t
 def _case_at(raw: dict, n: int, N: int, delta: float, source: str):
     raw = copy.deepcopy(raw)
     raw["mesh"]["n"], raw["time"]["N"] = n, N
+    raw["time"].pop("k", None)
     raw.setdefault("solver", {})["delta"] = delta
     return validate(raw, source)
 

@@ -15,6 +15,8 @@ import numpy as np
 from dolfinx import io as dio
 
 OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv")
+# 2D columns; in 3D z, u_z and two tangential components (u_tau1, u_tau2, neg_sigma_tau1,
+# neg_sigma_tau2) appear, and xi (memory) / theta (slip dependence) when the case has them.
 CONTACT_COLUMNS = ("x", "y", "u_x", "u_y", "u_nu", "u_tau", "neg_sigma_nu", "neg_sigma_tau",
                    "state")
 
@@ -60,23 +62,25 @@ def classify(u_nu: np.ndarray, g: float | None, tol: float) -> np.ndarray:
 
 
 def write_contact_csv(comm, path: Path, table: dict, g: float | None) -> dict:
-    """Gather the per-node contact table on rank 0, sort by x and write it.  Returns counts
-    of node states (on every rank)."""
+    """Gather the per-node contact table on rank 0, sort by coordinates and write it (columns
+    in the table's order, then ``state``).  Returns counts of node states (on every rank)."""
     tol = 1e-9 * (g if g else 1.0)
     local = {k: np.asarray(v) for k, v in table.items()}
     parts = comm.gather(local, root=0)
     counts = None
     if comm.rank == 0:
         data = {k: np.concatenate([p[k] for p in parts]) for k in local}
-        order = np.lexsort((data["y"], data["x"]))
+        keys = [k for k in ("z", "y", "x") if k in data]
+        order = np.lexsort(tuple(data[k] for k in keys))
         data = {k: v[order] for k, v in data.items()}
         data["state"] = classify(data["u_nu"], g, tol)
+        columns = list(local) + ["state"]
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
-        writer.writerow(CONTACT_COLUMNS)
+        writer.writerow(columns)
         for i in range(len(data["x"])):
             writer.writerow([repr(float(data[c][i])) if c != "state" else data[c][i]
-                             for c in CONTACT_COLUMNS])
+                             for c in columns])
         atomic_write(path, buf.getvalue())
         counts = {s: int(np.sum(data["state"] == s)) for s in ("bound", "compliance", "separated")}
         counts["nodes"] = int(len(data["x"]))

@@ -130,6 +130,11 @@ class ContactProblem:
             "Q": fem.form(ufl.inner(self.sigma, self.sigma) * ufl.dx),
         }
 
+    @property
+    def length_scale(self) -> float:
+        m = self.case.mesh
+        return max(m.L1, m.L2, m.L3 if self.dim == 3 else 0.0)
+
     # ------------------------------------------------------------------ sizes
     @property
     def num_cells(self) -> int:

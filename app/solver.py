@@ -6,10 +6,14 @@ from the PETSc options database under our prefix, so every PETSc option works.
 """
 from __future__ import annotations
 
+import logging
+
+import numpy as np
 from dolfinx import fem
 from petsc4py import PETSc
 
 PREFIX = "vpcontact_"
+log = logging.getLogger("vpcontact")
 
 _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
 
@@ -44,8 +48,21 @@ def clear_petsc_options(options: dict, prefix: str = PREFIX) -> None:
         db.delValue(prefix + key)
 
 
+def continuation_deltas(target: float, length: float) -> list[float]:
+    """delta_0 = 1e-4 length (at least the target), then /10 per stage, ending at target."""
+    start = max(target, 1e-4 * length)
+    n = int(np.ceil(np.log10(start / target) - 1e-9))
+    return [target * 10.0 ** k for k in range(n, 0, -1)] + [target] if n > 0 else [target]
+
+
 class SNESVISolver:
-    """Solves one step: u_n = argmin J_n over U^h, starting from the current ``problem.u``."""
+    """Solves one step: u_n = argmin J_n over U^h, starting from the current ``problem.u``.
+
+    A second SNES with a backtracking line search (other options as given) is the fallback when
+    the first fails: full Newton steps can cycle between two iterates when a node crosses a
+    nearly nonsmooth point (u_nu = 0 with a memory force, |u_tau| = 0 with friction)."""
+
+    ROBUST = {"snes_linesearch_type": "bt"}
 
     def __init__(self, problem, options: dict, prefix: str = PREFIX):
         self.problem = problem
@@ -53,20 +70,35 @@ class SNESVISolver:
         self.b = fem.petsc.create_vector(problem.F_form)
         self.A = fem.petsc.create_matrix(problem.J_form)
         self.x = self.u.vector.copy()
-        snes = self.snes = PETSc.SNES().create(problem.comm)
-        snes.setOptionsPrefix(prefix)
+        self.options, self.prefix = options, prefix
+        self.snes = self._create(options)
+        self._robust = None
+        self.continuation_stages = 0
+        self.fallback = None
+        self.sticky_robust = False
+
+    def _create(self, options: dict):
+        snes = PETSc.SNES().create(self.problem.comm)
+        snes.setOptionsPrefix(self.prefix)
         snes.setFunction(self._F, self.b)
         snes.setJacobian(self._J, self.A, self.A)
         # Options pass through unchanged under our prefix; removed again once read so that
         # they cannot leak into another solver created in the same process.
-        set_petsc_options(options, prefix)
+        set_petsc_options(options, self.prefix)
         try:
             snes.setFromOptions()
         finally:
-            clear_petsc_options(options, prefix)
+            clear_petsc_options(options, self.prefix)
         if snes.getType().startswith("vi"):
-            self.lb, self.ub = problem.bounds()
-            snes.setVariableBounds(self.lb, self.ub)
+            lb, ub = self.problem.bounds()
+            snes.setVariableBounds(lb, ub)
+        return snes
+
+    @property
+    def robust(self):
+        if self._robust is None:
+            self._robust = self._create({**self.options, **self.ROBUST})
+        return self._robust
 
     def _F(self, snes, x, b):
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
@@ -84,22 +116,71 @@ class SNESVISolver:
         fem.petsc.assemble_matrix(A, self.problem.J_form, self.problem.bcs)
         A.assemble()
 
-    def solve(self) -> int:
-        """Solve from the current u (u_{n-1}); on success u holds u_n and the Newton
-        iteration count is returned.  On failure u is restored and StepFailure raised."""
-        start = self.u.x.array.copy()
+    def _solve_once(self, snes) -> int:
         self.u.vector.copy(self.x)
-        self.snes.solve(None, self.x)
-        reason = self.snes.getConvergedReason()
-        its = self.snes.getIterationNumber()
+        snes.solve(None, self.x)
+        reason = snes.getConvergedReason()
+        its = snes.getIterationNumber()
         if reason <= 0:
-            self.u.x.array[:] = start  # keep the last good state u_{n-1}
             raise StepFailure(f"SNES did not converge: {reason_name(reason)} ({reason}) after "
                               f"{its} Newton iterations", reason)
         self.x.copy(self.u.vector)
         self.u.x.scatter_forward()
         return its
 
+    def solve(self) -> int:
+        """Solve from the current u (u_{n-1}); on success u holds u_n and the Newton
+        iteration count is returned.  On failure u is restored and StepFailure raised.
+
+        Fallbacks when SNES fails: (1) the backtracking SNES at the case's delta; (2) if the
+        step has a regularised term, continuation in delta with it, from a wide
+        regularisation down to the case's delta by factors of 10, each stage warm-started.
+        Every fallback ends on the same discrete problem; ``self.fallback`` says which one
+        was used (None: none) and ``self.continuation_stages`` how many stages.  After the
+        first step that needed backtracking, later steps start with the backtracking SNES."""
+        start = self.u.x.array.copy()
+        self.continuation_stages, self.fallback = 0, None
+        its = 0
+        if not self.sticky_robust:
+            try:
+                return self._solve_once(self.snes)
+            except StepFailure as exc:
+                first = exc
+            its = self.snes.getIterationNumber()
+            self.u.x.array[:] = start
+        else:
+            first = StepFailure("(basic Newton skipped after an earlier failure)")
+        try:
+            its += self._solve_once(self.robust)
+            if not self.sticky_robust:
+                self.fallback = "backtracking"
+                self.sticky_robust = True  # the basic iteration cycles here: skip it from now on
+            return its
+        except StepFailure as exc:
+            second = exc
+        its += self.robust.getIterationNumber()
+        delta = self.problem.constants.get("delta")
+        self.u.x.array[:] = start  # keep the last good state u_{n-1}
+        if delta is None:
+            raise StepFailure(f"{first}; with backtracking: {second}", second.reason)
+        target = float(delta.value)
+        stages = continuation_deltas(target, self.problem.length_scale)
+        try:
+            for d in stages:
+                delta.value = d
+                its += self._solve_once(self.robust)
+        except StepFailure as exc:
+            self.u.x.array[:] = start
+            raise StepFailure(f"{first}; with backtracking: {second}; delta continuation "
+                              f"{stages[0]:g} -> {target:g} failed at delta = {d:g}: {exc}",
+                              exc.reason) from None
+        finally:
+            delta.value = target
+        self.fallback = "delta continuation"
+        self.continuation_stages = len(stages)
+        return its
+
     def destroy(self):
-        for obj in (self.snes, self.A, self.b, self.x):
-            obj.destroy()
+        for obj in (self.snes, self._robust, self.A, self.b, self.x):
+            if obj is not None:
+                obj.destroy()

@@ -130,6 +130,13 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
             break
         problem.update_sigma()                  # sigma_n = E eps(u_n) + H_n, (3.2)
         rec = _step_record(problem, history, n, t, its, time.perf_counter() - t0)
+        if solver.fallback:
+            rec["fallback"] = solver.fallback
+            if solver.continuation_stages:
+                rec["delta_continuation_stages"] = solver.continuation_stages
+            log.warning("step %d: the basic Newton iteration failed; solved with %s (%d Newton "
+                        "iterations in all)%s", n, solver.fallback, its,
+                        "; later steps start with backtracking" if solver.sticky_robust else "")
         steps.append(rec)
         if on_step:
             on_step(n, t, problem, history)
