@@ -70,8 +70,10 @@ def write_contact_csv(comm, path: Path, table: dict, g: float | None) -> dict:
     counts = None
     if comm.rank == 0:
         data = {k: np.concatenate([p[k] for p in parts]) for k in local}
-        keys = [k for k in ("z", "y", "x") if k in data]
-        order = np.lexsort(tuple(data[k] for k in keys))
+        # sort on rounded coordinates: dof coordinates carry rank-dependent round-off
+        scale = max(np.abs(data[k]).max(initial=0.0) for k in ("x", "y", "z") if k in data)
+        keys = [np.round(data[k] / max(scale, 1e-300), 9) for k in ("z", "y", "x") if k in data]
+        order = np.lexsort(tuple(keys))
         data = {k: v[order] for k, v in data.items()}
         data["state"] = classify(data["u_nu"], g, tol)
         columns = list(local) + ["state"]

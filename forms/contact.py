@@ -10,7 +10,6 @@ The bound u_nu <= g is not a form: it is a box constraint on the normal dofs (SN
 """
 from __future__ import annotations
 
-import numpy as np
 import ufl
 
 # Quadrature for Gamma3 integrals.  "vertex" is the nodal (trapezoid) rule: it lumps every
@@ -27,8 +26,8 @@ def gamma3_measure(mesh, facet_tags, tag: int, quadrature: str = "vertex", degre
         md = {"quadrature_rule": "GLL", "quadrature_degree": 1}
     elif quadrature == "vertex":   # triangle facets: weight 1/6 at each reference vertex
         md = {"quadrature_rule": "custom",
-              "quadrature_points": np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]),
-              "quadrature_weights": np.full(3, 1.0 / 6.0)}
+              "quadrature_points": ((0.0, 0.0), (1.0, 0.0), (0.0, 1.0)),
+              "quadrature_weights": (1.0 / 6.0,) * 3}
     elif quadrature == "gauss":
         md = {"quadrature_degree": int(degree)}
     else:

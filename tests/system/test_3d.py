@@ -1,0 +1,90 @@
+"""3D: patch test, the box case's nodal contact laws, and serial == mpirun -n 2."""
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, paper_raw, run_case, run_cli, validate_raw
+from forms.elasticity import lame_constants
+
+BOX = ROOT / "cases" / "box3d.yaml"
+
+
+@pytest.mark.parametrize("size", [{"kind": "structured", "n": 2}, {"kind": "unstructured", "h": 0.5}])
+def test_3d_uniform_stress_patch(size):
+    """u = (a x, b x, c x) vanishes on x = 0 with uniform strain; tractions sigma n on the
+    other five faces make it exact, and P1 tetrahedra must reproduce it to round-off."""
+    E, nu, a, b, c = 1000.0, 0.3, 2e-3, -1e-3, 5e-4
+    lmbda, two_mu = lame_constants(E, nu, 3)
+    grad = np.zeros((3, 3))
+    grad[:, 0] = (a, b, c)
+    eps = 0.5 * (grad + grad.T)
+    sigma = lmbda * np.trace(eps) * np.eye(3) + two_mu * eps
+    normals = {"right": [1, 0, 0], "top": [0, 0, 1], "bottom": [0, 0, -1],
+               "front": [0, -1, 0], "back": [0, 1, 0]}
+    raw = paper_raw()
+    del raw["contact"]
+    raw["material"] = {"E": E, "nu": nu}
+    raw["mesh"] = {"dim": 3, "L1": 1.0, "L2": 0.5, "L3": 0.75, **size}
+    raw["loads"] = {"traction": {k: [float(v) for v in sigma @ n] for k, n in normals.items()}}
+    raw["time"] = {"T": 1.0, "N": 1}
+    p = run_case(validate_raw(raw)).problem
+    x = p.V.tabulate_dof_coordinates()
+    exact = np.outer(x[:, 0], [a, b, c])
+    u = p.u.x.array.reshape(-1, 3)
+    assert np.abs(u - exact).max() <= 1e-11 * np.abs(exact).max()
+    s = p.sigma.x.array.reshape(-1, 3, 3)
+    assert np.abs(s - sigma).max() <= 1e-9 * np.abs(sigma).max()
+
+
+def test_box_case_nodal_laws():
+    """Normal law (4.1) and the vector friction law at every Gamma3 node of the 3D case."""
+    from app.case import load_raw
+    raw = load_raw(BOX)
+    raw["mesh"]["n"] = 4
+    raw["time"]["N"] = 4
+    res = run_case(validate_raw(raw))
+    case, tab = res.problem.case, res.problem.contact_table()
+    c_nu, g, fr = case.contact.c_nu, case.contact.g, case.contact.friction
+    tol = 1e-7 * c_nu * g
+    u_nu, f_nu = tab["u_nu"], tab["neg_sigma_nu"]
+    bound = u_nu >= g * (1 - 1e-9)
+    inside = (u_nu > 0) & ~bound
+    assert bound.sum() > 0 and inside.sum() > 0
+    np.testing.assert_allclose(f_nu[inside], c_nu * u_nu[inside], atol=tol)
+    assert np.all(f_nu[bound] >= c_nu * g - tol)
+    ut = np.column_stack([tab["u_tau1"], tab["u_tau2"]])
+    ft = np.column_stack([tab["neg_sigma_tau1"], tab["neg_sigma_tau2"]])
+    r = np.linalg.norm(ut, axis=1)
+    assert np.all(r > 1e-5)
+    dpsi = np.where(r <= fr.u1, fr.b - fr.c1 * r, fr.c2 * (r - fr.u1) + fr.b - fr.c1 * fr.u1)
+    np.testing.assert_allclose(ft, (dpsi / r)[:, None] * ut, rtol=1e-6, atol=tol)
+
+
+@pytest.mark.mpi
+def test_box_serial_equals_two_ranks(tmp_path):
+    out = {}
+    for n in (1, 2):
+        proc = run_cli(["run", BOX, "--out", tmp_path / f"np{n}", "--quiet",
+                        "--set", "time.N=4"], nprocs=n)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        out[n] = (json.loads((tmp_path / f"np{n}" / "summary.json").read_text()),
+                  list(csv.DictReader(open(tmp_path / f"np{n}" / "contact.csv"))))
+    (s1, c1), (s2, c2) = out[1], out[2]
+    assert s2["mpi_ranks"] == 2 and s1["mesh"] == s2["mesh"]
+    for a, b in zip(s1["steps"], s2["steps"], strict=True):
+        for key in ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa"):
+            assert b[key] == pytest.approx(a[key], rel=1e-8), key
+    assert list(c1[0]) == ["x", "y", "z", "u_x", "u_y", "u_z", "u_nu", "u_tau1", "u_tau2",
+                           "neg_sigma_nu", "neg_sigma_tau1", "neg_sigma_tau2", "state"]
+    for col in ("u_x", "u_y", "u_z", "neg_sigma_nu", "neg_sigma_tau1", "neg_sigma_tau2"):
+        v1 = np.array([float(r[col]) for r in c1])
+        v2 = np.array([float(r[col]) for r in c2])
+        np.testing.assert_allclose(v2, v1, rtol=1e-8, atol=1e-10 * np.abs(v1).max())
+
+
+def test_convergence_refuses_3d(tmp_path):
+    proc = run_cli(["convergence", BOX, "--levels", "2", "--reference", "4", "--out",
+                    tmp_path / "o", "--no-cache"])
+    assert proc.returncode == 2 and "mesh.dim" in proc.stderr
