@@ -21,13 +21,14 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OPENBLAS_NUM_THREADS := 1
 export OMP_NUM_THREADS := 1
 
-.PHONY: help setup demo test convergence clean
+.PHONY: help setup demo test convergence stability clean
 
 help:
 	@echo "make setup   install Debian packages, create $(VENV), pip install -e . (idempotent)"
 	@echo "make demo    run $(CASE) (the paper's Section 4 example) into results/"
 	@echo "make test    run the test suite (serial and mpirun -n 2)"
 	@echo "make convergence  the paper's Table 1 study (h = k = 1/8..1/64 vs 1/128) for three deltas"
+	@echo "make stability    stiff and extreme variants of the paper case (stability.md/.csv)"
 
 setup:
 	@missing=$$(for p in $(DEB_PACKAGES); do \
@@ -56,6 +57,9 @@ CONV_DELTAS ?= 1e-7 1e-3 1e-2
 convergence: setup
 	$(PY) -m app convergence $(CASE) --levels 8 16 32 64 --reference 128 --vary both \
 	  --deltas $(CONV_DELTAS) --overwrite
+
+stability: setup
+	$(PY) -m app stability $(CASE) --overwrite
 
 clean:
 	rm -rf results .pytest_cache

@@ -6,6 +6,7 @@ PETSc options and output settings are separate objects (STYLE.md).
 from __future__ import annotations
 
 import copy
+import dataclasses
 import re
 import difflib
 from dataclasses import dataclass, field
@@ -203,6 +204,8 @@ class Initial:
 class TimeGrid:
     times: tuple
     uniform: bool
+    scheme: str = "explicit"
+    adaptive: dict | None = None
 
     @property
     def T(self) -> float:
@@ -248,7 +251,9 @@ class Case:
     def active_terms(self) -> list[str]:
         terms = ["plane-stress elasticity" if self.dim == 2 else "isotropic elasticity (3D)"]
         if self.material.viscoplastic:
-            terms.append("Perzyna viscoplastic history H_n, kappa_n")
+            terms.append("Perzyna viscoplastic history H_n, kappa_n"
+                         + (" (implicit, right end point)" if self.time.scheme == "implicit"
+                            else " (explicit, as in the paper)"))
         if self.contact.c_nu is not None:
             terms.append("normal compliance")
         if self.contact.g is not None:
@@ -387,7 +392,9 @@ def validate(data: dict, source: str = "<case>") -> Case:
                 if rows[i][j] != rows[j][i]:
                     raise CaseError(f"{source}: initial.sigma0: must be symmetric "
                                     f"([{i}][{j}] != [{j}][{i}])")
-    time_grid = _time_grid(data["time"], source)
+    time_grid = dataclasses.replace(_time_grid(data["time"], source),
+                                    scheme=data["time"]["scheme"],
+                                    adaptive=data["time"].get("adaptive"))
     petsc = {**DEFAULT_PETSC, **data.get("petsc", {})}
     slip = fr.get("slip") if fr else None
     return Case(

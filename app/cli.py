@@ -10,8 +10,8 @@ import argparse
 import dataclasses
 import logging
 import re
-import shutil
 import sys
+import time
 from pathlib import Path
 
 from . import __version__
@@ -91,6 +91,24 @@ def _parser() -> argparse.ArgumentParser:
     conv.add_argument("--overwrite", action="store_true",
                       help="replace the outputs of an earlier study in the output directory")
     conv.add_argument("--quiet", action="store_true", help="only warnings and errors")
+
+    stab = sub.add_parser(
+        "stability", help="sweep stiff and extreme variants of a case",
+        description="Run stiff and extreme variants of a case (viscosity, near-Signorini "
+                    "contact, friction, loads, material, time steps) with the explicit and "
+                    "implicit history schemes on a coarse mesh, and report convergence, "
+                    "growth, stability indicator and well-posedness margin "
+                    "(stability.csv, stability.md).")
+    stab.add_argument("case", help="YAML case file (2D)")
+    stab.add_argument("--out", metavar="DIR",
+                      help="output directory (default: results/<case name>/stability)")
+    stab.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                      help="override a case key (repeatable)")
+    stab.add_argument("--n", type=int, default=8, help="cells per side of the coarse mesh")
+    stab.add_argument("--steps", type=int, default=8, help="time steps of the base variant")
+    stab.add_argument("--overwrite", action="store_true",
+                      help="replace the outputs of an earlier sweep in the output directory")
+    stab.add_argument("--quiet", action="store_true", help="only warnings and errors")
     return p
 
 
@@ -221,6 +239,41 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
     return 0
 
 
+STABILITY_FILES = ("stability.csv", "stability.md")
+
+
+def cmd_stability(args, petsc_cli: dict) -> int:
+    from mpi4py import MPI
+
+    from .case import load_raw, validate
+
+    comm = MPI.COMM_WORLD
+    _setup_logging(comm, args.quiet)
+    try:
+        raw = load_raw(args.case, args.overrides)
+        case = validate(raw, args.case)
+        if case.dim != 2:
+            raise CaseError(f"{args.case}: mesh.dim: the stability sweep is for 2D cases")
+        outdir = Path(args.out) if args.out else Path("results") / case.name / "stability"
+        _prepare_outdir(comm, outdir, args.overwrite, STABILITY_FILES)
+    except CaseError as exc:
+        if comm.rank == 0:
+            print(f"vpcontact: error: {exc}", file=sys.stderr)
+        return 2
+    from . import stability as st
+
+    log.info("vpcontact %s: stability sweep of %s -> %s", __version__, args.case, outdir)
+    t0 = time.perf_counter()
+    outcomes = st.sweep(raw, comm, petsc_cli, args.n, args.steps)
+    if comm.rank == 0:
+        st.write_csv(outdir / "stability.csv", outcomes)
+        st.write_markdown(outdir / "stability.md", outcomes, case.name, args.n, args.steps)
+    log.info("done in %.1f s: %s/{%s}", time.perf_counter() - t0, outdir,
+             ", ".join(STABILITY_FILES))
+    comm.barrier()
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     ours, petsc_cli = split_petsc_args(argv)
@@ -229,6 +282,8 @@ def main(argv: list[str] | None = None) -> int:
         return cmd_run(args, petsc_cli)
     if args.command == "convergence":
         return cmd_convergence(args, petsc_cli)
+    if args.command == "stability":
+        return cmd_stability(args, petsc_cli)
     return 2  # pragma: no cover (argparse enforces a command)
 
 

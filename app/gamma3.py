@@ -55,6 +55,13 @@ class MemorySum:
     def stored_steps(self) -> int:
         return len(self._r)
 
+    def snapshot(self):
+        return self.xi.copy(), len(self._r)
+
+    def restore(self, state) -> None:
+        self.xi, n = state[0].copy(), state[1]
+        del self._t_prev[n:], self._k[n:], self._r[n:]
+
     def advance(self, r_plus: np.ndarray, t_prev: float, t_n: float) -> np.ndarray:
         k = t_n - t_prev
         if self.recursion:
@@ -79,6 +86,12 @@ class SlipSum:
     def advance(self, abs_tau: np.ndarray, k: float) -> np.ndarray:
         self.s = self.s + k * abs_tau
         return self.s
+
+    def snapshot(self):
+        return self.s.copy()
+
+    def restore(self, state) -> None:
+        self.s = state.copy()
 
     def theta(self) -> np.ndarray:
         """theta(s) = theta_inf + (1 - theta_inf) exp(-s / s0) (MODEL.md section 4)."""
@@ -120,6 +133,18 @@ class Gamma3History:
         if slip is not None:
             self.slip = SlipSum(m, slip["theta_inf"], slip["s0"])
             self.theta = problem.theta
+            self.theta.set(self.slip.theta())
+
+    def snapshot(self):
+        return (self.memory.snapshot() if self.memory else None,
+                self.slip.snapshot() if self.slip else None)
+
+    def restore(self, state) -> None:
+        if self.memory is not None:
+            self.memory.restore(state[0])
+            self.xi.set(self.memory.xi)
+        if self.slip is not None:
+            self.slip.restore(state[1])
             self.theta.set(self.slip.theta())
 
     def advance(self, t_prev: float, t_n: float) -> None:

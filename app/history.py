@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dolfinx import fem
 
+from .implicit import BackwardEulerPerzyna, LocalFailure
 from .material import Perzyna
 
 
@@ -24,6 +25,20 @@ class ViscoplasticHistory:
         self.H = problem.H
         self.kappa = fem.Function(problem.Y, name="kappa")
 
+    def snapshot(self):
+        return self.H.x.array.copy(), self.kappa.x.array.copy()
+
+    def restore(self, state) -> None:
+        self.H.x.array[:], self.kappa.x.array[:] = state
+
+    def before_solve(self, problem, k: float) -> None:
+        """H_n, kappa_n from sigma_{n-1}, kappa_{n-1} (explicit: known before the solve)."""
+        self.advance(problem.sigma, k)
+
+    def after_solve(self, problem) -> None:
+        """sigma_n = E eps(u_n) + H_n (3.2)."""
+        problem.update_sigma()
+
     def advance(self, sigma_prev, k: float) -> None:
         """H_n = H_{n-1} + k_n Gfun(sigma_{n-1}, kappa_{n-1}), same for kappa (3.2)-(3.3).
 
@@ -35,3 +50,52 @@ class ViscoplasticHistory:
         g_sigma, g_kappa = self.law.rates(t, self.kappa.x.array)
         self.H.x.array[:] += k * self.elasticity.from_voigt(g_sigma).reshape(-1)
         self.kappa.x.array[:] += k * g_kappa
+
+
+class ImplicitViscoplasticHistory:
+    """The right-end-point variant (app/implicit.py): H and kappa hold the committed state
+    H_{n-1} = sigma_{n-1} - E eps(u_{n-1}) and kappa_{n-1}; during the solve of step n every
+    residual evaluation updates sigma (and the tangent) from the current u; after the solve
+    the state at u_n is committed."""
+
+    def __init__(self, problem, lambda1: float, lambda2: float):
+        self.elasticity = problem.law
+        self.law = Perzyna(problem.law, lambda1, lambda2)
+        self.local = BackwardEulerPerzyna(self.law)
+        self.H = problem.H
+        self.kappa = fem.Function(problem.Y, name="kappa")
+        self._kappa_trial = None
+        self.k = None
+        problem.constitutive = self
+
+    def snapshot(self):
+        return self.H.x.array.copy(), self.kappa.x.array.copy()
+
+    def restore(self, state) -> None:
+        self.H.x.array[:], self.kappa.x.array[:] = state
+
+    def before_solve(self, problem, k: float) -> None:
+        self.k = k
+
+    def update(self, problem) -> bool:
+        law = self.elasticity
+        eps_t = problem.strain_voigt()
+        s_tr = law.apply(eps_t) + law.to_voigt(self.H.x.array)
+        try:
+            sigma, kappa, C = self.local.solve(s_tr, self.kappa.x.array, self.k)
+        except LocalFailure:
+            return False
+        problem.sigma.x.array[:] = law.from_voigt(sigma).reshape(-1)
+        problem.C_alg.x.array[:] = C.reshape(-1)
+        self._kappa_trial = kappa
+        self._eps_t = eps_t
+        self._sigma_t = sigma
+        return True
+
+    def after_solve(self, problem) -> None:
+        if not self.update(problem):   # at the converged u_n
+            raise LocalFailure("implicit Perzyna update failed at the converged step")
+        law = self.elasticity
+        self.kappa.x.array[:] = self._kappa_trial
+        self.H.x.array[:] = law.from_voigt(self._sigma_t - law.apply(self._eps_t)).reshape(-1)
+        problem.update_vm()

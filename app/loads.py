@@ -34,8 +34,8 @@ class TimeData:
 
     def scalar(self, component):
         """UFL for one component (number, table or expression)."""
-        if isinstance(component, (int, float)):
-            return float(component)
+        if isinstance(component, (int, float)):   # a Constant: no recompilation per value
+            return fem.Constant(self.mesh, PETSc.ScalarType(component))
         if isinstance(component, dict):
             pts = np.asarray(component["table"], dtype=float)
             c = fem.Constant(self.mesh, PETSc.ScalarType(pts[0, 1]))

@@ -162,8 +162,16 @@ class VonMisesProjection:
         s = np.asarray(s, dtype=float).reshape(-1, self.m)
         kappa = np.broadcast_to(np.asarray(kappa, dtype=float), (s.shape[0],))
         out = s.copy()
+        bad = ~(np.isfinite(s).all(axis=1) & np.isfinite(kappa))
+        out[bad] = np.nan                       # non-finite input propagates as NaN
+        # P is positively homogeneous: P_{K(c kappa)}(c s) = c P_{K(kappa)}(s); scale each row
+        # by max |s_i| so that the secular equation cannot overflow for huge stresses.
+        scale = np.where(bad, 1.0, np.maximum(np.abs(np.where(bad[:, None], 0.0, s)).max(axis=1),
+                                              1e-300))
+        s = np.where(bad[:, None], 0.0, s) / scale[:, None]
+        kappa = np.where(bad, 0.0, kappa) / scale
         vm = np.sqrt(np.maximum(np.einsum("ni,ij,nj->n", s, self.M, s), 0.0))
-        outside = vm > kappa
+        outside = (vm > kappa) & ~bad
         if not np.any(outside):
             return out
         z = (s[outside] @ self.A) @ self.V  # z = V^T A s per row
@@ -191,7 +199,7 @@ class VonMisesProjection:
         factor = 1.0 / (1.0 + mu[:, None] * lam[None, :])
         # kappa = 0: mu -> infinity keeps only the directions with lam = 0 (none in plane stress).
         factor[zero] = (lam[None, :] == 0.0).astype(float)
-        out[outside] = (z * factor) @ self.V.T
+        out[outside] = ((z * factor) @ self.V.T) * scale[outside, None]
         return out
 
 

@@ -71,6 +71,15 @@ class ContactProblem:
         has_H = case.material.viscoplastic is not None or init.u0 is not None \
             or init.sigma0 is not None
         self.H = fem.Function(self.Q, name="H") if has_H else None
+        # Implicit history variant: the forms take sigma and the algorithmic tangent per
+        # cell (updated by ``constitutive`` before every residual), not E eps(u) + H_n.
+        self.implicit = case.time.scheme == "implicit" and case.material.viscoplastic is not None
+        self.constitutive = None
+        self.C_alg = None
+        if self.implicit:
+            m = self.law.m
+            self.C_alg = fem.Function(fem.TensorFunctionSpace(msh, ("DG", 0), shape=(m, m)),
+                                      name="C_alg")
         self.normal = np.array(rect.normal)
         self.tangents = np.array(rect.tangent)
         self.time_data = TimeData(msh)
@@ -110,7 +119,9 @@ class ContactProblem:
             friction = {k: const(k, getattr(c.friction, k)) for k in ("b", "c1", "c2", "u1")}
         needs_delta = c.friction is not None or c.memory is not None
         self.forms = build_step_forms(
-            self.u, self.H, E=E, nu=nu, dim=d, f0=f0, tractions=tractions, ds=ds,
+            self.u, None if self.implicit else self.H, E=E, nu=nu, dim=d, f0=f0,
+            tractions=tractions, ds=ds,
+            stress=self.sigma if self.implicit else None, tangent=self.C_alg,
             ds_c=self.ds_c, normal=tuple(self.normal),
             c_nu=const("c_nu", c.c_nu) if c.c_nu is not None else None,
             friction=friction,
@@ -125,6 +136,8 @@ class ContactProblem:
         self._C = elasticity_operator(E, nu, d)
         expr = self._C(eps(self.u)) if self.H is None else self._C(eps(self.u)) + self.H
         self._sigma_expr = fem.Expression(expr, self.Q.element.interpolation_points())
+        self._eps_fn = fem.Function(self.Q)
+        self._eps_expr = fem.Expression(eps(self.u), self.Q.element.interpolation_points())
         self._norm_forms = {
             "V": fem.form(ufl.inner(eps(self.u), eps(self.u)) * ufl.dx),
             "Q": fem.form(ufl.inner(self.sigma, self.sigma) * ufl.dx),
@@ -243,8 +256,22 @@ class ContactProblem:
         """sigma_n = E eps(u_n) + H_n (3.2) and its von Mises norm, per cell."""
         self.sigma.interpolate(self._sigma_expr)
         self.sigma.x.scatter_forward()
+        self.update_vm()
+
+    def update_vm(self) -> None:
         self.sigma_vm.x.array[:] = self.law.von_mises(self.law.to_voigt(self.sigma.x.array))
         self.sigma_vm.x.scatter_forward()
+
+    def strain_voigt(self) -> np.ndarray:
+        """eps(u) per cell (owned and ghost) in t-coordinates."""
+        self._eps_fn.interpolate(self._eps_expr)
+        self._eps_fn.x.scatter_forward()
+        return self.law.to_voigt(self._eps_fn.x.array)
+
+    def before_residual(self) -> bool:
+        """Called with the current u before every residual assembly: the implicit variant's
+        local stress update.  Returns False if it failed (the residual is then NaN)."""
+        return self.constitutive.update(self) if self.constitutive is not None else True
 
     def _reduce(self, value: float, op) -> float:
         return self.comm.allreduce(value, op=getattr(MPI, op))

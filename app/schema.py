@@ -127,6 +127,25 @@ SCHEMA = _obj({
                                            "k_j (instead of uniform steps)"},
         "times": {"type": "array", "items": _num, "minItems": 2, "maxItems": 1000001,
                   "description": "explicit time points 0 = t0 < t1 < ... (instead of T, N)"},
+        "adaptive": _obj({
+            "k_min": {**_pos, "description": "smallest step before the run gives up [s] "
+                                             "(default: first step / 1024)"},
+            "k_max": {**_pos, "description": "largest step [s] (default: T)"},
+            "grow": {"type": "number", "minimum": 1, "default": 1.5,
+                     "description": "factor by which the step grows after a fast step"},
+            "fast_newton": {"type": "integer", "minimum": 1, "default": 4,
+                            "description": "a step with at most this many Newton iterations "
+                                           "is fast"},
+            "max_indicator": {**_pos, "default": 1.0,
+                              "description": "explicit scheme: halve the step while k r_max "
+                                             "exceeds this (1: no overshoot, 2: limit)"},
+        }, description="adaptive steps from the first step of the grid to T: a step is "
+                       "rejected and halved when SNES fails or the stability indicator is "
+                       "exceeded, and grows after fast Newton convergence (absent: fixed grid)"),
+        "scheme": {"enum": ["explicit", "implicit"], "default": "explicit",
+                   "description": "history terms at the left end point (explicit, the paper's "
+                                  "(3.2)-(3.3)) or the right end point (implicit, backward "
+                                  "Euler, stable for any k)"},
     }, description="time grid: T with N or k (uniform), T with N and grading, or times"),
     "solver": _obj({
         "method": {"enum": ["snes_vi"], "default": "snes_vi",

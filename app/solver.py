@@ -106,6 +106,10 @@ class SNESVISolver:
         self.u.x.scatter_forward()
         with b.localForm() as bl:
             bl.set(0.0)
+        if not self.problem.before_residual():
+            with b.localForm() as bl:   # the local stress update failed: let SNES see NaN
+                bl.set(np.nan)
+            return
         fem.petsc.assemble_vector(b, self.problem.F_form)
         fem.petsc.apply_lifting(b, [self.problem.J_form], [self.problem.bcs], x0=[x], scale=-1.0)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)

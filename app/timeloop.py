@@ -9,14 +9,18 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from meshes import build_box, build_rectangle
 
 from .case import Case
+from .diagnostics import diagnose
 from .gamma3 import Gamma3History, Kernel
-from .history import ViscoplasticHistory
+from .history import ImplicitViscoplasticHistory, ViscoplasticHistory
 from .output import FieldWriter, write_contact_csv, write_json
 from .problem import ContactProblem
 from .solver import SNESVISolver, StepFailure
+from .stepping import StepTooSmall, make_stepper
 
 log = logging.getLogger("vpcontact")
 
@@ -81,7 +85,10 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
     rect = build_mesh(case, comm)
     problem = ContactProblem(case, rect)
     vp = case.material.viscoplastic
-    history = ViscoplasticHistory(problem, vp.lambda1, vp.lambda2) if vp else None
+    history = None
+    if vp:
+        cls = ImplicitViscoplasticHistory if problem.implicit else ViscoplasticHistory
+        history = cls(problem, vp.lambda1, vp.lambda2)
     problem.set_initial_values(history.kappa if history else None)
     g3 = build_gamma3_history(case, problem)
     solver = SNESVISolver(problem, case.petsc)
@@ -90,7 +97,12 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
     log.info("case %s (%dD): %d cells, %d vertices, %d dofs, %d steps (k = %s)", case.name,
              problem.dim, problem.num_cells, problem.num_vertices, problem.num_dofs,
              case.time.N, f"{ks[0]:g}" if case.time.uniform else f"{min(ks):g}..{max(ks):g}")
+    if case.time.adaptive is not None:
+        log.info("adaptive time steps: starting from k = %g to T = %g", ks[0], case.time.T)
     log.info("active terms: %s", ", ".join(case.active_terms()))
+    diag = diagnose(problem)
+    for level, text in diag.messages():
+        getattr(log, level)(text)
     log.info("step solver: SNES %s, set-up (mesh, JIT, matrices) %.2f s",
              solver.snes.getType(), t_setup)
 
@@ -103,33 +115,72 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
         problem.update_sigma()
         writer.write(0.0)
 
-    times = case.time.times
-    N = case.time.N
+    stepper = make_stepper(case, diag.relaxation_rate)
+    N = stepper.total
     if on_step:
         problem.update_sigma()
         on_step(0, 0.0, problem, history)
     steps, status, failure = [], "completed", None
     loop_start = time.perf_counter()
-    for n in range(1, N + 1):
-        t, k = times[n], times[n] - times[n - 1]
+    t, n = 0.0, 0
+    while True:
+        try:
+            k = stepper.next_k(t)
+        except StepTooSmall as exc:
+            status, failure = "failed", {"step": n + 1, "t": t, "reason": str(exc),
+                                         "snes_reason": None, "hint": "lower time.adaptive."
+                                         "k_min or use time.scheme: implicit"}
+            log.error("step %d (t = %g) failed: %s", n + 1, t, exc)
+            break
+        if k is None:
+            break
+        t_new = stepper.next_t(t, k)
         t0 = time.perf_counter()
+        saved = (history.snapshot() if history else None, g3.snapshot() if g3 else None,
+                 problem.sigma.x.array.copy()) if stepper.adaptive else None
         if history:
-            history.advance(problem.sigma, k)   # H_n, kappa_n from sigma_{n-1}, kappa_{n-1}
+            history.before_solve(problem, k)    # explicit: H_n, kappa_n from step n-1
         if g3:
-            g3.advance(times[n - 1], t)         # xi_n, s_n from u_{n-1}
-        problem.time_data.set_time(t)           # f_n
+            g3.advance(t, t_new)                # xi_n, s_n from u_{n-1}
+        problem.time_data.set_time(t_new)       # f_n
         try:
             its = solver.solve()                # u_n in U^h, (3.4)
         except StepFailure as exc:
+            if saved is not None:               # adaptive: undo the history, retry k/2
+                if history:
+                    history.restore(saved[0])
+                if g3:
+                    g3.restore(saved[1])
+                problem.sigma.x.array[:] = saved[2]
+                if stepper.reject(k, str(exc)):
+                    log.warning("step at t = %g with k = %g rejected (%s); retrying with k = %g",
+                                t, k, exc.args[0].split(";")[0], stepper.k)
+                    continue
             status = "failed"
-            failure = {"step": n, "t": t, "reason": str(exc), "snes_reason": exc.reason,
-                       "hint": "try a smaller time step (time.N), a larger solver.delta, "
-                               "or other PETSc options (-snes_monitor to see the iterations)"}
-            log.error("step %d/%d (t = %g) failed: %s; the last good state is step %d",
-                      n, N, t, exc, n - 1)
+            failure = {"step": n + 1, "t": t_new, "reason": str(exc), "snes_reason": exc.reason,
+                       "hint": "try a smaller time step (time.N), time.adaptive, time.scheme: "
+                               "implicit, a larger solver.delta, or other PETSc options "
+                               "(-snes_monitor to see the iterations)"}
+            log.error("step %d (t = %g) failed: %s; the last good state is step %d",
+                      n + 1, t_new, exc, n)
             break
-        problem.update_sigma()                  # sigma_n = E eps(u_n) + H_n, (3.2)
+        n, t = n + 1, t_new
+        stepper.accept(k, its)
+        if history:
+            history.after_solve(problem)        # sigma_n (explicit: E eps(u_n) + H_n, (3.2))
+        else:
+            problem.update_sigma()
         rec = _step_record(problem, history, n, t, its, time.perf_counter() - t0)
+        rec["k"] = k
+        if not all(np.isfinite(v) for v in rec.values()):
+            status = "failed"
+            failure = {"step": n, "t": t, "reason": "non-finite solution (NaN/Inf)",
+                       "snes_reason": None, "hint": "the explicit scheme may be unstable "
+                       "(see the stability indicator): time.scheme: implicit or smaller steps"}
+            log.error("step %d (t = %g): the solution is not finite; stopping, the last good "
+                      "state is step %d", n, t, n - 1)
+            n -= 1
+            break
         if solver.fallback:
             rec["fallback"] = solver.fallback
             if solver.continuation_stages:
@@ -140,11 +191,13 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
         steps.append(rec)
         if on_step:
             on_step(n, t, problem, history)
-        if writer and (n % case.output.every == 0 or n == N):
+        last = stepper.next_k(t) is None if stepper.adaptive else n == N
+        if writer and (n % case.output.every == 0 or last):
             writer.write(t)
-        log.info("step %3d/%d  t = %-8.5g newton %2d  |u|_V = %.6e  |sigma|_Q = %.6e  "
-                 "max vm = %.5g  max kappa = %.5g  (%.3f s)", n, N, t, its, rec["norm_u_V"],
-                 rec["norm_sigma_Q"], rec["max_vm"], rec["max_kappa"], rec["wall_s"])
+        log.info("step %3d/%s  t = %-8.5g newton %2d  |u|_V = %.6e  |sigma|_Q = %.6e  "
+                 "max vm = %.5g  max kappa = %.5g  (%.3f s)", n, N or "?", t, its,
+                 rec["norm_u_V"], rec["norm_sigma_Q"], rec["max_vm"], rec["max_kappa"],
+                 rec["wall_s"])
     t_loop = time.perf_counter() - loop_start
     if writer:
         writer.close()
@@ -156,9 +209,11 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
         "mesh": {"cells": problem.num_cells, "vertices": problem.num_vertices,
                  "dofs": problem.num_dofs, "kind": case.mesh.kind, "n": case.mesh.n,
                  "h": rect.h, "diagonal": rect.diagonal},
-        "time": {"T": case.time.T, "N": N, "uniform": case.time.uniform},
+        "time": {"T": case.time.T, "N": n, "uniform": case.time.uniform,
+                 "scheme": case.time.scheme, "adaptive": stepper.adaptive},
         "mpi_ranks": comm.size,
         "active_terms": case.active_terms(),
+        "diagnostics": diag.as_dict(),
         "solver": {"method": case.numerics.method, "delta": case.numerics.delta,
                    "quadrature": case.numerics.quadrature,
                    "petsc_options": {k: v for k, v in case.petsc.items()}},
@@ -170,6 +225,8 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
         "loop_s": t_loop,
         "wall_s": time.perf_counter() - t_start,
     }
+    if stepper.adaptive:
+        summary["step_history"] = stepper.history
     if failure:
         summary["failure"] = failure
     if write_outputs:

@@ -25,15 +25,23 @@ class StepForms:
     the node's weight int phi_i ds is minus the contact force density (sigma nu at the node).
     """
 
-    energy: ufl.Form
+    energy: ufl.Form | None   # None for the implicit variant (no potential)
     residual: ufl.Form
     jacobian: ufl.Form
     bulk_residual: ufl.Form
     terms: list = field(default_factory=list)
 
 
+def voigt(tau, dim: int):
+    """t-coordinates of a symmetric tensor: (t11, t22, t12) or (t11, t22, t33, t23, t13, t12)."""
+    pairs = [(0, 0), (1, 1), (0, 1)] if dim == 2 else \
+        [(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)]
+    return ufl.as_vector([tau[i, j] for i, j in pairs])
+
+
 def build_step_forms(u, H, *, E, nu, dim=2, f0, tractions, ds, ds_c=None, normal=None,
-                     c_nu=None, friction=None, theta=None, xi=None, delta=None) -> StepForms:
+                     c_nu=None, friction=None, theta=None, xi=None, delta=None,
+                     stress=None, tangent=None) -> StepForms:
     """Build J_n and its derivatives.
 
     Parameters may be floats or dolfinx Constants (Constants keep one compiled form for all
@@ -43,6 +51,9 @@ def build_step_forms(u, H, *, E, nu, dim=2, f0, tractions, ds, ds_c=None, normal
     c_nu: normal compliance stiffness or None; friction: dict(b, c1, c2, u1) or None;
     theta: P1 Function theta(s_n) of the slip law or None; xi: P1 Function xi_n (memory
     term) or None; delta: regularisation width of |u_tau| and u_nu^+.
+    stress, tangent: the implicit history variant (app/implicit.py) replaces the elastic
+    energy and H_n by the residual (stress, eps(v)) with a per-cell stress Function and the
+    Jacobian (tangent eps_t(du)) . eps_t(v) (t-coordinates, shears weighted twice).
     """
     V = u.function_space
     v = ufl.TestFunction(V)
@@ -50,17 +61,24 @@ def build_step_forms(u, H, *, E, nu, dim=2, f0, tractions, ds, ds_c=None, normal
     C = elasticity_operator(E, nu, dim)
     dx = ufl.dx(domain=V.mesh)
 
-    bulk = 0.5 * ufl.inner(C(eps(u)), eps(u)) * dx
-    terms = ["elasticity"]
-    if H is not None:
-        bulk += ufl.inner(H, eps(u)) * dx
-        terms.append("pre-stress H_n")
+    loads = 0
+    terms = []
     if f0 is not None:
-        bulk -= ufl.dot(f0, u) * dx
+        loads += ufl.dot(f0, u) * dx
         terms.append("body force f0")
     for traction, tag in tractions:
-        bulk -= ufl.dot(traction, u) * ds(tag)
+        loads += ufl.dot(traction, u) * ds(tag)
         terms.append(f"traction on part {tag}")
+    if stress is None:
+        bulk = 0.5 * ufl.inner(C(eps(u)), eps(u)) * dx
+        terms.insert(0, "elasticity")
+        if H is not None:
+            bulk += ufl.inner(H, eps(u)) * dx
+            terms.insert(1, "pre-stress H_n")
+        if loads != 0:
+            bulk -= loads
+    else:
+        terms.insert(0, "implicit Perzyna stress (algorithmic tangent)")
 
     boundary = 0
     if c_nu is not None or friction is not None or xi is not None:
@@ -81,7 +99,21 @@ def build_step_forms(u, H, *, E, nu, dim=2, f0, tractions, ds, ds_c=None, normal
             boundary += j * ds_c
             terms.append("friction (regularised Clarke term)")
 
-    energy = bulk + boundary if boundary != 0 else bulk
-    residual = ufl.derivative(energy, u, v)
-    jacobian = ufl.derivative(residual, u, du)
-    return StepForms(energy, residual, jacobian, ufl.derivative(bulk, u, v), terms)
+    if stress is None:
+        energy = bulk + boundary if boundary != 0 else bulk
+        residual = ufl.derivative(energy, u, v)
+        jacobian = ufl.derivative(residual, u, du)
+        return StepForms(energy, residual, jacobian, ufl.derivative(bulk, u, v), terms)
+    w = [1.0] * dim + [2.0] * (len(voigt(eps(u), dim)) - dim)
+    ev = voigt(eps(v), dim)
+    weighted = ufl.as_vector([w[i] * ev[i] for i in range(len(w))])
+    bulk_residual = ufl.inner(stress, eps(v)) * dx
+    if loads != 0:
+        bulk_residual -= ufl.derivative(loads, u, v)
+    bulk_jacobian = ufl.dot(ufl.dot(tangent, voigt(eps(du), dim)), weighted) * dx
+    residual, jacobian = bulk_residual, bulk_jacobian
+    if boundary != 0:
+        contact_residual = ufl.derivative(boundary, u, v)
+        residual = residual + contact_residual
+        jacobian = jacobian + ufl.derivative(contact_residual, u, du)
+    return StepForms(None, residual, jacobian, bulk_residual, terms)

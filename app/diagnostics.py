@@ -1,0 +1,151 @@
+"""Stability and well-posedness diagnostics printed before a run (issue 5).
+
+- Explicit stability indicator: the history update of (3.2) relaxes the stress like
+  sigma_n ~ (I - k E/(2 lambda1)) sigma_{n-1} on the excess over the yield ball, so with the
+  largest relaxation rate r_max = lambda_max(E) / (2 lambda1) the explicit scheme needs
+  k_max r_max <= 2 (above 1 the relaxation overshoots and oscillates).  The implicit variant
+  has no such limit.
+- Well-posedness (2.6): m_E > max{sqrt(3) c1~, m_j} ||gamma||^2 with m_E the smallest
+  eigenvalue of E, m_j = c1 (relaxed monotonicity of law (4.2); theta <= 1 with slip
+  dependence), c1~ = 0 (theta is bounded: the friction bound does not grow with the slip)
+  and ||gamma||^2 = max_v ||v||^2_{L2(Gamma3)} / ||eps(v)||^2_{L2} on the discrete space,
+  computed by power iteration with the factorised stiffness.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from petsc4py import PETSc
+
+from forms.contact import gamma3_measure
+from forms.elasticity import eps
+from meshes import BOUNDARY_TAGS
+
+STABILITY_LIMIT = 2.0
+
+
+def relaxation_rate(law, lambda1: float) -> float:
+    """r_max = lambda_max(E) / (2 lambda1), E acting on symmetric tensors."""
+    return float(np.max(np.linalg.eigvals(law.Cmat).real)) / (2.0 * lambda1)
+
+
+def ellipticity(law) -> float:
+    """m_E, the smallest eigenvalue of E on symmetric tensors."""
+    return float(np.min(np.linalg.eigvals(law.Cmat).real))
+
+
+def trace_constant(problem, rtol: float = 1e-10, max_iter: int = 500) -> tuple[float, int]:
+    """||gamma||^2 = largest eigenvalue of M v = lam K v, M = (v, w)_{L2(Gamma3)},
+    K = (eps(v), eps(w)) on V^h with v = 0 on Gamma1; power iteration x <- K^-1 M x."""
+    V, comm = problem.V, problem.comm
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    ds3 = gamma3_measure(problem.mesh, problem.rect.facet_tags, BOUNDARY_TAGS["bottom"],
+                         "gauss", 2)
+    K = fem.petsc.assemble_matrix(fem.form(ufl.inner(eps(u), eps(v)) * ufl.dx), bcs=problem.bcs)
+    K.assemble()
+    M = fem.petsc.assemble_matrix(fem.form(ufl.inner(u, v) * ds3))   # Dirichlet rows: below
+    M.assemble()
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOperators(K)
+    ksp.setType("preonly")
+    pc = ksp.getPC()
+    pc.setType("lu")
+    pc.setFactorSolverType("mumps")
+    x, y, Mx = K.createVecRight(), K.createVecRight(), K.createVecRight()
+    x.setRandom(PETSc.Random().create(comm))
+    lam, its = 0.0, 0
+    for its in range(1, max_iter + 1):
+        M.mult(x, Mx)
+        fem.petsc.set_bc(Mx, problem.bcs, scale=0.0)   # v = 0 on Gamma1: K^-1 keeps it 0
+        ksp.solve(Mx, y)
+        new = _adot(M, y) / max(_adot(K, y), 1e-300)   # Rayleigh quotient (y = 0 on Gamma1)
+        y.normalize()
+        y.copy(x)
+        if abs(new - lam) <= rtol * abs(new):
+            lam = new
+            break
+        lam = new
+    for obj in (K, M, ksp, x, y, Mx):
+        obj.destroy()
+    return float(lam), its
+
+
+def _adot(A, y):
+    """y . A y"""
+    Ay = A.createVecLeft()
+    A.mult(y, Ay)
+    val = y.dot(Ay)
+    Ay.destroy()
+    return val
+
+
+@dataclass
+class Diagnostics:
+    scheme: str
+    k_max: float
+    relaxation_rate: float | None
+    stability_indicator: float | None
+    stability_limit: float
+    explicit_stable: bool | None
+    m_E: float
+    m_j: float
+    c1_tilde: float
+    gamma2: float | None
+    wellposedness_margin: float | None
+    unique: bool | None
+    adaptive: bool = False
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    def messages(self) -> list[tuple[str, str]]:
+        """(level, text) lines for the run log."""
+        out = []
+        if self.stability_indicator is not None:
+            text = (f"stability indicator k_max r_max = {self.k_max:g} x {self.relaxation_rate:.4g}"
+                    f" = {self.stability_indicator:.3g} (explicit limit {self.stability_limit:g})")
+            if self.scheme == "explicit" and not self.explicit_stable and self.adaptive:
+                out.append(("info", text + ": adaptive steps will keep k r_max within "
+                                           "time.adaptive.max_indicator"))
+            elif self.scheme == "explicit" and not self.explicit_stable:
+                out.append(("warning", text + ": the explicit scheme is unstable here (errors "
+                                              f"can grow by up to {self.stability_indicator - 1:.3g}x "
+                                              "per step); use time.scheme: implicit, a smaller "
+                                              "time step or time.adaptive"))
+            else:
+                out.append(("info", text + ("" if self.scheme == "explicit" else
+                                            "; the implicit scheme has no such limit")))
+        if self.gamma2 is not None:
+            text = (f"well-posedness (2.6): m_E = {self.m_E:.4g} vs max(sqrt(3) c1~, m_j) "
+                    f"||gamma||^2 = {max(np.sqrt(3) * self.c1_tilde, self.m_j):.4g} x "
+                    f"{self.gamma2:.4g}: margin {self.wellposedness_margin:.4g}")
+            if self.unique:
+                out.append(("info", text))
+            else:
+                out.append(("warning", text + " <= 0: uniqueness of the solution is not "
+                                              "guaranteed (the friction softening c1 is too "
+                                              "large for this body)"))
+        return out
+
+
+def diagnose(problem) -> Diagnostics:
+    case, law = problem.case, problem.law
+    ks = np.diff(case.time.times)
+    k_max = float(ks.max())
+    vp = case.material.viscoplastic
+    rate = relaxation_rate(law, vp.lambda1) if vp else None
+    indicator = k_max * rate if vp else None
+    fr = case.contact.friction
+    m_E = ellipticity(law)
+    m_j = fr.c1 if fr else 0.0
+    gamma2 = margin = unique = None
+    if fr is not None:
+        gamma2, _ = trace_constant(problem)
+        margin = m_E - max(np.sqrt(3) * 0.0, m_j) * gamma2
+        unique = margin > 0
+    return Diagnostics(case.time.scheme, k_max, rate, indicator, STABILITY_LIMIT,
+                       None if indicator is None else indicator <= STABILITY_LIMIT,
+                       m_E, m_j, 0.0, gamma2, margin, unique, case.time.adaptive is not None)

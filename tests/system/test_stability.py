@@ -1,0 +1,182 @@
+"""Stiff and extreme cases (issue 5): explicit vs implicit history, adaptive steps, the
+stability indicator and the well-posedness check of (2.6)."""
+import json
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from app.diagnostics import trace_constant
+from app.problem import ContactProblem
+from app.timeloop import build_mesh
+from conftest import PAPER_CASE, make_case, paper_raw, run_case, run_cli, validate_raw
+
+
+def _coarse(**time):
+    raw = paper_raw()
+    raw["mesh"]["n"] = 8
+    raw["time"] = {"T": 1.0, "N": 8, **time}
+    return raw
+
+
+def _sigma(res):
+    return np.array([s["norm_sigma_Q"] for s in res.summary["steps"]])
+
+
+def test_stiff_case_explicit_blows_up_implicit_stays_bounded():
+    raw = _coarse()
+    raw["material"]["viscoplastic"]["lambda1"] = 1.0      # k r_max = 104
+    explicit = run_case(validate_raw(raw))
+    assert explicit.summary["diagnostics"]["explicit_stable"] is False
+    s = _sigma(explicit)
+    assert explicit.status == "failed" or s.max() / s[0] > 1e6
+    raw["time"]["scheme"] = "implicit"
+    implicit = run_case(validate_raw(raw))
+    assert implicit.status == "completed"
+    s = _sigma(implicit)
+    assert np.all(np.isfinite(s)) and s.max() / s[0] < 2.0
+
+
+def test_implicit_and_explicit_converge_to_each_other():
+    """Where both are stable they differ by O(k): the gap shrinks about 2x per halving."""
+    gaps = []
+    for N in (8, 16, 32):
+        raw = _coarse()
+        raw["time"]["N"] = N
+        a = run_case(validate_raw(raw))
+        raw["time"]["scheme"] = "implicit"
+        b = run_case(validate_raw(raw))
+        ua, ub = a.problem.u.x.array, b.problem.u.x.array
+        gaps.append(np.abs(ua - ub).max() / np.abs(ua).max())
+    assert gaps[0] > gaps[1] > gaps[2] > 0
+    assert gaps[0] / gaps[2] > 3.0   # about first order: 4 for exactly O(k)
+
+
+def test_implicit_local_update_and_tangent():
+    from app.implicit import BackwardEulerPerzyna
+    from app.material import Elasticity, Perzyna
+    law = Elasticity(1000.0, 0.4, 2)
+    be = BackwardEulerPerzyna(Perzyna(law, 1.0, 10.0))     # stiff: k/(2 lambda1) E ~ 80
+    rng = np.random.default_rng(3)
+    s_tr = rng.normal(size=(200, 3)) * 30
+    kp = rng.uniform(0.0, 10.0, 200)
+    sig, kap, C = be.solve(s_tr, kp, 0.1)
+    r = be.residual(np.column_stack([sig, kap]), s_tr, kp, 0.1)
+    assert np.abs(r).max() < 1e-9 * np.abs(s_tr).max()
+    assert np.all(kap >= kp - 1e-12)
+    eps = np.array([1e-3, -2e-3, 5e-4])
+    h = 1e-6
+    fd = (be.solve(s_tr + h * (eps @ law.Cmat.T), kp, 0.1)[0] - sig) / h
+    np.testing.assert_allclose(fd, np.einsum("nij,j->ni", C, eps), atol=1e-5 * np.abs(fd).max())
+
+
+def test_adaptive_explicit_stays_bounded_and_matches_implicit():
+    raw = _coarse(adaptive={})
+    raw["material"]["viscoplastic"]["lambda1"] = 10.0     # r_max = 83 /s: k <= 0.012
+    res = run_case(validate_raw(raw))
+    assert res.status == "completed"
+    ks = [s["k"] for s in res.summary["steps"]]
+    assert max(ks) * res.summary["diagnostics"]["relaxation_rate"] <= 1.0 + 1e-12
+    assert res.summary["steps"][-1]["t"] == pytest.approx(1.0)
+    hist = res.summary["step_history"]
+    assert any(h.get("reason") == "stability indicator" for h in hist)
+    raw["time"] = {"T": 1.0, "N": 64, "scheme": "implicit"}
+    imp = run_case(validate_raw(raw))
+    a, b = _sigma(res)[-1], _sigma(imp)[-1]
+    assert abs(a - b) < 0.02 * b
+
+
+def test_adaptive_rejection_restores_every_history(monkeypatch):
+    """A solver failure injected for k > 0.3: starting from k = 1 the step is rejected twice
+    (all histories rolled back) and the run continues with k = 0.25.  With memory and slip
+    dependence active, the result must equal the fixed grid N = 4 to round-off."""
+    from app.case import load_raw
+    from app.solver import SNESVISolver, StepFailure
+    from conftest import ROOT
+
+    raw = load_raw(ROOT / "cases" / "memory.yaml")
+    raw["mesh"]["n"] = 8
+    raw["contact"]["friction"]["slip"] = {"theta_inf": 0.3, "s0": 0.002}
+    raw["time"] = {"T": 1.0, "N": 4}
+    fixed = run_case(validate_raw(raw))
+
+    original = SNESVISolver.solve
+    last_t = {"t": 0.0}
+
+    def failing(self):
+        t = float(self.problem.time_data.t.value)
+        if t - last_t["t"] > 0.3 + 1e-12:
+            raise StepFailure("injected failure", -5)
+        last_t["t"] = t
+        return original(self)
+
+    monkeypatch.setattr(SNESVISolver, "solve", failing)
+    # max_indicator 10 (k r_max <= 10, i.e. k <= 1.2): only the injected failures halve k
+    raw["time"] = {"T": 1.0, "N": 1, "adaptive": {"grow": 1.0, "max_indicator": 10.0}}
+    adaptive = run_case(validate_raw(raw))
+    assert adaptive.status == "completed"
+    hist = adaptive.summary["step_history"]
+    assert [h["k"] for h in hist if not h["accepted"]] == [1.0, 0.5]
+    assert all(h["reason"] == "injected failure" for h in hist if not h["accepted"])
+    assert [s["k"] for s in adaptive.summary["steps"]] == [0.25] * 4
+    for a, b in zip(adaptive.summary["steps"], fixed.summary["steps"], strict=True):
+        for key in ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y"):
+            assert a[key] == pytest.approx(b[key], rel=1e-12), key
+    np.testing.assert_allclose(adaptive.problem.u.x.array, fixed.problem.u.x.array,
+                               rtol=0, atol=1e-14)
+
+
+def test_stepper_unit():
+    from app.stepping import AdaptiveSteps
+    st = AdaptiveSteps(1.0, 0.25, rate=10.0, scheme="explicit", grow=2.0, fast_newton=3,
+                       max_indicator=1.0)
+    assert st.next_k(0.0) == 0.0625          # halved twice: 0.25 r = 2.5 > 1
+    st.accept(0.0625, 2)
+    assert st.k == 0.1                        # grows, capped at the limit 1/r
+    assert not st.reject(0.1 / 2**10, "x")    # below k_min: give up
+    st = AdaptiveSteps(1.0, 0.4, rate=None, scheme="implicit")
+    assert st.next_k(0.9) == pytest.approx(0.1)  # lands on T
+    assert st.next_k(1.0) is None
+
+
+def test_trace_constant_converges():
+    vals = []
+    for n in (16, 32):
+        case = make_case(mesh={"n": n})
+        vals.append(trace_constant(ContactProblem(case, build_mesh(case, MPI.COMM_WORLD)))[0])
+    assert vals[0] == pytest.approx(vals[1], rel=0.03)
+    assert 3.0 < vals[1] < 3.6
+
+
+@pytest.mark.parametrize("c1,b,warned", [(60.0, 1.0, False), (300.0, 3.0, True)])
+def test_wellposedness_warning_exactly_when_margin_negative(tmp_path, c1, b, warned):
+    out = tmp_path / "o"
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--set", "time.N=1", "--set", "mesh.n=8",
+                    "--set", f"contact.friction.c1={c1}", "--set", f"contact.friction.b={b}"])
+    assert proc.returncode == 0, proc.stderr
+    d = json.loads((out / "summary.json").read_text())["diagnostics"]
+    assert (d["wellposedness_margin"] < 0) == warned
+    assert ("uniqueness of the solution is not guaranteed" in proc.stdout) == warned
+
+
+def test_stability_sweep_cli(tmp_path):
+    """The default sweep on a tiny mesh: every variant converges or stops with a reason, no
+    traceback; the stiff explicit variants are flagged unbounded, the implicit ones not."""
+    import csv
+    out = tmp_path / "stab"
+    proc = run_cli(["stability", PAPER_CASE, "--out", out, "--n", "4", "--steps", "4"])
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr + proc.stdout
+    rows = list(csv.DictReader(open(out / "stability.csv")))
+    assert len(rows) >= 40
+    for r in rows:
+        assert r["status"] in ("completed", "failed"), r
+        if r["status"] == "failed":
+            assert r["reason"], r
+    stiff = {(r["variant"], r["scheme"]): r["bounded"] for r in rows
+             if r["variant"].startswith("lambda1=0.01")}
+    assert stiff and all(v == "True" for (name, s), v in stiff.items() if s == "implicit")
+    assert all(v == "False" for (name, s), v in stiff.items() if s == "explicit")
+    md = (out / "stability.md").read_text()
+    line = next(x for x in md.splitlines() if x.startswith("- Explicit scheme unbounded"))
+    assert "lambda1=0.01, k=1/16" in line and "lambda1=100" not in line
