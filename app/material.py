@@ -179,22 +179,18 @@ class VonMisesProjection:
         lam = self.lam
         mu = np.zeros(z.shape[0])
         zero = k <= 0.0
-        active = ~zero
-        for _ in range(self.max_iter):
-            if not np.any(active):
+        kk = np.where(zero, 1.0, k)
+        lz2, l2z2 = lam * z**2, lam**2 * z**2
+        for _ in range(self.max_iter):   # whole-array Newton steps (no compaction: cheaper)
+            d = 1.0 + mu[:, None] * lam[None, :]
+            q = np.sum(lz2 / d**2, axis=1)            # ||P s||_VM^2 at mu
+            dq = -2.0 * np.sum(l2z2 / d**3, axis=1)
+            phi = 1.0 / np.sqrt(q) - 1.0 / kk
+            phi[zero] = 0.0
+            if np.abs(phi * kk).max(initial=0.0) <= self.rtol:
                 break
-            za, ma, ka = z[active], mu[active], k[active]
-            d = 1.0 + ma[:, None] * lam[None, :]
-            q = np.sum(lam * za**2 / d**2, axis=1)   # ||P s||_VM^2 at mu
-            dq = -2.0 * np.sum(lam**2 * za**2 / d**3, axis=1)
-            phi = 1.0 / np.sqrt(q) - 1.0 / ka
-            dphi = -0.5 * q ** (-1.5) * dq
-            step = -phi / dphi
-            mu[active] = ma + step
-            done = np.abs(phi) * ka <= self.rtol
-            idx = np.flatnonzero(active)
-            active[idx[done]] = False
-        if np.any(active):
+            mu = mu - phi / (-0.5 * q ** (-1.5) * dq)
+        else:
             raise RuntimeError("von Mises projection: secular equation did not converge")
         factor = 1.0 / (1.0 + mu[:, None] * lam[None, :])
         # kappa = 0: mu -> infinity keeps only the directions with lam = 0 (none in plane stress).

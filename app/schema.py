@@ -148,9 +148,12 @@ SCHEMA = _obj({
                                   "Euler, stable for any k)"},
     }, description="time grid: T with N or k (uniform), T with N and grading, or times"),
     "solver": _obj({
-        "method": {"enum": ["snes_vi"], "default": "snes_vi",
-                   "description": "step solver: PETSc SNES vinewtonrsls with bounds on the "
-                                  "normal dofs of Gamma3"},
+        "method": {"enum": ["snes_vi", "fast", "auto"], "default": "auto",
+                   "description": "step solver: snes_vi (PETSc SNES vinewtonrsls with bounds "
+                                  "on the normal dofs of Gamma3, general), fast (one "
+                                  "factorisation per run, Gamma3 condensation; explicit scheme "
+                                  "and vertex quadrature), auto (fast where it applies and "
+                                  "Gamma3 has at most 3000 dofs)"},
         "delta": {**_pos, "default": 1.0e-7,
                   "description": "regularisation width of |u_tau| (friction) and u_nu^+ "
                                  "(memory term) [m]"},

@@ -59,6 +59,28 @@ def build_gamma3_history(case: Case, problem) -> Gamma3History | None:
     return Gamma3History(problem, memory=memory, slip=slip)
 
 
+AUTO_FAST_MAX_GAMMA3_DOFS = 3000
+
+
+def make_solver(case: Case, problem):
+    """The step solver the case asks for (solver.method); auto picks the fast one where it
+    applies and the Gamma3 problem is small enough for dense algebra."""
+    from .case import CaseError
+    from .fastsolver import FastStepSolver, eligible
+
+    method = case.numerics.method
+    ok, why = eligible(case)
+    if method == "fast" and not ok:
+        raise CaseError(f"{case.source}: solver.method: 'fast' is not possible here: {why} "
+                        "(allowed: snes_vi, auto)")
+    if method == "auto":
+        n_g = problem.comm.allreduce(len(problem.gamma3.nodes) if problem.gamma3 else 0)
+        method = "fast" if ok and n_g * problem.dim <= AUTO_FAST_MAX_GAMMA3_DOFS else "snes_vi"
+    if method == "fast":
+        return FastStepSolver(problem, case.petsc)
+    return SNESVISolver(problem, case.petsc)
+
+
 def _step_record(problem, history, n, t, its, wall):
     kappa = history.kappa if history else None
     return {
@@ -91,7 +113,7 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
         history = cls(problem, vp.lambda1, vp.lambda2)
     problem.set_initial_values(history.kappa if history else None)
     g3 = build_gamma3_history(case, problem)
-    solver = SNESVISolver(problem, case.petsc)
+    solver = make_solver(case, problem)
     t_setup = time.perf_counter() - t_start
     ks = [b - a for a, b in zip(case.time.times, case.time.times[1:])]
     log.info("case %s (%dD): %d cells, %d vertices, %d dofs, %d steps (k = %s)", case.name,
@@ -103,8 +125,10 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
     diag = diagnose(problem)
     for level, text in diag.messages():
         getattr(log, level)(text)
-    log.info("step solver: SNES %s, set-up (mesh, JIT, matrices) %.2f s",
-             solver.snes.getType(), t_setup)
+    log.info("step solver: %s, set-up (mesh, JIT, matrices) %.2f s",
+             f"SNES {solver.snes.getType()}" if hasattr(solver, "snes") else
+             f"fast (one factorisation, {solver.m} Gamma3 dofs condensed)"
+             if getattr(solver, "gamma3", False) else "fast (one factorisation)", t_setup)
 
     writer = None
     if write_outputs:
@@ -214,7 +238,10 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
         "mpi_ranks": comm.size,
         "active_terms": case.active_terms(),
         "diagnostics": diag.as_dict(),
-        "solver": {"method": case.numerics.method, "delta": case.numerics.delta,
+        "solver": {"method": case.numerics.method,
+                   "used": "snes_vi" if hasattr(solver, "snes") else "fast",
+                   "factorisations": getattr(solver, "factorisations", None),
+                   "delta": case.numerics.delta,
                    "quadrature": case.numerics.quadrature,
                    "petsc_options": {k: v for k, v in case.petsc.items()}},
         "last_good_step": steps[-1]["n"] if steps else 0,

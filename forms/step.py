@@ -30,6 +30,7 @@ class StepForms:
     jacobian: ufl.Form
     bulk_residual: ufl.Form
     terms: list = field(default_factory=list)
+    rhs: ufl.Form | None = None   # F_n = f_n(v) - (H_n, eps(v)), the explicit step's load vector
 
 
 def voigt(tau, dim: int):
@@ -103,7 +104,10 @@ def build_step_forms(u, H, *, E, nu, dim=2, f0, tractions, ds, ds_c=None, normal
         energy = bulk + boundary if boundary != 0 else bulk
         residual = ufl.derivative(energy, u, v)
         jacobian = ufl.derivative(residual, u, du)
-        return StepForms(energy, residual, jacobian, ufl.derivative(bulk, u, v), terms)
+        rhs = ufl.derivative(loads, u, v) if loads != 0 else None
+        if H is not None:
+            rhs = -ufl.inner(H, eps(v)) * dx if rhs is None else rhs - ufl.inner(H, eps(v)) * dx
+        return StepForms(energy, residual, jacobian, ufl.derivative(bulk, u, v), terms, rhs)
     w = [1.0] * dim + [2.0] * (len(voigt(eps(u), dim)) - dim)
     ev = voigt(eps(v), dim)
     weighted = ufl.as_vector([w[i] * ev[i] for i in range(len(w))])

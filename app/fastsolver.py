@@ -1,0 +1,288 @@
+"""Fast step solver (issue 6): one factorisation of the elasticity matrix per run, and per
+step only back-substitutions plus a small problem on the Gamma3 dofs.
+
+With the nodal (vertex) Gamma3 rule every boundary term is a sum of nodal energies, so the
+step problem (3.4) reads: find u minimising 1/2 u^T K u - F_n^T u + sum_i w_i phi_i(u_i) with
+u_nu,i <= g, where K is the (constant) elasticity matrix, F_n = f_n - B^T H_n the step's
+right-hand side and phi_i the nodal contact energy (normal compliance, memory, friction with
+the same regularisation delta as the SNES path).  Condensing onto the Gamma3 dofs G
+(Z = K^-1 E_G once, S = (Z_GG)^-1 the Schur complement) leaves per step
+    min_y  1/2 (y - y0)^T S (y - y0) + sum_i w_i phi_i(y_i),  y0 = (K^-1 F_n)_G,  y_nu <= g,
+which is solved redundantly on every rank by a projected Newton method with an Armijo line
+search on this (convex under (2.6)) energy; then u = K^-1 (F_n + E_G lambda) with the Gamma3
+forces lambda = S (y - y0).  Both paths solve the same discrete problem.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from forms.elasticity import elasticity_operator, eps
+
+from .solver import StepFailure
+
+log = logging.getLogger("vpcontact")
+
+
+def eligible(case) -> tuple[bool, str]:
+    if case.time.scheme != "explicit" and case.material.viscoplastic is not None:
+        return False, "the implicit history variant makes the bulk problem nonlinear"
+    if case.numerics.quadrature != "vertex" and case.contact.active:
+        return False, "the fast solver needs the nodal (vertex) Gamma3 quadrature"
+    return True, ""
+
+
+class NodalContact:
+    """Energy, gradient and Hessian of sum_i w_i phi_i(y_i) (vectorised over nodes)."""
+
+    def __init__(self, w, normal, c_nu, friction, delta):
+        self.w, self.nu = w, np.asarray(normal)
+        self.c = 0.0 if c_nu is None else c_nu
+        self.fr, self.delta = friction, delta
+        self.xi = None
+        self.theta = None
+
+    def _psi(self, rho):
+        b, c1, c2, u1 = self.fr
+        low = rho <= u1
+        psi = np.where(low, b * rho - 0.5 * c1 * rho**2,
+                       0.5 * c2 * (rho - u1) ** 2 + (b - c1 * u1) * (rho - u1) + b * u1
+                       - 0.5 * c1 * u1**2)
+        d1 = np.where(low, b - c1 * rho, c2 * (rho - u1) + b - c1 * u1)
+        d2 = np.where(low, -c1, c2)
+        return psi, d1, d2
+
+    def evaluate(self, y, need_hessian=True):
+        """y (n, d) -> energy, gradient (n, d), Hessian blocks (n, d, d)."""
+        nu, d, w = self.nu, y.shape[1], self.w
+        r = y @ nu
+        rp = np.maximum(r, 0.0)
+        energy = 0.5 * self.c * rp**2
+        dr = self.c * rp
+        hr = self.c * (r > 0)
+        if self.xi is not None:
+            sq = np.sqrt(r**2 + self.delta**2)
+            energy = energy + self.xi * 0.5 * (r + sq)
+            dr = dr + self.xi * 0.5 * (1 + r / sq)
+            hr = hr + self.xi * 0.5 * self.delta**2 / sq**3
+        grad = dr[:, None] * nu[None, :]
+        H = hr[:, None, None] * np.outer(nu, nu)[None] if need_hessian else None
+        if self.fr is not None:
+            tau = y - r[:, None] * nu[None, :]
+            rho = np.sqrt(np.sum(tau**2, axis=1) + self.delta**2)
+            psi, d1, d2 = self._psi(rho)
+            th = self.theta if self.theta is not None else 1.0
+            energy = energy + th * psi
+            grad = grad + (th * d1 / rho)[:, None] * tau
+            if need_hessian:
+                P = np.eye(d) - np.outer(nu, nu)
+                tt = np.einsum("ni,nj->nij", tau, tau)
+                H = H + (th * (d2 / rho**2 - d1 / rho**3))[:, None, None] * tt \
+                    + (th * d1 / rho)[:, None, None] * P[None]
+        return np.sum(w * energy), w[:, None] * grad, \
+            (w[:, None, None] * H if need_hessian else None)
+
+
+class FastStepSolver:
+    """Drop-in replacement of SNESVISolver for eligible cases (explicit, nodal Gamma3 rule)."""
+
+    def __init__(self, problem, options: dict | None = None, rtol: float = 1e-13):
+        self.problem = problem
+        self.u = problem.u
+        self.comm = problem.comm
+        self.continuation_stages, self.fallback, self.sticky_robust = 0, None, False
+        self.factorisations = 0
+        self.rtol = rtol
+        case, V, d = problem.case, problem.V, problem.dim
+        self.d = d
+        C = elasticity_operator(problem.constants["E"], problem.constants["nu"], d)
+        du, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+        K = fem.petsc.assemble_matrix(fem.form(ufl.inner(C(eps(du)), eps(v)) * ufl.dx),
+                                      bcs=problem.bcs)
+        K.assemble()
+        self.K = K
+        self.ksp = PETSc.KSP().create(self.comm)
+        self.ksp.setOptionsPrefix("vpcontact_fast_")
+        self.ksp.setOperators(K)
+        self.ksp.setType("preonly")
+        pc = self.ksp.getPC()
+        pc.setType("lu")
+        pc.setFactorSolverType("mumps")
+        self.ksp.setFromOptions()
+        self.ksp.setUp()                      # the one factorisation of the run
+        self.factorisations += 1
+        # the step's right-hand side F_n = f_n - B^T H_n (the bulk residual at u = 0)
+        self.rhs_form = fem.form(problem.forms.rhs) if problem.forms.rhs is not None else None
+        # ghosted like u: dolfinx assembles into the ghost entries of the local form
+        self.b, self.x = self.u.vector.duplicate(), self.u.vector.duplicate()
+        self._setup_gamma3()
+
+    # ------------------------------------------------------------------ Gamma3 condensation
+    def _setup_gamma3(self):
+        p, d = self.problem, self.d
+        self.gamma3 = p.gamma3 is not None
+        if not self.gamma3:
+            return
+        imap = p.V.dofmap.index_map
+        owned_nodes = p.gamma3.nodes
+        glob_nodes = imap.local_to_global(owned_nodes.astype(np.int32))
+        parts = self.comm.allgather((glob_nodes, p.gamma3.weight))
+        gn = np.concatenate([a for a, _ in parts])
+        w = np.concatenate([b for _, b in parts])
+        order = np.argsort(gn)
+        self.g_nodes, self.w = gn[order], w[order]
+        self._gather_perm = order
+        self.m = d * len(self.g_nodes)
+        # positions in G of the owned Gamma3 nodes, and their dofs in the local vector
+        self.local_owned_g = np.searchsorted(self.g_nodes, glob_nodes)   # positions in G
+        self.owned_dofs_local = (owned_nodes[:, None] * d + np.arange(d)).ravel()
+        self._owned_positions = (self.local_owned_g[:, None] * d + np.arange(d)).ravel()
+        # Z = K^-1 E_G for all Gamma3 dofs at once (one multi-RHS back-substitution); each
+        # rank keeps its rows of Z (u = u_free + Z lambda) and everyone gets Z_GG.
+        n_loc = self.K.getLocalSize()[0]
+        if self.comm.size == 1:
+            B = PETSc.Mat().createDense([n_loc, self.m], comm=self.comm)
+            B.setUp()
+            for pos, dof in zip(self._owned_positions, self.owned_dofs_local):
+                B.setValue(dof, pos, 1.0)
+            B.assemble()
+            X = B.duplicate()
+            self.ksp.getPC().getFactorMatrix().matSolve(B, X)
+            self.Z_local = X.getDenseArray().copy()      # (n_loc, m)
+            B.destroy()
+            X.destroy()
+        else:   # MUMPS's multi-RHS solve with a distributed dense RHS crashed (PETSc 3.18)
+            self.Z_local = np.empty((n_loc, self.m))
+            e, z = self.K.createVecRight(), self.K.createVecRight()
+            where = dict(zip(self._owned_positions, self.owned_dofs_local))
+            for j in range(self.m):
+                e.set(0.0)
+                if j in where:
+                    e.setValue(self.K.getOwnershipRange()[0] + where[j], 1.0)
+                e.assemble()
+                self.ksp.solve(e, z)
+                self.Z_local[:, j] = z.array_r
+            e.destroy()
+            z.destroy()
+        rows = self.comm.allgather((self._owned_positions, self.Z_local[self.owned_dofs_local]))
+        Z = np.empty((self.m, self.m))
+        for pos, vals in rows:
+            Z[pos] = vals
+        Z = 0.5 * (Z + Z.T)
+        self.S = np.linalg.inv(Z)
+        self.S = 0.5 * (self.S + self.S.T)
+        c = p.case.contact
+        fr = c.friction
+        self.contact = NodalContact(self.w, p.normal, c.c_nu,
+                                    None if fr is None else (fr.b, fr.c1, fr.c2, fr.u1),
+                                    p.case.numerics.delta)
+        comp = int(np.argmax(np.abs(p.normal)))
+        self.lb = np.full((len(self.g_nodes), d), -np.inf)
+        self.ub = np.full((len(self.g_nodes), d), np.inf)
+        if c.g is not None:
+            if p.normal[comp] > 0:
+                self.ub[:, comp] = c.g
+            else:
+                self.lb[:, comp] = -c.g
+
+    def _gather_G(self, vec) -> np.ndarray:
+        """Values of a PETSc vector at the Gamma3 dofs, in G order, on every rank."""
+        local = vec.array_r[self.owned_dofs_local]
+        parts = self.comm.allgather((self._owned_positions, local))
+        out = np.empty(self.m)
+        for pos, val in parts:
+            out[pos] = val
+        return out
+
+    def _gather_nodal(self, field) -> np.ndarray:
+        """A Gamma3 NodalField's values at the owned nodes, in G order, on every rank."""
+        pos = np.searchsorted(self.problem.gamma3_local_nodes, self.problem.gamma3.nodes)
+        vals = field.function.x.array[field.dofs[pos]]
+        parts = self.comm.allgather((self.local_owned_g, vals))
+        out = np.empty(len(self.g_nodes))
+        for p_, v_ in parts:
+            out[p_] = v_
+        return out
+
+    # ------------------------------------------------------------------ the step
+    def _assemble_rhs(self):
+        with self.b.localForm() as bl:
+            bl.set(0.0)
+        if self.rhs_form is not None:
+            fem.petsc.assemble_vector(self.b, self.rhs_form)
+            self.b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fem.petsc.set_bc(self.b, self.problem.bcs, scale=0.0)
+
+    def _small_problem(self, y0: np.ndarray) -> tuple[np.ndarray, int]:
+        """Projected Newton for min 1/2 (y-y0)^T S (y-y0) + sum w phi(y_i), lb <= y <= ub."""
+        S, d = self.S, self.d
+        lb, ub = self.lb.ravel(), self.ub.ravel()
+        y = np.clip(y0.copy(), lb, ub)
+        scale = max(np.abs(S @ y0).max(), np.abs(self.w).max(), 1e-300)
+
+        def energy_grad(yv, hess=True):
+            e, g, H = self.contact.evaluate(yv.reshape(-1, d), hess)
+            dy = yv - y0
+            Sdy = S @ dy
+            return 0.5 * dy @ Sdy + e, Sdy + g.ravel(), H
+
+        E, g, Hn = energy_grad(y)
+        for it in range(1, 200):
+            at_lb, at_ub = y <= lb + 1e-14 * scale, y >= ub - 1e-14 * scale
+            binding = (at_lb & (g > 0)) | (at_ub & (g < 0))
+            free = ~binding
+            pg = np.where(binding, 0.0, g)
+            if np.abs(pg).max() <= self.rtol * scale:
+                return y, it - 1
+            H = S.copy()
+            idx = np.arange(len(y)).reshape(-1, d)
+            for a in range(d):
+                for b in range(d):
+                    H[idx[:, a], idx[:, b]] += Hn[:, a, b]
+            p = np.zeros_like(y)
+            f = np.flatnonzero(free)
+            try:
+                p[f] = -np.linalg.solve(H[np.ix_(f, f)], g[f])
+            except np.linalg.LinAlgError:
+                p[f] = -g[f]
+            if g[f] @ p[f] >= 0:          # not a descent direction: steepest descent
+                p[f] = -g[f]
+            alpha = 1.0
+            for _ in range(60):
+                yt = np.clip(y + alpha * p, lb, ub)
+                Et, gt, Ht = energy_grad(yt)
+                if Et <= E + 1e-4 * g @ (yt - y) or np.abs(yt - y).max() <= 1e-16 * scale:
+                    break
+                alpha *= 0.5
+            y, E, g, Hn = yt, Et, gt, Ht
+        raise StepFailure("fast solver: the Gamma3 problem did not converge in 200 iterations")
+
+    def solve(self) -> int:
+        p = self.problem
+        self._assemble_rhs()
+        self.ksp.solve(self.b, self.x)               # u_free = K^-1 F_n
+        its = 0
+        if self.gamma3:
+            y0 = self._gather_G(self.x)
+            if p.xi is not None:
+                self.contact.xi = self._gather_nodal(p.xi)
+            if p.theta is not None:
+                self.contact.theta = self._gather_nodal(p.theta)
+            y, its = self._small_problem(y0)
+            lam = self.S @ (y - y0)                   # Gamma3 forces
+            with self.x.localForm() as xl:            # u = K^-1 (F_n + E_G lambda)
+                xl.array[:self.Z_local.shape[0]] += self.Z_local @ lam
+        if not np.all(np.isfinite(self.x.array_r)):
+            raise StepFailure("fast solver: non-finite solution")
+        self.x.copy(self.u.vector)
+        self.u.x.scatter_forward()
+        return its
+
+    def destroy(self):
+        for obj in (self.K, self.ksp, self.b, self.x):
+            obj.destroy()

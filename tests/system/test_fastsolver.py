@@ -1,0 +1,90 @@
+"""The fast step solver (issue 6) solves the same discrete problem as SNES VI."""
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from app.case import CaseError
+from conftest import PAPER_CASE, ROOT, paper_raw, run_case, run_cli, validate_raw
+from test_step_kkt import check_complementarity
+
+
+def _pair(raw):
+    raw.setdefault("solver", {})["method"] = "snes_vi"
+    a = run_case(validate_raw(raw))
+    raw["solver"]["method"] = "fast"
+    b = run_case(validate_raw(raw))
+    assert b.summary["solver"]["used"] == "fast" and a.summary["solver"]["used"] == "snes_vi"
+    return a, b
+
+
+def _diff(a, b):
+    ua, ub = a.problem.u.x.array, b.problem.u.x.array
+    du = np.abs(ua - ub).max() / np.abs(ua).max()
+    dn = max(abs(x[k] - y[k]) / abs(x[k]) for x, y in zip(a.summary["steps"], b.summary["steps"])
+             for k in ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y") if x[k])
+    return du, dn
+
+
+def test_fast_equals_snes_vi_on_the_paper_case():
+    """Both solve the same regularised discrete problem (delta = 1e-7): they agree to the
+    solver tolerances (measured 1.6e-13), far inside the regularisation's consistency error
+    (3e-11, tests/system/test_regularisation.py)."""
+    a, b = _pair(paper_raw())
+    du, dn = _diff(a, b)
+    assert du < 1e-9 and dn < 1e-10
+    counts = check_complementarity(b)
+    assert counts["bound"] > 0 and counts["compliance"] > 0
+    assert b.summary["solver"]["factorisations"] == 1
+
+
+def test_fast_equals_snes_vi_with_memory_and_slip():
+    from app.case import load_raw
+    raw = load_raw(ROOT / "cases" / "memory.yaml")
+    raw["contact"]["friction"]["slip"] = {"theta_inf": 0.3, "s0": 0.002}
+    raw["mesh"]["n"] = 8
+    raw["time"]["N"] = 8
+    du, dn = _diff(*_pair(raw))
+    assert du < 1e-9 and dn < 1e-10
+
+
+def test_fast_equals_snes_vi_in_3d():
+    from app.case import load_raw
+    raw = load_raw(ROOT / "cases" / "box3d.yaml")
+    raw["mesh"]["n"] = 4
+    raw["time"]["N"] = 2
+    du, dn = _diff(*_pair(raw))
+    assert du < 1e-9 and dn < 1e-10
+
+
+def test_fast_refuses_the_implicit_scheme():
+    raw = paper_raw()
+    raw["solver"]["method"] = "fast"
+    raw["time"]["scheme"] = "implicit"
+    raw["time"]["N"] = 1
+    with pytest.raises(CaseError, match=r"solver\.method: 'fast' is not possible"):
+        run_case(validate_raw(raw))
+    raw["solver"]["method"] = "auto"
+    assert run_case(validate_raw(raw)).summary["solver"]["used"] == "snes_vi"
+
+
+@pytest.mark.mpi
+def test_fast_serial_equals_two_ranks(tmp_path):
+    out = {}
+    for n in (1, 2):
+        d = tmp_path / f"np{n}"
+        proc = run_cli(["run", PAPER_CASE, "--out", d, "--quiet", "--set", "solver.method=fast"],
+                       nprocs=n)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        out[n] = (json.loads((d / "summary.json").read_text()),
+                  list(csv.DictReader(open(d / "contact.csv"))))
+    (s1, c1), (s2, c2) = out[1], out[2]
+    assert s1["solver"]["used"] == s2["solver"]["used"] == "fast"
+    for a, b in zip(s1["steps"], s2["steps"], strict=True):
+        for key in ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa"):
+            assert b[key] == pytest.approx(a[key], rel=1e-10), key
+    for col in ("u_x", "u_y", "neg_sigma_nu", "neg_sigma_tau"):
+        v1 = np.array([float(r[col]) for r in c1])
+        v2 = np.array([float(r[col]) for r in c2])
+        np.testing.assert_allclose(v2, v1, rtol=1e-10, atol=1e-12 * np.abs(v1).max())
