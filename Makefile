@@ -21,7 +21,7 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OPENBLAS_NUM_THREADS := 1
 export OMP_NUM_THREADS := 1
 
-.PHONY: help setup demo test convergence stability clean
+.PHONY: help setup demo test convergence stability bench clean
 
 help:
 	@echo "make setup   install Debian packages, create $(VENV), pip install -e . (idempotent)"
@@ -29,6 +29,7 @@ help:
 	@echo "make test    run the test suite (serial and mpirun -n 2)"
 	@echo "make convergence  the paper's Table 1 study (h = k = 1/8..1/64 vs 1/128) for three deltas"
 	@echo "make stability    stiff and extreme variants of the paper case (stability.md/.csv)"
+	@echo "make bench        step solver timings (results/bench/bench.json, bench.md)"
 
 setup:
 	@missing=$$(for p in $(DEB_PACKAGES); do \
@@ -60,6 +61,9 @@ convergence: setup
 
 stability: setup
 	$(PY) -m app stability $(CASE) --overwrite
+
+bench: setup
+	$(PY) -m app bench $(CASE)
 
 clean:
 	rm -rf results .pytest_cache

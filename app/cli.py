@@ -109,6 +109,17 @@ def _parser() -> argparse.ArgumentParser:
     stab.add_argument("--overwrite", action="store_true",
                       help="replace the outputs of an earlier sweep in the output directory")
     stab.add_argument("--quiet", action="store_true", help="only warnings and errors")
+
+    b = sub.add_parser("bench", help="time the step solvers on the paper case",
+                       description="Whole-process timings of a case with each step solver, "
+                                   "serial and under mpirun -n 2 (bench.json, bench.md).")
+    b.add_argument("case", nargs="?", default="cases/wang_cheng_2021.yaml")
+    b.add_argument("--levels", type=int, nargs="+", default=[16, 32, 64, 128],
+                   help="h = k = 1/L levels (default 16 32 64 128)")
+    b.add_argument("--extra", type=str, nargs="*", default=["256:32"], metavar="n:N",
+                   help="extra (cells per side : steps) runs (default 256:32)")
+    b.add_argument("--ranks", type=int, nargs="+", default=[1, 2])
+    b.add_argument("--out", default="results/bench", help="output directory")
     return p
 
 
@@ -274,6 +285,24 @@ def cmd_stability(args, petsc_cli: dict) -> int:
     return 0
 
 
+def cmd_bench(args) -> int:
+    from . import bench as bm
+
+    outdir = Path(args.out)
+    outdir.mkdir(parents=True, exist_ok=True)
+    extra = [tuple(int(x) for x in e.split(":")) for e in args.extra]
+    print(f"vpcontact bench: {args.case}, levels {args.levels}, extra {extra}, ranks {args.ranks}")
+    t0 = time.perf_counter()
+    try:
+        rows = bm.bench(args.case, outdir, args.levels, nprocs=args.ranks, extra=extra)
+    except RuntimeError as exc:
+        print(f"vpcontact: error: {exc}", file=sys.stderr)
+        return 1
+    bm.write(outdir, rows)
+    print(f"done in {time.perf_counter() - t0:.0f} s: {outdir}/bench.json, {outdir}/bench.md")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     ours, petsc_cli = split_petsc_args(argv)
@@ -284,6 +313,8 @@ def main(argv: list[str] | None = None) -> int:
         return cmd_convergence(args, petsc_cli)
     if args.command == "stability":
         return cmd_stability(args, petsc_cli)
+    if args.command == "bench":
+        return cmd_bench(args)
     return 2  # pragma: no cover (argparse enforces a command)
 
 
