@@ -98,6 +98,8 @@ class FastStepSolver:
         self.continuation_stages, self.fallback, self.sticky_robust = 0, None, False
         self.factorisations = 0
         self.rtol = rtol
+        self.options = options or {}
+        self._snes = None
         case, V, d = problem.case, problem.V, problem.dim
         self.d = d
         C = elasticity_operator(problem.constants["E"], problem.constants["nu"], d)
@@ -256,13 +258,38 @@ class FastStepSolver:
             for _ in range(60):
                 yt = np.clip(y + alpha * p, lb, ub)
                 Et, gt, Ht = energy_grad(yt)
-                if Et <= E + 1e-4 * g @ (yt - y) or np.abs(yt - y).max() <= 1e-16 * scale:
+                if Et <= E + 1e-4 * g @ (yt - y):
                     break
                 alpha *= 0.5
+            else:
+                # no decrease is measurable any more: the energy is flat to round-off here;
+                # accept if the projected gradient is at round-off level too
+                if np.abs(pg).max() <= 1e-9 * scale:
+                    return y, it
+                raise StepFailure("fast solver: the Gamma3 line search stalled with projected "
+                                  f"gradient {np.abs(pg).max():.3g} (scale {scale:.3g})")
             y, E, g, Hn = yt, Et, gt, Ht
+        if np.abs(pg).max() <= 1e-9 * scale:   # converged to round-off, not to rtol
+            return y, it
         raise StepFailure("fast solver: the Gamma3 problem did not converge in 200 iterations")
 
     def solve(self) -> int:
+        """One step.  If the Gamma3 problem fails (the projected Newton iteration can zig-zag
+        when nodes sit at nearly nonsmooth points), this step is solved by SNES VI instead
+        (the same discrete problem; ``self.fallback`` = "snes_vi")."""
+        self.fallback = None
+        try:
+            return self._solve_fast()
+        except StepFailure as exc:
+            if self._snes is None:
+                from .solver import SNESVISolver
+                self._snes = SNESVISolver(self.problem, self.options)
+            log.warning("  fast solver: %s; solving this step with SNES VI", exc)
+            its = self._snes.solve()
+            self.fallback = "snes_vi"
+            return its
+
+    def _solve_fast(self) -> int:
         p = self.problem
         self._assemble_rhs()
         self.ksp.solve(self.b, self.x)               # u_free = K^-1 F_n
@@ -286,3 +313,5 @@ class FastStepSolver:
     def destroy(self):
         for obj in (self.K, self.ksp, self.b, self.x):
             obj.destroy()
+        if self._snes is not None:
+            self._snes.destroy()

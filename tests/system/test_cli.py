@@ -73,14 +73,15 @@ def test_bad_case_exits_2_and_writes_nothing(tmp_path):
 
 def test_petsc_options_reach_the_solver(tmp_path):
     proc = run_cli(["run", PAPER_CASE, "--out", tmp_path / "o", "--set", "time.N=1",
-                    "-snes_monitor", "-snes_rtol", "1e-12"])
+                    "--set", "solver.method=snes_vi", "-snes_monitor", "-snes_rtol", "1e-12"])
     assert proc.returncode == 0, proc.stderr
     assert "SNES Function norm" in proc.stdout
 
 
 def test_solver_failure_names_the_step(tmp_path):
     out = tmp_path / "o"
-    proc = run_cli(["run", PAPER_CASE, "--out", out, "--set", "time.N=3", "-snes_max_it", "1"])
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--set", "time.N=3",
+                    "--set", "solver.method=snes_vi", "-snes_max_it", "1"])
     assert proc.returncode == 1
     assert "step 1" in proc.stderr and "DIVERGED_MAX_IT" in proc.stderr
     s = json.loads((out / "summary.json").read_text())

@@ -97,6 +97,7 @@ def test_adaptive_rejection_restores_every_history(monkeypatch):
     raw = load_raw(ROOT / "cases" / "memory.yaml")
     raw["mesh"]["n"] = 8
     raw["contact"]["friction"]["slip"] = {"theta_inf": 0.3, "s0": 0.002}
+    raw["solver"] = {"method": "snes_vi"}
     raw["time"] = {"T": 1.0, "N": 4}
     fixed = run_case(validate_raw(raw))
 
