@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 from . import __version__
-from .case import CaseError, load_case
+from .case import CaseError
 
 log = logging.getLogger("vpcontact")
 _PETSC_OPT = re.compile(r"^-[A-Za-z][A-Za-z0-9_]*$")
@@ -160,18 +160,34 @@ def _prepare_outdir(comm, outdir: Path, overwrite: bool, files=None) -> None:
     comm.barrier()
 
 
-def cmd_run(args, petsc_cli: dict) -> int:
+def _start(args, subdir: str | None, files=None, check=None):
+    """Common start of the commands: logging, read and validate the case (plus the command's
+    own ``check``), prepare the output directory.  Returns (comm, raw, case, outdir), or
+    (comm, None, None, None) after printing the error (exit code 2: bad input)."""
     from mpi4py import MPI
+
+    from .case import load_raw, validate
 
     comm = MPI.COMM_WORLD
     _setup_logging(comm, args.quiet)
     try:
-        case = load_case(args.case, args.overrides)
-        outdir = Path(args.out) if args.out else Path("results") / case.name
-        _prepare_outdir(comm, outdir, args.overwrite)
+        raw = load_raw(args.case, args.overrides)
+        case = validate(raw, args.case)
+        if check:
+            check(case)
+        outdir = Path(args.out) if args.out else \
+            Path("results") / case.name / subdir if subdir else Path("results") / case.name
+        _prepare_outdir(comm, outdir, args.overwrite, files)
     except CaseError as exc:
         if comm.rank == 0:
             print(f"vpcontact: error: {exc}", file=sys.stderr)
+        return comm, None, None, None
+    return comm, raw, case, outdir
+
+
+def cmd_run(args, petsc_cli: dict) -> int:
+    comm, _, case, outdir = _start(args, None)
+    if case is None:
         return 2
 
     from .timeloop import run
@@ -200,22 +216,12 @@ CONVERGENCE_FILES = ("convergence.csv", "convergence.md", "convergence.png")
 
 
 def cmd_convergence(args, petsc_cli: dict) -> int:
-    from mpi4py import MPI
+    from .convergence import plan_runs
 
-    from .case import load_raw, validate
-
-    comm = MPI.COMM_WORLD
-    _setup_logging(comm, args.quiet)
-    try:
-        raw = load_raw(args.case, args.overrides)
-        case = validate(raw, args.case)
-        from .convergence import plan_runs
-        plan_runs(args.levels, args.reference, args.vary, case)
-        outdir = Path(args.out) if args.out else Path("results") / case.name / "convergence"
-        _prepare_outdir(comm, outdir, args.overwrite, CONVERGENCE_FILES)
-    except CaseError as exc:
-        if comm.rank == 0:
-            print(f"vpcontact: error: {exc}", file=sys.stderr)
+    comm, raw, case, outdir = _start(
+        args, "convergence", CONVERGENCE_FILES,
+        check=lambda c: plan_runs(args.levels, args.reference, args.vary, c))
+    if case is None:
         return 2
 
     from . import convergence as cv
@@ -253,23 +259,14 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
 STABILITY_FILES = ("stability.csv", "stability.md")
 
 
+def _two_dimensional(case) -> None:
+    if case.dim != 2:
+        raise CaseError(f"{case.source}: mesh.dim: the stability sweep is for 2D cases")
+
+
 def cmd_stability(args, petsc_cli: dict) -> int:
-    from mpi4py import MPI
-
-    from .case import load_raw, validate
-
-    comm = MPI.COMM_WORLD
-    _setup_logging(comm, args.quiet)
-    try:
-        raw = load_raw(args.case, args.overrides)
-        case = validate(raw, args.case)
-        if case.dim != 2:
-            raise CaseError(f"{args.case}: mesh.dim: the stability sweep is for 2D cases")
-        outdir = Path(args.out) if args.out else Path("results") / case.name / "stability"
-        _prepare_outdir(comm, outdir, args.overwrite, STABILITY_FILES)
-    except CaseError as exc:
-        if comm.rank == 0:
-            print(f"vpcontact: error: {exc}", file=sys.stderr)
+    comm, raw, case, outdir = _start(args, "stability", STABILITY_FILES, _two_dimensional)
+    if case is None:
         return 2
     from . import stability as st
 
