@@ -43,6 +43,18 @@ def split_petsc_args(argv: list[str]) -> tuple[list[str], dict]:
     return ours, petsc
 
 
+def _case_options(parser, what: str, default_out: str) -> None:
+    """Options shared by the commands that read a case and write an output directory."""
+    parser.add_argument("--out", metavar="DIR", help=f"output directory (default: {default_out})")
+    parser.add_argument("--set", dest="overrides", action="append", default=[],
+                        metavar="KEY=VALUE",
+                        help="override a case key, e.g. --set mesh.n=32 --set time.N=32 "
+                             "(repeatable)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help=f"replace the outputs of an earlier {what} in the output directory")
+    parser.add_argument("--quiet", action="store_true", help="only warnings and errors")
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="vpcontact",
@@ -58,12 +70,7 @@ def _parser() -> argparse.ArgumentParser:
                          description="Run a case: solve every time step, write "
                                      "solution.xdmf, summary.json and contact.csv.")
     run.add_argument("case", help="YAML case file (see cases/)")
-    run.add_argument("--out", metavar="DIR", help="output directory (default: results/<case name>)")
-    run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                     help="override a case key, e.g. --set mesh.n=32 --set time.N=32 (repeatable)")
-    run.add_argument("--overwrite", action="store_true",
-                     help="replace the outputs of an earlier run in the output directory")
-    run.add_argument("--quiet", action="store_true", help="only warnings and errors")
+    _case_options(run, "run", "results/<case name>")
 
     conv = sub.add_parser(
         "convergence", help="convergence study: Error against h, k and wall time",
@@ -81,16 +88,10 @@ def _parser() -> argparse.ArgumentParser:
     conv.add_argument("--deltas", type=float, nargs="+", metavar="D",
                       help="friction regularisation widths to study (default: the case's); "
                            "the reference uses the smallest of these and the case's")
-    conv.add_argument("--out", metavar="DIR",
-                      help="output directory (default: results/<case name>/convergence)")
-    conv.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                      help="override a case key (repeatable)")
+    _case_options(conv, "study", "results/<case name>/convergence")
     conv.add_argument("--cache-dir", metavar="DIR",
                       help="run cache (default: $VPCONTACT_CACHE or ~/.cache/vpcontact)")
     conv.add_argument("--no-cache", action="store_true", help="recompute every run")
-    conv.add_argument("--overwrite", action="store_true",
-                      help="replace the outputs of an earlier study in the output directory")
-    conv.add_argument("--quiet", action="store_true", help="only warnings and errors")
 
     stab = sub.add_parser(
         "stability", help="sweep stiff and extreme variants of a case",
@@ -100,15 +101,9 @@ def _parser() -> argparse.ArgumentParser:
                     "growth, stability indicator and well-posedness margin "
                     "(stability.csv, stability.md).")
     stab.add_argument("case", help="YAML case file (2D)")
-    stab.add_argument("--out", metavar="DIR",
-                      help="output directory (default: results/<case name>/stability)")
-    stab.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                      help="override a case key (repeatable)")
+    _case_options(stab, "sweep", "results/<case name>/stability")
     stab.add_argument("--n", type=int, default=8, help="cells per side of the coarse mesh")
     stab.add_argument("--steps", type=int, default=8, help="time steps of the base variant")
-    stab.add_argument("--overwrite", action="store_true",
-                      help="replace the outputs of an earlier sweep in the output directory")
-    stab.add_argument("--quiet", action="store_true", help="only warnings and errors")
 
     b = sub.add_parser("bench", help="time the step solvers on the paper case",
                        description="Whole-process timings of a case with each step solver, "

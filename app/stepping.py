@@ -27,8 +27,11 @@ class FixedSteps:
     def total(self) -> int | None:
         return len(self.times) - 1
 
+    def finished(self, t: float) -> bool:
+        return self.n >= len(self.times) - 1
+
     def next_k(self, t: float) -> float | None:
-        if self.n >= len(self.times) - 1:
+        if self.finished(t):
             return None
         return self.times[self.n + 1] - self.times[self.n]
 
@@ -55,8 +58,11 @@ class AdaptiveSteps:
         self.history: list[dict] = []
         self.total = None
 
+    def finished(self, t: float) -> bool:
+        return t >= self.T * (1 - 1e-12)
+
     def next_k(self, t: float) -> float | None:
-        if t >= self.T * (1 - 1e-12):
+        if self.finished(t):
             return None
         k = min(self.k, self.k_max)
         while self.limit is not None and k > self.limit:

@@ -215,8 +215,7 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
         steps.append(rec)
         if on_step:
             on_step(n, t, problem, history)
-        last = stepper.next_k(t) is None if stepper.adaptive else n == N
-        if writer and (n % case.output.every == 0 or last):
+        if writer and (n % case.output.every == 0 or stepper.finished(t)):
             writer.write(t)
         log.info("step %3d/%s  t = %-8.5g newton %2d  |u|_V = %.6e  |sigma|_Q = %.6e  "
                  "max vm = %.5g  max kappa = %.5g  (%.3f s)", n, N or "?", t, its,

@@ -210,7 +210,6 @@ def test_kappa0_expression():
     raw["time"] = {"T": 1.0, "N": 1}
     res = run_case(validate_raw(raw))
     # kappa_1 = kappa_0 + k Gk(sigma_0 = 0, kappa_0) = kappa_0: the cell averages of 5 + 2x
-    from app.grid import cell_centroids  # noqa: F401 (centroid = cell average of a linear field)
     msh = res.problem.mesh
     x = msh.geometry.x
     dm = msh.geometry.dofmap
