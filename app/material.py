@@ -26,20 +26,22 @@ _PAIRS = {2: [(0, 0), (1, 1), (0, 1)],
           3: [(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)]}
 
 
+# flat (row-major d x d) positions of the coordinates, and of every tensor entry
+_FLAT = {d: np.array([i * d + j for i, j in _PAIRS[d]]) for d in (2, 3)}
+_FROM = {d: np.array([next(k for k, p in enumerate(_PAIRS[d]) if set(p) == {i, j})
+                      for i in range(d) for j in range(d)]) for d in (2, 3)}
+
+
 def to_voigt(tau: np.ndarray, dim: int = 2) -> np.ndarray:
-    """(n, d, d) symmetric tensors -> (n, m) coordinates (m = 3 in 2D, 6 in 3D)."""
-    tau = np.asarray(tau).reshape(-1, dim, dim)
-    return np.stack([0.5 * (tau[:, i, j] + tau[:, j, i]) for i, j in _PAIRS[dim]], axis=1)
+    """(n, d, d) symmetric tensors (or their flat arrays) -> (n, m) coordinates (m = 3 in 2D,
+    6 in 3D).  The tensors are symmetric (sigma, H, eps), so the upper triangle is read."""
+    return np.asarray(tau).reshape(-1, dim * dim)[:, _FLAT[dim]]
 
 
 def from_voigt(t: np.ndarray, dim: int = 2) -> np.ndarray:
     """(n, m) coordinates -> (n, d, d) symmetric tensors."""
-    pairs = _PAIRS[dim]
-    t = np.asarray(t).reshape(-1, len(pairs))
-    out = np.empty((t.shape[0], dim, dim))
-    for k, (i, j) in enumerate(pairs):
-        out[:, i, j] = out[:, j, i] = t[:, k]
-    return out
+    t = np.asarray(t).reshape(-1, len(_PAIRS[dim]))
+    return t[:, _FROM[dim]].reshape(-1, dim, dim)
 
 
 def _von_mises_matrix(dim: int) -> np.ndarray:
@@ -91,7 +93,7 @@ class Elasticity:
 
     def von_mises(self, t: np.ndarray) -> np.ndarray:
         """||tau||_VM for rows t (n, m)."""
-        return np.sqrt(np.maximum(np.einsum("ni,ij,nj->n", t, self.M, t), 0.0))
+        return np.sqrt(np.maximum(np.einsum("ni,ni->n", t @ self.M, t), 0.0))
 
     def to_voigt(self, tau):
         return to_voigt(tau, self.dim)
@@ -144,6 +146,8 @@ class VonMisesProjection:
     secular equation  1/sqrt(q(mu)) = 1/kappa,  q(mu) = sum_i lam_i z_i^2 / (1 + mu lam_i)^2,
     z = V^T A s.  1/sqrt(q) is concave and increasing in mu, so Newton from mu = 0 converges
     monotonically (as for the trust-region subproblem); iterations are vectorised over cells.
+    Equal eigenvalues are grouped (in plane stress lam takes two values: the directions
+    (1, -1, 0) and (0, 0, 1) share one), so q costs one term per distinct eigenvalue.
     """
 
     def __init__(self, law: Elasticity, rtol: float = 1e-14, max_iter: int = 100):
@@ -154,48 +158,72 @@ class VonMisesProjection:
         lam, W = np.linalg.eigh(Linv @ M @ Linv.T)
         self.lam = np.where(lam > 1e-12 * lam.max(), lam, 0.0)   # M may be singular (3D)
         self.V = Linv.T @ W
+        self.AV = A @ self.V                  # z = s @ AV
         self.A, self.M = A, M
         self.rtol, self.max_iter = rtol, max_iter
+        groups: list[list[int]] = []
+        for i, li in enumerate(self.lam):
+            for g in groups:
+                if abs(self.lam[g[0]] - li) <= 1e-12 * self.lam.max():
+                    g.append(i)
+                    break
+            else:
+                groups.append([i])
+        self.groups = groups
 
     def __call__(self, s: np.ndarray, kappa: np.ndarray) -> np.ndarray:
-        """Project rows s (n, 3) onto K(kappa) (kappa: (n,) >= 0); returns (n, 3)."""
+        """Project rows s (n, m) onto K(kappa) (kappa: (n,) >= 0); returns (n, m)."""
         s = np.asarray(s, dtype=float).reshape(-1, self.m)
         kappa = np.broadcast_to(np.asarray(kappa, dtype=float), (s.shape[0],))
         out = s.copy()
-        bad = ~(np.isfinite(s).all(axis=1) & np.isfinite(kappa))
-        out[bad] = np.nan                       # non-finite input propagates as NaN
-        # P is positively homogeneous: P_{K(c kappa)}(c s) = c P_{K(kappa)}(s); scale each row
-        # by max |s_i| so that the secular equation cannot overflow for huge stresses.
-        scale = np.where(bad, 1.0, np.maximum(np.abs(np.where(bad[:, None], 0.0, s)).max(axis=1),
-                                              1e-300))
-        s = np.where(bad[:, None], 0.0, s) / scale[:, None]
-        kappa = np.where(bad, 0.0, kappa) / scale
-        vm = np.sqrt(np.maximum(np.einsum("ni,ij,nj->n", s, self.M, s), 0.0))
-        outside = (vm > kappa) & ~bad
+        vm2 = np.einsum("ni,ni->n", s @ self.M, s)
+        bad = ~(np.isfinite(vm2) & np.isfinite(kappa))
+        with np.errstate(invalid="ignore", over="ignore"):
+            outside = (vm2 > kappa * kappa) & ~bad
+        out[bad] = np.nan                        # non-finite input propagates as NaN
+        huge = bad & np.isfinite(s).all(axis=1) & np.isfinite(kappa) if bad.any() else bad
+        if huge.any():                         # |s|^2 overflowed: project the scaled rows
+            c = np.abs(s[huge]).max(axis=1)      # (P is positively homogeneous)
+            out[huge] = self(s[huge] / c[:, None], kappa[huge] / c) * c[:, None]
         if not np.any(outside):
             return out
-        z = (s[outside] @ self.A) @ self.V  # z = V^T A s per row
-        k = kappa[outside]
-        lam = self.lam
-        mu = np.zeros(z.shape[0])
-        zero = k <= 0.0
-        kk = np.where(zero, 1.0, k)
-        lz2, l2z2 = lam * z**2, lam**2 * z**2
-        for _ in range(self.max_iter):   # whole-array Newton steps (no compaction: cheaper)
-            d = 1.0 + mu[:, None] * lam[None, :]
-            q = np.sum(lz2 / d**2, axis=1)            # ||P s||_VM^2 at mu
-            dq = -2.0 * np.sum(l2z2 / d**3, axis=1)
-            phi = 1.0 / np.sqrt(q) - 1.0 / kk
-            phi[zero] = 0.0
-            if np.abs(phi * kk).max(initial=0.0) <= self.rtol:
+        every = bool(outside.all())              # the common case: no fancy indexing
+        z = (s if every else s[outside]) @ self.AV   # z = V^T A s per row
+        k = kappa if every else kappa[outside]
+        # kappa/|s| below 1e-150 would underflow q ~ kappa^2: project onto {0} (kappa = 0)
+        zero = k <= 1e-150 * np.sqrt(vm2 if every else vm2[outside])
+        kk2 = np.where(zero, 1.0, k * k)
+        lam = [self.lam[g[0]] for g in self.groups]
+        w = [lam_g * sum(z[:, i] ** 2 for i in g) for lam_g, g in zip(lam, self.groups)]
+        # start at the lower bound of the root from q(mu) >= sum(w) / (1 + mu lam_max)^2, so
+        # the iterates increase monotonically to the root (left of it, phi is concave)
+        lam_max = max(lam)
+        mu = np.maximum((np.sqrt(sum(w) / kk2) - 1.0) / lam_max, 0.0) if lam_max > 0 \
+            else np.zeros(z.shape[0])
+        for _ in range(self.max_iter):   # whole-array Newton steps on phi = q^-1/2 - 1/kappa
+            q = np.zeros_like(mu)
+            dq = np.zeros_like(mu)
+            for lam_g, w_g in zip(lam, w):
+                r = 1.0 / (1.0 + mu * lam_g)
+                t = w_g * r * r
+                q += t
+                dq -= (2.0 * lam_g) * t * r
+            # 1 - q/kappa^2 ~ 2 kappa phi near the root; the Newton step in closed form
+            res = np.abs(1.0 - q / kk2)
+            if np.where(zero, 0.0, res).max(initial=0.0) <= 2.0 * self.rtol:
                 break
-            mu = mu - phi / (-0.5 * q ** (-1.5) * dq)
+            sq = np.sqrt(q)
+            mu = mu + 2.0 * q * (1.0 - sq / np.sqrt(kk2)) / dq
         else:
             raise RuntimeError("von Mises projection: secular equation did not converge")
-        factor = 1.0 / (1.0 + mu[:, None] * lam[None, :])
+        factor = 1.0 / (1.0 + mu[:, None] * self.lam[None, :])
         # kappa = 0: mu -> infinity keeps only the directions with lam = 0 (none in plane stress).
-        factor[zero] = (lam[None, :] == 0.0).astype(float)
-        out[outside] = ((z * factor) @ self.V.T) * scale[outside, None]
+        factor[zero] = (self.lam[None, :] == 0.0).astype(float)
+        if every:
+            out = (z * factor) @ self.V.T
+        else:
+            out[outside] = (z * factor) @ self.V.T
+        self.iterations = _
         return out
 
 

@@ -26,6 +26,7 @@ from .case import Case, CaseError
 from .gamma3 import NodalField
 from .loads import TimeData
 from .material import Elasticity
+from .strain import StrainOperator
 
 GAMMA1, GAMMA3 = "left", "bottom"
 
@@ -132,16 +133,11 @@ class ContactProblem:
         self.J_form = fem.form(self.forms.jacobian)
         self._bulk_form = fem.form(self.forms.bulk_residual)
 
-        # sigma_n = E eps(u_n) + H_n evaluated per cell (exact: eps(u) is constant on cells).
+        # sigma_n = E eps(u_n) + H_n per cell (exact: eps(u) is constant on cells), app/strain.py
         self._C = elasticity_operator(E, nu, d)
-        expr = self._C(eps(self.u)) if self.H is None else self._C(eps(self.u)) + self.H
-        self._sigma_expr = fem.Expression(expr, self.Q.element.interpolation_points())
+        self.strain_operator = StrainOperator(self.V, self.Q, case.material.E, case.material.nu)
         self._eps_fn = fem.Function(self.Q)
         self._eps_expr = fem.Expression(eps(self.u), self.Q.element.interpolation_points())
-        self._norm_forms = {
-            "V": fem.form(ufl.inner(eps(self.u), eps(self.u)) * ufl.dx),
-            "Q": fem.form(ufl.inner(self.sigma, self.sigma) * ufl.dx),
-        }
 
     @property
     def length_scale(self) -> float:
@@ -254,8 +250,7 @@ class ContactProblem:
     # ------------------------------------------------------------------ derived quantities
     def update_sigma(self) -> None:
         """sigma_n = E eps(u_n) + H_n (3.2) and its von Mises norm, per cell."""
-        self.sigma.interpolate(self._sigma_expr)
-        self.sigma.x.scatter_forward()
+        self.strain_operator.update_sigma(self.u, self.H, self.sigma)
         self.update_vm()
 
     def update_vm(self) -> None:
@@ -277,8 +272,13 @@ class ContactProblem:
         return self.comm.allreduce(value, op=getattr(MPI, op))
 
     def norm(self, which: str) -> float:
-        """||u||_V = ||eps(u)||_L2 ("V") or ||sigma||_Q ("Q"), reduced over ranks."""
-        return float(np.sqrt(self._reduce(fem.assemble_scalar(self._norm_forms[which]), "SUM")))
+        """||u||_V = ||eps(u)||_L2 ("V") or ||sigma||_Q ("Q"), reduced over ranks; exact cell
+        sums (eps(u) and sigma are constant on cells)."""
+        op = self.strain_operator
+        if which == "V":
+            return float(np.sqrt(max(op.strain_norm2(self.u), 0.0)))
+        local = op.energy_norm2(self.sigma.x.array[:op.n_owned * self.dim**2])
+        return float(np.sqrt(self._reduce(local, "SUM")))
 
     def cell_norm(self, f) -> float:
         """L2 norm of a DG0 scalar function (||kappa||_Y), reduced over ranks."""

@@ -31,6 +31,7 @@ class StepForms:
     bulk_residual: ufl.Form
     terms: list = field(default_factory=list)
     rhs: ufl.Form | None = None   # F_n = f_n(v) - (H_n, eps(v)), the explicit step's load vector
+    loads: ufl.Form | None = None  # f_n(v) alone (body force and tractions)
 
 
 def voigt(tau, dim: int):
@@ -104,10 +105,12 @@ def build_step_forms(u, H, *, E, nu, dim=2, f0, tractions, ds, ds_c=None, normal
         energy = bulk + boundary if boundary != 0 else bulk
         residual = ufl.derivative(energy, u, v)
         jacobian = ufl.derivative(residual, u, du)
-        rhs = ufl.derivative(loads, u, v) if loads != 0 else None
+        f_n = ufl.derivative(loads, u, v) if loads != 0 else None
+        rhs = f_n
         if H is not None:
             rhs = -ufl.inner(H, eps(v)) * dx if rhs is None else rhs - ufl.inner(H, eps(v)) * dx
-        return StepForms(energy, residual, jacobian, ufl.derivative(bulk, u, v), terms, rhs)
+        return StepForms(energy, residual, jacobian, ufl.derivative(bulk, u, v), terms, rhs,
+                         f_n)
     w = [1.0] * dim + [2.0] * (len(voigt(eps(u), dim)) - dim)
     ev = voigt(eps(v), dim)
     weighted = ufl.as_vector([w[i] * ev[i] for i in range(len(w))])

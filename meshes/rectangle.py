@@ -4,10 +4,13 @@ Facets are tagged per side (``BOUNDARY_TAGS``); the case file maps sides to the 
 parts: Gamma1 = left (clamped), Gamma2 = right and top (tractions), Gamma3 = bottom (contact,
 outward normal nu = (0, -1), tangent tau = (1, 0)).
 
-Structured meshes are transfinite n x n with every square cut along the same diagonal, so a
+Structured meshes are n x n squares with every square cut along the same diagonal, so a
 mesh with 2n cells per side is a refinement of the one with n (each coarse triangle is a union
-of fine ones): the convergence study relies on this.  Gmsh runs on one rank only; dolfinx's
-``gmshio.model_to_mesh`` distributes the mesh.
+of fine ones): the convergence study relies on this.  They are built by dolfinx's
+``create_rectangle`` by default (importing gmsh alone costs 0.6 s, a third of a whole
+benchmark run's set-up) or, with ``engine="gmsh"``, as the identical transfinite gmsh mesh
+(tests/unit/test_mesh.py checks both).  Unstructured meshes always come from gmsh, which runs on
+one rank only; dolfinx's ``gmshio.model_to_mesh`` distributes the mesh.
 """
 from __future__ import annotations
 
@@ -77,9 +80,34 @@ def _gmsh_model(L1: float, L2: float, n: int | None, h: float | None, diagonal: 
     gmsh.model.mesh.generate(2)
 
 
+def _dolfinx_structured(comm, L1: float, L2: float, n: int, diagonal: str):
+    """The structured n x n mesh by dolfinx, with the same cell and facet tags as gmsh's."""
+    from dolfinx import mesh as dmesh
+
+    msh = dmesh.create_rectangle(comm, [np.zeros(2), np.array([L1, L2])], [n, n],
+                                 dmesh.CellType.triangle,
+                                 diagonal=getattr(dmesh.DiagonalType, diagonal))
+    tdim = msh.topology.dim
+    sides = {"left": lambda x: np.isclose(x[0], 0.0), "bottom": lambda x: np.isclose(x[1], 0.0),
+             "right": lambda x: np.isclose(x[0], L1), "top": lambda x: np.isclose(x[1], L2)}
+    facets, values = [], []
+    for name, where in sides.items():
+        f = dmesh.locate_entities_boundary(msh, tdim - 1, where)
+        facets.append(f)
+        values.append(np.full(len(f), BOUNDARY_TAGS[name], dtype=np.int32))
+    facets, values = np.concatenate(facets), np.concatenate(values)
+    order = np.argsort(facets)
+    ft = dmesh.meshtags(msh, tdim - 1, facets[order], values[order])
+    cells = np.arange(msh.topology.index_map(tdim).size_local, dtype=np.int32)
+    ct = dmesh.meshtags(msh, tdim, cells, np.full(len(cells), DOMAIN_TAG, dtype=np.int32))
+    return msh, ct, ft
+
+
 def build_rectangle(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, *, n: int | None = None,
-                    h: float | None = None, diagonal: str = "right") -> RectangleMesh:
+                    h: float | None = None, diagonal: str = "right",
+                    engine: str = "dolfinx") -> RectangleMesh:
     """Build the rectangle mesh: structured n x n (``n`` given) or unstructured of size ``h``.
+    ``engine`` ("dolfinx" or "gmsh") builds structured meshes; unstructured ones use gmsh.
 
     Returns a :class:`RectangleMesh`; collective on ``comm``.
     """
@@ -87,6 +115,12 @@ def build_rectangle(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, *, n: int 
         raise ValueError("give exactly one of n (structured) or h (unstructured)")
     if n is not None and diagonal not in _GMSH_ARRANGEMENT:
         raise ValueError(f"diagonal must be one of {sorted(_GMSH_ARRANGEMENT)}, got {diagonal!r}")
+    if engine not in ("dolfinx", "gmsh"):
+        raise ValueError(f"engine must be 'dolfinx' or 'gmsh', got {engine!r}")
+    if n is not None and engine == "dolfinx":
+        msh, ct, ft = _dolfinx_structured(comm, L1, L2, n, diagonal)
+        return RectangleMesh(msh, ct, ft, float(L1), float(L2), True, n, max(L1, L2) / n,
+                             diagonal)
     import gmsh
     from dolfinx.io import gmshio
 

@@ -13,9 +13,10 @@ def _cells(rect):
     return np.array([x[dm.links(c)] for c in range(n)])
 
 
+@pytest.mark.parametrize("engine", ["dolfinx", "gmsh"])
 @pytest.mark.parametrize("diagonal", ["right", "left"])
-def test_structured_diagonal(diagonal):
-    rect = build_rectangle(MPI.COMM_SELF, 2.0, 1.0, n=4, diagonal=diagonal)
+def test_structured_diagonal(diagonal, engine):
+    rect = build_rectangle(MPI.COMM_SELF, 2.0, 1.0, n=4, diagonal=diagonal, engine=engine)
     cells = _cells(rect)
     assert len(cells) == 2 * 4 * 4
     hx, hy = 0.5, 0.25
@@ -27,8 +28,9 @@ def test_structured_diagonal(diagonal):
         assert diag <= corners, (diagonal, tri)
 
 
-def test_boundary_tags():
-    rect = build_rectangle(MPI.COMM_SELF, 1.0, 1.0, n=8)
+@pytest.mark.parametrize("engine", ["dolfinx", "gmsh"])
+def test_boundary_tags(engine):
+    rect = build_rectangle(MPI.COMM_SELF, 1.0, 1.0, n=8, engine=engine)
     ft = rect.facet_tags
     msh = rect.mesh
     msh.topology.create_connectivity(1, 0)
@@ -40,6 +42,16 @@ def test_boundary_tags():
         pts = np.array([x[f2v.links(f)] for f in facets]).reshape(-1, 3)
         coord, val = {"left": (0, 0.0), "right": (0, 1.0), "bottom": (1, 0.0), "top": (1, 1.0)}[name]
         np.testing.assert_allclose(pts[:, coord], val, atol=1e-12)
+
+
+@pytest.mark.parametrize("diagonal", ["right", "left"])
+def test_engines_build_the_same_triangulation(diagonal):
+    """dolfinx's create_rectangle and gmsh's transfinite mesh: the same set of triangles."""
+    def key(rect):
+        return sorted(tuple(sorted(map(tuple, np.round(c, 9)))) for c in _cells(rect))
+    a = build_rectangle(MPI.COMM_SELF, 2.0, 1.0, n=6, diagonal=diagonal, engine="dolfinx")
+    b = build_rectangle(MPI.COMM_SELF, 2.0, 1.0, n=6, diagonal=diagonal, engine="gmsh")
+    assert key(a) == key(b)
 
 
 def test_refined_structured_mesh_is_nested():
