@@ -188,10 +188,13 @@ class VonMisesProjection:
         if not np.any(outside):
             return out
         every = bool(outside.all())              # the common case: no fancy indexing
-        z = (s if every else s[outside]) @ self.AV   # z = V^T A s per row
-        k = kappa if every else kappa[outside]
+        # P is positively homogeneous: project s / c onto K(kappa / c) with c = ||s||_VM, so
+        # that nothing in the secular equation can overflow however large the stresses
+        c = np.sqrt(vm2 if every else vm2[outside])
+        z = ((s if every else s[outside]) @ self.AV) / c[:, None]   # z = V^T A s / c per row
+        k = (kappa if every else kappa[outside]) / c
         # kappa/|s| below 1e-150 would underflow q ~ kappa^2: project onto {0} (kappa = 0)
-        zero = k <= 1e-150 * np.sqrt(vm2 if every else vm2[outside])
+        zero = k <= 1e-150
         kk2 = np.where(zero, 1.0, k * k)
         lam = [self.lam[g[0]] for g in self.groups]
         w = [lam_g * sum(z[:, i] ** 2 for i in g) for lam_g, g in zip(lam, self.groups)]
@@ -220,9 +223,9 @@ class VonMisesProjection:
         # kappa = 0: mu -> infinity keeps only the directions with lam = 0 (none in plane stress).
         factor[zero] = (self.lam[None, :] == 0.0).astype(float)
         if every:
-            out = (z * factor) @ self.V.T
+            out = ((z * factor) @ self.V.T) * c[:, None]
         else:
-            out[outside] = (z * factor) @ self.V.T
+            out[outside] = ((z * factor) @ self.V.T) * c[:, None]
         self.iterations = _
         return out
 
