@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 import re
 import difflib
 from dataclasses import dataclass, field
@@ -21,7 +22,20 @@ from .schema import DEFAULT_PETSC, SCHEMA
 
 
 class CaseLoader(yaml.SafeLoader):
-    """yaml.SafeLoader that also reads 1e-4 / 5E+3 as floats (YAML 1.1 wants a dot)."""
+    """yaml.SafeLoader that also reads 1e-4 / 5E+3 as floats (YAML 1.1 wants a dot) and
+    rejects duplicate keys (PyYAML would silently keep the last one)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if isinstance(key, (str, int, float, bool)) and key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key {key!r} (first on line {seen[key]})",
+                    key_node.start_mark)
+            if isinstance(key, (str, int, float, bool)):
+                seen[key] = key_node.start_mark.line + 1
+        return super().construct_mapping(node, deep)
 
 
 CaseLoader.yaml_implicit_resolvers = {k: list(v) for k, v in
@@ -66,7 +80,8 @@ def _explain(err: jsonschema.ValidationError) -> str:
         extra = sorted(set(err.instance) - set(allowed))
         msgs = []
         for key in extra:
-            where = f"{path}.{key}" if path != "(top level)" else key
+            shown = key if re.fullmatch(r"\w+", str(key)) else repr(key)
+            where = f"{path}.{shown}" if path != "(top level)" else shown
             close = difflib.get_close_matches(key, allowed, n=1)
             hint = f"; did you mean '{close[0]}'?" if close else ""
             msgs.append(f"{where}: unknown key{hint} (allowed: {', '.join(allowed)})")
@@ -103,23 +118,122 @@ def parse_override(text: str) -> tuple[str, object]:
     return key, value
 
 
+class RawCase(dict):
+    """The parsed case mapping; ``lines`` maps dotted key paths to their 1-based YAML line."""
+
+    lines: dict = {}
+
+
+def key_lines(text: str) -> dict[str, int]:
+    """Dotted key path -> line of the key in the YAML text (as far as the parser can tell)."""
+    out: dict[str, int] = {}
+    seen: set[int] = set()
+
+    def walk(node, path):
+        if id(node) in seen:                  # an alias: its lines are those of the anchor
+            return
+        seen.add(id(node))
+        if isinstance(node, yaml.MappingNode):
+            for k, v in node.value:
+                if isinstance(k, yaml.ScalarNode):
+                    p = f"{path}.{k.value}" if path else str(k.value)
+                    out.setdefault(p, k.start_mark.line + 1)
+                    walk(v, p)
+        elif isinstance(node, yaml.SequenceNode):
+            for i, v in enumerate(node.value):
+                p = f"{path}[{i}]"
+                out.setdefault(p, v.start_mark.line + 1)
+                walk(v, p)
+    try:
+        walk(yaml.compose(text, Loader=CaseLoader), "")
+    except yaml.YAMLError:
+        pass
+    return out
+
+
+_PATH = re.compile(r"[A-Za-z_]\w*(?:\.[A-Za-z_]\w*|\[\d+\])*")
+
+
+def with_lines(message: str, lines: dict) -> str:
+    """Add '(line N)' after the first key path of each message line that the YAML text has."""
+    if not lines:
+        return message
+
+    def parent(path: str) -> str:
+        return re.sub(r"(\.[A-Za-z_]\w*|\[\d+\])$", "", path)
+
+    def add(m):
+        path = m.group(0)
+        while path and path not in lines:       # the deepest key present in the file
+            shorter = parent(path)
+            path = shorter if shorter != path else ""
+        return f"{m.group(0)} (line {lines[path]})" if path else m.group(0)
+    # a key path is followed by ': ' where our messages name it
+    return re.sub(r"(?<![\w.\[\]])" + _PATH.pattern + r"(?=: )", add, message)
+
+
+def _yaml_error(exc: yaml.YAMLError) -> str:
+    """PyYAML's error on one line: the problem and where."""
+    mark = getattr(exc, "problem_mark", None)
+    problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+    where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
+    context = getattr(exc, "context", None)
+    return f"{problem}{where}" + (f", {context}" if context else "")
+
+
+MAX_CASE_SIZE = 2_000_000   # numbers, strings and containers after alias expansion
+MAX_FILE_BYTES = 50_000_000
+
+
+def _check_data(data, path: str, source, budget: list) -> None:
+    """Reject non-finite numbers and oversized data (YAML alias bombs), naming the key."""
+    budget[0] -= 1
+    if budget[0] < 0:
+        raise CaseError(f"{source}: {path or '(top level)'}: the case is too large (more than "
+                        f"{MAX_CASE_SIZE} values after expanding YAML aliases)")
+    if isinstance(data, float) and not math.isfinite(data):
+        raise CaseError(f"{source}: {path or '(top level)'}: {data} is not a finite number")
+    if isinstance(data, dict):
+        for key, value in data.items():
+            _check_data(value, f"{path}.{key}" if path else str(key), source, budget)
+    elif isinstance(data, list):
+        for i, value in enumerate(data):
+            _check_data(value, f"{path}[{i}]", source, budget)
+
+
 def load_raw(path: str | Path, overrides: list[str] = ()) -> dict:
     """Read the YAML case with a safe loader and apply ``--set`` overrides."""
     path = Path(path)
     try:
-        text = path.read_text()
+        if path.stat().st_size > MAX_FILE_BYTES:
+            raise CaseError(f"{path}: the case file is larger than {MAX_FILE_BYTES} bytes")
+        text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise CaseError(f"{path}: cannot read case file: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise CaseError(f"{path}: not a YAML text file (not UTF-8 at byte {exc.start})") \
+            from None
     try:
         data = safe_load(text)
     except yaml.YAMLError as exc:
-        raise CaseError(f"{path}: not valid YAML: {exc}") from None
+        raise CaseError(f"{path}: not valid YAML: {_yaml_error(exc)}") from None
+    except RecursionError:
+        raise CaseError(f"{path}: not valid YAML: nested too deeply") from None
     if not isinstance(data, dict):
         raise CaseError(f"{path}: a case file must be a YAML mapping of sections, "
                         f"got {type(data).__name__}")
+    data = RawCase(data)
+    data.lines = key_lines(text)
     for item in overrides:
         key, value = parse_override(item)
         _set_path(data, key, value)
+        data.lines.pop(key, None)              # the value comes from --set, not the file
+    try:
+        _check_data(data, "", path, [MAX_CASE_SIZE])
+    except RecursionError:
+        raise CaseError(f"{path}: the case is nested too deeply") from None
+    except CaseError as exc:
+        raise CaseError(with_lines(str(exc), data.lines)) from None
     return data
 
 
@@ -227,6 +341,7 @@ class Numerics:
 @dataclass(frozen=True)
 class OutputSpec:
     every: int
+    checkpoint_every: int | None = None
 
 
 @dataclass(frozen=True)
@@ -326,12 +441,26 @@ def _time_grid(t: dict, source: str) -> TimeGrid:
 
 
 def validate(data: dict, source: str = "<case>") -> Case:
-    """Validate a raw case dictionary against the schema; return a :class:`Case`."""
-    data = copy.deepcopy(data)
+    """Validate a raw case dictionary against the schema; return a :class:`Case`.  Error
+    messages name the file, the key path and (for a file read by load_raw) its line."""
+    try:
+        return _validate(data, source)
+    except CaseError as exc:          # one line, with the YAML lines of the keys named
+        text = str(exc).replace("\r", "\\r").replace("\n", "\\n")
+        raise CaseError(with_lines(text, getattr(data, "lines", {}))) from None
+    except RecursionError:
+        raise CaseError(f"{source}: the case is nested too deeply") from None
+
+
+def _validate(data: dict, source: str) -> Case:
+    _check_data(data, "", source, [MAX_CASE_SIZE])      # dicts built in code, not by load_raw
+    data = copy.deepcopy(dict(data))
     validator = jsonschema.Draft7Validator(SCHEMA)
     errors = sorted(validator.iter_errors(data), key=lambda e: list(e.absolute_path))
-    if errors:
-        raise CaseError(f"{source}: invalid case:\n  " + "\n  ".join(_explain(e) for e in errors))
+    if errors:       # one line: the first error, then the others
+        msgs = [_explain(e) for e in errors]
+        more = f" (also: {'; '.join(msgs[1:])})" if len(msgs) > 1 else ""
+        raise CaseError(f"{source}: {msgs[0]}{more}")
     _fill_defaults(SCHEMA, data)
     mesh = data["mesh"]
     dim = mesh["dim"]
@@ -397,7 +526,7 @@ def validate(data: dict, source: str = "<case>") -> Case:
                                     adaptive=data["time"].get("adaptive"))
     petsc = {**DEFAULT_PETSC, **data.get("petsc", {})}
     slip = fr.get("slip") if fr else None
-    return Case(
+    case = Case(
         name=data.get("name") or Path(source).stem,
         source=source,
         mesh=MeshSpec(dim, float(mesh["L1"]), float(mesh["L2"]), float(mesh["L3"]),
@@ -428,6 +557,20 @@ def validate(data: dict, source: str = "<case>") -> Case:
         output=OutputSpec(**data["output"]),
         raw=data,
     )
+    ok, why = fast_eligible(case)
+    if case.numerics.method == "fast" and not ok:
+        raise CaseError(f"{source}: solver.method: 'fast' is not possible here: {why} "
+                        "(allowed: snes_vi, auto)")
+    return case
+
+
+def fast_eligible(case: Case) -> tuple[bool, str]:
+    """Can the fast step solver (app/fastsolver.py) solve this case?  (bool, why not)"""
+    if case.time.scheme != "explicit" and case.material.viscoplastic is not None:
+        return False, "the implicit history variant makes the bulk problem nonlinear"
+    if case.numerics.quadrature != "vertex" and case.contact.active:
+        return False, "the fast solver needs the nodal (vertex) Gamma3 quadrature"
+    return True, ""
 
 
 def load_case(path: str | Path, overrides: list[str] = ()) -> Case:

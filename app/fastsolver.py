@@ -31,17 +31,13 @@ from petsc4py import PETSc
 
 from forms.elasticity import elasticity_operator, eps
 
+from .case import fast_eligible
 from .solver import StepFailure
 
 log = logging.getLogger("vpcontact")
 
 
-def eligible(case) -> tuple[bool, str]:
-    if case.time.scheme != "explicit" and case.material.viscoplastic is not None:
-        return False, "the implicit history variant makes the bulk problem nonlinear"
-    if case.numerics.quadrature != "vertex" and case.contact.active:
-        return False, "the fast solver needs the nodal (vertex) Gamma3 quadrature"
-    return True, ""
+eligible = fast_eligible
 
 
 class NodalContact:

@@ -170,6 +170,11 @@ SCHEMA = _obj({
     "output": _obj({
         "every": {"type": "integer", "minimum": 1, "default": 1,
                   "description": "write the fields every m-th step (the last step always)"},
+        "checkpoint_every": {"type": "integer", "minimum": 1,
+                             "description": "save the full state (u, sigma, kappa, H_n, memory "
+                                            "and slip histories, time position) every m-th "
+                                            "step to checkpoint.npz, for run --restart DIR "
+                                            "(absent: no checkpoints)"},
     }, description="outputs", default={}),
 }, required=["mesh", "material", "loads", "time"])
 SCHEMA["$schema"] = "http://json-schema.org/draft-07/schema#"

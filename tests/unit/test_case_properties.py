@@ -1,0 +1,64 @@
+"""Issue 8: property-based tests (hypothesis) of case validation: whatever the dictionary,
+validate() returns a Case or raises CaseError, never anything else."""
+import copy
+
+import pytest
+
+hypothesis = pytest.importorskip("hypothesis")
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from app.case import Case, CaseError, safe_load, validate  # noqa: E402
+from app.schema import SCHEMA  # noqa: E402
+from conftest import paper_raw  # noqa: E402
+
+KEYS = sorted(SCHEMA["properties"]) + ["mesh.n", "material.E", "material.nu", "time.N",
+                                       "time.T", "contact.g", "loads.f0", "solver.method"]
+scalars = st.one_of(st.none(), st.booleans(), st.integers(-10**12, 10**12),
+                    st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=20))
+values = st.recursive(scalars, lambda inner: st.one_of(
+    st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=8), inner, max_size=4)),
+    max_leaves=12)
+
+
+def _validate(data):
+    try:
+        case = validate(data, "hypothesis.yaml")
+    except CaseError as exc:
+        assert str(exc).startswith("hypothesis.yaml: ") and "\n" not in str(exc)
+        return None
+    assert isinstance(case, Case)
+    return case
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.dictionaries(st.sampled_from(KEYS + ["x"]), values, max_size=6))
+def test_random_top_level_dicts(data):
+    _validate(data)
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.sampled_from(KEYS), values)
+def test_one_key_of_the_paper_case_replaced(key, value):
+    """The valid paper case with one key set to anything: a Case or a CaseError."""
+    data = copy.deepcopy(dict(paper_raw()))
+    node = data
+    *parents, last = key.split(".")
+    for p in parents:
+        node = node.setdefault(p, {}) if isinstance(node.get(p), dict) else node
+    node[last] = value
+    _validate(data)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.text(max_size=200))
+def test_random_yaml_text_never_crashes_the_loader(text):
+    """Arbitrary text through the safe loader and validation: parsed data or YAMLError
+    (load_raw turns that into CaseError), then Case or CaseError."""
+    import yaml
+    try:
+        data = safe_load(text)
+    except (yaml.YAMLError, RecursionError):
+        return
+    if isinstance(data, dict):
+        _validate(data)
