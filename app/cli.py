@@ -71,6 +71,11 @@ def _parser() -> argparse.ArgumentParser:
                                      "solution.xdmf, summary.json and contact.csv.")
     run.add_argument("case", help="YAML case file (see cases/)")
     _case_options(run, "run", "results/<case name>")
+    run.add_argument("--restart", metavar="DIR",
+                     help="continue from the newest DIR/checkpoint_*.npz (or a given "
+                          "checkpoint file), written with output.checkpoint_every or when a "
+                          "run is interrupted; the case must be the same (solver and output "
+                          "settings may differ)")
 
     conv = sub.add_parser(
         "convergence", help="convergence study: Error against h, k and wall time",
@@ -144,6 +149,8 @@ def _prepare_outdir(comm, outdir: Path, overwrite: bool, files=None) -> None:
     from .output import OUTPUT_FILES
 
     existing = [f for f in (files or OUTPUT_FILES) if (outdir / f).exists()]
+    if files is None:
+        existing += sorted(p.name for p in outdir.glob("checkpoint_*.npz"))
     if existing and not overwrite:
         raise CaseError(f"{outdir}: holds the outputs of an earlier run ({', '.join(existing)}); "
                         "pass --overwrite to replace them or --out DIR for another directory")
@@ -181,7 +188,31 @@ def _start(args, subdir: str | None, files=None, check=None):
 
 
 def cmd_run(args, petsc_cli: dict) -> int:
-    comm, _, case, outdir = _start(args, None)
+    from .case import CaseError
+    from .checkpoint import Checkpoint, latest
+
+    loaded = {}
+
+    def check_restart(case):
+        if not args.restart:
+            return
+        path = Path(args.restart)
+        if path.is_dir():
+            path = latest(path)
+            if path is None:
+                raise CaseError(f"--restart {args.restart}: no checkpoint_*.npz in that "
+                                "directory (set output.checkpoint_every)")
+        elif not path.is_file():
+            raise CaseError(f"--restart {args.restart}: no such checkpoint file or directory")
+        try:
+            loaded["checkpoint"] = Checkpoint(path)
+        except Exception as exc:       # noqa: BLE001 (any unreadable file)
+            raise CaseError(f"--restart: {path} is not a readable checkpoint: {exc}") from None
+        why = loaded["checkpoint"].check(case)
+        if why:
+            raise CaseError(f"--restart: {why}")
+
+    comm, _, case, outdir = _start(args, None, check=check_restart)
     if case is None:
         return 2
 
@@ -190,7 +221,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
     case = dataclasses.replace(case, petsc={**case.petsc, **petsc_cli})
     log.info("vpcontact %s: case %s -> %s (%d MPI rank%s)", __version__, args.case, outdir,
              comm.size, "s" if comm.size > 1 else "")
-    result = run(case, outdir, comm)
+    result = run(case, outdir, comm, restart=loaded.get("checkpoint"))
     s = result.summary
     if result.status == "completed":
         log.info("done: %d steps, %d Newton iterations, wall %.2f s (set-up %.2f s, steps %.2f s)",
@@ -200,6 +231,12 @@ def cmd_run(args, petsc_cli: dict) -> int:
             log.info("Gamma3 nodes at T: %s", s["contact_states"])
         log.info("outputs: %s/{solution.xdmf, summary.json, contact.csv}", outdir)
         return 0
+    if result.status == "interrupted":
+        if comm.rank == 0:
+            print(f"vpcontact: {s['failure']['reason']} after step {s['failure']['step']} "
+                  f"(t = {s['failure']['t']:g}); outputs up to that step are in {outdir}; "
+                  f"{s['failure']['hint']}", file=sys.stderr)
+        return EXIT_INTERRUPTED
     if comm.rank == 0:
         print(f"vpcontact: error: {s['failure']['reason']} at step {s['failure']['step']} "
               f"(t = {s['failure']['t']:g}); outputs up to step {s['last_good_step']} are in "
@@ -295,10 +332,34 @@ def cmd_bench(args) -> int:
     return 0
 
 
+EXIT_INTERRUPTED = 3
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Exit codes: 0 done, 1 a step failed, 2 bad input, 3 interrupted (SIGINT/SIGTERM)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     ours, petsc_cli = split_petsc_args(argv)
     args = _parser().parse_args(ours)
+    try:
+        return _dispatch(args, petsc_cli)
+    except KeyboardInterrupt:
+        print("vpcontact: interrupted before the time loop started", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as exc:
+        # An unexpected error on one rank must not leave the others waiting in a collective:
+        # report it and abort the whole MPI job (issue 8).
+        from mpi4py import MPI
+        comm = MPI.COMM_WORLD
+        print(f"vpcontact: internal error on rank {comm.rank}: {type(exc).__name__}: {exc}",
+              file=sys.stderr)
+        if comm.size > 1:
+            import traceback
+            traceback.print_exc()
+            comm.Abort(1)
+        raise
+
+
+def _dispatch(args, petsc_cli: dict) -> int:
     if args.command == "run":
         return cmd_run(args, petsc_cli)
     if args.command == "convergence":

@@ -287,6 +287,11 @@ class FastStepSolver:
             return y, it
         raise StepFailure("fast solver: the Gamma3 problem did not converge in 200 iterations")
 
+    def warm_start(self) -> None:
+        """Start the next Gamma3 problem from the current u (after a restart)."""
+        if self.gamma3:
+            self._y_prev = self._gather_G(self.u.vector)
+
     def solve(self) -> int:
         """One step.  If the Gamma3 problem fails (the projected Newton iteration can zig-zag
         when nodes sit at nearly nonsmooth points), this step is solved by SNES VI instead
@@ -318,8 +323,8 @@ class FastStepSolver:
             lam = self.S @ (y - y0)                   # Gamma3 forces
             self.b.array[self.owned_dofs_local] += lam[self._owned_positions]
             self.ksp.solve(self.b, self.x)           # u = K^-1 (F_n + E_G lambda)
-        if not np.all(np.isfinite(self.x.array_r)):
-            raise StepFailure("fast solver: non-finite solution")
+        if self.comm.allreduce(not np.all(np.isfinite(self.x.array_r)), op=MPI.LOR):
+            raise StepFailure("fast solver: non-finite solution")   # on every rank
         self.u.vector.array[:self.x.getLocalSize()] = self.x.array_r
         self.u.x.scatter_forward()
         return its

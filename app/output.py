@@ -38,19 +38,24 @@ def write_json(comm, path: Path, data: dict) -> None:
 
 
 class FieldWriter:
-    """solution.xdmf: u (P1 vector), sigma (DG0 tensor), sigma_vm, kappa (DG0) per time."""
+    """solution.xdmf: u (P1 vector), sigma (DG0 tensor), sigma_vm, kappa (DG0) per time.
+
+    The file is closed after every write and reopened in append mode for the next one, so the
+    HDF5 data are flushed and the XDMF/HDF5 pair stays readable up to the last written step
+    even if the process is killed (issue 8); the cost is one open/close per output step."""
 
     def __init__(self, comm, path: Path, mesh, fields):
-        self.fields = fields
-        self.file = dio.XDMFFile(comm, str(path), "w")
-        self.file.write_mesh(mesh)
+        self.fields, self.comm, self.path = fields, comm, str(path)
+        with dio.XDMFFile(comm, self.path, "w") as f:
+            f.write_mesh(mesh)
 
     def write(self, t: float) -> None:
-        for f in self.fields:
-            self.file.write_function(f, t)
+        with dio.XDMFFile(self.comm, self.path, "a") as f:
+            for fn in self.fields:
+                f.write_function(fn, t)
 
     def close(self) -> None:
-        self.file.close()
+        pass
 
 
 def classify(u_nu: np.ndarray, g: float | None, tol: float) -> np.ndarray:

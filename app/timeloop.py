@@ -10,9 +10,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from mpi4py import MPI
 
 from meshes import build_box, build_rectangle
 
+from . import checkpoint
 from .case import Case
 from .diagnostics import diagnose
 from .gamma3 import Gamma3History, Kernel
@@ -95,12 +97,38 @@ def _step_record(problem, history, n, t, its, wall):
     }
 
 
+class _StopRequest:
+    """SIGINT / SIGTERM set a flag; the time loop ends after the current step (issue 8)."""
+
+    def __init__(self):
+        self.signal = None
+        self._old = {}
+
+    def __enter__(self):
+        import signal
+        import threading
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._handler)
+        return self
+
+    def _handler(self, signum, frame):
+        import signal
+        self.signal = signal.Signals(signum).name
+
+    def __exit__(self, *exc):
+        import signal
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+        return False
+
+
 def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
-        on_step=None) -> RunResult:
+        on_step=None, restart=None) -> RunResult:
     """Run the case; write outputs to ``outdir`` (created by the caller) if asked.
 
     ``on_step(n, t, problem, history)`` is called for n = 0 (initial state) and after every
-    converged step.  A step's ``wall_s`` covers the history update, the SNES solve and the
+    converged step.  ``restart`` (app/checkpoint.Checkpoint) continues from its step n.  A step's ``wall_s`` covers the history update, the SNES solve and the
     stress update only: not mesh generation, JIT compilation, outputs or ``on_step``.
     """
     t_start = time.perf_counter()
@@ -130,23 +158,31 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
              f"fast (one factorisation, {solver.m} Gamma3 dofs condensed)"
              if getattr(solver, "gamma3", False) else "fast (one factorisation)", t_setup)
 
+    stepper = make_stepper(case, diag.relaxation_rate)
+    N = stepper.total
+    steps, status, failure = [], "completed", None
+    t, n = 0.0, 0
+    if restart is not None:
+        steps = restart.restore(problem, history, g3, stepper)
+        n, t = restart.n, restart.t
+        if hasattr(solver, "warm_start"):
+            solver.warm_start()
+        log.info("restarted from %s at step %d (t = %g)", restart.path, n, t)
+    else:
+        problem.update_sigma()
+
     writer = None
     if write_outputs:
         fields = [problem.u, problem.sigma, problem.sigma_vm]
         if history:
             fields.append(history.kappa)
         writer = FieldWriter(comm, outdir / "solution.xdmf", problem.mesh, fields)
-        problem.update_sigma()
-        writer.write(0.0)
-
-    stepper = make_stepper(case, diag.relaxation_rate)
-    N = stepper.total
+        writer.write(t)
     if on_step:
-        problem.update_sigma()
-        on_step(0, 0.0, problem, history)
-    steps, status, failure = [], "completed", None
+        on_step(n, t, problem, history)
+    checkpoint_every = case.output.checkpoint_every if write_outputs else None
     loop_start = time.perf_counter()
-    t, n = 0.0, 0
+    stop = _StopRequest().__enter__()
     while True:
         try:
             k = stepper.next_k(t)
@@ -215,12 +251,30 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
         steps.append(rec)
         if on_step:
             on_step(n, t, problem, history)
-        if writer and (n % case.output.every == 0 or stepper.finished(t)):
+        interrupted = comm.allreduce(stop.signal is not None, op=MPI.LOR)  # all ranks agree
+        if writer and (n % case.output.every == 0 or stepper.finished(t) or interrupted):
             writer.write(t)
+        if checkpoint_every and n % checkpoint_every == 0 and not interrupted:
+            saved_to = checkpoint.save(outdir, comm, case, problem, history, g3, stepper, n,
+                                       t, steps)
         log.info("step %3d/%s  t = %-8.5g newton %2d  |u|_V = %.6e  |sigma|_Q = %.6e  "
                  "max vm = %.5g  max kappa = %.5g  (%.3f s)", n, N or "?", t, its,
                  rec["norm_u_V"], rec["norm_sigma_Q"], rec["max_vm"], rec["max_kappa"],
                  rec["wall_s"])
+        if interrupted:
+            status = "interrupted"
+            failure = {"step": n, "t": t, "reason": f"interrupted by "
+                       f"{stop.signal or 'a signal on another rank'}", "snes_reason": None,
+                       "hint": f"continue with: run CASE --restart {outdir} --out NEW_DIR"}
+            saved_to = None
+            if write_outputs:
+                saved_to = checkpoint.save(outdir, comm, case, problem, history, g3, stepper,
+                                           n, t, steps)
+            log.warning("interrupted (%s) after step %d (t = %g); outputs are complete up to "
+                        "this step, checkpoint %s", stop.signal or "another rank", n, t,
+                        saved_to or "-")
+            break
+    stop.__exit__(None, None, None)
     t_loop = time.perf_counter() - loop_start
     if writer:
         writer.close()
