@@ -232,7 +232,7 @@ def test_kappa0_expression():
      r"contact\.friction\.slip\.theta_inf"),
 ])
 def test_new_keys_are_validated(patch, pattern):
-    raw = copy.deepcopy(paper_raw())
+    raw = copy.deepcopy(dict(paper_raw()))   # no YAML line numbers in the messages
     for section, value in patch.items():
         raw[section] = {**raw.get(section, {}), **value}
     with pytest.raises(CaseError, match=pattern):
