@@ -40,22 +40,48 @@ def write_json(comm, path: Path, data: dict) -> None:
 class FieldWriter:
     """solution.xdmf: u (P1 vector), sigma (DG0 tensor), sigma_vm, kappa (DG0) per time.
 
-    The file is closed after every write and reopened in append mode for the next one, so the
-    HDF5 data are flushed and the XDMF/HDF5 pair stays readable up to the last written step
-    even if the process is killed (issue 8); the cost is one open/close per output step."""
+    Crash safety (issue 8): dolfinx rewrites its XML file when it closes it, so a run killed
+    during a write would leave a truncated XDMF.  dolfinx therefore writes to a work file
+    ``.solution.work.xdmf`` whose HDF5 name ``.solution.work.h5`` is a symlink to
+    solution.h5; after every output step the file is closed (HDF5 flushed) and its XML is
+    published as solution.xdmf by an atomic rename, pointing at solution.h5.  solution.xdmf
+    is thus always a complete description of the steps written so far."""
 
     def __init__(self, comm, path: Path, mesh, fields):
-        self.fields, self.comm, self.path = fields, comm, str(path)
-        with dio.XDMFFile(comm, self.path, "w") as f:
+        self.fields, self.comm, self.path = fields, comm, Path(path)
+        stem = self.path.stem
+        self.work = self.path.with_name(f".{stem}.work.xdmf")
+        self.h5 = self.path.with_suffix(".h5")
+        self.work_h5 = self.work.with_suffix(".h5")
+        if comm.rank == 0:
+            for p in (self.work, self.work_h5, self.h5):
+                if p.is_symlink() or p.exists():
+                    p.unlink()
+            self.work_h5.symlink_to(self.h5.name)
+        comm.barrier()
+        with dio.XDMFFile(comm, str(self.work), "w") as f:
             f.write_mesh(mesh)
+        self._publish()
+
+    def _publish(self) -> None:
+        if self.comm.rank == 0:
+            text = self.work.read_text().replace(f"{self.work_h5.name}:", f"{self.h5.name}:")
+            atomic_write(self.path, text)
+        self.comm.barrier()
 
     def write(self, t: float) -> None:
-        with dio.XDMFFile(self.comm, self.path, "a") as f:
+        with dio.XDMFFile(self.comm, str(self.work), "a") as f:
             for fn in self.fields:
                 f.write_function(fn, t)
+        self._publish()
 
     def close(self) -> None:
-        pass
+        self.comm.barrier()
+        if self.comm.rank == 0:
+            for p in (self.work, self.work_h5):
+                if p.is_symlink() or p.exists():
+                    p.unlink()
+        self.comm.barrier()
 
 
 def classify(u_nu: np.ndarray, g: float | None, tol: float) -> np.ndarray:

@@ -113,31 +113,31 @@ def test_forced_snes_failure_keeps_valid_outputs(tmp_path):
     assert _xdmf_steps(out) == s["last_good_step"] + 1
 
 
-def test_xdmf_is_readable_after_the_process_is_killed(tmp_path):
-    """SIGKILL (no clean-up at all) between output steps: the XDMF/HDF5 pair still opens with
-    every step written before the kill.  (A kill during the few milliseconds of an output
-    write itself can still truncate the XML: dolfinx rewrites it on close.)"""
+@pytest.mark.parametrize("delay", [1.3, 2.1, 2.9])
+def test_xdmf_is_readable_after_the_process_is_killed(delay, tmp_path):
+    """SIGKILL (no clean-up at all) at an arbitrary moment while every step is written
+    (output.every: 1, so the kill often lands inside a write): solution.xdmf still parses and
+    every HDF5 dataset it names exists and reads."""
+    import xml.etree.ElementTree as ET
     out = tmp_path / "o"
     cmd = [sys.executable, "-m", "app", "run", str(PAPER_CASE), "--out", str(out),
-           "--set", "mesh.n=32", "--set", "time.N=4000", "--set", "solver.method=fast",
-           "--set", "output.every=40"]
+           "--set", "mesh.n=32", "--set", "time.N=4000", "--set", "solver.method=fast"]
     proc = subprocess.Popen(cmd, cwd=ROOT, env={**MPI_ENV, "PATH": "/usr/bin:/bin",
                                                 "PYTHONPATH": str(ROOT)},
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     for _ in range(600):
         time.sleep(0.1)
-        if (out / "solution.h5").exists():
+        if (out / "solution.xdmf").exists():
             break
-    time.sleep(2.5)
+    time.sleep(delay)
     proc.kill()
     proc.communicate(timeout=60)
-    text = (out / "solution.xdmf").read_text()
-    import xml.etree.ElementTree as ET
-    root = ET.fromstring(text)
-    grids = root.findall(".//Grid[@GridType='Uniform']")
-    assert len(grids) >= 2
+    root = ET.fromstring((out / "solution.xdmf").read_text())
+    steps = root.findall(".//Grid[@Name='u'][@GridType='Uniform']")
+    assert len(steps) >= 2
     with h5py.File(out / "solution.h5", "r") as f:
         for ref in root.iter("DataItem"):
             if ref.get("Format") == "HDF":
-                path = ref.text.strip().split(":", 1)[1]
-                assert path in f, path
+                name, path = ref.text.strip().split(":", 1)
+                assert name == "solution.h5"
+                assert f[path][...].size > 0, path
