@@ -181,6 +181,7 @@ def _yaml_error(exc: yaml.YAMLError) -> str:
     return f"{problem}{where}" + (f", {context}" if context else "")
 
 
+MAX_VERTICES = 1e8           # a mesh larger than this is refused before any computation
 MAX_CASE_SIZE = 2_000_000   # numbers, strings and containers after alias expansion
 MAX_FILE_BYTES = 50_000_000
 
@@ -466,6 +467,14 @@ def _validate(data: dict, source: str) -> Case:
     dim = mesh["dim"]
     if mesh["kind"] == "unstructured" and "h" not in mesh:
         raise CaseError(f"{source}: mesh.h: required when mesh.kind is 'unstructured'")
+    lengths = [mesh["L1"], mesh["L2"], mesh["L3"]][:dim]
+    if mesh["kind"] == "structured":
+        vertices, key = float(mesh["n"] + 1) ** dim, "mesh.n"
+    else:
+        vertices, key = math.prod(L / mesh["h"] + 1 for L in lengths), "mesh.h"
+    if vertices > MAX_VERTICES:
+        raise CaseError(f"{source}: {key}: the mesh would have about {vertices:.3g} vertices "
+                        f"(limit {MAX_VERTICES:.0e}); use a coarser mesh")
     contact = data.get("contact", {})
     loads = data["loads"]
     traction = loads.get("traction", {})
