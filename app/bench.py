@@ -28,6 +28,7 @@ ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
 
 def _run(case, out, n, N, method, nprocs, steps=None, log=print):
     cmd = [sys.executable, "-m", "app", "run", str(case), "--out", str(out), "--overwrite",
+           "--no-plots",
            "--quiet", "--set", f"mesh.n={n}", "--set", f"time.N={steps or N}",
            "--set", f"output.every={steps or N}", "--set", f"solver.method={method}"]
     if nprocs > 1:

@@ -382,6 +382,23 @@ class Case:
                 terms.append("slip-dependent friction theta(s_n)")
         return terms
 
+    def omitted_terms(self) -> list[str]:
+        """The model's terms this case leaves out (nothing is allocated or computed for them)."""
+        out = []
+        if not self.material.viscoplastic:
+            out.append("viscoplastic history (elastic body)")
+        if self.contact.c_nu is None:
+            out.append("normal compliance")
+        if self.contact.g is None:
+            out.append("unilateral constraint")
+        if self.contact.memory is None:
+            out.append("memory term")
+        if self.contact.friction is None:
+            out.append("friction")
+        elif self.contact.friction.slip is None:
+            out.append("slip dependence")
+        return out
+
 
 def _check_components(items, path: str, dim: int, source: str, names=("t", "x", "y", "z")):
     """Length = dim; expressions parse with the allowed names; tables increase in t."""

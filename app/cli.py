@@ -52,7 +52,11 @@ def _case_options(parser, what: str, default_out: str) -> None:
                              "(repeatable)")
     parser.add_argument("--overwrite", action="store_true",
                         help=f"replace the outputs of an earlier {what} in the output directory")
-    parser.add_argument("--quiet", action="store_true", help="only warnings and errors")
+    parser.add_argument("--quiet", action="store_true",
+                        help="only warnings and errors (no progress bar)")
+    parser.add_argument("--verbose", action="store_true",
+                        help="one log line per step (norms, iterations, wall time) and the "
+                             "PETSc monitors (-snes_monitor, -snes_converged_reason)")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -76,6 +80,28 @@ def _parser() -> argparse.ArgumentParser:
                           "checkpoint file), written with output.checkpoint_every or when a "
                           "run is interrupted; the case must be the same (solver and output "
                           "settings may differ)")
+    run.add_argument("--no-plots", action="store_true",
+                     help="do not draw the figures at the end (see the plot command)")
+
+    plot = sub.add_parser("plot", help="draw the figures of a results directory",
+                          description="Draw fig3_deformed_contact.png, fig4_tangential.png, "
+                                      "fig5_vm_kappa.png, fig2_laws.png and history.png "
+                                      "(the paper's Figs. 2-5 and the run history) from "
+                                      "the files of a run, headless (matplotlib, Agg).")
+    plot.add_argument("results", metavar="RESULTS_DIR", help="output directory of a run")
+
+    check = sub.add_parser("check", help="validate a case without solving (dry run)",
+                           description="Validate a case and report what a run would do: "
+                                       "mesh size, dofs, time steps, active and omitted "
+                                       "terms, step solver, stability indicator and "
+                                       "well-posedness margin. Nothing is solved or written.")
+    check.add_argument("case", help="YAML case file")
+    check.add_argument("--set", dest="overrides", action="append", default=[],
+                       metavar="KEY=VALUE", help="override a case key (repeatable)")
+
+    sub.add_parser("info", help="versions of dolfinx, PETSc, MPI, gmsh; JIT cache",
+                   description="Print the versions of the numerical stack, PETSc's external "
+                               "packages, the MPI library and where the JIT caches are.")
 
     conv = sub.add_parser(
         "convergence", help="convergence study: Error against h, k and wall time",
@@ -132,8 +158,8 @@ def quiet_jit_log() -> None:
         handler.setLevel(logging.WARNING)
 
 
-def _setup_logging(comm, quiet: bool) -> None:
-    level = logging.WARNING if quiet else logging.INFO
+def _setup_logging(comm, quiet: bool, verbose: bool = False) -> None:
+    level = logging.WARNING if quiet else logging.DEBUG if verbose else logging.INFO
     if comm.rank != 0:
         level = logging.ERROR
     handler = logging.StreamHandler(sys.stdout)
@@ -171,7 +197,7 @@ def _start(args, subdir: str | None, files=None, check=None):
     from .case import load_raw, validate
 
     comm = MPI.COMM_WORLD
-    _setup_logging(comm, args.quiet)
+    _setup_logging(comm, args.quiet, getattr(args, "verbose", False))
     try:
         raw = load_raw(args.case, args.overrides)
         case = validate(raw, args.case)
@@ -218,11 +244,16 @@ def cmd_run(args, petsc_cli: dict) -> int:
 
     from .timeloop import run
 
+    if args.verbose:
+        petsc_cli = {"snes_monitor": None, "snes_converged_reason": None, **petsc_cli}
     case = dataclasses.replace(case, petsc={**case.petsc, **petsc_cli})
     log.info("vpcontact %s: case %s -> %s (%d MPI rank%s)", __version__, args.case, outdir,
              comm.size, "s" if comm.size > 1 else "")
-    result = run(case, outdir, comm, restart=loaded.get("checkpoint"))
+    result = run(case, outdir, comm, restart=loaded.get("checkpoint"),
+                 progress=not args.quiet and not args.verbose)
     s = result.summary
+    if not args.no_plots and comm.rank == 0 and s["steps"]:
+        _plots(outdir)
     if result.status == "completed":
         log.info("done: %d steps, %d Newton iterations, wall %.2f s (set-up %.2f s, steps %.2f s)",
                  len(s["steps"]), s["newton_iterations_total"], s["wall_s"], s["setup_s"],
@@ -335,6 +366,63 @@ def cmd_bench(args) -> int:
 EXIT_INTERRUPTED = 3
 
 
+def _plots(outdir: Path) -> bool:
+    """Draw the figures of a run (rank 0); a plotting problem is a warning, not a failure."""
+    from .plot import plot_all
+    t0 = time.perf_counter()
+    try:
+        files = plot_all(outdir, log=log.info)
+    except Exception as exc:       # noqa: BLE001 (the run itself succeeded)
+        log.warning("figures not drawn: %s: %s (python3 -m app plot %s retries)",
+                    type(exc).__name__, exc, outdir)
+        return False
+    log.info("figures (%.1f s): %s", time.perf_counter() - t0,
+             ", ".join(f.name for f in files))
+    return True
+
+
+def cmd_plot(args) -> int:
+    from mpi4py import MPI
+    _setup_logging(MPI.COMM_WORLD, False)
+    outdir = Path(args.results)
+    missing = [f for f in ("summary.json", "solution.xdmf", "solution.h5")
+               if not (outdir / f).is_file()]
+    if missing:
+        print(f"vpcontact: error: {outdir}: not a results directory (missing "
+              f"{', '.join(missing)})", file=sys.stderr)
+        return 2
+    if MPI.COMM_WORLD.rank == 0:
+        return 0 if _plots(outdir) else 1
+    return 0
+
+
+def cmd_check(args) -> int:
+    """Dry run: validate, build the mesh and spaces, report; no solve, no output."""
+    from mpi4py import MPI
+
+    from .case import CaseError, load_raw, validate
+    comm = MPI.COMM_WORLD
+    _setup_logging(comm, False)
+    try:
+        case = validate(load_raw(args.case, args.overrides), args.case)
+    except CaseError as exc:
+        if comm.rank == 0:
+            print(f"vpcontact: error: {exc}", file=sys.stderr)
+        return 2
+    from .checkrun import report
+    for line in report(case, comm):
+        if comm.rank == 0:
+            print(line)
+    return 0
+
+
+def cmd_info(args) -> int:
+    from .checkrun import info
+    for line in info():
+        print(line)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Exit codes: 0 done, 1 a step failed, 2 bad input, 3 interrupted (SIGINT/SIGTERM)."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -360,6 +448,12 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _dispatch(args, petsc_cli: dict) -> int:
+    if args.command == "plot":
+        return cmd_plot(args)
+    if args.command == "check":
+        return cmd_check(args)
+    if args.command == "info":
+        return cmd_info(args)
     if args.command == "run":
         return cmd_run(args, petsc_cli)
     if args.command == "convergence":

@@ -19,6 +19,7 @@ from .case import Case
 from .diagnostics import diagnose
 from .gamma3 import Gamma3History, Kernel
 from .history import ImplicitViscoplasticHistory, ViscoplasticHistory
+from .progress import Progress
 from .output import FieldWriter, write_contact_csv, write_json
 from .problem import ContactProblem
 from .solver import SNESVISolver, StepFailure
@@ -124,7 +125,7 @@ class _StopRequest:
 
 
 def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
-        on_step=None, restart=None) -> RunResult:
+        on_step=None, restart=None, progress: bool = False) -> RunResult:
     """Run the case; write outputs to ``outdir`` (created by the caller) if asked.
 
     ``on_step(n, t, problem, history)`` is called for n = 0 (initial state) and after every
@@ -182,6 +183,7 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
         on_step(n, t, problem, history)
     checkpoint_every = case.output.checkpoint_every if write_outputs else None
     loop_start = time.perf_counter()
+    bar = Progress(case.time.T, N, t, enabled=progress and comm.rank == 0)
     stop = _StopRequest().__enter__()
     while True:
         try:
@@ -257,7 +259,8 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
         if checkpoint_every and n % checkpoint_every == 0 and not interrupted:
             saved_to = checkpoint.save(outdir, comm, case, problem, history, g3, stepper, n,
                                        t, steps)
-        log.info("step %3d/%s  t = %-8.5g newton %2d  |u|_V = %.6e  |sigma|_Q = %.6e  "
+        bar.update(n, t, its)
+        log.debug("step %3d/%s  t = %-8.5g newton %2d  |u|_V = %.6e  |sigma|_Q = %.6e  "
                  "max vm = %.5g  max kappa = %.5g  (%.3f s)", n, N or "?", t, its,
                  rec["norm_u_V"], rec["norm_sigma_Q"], rec["max_vm"], rec["max_kappa"],
                  rec["wall_s"])
@@ -275,6 +278,7 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
                         saved_to or "-")
             break
     stop.__exit__(None, None, None)
+    bar.close()
     t_loop = time.perf_counter() - loop_start
     if writer:
         writer.close()
@@ -282,6 +286,7 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
     summary = {
         "case": case.name,
         "source": case.source,
+        "case_data": case.raw,
         "status": status,
         "mesh": {"cells": problem.num_cells, "vertices": problem.num_vertices,
                  "dofs": problem.num_dofs, "kind": case.mesh.kind, "n": case.mesh.n,

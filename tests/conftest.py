@@ -43,9 +43,13 @@ def run_case(case):
     return run(case, None, MPI.COMM_WORLD, write_outputs=False)
 
 
-def run_cli(args, nprocs: int = 1, cwd=None, timeout=600):
-    """Run ``python -m app`` (under mpirun -n nprocs if > 1); returns CompletedProcess."""
-    cmd = [sys.executable, "-m", "app", *map(str, args)]
+def run_cli(args, nprocs: int = 1, cwd=None, timeout=600, plots=False):
+    """Run ``python -m app`` (under mpirun -n nprocs if > 1); returns CompletedProcess.
+    ``run`` commands get --no-plots unless ``plots`` (the figures take seconds to draw)."""
+    args = list(map(str, args))
+    if args and args[0] == "run" and not plots:
+        args.append("--no-plots")
+    cmd = [sys.executable, "-m", "app", *args]
     if nprocs > 1:
         cmd = ["mpirun", "-n", str(nprocs), *cmd]
     env = {**os.environ, **MPI_ENV, "PYTHONPATH": str(ROOT)}

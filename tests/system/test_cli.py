@@ -18,9 +18,10 @@ STEP_KEYS = {"t", "norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kap
 @pytest.fixture(scope="module")
 def demo_out(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo") / "paper"
-    proc = run_cli(["run", PAPER_CASE, "--out", out])
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--verbose"])
     assert proc.returncode == 0, proc.stderr
-    assert "step  16/16" in proc.stdout and "newton" in proc.stdout
+    assert "step  16/16" in proc.stdout and "newton" in proc.stdout    # per-step lines
+    assert "SNES Function norm" in proc.stdout                       # PETSc monitor
     return out
 
 

@@ -1,0 +1,98 @@
+"""Issue 7: the figures of a run, the progress bar, check (dry run) and info."""
+import json
+import struct
+
+import numpy as np
+import pytest
+
+from conftest import PAPER_CASE, ROOT, run_cli
+
+FIGURES = ("fig3_deformed_contact.png", "fig4_tangential.png", "fig5_vm_kappa.png",
+           "fig2_laws.png", "history.png")
+
+
+def _png(path):
+    """(width, height, pixels) of a PNG, checking its signature and header."""
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", path
+    width, height = struct.unpack(">II", data[16:24])
+    import matplotlib.image as mpimg
+    return width, height, mpimg.imread(path)
+
+
+@pytest.fixture(scope="module")
+def paper_out(tmp_path_factory):
+    out = tmp_path_factory.mktemp("plots") / "paper"
+    proc = run_cli(["run", PAPER_CASE, "--out", out], plots=True)
+    assert proc.returncode == 0, proc.stderr
+    assert "figures" in proc.stdout
+    # the progress bar (not a terminal: a line per 10% of the time interval) on stderr
+    assert "100.0%" in proc.stderr and "ETA" in proc.stderr and "step 16/16" in proc.stderr
+    return out
+
+
+@pytest.mark.parametrize("name", FIGURES)
+def test_figure_is_a_nonblank_png(paper_out, name):
+    w, h, px = _png(paper_out / name)
+    assert 500 <= w <= 2000 and 400 <= h <= 1500, (w, h)
+    assert px.shape[:2] == (h, w)
+    assert px[..., :3].std() > 0.05, f"{name} looks blank"
+
+
+def test_deformed_mesh_differs_from_undeformed(paper_out, tmp_path):
+    from app.plot import Results, fig3_deformed_contact
+    res = Results(paper_out)
+    f0 = fig3_deformed_contact(res, tmp_path / "undeformed.png", factor=0.0)
+    f1 = fig3_deformed_contact(res, tmp_path / "deformed.png")
+    assert f0 == 0.0 and f1 >= 1.0
+    a, b = _png(tmp_path / "undeformed.png")[2], _png(tmp_path / "deformed.png")[2]
+    assert a.shape == b.shape and np.abs(a - b).mean() > 1e-3
+
+
+def test_fig3_shows_the_bound_as_c_nu_g(paper_out):
+    """The paper's convention: where u_nu = g the bar is c_nu g; the figure's data say so."""
+    from app.plot import Results
+    res = Results(paper_out)
+    c = res.contact
+    assert set(c["state"]) <= {"bound", "compliance", "separated"}
+    assert (c["state"] == "bound").sum() == 10 and (c["state"] == "compliance").sum() == 6
+
+
+def test_plot_command_redraws_and_rejects_a_non_results_dir(paper_out, tmp_path):
+    for name in FIGURES:
+        (paper_out / name).unlink()
+    proc = run_cli(["plot", paper_out])
+    assert proc.returncode == 0, proc.stderr
+    assert all((paper_out / name).is_file() for name in FIGURES)
+    proc = run_cli(["plot", tmp_path])
+    assert proc.returncode == 2 and "not a results directory" in proc.stderr
+
+
+def test_3d_figures(tmp_path):
+    out = tmp_path / "box"
+    proc = run_cli(["run", ROOT / "cases" / "box3d.yaml", "--out", out, "--set", "mesh.n=3",
+                    "--set", "time.N=2"], plots=True)
+    assert proc.returncode == 0, proc.stderr
+    for name in FIGURES:
+        w, h, px = _png(out / name)
+        assert px[..., :3].std() > 0.05, name
+
+
+def test_check_reports_without_writing(tmp_path):
+    proc = run_cli(["check", PAPER_CASE], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout
+    assert "dofs: 578" in out and "512 cells" in out and "16 steps" in out
+    assert "normal compliance" in out and "nonmonotone friction" in out
+    assert "left out: memory term, slip dependence" in out
+    assert "stability indicator" in out and "well-posedness" in out
+    assert list(tmp_path.iterdir()) == []           # nothing written
+    proc = run_cli(["check", PAPER_CASE, "--set", "material.nu=0.5"], cwd=tmp_path)
+    assert proc.returncode == 2 and "material.nu" in proc.stderr
+
+
+def test_info():
+    proc = run_cli(["info"])
+    assert proc.returncode == 0, proc.stderr
+    assert "dolfinx 0.5.2" in proc.stdout and "PETSc 3." in proc.stdout
+    assert "mumps" in proc.stdout and "MPI" in proc.stdout and "JIT cache" in proc.stdout
