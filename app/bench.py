@@ -96,8 +96,53 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "fast"), nprocs=(1, 2)
     return rows
 
 
-def write(outdir: Path, rows: list[dict]) -> None:
-    atomic_write(outdir / "bench.json", json.dumps(rows, indent=2) + "\n")
+MEMORY_CASE = Path(__file__).resolve().parents[1] / "cases" / "memory.yaml"
+
+
+def memory_rows(outdir: Path, steps=(64, 256, 1024), n: int = 16, log=print) -> list[dict]:
+    """Per-step cost of the memory term: the exponential kernel's exact recursion (O(1) per
+    step) against the direct sum over the stored history (O(n) at step n), on
+    cases/memory.yaml with the fast solver; per-step wall times of the first and last tenth
+    of the steps show the growth."""
+    rows = []
+    for N in steps:
+        for how in ("recursion", "direct"):
+            out = outdir / "runs" / f"memory_{how}_N{N}"
+            cmd = [sys.executable, "-m", "app", "run", str(MEMORY_CASE), "--out", str(out),
+                   "--overwrite", "--no-plots", "--quiet", "--set", f"mesh.n={n}",
+                   "--set", f"time.N={N}", "--set", f"output.every={N}",
+                   "--set", f"contact.memory.sum={how}", "--set", "solver.method=fast"]
+            t0 = time.perf_counter()
+            proc = subprocess.run(cmd, env={**os.environ, **ENV}, capture_output=True,
+                                  text=True)
+            wall = time.perf_counter() - t0
+            if proc.returncode != 0:
+                rows.append({"sum": how, "N": N, "failed": proc.stderr.strip()[-300:]})
+                continue
+            s = json.loads((out / "summary.json").read_text())
+            st = [x["wall_s"] for x in s["steps"]]
+            tenth = max(len(st) // 10, 1)
+            rows.append({"sum": how, "N": N, "n": n, "dofs": s["mesh"]["dofs"], "wall_s": wall,
+                         "steps_s": s["loop_s"], "first_tenth_step_s": statistics.mean(st[:tenth]),
+                         "last_tenth_step_s": statistics.mean(st[-tenth:]),
+                         "final_norm_u_V": s["steps"][-1]["norm_u_V"]})
+            r = rows[-1]
+            log(f"  memory term, {how:9s} N = {N:5d}: steps {r['steps_s']:.2f} s, per step "
+                f"{1e3 * r['first_tenth_step_s']:.2f} ms (first tenth) -> "
+                f"{1e3 * r['last_tenth_step_s']:.2f} ms (last tenth)")
+    for N in steps:   # the two sums compute the same xi_n
+        pair = [r for r in rows if r.get("N") == N and "failed" not in r]
+        if len(pair) == 2:
+            diff = abs(pair[0]["final_norm_u_V"] - pair[1]["final_norm_u_V"]) \
+                / abs(pair[0]["final_norm_u_V"])
+            for r in pair:
+                r["recursion_vs_direct_rel_diff"] = diff
+    return rows
+
+
+def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None) -> None:
+    atomic_write(outdir / "bench.json", json.dumps({"solvers": rows, "memory_term": memory or []},
+                                                   indent=2) + "\n")
     lines = ["# Benchmark: paper case (Wang & Cheng 2021, Section 4)", "",
              "Whole-process wall time (start-up, imports, mesh, set-up, steps, output at T), "
              "measured from outside after a warm-up run that fills the JIT cache. Per-step "
@@ -119,4 +164,20 @@ def write(outdir: Path, rows: list[dict]) -> None:
             f"{r['speedup_fast_vs_snes']:.1f}x" if "speedup_fast_vs_snes" in r else "-",
             f"{r['solution_difference']:.1e}" if "solution_difference" in r else "-",
             f"{r['step_cost_exponent']:.2f}" if "step_cost_exponent" in r else "-"]) + " |")
+    if memory:
+        lines += ["", "## Memory term: cost per step", "",
+                  "cases/memory.yaml (h = 1/16, fast solver): the exponential kernel's exact "
+                  "recursion costs O(1) per step, the direct sum over the stored history O(n) "
+                  "at step n. Mean wall time per step over the first and the last tenth of "
+                  "the steps; difference = relative difference of the final ||u||_V.", "",
+                  "| sum | N | steps s | step s (first tenth) | step s (last tenth) | growth | "
+                  "difference |", "|---|---|---|---|---|---|---|"]
+        for r in memory:
+            if "failed" in r:
+                lines.append(f"| {r['sum']} | {r['N']} | failed: {r['failed']} | | | | |")
+                continue
+            lines.append(f"| {r['sum']} | {r['N']} | {r['steps_s']:.2f} | "
+                         f"{r['first_tenth_step_s']:.4f} | {r['last_tenth_step_s']:.4f} | "
+                         f"{r['last_tenth_step_s'] / r['first_tenth_step_s']:.2f}x | "
+                         f"{r.get('recursion_vs_direct_rel_diff', float('nan')):.1e} |")
     atomic_write(outdir / "bench.md", "\n".join(lines) + "\n")

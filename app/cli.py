@@ -144,6 +144,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="h = k = 1/L levels (default 16 32 64 128)")
     b.add_argument("--extra", type=str, nargs="*", default=["256:32"], metavar="n:N",
                    help="extra (cells per side : steps) runs (default 256:32)")
+    b.add_argument("--memory-steps", type=int, nargs="*", default=[64, 256, 1024],
+                   metavar="N", help="step counts of the memory-term cost runs "
+                                     "(recursion vs direct sum; none: skip)")
     b.add_argument("--ranks", type=int, nargs="+", default=[1, 2])
     b.add_argument("--out", default="results/bench", help="output directory")
     return p
@@ -355,10 +358,11 @@ def cmd_bench(args) -> int:
     t0 = time.perf_counter()
     try:
         rows = bm.bench(args.case, outdir, args.levels, nprocs=args.ranks, extra=extra)
+        memory = bm.memory_rows(outdir, steps=args.memory_steps) if args.memory_steps else []
     except RuntimeError as exc:
         print(f"vpcontact: error: {exc}", file=sys.stderr)
         return 1
-    bm.write(outdir, rows)
+    bm.write(outdir, rows, memory)
     print(f"done in {time.perf_counter() - t0:.0f} s: {outdir}/bench.json, {outdir}/bench.md")
     return 0
 

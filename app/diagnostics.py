@@ -74,6 +74,38 @@ def trace_constant(problem, rtol: float = 1e-8, max_iter: int = 500) -> tuple[fl
     return float(lam), its
 
 
+def trace_constant_bound(problem, solver) -> float | None:
+    """Upper bound of ||gamma||^2 from the fast solver's Schur complement S (no extra
+    factorisation): with the Gamma3 mass matrix M_G,
+        lam_K = max_v |v|^2_{L2(Gamma3)} / (E eps(v), eps(v)) = lam_max(M_G x = lam S x),
+    and since (E tau):tau <= c_max tau:tau (c_max the largest eigenvalue of E),
+        ||gamma||^2 <= c_max lam_K.
+    None if the solver has no condensed Gamma3 problem."""
+    if not getattr(solver, "gamma3", False) or not hasattr(solver, "S"):
+        return None
+    import scipy.linalg
+    V, comm = problem.V, problem.comm
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    ds3 = gamma3_measure(problem.mesh, problem.rect.facet_tags, BOUNDARY_TAGS["bottom"],
+                         "gauss", 2)
+    M = fem.petsc.assemble_matrix(fem.form(ufl.inner(u, v) * ds3))
+    M.assemble()
+    rows, cols = solver._owned_rows.astype(np.int32), None
+    parts = comm.allgather(solver._owned_rows)
+    pos = comm.allgather(solver._owned_positions)
+    cols = np.concatenate(parts).astype(np.int32)
+    order = np.concatenate(pos)
+    local = M.getValues(rows, cols) if len(rows) else np.zeros((0, len(cols)))
+    M.destroy()
+    gathered = comm.allgather((solver._owned_positions, local))
+    MG = np.zeros((solver.m, solver.m))
+    for p_, vals in gathered:
+        MG[np.ix_(p_, order)] = vals
+    MG = 0.5 * (MG + MG.T)
+    lam_K = float(scipy.linalg.eigh(MG, solver.S, eigvals_only=True)[-1])
+    return float(np.max(np.linalg.eigvals(problem.law.Cmat).real)) * lam_K
+
+
 def _adot(A, y):
     """y . A y"""
     Ay = A.createVecLeft()
@@ -98,6 +130,7 @@ class Diagnostics:
     wellposedness_margin: float | None
     unique: bool | None
     adaptive: bool = False
+    gamma2_is_bound: bool = False    # gamma2 is the upper bound c_max lam_K, not the value
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -120,9 +153,13 @@ class Diagnostics:
                 out.append(("info", text + ("" if self.scheme == "explicit" else
                                             "; the implicit scheme has no such limit")))
         if self.gamma2 is not None:
+            rel = "<=" if self.gamma2_is_bound else "="
             text = (f"well-posedness (2.6): m_E = {self.m_E:.4g} vs max(sqrt(3) c1~, m_j) "
-                    f"||gamma||^2 = {max(np.sqrt(3) * self.c1_tilde, self.m_j):.4g} x "
-                    f"{self.gamma2:.4g}: margin {self.wellposedness_margin:.4g}")
+                    f"||gamma||^2 {rel} {max(np.sqrt(3) * self.c1_tilde, self.m_j):.4g} x "
+                    f"{self.gamma2:.4g}: margin {'>= ' if self.gamma2_is_bound else ''}"
+                    f"{self.wellposedness_margin:.4g}"
+                    + (" (upper bound of ||gamma||^2 from the condensed stiffness)"
+                       if self.gamma2_is_bound else ""))
             if self.unique:
                 out.append(("info", text))
             else:
@@ -132,7 +169,10 @@ class Diagnostics:
         return out
 
 
-def diagnose(problem) -> Diagnostics:
+def diagnose(problem, solver=None) -> Diagnostics:
+    """The diagnostics of a case.  With the fast solver the trace constant is first bounded
+    from its Schur complement (no factorisation); the exact power iteration runs only when
+    that bound cannot show the margin of (2.6) to be positive."""
     case, law = problem.case, problem.law
     ks = np.diff(case.time.times)
     k_max = float(ks.max())
@@ -143,10 +183,16 @@ def diagnose(problem) -> Diagnostics:
     m_E = ellipticity(law)
     m_j = fr.c1 if fr else 0.0
     gamma2 = margin = unique = None
+    is_bound = False
     if fr is not None:
-        gamma2, _ = trace_constant(problem)
+        bound = trace_constant_bound(problem, solver) if solver is not None else None
+        if bound is not None and m_E - m_j * bound > 0:
+            gamma2, is_bound = bound, True
+        else:
+            gamma2, _ = trace_constant(problem)
         margin = m_E - max(np.sqrt(3) * 0.0, m_j) * gamma2
         unique = margin > 0
     return Diagnostics(case.time.scheme, k_max, rate, indicator, STABILITY_LIMIT,
                        None if indicator is None else indicator <= STABILITY_LIMIT,
-                       m_E, m_j, 0.0, gamma2, margin, unique, case.time.adaptive is not None)
+                       m_E, m_j, 0.0, gamma2, margin, unique, case.time.adaptive is not None,
+                       is_bound)

@@ -89,6 +89,7 @@ class SNESVISolver:
         self.u = problem.u
         self.b = fem.petsc.create_vector(problem.F_form)
         self.A = fem.petsc.create_matrix(problem.J_form)
+        self._setup_jacobian_reuse(problem)
         self.x = self.u.vector.copy()
         self.options, self.prefix = options, prefix
         self.snes = self._create(options)
@@ -135,10 +136,42 @@ class SNESVISolver:
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         fem.petsc.set_bc(b, self.problem.bcs, x, -1.0)
 
+    def _setup_jacobian_reuse(self, problem) -> None:
+        """Explicit scheme: the bulk Jacobian (E eps(du), eps(v)) is the same in every Newton
+        iteration of every step.  Assemble it once (K) and per iteration only the Gamma3
+        terms (B, a few facets): J = K + B with the same sparsity pattern, so the direct
+        solver keeps its symbolic factorisation and only refactorises numerically."""
+        self.K = self.B = self._boundary_form = None
+        forms = problem.forms
+        if problem.implicit or forms.bulk_jacobian is None:
+            return
+        # A and B get the full pattern of J once (assembly drops unused preallocated entries,
+        # and J = K + B needs the same pattern in all three)
+        fem.petsc.assemble_matrix(self.A, problem.J_form, problem.bcs)
+        self.A.assemble()
+        self.K = self.A.duplicate()
+        self.K.zeroEntries()
+        fem.petsc.assemble_matrix(self.K, fem.form(forms.bulk_jacobian), problem.bcs)
+        self.K.assemble()
+        if forms.boundary_jacobian is not None:
+            self._boundary_form = fem.form(forms.boundary_jacobian)
+            self.B = self.A.duplicate()
+
     def _J(self, snes, x, A, P):
-        A.zeroEntries()
-        fem.petsc.assemble_matrix(A, self.problem.J_form, self.problem.bcs)
-        A.assemble()
+        if self.K is None:                       # implicit scheme: the tangent changes
+            A.zeroEntries()
+            fem.petsc.assemble_matrix(A, self.problem.J_form, self.problem.bcs)
+            A.assemble()
+            return
+        self.K.copy(A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        A.assemble()                             # (a never-assembled A stays flagged so)
+        if self.B is not None:
+            self.B.zeroEntries()
+            # Dirichlet rows/columns: zero here (their 1 on the diagonal is in K)
+            fem.petsc.assemble_matrix(self.B, self._boundary_form, self.problem.bcs,
+                                      diagonal=0.0)
+            self.B.assemble()
+            A.axpy(1.0, self.B, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
 
     def _solve_once(self, snes) -> int:
         self.u.vector.copy(self.x)
@@ -205,6 +238,6 @@ class SNESVISolver:
         return its
 
     def destroy(self):
-        for obj in (self.snes, self._robust, self.A, self.b, self.x):
+        for obj in (self.snes, self._robust, self.A, self.b, self.x, self.K, self.B):
             if obj is not None:
                 obj.destroy()

@@ -151,7 +151,7 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
     if case.time.adaptive is not None:
         log.info("adaptive time steps: starting from k = %g to T = %g", ks[0], case.time.T)
     log.info("active terms: %s", ", ".join(case.active_terms()))
-    diag = diagnose(problem)
+    diag = diagnose(problem, solver)
     for level, text in diag.messages():
         getattr(log, level)(text)
     log.info("step solver: %s, set-up (mesh, JIT, matrices) %.2f s",

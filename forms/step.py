@@ -32,6 +32,8 @@ class StepForms:
     terms: list = field(default_factory=list)
     rhs: ufl.Form | None = None   # F_n = f_n(v) - (H_n, eps(v)), the explicit step's load vector
     loads: ufl.Form | None = None  # f_n(v) alone (body force and tractions)
+    bulk_jacobian: ufl.Form | None = None      # (E eps(du), eps(v)): constant (explicit)
+    boundary_jacobian: ufl.Form | None = None  # the Gamma3 terms' Jacobian alone
 
 
 def voigt(tau, dim: int):
@@ -109,8 +111,11 @@ def build_step_forms(u, H, *, E, nu, dim=2, f0, tractions, ds, ds_c=None, normal
         rhs = f_n
         if H is not None:
             rhs = -ufl.inner(H, eps(v)) * dx if rhs is None else rhs - ufl.inner(H, eps(v)) * dx
+        bulk_jacobian = ufl.inner(C(eps(du)), eps(v)) * dx
+        boundary_jacobian = ufl.derivative(ufl.derivative(boundary, u, v), u, du) \
+            if boundary != 0 else None
         return StepForms(energy, residual, jacobian, ufl.derivative(bulk, u, v), terms, rhs,
-                         f_n)
+                         f_n, bulk_jacobian, boundary_jacobian)
     w = [1.0] * dim + [2.0] * (len(voigt(eps(u), dim)) - dim)
     ev = voigt(eps(v), dim)
     weighted = ufl.as_vector([w[i] * ev[i] for i in range(len(w))])

@@ -1,0 +1,24 @@
+"""`bench` (issue 6) on tiny levels: both solvers, the same solution, factorisation counts,
+speed-up and cost columns, and the memory-term cost rows (recursion == direct sum)."""
+import json
+
+from conftest import run_cli
+
+
+def test_bench_command(tmp_path):
+    out = tmp_path / "bench"
+    proc = run_cli(["bench", "--levels", "4", "8", "--extra", "--ranks", "1", "2",
+                    "--memory-steps", "8", "--out", out], timeout=900)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads((out / "bench.json").read_text())
+    rows = data["solvers"]
+    assert len(rows) == 2 * 2 * 2 and not any("failed" in r for r in rows)
+    for r in rows:
+        assert r["solution_difference"] < 1e-9 and r["speedup_fast_vs_snes"] > 0
+        assert r["factorisations"] == (1 if r["method"] == "fast" else None)
+        assert {"dofs", "wall_s", "setup_s", "step_median_s", "newton_total"} <= set(r)
+    mem = data["memory_term"]
+    assert {r["sum"] for r in mem} == {"recursion", "direct"}
+    assert all(r["recursion_vs_direct_rel_diff"] < 1e-10 for r in mem)
+    md = (out / "bench.md").read_text()
+    assert "| 1/8 |" in md and "Memory term" in md
