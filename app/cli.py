@@ -144,7 +144,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="h = k = 1/L levels (default 16 32 64 128)")
     b.add_argument("--extra", type=str, nargs="*", default=["256:32"], metavar="n:N",
                    help="extra (cells per side : steps) runs (default 256:32)")
-    b.add_argument("--memory-steps", type=int, nargs="*", default=[64, 256, 1024],
+    b.add_argument("--memory-steps", type=int, nargs="*", default=[64, 256, 1024, 4096],
                    metavar="N", help="step counts of the memory-term cost runs "
                                      "(recursion vs direct sum; none: skip)")
     b.add_argument("--ranks", type=int, nargs="+", default=[1, 2])

@@ -155,6 +155,15 @@ def _clipped_volume(fig, pos, res: Results, values, title, label):
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, label=label, shrink=0.6)
 
 
+def _save(plt, fig, path: Path, title: str | None = None) -> None:
+    """Title, tight layout, write the PNG, free the figure."""
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
 # ----------------------------------------------------------------------------- figures
 def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None) -> float:
     """Deformed mesh at T with the contact forces along Gamma3; returns the factor used."""
@@ -193,9 +202,7 @@ def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None)
     ax.set_ylabel("y [m]" if res.dim == 2 else "y [m] (bottom face z = 0)")
     ax.set_title(f"Deformed configuration at t = {res.t:g} (displacement x {factor:g}); "
                  "contact forces on Gamma3", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
+    _save(plt, fig, path)
     return factor
 
 
@@ -225,11 +232,8 @@ def fig4_tangential(res: Results, path: Path) -> None:
         if res.dim == 3:
             axes[0].set_title("3D: first tangential component, all Gamma3 nodes", fontsize=9)
     axes[1].set_xlabel("x on Gamma3 [m]")
-    fig.suptitle(f"Tangential displacement and friction stress along Gamma3 at t = {res.t:g}",
-                 fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
+    _save(plt, fig, path,
+          f"Tangential displacement and friction stress along Gamma3 at t = {res.t:g}")
 
 
 def fig5_vm_kappa(res: Results, path: Path) -> None:
@@ -249,9 +253,7 @@ def fig5_vm_kappa(res: Results, path: Path) -> None:
             _draw_cells(ax, fig, res, v, f"{title} at t = {res.t:g}", label)
             _clipped_volume(fig, int(f"2{len(panels)}{len(panels) + i + 1}"), res, v, title,
                             label)
-    fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
+    _save(plt, fig, path)
 
 
 def normal_law(c_nu, g, r):
@@ -302,11 +304,7 @@ def fig2_laws(res: Results, path: Path) -> None:
     ax.set_xlabel("|u_tau| [m]")
     ax.set_ylabel("|sigma_tau| [N/m^2]")
     ax.set_title("nonmonotone friction law (4.2)", fontsize=10)
-    fig.suptitle(f"Contact laws of case {res.summary.get('case')} (the paper's Fig. 2)",
-                 fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
+    _save(plt, fig, path, f"Contact laws of case {res.summary.get('case')} (the paper's Fig. 2)")
 
 
 def history(res: Results, path: Path) -> None:
@@ -334,11 +332,8 @@ def history(res: Results, path: Path) -> None:
         axes[1, 1].set_title("Newton / Gamma3 iterations per step", fontsize=10)
     for ax in axes[1]:
         ax.set_xlabel("t [s]")
-    fig.suptitle(f"History of run {res.summary.get('case')} ({res.summary.get('status')})",
-                 fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
+    _save(plt, fig, path, f"History of run {res.summary.get('case')} "
+                          f"({res.summary.get('status')})")
 
 
 def plot_all(outdir: Path, log=None) -> list[Path]:

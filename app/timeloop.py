@@ -202,8 +202,10 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
                  problem.sigma.x.array.copy()) if stepper.adaptive else None
         if history:
             history.before_solve(problem, k)    # explicit: H_n, kappa_n from step n-1
+        t_g3 = time.perf_counter()
         if g3:
             g3.advance(t, t_new)                # xi_n, s_n from u_{n-1}
+        t_g3 = time.perf_counter() - t_g3
         problem.time_data.set_time(t_new)       # f_n
         try:
             its = solver.solve()                # u_n in U^h, (3.4)
@@ -234,6 +236,8 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
             problem.update_sigma()
         rec = _step_record(problem, history, n, t, its, time.perf_counter() - t0)
         rec["k"] = k
+        if g3:
+            rec["gamma3_history_s"] = t_g3      # memory term / slip update of this step
         if not all(np.isfinite(v) for v in rec.values()):
             status = "failed"
             failure = {"step": n, "t": t, "reason": "non-finite solution (NaN/Inf)",

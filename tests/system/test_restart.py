@@ -30,6 +30,21 @@ def _xdmf_steps(out):
         return len(f["Function"]["u"].keys())
 
 
+def _start_long_run(out, *extra):
+    """A long run (h = 1/32, 4000 steps) in the background, once its outputs exist."""
+    cmd = [sys.executable, "-m", "app", "run", str(PAPER_CASE), "--out", str(out),
+           "--no-plots", "--set", "mesh.n=32", "--set", "time.N=4000",
+           "--set", "solver.method=fast", *extra]
+    proc = subprocess.Popen(cmd, cwd=ROOT, env={**MPI_ENV, "PATH": "/usr/bin:/bin",
+                                                "PYTHONPATH": str(ROOT)},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    for _ in range(600):                  # wait until the time loop runs
+        time.sleep(0.1)
+        if (out / "solution.xdmf").exists():
+            break
+    return proc
+
+
 @pytest.mark.parametrize("name", ["paper", "memory", "memory_slip"])
 def test_restart_equals_uninterrupted_serial(name, tmp_path):
     case = CASES[name]
@@ -79,15 +94,7 @@ def test_restart_refuses_another_case(tmp_path):
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_signal_ends_the_run_cleanly(sig, tmp_path):
     out = tmp_path / "o"
-    cmd = [sys.executable, "-m", "app", "run", str(PAPER_CASE), "--out", str(out),
-           "--set", "mesh.n=32", "--set", "time.N=4000", "--set", "solver.method=fast"]
-    proc = subprocess.Popen(cmd, cwd=ROOT, env={**MPI_ENV, "PATH": "/usr/bin:/bin",
-                                                "PYTHONPATH": str(ROOT)},
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    for _ in range(600):                  # wait until the time loop runs
-        time.sleep(0.1)
-        if (out / "solution.h5").exists():
-            break
+    proc = _start_long_run(out)
     time.sleep(1.0)
     proc.send_signal(sig)
     stdout, stderr = proc.communicate(timeout=120)
@@ -120,15 +127,7 @@ def test_xdmf_is_readable_after_the_process_is_killed(delay, tmp_path):
     every HDF5 dataset it names exists and reads."""
     import xml.etree.ElementTree as ET
     out = tmp_path / "o"
-    cmd = [sys.executable, "-m", "app", "run", str(PAPER_CASE), "--out", str(out),
-           "--set", "mesh.n=32", "--set", "time.N=4000", "--set", "solver.method=fast"]
-    proc = subprocess.Popen(cmd, cwd=ROOT, env={**MPI_ENV, "PATH": "/usr/bin:/bin",
-                                                "PYTHONPATH": str(ROOT)},
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    for _ in range(600):
-        time.sleep(0.1)
-        if (out / "solution.xdmf").exists():
-            break
+    proc = _start_long_run(out)
     time.sleep(delay)
     proc.kill()
     proc.communicate(timeout=60)
