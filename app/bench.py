@@ -164,7 +164,8 @@ def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None) -> N
             f"1/{r['n']}", str(r["N"]), str(r["dofs"]), r["method"], str(r["nprocs"]),
             f"{r['wall_s']:.2f}", f"{r['setup_s']:.2f}", f"{r['loop_s']:.2f}",
             f"{r['step_min_s']:.4f}", f"{r['step_median_s']:.4f}", str(r["newton_total"]),
-            str(r["factorisations"] if r["factorisations"] is not None else "numeric, every Newton it."),
+            str(r["factorisations"] if r["factorisations"] is not None
+                else "numeric, every Newton it."),
             f"{r['speedup_fast_vs_snes']:.1f}x" if "speedup_fast_vs_snes" in r else "-",
             f"{r['solution_difference']:.1e}" if "solution_difference" in r else "-",
             f"{r['step_cost_exponent']:.2f}" if "step_cost_exponent" in r else "-"]) + " |")
