@@ -129,8 +129,10 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
     """Run the case; write outputs to ``outdir`` (created by the caller) if asked.
 
     ``on_step(n, t, problem, history)`` is called for n = 0 (initial state) and after every
-    converged step.  ``restart`` (app/checkpoint.Checkpoint) continues from its step n.  A step's ``wall_s`` covers the history update, the SNES solve and the
-    stress update only: not mesh generation, JIT compilation, outputs or ``on_step``.
+    converged step.  ``restart`` (app/checkpoint.Checkpoint) continues from its step n;
+    ``progress`` shows the progress bar (rank 0).  A step's ``wall_s`` covers the history
+    update, the step solve and the stress update only: not mesh generation, JIT
+    compilation, outputs or ``on_step``.
     """
     t_start = time.perf_counter()
     rect = build_mesh(case, comm)
