@@ -82,7 +82,7 @@ def _explain(err: jsonschema.ValidationError) -> str:
         for key in extra:
             shown = key if re.fullmatch(r"\w+", str(key)) else repr(key)
             where = f"{path}.{shown}" if path != "(top level)" else shown
-            close = difflib.get_close_matches(key, allowed, n=1)
+            close = difflib.get_close_matches(str(key), allowed, n=1)
             hint = f"; did you mean '{close[0]}'?" if close else ""
             msgs.append(f"{where}: unknown key{hint} (allowed: {', '.join(allowed)})")
         return "; ".join(msgs)
@@ -196,6 +196,9 @@ def _check_data(data, path: str, source, budget: list) -> None:
         raise CaseError(f"{source}: {path or '(top level)'}: {data} is not a finite number")
     if isinstance(data, dict):
         for key, value in data.items():
+            if not isinstance(key, str):
+                raise CaseError(f"{source}: {path or '(top level)'}: the key {key!r} is not a "
+                                "name (keys are strings such as 'mesh' or 'E')")
             _check_data(value, f"{path}.{key}" if path else str(key), source, budget)
     elif isinstance(data, list):
         for i, value in enumerate(data):

@@ -5,7 +5,7 @@ import copy
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import HealthCheck, example, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 from app.case import Case, CaseError, safe_load, validate  # noqa: E402
@@ -33,6 +33,7 @@ def _validate(data):
 
 @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.dictionaries(st.sampled_from(KEYS + ["x"]), values, max_size=6))
+@example({"mesh": {None: 1}, "material": {3: 1.0}})
 def test_random_top_level_dicts(data):
     _validate(data)
 
@@ -52,6 +53,8 @@ def test_one_key_of_the_paper_case_replaced(key, value):
 
 @settings(max_examples=100, deadline=None)
 @given(st.text(max_size=200))
+@example("?")                       # {None: None}: a non-string key (found by hypothesis)
+@example("mesh: {1: 2}\n")
 def test_random_yaml_text_never_crashes_the_loader(text):
     """Arbitrary text through the safe loader and validation: parsed data or YAMLError
     (load_raw turns that into CaseError), then Case or CaseError."""
