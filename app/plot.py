@@ -92,6 +92,17 @@ class Results:
 
 
 # ----------------------------------------------------------------------------- 2D / 3D views
+MAX_DRAWN_CELLS = 8192          # finer 2D meshes are drawn by their outline
+
+
+def _boundary_edges(cells: np.ndarray) -> np.ndarray:
+    """Edges (vertex pairs) of a triangle mesh that belong to one triangle only."""
+    e = np.concatenate([cells[:, [0, 1]], cells[:, [1, 2]], cells[:, [2, 0]]])
+    key = np.sort(e, axis=1)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return e[counts[inv] == 1]
+
+
 def _faces_3d(cells: np.ndarray) -> np.ndarray:
     """Boundary faces (triangles) of a set of tetrahedra."""
     f = np.concatenate([cells[:, [0, 1, 2]], cells[:, [0, 1, 3]], cells[:, [0, 2, 3]],
@@ -171,7 +182,15 @@ def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None)
     factor = res.magnification() if factor is None else factor
     fig, ax = plt.subplots(figsize=(7.5, 6.5))
     X = res.x + factor * res.u
-    if res.dim == 2:
+    if res.dim == 2 and len(res.cells) > MAX_DRAWN_CELLS:
+        # a fine mesh would be a solid block of lines: the outlines, the body shaded
+        edges = _boundary_edges(res.cells)
+        ax.tripcolor(X[:, 0], X[:, 1], res.cells, facecolors=np.zeros(len(res.cells)),
+                     cmap="Blues", vmin=-1, vmax=3, shading="flat")
+        for P, colour in ((res.x, "0.6"), (X, "tab:blue")):
+            ax.plot(P[edges].transpose(1, 0, 2)[..., 0], P[edges].transpose(1, 0, 2)[..., 1],
+                    color=colour, lw=0.8)
+    elif res.dim == 2:
         ax.triplot(res.x[:, 0], res.x[:, 1], res.cells, color="0.85", lw=0.4)
         ax.triplot(X[:, 0], X[:, 1], res.cells, color="tab:blue", lw=0.5)
     else:
