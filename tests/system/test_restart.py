@@ -140,3 +140,21 @@ def test_xdmf_is_readable_after_the_process_is_killed(delay, tmp_path):
                 name, path = ref.text.strip().split(":", 1)
                 assert name == "solution.h5"
                 assert f[path][...].size > 0, path
+
+
+@pytest.mark.parametrize("extra", [["--set", "time.adaptive={}"],
+                                   ["--set", "time.scheme=implicit"]],
+                         ids=["adaptive", "implicit"])
+def test_restart_adaptive_and_implicit(extra, tmp_path):
+    """The adaptive stepper's state and the implicit scheme's committed state survive."""
+    full, re_ = tmp_path / "full", tmp_path / "re"
+    opts = ["--set", "time.N=8", "--set", "output.checkpoint_every=3",
+            "--set", "solver.method=snes_vi", *extra]
+    assert run_cli(["run", PAPER_CASE, "--out", full, *opts]).returncode == 0
+    ck = sorted(full.glob("checkpoint_*.npz"))[0]
+    proc = run_cli(["run", PAPER_CASE, "--out", re_, *opts, "--restart", ck])
+    assert proc.returncode == 0, proc.stderr
+    a, na = _final(full)
+    b, nb = _final(re_)
+    assert [s["t"] for s in a["steps"]] == [s["t"] for s in b["steps"]]
+    np.testing.assert_allclose(nb, na, rtol=1e-12, atol=1e-15)
