@@ -263,7 +263,8 @@ def cmd_run(args, petsc_cli: dict) -> int:
                  s["loop_s"])
         if "contact_states" in s:
             log.info("Gamma3 nodes at T: %s", s["contact_states"])
-        log.info("outputs: %s/{solution.xdmf, summary.json, contact.csv}", outdir)
+        log.info("outputs: %s/{solution.xdmf, summary.json, contact.csv%s}", outdir,
+                 "" if args.no_plots else ", *.png")
         return 0
     if result.status == "interrupted":
         if comm.rank == 0:
