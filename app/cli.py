@@ -178,8 +178,10 @@ def _prepare_outdir(comm, outdir: Path, overwrite: bool, files=None) -> None:
     from .output import OUTPUT_FILES
 
     existing = [f for f in (files or OUTPUT_FILES) if (outdir / f).exists()]
-    if files is None:
+    if files is None:       # a run's checkpoints and figures belong to it as well
+        from .plot import FIGURES
         existing += sorted(p.name for p in outdir.glob("checkpoint_*.npz"))
+        existing += [f for f in FIGURES if (outdir / f).exists()]
     if existing and not overwrite:
         raise CaseError(f"{outdir}: holds the outputs of an earlier run ({', '.join(existing)}); "
                         "pass --overwrite to replace them or --out DIR for another directory")

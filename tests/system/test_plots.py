@@ -112,3 +112,16 @@ def test_fine_mesh_figure_draws_outlines(tmp_path):
     fig3_deformed_contact(res, tmp_path / "b.png")
     a, b = _png(tmp_path / "a.png")[2], _png(tmp_path / "b.png")[2]
     assert b[..., :3].std() > 0.05 and np.abs(a - b).mean() > 1e-3
+
+
+def test_overwrite_removes_the_old_figures(tmp_path):
+    """--overwrite replaces a whole earlier run: no stale figures stay behind."""
+    out = tmp_path / "o"
+    assert run_cli(["run", PAPER_CASE, "--out", out, "--set", "time.N=2"],
+                   plots=True).returncode == 0
+    assert all((out / f).exists() for f in FIGURES)
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--set", "time.N=2"])
+    assert proc.returncode == 2 and "fig3_deformed_contact.png" in proc.stderr
+    assert run_cli(["run", PAPER_CASE, "--out", out, "--set", "time.N=2",
+                    "--overwrite"]).returncode == 0
+    assert not any((out / f).exists() for f in FIGURES)
