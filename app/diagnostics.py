@@ -39,6 +39,16 @@ def ellipticity(law) -> float:
     return float(np.min(np.linalg.eigvals(law.Cmat).real))
 
 
+def _gamma3_mass(problem) -> PETSc.Mat:
+    """M = (v, w)_{L2(Gamma3)} on V^h (Gauss degree 2: exact for P1)."""
+    u, v = ufl.TrialFunction(problem.V), ufl.TestFunction(problem.V)
+    ds3 = gamma3_measure(problem.mesh, problem.rect.facet_tags, BOUNDARY_TAGS["bottom"],
+                         "gauss", 2)
+    M = fem.petsc.assemble_matrix(fem.form(ufl.inner(u, v) * ds3))
+    M.assemble()
+    return M
+
+
 def trace_constant(problem, rtol: float = 1e-8, max_iter: int = 500) -> tuple[float, int]:
     """||gamma||^2 = largest eigenvalue of M v = lam K v, M = (v, w)_{L2(Gamma3)},
     K = (eps(v), eps(w)) on V^h with v = 0 on Gamma1; power iteration x <- K^-1 M x until
@@ -46,14 +56,11 @@ def trace_constant(problem, rtol: float = 1e-8, max_iter: int = 500) -> tuple[fl
     changes by less than rtol."""
     V, comm = problem.V, problem.comm
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    ds3 = gamma3_measure(problem.mesh, problem.rect.facet_tags, BOUNDARY_TAGS["bottom"],
-                         "gauss", 2)
     a = fem.form(ufl.inner(eps(u), eps(v)) * ufl.dx)
     K = fem.petsc.create_matrix(a, "baij" if comm.size == 1 else None)
     fem.petsc.assemble_matrix(K, a, bcs=problem.bcs)
     K.assemble()
-    M = fem.petsc.assemble_matrix(fem.form(ufl.inner(u, v) * ds3))   # Dirichlet rows: below
-    M.assemble()
+    M = _gamma3_mass(problem)                                        # Dirichlet rows: below
     ksp = direct_solver(K, comm)
     x, y, Mx = K.createVecRight(), K.createVecRight(), K.createVecRight()
     x.setRandom(PETSc.Random().create(comm))
@@ -84,23 +91,11 @@ def trace_constant_bound(problem, solver) -> float | None:
     if not getattr(solver, "gamma3", False) or not hasattr(solver, "S"):
         return None
     import scipy.linalg
-    V, comm = problem.V, problem.comm
-    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    ds3 = gamma3_measure(problem.mesh, problem.rect.facet_tags, BOUNDARY_TAGS["bottom"],
-                         "gauss", 2)
-    M = fem.petsc.assemble_matrix(fem.form(ufl.inner(u, v) * ds3))
-    M.assemble()
-    rows, cols = solver._owned_rows.astype(np.int32), None
-    parts = comm.allgather(solver._owned_rows)
-    pos = comm.allgather(solver._owned_positions)
-    cols = np.concatenate(parts).astype(np.int32)
-    order = np.concatenate(pos)
-    local = M.getValues(rows, cols) if len(rows) else np.zeros((0, len(cols)))
+    M = _gamma3_mass(problem)
+    rows, cols = solver._owned_rows.astype(np.int32), solver.global_G_dofs()  # collective
+    local = M.getValues(rows, cols) if len(rows) else np.zeros((0, solver.m))
     M.destroy()
-    gathered = comm.allgather((solver._owned_positions, local))
-    MG = np.zeros((solver.m, solver.m))
-    for p_, vals in gathered:
-        MG[np.ix_(p_, order)] = vals
+    MG = solver.gather_GG(local)
     MG = 0.5 * (MG + MG.T)
     lam_K = float(scipy.linalg.eigh(MG, solver.S, eigvals_only=True)[-1])
     return float(np.max(np.linalg.eigvals(problem.law.Cmat).real)) * lam_K

@@ -124,7 +124,6 @@ class FastStepSolver:
             clear_petsc_options(self.options, PREFIX)
         self.ksp.setUp()                      # the one factorisation of the run
         self.factorisations += 1
-        self.factor_solver = pc.getFactorSolverType()
         # the step's right-hand side F_n = f_n - B^T H_n (the bulk residual at u = 0): the
         # loads by assembly, the pre-stress by B^T = the transposed cell-strain operator
         self.loads_form = fem.form(problem.forms.loads) if problem.forms.loads is not None \
@@ -182,10 +181,7 @@ class FastStepSolver:
                 Z_rows[:, j] = z.array_r[self.owned_dofs_local]
             e.destroy()
             z.destroy()
-        rows = self.comm.allgather((self._owned_positions, Z_rows))
-        Z = np.empty((self.m, self.m))
-        for pos, vals in rows:
-            Z[pos] = vals
+        Z = self.gather_GG(Z_rows)
         Z = 0.5 * (Z + Z.T)
         self.S = np.linalg.inv(Z)
         self.S = 0.5 * (self.S + self.S.T)
@@ -202,6 +198,21 @@ class FastStepSolver:
                 self.ub[:, comp] = c.g
             else:
                 self.lb[:, comp] = -c.g
+
+    def gather_GG(self, local_rows: np.ndarray) -> np.ndarray:
+        """The m x m matrix (columns in G order) whose rows at this rank's owned Gamma3
+        positions are ``local_rows``, assembled on every rank."""
+        out = np.empty((self.m, self.m))
+        for pos, vals in self.comm.allgather((self._owned_positions, local_rows)):
+            out[pos] = vals
+        return out
+
+    def global_G_dofs(self) -> np.ndarray:
+        """The global dof (matrix row) of every Gamma3 dof, in G order, on every rank."""
+        out = np.empty(self.m, dtype=np.int32)
+        for pos, rows in self.comm.allgather((self._owned_positions, self._owned_rows)):
+            out[pos] = rows
+        return out
 
     def _gather_G(self, vec) -> np.ndarray:
         """Values of a PETSc vector at the Gamma3 dofs, in G order, on every rank."""

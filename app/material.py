@@ -226,7 +226,6 @@ class VonMisesProjection:
             out = ((z * factor) @ self.V.T) * c[:, None]
         else:
             out[outside] = ((z * factor) @ self.V.T) * c[:, None]
-        self.iterations = _
         return out
 
 

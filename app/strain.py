@@ -15,11 +15,11 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
-from forms.elasticity import elasticity_operator, eps, lame_constants
+from forms.elasticity import elasticity_operator, eps
 
 
 class StrainOperator:
-    """eps per owned cell, sigma = E eps(u) + H, and the pre-stress load B^T H."""
+    """sigma = E eps(u) + H per cell, the pre-stress load D^T H, and the norms."""
 
     def __init__(self, V, Q, E: float, nu: float):
         self.d = d = V.mesh.geometry.dim
@@ -37,22 +37,7 @@ class StrainOperator:
         self.n_owned = Q.dofmap.index_map.size_local
         self.vol = vol.array_r.reshape(-1, d * d)[:, 0].copy()      # owned cells, Q order
         vol.destroy()
-        self.lmbda, self.two_mu = lame_constants(E, nu, d)
-        self._y = self.D.createVecLeft()
         self._b = self.D.createVecRight()
-
-    def strain(self, u) -> np.ndarray:
-        """eps(u) on the owned cells, shape (n_owned, d, d)."""
-        self.D.mult(u.vector, self._y)
-        return self._y.array_r.reshape(-1, self.d, self.d) / self.vol[:, None, None]
-
-    def stress(self, e: np.ndarray) -> np.ndarray:
-        """E eps (plane stress in 2D, Hooke in 3D) for cell strains e (n, d, d)."""
-        tr = sum(e[:, i, i] for i in range(self.d))
-        out = self.two_mu * e
-        for i in range(self.d):
-            out[:, i, i] += self.lmbda * tr
-        return out
 
     def update_sigma(self, u, H, sigma) -> None:
         """sigma = E eps(u) + H on the owned cells, ghosts by scatter."""
@@ -78,5 +63,5 @@ class StrainOperator:
         b.axpy(-1.0, self._b)
 
     def destroy(self):
-        for obj in (self.D, self.D_sigma, self.A, self._y, self._b):
+        for obj in (self.D, self.D_sigma, self.A, self._b):
             obj.destroy()

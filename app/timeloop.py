@@ -186,104 +186,102 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
     checkpoint_every = case.output.checkpoint_every if write_outputs else None
     loop_start = time.perf_counter()
     bar = Progress(case.time.T, N, t, enabled=progress and comm.rank == 0)
-    stop = _StopRequest().__enter__()
-    while True:
-        try:
-            k = stepper.next_k(t)
-        except StepTooSmall as exc:
-            status, failure = "failed", {"step": n + 1, "t": t, "reason": str(exc),
-                                         "snes_reason": None, "hint": "lower time.adaptive."
-                                         "k_min or use time.scheme: implicit"}
-            log.error("step %d (t = %g) failed: %s", n + 1, t, exc)
-            break
-        if k is None:
-            break
-        t_new = stepper.next_t(t, k)
-        t0 = time.perf_counter()
-        saved = (history.snapshot() if history else None, g3.snapshot() if g3 else None,
-                 problem.sigma.x.array.copy()) if stepper.adaptive else None
-        if history:
-            history.before_solve(problem, k)    # explicit: H_n, kappa_n from step n-1
-        t_g3 = time.perf_counter()
-        if g3:
-            g3.advance(t, t_new)                # xi_n, s_n from u_{n-1}
-        t_g3 = time.perf_counter() - t_g3
-        problem.time_data.set_time(t_new)       # f_n
-        try:
-            its = solver.solve()                # u_n in U^h, (3.4)
-        except StepFailure as exc:
-            if saved is not None:               # adaptive: undo the history, retry k/2
-                if history:
-                    history.restore(saved[0])
-                if g3:
-                    g3.restore(saved[1])
-                problem.sigma.x.array[:] = saved[2]
-                if stepper.reject(k, str(exc)):
-                    log.warning("step at t = %g with k = %g rejected (%s); retrying with k = %g",
-                                t, k, exc.args[0].split(";")[0], stepper.k)
-                    continue
-            status = "failed"
-            failure = {"step": n + 1, "t": t_new, "reason": str(exc), "snes_reason": exc.reason,
-                       "hint": "try a smaller time step (time.N), time.adaptive, time.scheme: "
-                               "implicit, a larger solver.delta, or other PETSc options "
-                               "(-snes_monitor to see the iterations)"}
-            log.error("step %d (t = %g) failed: %s; the last good state is step %d",
-                      n + 1, t_new, exc, n)
-            break
-        n, t = n + 1, t_new
-        stepper.accept(k, its)
-        if history:
-            history.after_solve(problem)        # sigma_n (explicit: E eps(u_n) + H_n, (3.2))
-        else:
-            problem.update_sigma()
-        rec = _step_record(problem, history, n, t, its, time.perf_counter() - t0)
-        rec["k"] = k
-        if g3:
-            rec["gamma3_history_s"] = t_g3      # memory term / slip update of this step
-        if not all(np.isfinite(v) for v in rec.values()):
-            status = "failed"
-            failure = {"step": n, "t": t, "reason": "non-finite solution (NaN/Inf)",
-                       "snes_reason": None, "hint": "the explicit scheme may be unstable "
-                       "(see the stability indicator): time.scheme: implicit or smaller steps"}
-            log.error("step %d (t = %g): the solution is not finite; stopping, the last good "
-                      "state is step %d", n, t, n - 1)
-            n -= 1
-            break
-        if solver.fallback:
-            rec["fallback"] = solver.fallback
-            if solver.continuation_stages:
-                rec["delta_continuation_stages"] = solver.continuation_stages
-            log.warning("step %d: the basic Newton iteration failed; solved with %s (%d Newton "
-                        "iterations in all)%s", n, solver.fallback, its,
-                        "; later steps start with backtracking" if solver.sticky_robust else "")
-        steps.append(rec)
-        if on_step:
-            on_step(n, t, problem, history)
-        interrupted = comm.allreduce(stop.signal is not None, op=MPI.LOR)  # all ranks agree
-        if writer and (n % case.output.every == 0 or stepper.finished(t) or interrupted):
-            writer.write(t)
-        if checkpoint_every and n % checkpoint_every == 0 and not interrupted:
-            saved_to = checkpoint.save(outdir, comm, case, problem, history, g3, stepper, n,
-                                       t, steps)
-        bar.update(n, t, its)
-        log.debug("step %3d/%s  t = %-8.5g newton %2d  |u|_V = %.6e  |sigma|_Q = %.6e  "
-                 "max vm = %.5g  max kappa = %.5g  (%.3f s)", n, N or "?", t, its,
-                 rec["norm_u_V"], rec["norm_sigma_Q"], rec["max_vm"], rec["max_kappa"],
-                 rec["wall_s"])
-        if interrupted:
-            status = "interrupted"
-            failure = {"step": n, "t": t, "reason": f"interrupted by "
-                       f"{stop.signal or 'a signal on another rank'}", "snes_reason": None,
-                       "hint": f"continue with: run CASE --restart {outdir} --out NEW_DIR"}
-            saved_to = None
-            if write_outputs:
-                saved_to = checkpoint.save(outdir, comm, case, problem, history, g3, stepper,
-                                           n, t, steps)
-            log.warning("interrupted (%s) after step %d (t = %g); outputs are complete up to "
-                        "this step, checkpoint %s", stop.signal or "another rank", n, t,
-                        saved_to or "-")
-            break
-    stop.__exit__(None, None, None)
+    with _StopRequest() as stop:
+        while True:
+            try:
+                k = stepper.next_k(t)
+            except StepTooSmall as exc:
+                status, failure = "failed", {"step": n + 1, "t": t, "reason": str(exc),
+                                             "snes_reason": None, "hint": "lower time.adaptive."
+                                             "k_min or use time.scheme: implicit"}
+                log.error("step %d (t = %g) failed: %s", n + 1, t, exc)
+                break
+            if k is None:
+                break
+            t_new = stepper.next_t(t, k)
+            t0 = time.perf_counter()
+            saved = (history.snapshot() if history else None, g3.snapshot() if g3 else None,
+                     problem.sigma.x.array.copy()) if stepper.adaptive else None
+            if history:
+                history.before_solve(problem, k)    # explicit: H_n, kappa_n from step n-1
+            t_g3 = time.perf_counter()
+            if g3:
+                g3.advance(t, t_new)                # xi_n, s_n from u_{n-1}
+            t_g3 = time.perf_counter() - t_g3
+            problem.time_data.set_time(t_new)       # f_n
+            try:
+                its = solver.solve()                # u_n in U^h, (3.4)
+            except StepFailure as exc:
+                if saved is not None:               # adaptive: undo the history, retry k/2
+                    if history:
+                        history.restore(saved[0])
+                    if g3:
+                        g3.restore(saved[1])
+                    problem.sigma.x.array[:] = saved[2]
+                    if stepper.reject(k, str(exc)):
+                        log.warning("step at t = %g with k = %g rejected (%s); retrying with "
+                                    "k = %g", t, k, exc.args[0].split(";")[0], stepper.k)
+                        continue
+                status = "failed"
+                failure = {"step": n + 1, "t": t_new, "reason": str(exc), "snes_reason": exc.reason,
+                           "hint": "try a smaller time step (time.N), time.adaptive, time.scheme: "
+                                   "implicit, a larger solver.delta, or other PETSc options "
+                                   "(-snes_monitor to see the iterations)"}
+                log.error("step %d (t = %g) failed: %s; the last good state is step %d",
+                          n + 1, t_new, exc, n)
+                break
+            n, t = n + 1, t_new
+            stepper.accept(k, its)
+            if history:
+                history.after_solve(problem)        # sigma_n (explicit: E eps(u_n) + H_n, (3.2))
+            else:
+                problem.update_sigma()
+            rec = _step_record(problem, history, n, t, its, time.perf_counter() - t0)
+            rec["k"] = k
+            if g3:
+                rec["gamma3_history_s"] = t_g3      # memory term / slip update of this step
+            if not all(np.isfinite(v) for v in rec.values()):
+                status = "failed"
+                failure = {"step": n, "t": t, "reason": "non-finite solution (NaN/Inf)",
+                           "snes_reason": None, "hint": "the explicit scheme may be unstable "
+                           "(see the stability indicator): time.scheme: implicit or smaller steps"}
+                log.error("step %d (t = %g): the solution is not finite; stopping, the last good "
+                          "state is step %d", n, t, n - 1)
+                n -= 1
+                break
+            if solver.fallback:
+                rec["fallback"] = solver.fallback
+                if solver.continuation_stages:
+                    rec["delta_continuation_stages"] = solver.continuation_stages
+                log.warning("step %d: the basic Newton iteration failed; solved with %s (%d Newton "
+                            "iterations in all)%s", n, solver.fallback, its,
+                            "; later steps start with backtracking" if solver.sticky_robust else "")
+            steps.append(rec)
+            if on_step:
+                on_step(n, t, problem, history)
+            interrupted = comm.allreduce(stop.signal is not None, op=MPI.LOR)  # all ranks agree
+            if writer and (n % case.output.every == 0 or stepper.finished(t) or interrupted):
+                writer.write(t)
+            if checkpoint_every and n % checkpoint_every == 0 and not interrupted:
+                checkpoint.save(outdir, comm, case, problem, history, g3, stepper, n, t, steps)
+            bar.update(n, t, its)
+            log.debug("step %3d/%s  t = %-8.5g newton %2d  |u|_V = %.6e  |sigma|_Q = %.6e  "
+                     "max vm = %.5g  max kappa = %.5g  (%.3f s)", n, N or "?", t, its,
+                     rec["norm_u_V"], rec["norm_sigma_Q"], rec["max_vm"], rec["max_kappa"],
+                     rec["wall_s"])
+            if interrupted:
+                status = "interrupted"
+                failure = {"step": n, "t": t, "reason": f"interrupted by "
+                           f"{stop.signal or 'a signal on another rank'}", "snes_reason": None,
+                           "hint": f"continue with: run CASE --restart {outdir} --out NEW_DIR"}
+                saved_to = None
+                if write_outputs:
+                    saved_to = checkpoint.save(outdir, comm, case, problem, history, g3, stepper,
+                                               n, t, steps)
+                log.warning("interrupted (%s) after step %d (t = %g); outputs are complete up to "
+                            "this step, checkpoint %s", stop.signal or "another rank", n, t,
+                            saved_to or "-")
+                break
     bar.close()
     t_loop = time.perf_counter() - loop_start
     if writer:
