@@ -32,6 +32,7 @@ from petsc4py import PETSc
 from forms.elasticity import elasticity_operator, eps
 
 from .case import fast_eligible
+from .schur import gamma3_flexibility
 from .solver import StepFailure
 
 log = logging.getLogger("vpcontact")
@@ -153,36 +154,10 @@ class FastStepSolver:
         self.local_owned_g = np.searchsorted(self.g_nodes, glob_nodes)   # positions in G
         self.owned_dofs_local = (owned_nodes[:, None] * d + np.arange(d)).ravel()
         self._owned_positions = (self.local_owned_g[:, None] * d + np.arange(d)).ravel()
-        # Z_GG = E_G^T K^-1 E_G (m x m): m back-substitutions, only the Gamma3 rows kept
-        n_loc = self.K.getLocalSize()[0]
+        # Z_GG = E_G^T K^-1 E_G (m x m) from the trailing blocks of one G-last LU (schur.py)
         start = self.K.getOwnershipRange()[0]
         self._owned_rows = start + self.owned_dofs_local          # global rows of owned G dofs
-        if self.comm.size == 1:               # one multi-RHS call (MUMPS: blocked, BLAS 3)
-            B = PETSc.Mat().createDense([n_loc, self.m], comm=self.comm)
-            B.setUp()
-            for pos, dof in zip(self._owned_positions, self.owned_dofs_local):
-                B.setValue(dof, pos, 1.0)
-            B.assemble()
-            X = B.duplicate()
-            self.ksp.getPC().getFactorMatrix().matSolve(B, X)
-            Z_rows = X.getDenseArray()[self.owned_dofs_local].copy()
-            B.destroy()
-            X.destroy()
-        else:   # MUMPS's multi-RHS solve with a distributed dense RHS crashed (PETSc 3.18)
-            Z_rows = np.empty((len(self.owned_dofs_local), self.m))
-            e, z = self.K.createVecRight(), self.K.createVecRight()
-            where = dict(zip(self._owned_positions, self._owned_rows))
-            for j in range(self.m):
-                e.set(0.0)
-                if j in where:
-                    e.setValue(where[j], 1.0)
-                e.assemble()
-                self.ksp.solve(e, z)
-                Z_rows[:, j] = z.array_r[self.owned_dofs_local]
-            e.destroy()
-            z.destroy()
-        Z = self.gather_GG(Z_rows)
-        Z = 0.5 * (Z + Z.T)
+        Z = gamma3_flexibility(self.K, self.global_G_dofs(), self.comm)
         self.S = np.linalg.inv(Z)
         self.S = 0.5 * (self.S + self.S.T)
         c = p.case.contact
