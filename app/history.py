@@ -11,8 +11,9 @@ from __future__ import annotations
 
 from dolfinx import fem
 
+from . import kernels
 from .implicit import BackwardEulerPerzyna, LocalFailure
-from .material import Perzyna
+from .material import Perzyna, VonMisesProjection
 
 
 class ViscoplasticHistory:
@@ -24,6 +25,10 @@ class ViscoplasticHistory:
         self.law = Perzyna(problem.law, lambda1, lambda2)
         self.H = problem.H
         self.kappa = fem.Function(problem.Y, name="kappa")
+        # the same update compiled (kernels.py), unless no C compiler is available
+        module = kernels.load()
+        self.kernel = None if module is None else kernels.PerzynaKernel(
+            problem.law, VonMisesProjection(problem.law), lambda1, lambda2, module)
 
     def snapshot(self):
         return self.H.x.array.copy(), self.kappa.x.array.copy()
@@ -46,6 +51,13 @@ class ViscoplasticHistory:
         on entry and kappa_n on exit.  All local cells (owned and ghost) are updated with the
         same data, so ghosts stay consistent without communication.
         """
+        if self.kernel is not None:
+            H, kappa = self.H.x.array, self.kappa.x.array
+            saved = H.copy(), kappa.copy()
+            if self.kernel.advance(sigma_prev.x.array, H, kappa, k):
+                H[:], kappa[:] = saved                      # the state stays that of n - 1
+                raise RuntimeError("von Mises projection: secular equation did not converge")
+            return
         t = self.elasticity.to_voigt(sigma_prev.x.array)
         g_sigma, g_kappa = self.law.rates(t, self.kappa.x.array)
         self.H.x.array[:] += k * self.elasticity.from_voigt(g_sigma).reshape(-1)

@@ -1,0 +1,63 @@
+"""The compiled Perzyna update (app/kernels.py) equals the numpy reference (material.py)."""
+import numpy as np
+import pytest
+
+from app import kernels
+from app.material import Elasticity, Perzyna, VonMisesProjection, from_voigt, to_voigt
+
+module = kernels.load()
+pytestmark = pytest.mark.skipif(module is None, reason="no C compiler")
+
+
+def _reference(law, sigma, H, kappa, k, l1, l2):
+    t = to_voigt(sigma, law.dim)
+    gs, gk = Perzyna(law, l1, l2).rates(t, kappa)
+    return H + k * from_voigt(gs, law.dim).reshape(-1), kappa + k * gk
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_kernel_equals_numpy(dim):
+    rng = np.random.default_rng(dim)
+    law = Elasticity(1000.0, 0.4 if dim == 2 else 0.3, dim)
+    n = 4000
+    t = rng.normal(size=(n, law.m)) * 10.0 ** rng.uniform(-3, 3, size=(n, 1))
+    t[:5] = 0.0                                         # zero stress
+    t[5:10] *= 1e150                                    # |s|^2 would overflow
+    sigma = from_voigt(t, dim).reshape(-1).copy()
+    vm = law.von_mises(t)
+    kappa = vm * rng.uniform(0.0, 2.0, size=n)          # about half inside, half outside
+    kappa[10:20] = 0.0                                  # projection onto {0} (3D: hydrostatic)
+    kappa[20:25] = vm[20:25]                            # on the boundary
+    H0 = rng.normal(size=n * dim * dim)
+    H0 = from_voigt(to_voigt(H0, dim), dim).reshape(-1).copy()   # symmetric
+    H_ref, kappa_ref = _reference(law, sigma, H0, kappa, 0.01, 100.0, 50.0)
+    kern = kernels.PerzynaKernel(law, VonMisesProjection(law), 100.0, 50.0, module)
+    H, kap = H0.copy(), kappa.copy()
+    assert kern.advance(sigma, H, kap, 0.01) == 0
+    # round-off of the excess t - P t is relative to |t|: the update's scale k/(2 l1) E |t|
+    scale = np.abs(H0).reshape(n, -1).max(axis=1) + 0.01 / 200.0 * 1000.0 * np.abs(t).max(axis=1)
+    err = np.abs(H - H_ref).reshape(n, -1).max(axis=1) / scale
+    assert err.max() <= 1e-12
+    assert np.allclose(kap, kappa_ref, rtol=1e-12, atol=0.0)
+    inside = law.von_mises(t) < kappa * (1 - 1e-12)
+    assert np.array_equal(H.reshape(n, -1)[inside], H0.reshape(n, -1)[inside])   # no flow
+
+
+def test_kernel_propagates_nan():
+    law = Elasticity(1000.0, 0.4, 2)
+    t = np.array([[1.0, 2.0, np.nan], [3.0, 0.0, 1.0]])
+    sigma = from_voigt(t, 2).reshape(-1).copy()
+    H, kappa = np.zeros(8), np.array([0.1, 0.1])
+    kernels.PerzynaKernel(law, VonMisesProjection(law), 1.0, 1.0, module).advance(
+        sigma, H, kappa, 0.1)
+    assert np.isnan(H[:4]).all() and np.isnan(kappa[0])
+    assert np.isfinite(H[4:]).all() and np.isfinite(kappa[1])
+
+
+def test_kernel_checks_arrays():
+    law = Elasticity(1000.0, 0.4, 2)
+    kern = kernels.PerzynaKernel(law, VonMisesProjection(law), 1.0, 1.0, module)
+    with pytest.raises(ValueError):
+        kern.advance(np.zeros(8), np.zeros(8), np.zeros(3), 0.1)
+    with pytest.raises(TypeError):
+        kern.advance(np.zeros(8, dtype=np.float32), np.zeros(8), np.zeros(2), 0.1)
