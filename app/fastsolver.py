@@ -24,6 +24,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+import scipy.linalg as sl
 import ufl
 from dolfinx import fem
 from mpi4py import MPI
@@ -39,6 +40,18 @@ log = logging.getLogger("vpcontact")
 
 
 eligible = fast_eligible
+
+
+def _newton_direction(H: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """-H^-1 g: Cholesky (H is positive definite where the step energy is strictly convex,
+    (2.6)), else LU, else the steepest descent direction -g."""
+    try:
+        return -sl.cho_solve(sl.cho_factor(H, check_finite=False), g, check_finite=False)
+    except np.linalg.LinAlgError:
+        try:
+            return -np.linalg.solve(H, g)
+        except np.linalg.LinAlgError:
+            return -g
 
 
 class NodalContact:
@@ -165,6 +178,11 @@ class FastStepSolver:
         self.contact = NodalContact(self.w, p.normal, c.c_nu,
                                     None if fr is None else (fr.b, fr.c1, fr.c2, fr.u1),
                                     p.case.numerics.delta)
+        # (row, column) in the m x m Hessian of every entry of the nodal d x d blocks
+        node = np.repeat(np.arange(len(self.g_nodes)), d * d)
+        a, b = np.tile(np.repeat(np.arange(d), d), len(self.g_nodes)), \
+            np.tile(np.arange(d), d * len(self.g_nodes))
+        self._blocks = (node * d + a, node * d + b)
         comp = int(np.argmax(np.abs(p.normal)))
         self.lb = np.full((len(self.g_nodes), d), -np.inf)
         self.ub = np.full((len(self.g_nodes), d), np.inf)
@@ -247,24 +265,20 @@ class FastStepSolver:
                 self._y_prev = y
                 return y, it - 1
             H = S.copy()
-            idx = np.arange(len(y)).reshape(-1, d)
-            for a in range(d):
-                for b in range(d):
-                    H[idx[:, a], idx[:, b]] += Hn[:, a, b]
+            H[self._blk_rows, self._blk_cols] += Hn.ravel()      # the nodal d x d blocks
             p = np.zeros_like(y)
             f = np.flatnonzero(free)
-            try:
-                p[f] = -np.linalg.solve(H[np.ix_(f, f)], g[f])
-            except np.linalg.LinAlgError:
-                p[f] = -g[f]
+            p[f] = _newton_direction(H if len(f) == len(y) else H[np.ix_(f, f)], g[f])
             if g[f] @ p[f] >= 0:          # not a descent direction: steepest descent
                 p[f] = -g[f]
             alpha = 1.0
             for _ in range(60):
                 yt = np.clip(y + alpha * p, lb, ub)
                 Et, gt, Ht = energy_grad(yt)
-                # Armijo, or a step so small that the energy cannot resolve it any more
-                if Et <= E + 1e-4 * g @ (yt - y) or np.abs(yt - y).max() <= 1e-16 * scale:
+                # Armijo up to the round-off of E (near the solution the decrease is below
+                # it), or a step so small that the energy cannot resolve it any more
+                if Et <= E + 1e-4 * g @ (yt - y) + 1e-14 * abs(E) \
+                        or np.abs(yt - y).max() <= 1e-16 * scale:
                     break
                 alpha *= 0.5
             y, E, g, Hn = yt, Et, gt, Ht
@@ -272,6 +286,14 @@ class FastStepSolver:
             self._y_prev = y
             return y, it
         raise StepFailure("fast solver: the Gamma3 problem did not converge in 200 iterations")
+
+    @property
+    def _blk_rows(self):
+        return self._blocks[0]
+
+    @property
+    def _blk_cols(self):
+        return self._blocks[1]
 
     def warm_start(self) -> None:
         """Start the next Gamma3 problem from the current u (after a restart)."""
