@@ -13,11 +13,15 @@ search on this (convex under (2.6)) energy, started from the previous step's Gam
 then u = K^-1 (F_n + E_G lambda) with the Gamma3 forces lambda = S (y - y0).  Both paths solve
 the same discrete problem.
 
-Per step this costs two back-substitutions (K^-1 F_n and K^-1 (F_n + E_G lambda)): at
-h = 1/128 one costs about 4 ms with PETSc's own LU on the 2 x 2 block matrix (nested
-dissection), against 7-8 ms for u = K^-1 F_n + Z lambda with the dense 33,282 x 258 Z and
-16 ms for a MUMPS back-substitution; only Z_GG (m x m) is kept.  Serial runs therefore use
-PETSc's LU, parallel runs MUMPS; -vpcontact_fast_pc_factor_mat_solver_type overrides.
+Serial runs factorise K once with SuperLU, the Gamma3 dofs ordered last (schur.GLastLU): the
+trailing blocks give S = L_GG U_GG, and a step is one forward sweep (which yields y0), the
+Gamma3 problem, and one backward sweep with u_G = y (kernels.GLastSolve, compiled): at
+h = 1/128, 7.5 ms per step against 9.4-12 ms for the two PETSc back-substitutions
+u_free = K^-1 F_n, u = K^-1 (F_n + E_G lambda) of the general path.  That general path
+serves mpirun (MUMPS, distributed interior solves; Z_GG from a G-last SuperLU factorisation
+of the matrix gathered on rank 0: two factorisations, counted), runs without a C compiler,
+and runs when PETSc options for the fast solver are given
+(-vpcontact_fast_pc_factor_mat_solver_type ...).
 """
 from __future__ import annotations
 
@@ -33,7 +37,8 @@ from petsc4py import PETSc
 from forms.elasticity import elasticity_operator, eps
 
 from .case import fast_eligible
-from .schur import gamma3_flexibility
+from . import kernels
+from .schur import GLastLU, flexibility, gamma3_flexibility, gather_csr
 from .solver import StepFailure
 
 log = logging.getLogger("vpcontact")
@@ -117,7 +122,6 @@ class FastStepSolver:
         self.rtol = rtol
         self.options = options or {}
         self._snes = None
-        from .solver import PREFIX, clear_petsc_options, direct_solver, set_petsc_options
         case, V, d = problem.case, problem.V, problem.dim
         self.d = d
         C = elasticity_operator(problem.constants["E"], problem.constants["nu"], d)
@@ -129,15 +133,7 @@ class FastStepSolver:
         fem.petsc.assemble_matrix(K, a, bcs=problem.bcs)
         K.assemble()
         self.K = K
-        self.ksp = direct_solver(K, self.comm, PREFIX + "fast_")
-        pc = self.ksp.getPC()
-        set_petsc_options(self.options, PREFIX)      # user options, e.g. -fast_ksp_view
-        try:
-            self.ksp.setFromOptions()
-        finally:
-            clear_petsc_options(self.options, PREFIX)
-        self.ksp.setUp()                      # the one factorisation of the run
-        self.factorisations += 1
+        self.ksp, self._split = None, None
         # the step's right-hand side F_n = f_n - B^T H_n (the bulk residual at u = 0): the
         # loads by assembly, the pre-stress by B^T = the transposed cell-strain operator
         self.loads_form = fem.form(problem.forms.loads) if problem.forms.loads is not None \
@@ -146,6 +142,41 @@ class FastStepSolver:
         self.b, self.x = K.createVecRight(), K.createVecRight()
         self._y_prev = None
         self._setup_gamma3()
+        if not self.gamma3:
+            self._factorise(np.zeros(0, dtype=np.int32))
+
+    def _factorise(self, G_rows: np.ndarray) -> np.ndarray | None:
+        """Factorise K once; returns Z_GG = E_G^T K^-1 E_G (None without Gamma3 dofs).
+
+        Serial, with the compiled sweeps (kernels.py): one SuperLU factorisation with the
+        Gamma3 dofs last gives Z_GG (its trailing blocks) and every step's solve, one forward
+        and one backward sweep with the Gamma3 problem in between (kernels.GLastSolve).
+        Otherwise (mpirun, no C compiler, or PETSc options for the fast solver given):
+        PETSc's direct solver for the steps (MUMPS in parallel: the interior solves are
+        distributed) and Z_GG from a G-last SuperLU factorisation of the gathered matrix on
+        rank 0 -- two factorisations per run, counted as such."""
+        from .solver import PREFIX, clear_petsc_options, direct_solver, set_petsc_options
+        petsc_options = any(str(k).startswith("fast_") for k in self.options)
+        module = kernels.load() if self.comm.size == 1 and not petsc_options else None
+        if module is not None:
+            factor = GLastLU(gather_csr(self.K, self.comm), G_rows)
+            self._split = kernels.GLastSolve(factor, module)
+            self.factorisations = 1
+            self.method_detail = "SuperLU, Gamma3 last, compiled sweeps"
+            return flexibility(factor) if len(G_rows) else None
+        self.ksp = direct_solver(self.K, self.comm, PREFIX + "fast_")
+        set_petsc_options(self.options, PREFIX)      # user options, e.g. -fast_ksp_view
+        try:
+            self.ksp.setFromOptions()
+        finally:
+            clear_petsc_options(self.options, PREFIX)
+        self.ksp.setUp()
+        self.factorisations = 1
+        self.method_detail = "PETSc " + (self.ksp.getPC().getFactorSolverType() or "LU")
+        if not len(G_rows):
+            return None
+        self.factorisations += 1
+        return gamma3_flexibility(self.K, G_rows, self.comm)
 
     # ------------------------------------------------------------------ Gamma3 condensation
     def _setup_gamma3(self):
@@ -170,7 +201,8 @@ class FastStepSolver:
         # Z_GG = E_G^T K^-1 E_G (m x m) from the trailing blocks of one G-last LU (schur.py)
         start = self.K.getOwnershipRange()[0]
         self._owned_rows = start + self.owned_dofs_local          # global rows of owned G dofs
-        Z = gamma3_flexibility(self.K, self.global_G_dofs(), self.comm)
+        Z = self._factorise(self.global_G_dofs())
+        self.Z = Z
         self.S = np.linalg.inv(Z)
         self.S = 0.5 * (self.S + self.S.T)
         c = p.case.contact
@@ -316,7 +348,31 @@ class FastStepSolver:
             self.fallback = "snes_vi"
             return its
 
+    def _gamma3_inputs(self) -> None:
+        p = self.problem
+        if p.xi is not None:
+            self.contact.xi = self._gather_nodal(p.xi)
+        if p.theta is not None:
+            self.contact.theta = self._gather_nodal(p.theta)
+
+    def _solve_split(self) -> int:
+        """Serial step with the compiled sweeps: u = K^-1 (F_n + E_G lambda) in one solve."""
+        self._assemble_rhs()
+        r = self._split.forward(self.b.array_r)       # r = F_G - K_GI K_II^-1 F_I
+        its, y = 0, np.zeros(0)
+        if self.gamma3:
+            self._gamma3_inputs()
+            y, its = self._small_problem(self.Z @ r)  # y0 = S^-1 r: the Gamma3 values if free
+        self._split.backward(y, self.x.array)
+        if not np.all(np.isfinite(self.x.array_r)):
+            raise StepFailure("fast solver: non-finite solution")
+        self.u.vector.array[:self.x.getLocalSize()] = self.x.array_r
+        self.u.x.scatter_forward()
+        return its
+
     def _solve_fast(self) -> int:
+        if self._split is not None:
+            return self._solve_split()
         p = self.problem
         self._assemble_rhs()
         self.ksp.solve(self.b, self.x)               # u_free = K^-1 F_n

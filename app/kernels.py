@@ -30,6 +30,9 @@ int perzyna_advance(int ncells, int dd, int m, const double *sigma, double *H, d
                     const double *AV, const double *V, const double *lam, const int *flat,
                     const int *from_, double rtol, int max_iter, int ng, const double *glam,
                     const int *group, int *act, int *todo, double *Z);
+void lu_forward_interior(int ni, const int *Lp, const int *Li, const double *Lx, double *x);
+void lu_backward_given_tail(int n, int ni, const int *Up, const int *Ui, const double *Ux,
+                            const double *diag, double *x);
 """
 
 SOURCE = r"""
@@ -162,6 +165,37 @@ int perzyna_advance(int ncells, int dd, int m, const double *sigma, double *H, d
     }
     return failed;
 }
+
+/* The two halves of one solve with K = L U ordered interior first, G last (schur.GLastLU;
+   L unit lower, U upper, both CSC; schur.py derives the G-block relations):
+   forward over the ni interior columns: x_I <- L_II^-1 b_I, and x_G <- b_G - L_GI x_I = r. */
+void lu_forward_interior(int ni, const int *Lp, const int *Li, const double *Lx, double *x)
+{
+    for (int j = 0; j < ni; ++j) {
+        double xj = x[j];
+        if (xj == 0.0) continue;
+        for (int p = Lp[j]; p < Lp[j + 1]; ++p)
+            if (Li[p] > j) x[Li[p]] -= Lx[p] * xj;
+    }
+}
+
+/* backward with x_G = x[ni..n-1] given (the Gamma3 values): x_I <- U_II^-1 (x_I - U_IG x_G) */
+void lu_backward_given_tail(int n, int ni, const int *Up, const int *Ui, const double *Ux,
+                            const double *diag, double *x)
+{
+    for (int j = n - 1; j >= ni; --j) {
+        double xj = x[j];
+        for (int p = Up[j]; p < Up[j + 1]; ++p)
+            if (Ui[p] < ni) x[Ui[p]] -= Ux[p] * xj;
+    }
+    for (int j = ni - 1; j >= 0; --j) {
+        double xj = x[j] / diag[j];
+        x[j] = xj;
+        if (xj == 0.0) continue;
+        for (int p = Up[j]; p < Up[j + 1]; ++p)
+            if (Ui[p] < j) x[Ui[p]] -= Ux[p] * xj;
+    }
+}
 """
 
 _MODULE = None
@@ -209,6 +243,46 @@ def load():
 
 def _ptr(ffi, a: np.ndarray, ctype: str):
     return ffi.cast(ctype, ffi.from_buffer(a))
+
+
+class GLastSolve:
+    """u = K^-1 (b + E_G lambda) in one forward and one backward sweep, with the Gamma3 values
+    y = u_G found in between (fastsolver.py): with K = L U ordered interior first, G last,
+        forward:  z_I = L_II^-1 b_I,  r = b_G - L_GI z_I,
+        Gamma3:   S u_G = r + lambda (S = L_GG U_GG), i.e. y0 = S^-1 r without contact,
+        backward: u_I = U_II^-1 (z_I - U_IG y).
+    One factorisation serves the Schur complement and every step."""
+
+    def __init__(self, factor, module):
+        self.mod, self.n, self.m = module, factor.n, factor.m
+        self.ni = self.n - self.m
+        self.perm = factor.perm
+        L, U = factor.L, factor.U                # (the sweeps need no sorted indices)
+        i = np.intc
+        self.Lp, self.Li = L.indptr.astype(i), L.indices.astype(i)
+        self.Up, self.Ui = U.indptr.astype(i), U.indices.astype(i)
+        self.Lx, self.Ux = np.ascontiguousarray(L.data), np.ascontiguousarray(U.data)
+        self.diag = np.ascontiguousarray(U.diagonal())
+        self.x = np.empty(self.n)
+
+    def forward(self, b: np.ndarray) -> np.ndarray:
+        """Permute b and sweep the interior columns; returns r = x[ni:] (a view)."""
+        ffi, lib = self.mod.ffi, self.mod.lib
+        np.take(b, self.perm, out=self.x)
+        lib.lu_forward_interior(self.ni, _ptr(ffi, self.Lp, "int *"),
+                                _ptr(ffi, self.Li, "int *"), _ptr(ffi, self.Lx, "double *"),
+                                _ptr(ffi, self.x, "double *"))
+        return self.x[self.ni:]
+
+    def backward(self, y: np.ndarray, out: np.ndarray) -> None:
+        """Set u_G = y, sweep back through the interior, write u (natural order) to out."""
+        ffi, lib = self.mod.ffi, self.mod.lib
+        self.x[self.ni:] = y
+        lib.lu_backward_given_tail(self.n, self.ni, _ptr(ffi, self.Up, "int *"),
+                                   _ptr(ffi, self.Ui, "int *"), _ptr(ffi, self.Ux, "double *"),
+                                   _ptr(ffi, self.diag, "double *"),
+                                   _ptr(ffi, self.x, "double *"))
+        out[self.perm] = self.x
 
 
 class PerzynaKernel:

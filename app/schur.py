@@ -78,15 +78,17 @@ class GLastLU:
         return self.L[k:, k:].toarray(), self.U[k:, k:].toarray()
 
 
+def flexibility(factor: GLastLU) -> np.ndarray:
+    """Z_GG = U_GG^-1 L_GG^-1 (symmetrised) from a G-last factorisation."""
+    L_GG, U_GG = factor.trailing()
+    Z = sl.solve_triangular(U_GG, sl.solve_triangular(L_GG, np.eye(factor.m), lower=True,
+                                                       unit_diagonal=True))
+    return 0.5 * (Z + Z.T)
+
+
 def gamma3_flexibility(K: PETSc.Mat, G_rows: np.ndarray, comm) -> np.ndarray:
     """Z_GG = E_G^T K^-1 E_G (m x m, symmetric), rows/columns in the order of ``G_rows``
     (global matrix rows of the Gamma3 dofs), on every rank."""
     A = gather_csr(K, comm)
-    Z = None
-    if comm.rank == 0:
-        L_GG, U_GG = GLastLU(A, np.asarray(G_rows)).trailing()
-        m = len(G_rows)
-        Z = sl.solve_triangular(U_GG, sl.solve_triangular(L_GG, np.eye(m), lower=True,
-                                                           unit_diagonal=True))
-        Z = 0.5 * (Z + Z.T)
+    Z = flexibility(GLastLU(A, np.asarray(G_rows))) if comm.rank == 0 else None
     return comm.bcast(Z, root=0)

@@ -34,3 +34,34 @@ def test_g_last_factors_reproduce_the_matrix():
     assert sorted(f.perm) == list(range(A.shape[0]))
     Ap = A[f.perm][:, f.perm].toarray()
     assert np.abs((f.L @ f.U).toarray() - Ap).max() <= 1e-13 * np.abs(Ap).max()
+
+
+def test_split_solve_with_given_gamma3_values():
+    """kernels.GLastSolve: forward, y0 = Z r, backward with u_G = y solves the interior
+    equations exactly, and u_G = y0 is the unconstrained solution K^-1 b."""
+    from app import kernels
+    from app.schur import flexibility
+    module = kernels.load()
+    if module is None:
+        import pytest
+        pytest.skip("no C compiler")
+    A = _spd(50, seed=2)
+    G = np.array([99, 98, 10, 11])
+    f = GLastLU(A, G)
+    split = kernels.GLastSolve(f, module)
+    rng = np.random.default_rng(3)
+    b = rng.normal(size=A.shape[0])
+    Ad = A.toarray()
+    r = split.forward(b).copy()
+    y0 = flexibility(f) @ r
+    u = np.empty_like(b)
+    split.backward(y0, u)
+    assert np.abs(u - np.linalg.solve(Ad, b)).max() <= 1e-12 * np.abs(u).max()
+    r2 = split.forward(b).copy()
+    y = rng.normal(size=len(G))                       # any Gamma3 values
+    split.backward(y, u)
+    interior = np.setdiff1d(np.arange(A.shape[0]), G)
+    assert np.array_equal(u[G], y)
+    res = (Ad @ u - b)[interior]
+    assert np.abs(res).max() <= 1e-12 * (np.abs(Ad).max() * np.abs(u).max())
+    assert np.array_equal(r, r2)
