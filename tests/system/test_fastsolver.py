@@ -89,3 +89,18 @@ def test_fast_serial_equals_two_ranks(tmp_path):
         v1 = np.array([float(r[col]) for r in c1])
         v2 = np.array([float(r[col]) for r in c2])
         np.testing.assert_allclose(v2, v1, rtol=1e-10, atol=1e-12 * np.abs(v1).max())
+
+
+def test_compiled_split_equals_petsc_path():
+    """Serial fast solver: the compiled one-solve path (one SuperLU factorisation) and the
+    general path (PETSc LU + Z_GG from SuperLU: two factorisations, chosen when PETSc options
+    for the fast solver are given) give the same solution."""
+    raw = paper_raw()
+    raw.setdefault("solver", {})["method"] = "fast"
+    a = run_case(validate_raw(raw))
+    raw["petsc"] = {"fast_pc_factor_mat_solver_type": "petsc"}
+    b = run_case(validate_raw(raw))
+    assert a.summary["solver"]["factorisations"] == 1
+    assert b.summary["solver"]["factorisations"] == 2
+    du, dn = _diff(a, b)
+    assert du < 1e-11 and dn < 1e-11
