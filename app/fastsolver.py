@@ -307,10 +307,10 @@ class FastStepSolver:
             for _ in range(60):
                 yt = np.clip(y + alpha * p, lb, ub)
                 Et, gt, Ht = energy_grad(yt)
-                # Armijo up to the round-off of E (near the solution the decrease is below
-                # it), or a step so small that the energy cannot resolve it any more
-                if Et <= E + 1e-4 * g @ (yt - y) + 1e-14 * abs(E) \
-                        or np.abs(yt - y).max() <= 1e-16 * scale:
+                # Armijo, or a step so small that the energy cannot resolve it any more.
+                # (Accepting steps up to the round-off of E instead let the iteration zig-zag
+                # at h = 1/256: 670 iterations against 278 for 32 steps; measured.)
+                if Et <= E + 1e-4 * g @ (yt - y) or np.abs(yt - y).max() <= 1e-16 * scale:
                     break
                 alpha *= 0.5
             y, E, g, Hn = yt, Et, gt, Ht
