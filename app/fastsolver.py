@@ -162,7 +162,7 @@ class FastStepSolver:
             factor = GLastLU(gather_csr(self.K, self.comm), G_rows)
             self._split = kernels.GLastSolve(factor, module)
             self.factorisations = 1
-            self.method_detail = "SuperLU, Gamma3 last, compiled sweeps"
+            log.info("  fast solver: one SuperLU factorisation (Gamma3 last), compiled sweeps")
             return flexibility(factor) if len(G_rows) else None
         self.ksp = direct_solver(self.K, self.comm, PREFIX + "fast_")
         set_petsc_options(self.options, PREFIX)      # user options, e.g. -fast_ksp_view
@@ -172,7 +172,9 @@ class FastStepSolver:
             clear_petsc_options(self.options, PREFIX)
         self.ksp.setUp()
         self.factorisations = 1
-        self.method_detail = "PETSc " + (self.ksp.getPC().getFactorSolverType() or "LU")
+        log.info("  fast solver: PETSc %s for the steps%s",
+                 self.ksp.getPC().getFactorSolverType() or "LU",
+                 ", SuperLU on rank 0 for Z_GG" if len(G_rows) else "")
         if not len(G_rows):
             return None
         self.factorisations += 1
@@ -214,7 +216,7 @@ class FastStepSolver:
         node = np.repeat(np.arange(len(self.g_nodes)), d * d)
         a, b = np.tile(np.repeat(np.arange(d), d), len(self.g_nodes)), \
             np.tile(np.arange(d), d * len(self.g_nodes))
-        self._blocks = (node * d + a, node * d + b)
+        self._blk_rows, self._blk_cols = node * d + a, node * d + b
         comp = int(np.argmax(np.abs(p.normal)))
         self.lb = np.full((len(self.g_nodes), d), -np.inf)
         self.ub = np.full((len(self.g_nodes), d), np.inf)
@@ -319,14 +321,6 @@ class FastStepSolver:
             return y, it
         raise StepFailure("fast solver: the Gamma3 problem did not converge in 200 iterations")
 
-    @property
-    def _blk_rows(self):
-        return self._blocks[0]
-
-    @property
-    def _blk_cols(self):
-        return self._blocks[1]
-
     def warm_start(self) -> None:
         """Start the next Gamma3 problem from the current u (after a restart)."""
         if self.gamma3:
@@ -349,6 +343,7 @@ class FastStepSolver:
             return its
 
     def _gamma3_inputs(self) -> None:
+        """The step's memory term xi_n and slip factor theta(s_n) at the Gamma3 nodes."""
         p = self.problem
         if p.xi is not None:
             self.contact.xi = self._gather_nodal(p.xi)
@@ -364,33 +359,30 @@ class FastStepSolver:
             self._gamma3_inputs()
             y, its = self._small_problem(self.Z @ r)  # y0 = S^-1 r: the Gamma3 values if free
         self._split.backward(y, self.x.array)
-        if not np.all(np.isfinite(self.x.array_r)):
+        self._set_u()
+        return its
+
+    def _set_u(self) -> None:
+        """u = x, unless x is not finite anywhere (then StepFailure on every rank)."""
+        if self.comm.allreduce(not np.all(np.isfinite(self.x.array_r)), op=MPI.LOR):
             raise StepFailure("fast solver: non-finite solution")
         self.u.vector.array[:self.x.getLocalSize()] = self.x.array_r
         self.u.x.scatter_forward()
-        return its
 
     def _solve_fast(self) -> int:
         if self._split is not None:
             return self._solve_split()
-        p = self.problem
         self._assemble_rhs()
         self.ksp.solve(self.b, self.x)               # u_free = K^-1 F_n
         its = 0
         if self.gamma3:
             y0 = self._gather_G(self.x)
-            if p.xi is not None:
-                self.contact.xi = self._gather_nodal(p.xi)
-            if p.theta is not None:
-                self.contact.theta = self._gather_nodal(p.theta)
+            self._gamma3_inputs()
             y, its = self._small_problem(y0)
             lam = self.S @ (y - y0)                   # Gamma3 forces
             self.b.array[self.owned_dofs_local] += lam[self._owned_positions]
             self.ksp.solve(self.b, self.x)           # u = K^-1 (F_n + E_G lambda)
-        if self.comm.allreduce(not np.all(np.isfinite(self.x.array_r)), op=MPI.LOR):
-            raise StepFailure("fast solver: non-finite solution")   # on every rank
-        self.u.vector.array[:self.x.getLocalSize()] = self.x.array_r
-        self.u.x.scatter_forward()
+        self._set_u()
         return its
 
     def destroy(self):
