@@ -159,8 +159,8 @@ class FastStepSolver:
         petsc_options = any(str(k).startswith("fast_") for k in self.options)
         module = kernels.load() if self.comm.size == 1 and not petsc_options else None
         if module is not None:
-            factor = GLastLU(gather_csr(self.K, self.comm), G_rows)
-            self._split = kernels.GLastSolve(factor, module)
+            factor = GLastLU(gather_csr(self.K, self.comm), G_rows, self.d)
+            self._split = kernels.GLastSolve(factor, module, self.d)
             self.factorisations = 1
             log.info("  fast solver: one SuperLU factorisation (Gamma3 last), compiled sweeps")
             return flexibility(factor) if len(G_rows) else None

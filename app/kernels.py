@@ -30,9 +30,12 @@ int perzyna_advance(int ncells, int dd, int m, const double *sigma, double *H, d
                     const double *AV, const double *V, const double *lam, const int *flat,
                     const int *from_, double rtol, int max_iter, int ng, const double *glam,
                     const int *group, int *act, int *todo, double *Z);
-void lu_forward_interior(int ni, const int *Lp, const int *Li, const double *Lx, double *x);
-void lu_backward_given_tail(int n, int ni, const int *Up, const int *Ui, const double *Ux,
-                            const double *diag, double *x);
+int ldl_blocks(int bs, int nbc, const int *Lp, const int *Li, const double *Lx, int *Bp,
+               int *Bi, double *Bx, double *Ld, int *mark, int *slot);
+void ldl_forward_interior(int bs, int nbc, const int *Bp, const int *Bi, const double *Bx,
+                          const double *Ld, double *x);
+void ldl_backward_given_tail(int bs, int nbc, const int *Bp, const int *Bi, const double *Bx,
+                             const double *Ld, const double *dinv, double *x);
 """
 
 SOURCE = r"""
@@ -166,35 +169,110 @@ int perzyna_advance(int ncells, int dd, int m, const double *sigma, double *H, d
     return failed;
 }
 
-/* The two halves of one solve with K = L U ordered interior first, G last (schur.GLastLU;
-   L unit lower, U upper, both CSC; schur.py derives the G-block relations):
-   forward over the ni interior columns: x_I <- L_II^-1 b_I, and x_G <- b_G - L_GI x_I = r. */
-void lu_forward_interior(int ni, const int *Lp, const int *Li, const double *Lx, double *x)
+/* One solve with K = L D L^T (L unit lower, D diagonal), ordered interior first, G last
+   (schur.GLastLU: SuperLU's K = L U without pivoting of the symmetric K, so U = D L^T to
+   round-off and only L and D are kept).  The interior columns of L are stored in bs x bs
+   blocks (bs = d: a node's dofs are consecutive in the nested-dissection order), which reads
+   one index per block and half the factor of an L U sweep pair.
+   Block k of block column J (block row I = Bi[k] > J, interior or G):
+       Bx[k bs^2 + a bs + b] = L[bs I + b, bs J + a],
+   and the strictly lower part of the diagonal block J: Ld[J bs^2 + a bs + b] = L[bs J + b, bs J + a].
+
+   ldl_blocks: the block form of the first nbc block columns of L (CSC).  With Bi == NULL it
+   only counts: Bp[J + 1] = the number of blocks of column J; then the caller makes Bp
+   cumulative, zeroes Bx and Ld, and calls again to fill them.  mark, slot: one int per
+   block row, mark all -1 on entry.  Returns the number of blocks. */
+int ldl_blocks(int bs, int nbc, const int *Lp, const int *Li, const double *Lx, int *Bp,
+               int *Bi, double *Bx, double *Ld, int *mark, int *slot)
 {
-    for (int j = 0; j < ni; ++j) {
-        double xj = x[j];
-        if (xj == 0.0) continue;
-        for (int p = Lp[j]; p < Lp[j + 1]; ++p)
-            if (Li[p] > j) x[Li[p]] -= Lx[p] * xj;
+    int nnzb = 0;
+    const int b2 = bs * bs;
+    for (int J = 0; J < nbc; ++J) {
+        int count = 0;
+        for (int a = 0; a < bs; ++a) {
+            const int j = bs * J + a;
+            for (int p = Lp[j]; p < Lp[j + 1]; ++p) {
+                const int i = Li[p], I = i / bs, b = i - bs * I;
+                if (I == J) {
+                    if (Bi && b > a) Ld[(long)J * b2 + a * bs + b] = Lx[p];
+                    continue;
+                }
+                if (I < J) continue;
+                if (mark[I] != J) {
+                    mark[I] = J;
+                    slot[I] = Bi ? Bp[J] + count : 0;
+                    if (Bi) Bi[Bp[J] + count] = I;
+                    ++count;
+                }
+                if (Bi) Bx[(long)slot[I] * b2 + a * bs + b] = Lx[p];
+            }
+        }
+        if (!Bi) Bp[J + 1] = count;
+        nnzb += count;
     }
+    return nnzb;
 }
 
-/* backward with x_G = x[ni..n-1] given (the Gamma3 values): x_I <- U_II^-1 (x_I - U_IG x_G) */
-void lu_backward_given_tail(int n, int ni, const int *Up, const int *Ui, const double *Ux,
-                            const double *diag, double *x)
+/* forward over the interior: x_I <- L_II^-1 b_I, x_G <- b_G - L_GI x_I (= r) */
+#define LDL_FORWARD(BS)                                                                    \
+static void ldl_forward_##BS(int nbc, const int *Bp, const int *Bi, const double *Bx,     \
+                             const double *Ld, double *x)                                  \
+{                                                                                          \
+    for (int J = 0; J < nbc; ++J) {                                                        \
+        double *xJ = x + BS * J, t[BS];                                                    \
+        const double *l = Ld + (long)J * BS * BS;                                          \
+        for (int a = 0; a < BS; ++a) {                                                     \
+            for (int b = 0; b < a; ++b) xJ[a] -= l[b * BS + a] * xJ[b];                    \
+            t[a] = xJ[a];                                                                  \
+        }                                                                                  \
+        for (int k = Bp[J]; k < Bp[J + 1]; ++k) {                                          \
+            const double *M = Bx + (long)k * BS * BS;                                      \
+            double *xI = x + (long)BS * Bi[k];                                             \
+            for (int b = 0; b < BS; ++b) {                                                 \
+                double acc = 0.0;                                                          \
+                for (int a = 0; a < BS; ++a) acc += M[a * BS + b] * t[a];                  \
+                xI[b] -= acc;                                                              \
+            }                                                                              \
+        }                                                                                  \
+    }                                                                                      \
+}
+/* backward with x_G given (the Gamma3 values): x_I <- L_II^-T (D_I^-1 x_I - L_GI^T x_G) */
+#define LDL_BACKWARD(BS)                                                                   \
+static void ldl_backward_##BS(int nbc, const int *Bp, const int *Bi, const double *Bx,    \
+                              const double *Ld, const double *dinv, double *x)            \
+{                                                                                          \
+    for (int J = nbc - 1; J >= 0; --J) {                                                   \
+        double *xJ = x + BS * J, t[BS];                                                    \
+        for (int a = 0; a < BS; ++a) t[a] = xJ[a] * dinv[BS * J + a];                      \
+        for (int k = Bp[J]; k < Bp[J + 1]; ++k) {                                          \
+            const double *M = Bx + (long)k * BS * BS, *xI = x + (long)BS * Bi[k];          \
+            for (int a = 0; a < BS; ++a)                                                   \
+                for (int b = 0; b < BS; ++b) t[a] -= M[a * BS + b] * xI[b];                \
+        }                                                                                  \
+        const double *l = Ld + (long)J * BS * BS;                                          \
+        for (int a = BS - 1; a >= 0; --a) {                                                \
+            for (int b = a + 1; b < BS; ++b) t[a] -= l[a * BS + b] * t[b];                 \
+            xJ[a] = t[a];                                                                  \
+        }                                                                                  \
+    }                                                                                      \
+}
+LDL_FORWARD(1) LDL_FORWARD(2) LDL_FORWARD(3)
+LDL_BACKWARD(1) LDL_BACKWARD(2) LDL_BACKWARD(3)
+
+void ldl_forward_interior(int bs, int nbc, const int *Bp, const int *Bi, const double *Bx,
+                          const double *Ld, double *x)
 {
-    for (int j = n - 1; j >= ni; --j) {
-        double xj = x[j];
-        for (int p = Up[j]; p < Up[j + 1]; ++p)
-            if (Ui[p] < ni) x[Ui[p]] -= Ux[p] * xj;
-    }
-    for (int j = ni - 1; j >= 0; --j) {
-        double xj = x[j] / diag[j];
-        x[j] = xj;
-        if (xj == 0.0) continue;
-        for (int p = Up[j]; p < Up[j + 1]; ++p)
-            if (Ui[p] < j) x[Ui[p]] -= Ux[p] * xj;
-    }
+    if (bs == 2) ldl_forward_2(nbc, Bp, Bi, Bx, Ld, x);
+    else if (bs == 3) ldl_forward_3(nbc, Bp, Bi, Bx, Ld, x);
+    else ldl_forward_1(nbc, Bp, Bi, Bx, Ld, x);
+}
+
+void ldl_backward_given_tail(int bs, int nbc, const int *Bp, const int *Bi, const double *Bx,
+                             const double *Ld, const double *dinv, double *x)
+{
+    if (bs == 2) ldl_backward_2(nbc, Bp, Bi, Bx, Ld, dinv, x);
+    else if (bs == 3) ldl_backward_3(nbc, Bp, Bi, Bx, Ld, dinv, x);
+    else ldl_backward_1(nbc, Bp, Bi, Bx, Ld, dinv, x);
 }
 """
 
@@ -247,41 +325,56 @@ def _ptr(ffi, a: np.ndarray, ctype: str):
 
 class GLastSolve:
     """u = K^-1 (b + E_G lambda) in one forward and one backward sweep, with the Gamma3 values
-    y = u_G found in between (fastsolver.py): with K = L U ordered interior first, G last,
+    y = u_G found in between (fastsolver.py): with K = L D L^T ordered interior first, G last,
         forward:  z_I = L_II^-1 b_I,  r = b_G - L_GI z_I,
-        Gamma3:   S u_G = r + lambda (S = L_GG U_GG), i.e. y0 = S^-1 r without contact,
-        backward: u_I = U_II^-1 (z_I - U_IG y).
-    One factorisation serves the Schur complement and every step."""
+        Gamma3:   S u_G = r + lambda (S = L_GG D_G L_GG^T), i.e. y0 = S^-1 r without contact,
+        backward: u_I = L_II^-T (D_I^-1 z_I - L_GI^T y).
+    One factorisation serves the Schur complement and every step.  The interior columns of
+    L are kept in bs x bs blocks (ldl_blocks; bs = 1 if the interior is not a whole number
+    of blocks)."""
 
-    def __init__(self, factor, module):
+    def __init__(self, factor, module, bs: int = 1):
         self.mod, self.n, self.m = module, factor.n, factor.m
         self.ni = self.n - self.m
+        self.bs = bs if bs in (1, 2, 3) and self.ni % bs == 0 else 1
         self.perm = factor.perm
-        L, U = factor.L, factor.U                # (the sweeps need no sorted indices)
-        i = np.intc
-        self.Lp, self.Li = L.indptr.astype(i), L.indices.astype(i)
-        self.Up, self.Ui = U.indptr.astype(i), U.indices.astype(i)
-        self.Lx, self.Ux = np.ascontiguousarray(L.data), np.ascontiguousarray(U.data)
-        self.diag = np.ascontiguousarray(U.diagonal())
+        ffi, lib, i = module.ffi, module.lib, np.intc
+        L = factor.L
+        Lp, Li = L.indptr.astype(i), L.indices.astype(i)
+        Lx = np.ascontiguousarray(L.data)
+        nbc, nbr = self.ni // self.bs, -(-self.n // self.bs)
+        mark, slot = np.full(nbr, -1, dtype=i), np.empty(nbr, dtype=i)
+        Bp = np.zeros(nbc + 1, dtype=i)
+        args = (_ptr(ffi, Lp, "int *"), _ptr(ffi, Li, "int *"), _ptr(ffi, Lx, "double *"))
+        lib.ldl_blocks(self.bs, nbc, *args, _ptr(ffi, Bp, "int *"), ffi.NULL, ffi.NULL,
+                       ffi.NULL, _ptr(ffi, mark, "int *"), _ptr(ffi, slot, "int *"))
+        np.cumsum(Bp, out=Bp)
+        b2 = self.bs * self.bs
+        self.Bp, self.Bi = Bp, np.empty(max(int(Bp[-1]), 1), dtype=i)
+        self.Bx, self.Ld = np.zeros(max(int(Bp[-1]), 1) * b2), np.zeros(max(nbc, 1) * b2)
+        mark.fill(-1)
+        lib.ldl_blocks(self.bs, nbc, *args, _ptr(ffi, Bp, "int *"),
+                       _ptr(ffi, self.Bi, "int *"), _ptr(ffi, self.Bx, "double *"),
+                       _ptr(ffi, self.Ld, "double *"), _ptr(ffi, mark, "int *"),
+                       _ptr(ffi, slot, "int *"))
+        self.nbc = nbc
+        self.dinv = 1.0 / factor.U.diagonal()[:self.ni]
         self.x = np.empty(self.n)
+        p = lambda a, t="double *": _ptr(ffi, a, t)          # noqa: E731
+        self._blocks = (p(self.Bp, "int *"), p(self.Bi, "int *"), p(self.Bx), p(self.Ld))
+        self._dinv, self._x = p(self.dinv), p(self.x)
 
     def forward(self, b: np.ndarray) -> np.ndarray:
         """Permute b and sweep the interior columns; returns r = x[ni:] (a view)."""
-        ffi, lib = self.mod.ffi, self.mod.lib
         np.take(b, self.perm, out=self.x)
-        lib.lu_forward_interior(self.ni, _ptr(ffi, self.Lp, "int *"),
-                                _ptr(ffi, self.Li, "int *"), _ptr(ffi, self.Lx, "double *"),
-                                _ptr(ffi, self.x, "double *"))
+        self.mod.lib.ldl_forward_interior(self.bs, self.nbc, *self._blocks, self._x)
         return self.x[self.ni:]
 
     def backward(self, y: np.ndarray, out: np.ndarray) -> None:
         """Set u_G = y, sweep back through the interior, write u (natural order) to out."""
-        ffi, lib = self.mod.ffi, self.mod.lib
         self.x[self.ni:] = y
-        lib.lu_backward_given_tail(self.n, self.ni, _ptr(ffi, self.Up, "int *"),
-                                   _ptr(ffi, self.Ui, "int *"), _ptr(ffi, self.Ux, "double *"),
-                                   _ptr(ffi, self.diag, "double *"),
-                                   _ptr(ffi, self.x, "double *"))
+        self.mod.lib.ldl_backward_given_tail(self.bs, self.nbc, *self._blocks, self._dinv,
+                                             self._x)
         out[self.perm] = self.x
 
 

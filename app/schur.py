@@ -37,31 +37,41 @@ def gather_csr(K: PETSc.Mat, comm) -> sp.csr_matrix | None:
                           np.concatenate(ptr)), shape=(n, n))
 
 
-def interior_last_ordering(A: sp.csr_matrix, G: np.ndarray) -> np.ndarray:
+def interior_last_ordering(A: sp.csr_matrix, G: np.ndarray, bs: int = 1) -> np.ndarray:
     """A fill-reducing order of the dofs with G (in the given order) last: nested dissection
-    (PETSc) of the interior block K_II, then G."""
+    (PETSc) of the interior block K_II, then G.  With bs > 1 and an interior made of whole
+    nodes (dofs bs i .. bs i + bs - 1), the dissection is of the node graph and a node's dofs
+    stay consecutive (the blocks of kernels.GLastSolve)."""
     n = A.shape[0]
     interior = np.ones(n, dtype=bool)
     interior[G] = False
     I = np.flatnonzero(interior)
-    A_II = A[I][:, I].tocsr()
+    nodal = bs > 1 and n % bs == 0 and len(I) % bs == 0 and np.array_equal(
+        I.reshape(-1, bs), I[::bs, None] + np.arange(bs))
+    if nodal:                        # the node graph: |A| summed over the bs x bs blocks
+        P = sp.csr_matrix((np.ones(len(I)), (np.arange(len(I)), np.arange(len(I)) // bs)))
+        A_II = (P.T @ abs(A[I][:, I]) @ P).tocsr()
+    else:
+        A_II = A[I][:, I].tocsr()
     M = PETSc.Mat().createAIJ(A_II.shape, csr=(A_II.indptr.astype(PETSc.IntType),
                                                A_II.indices.astype(PETSc.IntType),
                                                A_II.data), comm=PETSc.COMM_SELF)
     rperm, cperm = M.getOrdering("nd")
-    order = I[rperm.getIndices()]
+    order = rperm.getIndices()
     for obj in (M, rperm, cperm):
         obj.destroy()
-    return np.concatenate([order, np.asarray(G)])
+    if nodal:
+        order = (order[:, None] * bs + np.arange(bs)).ravel()
+    return np.concatenate([I[order], np.asarray(G)])
 
 
 class GLastLU:
     """K = L U with the dofs ordered interior first (nested dissection), G last (serial,
     on a scipy CSR matrix).  ``perm[i]`` is the dof at position i; ``L``, ``U`` are CSC."""
 
-    def __init__(self, A: sp.csr_matrix, G: np.ndarray):
+    def __init__(self, A: sp.csr_matrix, G: np.ndarray, bs: int = 1):
         self.n, self.m = A.shape[0], len(G)
-        self.perm = interior_last_ordering(A, G)
+        self.perm = interior_last_ordering(A, G, bs)
         Ap = A[self.perm][:, self.perm].tocsc()
         # diag_pivot_thresh = 0: the diagonal pivots of the symmetric positive definite K in
         # the given order (no row interchanges, so the trailing blocks are those of G)

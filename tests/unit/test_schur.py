@@ -1,5 +1,6 @@
 """schur.py: Z_GG from the trailing blocks of a G-last LU equals (K^-1)_GG computed densely."""
 import numpy as np
+import pytest
 import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -36,19 +37,24 @@ def test_g_last_factors_reproduce_the_matrix():
     assert np.abs((f.L @ f.U).toarray() - Ap).max() <= 1e-13 * np.abs(Ap).max()
 
 
-def test_split_solve_with_given_gamma3_values():
+@pytest.mark.parametrize("bs", [1, 2])
+def test_split_solve_with_given_gamma3_values(bs):
     """kernels.GLastSolve: forward, y0 = Z r, backward with u_G = y solves the interior
-    equations exactly, and u_G = y0 is the unconstrained solution K^-1 b."""
+    equations exactly, and u_G = y0 is the unconstrained solution K^-1 b; with scalar and
+    2 x 2 block storage of L (G is two whole nodes, so the nodal ordering applies)."""
     from app import kernels
     from app.schur import flexibility
     module = kernels.load()
     if module is None:
-        import pytest
         pytest.skip("no C compiler")
     A = _spd(50, seed=2)
     G = np.array([99, 98, 10, 11])
-    f = GLastLU(A, G)
-    split = kernels.GLastSolve(f, module)
+    f = GLastLU(A, G, bs)
+    if bs == 2:                                    # a node's dofs stay consecutive
+        head = f.perm[:-4]
+        assert np.all(head[::2] % 2 == 0) and np.array_equal(head[::2] + 1, head[1::2])
+    split = kernels.GLastSolve(f, module, bs)
+    assert split.bs == bs
     rng = np.random.default_rng(3)
     b = rng.normal(size=A.shape[0])
     Ad = A.toarray()
