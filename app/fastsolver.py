@@ -28,7 +28,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-import scipy.linalg as sl
+from scipy.linalg import lapack
 import ufl
 from dolfinx import fem
 from mpi4py import MPI
@@ -47,27 +47,40 @@ log = logging.getLogger("vpcontact")
 eligible = fast_eligible
 
 
-def _newton_direction(H: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """-H^-1 g: Cholesky (H is positive definite where the step energy is strictly convex,
-    (2.6)), else LU, else the steepest descent direction -g."""
-    try:
-        return -sl.cho_solve(sl.cho_factor(H, check_finite=False), g, check_finite=False)
-    except np.linalg.LinAlgError:
-        try:
-            return -np.linalg.solve(H, g)
-        except np.linalg.LinAlgError:
-            return -g
+def _newton_direction(H: np.ndarray, g: np.ndarray, binding: np.ndarray) -> np.ndarray:
+    """The projected Newton direction p: p = 0 on the binding dofs, H_ff p_f = -g_f on the
+    free ones, by Cholesky (H is positive definite where the step energy is strictly convex,
+    (2.6)), else LU, else the steepest descent direction.  The binding rows and columns of H
+    are replaced by the identity in place (the free block's system without extracting it);
+    H is overwritten."""
+    gf = np.where(binding, 0.0, g)
+    if binding.any():
+        b = np.flatnonzero(binding)
+        H[b, :] = 0.0
+        H[:, b] = 0.0
+        H[b, b] = 1.0
+    A = H.T                        # symmetric: the F-ordered view, factorised in place
+    c, info = lapack.dpotrf(A, lower=False, clean=False, overwrite_a=True)
+    if info == 0:
+        p, info = lapack.dpotrs(c, gf, lower=False)
+        if info == 0:
+            return -p
+    return None
 
 
 class NodalContact:
     """Energy, gradient and Hessian of sum_i w_i phi_i(y_i) (vectorised over nodes)."""
 
-    def __init__(self, w, normal, c_nu, friction, delta):
-        self.w, self.nu = w, np.asarray(normal)
+    def __init__(self, w, normal, c_nu, friction, delta, module=None):
+        self.w, self.nu = np.ascontiguousarray(w, dtype=float), np.asarray(normal, dtype=float)
         self.c = 0.0 if c_nu is None else c_nu
         self.fr, self.delta = friction, delta
         self.xi = None
         self.theta = None
+        self.mod = module                 # kernels.nodal_contact, or None: numpy
+        if module is not None:
+            n, d = len(self.w), len(self.nu)
+            self._grad, self._hess = np.empty((n, d)), np.empty((n, d, d))
 
     def _psi(self, rho):
         b, c1, c2, u1 = self.fr
@@ -80,7 +93,26 @@ class NodalContact:
         return psi, d1, d2
 
     def evaluate(self, y, need_hessian=True):
-        """y (n, d) -> energy, gradient (n, d), Hessian blocks (n, d, d)."""
+        """y (n, d) -> energy, gradient (n, d), Hessian blocks (n, d, d).  The compiled
+        kernel returns views of work arrays that the next call overwrites."""
+        if self.mod is not None:
+            return self._evaluate_compiled(np.ascontiguousarray(y, dtype=float), need_hessian)
+        return self._evaluate_numpy(y, need_hessian)
+
+    def _evaluate_compiled(self, y, need_hessian):
+        ffi, null = self.mod.ffi, self.mod.ffi.NULL
+
+        def ptr(a):         # a cdata that keeps its (contiguous float64) array alive
+            return null if a is None else ffi.from_buffer(
+                "double[]", np.ascontiguousarray(a, dtype=float))
+        b, c1, c2, u1 = self.fr if self.fr is not None else (0.0, 0.0, 0.0, 0.0)
+        e = self.mod.lib.nodal_contact(
+            y.shape[0], y.shape[1], ptr(y), ptr(self.nu), self.c, ptr(self.xi),
+            ptr(self.theta), int(self.fr is not None), b, c1, c2, u1, self.delta,
+            ptr(self.w), ptr(self._grad), ptr(self._hess) if need_hessian else null)
+        return e, self._grad, (self._hess if need_hessian else None)
+
+    def _evaluate_numpy(self, y, need_hessian=True):
         nu, d, w = self.nu, y.shape[1], self.w
         r = y @ nu
         rp = np.maximum(r, 0.0)
@@ -207,11 +239,12 @@ class FastStepSolver:
         self.Z = Z
         self.S = np.linalg.inv(Z)
         self.S = 0.5 * (self.S + self.S.T)
+        self._H = np.empty_like(self.S)                  # the Newton matrix (work array)
         c = p.case.contact
         fr = c.friction
         self.contact = NodalContact(self.w, p.normal, c.c_nu,
                                     None if fr is None else (fr.b, fr.c1, fr.c2, fr.u1),
-                                    p.case.numerics.delta)
+                                    p.case.numerics.delta, kernels.load())
         # (row, column) in the m x m Hessian of every entry of the nodal d x d blocks
         node = np.repeat(np.arange(len(self.g_nodes)), d * d)
         a, b = np.tile(np.repeat(np.arange(d), d), len(self.g_nodes)), \
@@ -260,6 +293,13 @@ class FastStepSolver:
             out[p_] = v_
         return out
 
+    def _newton_matrix(self, Hn: np.ndarray) -> np.ndarray:
+        """S plus the nodal d x d Hessian blocks Hn of the contact energy (a work array)."""
+        H = self._H
+        np.copyto(H, self.S)
+        H[self._blk_rows, self._blk_cols] += Hn.ravel()
+        return H
+
     # ------------------------------------------------------------------ the step
     def _assemble_rhs(self):
         """b = F_n = f_n - B^T H_n (zero at the clamped dofs)."""
@@ -290,24 +330,27 @@ class FastStepSolver:
             return 0.5 * dy @ Sdy + e, Sdy + g.ravel(), H
 
         E, g, Hn = energy_grad(y)
+        lo, hi = lb + 1e-14 * scale, ub - 1e-14 * scale
         for it in range(1, 200):
-            at_lb, at_ub = y <= lb + 1e-14 * scale, y >= ub - 1e-14 * scale
-            binding = (at_lb & (g > 0)) | (at_ub & (g < 0))
-            free = ~binding
+            binding = ((y <= lo) & (g > 0)) | ((y >= hi) & (g < 0))
             pg = np.where(binding, 0.0, g)
             if np.abs(pg).max() <= self.rtol * scale:
                 self._y_prev = y
                 return y, it - 1
-            H = S.copy()
-            H[self._blk_rows, self._blk_cols] += Hn.ravel()      # the nodal d x d blocks
-            p = np.zeros_like(y)
-            f = np.flatnonzero(free)
-            p[f] = _newton_direction(H if len(f) == len(y) else H[np.ix_(f, f)], g[f])
-            if g[f] @ p[f] >= 0:          # not a descent direction: steepest descent
-                p[f] = -g[f]
+            p = _newton_direction(self._newton_matrix(Hn), g, binding)
+            if p is None:                 # not positive definite here: LU, else -pg
+                H = self._newton_matrix(Hn)
+                f = np.flatnonzero(~binding)
+                p = np.zeros_like(y)
+                try:
+                    p[f] = np.linalg.solve(H[np.ix_(f, f)], -g[f])
+                except np.linalg.LinAlgError:
+                    p[f] = -g[f]
+            if pg @ p >= 0:               # not a descent direction: steepest descent
+                p = -pg
             alpha = 1.0
             for _ in range(60):
-                yt = np.clip(y + alpha * p, lb, ub)
+                yt = np.minimum(np.maximum(y + alpha * p, lb), ub)
                 Et, gt, Ht = energy_grad(yt)
                 # Armijo, or a step so small that the energy cannot resolve it any more.
                 # (Accepting steps up to the round-off of E instead let the iteration zig-zag
