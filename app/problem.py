@@ -250,8 +250,8 @@ class ContactProblem:
     # ------------------------------------------------------------------ derived quantities
     def update_sigma(self) -> None:
         """sigma_n = E eps(u_n) + H_n (3.2) and its von Mises norm, per cell."""
-        self.strain_operator.update_sigma(self.u, self.H, self.sigma)
-        self.update_vm()
+        if not self.strain_operator.update_sigma(self.u, self.H, self.sigma, self.sigma_vm):
+            self.update_vm()
 
     def update_vm(self) -> None:
         self.sigma_vm.x.array[:] = self.law.von_mises(self.law.to_voigt(self.sigma.x.array))

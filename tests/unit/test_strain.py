@@ -1,0 +1,57 @@
+"""strain.StrainOperator: the compiled cell passes equal the PETSc products of the assembled
+operators (D_sigma u + H, D^T H, u^T A u) and the numpy von Mises norm, in 2D and 3D."""
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from app import kernels
+from app.problem import ContactProblem
+from app.timeloop import build_mesh
+from conftest import ROOT, make_case
+
+pytestmark = pytest.mark.skipif(kernels.load() is None, reason="no C compiler")
+
+
+def _problem(dim):
+    if dim == 2:
+        case = make_case(mesh={"n": 6, "diagonal": "left", "L1": 1.5})
+    else:
+        from app.case import load_raw, validate
+        raw = load_raw(ROOT / "cases" / "box3d.yaml")
+        raw["mesh"]["n"] = 3
+        case = validate(raw, "box")
+    return ContactProblem(case, build_mesh(case, MPI.COMM_WORLD))
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_cell_passes_equal_the_assembled_operators(dim):
+    p = _problem(dim)
+    op = p.strain_operator
+    assert op._cells is not None
+    rng = np.random.default_rng(dim)
+    p.u.x.array[:] = rng.normal(size=p.u.x.array.size)
+    H = rng.normal(size=(p.H.x.array.size // dim**2, dim, dim))
+    p.H.x.array[:] = (H + H.transpose(0, 2, 1)).ravel()
+    n = op.n_owned * dim**2
+
+    # the PETSc reference: D_sigma u + H, the numpy von Mises norm, u^T A u, D^T H
+    op.D_sigma.multAdd(p.u.vector, p.H.vector, p.sigma.vector)
+    sigma_ref = p.sigma.x.array[:n].copy()
+    vm_ref = p.law.von_mises(p.law.to_voigt(sigma_ref))
+    op.A.mult(p.u.vector, op._b)
+    e2_ref = op._b.dot(p.u.vector)
+    b_ref = op._b.duplicate()
+    b_ref.set(0.0)
+    op.D.multTranspose(p.H.vector, op._b)
+    b_ref.axpy(-1.0, op._b)
+
+    p.sigma.x.array[:] = np.nan
+    assert op.update_sigma(p.u, p.H, p.sigma, p.sigma_vm)
+    scale = np.abs(sigma_ref).max()
+    assert np.abs(p.sigma.x.array[:n] - sigma_ref).max() <= 1e-13 * scale
+    assert np.abs(p.sigma_vm.x.array[:op.n_owned] - vm_ref).max() <= 1e-13 * scale
+    assert op.strain_norm2(p.u) == pytest.approx(e2_ref, rel=1e-13)
+    b = b_ref.duplicate()
+    b.set(0.0)
+    op.pre_stress_load(p.H, b)
+    assert np.abs(b.array_r - b_ref.array_r).max() <= 1e-13 * np.abs(b_ref.array_r).max()
