@@ -38,7 +38,7 @@ from forms.elasticity import elasticity_operator, eps
 
 from .case import fast_eligible
 from . import kernels
-from .schur import GLastLU, flexibility, gamma3_flexibility, gather_csr
+from .schur import GLastLDL, flexibility, g_last_factor, gamma3_flexibility, gather_csr
 from .solver import StepFailure
 
 log = logging.getLogger("vpcontact")
@@ -191,10 +191,11 @@ class FastStepSolver:
         petsc_options = any(str(k).startswith("fast_") for k in self.options)
         module = kernels.load() if self.comm.size == 1 and not petsc_options else None
         if module is not None:
-            factor = GLastLU(gather_csr(self.K, self.comm), G_rows, self.d)
+            factor = g_last_factor(gather_csr(self.K, self.comm), G_rows, self.d)
             self._split = kernels.GLastSolve(factor, module, self.d)
             self.factorisations = 1
-            log.info("  fast solver: one SuperLU factorisation (Gamma3 last), compiled sweeps")
+            log.info("  fast solver: one %s factorisation (Gamma3 last), compiled sweeps",
+                     "CHOLMOD L D L^T" if isinstance(factor, GLastLDL) else "SuperLU L U")
             return flexibility(factor) if len(G_rows) else None
         self.ksp = direct_solver(self.K, self.comm, PREFIX + "fast_")
         set_petsc_options(self.options, PREFIX)      # user options, e.g. -fast_ksp_view

@@ -210,7 +210,8 @@ int perzyna_advance(int ncells, int dd, int m, const double *sigma, double *H, d
    ldl_blocks: the block form of the first nbc block columns of L (CSC).  With Bi == NULL it
    only counts: Bp[J + 1] = the number of blocks of column J; then the caller makes Bp
    cumulative, zeroes Bx and Ld, and calls again to fill them.  mark, slot: one int per
-   block row, mark all -1 on entry.  Returns the number of blocks. */
+   block row, mark all -1 on entry.  Exact zeros of L are skipped.  Returns the number of
+   blocks. */
 int ldl_blocks(int bs, int nbc, const int *Lp, const int *Li, const double *Lx, int *Bp,
                int *Bi, double *Bx, double *Ld, int *mark, int *slot)
 {
@@ -222,6 +223,7 @@ int ldl_blocks(int bs, int nbc, const int *Lp, const int *Li, const double *Lx, 
             const int j = bs * J + a;
             for (int p = Lp[j]; p < Lp[j + 1]; ++p) {
                 const int i = Li[p], I = i / bs, b = i - bs * I;
+                if (Lx[p] == 0.0) continue;        /* e.g. CHOLMOD's relaxed supernodes */
                 if (I == J) {
                     if (Bi && b > a) Ld[(long)J * b2 + a * bs + b] = Lx[p];
                     continue;
@@ -439,8 +441,7 @@ void cell_load(int ncells, int dd, int nd, const int *dofs, const double *Dx, co
 }
 """
 
-_MODULE = None
-_TRIED = False
+_MODULES: dict[str, object] = {}
 
 
 def cache_dir() -> Path:
@@ -448,38 +449,45 @@ def cache_dir() -> Path:
     return base / "kernels"
 
 
-def _build(name: str, target: Path) -> None:
+def _build(name: str, target: Path, cdef: str, source: str, **kwargs) -> None:
     import cffi
     ffi = cffi.FFI()
-    ffi.cdef(CDEF)
-    ffi.set_source(name, SOURCE, extra_compile_args=["-O3", "-std=c99"], libraries=["m"])
+    ffi.cdef(cdef)
+    ffi.set_source(name, source, extra_compile_args=["-O3", "-std=c99"], **kwargs)
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
         built = Path(ffi.compile(tmpdir=tmp, verbose=False))
         os.replace(built, target)                      # atomic: other ranks see all or nothing
 
 
-def load():
-    """The compiled module (``.lib``, ``.ffi``), or None if it cannot be built here."""
-    global _MODULE, _TRIED
-    if _TRIED:
-        return _MODULE
-    _TRIED = True
-    digest = hashlib.sha256((CDEF + SOURCE + sys.version).encode()).hexdigest()[:16]
-    name = f"_vpcontact_kernels_{digest}"
+def compiled(prefix: str, cdef: str, source: str, what: str, **kwargs):
+    """The cffi module of ``source`` (built once into cache_dir(), keyed by a hash of the
+    source), or None if it cannot be built here (``what`` names it in the warning)."""
+    digest = hashlib.sha256((cdef + source + repr(sorted(kwargs.items())) + sys.version)
+                            .encode()).hexdigest()[:16]
+    name = f"{prefix}_{digest}"
+    if name in _MODULES:
+        return _MODULES[name]
     target = cache_dir() / f"{name}.so"
+    module = None
     try:
         if not target.exists():
-            log.info("compiling the cell kernels into %s", target.parent)
-            _build(name, target)
+            log.info("compiling %s into %s", what, target.parent)
+            _build(name, target, cdef, source, **kwargs)
         spec = importlib.util.spec_from_file_location(name, target)
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
-        _MODULE = module
-    except Exception as exc:                            # no compiler: numpy fallback
-        log.warning("compiled cell kernels unavailable (%s); using numpy", exc)
-        _MODULE = None
-    return _MODULE
+    except Exception as exc:                            # no compiler (or library): fallback
+        log.warning("%s unavailable (%s)", what, exc)
+        module = None
+    _MODULES[name] = module
+    return module
+
+
+def load():
+    """The compiled cell kernels (``.lib``, ``.ffi``), or None (numpy is used then)."""
+    return compiled("_vpcontact_kernels", CDEF, SOURCE, "compiled cell kernels (using numpy)",
+                    libraries=["m"])
 
 
 def _ptr(ffi, a: np.ndarray, ctype: str):
@@ -521,7 +529,7 @@ class GLastSolve:
                        _ptr(ffi, self.Ld, "double *"), _ptr(ffi, mark, "int *"),
                        _ptr(ffi, slot, "int *"))
         self.nbc = nbc
-        self.dinv = 1.0 / factor.U.diagonal()[:self.ni]
+        self.dinv = 1.0 / np.asarray(factor.D)[:self.ni]
         self.x = np.empty(self.n)
         p = lambda a, t="double *": _ptr(ffi, a, t)          # noqa: E731
         self._blocks = (p(self.Bp, "int *"), p(self.Bi, "int *"), p(self.Bx), p(self.Ld))

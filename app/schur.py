@@ -13,11 +13,15 @@ few MB at the sizes it is chosen for).
 """
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import scipy.linalg as sl
 import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 from petsc4py import PETSc
+
+log = logging.getLogger("vpcontact")
 
 
 def gather_csr(K: PETSc.Mat, comm) -> sp.csr_matrix | None:
@@ -81,11 +85,42 @@ class GLastLU:
                 and np.array_equal(lu.perm_c, np.arange(self.n))):
             raise RuntimeError("SuperLU permuted the G-last ordering")
         self.L, self.U = lu.L.tocsc(), lu.U.tocsc()
+        self.D = self.U.diagonal()        # U = D L^T to round-off (K symmetric, no pivoting)
 
     def trailing(self) -> tuple[np.ndarray, np.ndarray]:
         """The dense m x m trailing blocks L_GG (unit lower) and U_GG (upper)."""
         k = self.n - self.m
         return self.L[k:, k:].toarray(), self.U[k:, k:].toarray()
+
+
+class GLastLDL:
+    """K = L D L^T by CHOLMOD (app/ldl.py) in the same order as GLastLU (interior by nested
+    dissection, G last): half the work of an L U factorisation (at h = 1/128: 0.16-0.19 s
+    against 0.35-0.48 s for SuperLU, measured).  ``L`` is unit lower (CSC), ``D`` its
+    pivots; U = D L^T."""
+
+    def __init__(self, A: sp.csr_matrix, G: np.ndarray, bs: int, module):
+        from .ldl import factor
+        self.n, self.m = A.shape[0], len(G)
+        self.perm = interior_last_ordering(A, G, bs)
+        self.L, self.D = factor(module, A, self.perm)
+
+    def trailing(self) -> tuple[np.ndarray, np.ndarray]:
+        k = self.n - self.m
+        L_GG = self.L[k:, k:].toarray()
+        return L_GG, self.D[k:, None] * L_GG.T
+
+
+def g_last_factor(A: sp.csr_matrix, G: np.ndarray, bs: int = 1):
+    """CHOLMOD's L D L^T if it is available here, else SuperLU's L U (same order)."""
+    from . import ldl
+    module = ldl.load()
+    if module is not None:
+        try:
+            return GLastLDL(A, G, bs, module)
+        except RuntimeError as exc:
+            log.warning("CHOLMOD failed (%s); factorising with SuperLU", exc)
+    return GLastLU(A, G, bs)
 
 
 def flexibility(factor: GLastLU) -> np.ndarray:
@@ -100,5 +135,5 @@ def gamma3_flexibility(K: PETSc.Mat, G_rows: np.ndarray, comm) -> np.ndarray:
     """Z_GG = E_G^T K^-1 E_G (m x m, symmetric), rows/columns in the order of ``G_rows``
     (global matrix rows of the Gamma3 dofs), on every rank."""
     A = gather_csr(K, comm)
-    Z = flexibility(GLastLU(A, np.asarray(G_rows))) if comm.rank == 0 else None
+    Z = flexibility(g_last_factor(A, np.asarray(G_rows))) if comm.rank == 0 else None
     return comm.bcast(Z, root=0)

@@ -5,7 +5,8 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from app.schur import GLastLU, gamma3_flexibility
+from app import ldl
+from app.schur import GLastLDL, GLastLU, gamma3_flexibility
 
 
 def _spd(n=60, seed=0):
@@ -37,8 +38,40 @@ def test_g_last_factors_reproduce_the_matrix():
     assert np.abs((f.L @ f.U).toarray() - Ap).max() <= 1e-13 * np.abs(Ap).max()
 
 
+def _factor(kind, A, G, bs):
+    if kind == "superlu":
+        return GLastLU(A, G, bs)
+    module = ldl.load()
+    if module is None:
+        pytest.skip("CHOLMOD not available")
+    return GLastLDL(A, G, bs, module)
+
+
+def test_cholmod_ldl_reproduces_the_matrix_in_the_given_order():
+    A = _spd(40, seed=1)
+    G = np.array([5, 6, 70])
+    f = _factor("cholmod", A, G, 1)
+    lu = GLastLU(A, G, 1)
+    assert np.array_equal(f.perm, lu.perm)
+    Ap = A[f.perm][:, f.perm].toarray()
+    assert np.array_equal(f.L.diagonal(), np.ones(A.shape[0]))
+    LDLt = (f.L @ sp.diags(f.D) @ f.L.T).toarray()
+    assert np.abs(LDLt - Ap).max() <= 1e-13 * np.abs(Ap).max()
+    assert np.abs(f.D - lu.D).max() <= 1e-13 * np.abs(lu.D).max()     # SuperLU's pivots
+
+
+def test_cholmod_refuses_an_indefinite_matrix():
+    module = ldl.load()
+    if module is None:
+        pytest.skip("CHOLMOD not available")
+    A = sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 1.0]]))
+    with pytest.raises(ldl.NotPositiveDefinite):
+        ldl.factor(module, A, np.arange(2))
+
+
+@pytest.mark.parametrize("kind", ["superlu", "cholmod"])
 @pytest.mark.parametrize("bs", [1, 2])
-def test_split_solve_with_given_gamma3_values(bs):
+def test_split_solve_with_given_gamma3_values(bs, kind):
     """kernels.GLastSolve: forward, y0 = Z r, backward with u_G = y solves the interior
     equations exactly, and u_G = y0 is the unconstrained solution K^-1 b; with scalar and
     2 x 2 block storage of L (G is two whole nodes, so the nodal ordering applies)."""
@@ -49,7 +82,7 @@ def test_split_solve_with_given_gamma3_values(bs):
         pytest.skip("no C compiler")
     A = _spd(50, seed=2)
     G = np.array([99, 98, 10, 11])
-    f = GLastLU(A, G, bs)
+    f = _factor(kind, A, G, bs)
     if bs == 2:                                    # a node's dofs stay consecutive
         head = f.perm[:-4]
         assert np.all(head[::2] % 2 == 0) and np.array_equal(head[::2] + 1, head[1::2])
