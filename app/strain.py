@@ -16,6 +16,8 @@ products stay the reference (tests/unit/test_strain.py) and the fallback.
 """
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 import ufl
 from dolfinx import fem
@@ -35,13 +37,7 @@ class StrainOperator:
         du, tau = ufl.TrialFunction(V), ufl.TestFunction(Q)
         self.D = fem.petsc.assemble_matrix(fem.form(ufl.inner(eps(du), tau) * ufl.dx))
         self.D.assemble()
-        C = elasticity_operator(E, nu, d)
-        self.D_sigma = fem.petsc.assemble_matrix(fem.form(
-            ufl.inner(C(eps(du)), tau) / ufl.CellVolume(V.mesh) * ufl.dx))
-        self.D_sigma.assemble()
-        v = ufl.TestFunction(V)
-        self.A = fem.petsc.assemble_matrix(fem.form(ufl.inner(eps(du), eps(v)) * ufl.dx))
-        self.A.assemble()                     # ||eps(u)||^2 = u . A u
+        self._V, self._Q, self._E, self._nu = V, Q, E, nu
         vol = fem.petsc.assemble_vector(fem.form(tau[0, 0] * ufl.dx))
         self.n_owned = Q.dofmap.index_map.size_local
         self.vol = vol.array_r.reshape(-1, d * d)[:, 0].copy()      # owned cells, Q order
@@ -50,8 +46,29 @@ class StrainOperator:
         self.comm = V.mesh.comm
         self.lmbda, self.two_mu = lame_constants(E, nu, d)
         self.mod = kernels.load()
-        self._cells = self._cell_rows(V) if self.mod is not None else None
+        cells = self._cell_rows(V) if self.mod is not None else None
+        # one path on every rank (the PETSc products and the lazy assembly are collective)
+        self._cells = cells if self.comm.allreduce(cells is not None, op=MPI.LAND) else None
         self._work = fem.Function(V) if self._cells is not None else None   # ghosted
+
+    @cached_property
+    def D_sigma(self) -> PETSc.Mat:
+        """(D_sigma u)_c = E eps_c(u); assembled when first used (not by the compiled
+        path)."""
+        du, tau = ufl.TrialFunction(self._V), ufl.TestFunction(self._Q)
+        C = elasticity_operator(self._E, self._nu, self.d)
+        M = fem.petsc.assemble_matrix(fem.form(
+            ufl.inner(C(eps(du)), tau) / ufl.CellVolume(self._V.mesh) * ufl.dx))
+        M.assemble()
+        return M
+
+    @cached_property
+    def A(self) -> PETSc.Mat:
+        """||eps(u)||^2 = u . A u; assembled when first used (not by the compiled path)."""
+        du, v = ufl.TrialFunction(self._V), ufl.TestFunction(self._V)
+        M = fem.petsc.assemble_matrix(fem.form(ufl.inner(eps(du), eps(v)) * ufl.dx))
+        M.assemble()
+        return M
 
     def _cell_rows(self, V):
         """(dofs, Dx): per owned cell its nd local dofs and the dd x nd block of D, or None
@@ -139,5 +156,6 @@ class StrainOperator:
         b.axpy(-1.0, self._b)
 
     def destroy(self):
-        for obj in (self.D, self.D_sigma, self.A, self._b):
-            obj.destroy()
+        for obj in (self.D, self._b, self.__dict__.get("D_sigma"), self.__dict__.get("A")):
+            if obj is not None:
+                obj.destroy()
