@@ -273,13 +273,18 @@ static void ldl_backward_##BS(int nbc, const int *Bp, const int *Bi, const doubl
                               const double *Ld, const double *dinv, double *x)            \
 {                                                                                          \
     for (int J = nbc - 1; J >= 0; --J) {                                                   \
-        double *xJ = x + BS * J, t[BS];                                                    \
-        for (int a = 0; a < BS; ++a) t[a] = xJ[a] * dinv[BS * J + a];                      \
+        double *xJ = x + BS * J, t[BS], s[BS][BS];                                         \
+        for (int a = 0; a < BS; ++a) {                                                     \
+            t[a] = xJ[a] * dinv[BS * J + a];                                               \
+            for (int b = 0; b < BS; ++b) s[a][b] = 0.0;    /* independent chains */        \
+        }                                                                                  \
         for (int k = Bp[J]; k < Bp[J + 1]; ++k) {                                          \
             const double *M = Bx + (long)k * BS * BS, *xI = x + (long)BS * Bi[k];          \
             for (int a = 0; a < BS; ++a)                                                   \
-                for (int b = 0; b < BS; ++b) t[a] -= M[a * BS + b] * xI[b];                \
+                for (int b = 0; b < BS; ++b) s[a][b] += M[a * BS + b] * xI[b];             \
         }                                                                                  \
+        for (int a = 0; a < BS; ++a)                                                       \
+            for (int b = 0; b < BS; ++b) t[a] -= s[a][b];                                  \
         const double *l = Ld + (long)J * BS * BS;                                          \
         for (int a = BS - 1; a >= 0; --a) {                                                \
             for (int b = a + 1; b < BS; ++b) t[a] -= l[a * BS + b] * t[b];                 \
