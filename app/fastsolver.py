@@ -13,13 +13,14 @@ search on this (convex under (2.6)) energy, started from the previous step's Gam
 then u = K^-1 (F_n + E_G lambda) with the Gamma3 forces lambda = S (y - y0).  Both paths solve
 the same discrete problem.
 
-Serial runs factorise K once with SuperLU, the Gamma3 dofs ordered last (schur.GLastLU): the
-trailing blocks give S = L_GG U_GG, and a step is one forward sweep (which yields y0), the
-Gamma3 problem, and one backward sweep with u_G = y (kernels.GLastSolve, compiled): at
-h = 1/128, 7.5 ms per step against 9.4-12 ms for the two PETSc back-substitutions
+Serial runs factorise K once, the Gamma3 dofs ordered last: K = L D L^T by CHOLMOD
+(schur.GLastLDL; SuperLU's L U where CHOLMOD is missing).  The trailing blocks give
+S = L_GG D_G L_GG^T, and a step is one forward sweep (which yields y0), the Gamma3 problem,
+and one backward sweep with u_G = y (kernels.GLastSolve: L in d x d node blocks, compiled):
+at h = 1/128 about 6 ms per step against 9.4-12 ms for the two PETSc back-substitutions
 u_free = K^-1 F_n, u = K^-1 (F_n + E_G lambda) of the general path.  That general path
-serves mpirun (MUMPS, distributed interior solves; Z_GG from a G-last SuperLU factorisation
-of the matrix gathered on rank 0: two factorisations, counted), runs without a C compiler,
+serves mpirun (MUMPS, distributed interior solves; Z_GG from a G-last factorisation of the
+matrix gathered on rank 0: two factorisations, counted), runs without a C compiler,
 and runs when PETSc options for the fast solver are given
 (-vpcontact_fast_pc_factor_mat_solver_type ...).
 """
@@ -180,13 +181,13 @@ class FastStepSolver:
     def _factorise(self, G_rows: np.ndarray) -> np.ndarray | None:
         """Factorise K once; returns Z_GG = E_G^T K^-1 E_G (None without Gamma3 dofs).
 
-        Serial, with the compiled sweeps (kernels.py): one SuperLU factorisation with the
-        Gamma3 dofs last gives Z_GG (its trailing blocks) and every step's solve, one forward
-        and one backward sweep with the Gamma3 problem in between (kernels.GLastSolve).
-        Otherwise (mpirun, no C compiler, or PETSc options for the fast solver given):
-        PETSc's direct solver for the steps (MUMPS in parallel: the interior solves are
-        distributed) and Z_GG from a G-last SuperLU factorisation of the gathered matrix on
-        rank 0 -- two factorisations per run, counted as such."""
+        Serial, with the compiled sweeps (kernels.py): one factorisation with the Gamma3
+        dofs last (CHOLMOD L D L^T, else SuperLU L U) gives Z_GG (its trailing blocks) and
+        every step's solve, one forward and one backward sweep with the Gamma3 problem in
+        between (kernels.GLastSolve).  Otherwise (mpirun, no C compiler, or PETSc options
+        for the fast solver given): PETSc's direct solver for the steps (MUMPS in parallel:
+        the interior solves are distributed) and Z_GG from a G-last factorisation of the
+        gathered matrix on rank 0 -- two factorisations per run, counted as such."""
         from .solver import PREFIX, clear_petsc_options, direct_solver, set_petsc_options
         petsc_options = any(str(k).startswith("fast_") for k in self.options)
         module = kernels.load() if self.comm.size == 1 and not petsc_options else None
@@ -207,7 +208,7 @@ class FastStepSolver:
         self.factorisations = 1
         log.info("  fast solver: PETSc %s for the steps%s",
                  self.ksp.getPC().getFactorSolverType() or "LU",
-                 ", SuperLU on rank 0 for Z_GG" if len(G_rows) else "")
+                 ", a G-last factorisation on rank 0 for Z_GG" if len(G_rows) else "")
         if not len(G_rows):
             return None
         self.factorisations += 1

@@ -1,15 +1,16 @@
 """The Gamma3 flexibility matrix Z_GG = E_G^T K^-1 E_G of the fast solver (issue 6), from one
-sparse LU factorisation with the Gamma3 dofs ordered last.
+sparse factorisation with the Gamma3 dofs ordered last.
 
 If the rows and columns of K are ordered so that the Gamma3 dofs G come last and K = L U
-(no pivoting: K is symmetric positive definite), the trailing blocks satisfy
+(no pivoting: K is symmetric positive definite, so U = D L^T), the trailing blocks satisfy
     S = K_GG - K_GI K_II^-1 K_IG = L_GG U_GG,      Z_GG = S^-1 = U_GG^-1 L_GG^-1,
 so the Schur complement costs one factorisation and a product of two m x m triangles instead
-of m back-substitutions (at h = 1/128, m = 256: 0.55 s against 1.4 s with PETSc's LU and
-44 s with MUMPS column by column under mpirun -n 2; measured).  The interior is ordered by
-PETSc's nested dissection, the factorisation is SuperLU's (scipy), on rank 0 with the matrix
-gathered there (the fast path is for problems whose Gamma3 is small; the matrix itself is a
-few MB at the sizes it is chosen for).
+of m back-substitutions (at h = 1/128, m = 256: 0.55 s with SuperLU against 1.4 s with
+PETSc's LU and 44 s with MUMPS column by column under mpirun -n 2; measured).  The interior
+is ordered by PETSc's nested dissection (of the node graph, so a node's dofs stay together),
+the factorisation is CHOLMOD's L D L^T (app/ldl.py) or, without it, SuperLU's L U (scipy),
+on rank 0 with the matrix gathered there (the fast path is for problems whose Gamma3 is
+small; the matrix itself is a few MB at the sizes it is chosen for).
 """
 from __future__ import annotations
 
