@@ -48,12 +48,13 @@ log = logging.getLogger("vpcontact")
 eligible = fast_eligible
 
 
-def _newton_direction(H: np.ndarray, g: np.ndarray, binding: np.ndarray) -> np.ndarray:
+def _newton_direction(H: np.ndarray, g: np.ndarray,
+                      binding: np.ndarray) -> np.ndarray | None:
     """The projected Newton direction p: p = 0 on the binding dofs, H_ff p_f = -g_f on the
     free ones, by Cholesky (H is positive definite where the step energy is strictly convex,
-    (2.6)), else LU, else the steepest descent direction.  The binding rows and columns of H
-    are replaced by the identity in place (the free block's system without extracting it);
-    H is overwritten."""
+    (2.6)); None if H_ff is not positive definite (the caller then tries LU, else steepest
+    descent).  The binding rows and columns of H are replaced by the identity in place (the
+    free block's system without extracting it); H is overwritten."""
     gf = np.where(binding, 0.0, g)
     if binding.any():
         b = np.flatnonzero(binding)
