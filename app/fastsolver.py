@@ -102,16 +102,15 @@ class NodalContact:
         return self._evaluate_numpy(y, need_hessian)
 
     def _evaluate_compiled(self, y, need_hessian):
-        ffi, null = self.mod.ffi, self.mod.ffi.NULL
+        ffi = self.mod.ffi
 
-        def ptr(a):         # a cdata that keeps its (contiguous float64) array alive
-            return null if a is None else ffi.from_buffer(
-                "double[]", np.ascontiguousarray(a, dtype=float))
+        def ptr(a):
+            return kernels.buf(ffi, None if a is None else np.ascontiguousarray(a, dtype=float))
         b, c1, c2, u1 = self.fr if self.fr is not None else (0.0, 0.0, 0.0, 0.0)
         e = self.mod.lib.nodal_contact(
             y.shape[0], y.shape[1], ptr(y), ptr(self.nu), self.c, ptr(self.xi),
             ptr(self.theta), int(self.fr is not None), b, c1, c2, u1, self.delta,
-            ptr(self.w), ptr(self._grad), ptr(self._hess) if need_hessian else null)
+            ptr(self.w), ptr(self._grad), ptr(self._hess if need_hessian else None))
         return e, self._grad, (self._hess if need_hessian else None)
 
     def _evaluate_numpy(self, y, need_hessian=True):

@@ -40,10 +40,10 @@ double nodal_contact(int n, int d, const double *y, const double *nu, double c,
                      const double *xi, const double *theta, int friction, double b, double c1,
                      double c2, double u1, double delta, const double *w, double *grad,
                      double *hess);
-void cell_pass(int ncells, int d, int nd, const int *dofs, const double *Dx, const double *vol,
-               double lmbda, double two_mu, const double *u, const double *H, double *sigma,
-               double *vm, double *sums);
-void cell_load(int ncells, int dd, int nd, const int *dofs, const double *Dx, const double *H,
+double cell_pass(int ncells, int d, const int *dofs, const double *Dx, const double *vol,
+                 double lmbda, double two_mu, const double *u, const double *H, double *sigma,
+                 double *vm);
+void cell_load(int ncells, int d, const int *dofs, const double *Dx, const double *H,
                double *b);
 """
 
@@ -371,17 +371,16 @@ double nodal_contact(int n, int d, const double *y, const double *nu, double c,
 
 /* The cell-strain operator (strain.StrainOperator) cell by cell: Dx holds its rows
    (D u)_c = |c| eps_c(u) per cell, dd = d*d rows of nd = (d+1) d entries at the cell's dofs.
-   cell_pass: eps_c = (D u)_c / |c|, sums[0] += |c| eps_c : eps_c; if sigma != NULL also
-   sigma_c = E eps_c + H_c (H == NULL: 0; E tau = lmbda tr(tau) I + two_mu tau),
-   vm_c = ||sigma_c||_VM = sqrt(3/2 s:s - 1/2 tr(s)^2) (plane stress in 2D: sigma_33 = 0),
-   sums[1] += |c| sigma_c : sigma_c. */
+   cell_pass: eps_c = (D u)_c / |c|, returns sum_c |c| eps_c : eps_c; if sigma != NULL also
+   sigma_c = E eps_c + H_c (H == NULL: 0; E tau = lmbda tr(tau) I + two_mu tau) and
+   vm_c = ||sigma_c||_VM = sqrt(3/2 s:s - 1/2 tr(s)^2) (plane stress in 2D: sigma_33 = 0). */
 #define CELL_PASS(D)                                                                       \
-static void cell_pass_##D(int ncells, const int *dofs, const double *Dx, const double *vol,  \
-                          double lmbda, double two_mu, const double *u, const double *H,     \
-                          double *sigma, double *vm, double *sums)                           \
+static double cell_pass_##D(int ncells, const int *dofs, const double *Dx,                  \
+                            const double *vol, double lmbda, double two_mu, const double *u, \
+                            const double *H, double *sigma, double *vm)                      \
 {                                                                                          \
     enum { DD = D * D, ND = (D + 1) * D };                                                 \
-    double se = 0.0, ss = 0.0;                                                             \
+    double se = 0.0;                                                                       \
     for (int c = 0; c < ncells; ++c) {                                                     \
         const int *dc = dofs + (long)c * ND;                                               \
         const double *Dc = Dx + (long)c * DD * ND;                                         \
@@ -403,20 +402,17 @@ static void cell_pass_##D(int ncells, const int *dofs, const double *Dx, const d
         for (int a = 0; a < D; ++a) trs += sc[a * D + a];                                  \
         double v2 = 1.5 * s2 - 0.5 * trs * trs;                                            \
         vm[c] = sqrt(v2 > 0.0 ? v2 : 0.0);                                                 \
-        ss += vol[c] * s2;                                                                 \
     }                                                                                      \
-    sums[0] += se;                                                                         \
-    sums[1] += ss;                                                                         \
+    return se;                                                                             \
 }
 CELL_PASS(2) CELL_PASS(3)
 
-void cell_pass(int ncells, int d, int nd, const int *dofs, const double *Dx, const double *vol,
-               double lmbda, double two_mu, const double *u, const double *H, double *sigma,
-               double *vm, double *sums)
+double cell_pass(int ncells, int d, const int *dofs, const double *Dx, const double *vol,
+                 double lmbda, double two_mu, const double *u, const double *H, double *sigma,
+                 double *vm)
 {
-    (void)nd;                                      /* = (d + 1) d */
-    if (d == 2) cell_pass_2(ncells, dofs, Dx, vol, lmbda, two_mu, u, H, sigma, vm, sums);
-    else cell_pass_3(ncells, dofs, Dx, vol, lmbda, two_mu, u, H, sigma, vm, sums);
+    return d == 2 ? cell_pass_2(ncells, dofs, Dx, vol, lmbda, two_mu, u, H, sigma, vm)
+                  : cell_pass_3(ncells, dofs, Dx, vol, lmbda, two_mu, u, H, sigma, vm);
 }
 
 /* b[dofs_c] += D_c^T H_c for every cell: b = D^T H = (H, eps(v)) for all v (local dofs). */
@@ -437,11 +433,10 @@ static void cell_load_##D(int ncells, const int *dofs, const double *Dx, const d
 }
 CELL_LOAD(2) CELL_LOAD(3)
 
-void cell_load(int ncells, int dd, int nd, const int *dofs, const double *Dx, const double *H,
+void cell_load(int ncells, int d, const int *dofs, const double *Dx, const double *H,
                double *b)
 {
-    (void)nd;
-    if (dd == 4) cell_load_2(ncells, dofs, Dx, H, b);
+    if (d == 2) cell_load_2(ncells, dofs, Dx, H, b);
     else cell_load_3(ncells, dofs, Dx, H, b);
 }
 """
@@ -495,8 +490,17 @@ def load():
                     libraries=["m"])
 
 
-def _ptr(ffi, a: np.ndarray, ctype: str):
-    return ffi.cast(ctype, ffi.from_buffer(a))
+_CTYPES = {np.dtype(np.float64): "double[]", np.dtype(np.intc): "int[]"}
+
+
+def buf(ffi, a: np.ndarray | None):
+    """A C array argument for the contiguous numpy array ``a`` (float64 -> double *,
+    intc -> int *), which it keeps alive; NULL for None."""
+    if a is None:
+        return ffi.NULL
+    if a.dtype not in _CTYPES:
+        raise TypeError(f"kernel arrays must be float64 or intc, not {a.dtype}")
+    return ffi.from_buffer(_CTYPES[a.dtype], a)        # refuses non-contiguous arrays
 
 
 class GLastSolve:
@@ -521,24 +525,21 @@ class GLastSolve:
         nbc, nbr = self.ni // self.bs, -(-self.n // self.bs)
         mark, slot = np.full(nbr, -1, dtype=i), np.empty(nbr, dtype=i)
         Bp = np.zeros(nbc + 1, dtype=i)
-        args = (_ptr(ffi, Lp, "int *"), _ptr(ffi, Li, "int *"), _ptr(ffi, Lx, "double *"))
-        lib.ldl_blocks(self.bs, nbc, *args, _ptr(ffi, Bp, "int *"), ffi.NULL, ffi.NULL,
-                       ffi.NULL, _ptr(ffi, mark, "int *"), _ptr(ffi, slot, "int *"))
+        args = (buf(ffi, Lp), buf(ffi, Li), buf(ffi, Lx))
+        lib.ldl_blocks(self.bs, nbc, *args, buf(ffi, Bp), ffi.NULL, ffi.NULL, ffi.NULL,
+                       buf(ffi, mark), buf(ffi, slot))
         np.cumsum(Bp, out=Bp)
         b2 = self.bs * self.bs
         self.Bp, self.Bi = Bp, np.empty(max(int(Bp[-1]), 1), dtype=i)
         self.Bx, self.Ld = np.zeros(max(int(Bp[-1]), 1) * b2), np.zeros(max(nbc, 1) * b2)
         mark.fill(-1)
-        lib.ldl_blocks(self.bs, nbc, *args, _ptr(ffi, Bp, "int *"),
-                       _ptr(ffi, self.Bi, "int *"), _ptr(ffi, self.Bx, "double *"),
-                       _ptr(ffi, self.Ld, "double *"), _ptr(ffi, mark, "int *"),
-                       _ptr(ffi, slot, "int *"))
+        lib.ldl_blocks(self.bs, nbc, *args, buf(ffi, Bp), buf(ffi, self.Bi),
+                       buf(ffi, self.Bx), buf(ffi, self.Ld), buf(ffi, mark), buf(ffi, slot))
         self.nbc = nbc
         self.dinv = 1.0 / np.asarray(factor.D)[:self.ni]
         self.x = np.empty(self.n)
-        p = lambda a, t="double *": _ptr(ffi, a, t)          # noqa: E731
-        self._blocks = (p(self.Bp, "int *"), p(self.Bi, "int *"), p(self.Bx), p(self.Ld))
-        self._dinv, self._x = p(self.dinv), p(self.x)
+        self._blocks = tuple(buf(ffi, a) for a in (self.Bp, self.Bi, self.Bx, self.Ld))
+        self._dinv, self._x = buf(ffi, self.dinv), buf(ffi, self.x)
 
     def forward(self, b: np.ndarray) -> np.ndarray:
         """Permute b and sweep the interior columns; returns r = x[ni:] (a view)."""
@@ -589,12 +590,9 @@ class PerzynaKernel:
             self._work = (np.empty(max(n, 1), dtype=np.intc), np.empty(max(n, 1), dtype=np.intc),
                           np.empty(max(n, 1) * (self.m + 3 + len(self.glam))))
         act, todo, Z = self._work
-        dp = "double *"
         return lib.perzyna_advance(
-            n, self.d ** 2, self.m, _ptr(ffi, sigma, dp), _ptr(ffi, H, dp),
-            _ptr(ffi, kappa, dp), k, self.l1, self.l2, _ptr(ffi, self.C, dp),
-            _ptr(ffi, self.M, dp), _ptr(ffi, self.AV, dp), _ptr(ffi, self.V, dp),
-            _ptr(ffi, self.lam, dp), _ptr(ffi, self.flat, "int *"),
-            _ptr(ffi, self.from_, "int *"), self.rtol, self.max_iter, len(self.glam),
-            _ptr(ffi, self.glam, dp), _ptr(ffi, self.group, "int *"), _ptr(ffi, act, "int *"),
-            _ptr(ffi, todo, "int *"), _ptr(ffi, Z, dp))
+            n, self.d ** 2, self.m, buf(ffi, sigma), buf(ffi, H), buf(ffi, kappa), k, self.l1,
+            self.l2, buf(ffi, self.C), buf(ffi, self.M), buf(ffi, self.AV), buf(ffi, self.V),
+            buf(ffi, self.lam), buf(ffi, self.flat), buf(ffi, self.from_), self.rtol,
+            self.max_iter, len(self.glam), buf(ffi, self.glam), buf(ffi, self.group),
+            buf(ffi, act), buf(ffi, todo), buf(ffi, Z))

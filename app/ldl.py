@@ -119,9 +119,8 @@ def factor(module, A: sp.csr_matrix, perm: np.ndarray) -> tuple[sp.csc_matrix, n
     Ax = np.ascontiguousarray(A.data, dtype=float)
     P = np.ascontiguousarray(perm, dtype=i)
     nnz, status = ffi.new("long *"), ffi.new("int *")
-    h = lib.ldl_factor(n, ffi.from_buffer("int[]", Ap), ffi.from_buffer("int[]", Ai),
-                       ffi.from_buffer("double[]", Ax), ffi.from_buffer("int[]", P), nnz,
-                       status)
+    buf = kernels.buf
+    h = lib.ldl_factor(n, buf(ffi, Ap), buf(ffi, Ai), buf(ffi, Ax), buf(ffi, P), nnz, status)
     if h == ffi.NULL:
         if status[0] == 1:
             raise NotPositiveDefinite("CHOLMOD: the matrix is not positive definite")
@@ -129,8 +128,7 @@ def factor(module, A: sp.csr_matrix, perm: np.ndarray) -> tuple[sp.csc_matrix, n
     try:
         Lp, Li = np.empty(n + 1, dtype=i), np.empty(nnz[0], dtype=i)
         Lx = np.empty(nnz[0])
-        lib.ldl_extract(h, ffi.from_buffer("int[]", Lp), ffi.from_buffer("int[]", Li),
-                        ffi.from_buffer("double[]", Lx))
+        lib.ldl_extract(h, buf(ffi, Lp), buf(ffi, Li), buf(ffi, Lx))
     finally:
         lib.ldl_free(h)
     D = Lx[Lp[:-1]].copy()                 # monotonic, sorted: the diagonal comes first

@@ -124,7 +124,7 @@ def g_last_factor(A: sp.csr_matrix, G: np.ndarray, bs: int = 1):
     return GLastLU(A, G, bs)
 
 
-def flexibility(factor: GLastLU) -> np.ndarray:
+def flexibility(factor: GLastLU | GLastLDL) -> np.ndarray:
     """Z_GG = U_GG^-1 L_GG^-1 (symmetrised) from a G-last factorisation."""
     L_GG, U_GG = factor.trailing()
     Z = sl.solve_triangular(U_GG, sl.solve_triangular(L_GG, np.eye(factor.m), lower=True,

@@ -95,20 +95,14 @@ class StrainOperator:
 
     def _cell_pass(self, u, H=None, sigma=None, vm=None) -> float:
         """kernels.cell_pass on the owned cells; returns this rank's ||eps(u)||^2."""
-        ffi, n = self.mod.ffi, self.n_owned
-        dd = self.d * self.d
-
-        def buf(a):
-            return ffi.NULL if a is None else ffi.from_buffer("double[]", a)
+        ffi, n, dd = self.mod.ffi, self.n_owned, self.d * self.d
         dofs, Dx = self._cells
-        sums = np.zeros(2)
-        self.mod.lib.cell_pass(
-            n, self.d, dofs.shape[1], ffi.from_buffer("int[]", dofs), buf(Dx), buf(self.vol),
-            self.lmbda, self.two_mu, buf(u.x.array),
-            buf(None if H is None else H.x.array[:n * dd]),
-            buf(None if sigma is None else sigma.x.array[:n * dd]),
-            buf(None if vm is None else vm.x.array[:n]), buf(sums))
-        return float(sums[0])
+        return self.mod.lib.cell_pass(
+            n, self.d, kernels.buf(ffi, dofs), kernels.buf(ffi, Dx), kernels.buf(ffi, self.vol),
+            self.lmbda, self.two_mu, kernels.buf(ffi, u.x.array),
+            kernels.buf(ffi, None if H is None else H.x.array[:n * dd]),
+            kernels.buf(ffi, None if sigma is None else sigma.x.array[:n * dd]),
+            kernels.buf(ffi, None if vm is None else vm.x.array[:n]))
 
     def update_sigma(self, u, H, sigma, vm=None) -> bool:
         """sigma = E eps(u) + H on the owned cells, ghosts by scatter.  With the compiled
@@ -144,11 +138,9 @@ class StrainOperator:
             dofs, Dx = self._cells
             w.x.array[:] = 0.0
             n, dd = self.n_owned, self.d * self.d
-            self.mod.lib.cell_load(n, dd, dofs.shape[1],
-                                   ffi.from_buffer("int[]", dofs),
-                                   ffi.from_buffer("double[]", Dx),
-                                   ffi.from_buffer("double[]", H.x.array[:n * dd]),
-                                   ffi.from_buffer("double[]", w.x.array))
+            self.mod.lib.cell_load(n, self.d, kernels.buf(ffi, dofs), kernels.buf(ffi, Dx),
+                                   kernels.buf(ffi, H.x.array[:n * dd]),
+                                   kernels.buf(ffi, w.x.array))
             w.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
             b.axpy(-1.0, w.vector)
             return
