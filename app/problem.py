@@ -248,10 +248,15 @@ class ContactProblem:
         return lb, ub
 
     # ------------------------------------------------------------------ derived quantities
-    def update_sigma(self) -> None:
-        """sigma_n = E eps(u_n) + H_n (3.2) and its von Mises norm, per cell."""
-        if not self.strain_operator.update_sigma(self.u, self.H, self.sigma, self.sigma_vm):
+    def update_sigma(self) -> tuple[float, float] | None:
+        """sigma_n = E eps(u_n) + H_n (3.2) and its von Mises norm, per cell.  Returns
+        (||u_n||_V, ||sigma_n||_Q) where the compiled cell pass computed them on the way (the
+        step record's norms without a second pass), else None."""
+        sums = self.strain_operator.update_sigma(self.u, self.H, self.sigma, self.sigma_vm)
+        if sums is None:
             self.update_vm()
+            return None
+        return float(np.sqrt(max(sums[0], 0.0))), float(np.sqrt(max(sums[1], 0.0)))
 
     def update_vm(self) -> None:
         self.sigma_vm.x.array[:] = self.law.von_mises(self.law.to_voigt(self.sigma.x.array))

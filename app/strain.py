@@ -10,7 +10,7 @@ one an assembly of the pre-stress load (H_n, eps(v)) of (3.4) in every step, and
 
 With the compiled kernels (kernels.cell_pass, cell_load) the same operator D is applied cell
 by cell from its rows, (d + 1) d entries per row at the cell's dofs: sigma, its von Mises
-norm and ||eps(u)||^2 in one pass, D^T H in another (at h = 1/128: about 3 ms per step
+norm and the squared norms ||eps(u)||^2, ||sigma||_Q^2 in one pass, D^T H in another (at h = 1/128: about 3 ms per step
 against 6 for the PETSc products, the numpy von Mises norm and the A-norm).  The PETSc
 products stay the reference (tests/unit/test_strain.py) and the fallback.
 """
@@ -93,36 +93,40 @@ class StrainOperator:
         return (np.ascontiguousarray(local, dtype=np.intc),
                 np.ascontiguousarray(data, dtype=float))
 
-    def _cell_pass(self, u, H=None, sigma=None, vm=None) -> float:
-        """kernels.cell_pass on the owned cells; returns this rank's ||eps(u)||^2."""
+    def _cell_pass(self, u, H=None, sigma=None, vm=None) -> tuple[float, float]:
+        """kernels.cell_pass on the owned cells; returns this rank's ||eps(u)||^2 and (with
+        sigma) ||sigma||_Q^2 (else 0)."""
         ffi, n, dd = self.mod.ffi, self.n_owned, self.d * self.d
         dofs, Dx = self._cells
-        return self.mod.lib.cell_pass(
+        ss = ffi.new("double *")
+        e2 = self.mod.lib.cell_pass(
             n, self.d, kernels.buf(ffi, dofs), kernels.buf(ffi, Dx), kernels.buf(ffi, self.vol),
             self.lmbda, self.two_mu, kernels.buf(ffi, u.x.array),
             kernels.buf(ffi, None if H is None else H.x.array[:n * dd]),
             kernels.buf(ffi, None if sigma is None else sigma.x.array[:n * dd]),
-            kernels.buf(ffi, None if vm is None else vm.x.array[:n]))
+            kernels.buf(ffi, None if vm is None else vm.x.array[:n]), ss)
+        return e2, ss[0]
 
-    def update_sigma(self, u, H, sigma, vm=None) -> bool:
+    def update_sigma(self, u, H, sigma, vm=None) -> tuple[float, float] | None:
         """sigma = E eps(u) + H on the owned cells, ghosts by scatter.  With the compiled
-        kernel also vm = ||sigma||_VM (a DG0 function), and True is returned."""
+        kernel also vm = ||sigma||_VM (a DG0 function), and the pass's global sums
+        (||eps(u)||_L2^2, ||sigma||_Q^2) are returned (else None)."""
         if self._cells is not None and vm is not None:
-            self._cell_pass(u, H, sigma, vm)
+            sums = self.comm.allreduce(np.array(self._cell_pass(u, H, sigma, vm)), op=MPI.SUM)
             sigma.x.scatter_forward()
             vm.x.scatter_forward()
-            return True
+            return float(sums[0]), float(sums[1])
         if H is None:
             self.D_sigma.mult(u.vector, sigma.vector)
         else:
             self.D_sigma.multAdd(u.vector, H.vector, sigma.vector)
         sigma.x.scatter_forward()
-        return False
+        return None
 
     def strain_norm2(self, u) -> float:
         """||eps(u)||_L2^2 (global: reduced over the ranks)."""
         if self._cells is not None:
-            return self.comm.allreduce(self._cell_pass(u), op=MPI.SUM)
+            return self.comm.allreduce(self._cell_pass(u)[0], op=MPI.SUM)
         self.A.mult(u.vector, self._b)
         return self._b.dot(u.vector)
 

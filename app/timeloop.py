@@ -84,12 +84,15 @@ def make_solver(case: Case, problem):
     return SNESVISolver(problem, case.petsc)
 
 
-def _step_record(problem, history, n, t, its, wall):
+def _step_record(problem, history, n, t, its, wall, norms=None):
+    """The step's line of summary.json; ``norms`` = (||u||_V, ||sigma||_Q) if the stress
+    update computed them already (problem.update_sigma), else they are computed here."""
     kappa = history.kappa if history else None
+    norm_u, norm_sigma = norms or (problem.norm("V"), problem.norm("Q"))
     return {
         "n": n, "t": t,
-        "norm_u_V": problem.norm("V"),
-        "norm_sigma_Q": problem.norm("Q"),
+        "norm_u_V": norm_u,
+        "norm_sigma_Q": norm_sigma,
         "norm_kappa_Y": problem.cell_norm(kappa) if kappa else 0.0,
         "max_vm": problem.cell_max(problem.sigma_vm),
         "max_kappa": problem.cell_max(kappa) if kappa else 0.0,
@@ -232,11 +235,11 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
                 break
             n, t = n + 1, t_new
             stepper.accept(k, its)
-            if history:
-                history.after_solve(problem)        # sigma_n (explicit: E eps(u_n) + H_n, (3.2))
+            if history:                             # sigma_n (explicit: E eps(u_n) + H_n, (3.2))
+                norms = history.after_solve(problem)
             else:
-                problem.update_sigma()
-            rec = _step_record(problem, history, n, t, its, time.perf_counter() - t0)
+                norms = problem.update_sigma()
+            rec = _step_record(problem, history, n, t, its, time.perf_counter() - t0, norms)
             rec["k"] = k
             if g3:
                 rec["gamma3_history_s"] = t_g3      # memory term / slip update of this step

@@ -1,4 +1,4 @@
-"""fastsolver._newton_direction: the free block's Newton system, solved in place."""
+"""fastsolver: the free block's Newton system, solved in place; the Gamma3 start guess."""
 import numpy as np
 
 from app.fastsolver import _newton_direction
@@ -23,3 +23,27 @@ def test_direction_solves_the_free_block():
 def test_indefinite_matrix_gives_none():
     H = np.diag([1.0, -1.0, 2.0])
     assert _newton_direction(H, np.ones(3), np.zeros(3, dtype=bool)) is None
+
+
+def test_start_extrapolates_the_last_two_steps():
+    """FastStepSolver._start: y0 at the first step, the last solution after one step or a
+    restart (no time), the linear extrapolation in time after two steps (any step sizes)."""
+    from types import SimpleNamespace
+
+    from app.fastsolver import FastStepSolver
+
+    clock = SimpleNamespace(value=0.1)
+    solver = SimpleNamespace(_y_prev=[], problem=SimpleNamespace(
+        time_data=SimpleNamespace(t=clock)))
+    y0 = np.array([5.0, 6.0])
+    assert np.array_equal(FastStepSolver._start(solver, y0), y0)
+    FastStepSolver._remember(solver, np.array([1.0, 2.0]))          # step at t = 0.1
+    clock.value = 0.3
+    assert np.array_equal(FastStepSolver._start(solver, y0), [1.0, 2.0])
+    FastStepSolver._remember(solver, np.array([2.0, 2.0]))          # step at t = 0.3
+    clock.value = 0.4                                                # k = 0.1 after k = 0.2
+    assert np.allclose(FastStepSolver._start(solver, y0), [2.5, 2.0], rtol=1e-15)
+    solver._y_prev = [(None, np.array([3.0, 1.0]))]                 # warm_start (restart)
+    FastStepSolver._remember(solver, np.array([4.0, 1.0]))
+    clock.value = 0.5
+    assert np.array_equal(FastStepSolver._start(solver, y0), [4.0, 1.0])

@@ -1,5 +1,6 @@
 """strain.StrainOperator: the compiled cell passes equal the PETSc products of the assembled
-operators (D_sigma u + H, D^T H, u^T A u) and the numpy von Mises norm, in 2D and 3D."""
+operators (D_sigma u + H, D^T H, u^T A u) and the numpy von Mises norm and Q-norm, in 2D and
+3D."""
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -46,7 +47,10 @@ def test_cell_passes_equal_the_assembled_operators(dim):
     b_ref.axpy(-1.0, op._b)
 
     p.sigma.x.array[:] = np.nan
-    assert op.update_sigma(p.u, p.H, p.sigma, p.sigma_vm)
+    e2, s2 = op.update_sigma(p.u, p.H, p.sigma, p.sigma_vm)
+    assert e2 == pytest.approx(e2_ref, rel=1e-13)                 # ||u||_V^2
+    s2_ref = float(op.vol @ np.sum(sigma_ref.reshape(len(op.vol), -1) ** 2, axis=1))
+    assert s2 == pytest.approx(s2_ref, rel=1e-13)                 # ||sigma||_Q^2
     scale = np.abs(sigma_ref).max()
     assert np.abs(p.sigma.x.array[:n] - sigma_ref).max() <= 1e-13 * scale
     assert np.abs(p.sigma_vm.x.array[:op.n_owned] - vm_ref).max() <= 1e-13 * scale
