@@ -24,4 +24,8 @@ from mpi4py import MPI as _MPI  # noqa: E402  (MPI_Init reads the settings now)
 for _var in _added:              # not inherited by child processes (mpirun -n 2 from here)
     del _os.environ[_var]
 
+from app.startup import install_pkg_resources_stand_in as _stand_in  # noqa: E402
+
+_stand_in()                      # before ufl/ffcx: see app/startup.py
+
 __version__ = "0.1.0"

@@ -1,3 +1,4 @@
 from app.cli import main
+from app.startup import quick_exit
 
-raise SystemExit(main())
+quick_exit(main())      # an exception propagates as usual (traceback, exit status 1)

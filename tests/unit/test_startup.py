@@ -20,3 +20,32 @@ def test_user_settings_win():
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                          text=True, check=True).stdout.strip()
     assert out == "self,vader"
+
+
+def test_pkg_resources_stand_in():
+    """ufl/ffcx get their versions without the real pkg_resources; any other use of it
+    loads the real module (app/startup.py)."""
+    code = ("import sys, app, ufl, ffcx; from importlib.metadata import version; "
+            "s = sys.modules['pkg_resources']; "
+            "print(ufl.__version__ == version('fenics-ufl'), "
+            "ffcx.__version__ == version('fenics-ffcx'), type(s).__name__); "
+            "import pkg_resources; "
+            "print(pkg_resources.parse_version('1.2') < pkg_resources.parse_version('1.10'), "
+            "type(sys.modules['pkg_resources']).__name__)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.split("\n")
+    assert out[0] == "True True _PkgResourcesStandIn"
+    assert out[1] == "True module"
+
+
+def test_quick_exit_flushes_and_finalises(tmp_path):
+    """quick_exit: the exit status, Python's buffered output, atexit handlers, and PETSc's
+    -log_view report (printed at PetscFinalize through C's stdio) all survive."""
+    code = ("import atexit, sys, app, petsc4py; petsc4py.init(['x', '-log_view']); "
+            "from petsc4py import PETSc; "
+            "atexit.register(lambda: print('atexit ran')); print('buffered', end=''); "
+            "from app.startup import quick_exit; quick_exit(3)")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert p.returncode == 3, p.stderr
+    assert p.stdout.startswith("buffered") and "atexit ran" in p.stdout
+    assert "PETSc Performance Summary" in p.stdout
