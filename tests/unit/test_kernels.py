@@ -88,3 +88,23 @@ def test_nodal_contact_equals_numpy(dim, terms):
     assert np.abs(g1 - g0).max() <= 1e-13 * np.abs(g0).max()
     assert np.abs(H1 - H0).max() <= 1e-13 * np.abs(H0).max()
     assert comp.evaluate(y, need_hessian=False)[2] is None
+
+
+@pytest.mark.parametrize("factor", [1.0, 1e3, 1e-3])
+def test_kernel_start_from_last_roots(factor):
+    """Each cell's root search starts from its root of the last call (PerzynaKernel.mu); a
+    start above or below the root gives the same update as the cold start."""
+    rng = np.random.default_rng(7)
+    law = Elasticity(1000.0, 0.4, 2)
+    t = rng.normal(size=(500, law.m))
+    sigma = from_voigt(t, 2).reshape(-1).copy()
+    kappa0 = law.von_mises(t) * rng.uniform(0.1, 0.9, size=500)     # all outside
+    kern = kernels.PerzynaKernel(law, VonMisesProjection(law), 100.0, 50.0, module)
+    H1, k1 = np.zeros(2000), kappa0.copy()
+    assert kern.advance(sigma, H1, k1, 0.01) == 0                   # cold: mu = 0 on entry
+    assert np.all(kern.mu > 0)
+    kern.mu *= factor
+    H2, k2 = np.zeros(2000), kappa0.copy()
+    assert kern.advance(sigma, H2, k2, 0.01) == 0
+    assert np.abs(H2 - H1).max() <= 1e-13 * np.abs(H1).max()
+    assert np.abs(k2 - k1).max() <= 1e-13 * np.abs(k1).max()
