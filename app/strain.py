@@ -9,10 +9,12 @@ one an assembly of the pre-stress load (H_n, eps(v)) of (3.4) in every step, and
 ||u||_V = ||eps(u)||_L2 and ||sigma||_Q are exact cell sums.
 
 With the compiled kernels (kernels.cell_pass, cell_load) the same operator D is applied cell
-by cell from its rows, (d + 1) d entries per row at the cell's dofs: sigma, its von Mises
-norm and the squared norms ||eps(u)||^2, ||sigma||_Q^2 in one pass, D^T H in another (at h = 1/128: about 3 ms per step
-against 6 for the PETSc products, the numpy von Mises norm and the A-norm).  The PETSc
-products stay the reference (tests/unit/test_strain.py) and the fallback.
+by cell from |c| grad phi_a of the cell's d + 1 vertex functions, read off D's rows (a quarter
+of their data): sigma, its von Mises norm and the squared norms ||eps(u)||^2, ||sigma||_Q^2 in
+one pass, D^T H in another.  At h = 1/128 they take about 1.0 and 0.4 ms per step (from D's
+rows 1.0-1.6 and 0.5-1.1 ms; the PETSc products, the numpy von Mises norm and the A-norm
+about 6 ms).  The PETSc products stay the reference (tests/unit/test_strain.py) and the
+fallback.
 """
 from __future__ import annotations
 
@@ -71,8 +73,10 @@ class StrainOperator:
         return M
 
     def _cell_rows(self, V):
-        """(dofs, Dx): per owned cell its nd local dofs and the dd x nd block of D, or None
-        if D does not have this regular structure."""
+        """(nodes, G): per owned cell its d + 1 vertices (local node numbers) and the rows
+        G_a = |c| grad phi_a, read off the assembled D (D_c[(i,j), (a,k)] =
+        (delta_ik G_aj + delta_jk G_ai) / 2) and checked against all of D_c; None if D does
+        not have this structure."""
         d = self.d
         dd, nd = d * d, (d + 1) * d
         indptr, indices, data = self.D.getValuesCSR()
@@ -88,19 +92,30 @@ class StrainOperator:
         order = np.argsort(l2g)
         glob = cols[:, 0, :].astype(np.int64)
         local = order[np.minimum(np.searchsorted(l2g, glob, sorter=order), len(l2g) - 1)]
-        if not np.array_equal(l2g[local], glob):
+        if bs != d or not np.array_equal(l2g[local], glob):
             return None
-        return (np.ascontiguousarray(local, dtype=np.intc),
-                np.ascontiguousarray(data, dtype=float))
+        vertices = local[:, ::d] // d                     # the dofs are node * d + k, by node
+        if not np.array_equal(local, (vertices[:, :, None] * d + np.arange(d)).reshape(-1, nd)):
+            return None
+        Dx = data.reshape(-1, dd, d + 1, d)                # [cell, (i, j), a, k]
+        G = np.stack([Dx[:, j * d + j, :, j] for j in range(d)], axis=2)  # |c| grad phi_a
+        tol, eye = 1e-13 * np.abs(data).max(initial=0.0), np.eye(d)
+        for i in range(d):
+            for j in range(d):
+                rebuilt = 0.5 * (G[:, :, j, None] * eye[i] + G[:, :, i, None] * eye[j])
+                if np.abs(Dx[:, i * d + j] - rebuilt).max(initial=0.0) > tol:
+                    return None
+        return (np.ascontiguousarray(vertices, dtype=np.intc),
+                np.ascontiguousarray(G, dtype=float))
 
     def _cell_pass(self, u, H=None, sigma=None, vm=None) -> tuple[float, float]:
         """kernels.cell_pass on the owned cells; returns this rank's ||eps(u)||^2 and (with
         sigma) ||sigma||_Q^2 (else 0)."""
         ffi, n, dd = self.mod.ffi, self.n_owned, self.d * self.d
-        dofs, Dx = self._cells
+        vertices, G = self._cells
         ss = ffi.new("double *")
         e2 = self.mod.lib.cell_pass(
-            n, self.d, kernels.buf(ffi, dofs), kernels.buf(ffi, Dx), kernels.buf(ffi, self.vol),
+            n, self.d, kernels.buf(ffi, vertices), kernels.buf(ffi, G), kernels.buf(ffi, self.vol),
             self.lmbda, self.two_mu, kernels.buf(ffi, u.x.array),
             kernels.buf(ffi, None if H is None else H.x.array[:n * dd]),
             kernels.buf(ffi, None if sigma is None else sigma.x.array[:n * dd]),
@@ -139,10 +154,10 @@ class StrainOperator:
         """b -= D^T H = (H, eps(v)) for all v (the pre-stress term of the step's load)."""
         if self._cells is not None:
             ffi, w = self.mod.ffi, self._work
-            dofs, Dx = self._cells
+            vertices, G = self._cells
             w.x.array[:] = 0.0
             n, dd = self.n_owned, self.d * self.d
-            self.mod.lib.cell_load(n, self.d, kernels.buf(ffi, dofs), kernels.buf(ffi, Dx),
+            self.mod.lib.cell_load(n, self.d, kernels.buf(ffi, vertices), kernels.buf(ffi, G),
                                    kernels.buf(ffi, H.x.array[:n * dd]),
                                    kernels.buf(ffi, w.x.array))
             w.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
