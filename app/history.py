@@ -51,11 +51,8 @@ class ViscoplasticHistory:
         on entry and kappa_n on exit.  All local cells (owned and ghost) are updated with the
         same data, so ghosts stay consistent without communication.
         """
-        if self.kernel is not None:
-            H, kappa = self.H.x.array, self.kappa.x.array
-            saved = H.copy(), kappa.copy()
-            if self.kernel.advance(sigma_prev.x.array, H, kappa, k):
-                H[:], kappa[:] = saved                      # the state stays that of n - 1
+        if self.kernel is not None:         # writes nothing if it fails: the state of n - 1
+            if self.kernel.advance(sigma_prev.x.array, self.H.x.array, self.kappa.x.array, k):
                 raise RuntimeError("von Mises projection: secular equation did not converge")
             return
         t = self.elasticity.to_voigt(sigma_prev.x.array)

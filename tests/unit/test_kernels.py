@@ -108,3 +108,18 @@ def test_kernel_start_from_last_roots(factor):
     assert kern.advance(sigma, H2, k2, 0.01) == 0
     assert np.abs(H2 - H1).max() <= 1e-13 * np.abs(H1).max()
     assert np.abs(k2 - k1).max() <= 1e-13 * np.abs(k1).max()
+
+
+def test_kernel_failure_writes_nothing():
+    """If a cell's root search does not converge (here: one sweep allowed), the kernel says
+    so and leaves H and kappa as they were (the history keeps step n - 1)."""
+    rng = np.random.default_rng(3)
+    law = Elasticity(1000.0, 0.4, 2)
+    t = rng.normal(size=(50, law.m))
+    sigma = from_voigt(t, 2).reshape(-1).copy()
+    kappa = law.von_mises(t) * 0.5
+    H = rng.normal(size=200)
+    H0, kappa0 = H.copy(), kappa.copy()
+    kern = kernels.PerzynaKernel(law, VonMisesProjection(law), 1.0, 1.0, module, max_iter=1)
+    assert kern.advance(sigma, H, kappa, 0.1) > 0
+    assert np.array_equal(H, H0) and np.array_equal(kappa, kappa0)
