@@ -148,6 +148,9 @@ def _parser() -> argparse.ArgumentParser:
                    metavar="N", help="step counts of the memory-term cost runs "
                                      "(recursion vs direct sum; none: skip)")
     b.add_argument("--ranks", type=int, nargs="+", default=[1, 2])
+    b.add_argument("--repeat", type=int, default=3, metavar="R",
+                   help="measured runs per configuration, every solver alike; the fastest "
+                        "is reported, all are kept (default 3; the --extra levels run once)")
     b.add_argument("--out", default="results/bench", help="output directory")
     return p
 
@@ -360,7 +363,12 @@ def cmd_bench(args) -> int:
     print(f"vpcontact bench: {args.case}, levels {args.levels}, extra {extra}, ranks {args.ranks}")
     t0 = time.perf_counter()
     try:
-        rows = bm.bench(args.case, outdir, args.levels, nprocs=args.ranks, extra=extra)
+        if args.repeat < 1:
+            print(f"vpcontact: error: --repeat: {args.repeat} (allowed: 1 or more)",
+                  file=sys.stderr)
+            return 2
+        rows = bm.bench(args.case, outdir, args.levels, nprocs=args.ranks, extra=extra,
+                        repeat=args.repeat)
         memory = bm.memory_rows(outdir, steps=args.memory_steps) if args.memory_steps else []
     except RuntimeError as exc:
         print(f"vpcontact: error: {exc}", file=sys.stderr)

@@ -8,7 +8,7 @@ from conftest import run_cli
 def test_bench_command(tmp_path):
     out = tmp_path / "bench"
     proc = run_cli(["bench", "--levels", "4", "8", "--extra", "--ranks", "1", "2",
-                    "--memory-steps", "8", "--out", out], timeout=900)
+                    "--memory-steps", "8", "--repeat", "2", "--out", out], timeout=900)
     assert proc.returncode == 0, proc.stderr
     data = json.loads((out / "bench.json").read_text())
     rows = data["solvers"]
@@ -19,6 +19,7 @@ def test_bench_command(tmp_path):
         expected = (1 if r["nprocs"] == 1 else 2) if r["method"] == "fast" else None
         assert r["factorisations"] == expected
         assert {"dofs", "wall_s", "setup_s", "step_median_s", "newton_total"} <= set(r)
+        assert len(r["wall_runs_s"]) == 2 and r["wall_s"] == min(r["wall_runs_s"])
     mem = data["memory_term"]
     assert {r["sum"] for r in mem} == {"recursion", "direct"}
     assert all(r["recursion_vs_direct_rel_diff"] < 1e-10 for r in mem)
