@@ -262,39 +262,33 @@ class FastStepSolver:
             else:
                 self.lb[:, comp] = -c.g
 
-    def gather_GG(self, local_rows: np.ndarray) -> np.ndarray:
-        """The m x m matrix (columns in G order) whose rows at this rank's owned Gamma3
-        positions are ``local_rows``, assembled on every rank."""
-        out = np.empty((self.m, self.m))
-        for pos, vals in self.comm.allgather((self._owned_positions, local_rows)):
+    def _place_on_all(self, positions, values, shape, dtype=float) -> np.ndarray:
+        """The array of ``shape`` whose entries at every rank's ``positions`` are that rank's
+        ``values``, assembled on every rank (collective)."""
+        out = np.empty(shape, dtype=dtype)
+        for pos, vals in self.comm.allgather((positions, values)):
             out[pos] = vals
         return out
 
+    def gather_GG(self, local_rows: np.ndarray) -> np.ndarray:
+        """The m x m matrix (columns in G order) whose rows at this rank's owned Gamma3
+        positions are ``local_rows``, assembled on every rank."""
+        return self._place_on_all(self._owned_positions, local_rows, (self.m, self.m))
+
     def global_G_dofs(self) -> np.ndarray:
         """The global dof (matrix row) of every Gamma3 dof, in G order, on every rank."""
-        out = np.empty(self.m, dtype=np.int32)
-        for pos, rows in self.comm.allgather((self._owned_positions, self._owned_rows)):
-            out[pos] = rows
-        return out
+        return self._place_on_all(self._owned_positions, self._owned_rows, self.m, np.int32)
 
     def _gather_G(self, vec) -> np.ndarray:
         """Values of a PETSc vector at the Gamma3 dofs, in G order, on every rank."""
-        local = vec.array_r[self.owned_dofs_local]
-        parts = self.comm.allgather((self._owned_positions, local))
-        out = np.empty(self.m)
-        for pos, val in parts:
-            out[pos] = val
-        return out
+        return self._place_on_all(self._owned_positions, vec.array_r[self.owned_dofs_local],
+                                  self.m)
 
     def _gather_nodal(self, field) -> np.ndarray:
         """A Gamma3 NodalField's values at the owned nodes, in G order, on every rank."""
         pos = np.searchsorted(self.problem.gamma3_local_nodes, self.problem.gamma3.nodes)
-        vals = field.function.x.array[field.dofs[pos]]
-        parts = self.comm.allgather((self.local_owned_g, vals))
-        out = np.empty(len(self.g_nodes))
-        for p_, v_ in parts:
-            out[p_] = v_
-        return out
+        return self._place_on_all(self.local_owned_g, field.function.x.array[field.dofs[pos]],
+                                  len(self.g_nodes))
 
     def _newton_matrix(self, Hn: np.ndarray) -> np.ndarray:
         """S plus the nodal d x d Hessian blocks Hn of the contact energy (a work array)."""
