@@ -29,7 +29,6 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-from scipy.linalg import lapack
 import ufl
 from dolfinx import fem
 from mpi4py import MPI
@@ -38,7 +37,7 @@ from petsc4py import PETSc
 from forms.elasticity import elasticity_operator, eps
 
 from .case import fast_eligible
-from . import kernels
+from . import dense, kernels
 from .schur import GLastLDL, flexibility, g_last_factor, gamma3_flexibility, gather_csr
 from .solver import StepFailure
 
@@ -46,29 +45,6 @@ log = logging.getLogger("vpcontact")
 
 
 eligible = fast_eligible
-
-
-def _newton_direction(H: np.ndarray, g: np.ndarray,
-                      binding: np.ndarray) -> np.ndarray | None:
-    """The projected Newton direction p: p = 0 on the binding dofs, H_ff p_f = -g_f on the
-    free ones, by Cholesky (H is positive definite where the step energy is strictly convex,
-    (2.6)); None if H_ff is not positive definite (the caller then tries LU, else steepest
-    descent).  The binding rows and columns of H are replaced by the identity in place (the
-    free block's system without extracting it); H is overwritten."""
-    gf = np.where(binding, 0.0, g)
-    if binding.any():
-        b = np.flatnonzero(binding)
-        H[b, :] = 0.0
-        H[:, b] = 0.0
-        H[b, b] = 1.0
-    A = H.T                        # symmetric: the F-ordered view, factorised in place
-    # (lower: OpenBLAS's L L^T takes 0.36 ms at m = 258 against 0.61 for U^T U, measured)
-    c, info = lapack.dpotrf(A, lower=True, clean=False, overwrite_a=True)
-    if info == 0:
-        p, info = lapack.dpotrs(c, gf, lower=True)
-        if info == 0:
-            return -p
-    return None
 
 
 class NodalContact:
@@ -242,17 +218,12 @@ class FastStepSolver:
         self.Z = Z
         self.S = np.linalg.inv(Z)
         self.S = 0.5 * (self.S + self.S.T)
-        self._H = np.empty_like(self.S)                  # the Newton matrix (work array)
+        self._direction = dense.NewtonDirection(self.S, d, dense.load())
         c = p.case.contact
         fr = c.friction
         self.contact = NodalContact(self.w, p.normal, c.c_nu,
                                     None if fr is None else (fr.b, fr.c1, fr.c2, fr.u1),
                                     p.case.numerics.delta, kernels.load())
-        # (row, column) in the m x m Hessian of every entry of the nodal d x d blocks
-        node = np.repeat(np.arange(len(self.g_nodes)), d * d)
-        a, b = np.tile(np.repeat(np.arange(d), d), len(self.g_nodes)), \
-            np.tile(np.arange(d), d * len(self.g_nodes))
-        self._blk_rows, self._blk_cols = node * d + a, node * d + b
         comp = int(np.argmax(np.abs(p.normal)))
         self.lb = np.full((len(self.g_nodes), d), -np.inf)
         self.ub = np.full((len(self.g_nodes), d), np.inf)
@@ -290,13 +261,6 @@ class FastStepSolver:
         return self._place_on_all(self.local_owned_g, field.function.x.array[field.dofs[pos]],
                                   len(self.g_nodes))
 
-    def _newton_matrix(self, Hn: np.ndarray) -> np.ndarray:
-        """S plus the nodal d x d Hessian blocks Hn of the contact energy (a work array)."""
-        H = self._H
-        np.copyto(H, self.S)
-        H[self._blk_rows, self._blk_cols] += Hn.ravel()
-        return H
-
     # ------------------------------------------------------------------ the step
     def _assemble_rhs(self):
         """b = F_n = f_n - B^T H_n (zero at the clamped dofs)."""
@@ -333,9 +297,9 @@ class FastStepSolver:
             if np.abs(pg).max() <= self.rtol * scale:
                 self._remember(y)
                 return y, it - 1
-            p = _newton_direction(self._newton_matrix(Hn), g, binding)
+            p = self._direction(Hn, g, binding)
             if p is None:                 # not positive definite here: LU, else -pg
-                H = self._newton_matrix(Hn)
+                H = self._direction.matrix(Hn)
                 f = np.flatnonzero(~binding)
                 p = np.zeros_like(y)
                 try:

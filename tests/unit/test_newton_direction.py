@@ -1,28 +1,52 @@
-"""fastsolver: the free block's Newton system, solved in place; the Gamma3 start guess."""
+"""dense.NewtonDirection: the free block's Newton system (compiled and numpy alike); the
+Gamma3 start guess."""
 import numpy as np
+import pytest
 
-from app.fastsolver import _newton_direction
+from app import dense
 
 
-def test_direction_solves_the_free_block():
-    rng = np.random.default_rng(0)
-    A = rng.normal(size=(12, 12))
-    H = A @ A.T + 12 * np.eye(12)
-    g = rng.normal(size=12)
-    binding = np.zeros(12, dtype=bool)
-    binding[[2, 7, 8]] = True
+def _directions(S, d):
+    out = [dense.NewtonDirection(S, d, None)]
+    module = dense.load()
+    if module is not None:
+        out.append(dense.NewtonDirection(S, d, module))
+    return out
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_direction_solves_the_free_block(d):
+    rng = np.random.default_rng(d)
+    m = 4 * d
+    A = rng.normal(size=(m, m))
+    S = A @ A.T + m * np.eye(m)
+    B = rng.normal(size=(m // d, d, d))
+    W = np.einsum("nij,nkj->nik", B, B)               # nodal blocks, positive semidefinite
+    H = S.copy()
+    for i in range(m // d):
+        H[i * d:(i + 1) * d, i * d:(i + 1) * d] += W[i]
+    g = rng.normal(size=m)
+    binding = np.zeros(m, dtype=bool)
+    binding[[1, d + 1, d + 2, m - 1]] = True          # parts of nodes, and whole ones
     f = np.flatnonzero(~binding)
-    p = _newton_direction(H.copy(), g, binding)
-    assert np.array_equal(p[binding], np.zeros(3))
     ref = np.linalg.solve(H[np.ix_(f, f)], -g[f])
-    assert np.abs(p[f] - ref).max() <= 1e-13 * np.abs(ref).max()
-    p_all = _newton_direction(H.copy(), g, np.zeros(12, dtype=bool))
-    assert np.abs(p_all - np.linalg.solve(H, -g)).max() <= 1e-13 * np.abs(p_all).max()
+    for direction in _directions(S, d):
+        assert np.abs(direction.matrix(W) - H).max() <= 1e-14 * np.abs(H).max()
+        p = direction(W, g, binding)
+        assert np.array_equal(p[binding], np.zeros(binding.sum()))
+        assert np.abs(p[f] - ref).max() <= 1e-13 * np.abs(ref).max()
+        p_all = direction(W, g, np.zeros(m, dtype=bool))
+        assert np.abs(p_all - np.linalg.solve(H, -g)).max() <= 1e-13 * np.abs(p_all).max()
+        assert np.array_equal(direction(W, g, np.ones(m, dtype=bool)), np.zeros(m))
 
 
 def test_indefinite_matrix_gives_none():
-    H = np.diag([1.0, -1.0, 2.0])
-    assert _newton_direction(H, np.ones(3), np.zeros(3, dtype=bool)) is None
+    S = np.diag([1.0, -1.0, 2.0, 3.0])
+    W = np.zeros((2, 2, 2))
+    for direction in _directions(S, 2):
+        assert direction(W, np.ones(4), np.zeros(4, dtype=bool)) is None
+        binding = np.array([False, True, False, False])   # the indefinite dof held
+        assert direction(W, np.ones(4), binding) is not None
 
 
 def test_start_extrapolates_the_last_two_steps():
