@@ -90,14 +90,16 @@ def trace_constant_bound(problem, solver) -> float | None:
     None if the solver has no condensed Gamma3 problem."""
     if not getattr(solver, "gamma3", False) or not hasattr(solver, "S"):
         return None
-    import scipy.linalg
     M = _gamma3_mass(problem)
     rows, cols = solver._owned_rows.astype(np.int32), solver.global_G_dofs()  # collective
     local = M.getValues(rows, cols) if len(rows) else np.zeros((0, solver.m))
     M.destroy()
     MG = solver.gather_GG(local)
     MG = 0.5 * (MG + MG.T)
-    lam_K = float(scipy.linalg.eigh(MG, solver.S, eigvals_only=True)[-1])
+    # the generalised eigenproblem by Cholesky, S = L L^T: lam(L^-1 M_G L^-T) (numpy only)
+    L = np.linalg.cholesky(solver.S)
+    C = np.linalg.solve(L, np.linalg.solve(L, MG).T)
+    lam_K = float(np.linalg.eigvalsh(0.5 * (C + C.T))[-1])
     return float(np.max(np.linalg.eigvals(problem.law.Cmat).real)) * lam_K
 
 

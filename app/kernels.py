@@ -590,9 +590,8 @@ class GLastSolve:
         self.bs = bs if bs in (1, 2, 3) and self.ni % bs == 0 else 1
         self.perm = factor.perm
         ffi, lib, i = module.ffi, module.lib, np.intc
-        L = factor.L
-        Lp, Li = L.indptr.astype(i), L.indices.astype(i)
-        Lx = np.ascontiguousarray(L.data)
+        Lp, Li = np.asarray(factor.Lp, dtype=i), np.asarray(factor.Li, dtype=i)
+        Lx = np.ascontiguousarray(factor.Lx, dtype=float)
         nbc, nbr = self.ni // self.bs, -(-self.n // self.bs)
         mark, slot = np.full(nbr, -1, dtype=i), np.empty(nbr, dtype=i)
         Bp = np.zeros(nbc + 1, dtype=i)

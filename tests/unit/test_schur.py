@@ -6,7 +6,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from app import ldl
-from app.schur import GLastLDL, GLastLU, gamma3_flexibility
+from app.schur import CSR, GLastLDL, GLastLU, gamma3_flexibility
 
 
 def _spd(n=60, seed=0):
@@ -15,6 +15,10 @@ def _spd(n=60, seed=0):
     A = sp.kron(lap, sp.eye(2)) + sp.kron(sp.eye(n), sp.csr_matrix(rng.random((2, 2)) * 0.1))
     A = (A + A.T) * 0.5 + sp.diags(rng.random(2 * n) + 0.5)
     return A.tocsr()
+
+
+def _csr(A):
+    return CSR(A.indptr, A.indices, A.data)
 
 
 def test_flexibility_equals_dense_inverse():
@@ -31,7 +35,7 @@ def test_flexibility_equals_dense_inverse():
 def test_g_last_factors_reproduce_the_matrix():
     A = _spd(40, seed=1)
     G = np.array([5, 6, 70])
-    f = GLastLU(A, G)
+    f = GLastLU(_csr(A), G)
     assert list(f.perm[-3:]) == list(G)
     assert sorted(f.perm) == list(range(A.shape[0]))
     Ap = A[f.perm][:, f.perm].toarray()
@@ -40,22 +44,23 @@ def test_g_last_factors_reproduce_the_matrix():
 
 def _factor(kind, A, G, bs):
     if kind == "superlu":
-        return GLastLU(A, G, bs)
+        return GLastLU(_csr(A), G, bs)
     module = ldl.load()
     if module is None:
         pytest.skip("CHOLMOD not available")
-    return GLastLDL(A, G, bs, module)
+    return GLastLDL(_csr(A), G, bs, module)
 
 
 def test_cholmod_ldl_reproduces_the_matrix_in_the_given_order():
     A = _spd(40, seed=1)
     G = np.array([5, 6, 70])
     f = _factor("cholmod", A, G, 1)
-    lu = GLastLU(A, G, 1)
+    lu = GLastLU(_csr(A), G, 1)
     assert np.array_equal(f.perm, lu.perm)
     Ap = A[f.perm][:, f.perm].toarray()
-    assert np.array_equal(f.L.diagonal(), np.ones(A.shape[0]))
-    LDLt = (f.L @ sp.diags(f.D) @ f.L.T).toarray()
+    L = sp.csc_matrix((f.Lx, f.Li, f.Lp), shape=A.shape)
+    assert np.array_equal(L.diagonal(), np.ones(A.shape[0]))
+    LDLt = (L @ sp.diags(f.D) @ L.T).toarray()
     assert np.abs(LDLt - Ap).max() <= 1e-13 * np.abs(Ap).max()
     assert np.abs(f.D - lu.D).max() <= 1e-13 * np.abs(lu.D).max()     # SuperLU's pivots
 
@@ -66,7 +71,7 @@ def test_cholmod_refuses_an_indefinite_matrix():
         pytest.skip("CHOLMOD not available")
     A = sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 1.0]]))
     with pytest.raises(ldl.NotPositiveDefinite):
-        ldl.factor(module, A, np.arange(2))
+        ldl.Factor(module, A.indptr, A.indices, A.data, np.arange(2))
 
 
 @pytest.mark.parametrize("kind", ["superlu", "cholmod"])
@@ -104,3 +109,23 @@ def test_split_solve_with_given_gamma3_values(bs, kind):
     res = (Ad @ u - b)[interior]
     assert np.abs(res).max() <= 1e-12 * (np.abs(Ad).max() * np.abs(u).max())
     assert np.array_equal(r, r2)
+
+
+@pytest.mark.parametrize("bs", [1, 2])
+def test_interior_graph_is_the_nonzero_pattern(bs):
+    """schur._interior_graph (numpy) against scipy: the pattern of the nonzero entries of
+    A_II, of its nodes for bs = 2 (a node pair is an edge if any entry of the block is
+    nonzero); stored zeros (Dirichlet rows) are no edges."""
+    from app.schur import _interior_graph
+    A = _spd(30, seed=4)
+    row = slice(A.indptr[8], A.indptr[9])           # a Dirichlet-like row: stored zeros
+    A.data[row] = np.where(A.indices[row] == 8, 1.0, 0.0)
+    assert np.count_nonzero(A.data == 0.0) > 0
+    G = np.array([0, 1, 40, 41])
+    I = np.setdiff1d(np.arange(A.shape[0]), G)
+    indptr, indices = _interior_graph(_csr(A), I, bs)
+    P = sp.csr_matrix((np.ones(len(I)), (np.arange(len(I)), np.arange(len(I)) // bs)))
+    ref = (P.T @ abs(A[I][:, I]) @ P).tocsr()
+    ref.eliminate_zeros()
+    ref.sort_indices()
+    assert np.array_equal(indptr, ref.indptr) and np.array_equal(indices, ref.indices)
