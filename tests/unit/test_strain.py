@@ -59,3 +59,16 @@ def test_cell_passes_equal_the_assembled_operators(dim):
     b.set(0.0)
     op.pre_stress_load(p.H, b)
     assert np.abs(b.array_r - b_ref.array_r).max() <= 1e-13 * np.abs(b_ref.array_r).max()
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_batched_inverse(d):
+    """strain._inverse (adjugates) against numpy's LAPACK inverse, for sheared, stretched
+    and reflected (det < 0) cells."""
+    from app.strain import _inverse
+    rng = np.random.default_rng(d)
+    J = rng.normal(size=(200, d, d)) + 3 * np.eye(d)
+    J[::3] *= 1e-3                                   # small cells
+    J[1::3, :, 0] *= -1                              # reflected
+    ref = np.linalg.inv(J)
+    assert np.abs(_inverse(J) - ref).max() <= 1e-12 * np.abs(ref).max()
