@@ -577,6 +577,12 @@ def buf(ffi, a: np.ndarray | None):
     return ffi.from_buffer(_CTYPES[a.dtype], a)        # refuses non-contiguous arrays
 
 
+def block_size(bs: int, ni: int) -> int:
+    """The block size of L's interior columns (GLastSolve): a node's bs dofs if the ni
+    interior dofs are whole nodes, else 1."""
+    return bs if bs in (1, 2, 3) and ni % bs == 0 else 1
+
+
 class GLastSolve:
     """u = K^-1 (b + E_G lambda) in one forward and one backward sweep, with the Gamma3 values
     y = u_G found in between (fastsolver.py): with K = L D L^T ordered interior first, G last,
@@ -590,24 +596,30 @@ class GLastSolve:
     def __init__(self, factor, module, bs: int = 1):
         self.mod, self.n, self.m = module, factor.n, factor.m
         self.ni = self.n - self.m
-        self.bs = bs if bs in (1, 2, 3) and self.ni % bs == 0 else 1
         self.perm = factor.perm
         ffi, lib, i = module.ffi, module.lib, np.intc
-        Lp, Li = np.asarray(factor.Lp, dtype=i), np.asarray(factor.Li, dtype=i)
-        Lx = np.ascontiguousarray(factor.Lx, dtype=float)
-        nbc, nbr = self.ni // self.bs, -(-self.n // self.bs)
-        mark, slot = np.full(nbr, -1, dtype=i), np.empty(nbr, dtype=i)
-        Bp = np.zeros(nbc + 1, dtype=i)
-        args = (buf(ffi, Lp), buf(ffi, Li), buf(ffi, Lx))
-        lib.ldl_blocks(self.bs, nbc, *args, buf(ffi, Bp), ffi.NULL, ffi.NULL, ffi.NULL,
-                       buf(ffi, mark), buf(ffi, slot))
-        np.cumsum(Bp, out=Bp)
-        b2 = self.bs * self.bs
-        self.Bp, self.Bi = Bp, np.empty(max(int(Bp[-1]), 1), dtype=i)
-        self.Bx, self.Ld = np.zeros(max(int(Bp[-1]), 1) * b2), np.zeros(max(nbc, 1) * b2)
-        mark.fill(-1)
-        lib.ldl_blocks(self.bs, nbc, *args, buf(ffi, Bp), buf(ffi, self.Bi),
-                       buf(ffi, self.Bx), buf(ffi, self.Ld), buf(ffi, mark), buf(ffi, slot))
+        blocks = getattr(factor, "blocks", None)
+        if blocks is not None:              # made by the factorisation (ldl.Factor)
+            self.bs, nbc, self.Bp, self.Bi, self.Bx, self.Ld = blocks
+            self._factor = factor           # Bx may live in CHOLMOD's memory
+        else:                               # from L in CSC (SuperLU)
+            self.bs = block_size(bs, self.ni)
+            Lp, Li = np.asarray(factor.Lp, dtype=i), np.asarray(factor.Li, dtype=i)
+            Lx = np.ascontiguousarray(factor.Lx, dtype=float)
+            nbc, nbr = self.ni // self.bs, -(-self.n // self.bs)
+            mark, slot = np.full(nbr, -1, dtype=i), np.empty(nbr, dtype=i)
+            Bp = np.zeros(nbc + 1, dtype=i)
+            args = (buf(ffi, Lp), buf(ffi, Li), buf(ffi, Lx))
+            lib.ldl_blocks(self.bs, nbc, *args, buf(ffi, Bp), ffi.NULL, ffi.NULL, ffi.NULL,
+                           buf(ffi, mark), buf(ffi, slot))
+            np.cumsum(Bp, out=Bp)
+            b2 = self.bs * self.bs
+            self.Bp, self.Bi = Bp, np.empty(max(int(Bp[-1]), 1), dtype=i)
+            self.Bx, self.Ld = np.zeros(max(int(Bp[-1]), 1) * b2), np.zeros(max(nbc, 1) * b2)
+            mark.fill(-1)
+            lib.ldl_blocks(self.bs, nbc, *args, buf(ffi, Bp), buf(ffi, self.Bi),
+                           buf(ffi, self.Bx), buf(ffi, self.Ld), buf(ffi, mark),
+                           buf(ffi, slot))
         self.nbc = nbc
         self.dinv = 1.0 / np.asarray(factor.D)[:self.ni]
         self.x = np.empty(self.n)

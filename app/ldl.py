@@ -2,10 +2,15 @@
 
 The fast solver factorises the symmetric positive definite elasticity matrix once per run
 with the Gamma3 dofs ordered last (schur.py).  SuperLU (scipy) computes L and U, twice the
-work of a Cholesky factorisation; CHOLMOD's supernodal Cholesky, turned into the simplicial
-L D L^T form at the end, gives the same L and D = diag(U) in a fraction of the time (at
-h = 1/128, 33,282 dofs: see schur.GLastLDL).  The order is the caller's: CHOLMOD_GIVEN
-without postordering, and the factor's permutation is checked against it.
+work of a Cholesky factorisation; CHOLMOD's supernodal Cholesky L L^T gives the same L D L^T
+(L_ldl = L D^-1/2, D = diag(L)^2) in a fraction of the time (at h = 1/128, 33,282 dofs: see
+schur.GLastLDL).  The order is the caller's: CHOLMOD_GIVEN without postordering, and the
+factor's permutation is checked against it.  The supernodal factor is not converted to
+CHOLMOD's simplicial form: its interior columns go straight into the node blocks of the
+split solve (kernels.GLastSolve), written over CHOLMOD's own value array, and the trailing
+Gamma3 block L_GG is read out densely (at h = 1/128: 13 ms of conversion, 33 + 22 MB of
+fresh memory and 30-50 ms of block building from the simplicial copy saved; set-up faults
+18.3k -> 11.0k, measured).
 
 The wrapper is compiled with cffi like kernels.py and linked to libcholmod; where that is
 not possible (no headers, no compiler) ``load`` returns None and SuperLU is used.
@@ -18,8 +23,10 @@ from . import kernels
 
 CDEF = """
 void *ldl_factor(int n, const int *Ap, const int *Ai, const double *Ax, const int *perm,
-                 long *nnz, int *status);
-void ldl_arrays(void *handle, int **Lp, int **Li, double **Lx);
+                 int *status);
+int ldl_blocks_super(void *handle, int bs, int nbc, int m, int *Bp, int *Bi, double *Bx,
+                     double *Ld, double *D, double *LGG, int *mark, int *slot);
+double *ldl_values(void *handle);
 void ldl_free(void *handle);
 """
 
@@ -40,10 +47,11 @@ void ldl_free(void *handle)
 }
 
 /* A (n x n, CSC; only its lower triangle is read: a symmetric CSR matrix is its own CSC)
-   = P^T L D L^T P with the given order perm (position j <- dof perm[j]).  status: 0 ok,
-   1 not positive definite, 2 CHOLMOD changed the order, 3 CHOLMOD failed. */
+   = P^T L L^T P, CHOLMOD's supernodal factor, in the given order perm (position j <- dof
+   perm[j]).  status: 0 ok, 1 not positive definite, 2 CHOLMOD changed the order,
+   3 CHOLMOD failed. */
 void *ldl_factor(int n, const int *Ap, const int *Ai, const double *Ax, const int *perm,
-                 long *nnz, int *status)
+                 int *status)
 {
     ldl_handle *h = calloc(1, sizeof *h);
     *status = 3;
@@ -54,10 +62,8 @@ void *ldl_factor(int n, const int *Ap, const int *Ai, const double *Ax, const in
     h->c.nmethods = 1;
     h->c.method[0].ordering = CHOLMOD_GIVEN;
     h->c.postorder = 0;                       /* keep the given order (Gamma3 last) */
-    h->c.final_ll = 0;                        /* L D L^T, unit diagonal L ... */
-    h->c.final_super = 0;                     /* ... simplicial, packed, monotonic CSC */
-    h->c.final_pack = 1;
-    h->c.final_monotonic = 1;
+    h->c.supernodal = CHOLMOD_SUPERNODAL;     /* kept as it is: no simplicial copy */
+    h->c.final_asis = 1;
     cholmod_sparse A;
     memset(&A, 0, sizeof A);
     A.nrow = A.ncol = n;
@@ -75,23 +81,122 @@ void *ldl_factor(int n, const int *Ap, const int *Ai, const double *Ax, const in
     if (h->c.status == CHOLMOD_NOT_POSDEF || h->L->minor < (size_t)n) {
         *status = 1; ldl_free(h); return NULL;
     }
-    if (h->c.status < CHOLMOD_OK) { ldl_free(h); return NULL; }
-    if (h->L->is_super || h->L->is_ll || !h->L->is_monotonic)
-        cholmod_change_factor(CHOLMOD_REAL, 0, 0, 1, 1, h->L, &h->c);
-    if (h->c.status < CHOLMOD_OK || h->L->is_super || h->L->is_ll) { ldl_free(h); return NULL; }
-    *nnz = ((const int *)h->L->p)[n];
+    if (h->c.status < CHOLMOD_OK || !h->L->is_super || !h->L->is_ll) {
+        ldl_free(h); return NULL;
+    }
     *status = 0;
     return h;
 }
 
-/* The arrays of L (unit lower, with D stored on its diagonal, CSC: the simplicial L D L^T
-   form), in place: valid until ldl_free(handle). */
-void ldl_arrays(void *handle, int **Lp, int **Li, double **Lx)
+/* CHOLMOD's value array of the supernodal factor (xsize doubles). */
+double *ldl_values(void *handle)
 {
-    ldl_handle *h = handle;
-    *Lp = h->L->p;
-    *Li = h->L->i;
-    *Lx = h->L->x;
+    return ((ldl_handle *)handle)->L->x;
+}
+
+/* The L D L^T form of the supernodal L L^T (L_ldl = L D^-1/2, D = diag(L)^2): D (n), the
+   dense unit lower L_GG of the last m columns (row-major), and the first nbc block columns
+   (bs columns each) in the block form of kernels.ldl_blocks (Bp, Bi, Bx, Ld; exact zeros,
+   e.g. of CHOLMOD's relaxed supernodes, skipped).  Supernode sn holds the columns
+   super[sn] .. super[sn+1]-1 as a dense column-major panel of nsrow = pi[sn+1] - pi[sn]
+   rows s[pi[sn]..] (the diagonal block's rows first) at x + px[sn].
+   With Bi == NULL it only counts: D, L_GG, Bp[J + 1] = the blocks of column J, and returns
+   1 if Bx may be CHOLMOD's own value array (every block column's blocks end before the next
+   column's panel starts, so the values are read before they are overwritten), else 0.
+   Then the caller makes Bp cumulative, and calls again with Bi (Bx: a new array, or
+   ldl_values()).  mark, slot: one int per block row, all -1 on entry.  Returns -1 if out
+   of memory. */
+int ldl_blocks_super(void *handle, int bs, int nbc, int m, int *Bp, int *Bi, double *Bx,
+                     double *Ld, double *D, double *LGG, int *mark, int *slot)
+{
+    const cholmod_factor *L = ((ldl_handle *)handle)->L;
+    const int n = (int)L->n, nsuper = (int)L->nsuper, ni = n - m, b2 = bs * bs;
+    const int *super = L->super, *pi = L->pi, *px = L->px, *s = L->s;
+    double *x = L->x;
+    int *sn_of = malloc((size_t)n * sizeof(int)), maxrow = 0;
+    if (!sn_of) return -1;
+    for (int sn = 0; sn < nsuper; ++sn) {
+        for (int j = super[sn]; j < super[sn + 1]; ++j) sn_of[j] = sn;
+        if (pi[sn + 1] - pi[sn] > maxrow) maxrow = pi[sn + 1] - pi[sn];
+    }
+#define COLUMN(j, sn, off, nsrow) const int sn = sn_of[j], off = (j) - super[sn],         \
+    nsrow = pi[sn + 1] - pi[sn]
+    int in_place = 1;
+    if (!Bi) {
+        for (int j = 0; j < n; ++j) {                       /* D, L_GG */
+            COLUMN(j, sn, off, nsrow);
+            const double *v = x + px[sn] + (size_t)off * nsrow;
+            const double ljj = v[off];
+            D[j] = ljj * ljj;
+            if (j >= ni)
+                for (int q = off; q < nsrow; ++q)
+                    LGG[(size_t)(s[pi[sn] + q] - ni) * m + (j - ni)] = q == off ? 1.0
+                                                                       : v[q] / ljj;
+        }
+        long out = 0;
+        for (int J = 0; J < nbc; ++J) {
+            int count = 0;
+            for (int a = 0; a < bs; ++a) {
+                const int j = bs * J + a;
+                COLUMN(j, sn, off, nsrow);
+                const double *v = x + px[sn] + (size_t)off * nsrow;
+                for (int q = off + 1; q < nsrow; ++q) {
+                    const int I = s[pi[sn] + q] / bs;
+                    if (I == J || v[q] == 0.0 || mark[I] == J) continue;
+                    mark[I] = J;
+                    ++count;
+                }
+            }
+            Bp[J + 1] = count;
+            out += (long)count * b2;
+            if (bs * (J + 1) < n) {                         /* the next column's panel */
+                const int j = bs * (J + 1);
+                COLUMN(j, sn, off, nsrow);
+                in_place &= out <= (long)px[sn] + (long)off * nsrow;
+            }
+        }
+        free(sn_of);
+        return in_place;
+    }
+    /* fill: each block column's values are copied out first (they may be overwritten) */
+    double *tv = malloc((size_t)bs * maxrow * sizeof(double)), tl[3];
+    int *tr = malloc((size_t)bs * maxrow * sizeof(int)), tn[3];
+    if (!tv || !tr) { free(sn_of); free(tv); free(tr); return -1; }
+    for (int J = 0; J < nbc; ++J) {
+        for (int a = 0; a < bs; ++a) {
+            const int j = bs * J + a;
+            COLUMN(j, sn, off, nsrow);
+            const double *v = x + px[sn] + (size_t)off * nsrow;
+            tl[a] = v[off];
+            tn[a] = nsrow - off - 1;
+            for (int q = off + 1; q < nsrow; ++q) {
+                tr[a * maxrow + q - off - 1] = s[pi[sn] + q];
+                tv[a * maxrow + q - off - 1] = v[q];
+            }
+        }
+        for (size_t q = (size_t)Bp[J] * b2; q < (size_t)Bp[J + 1] * b2; ++q) Bx[q] = 0.0;
+        int count = 0;
+        for (int a = 0; a < bs; ++a)
+            for (int q = 0; q < tn[a]; ++q) {
+                const int i = tr[a * maxrow + q], I = i / bs, b = i - bs * I;
+                const double raw = tv[a * maxrow + q], val = raw / tl[a];
+                if (I == J) {                       /* the diagonal block: b > a */
+                    Ld[(size_t)J * b2 + a * bs + b] = val;
+                    continue;
+                }
+                if (raw == 0.0) continue;           /* as counted */
+                if (mark[I] != J) {
+                    mark[I] = J;
+                    slot[I] = Bp[J] + count;
+                    Bi[Bp[J] + count] = I;
+                    ++count;
+                }
+                Bx[(size_t)slot[I] * b2 + a * bs + b] = val;
+            }
+    }
+#undef COLUMN
+    free(sn_of); free(tv); free(tr);
+    return 0;
 }
 """
 
@@ -109,35 +214,56 @@ class NotPositiveDefinite(RuntimeError):
 
 class Factor:
     """A[perm][:, perm] = L diag(D) L^T for a symmetric positive definite A (CSR arrays; only
-    the lower triangle is read), by CHOLMOD in the given order.  ``Lp``, ``Li``, ``Lx``: L in
-    CSC, unit diagonal, viewed in place in CHOLMOD's memory (no copy of the 2.7 million
-    entries at h = 1/128: 45 ms, measured), so they are valid only while this object lives;
-    ``D``: the pivots (a copy).  The memory is freed with the object."""
+    the lower triangle is read) by CHOLMOD's supernodal Cholesky in the given order, the last
+    m positions being Gamma3's.  Kept for the split solve (kernels.GLastSolve) and the Schur
+    complement: ``D``, ``L_GG`` (dense unit lower, m x m) and ``blocks`` = (bs, nbc, Bp, Bi,
+    Bx, Ld), the interior columns of L in bs x bs blocks.  Bx is written over CHOLMOD's own
+    value array where that is safe (it is for the nodal orders of schur.py): no copy of the
+    factor at all, so the factor's memory (22 MB at h = 1/128) is touched once; it lives as
+    long as this object.  ``in_place=False`` (or an order where it is not safe) copies the
+    blocks into a new array and frees CHOLMOD's factor."""
 
-    def __init__(self, module, indptr, indices, data, perm: np.ndarray):
+    def __init__(self, module, indptr, indices, data, perm: np.ndarray, m: int, bs: int = 1,
+                 in_place: bool = True):
         ffi, lib, buf = module.ffi, module.lib, kernels.buf
         i = np.intc
         n = len(indptr) - 1
         Ap, Ai = np.ascontiguousarray(indptr, dtype=i), np.ascontiguousarray(indices, dtype=i)
         Ax = np.ascontiguousarray(data, dtype=float)
         P = np.ascontiguousarray(perm, dtype=i)
-        nnz, status = ffi.new("long *"), ffi.new("int *")
-        h = lib.ldl_factor(n, buf(ffi, Ap), buf(ffi, Ai), buf(ffi, Ax), buf(ffi, P), nnz,
-                           status)
+        status = ffi.new("int *")
+        h = lib.ldl_factor(n, buf(ffi, Ap), buf(ffi, Ai), buf(ffi, Ax), buf(ffi, P), status)
         if h == ffi.NULL:
             if status[0] == 1:
                 raise NotPositiveDefinite("CHOLMOD: the matrix is not positive definite")
-            raise RuntimeError(f"CHOLMOD L D L^T failed (status {status[0]})")
-        self._handle = ffi.gc(h, lib.ldl_free)
-        p, r, x = ffi.new("int **"), ffi.new("int **"), ffi.new("double **")
-        lib.ldl_arrays(h, p, r, x)
-        size = np.dtype(i).itemsize
-        self.n = n
-        self.Lp = np.frombuffer(ffi.buffer(p[0], (n + 1) * size), dtype=i)
-        self.Li = np.frombuffer(ffi.buffer(r[0], nnz[0] * size), dtype=i)
-        self.Lx = np.frombuffer(ffi.buffer(x[0], nnz[0] * 8), dtype=float)
-        diagonal = self.Lp[:-1]                # monotonic, sorted: the diagonal comes first
-        self.D = self.Lx[diagonal].copy()
-        if not np.all(self.D > 0):             # a simplicial L D L^T does not stop at these
-            raise NotPositiveDefinite("CHOLMOD: the matrix is not positive definite")
-        self.Lx[diagonal] = 1.0
+            raise RuntimeError(f"CHOLMOD L L^T failed (status {status[0]})")
+        handle = ffi.gc(h, lib.ldl_free)
+        ni = n - m
+        bs = kernels.block_size(bs, ni)
+        nbc, nbr = ni // bs, -(-n // bs)
+        self.D, self.L_GG = np.empty(n), np.zeros((m, m))
+        Bp = np.zeros(nbc + 1, dtype=i)
+        mark, slot = np.full(nbr, -1, dtype=i), np.empty(nbr, dtype=i)
+        in_place_allowed = in_place
+        in_place = lib.ldl_blocks_super(h, bs, nbc, m, buf(ffi, Bp), ffi.NULL, ffi.NULL,
+                                        ffi.NULL, buf(ffi, self.D), buf(ffi, self.L_GG),
+                                        buf(ffi, mark), buf(ffi, slot))
+        if in_place < 0:
+            raise MemoryError("CHOLMOD factor: out of memory")
+        in_place = in_place and in_place_allowed
+        np.cumsum(Bp, out=Bp)
+        b2, nnzb = bs * bs, int(Bp[-1])
+        Bi, Ld = np.empty(max(nnzb, 1), dtype=i), np.zeros(max(nbc, 1) * b2)
+        if in_place:
+            Bx = np.frombuffer(ffi.buffer(lib.ldl_values(h), max(nnzb, 1) * b2 * 8),
+                               dtype=float)
+        else:
+            Bx = np.empty(max(nnzb, 1) * b2)
+        mark.fill(-1)
+        if lib.ldl_blocks_super(h, bs, nbc, m, buf(ffi, Bp), buf(ffi, Bi), buf(ffi, Bx),
+                                buf(ffi, Ld), buf(ffi, self.D), buf(ffi, self.L_GG),
+                                buf(ffi, mark), buf(ffi, slot)) < 0:
+            raise MemoryError("CHOLMOD factor: out of memory")
+        self.in_place = bool(in_place)
+        self._handle = handle if in_place else None     # else freed with the last reference
+        self.blocks = (bs, nbc, Bp, Bi, Bx, Ld)

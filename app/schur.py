@@ -136,24 +136,19 @@ class GLastLU:
 class GLastLDL:
     """K = L D L^T by CHOLMOD (app/ldl.py) in the same order as GLastLU (interior by nested
     dissection, G last): half the work of an L U factorisation (at h = 1/128: 0.16-0.19 s
-    against 0.35-0.48 s for SuperLU, measured).  ``Lp``, ``Li``, ``Lx``: L (unit lower, CSC)
-    in CHOLMOD's memory, valid while this object lives; ``D`` its pivots; U = D L^T."""
+    against 0.35-0.48 s for SuperLU, measured).  ``D``: the pivots; ``blocks``: the interior
+    columns of L in blocks, ready for kernels.GLastSolve (ldl.Factor); U = D L^T."""
 
     def __init__(self, A: CSR, G: np.ndarray, bs: int, module):
         from .ldl import Factor
         self.n, self.m = A.n, len(G)
         self.perm = interior_last_ordering(A, G, bs)
-        self._factor = Factor(module, A.indptr, A.indices, A.data, self.perm)
-        self.Lp, self.Li, self.Lx = self._factor.Lp, self._factor.Li, self._factor.Lx
-        self.D = self._factor.D
+        self._factor = Factor(module, A.indptr, A.indices, A.data, self.perm, self.m, bs)
+        self.D, self.blocks = self._factor.D, self._factor.blocks
 
     def trailing(self) -> tuple[np.ndarray, np.ndarray]:
-        k, m = self.n - self.m, self.m
-        L_GG = np.zeros((m, m))
-        start = self.Lp[k]                # the last m columns hold only rows >= k (lower)
-        cols = np.repeat(np.arange(m), np.diff(self.Lp[k:]))
-        L_GG[self.Li[start:] - k, cols] = self.Lx[start:]
-        return L_GG, self.D[k:, None] * L_GG.T
+        L_GG = self._factor.L_GG
+        return L_GG, self.D[self.n - self.m:, None] * L_GG.T
 
 
 def g_last_factor(A: CSR, G: np.ndarray, bs: int = 1):

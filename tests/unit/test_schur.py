@@ -51,16 +51,37 @@ def _factor(kind, A, G, bs):
     return GLastLDL(_csr(A), G, bs, module)
 
 
-def test_cholmod_ldl_reproduces_the_matrix_in_the_given_order():
+def _dense_L(f):
+    """L (unit lower, dense) from a GLastLDL's interior blocks and L_GG."""
+    bs, nbc, Bp, Bi, Bx, Ld = f.blocks
+    n, k = f.n, f.n - f.m
+    L = np.eye(n)
+    for J in range(nbc):
+        for a in range(bs):
+            for b in range(a + 1, bs):
+                L[bs * J + b, bs * J + a] = Ld[J * bs * bs + a * bs + b]
+        for q in range(Bp[J], Bp[J + 1]):
+            for a in range(bs):
+                for b in range(bs):
+                    if bs * Bi[q] + b < n:
+                        L[bs * Bi[q] + b, bs * J + a] = Bx[q * bs * bs + a * bs + b]
+    L[k:, k:] = f.trailing()[0]
+    return L
+
+
+@pytest.mark.parametrize("bs", [1, 2])
+def test_cholmod_ldl_reproduces_the_matrix_in_the_given_order(bs):
     A = _spd(40, seed=1)
-    G = np.array([5, 6, 70])
-    f = _factor("cholmod", A, G, 1)
-    lu = GLastLU(_csr(A), G, 1)
+    G = np.array([4, 5, 70, 71])                  # whole nodes
+    f = _factor("cholmod", A, G, bs)
+    assert f.blocks[0] == bs
+    lu = GLastLU(_csr(A), G, bs)
     assert np.array_equal(f.perm, lu.perm)
     Ap = A[f.perm][:, f.perm].toarray()
-    L = sp.csc_matrix((f.Lx, f.Li, f.Lp), shape=A.shape)
-    assert np.array_equal(L.diagonal(), np.ones(A.shape[0]))
-    LDLt = (L @ sp.diags(f.D) @ L.T).toarray()
+    assert f._factor.in_place                        # the factor's blocks over CHOLMOD's x
+    L = _dense_L(f)
+    assert np.array_equal(np.diag(L), np.ones(A.shape[0]))
+    LDLt = L @ np.diag(f.D) @ L.T
     assert np.abs(LDLt - Ap).max() <= 1e-13 * np.abs(Ap).max()
     assert np.abs(f.D - lu.D).max() <= 1e-13 * np.abs(lu.D).max()     # SuperLU's pivots
 
@@ -71,7 +92,7 @@ def test_cholmod_refuses_an_indefinite_matrix():
         pytest.skip("CHOLMOD not available")
     A = sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 1.0]]))
     with pytest.raises(ldl.NotPositiveDefinite):
-        ldl.Factor(module, A.indptr, A.indices, A.data, np.arange(2))
+        ldl.Factor(module, A.indptr, A.indices, A.data, np.arange(2), 0)
 
 
 @pytest.mark.parametrize("kind", ["superlu", "cholmod"])
@@ -129,3 +150,22 @@ def test_interior_graph_is_the_nonzero_pattern(bs):
     ref.eliminate_zeros()
     ref.sort_indices()
     assert np.array_equal(indptr, ref.indptr) and np.array_equal(indices, ref.indices)
+
+
+@pytest.mark.parametrize("bs", [1, 2])
+def test_cholmod_blocks_in_place_equal_a_copy(bs):
+    """ldl.Factor writes the blocks over CHOLMOD's values; forced to copy them into a new
+    array (and free CHOLMOD's factor) it gives the same blocks, D and L_GG bit for bit."""
+    from app.schur import interior_last_ordering
+    module = ldl.load()
+    if module is None:
+        pytest.skip("CHOLMOD not available")
+    A = _spd(60, seed=5)
+    G = np.array([10, 11, 100, 101])
+    perm = interior_last_ordering(_csr(A), G, bs)
+    f1 = ldl.Factor(module, A.indptr, A.indices, A.data, perm, len(G), bs)
+    f2 = ldl.Factor(module, A.indptr, A.indices, A.data, perm, len(G), bs, in_place=False)
+    assert f1.in_place and not f2.in_place and f2._handle is None
+    for a, b in zip(f1.blocks, f2.blocks):
+        assert np.array_equal(a, b)
+    assert np.array_equal(f1.D, f2.D) and np.array_equal(f1.L_GG, f2.L_GG)
