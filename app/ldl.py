@@ -221,10 +221,11 @@ class Factor:
     value array where that is safe (it is for the nodal orders of schur.py): no copy of the
     factor at all, so the factor's memory (22 MB at h = 1/128) is touched once; it lives as
     long as this object.  ``in_place=False`` (or an order where it is not safe) copies the
-    blocks into a new array and frees CHOLMOD's factor."""
+    blocks into a new array and frees CHOLMOD's factor; ``blocks=False`` keeps D and L_GG
+    only."""
 
     def __init__(self, module, indptr, indices, data, perm: np.ndarray, m: int, bs: int = 1,
-                 in_place: bool = True):
+                 in_place: bool = True, blocks: bool = True):
         ffi, lib, buf = module.ffi, module.lib, kernels.buf
         i = np.intc
         n = len(indptr) - 1
@@ -251,6 +252,9 @@ class Factor:
         if in_place < 0:
             raise MemoryError("CHOLMOD factor: out of memory")
         in_place = in_place and in_place_allowed
+        self.in_place, self._handle, self.blocks = False, None, None
+        if not blocks:                  # D and L_GG only (the Schur complement of mpirun)
+            return
         np.cumsum(Bp, out=Bp)
         b2, nnzb = bs * bs, int(Bp[-1])
         Bi, Ld = np.empty(max(nnzb, 1), dtype=i), np.zeros(max(nbc, 1) * b2)

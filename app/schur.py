@@ -139,11 +139,12 @@ class GLastLDL:
     against 0.35-0.48 s for SuperLU, measured).  ``D``: the pivots; ``blocks``: the interior
     columns of L in blocks, ready for kernels.GLastSolve (ldl.Factor); U = D L^T."""
 
-    def __init__(self, A: CSR, G: np.ndarray, bs: int, module):
+    def __init__(self, A: CSR, G: np.ndarray, bs: int, module, blocks: bool = True):
         from .ldl import Factor
         self.n, self.m = A.n, len(G)
         self.perm = interior_last_ordering(A, G, bs)
-        self._factor = Factor(module, A.indptr, A.indices, A.data, self.perm, self.m, bs)
+        self._factor = Factor(module, A.indptr, A.indices, A.data, self.perm, self.m, bs,
+                              blocks=blocks)
         self.D, self.blocks = self._factor.D, self._factor.blocks
 
     def trailing(self) -> tuple[np.ndarray, np.ndarray]:
@@ -151,13 +152,14 @@ class GLastLDL:
         return L_GG, self.D[self.n - self.m:, None] * L_GG.T
 
 
-def g_last_factor(A: CSR, G: np.ndarray, bs: int = 1):
-    """CHOLMOD's L D L^T if it is available here, else SuperLU's L U (same order)."""
+def g_last_factor(A: CSR, G: np.ndarray, bs: int = 1, blocks: bool = True):
+    """CHOLMOD's L D L^T if it is available here, else SuperLU's L U (same order);
+    ``blocks=False``: only for the Schur complement (no blocks for the split solve)."""
     from . import ldl
     module = ldl.load()
     if module is not None:
         try:
-            return GLastLDL(A, G, bs, module)
+            return GLastLDL(A, G, bs, module, blocks)
         except RuntimeError as exc:
             log.warning("CHOLMOD failed (%s); factorising with SuperLU", exc)
     return GLastLU(A, G, bs)
@@ -174,5 +176,6 @@ def gamma3_flexibility(K: PETSc.Mat, G_rows: np.ndarray, comm) -> np.ndarray:
     """Z_GG = E_G^T K^-1 E_G (m x m, symmetric), rows/columns in the order of ``G_rows``
     (global matrix rows of the Gamma3 dofs), on every rank."""
     A = gather_csr(K, comm)
-    Z = flexibility(g_last_factor(A, np.asarray(G_rows))) if comm.rank == 0 else None
+    Z = flexibility(g_last_factor(A, np.asarray(G_rows), blocks=False)) \
+        if comm.rank == 0 else None
     return comm.bcast(Z, root=0)
