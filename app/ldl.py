@@ -245,13 +245,12 @@ class Factor:
         self.D, self.L_GG = np.empty(n), np.zeros((m, m))
         Bp = np.zeros(nbc + 1, dtype=i)
         mark, slot = np.full(nbr, -1, dtype=i), np.empty(nbr, dtype=i)
-        in_place_allowed = in_place
-        in_place = lib.ldl_blocks_super(h, bs, nbc, m, buf(ffi, Bp), ffi.NULL, ffi.NULL,
-                                        ffi.NULL, buf(ffi, self.D), buf(ffi, self.L_GG),
-                                        buf(ffi, mark), buf(ffi, slot))
-        if in_place < 0:
+        safe = lib.ldl_blocks_super(h, bs, nbc, m, buf(ffi, Bp), ffi.NULL, ffi.NULL, ffi.NULL,
+                                    buf(ffi, self.D), buf(ffi, self.L_GG), buf(ffi, mark),
+                                    buf(ffi, slot))
+        if safe < 0:
             raise MemoryError("CHOLMOD factor: out of memory")
-        in_place = in_place and in_place_allowed
+        in_place = in_place and safe == 1
         self.in_place, self._handle, self.blocks = False, None, None
         if not blocks:                  # D and L_GG only (the Schur complement of mpirun)
             return

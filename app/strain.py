@@ -67,14 +67,18 @@ class StrainOperator:
         self._cells = cells if self.comm.allreduce(cells is not None, op=MPI.LAND) else None
         self._work = fem.Function(V) if self._cells is not None else None   # ghosted
 
+    @staticmethod
+    def _assembled(a) -> PETSc.Mat:
+        M = fem.petsc.assemble_matrix(fem.form(a))
+        M.assemble()
+        return M
+
     @cached_property
     def D(self) -> PETSc.Mat:
         """D[q, j] = int eps(phi_j) : tau_q dx; assembled when first used (not by the
         compiled path)."""
         du, tau = ufl.TrialFunction(self._V), ufl.TestFunction(self._Q)
-        M = fem.petsc.assemble_matrix(fem.form(ufl.inner(eps(du), tau) * ufl.dx))
-        M.assemble()
-        return M
+        return self._assembled(ufl.inner(eps(du), tau) * ufl.dx)
 
     @cached_property
     def _b(self) -> PETSc.Vec:
@@ -86,18 +90,14 @@ class StrainOperator:
         path)."""
         du, tau = ufl.TrialFunction(self._V), ufl.TestFunction(self._Q)
         C = elasticity_operator(self._E, self._nu, self.d)
-        M = fem.petsc.assemble_matrix(fem.form(
-            ufl.inner(C(eps(du)), tau) / ufl.CellVolume(self._V.mesh) * ufl.dx))
-        M.assemble()
-        return M
+        return self._assembled(ufl.inner(C(eps(du)), tau) / ufl.CellVolume(self._V.mesh)
+                               * ufl.dx)
 
     @cached_property
     def A(self) -> PETSc.Mat:
         """||eps(u)||^2 = u . A u; assembled when first used (not by the compiled path)."""
         du, v = ufl.TrialFunction(self._V), ufl.TestFunction(self._V)
-        M = fem.petsc.assemble_matrix(fem.form(ufl.inner(eps(du), eps(v)) * ufl.dx))
-        M.assemble()
-        return M
+        return self._assembled(ufl.inner(eps(du), eps(v)) * ufl.dx)
 
     def _cell_gradients(self, V, Q):
         """(vertices, G): per owned cell (in Q's dof order, the rows of D) its d + 1 vertices
