@@ -22,15 +22,20 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OPENBLAS_NUM_THREADS := 1
 export OMP_NUM_THREADS := 1
 
-.PHONY: help setup demo test convergence stability bench clean
+.PHONY: help setup demo test convergence stability bench docs clean
 
 help:
-	@echo "make setup   install Debian packages, create $(VENV), pip install -e . (idempotent)"
-	@echo "make demo    run $(CASE) (the paper's Section 4 example) into results/"
-	@echo "make test    run the test suite (serial and mpirun -n 2)"
+	@echo "make setup        install Debian packages, create $(VENV), pip install -e . (idempotent)"
+	@echo "make demo         run $(CASE) (the paper's Section 4 example) into results/"
+	@echo "make test         run the test suite (serial and mpirun -n 2)"
 	@echo "make convergence  the paper's Table 1 study (h = k = 1/8..1/64 vs 1/128) for three deltas"
 	@echo "make stability    stiff and extreme variants of the paper case (stability.md/.csv)"
 	@echo "make bench        step solver timings (results/bench/bench.json, bench.md)"
+	@echo "make docs         regenerate the README's case-file reference from app/schema.py"
+	@echo "make clean        remove results/ and .pytest_cache"
+	@echo "After make setup, the commands: ./vpcontact run|check|plot|info|convergence|stability|bench"
+	@echo "  (./vpcontact --help); in parallel: mpirun -n 2 ./vpcontact run CASE.yaml, as root with"
+	@echo "  OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 before mpirun"
 
 setup:
 	@missing=$$(for p in $(DEB_PACKAGES); do \
@@ -50,8 +55,9 @@ $(STAMP): pyproject.toml
 	@$(PY) -c "import dolfinx, petsc4py, gmsh, yaml, jsonschema, app; print('setup: dolfinx', dolfinx.__version__, 'ok')"
 	@touch $(STAMP)
 
+# ./vpcontact runs .venv/bin/python -m app (the README's commands use it too)
 demo: setup
-	$(PY) -m app run $(CASE) --overwrite
+	./vpcontact run $(CASE) --overwrite
 
 test: setup
 	$(PY) -m pytest -ra tests
@@ -60,14 +66,17 @@ test: setup
 # view across the friction regularisation). Runs are cached in ~/.cache/vpcontact.
 CONV_DELTAS ?= 1e-7 1e-3 1e-2
 convergence: setup
-	$(PY) -m app convergence $(CASE) --levels 8 16 32 64 --reference 128 --vary both \
+	./vpcontact convergence $(CASE) --levels 8 16 32 64 --reference 128 --vary both \
 	  --deltas $(CONV_DELTAS) --overwrite
 
 stability: setup
-	$(PY) -m app stability $(CASE) --overwrite
+	./vpcontact stability $(CASE) --overwrite
 
 bench: setup
-	$(PY) -m app bench $(CASE)
+	./vpcontact bench $(CASE)
+
+docs: setup
+	$(PY) -m app.docs README.md
 
 clean:
 	rm -rf results .pytest_cache

@@ -1,4 +1,4 @@
-"""The README's case-file reference matches the schema (regenerate: python3 -m app.docs)."""
+"""The README's case-file reference matches the schema (regenerate: make docs)."""
 from app.docs import END, START, render
 from app.schema import SCHEMA
 from conftest import ROOT
@@ -7,7 +7,7 @@ from conftest import ROOT
 def test_readme_reference_is_current():
     text = (ROOT / "README.md").read_text()
     assert START in text and END in text
-    assert render(text) == text, "README.md is out of date: run `python3 -m app.docs`"
+    assert render(text) == text, "README.md is out of date: run `make docs`"
 
 
 def test_every_schema_key_is_documented():
