@@ -24,17 +24,70 @@ CONTACT_COLUMNS = ("x", "y", "u_x", "u_y", "u_nu", "u_tau", "neg_sigma_nu", "neg
 def atomic_write(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file and a rename."""
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    with open(tmp, "w") as fh:
-        fh.write(text)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except OSError as exc:          # disk full, read-only: the old file stays as it was
+        if exc.filename is None:
+            exc.filename = str(path)
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+        raise
+
+
+class OutputError(OSError):
+    """Writing an output file failed (disk full, read-only file system, ...): the same
+    error on every rank, so that no rank waits in a collective for one that gave up."""
+
+
+def on_rank0(comm, action, *args):
+    """Run ``action(*args)`` on rank 0 only and return its result on rank 0 (None
+    elsewhere); an OSError there is raised as OutputError on every rank (collective)."""
+    result, error = None, None
+    if comm.rank == 0:
+        try:
+            result = action(*args)
+        except OSError as exc:
+            error = describe_os_error(exc)
+    error = comm.bcast(error, root=0)
+    if error is not None:
+        raise OutputError(error)
+    return result
+
+
+def describe_os_error(exc: OSError) -> str:
+    """'<file>: <reason>' for an OSError (or the message of an error without a file)."""
+    name = exc.filename or ""
+    reason = exc.strerror or str(exc)
+    return f"{name}: {reason}" if name else reason
+
+
+def _json_default(value):
+    """numpy scalars and arrays in summaries (np.bool_, np.float64, ...) as plain JSON."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def to_json(data) -> str:
+    """The JSON text of a summary: numpy types as plain numbers, non-finite numbers kept
+    as JSON's NaN/Infinity extension (Python's json reads them back)."""
+    return json.dumps(data, indent=2, default=_json_default) + "\n"
 
 
 def write_json(comm, path: Path, data: dict) -> None:
-    if comm.rank == 0:
-        atomic_write(path, json.dumps(data, indent=2) + "\n")
-    comm.barrier()
+    """Write ``data`` to ``path`` atomically on rank 0 (collective; OutputError on failure)."""
+    text = to_json(data) if comm.rank == 0 else None
+    on_rank0(comm, atomic_write, path, text)
 
 
 class FieldWriter:
@@ -53,26 +106,36 @@ class FieldWriter:
         self.work = self.path.with_name(f".{stem}.work.xdmf")
         self.h5 = self.path.with_suffix(".h5")
         self.work_h5 = self.work.with_suffix(".h5")
-        if comm.rank == 0:
-            for p in (self.work, self.work_h5, self.h5):
-                if p.is_symlink() or p.exists():
-                    p.unlink()
-            self.work_h5.symlink_to(self.h5.name)
-        comm.barrier()
-        with dio.XDMFFile(comm, str(self.work), "w") as f:
-            f.write_mesh(mesh)
+        on_rank0(comm, self._fresh_files)
+        try:
+            with dio.XDMFFile(comm, str(self.work), "w") as f:
+                f.write_mesh(mesh)
+        except RuntimeError as exc:             # dolfinx's HDF5 layer
+            raise OutputError(f"{self.h5}: cannot write the mesh ({exc})") from None
         self._publish()
 
+    def _fresh_files(self) -> None:
+        for p in (self.work, self.work_h5, self.h5):
+            if p.is_symlink() or p.exists():
+                p.unlink()
+        self.work_h5.symlink_to(self.h5.name)
+
     def _publish(self) -> None:
-        if self.comm.rank == 0:
+        def publish():
             text = self.work.read_text().replace(f"{self.work_h5.name}:", f"{self.h5.name}:")
             atomic_write(self.path, text)
-        self.comm.barrier()
+        on_rank0(self.comm, publish)
 
     def write(self, t: float) -> None:
-        with dio.XDMFFile(self.comm, str(self.work), "a") as f:
-            for fn in self.fields:
-                f.write_function(fn, t)
+        """Append the fields at time t and republish solution.xdmf; OutputError if HDF5 or
+        the file system refuses (solution.xdmf then still describes the earlier steps)."""
+        try:
+            with dio.XDMFFile(self.comm, str(self.work), "a") as f:
+                for fn in self.fields:
+                    f.write_function(fn, t)
+        except RuntimeError as exc:             # dolfinx's HDF5 layer: disk full, read-only
+            raise OutputError(f"{self.h5}: cannot write the fields at t = {t:g} ({exc})") \
+                from None
         self._publish()
 
     def close(self) -> None:

@@ -20,7 +20,8 @@ from .diagnostics import diagnose
 from .gamma3 import Gamma3History, Kernel
 from .history import ImplicitViscoplasticHistory, ViscoplasticHistory
 from .progress import Progress
-from .output import FieldWriter, write_contact_csv, write_json
+from .divergence import BlowUpMonitor
+from .output import FieldWriter, OutputError, write_contact_csv, write_json
 from .problem import ContactProblem
 from .solver import SNESVISolver, StepFailure
 from .stepping import StepTooSmall, make_stepper
@@ -177,26 +178,30 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
     else:
         problem.update_sigma()
 
+    monitor = BlowUpMonitor(case, problem, problem.cell_max(history.kappa) if history else 0.0)
     writer = None
-    if write_outputs:
-        fields = [problem.u, problem.sigma, problem.sigma_vm]
-        if history:
-            fields.append(history.kappa)
-        writer = FieldWriter(comm, outdir / "solution.xdmf", problem.mesh, fields)
-        writer.write(t)
-    if on_step:
-        on_step(n, t, problem, history)
     checkpoint_every = case.output.checkpoint_every if write_outputs else None
-    loop_start = time.perf_counter()
     bar = Progress(case.time.T, N, t, enabled=progress and comm.rank == 0)
-    with _StopRequest() as stop:
-        while True:
+    with _StopRequest() as stop:        # also shields the final writes from SIGINT/SIGTERM
+        try:
+            if write_outputs:
+                fields = [problem.u, problem.sigma, problem.sigma_vm]
+                if history:
+                    fields.append(history.kappa)
+                writer = FieldWriter(comm, outdir / "solution.xdmf", problem.mesh, fields)
+                writer.write(t)
+        except OutputError as exc:
+            status, failure = "failed", _failure(n, t, f"cannot write the outputs: {exc}",
+                                                 HINT_OUTPUT)
+        if on_step and failure is None:
+            on_step(n, t, problem, history)
+        loop_start = time.perf_counter()
+        while failure is None:
             try:
                 k = stepper.next_k(t)
             except StepTooSmall as exc:
-                status, failure = "failed", {"step": n + 1, "t": t, "reason": str(exc),
-                                             "snes_reason": None, "hint": "lower time.adaptive."
-                                             "k_min or use time.scheme: implicit"}
+                status, failure = "failed", _failure(n + 1, t, str(exc), "lower time.adaptive."
+                                                     "k_min or use time.scheme: implicit")
                 log.error("step %d (t = %g) failed: %s", n + 1, t, exc)
                 break
             if k is None:
@@ -205,51 +210,31 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
             t0 = time.perf_counter()
             saved = (history.snapshot() if history else None, g3.snapshot() if g3 else None,
                      problem.sigma.x.array.copy()) if stepper.adaptive else None
-            if history:
-                history.before_solve(problem, k)    # explicit: H_n, kappa_n from step n-1
-            t_g3 = time.perf_counter()
-            if g3:
-                g3.advance(t, t_new)                # xi_n, s_n from u_{n-1}
-            t_g3 = time.perf_counter() - t_g3
-            problem.time_data.set_time(t_new)       # f_n
             try:
-                its = solver.solve()                # u_n in U^h, (3.4)
+                its, norms, t_g3 = _advance(problem, history, g3, solver, t, t_new, k)
             except StepFailure as exc:
                 if saved is not None:               # adaptive: undo the history, retry k/2
-                    if history:
-                        history.restore(saved[0])
-                    if g3:
-                        g3.restore(saved[1])
-                    problem.sigma.x.array[:] = saved[2]
+                    _restore(problem, history, g3, saved)
                     if stepper.reject(k, str(exc)):
                         log.warning("step at t = %g with k = %g rejected (%s); retrying with "
                                     "k = %g", t, k, exc.args[0].split(";")[0], stepper.k)
                         continue
-                status = "failed"
-                failure = {"step": n + 1, "t": t_new, "reason": str(exc), "snes_reason": exc.reason,
-                           "hint": "try a smaller time step (time.N), time.adaptive, time.scheme: "
-                                   "implicit, a larger solver.delta, or other PETSc options "
-                                   "(-snes_monitor to see the iterations)"}
+                status, failure = "failed", _failure(n + 1, t_new, str(exc), HINT_SOLVER,
+                                                     getattr(exc, "reason", None))
                 log.error("step %d (t = %g) failed: %s; the last good state is step %d",
                           n + 1, t_new, exc, n)
                 break
             n, t = n + 1, t_new
             stepper.accept(k, its)
-            if history:                             # sigma_n (explicit: E eps(u_n) + H_n, (3.2))
-                norms = history.after_solve(problem)
-            else:
-                norms = problem.update_sigma()
             rec = _step_record(problem, history, n, t, its, time.perf_counter() - t0, norms)
             rec["k"] = k
             if g3:
                 rec["gamma3_history_s"] = t_g3      # memory term / slip update of this step
-            if not all(np.isfinite(v) for v in rec.values()):
-                status = "failed"
-                failure = {"step": n, "t": t, "reason": "non-finite solution (NaN/Inf)",
-                           "snes_reason": None, "hint": "the explicit scheme may be unstable "
-                           "(see the stability indicator): time.scheme: implicit or smaller steps"}
-                log.error("step %d (t = %g): the solution is not finite; stopping, the last good "
-                          "state is step %d", n, t, n - 1)
+            blow_up = monitor.check(rec)
+            if blow_up:
+                status, failure = "diverged", _failure(n, t, blow_up, HINT_DIVERGED)
+                log.error("step %d (t = %g) diverged: %s; stopping, the last good state is "
+                          "step %d", n, t, blow_up, n - 1)
                 n -= 1
                 break
             if solver.fallback:
@@ -263,33 +248,132 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
             if on_step:
                 on_step(n, t, problem, history)
             interrupted = comm.allreduce(stop.signal is not None, op=MPI.LOR)  # all ranks agree
-            if writer and (n % case.output.every == 0 or stepper.finished(t) or interrupted):
-                writer.write(t)
-            if checkpoint_every and n % checkpoint_every == 0 and not interrupted:
-                checkpoint.save(outdir, comm, case, problem, history, g3, stepper, n, t, steps)
+            try:
+                if writer and (n % case.output.every == 0 or stepper.finished(t) or interrupted):
+                    writer.write(t)
+                if checkpoint_every and n % checkpoint_every == 0 and not interrupted:
+                    checkpoint.save(outdir, comm, case, problem, history, g3, stepper, n, t, steps)
+            except OutputError as exc:
+                status, failure = "failed", _failure(n, t, f"cannot write the outputs: {exc}",
+                                                     HINT_OUTPUT)
+                log.error("step %d (t = %g): %s; stopping", n, t, failure["reason"])
+                break
             bar.update(n, t, its)
             log.debug("step %3d/%s  t = %-8.5g newton %2d  |u|_V = %.6e  |sigma|_Q = %.6e  "
-                     "max vm = %.5g  max kappa = %.5g  (%.3f s)", n, N or "?", t, its,
-                     rec["norm_u_V"], rec["norm_sigma_Q"], rec["max_vm"], rec["max_kappa"],
-                     rec["wall_s"])
+                      "max vm = %.5g  max kappa = %.5g  (%.3f s)", n, N or "?", t, its,
+                      rec["norm_u_V"], rec["norm_sigma_Q"], rec["max_vm"], rec["max_kappa"],
+                      rec["wall_s"])
             if interrupted:
                 status = "interrupted"
-                failure = {"step": n, "t": t, "reason": f"interrupted by "
-                           f"{stop.signal or 'a signal on another rank'}", "snes_reason": None,
-                           "hint": f"continue with: run CASE --restart {outdir} --out NEW_DIR"}
+                by = stop.signal or "a signal on another rank"
+                failure = _failure(n, t, f"interrupted by {by}",
+                                   f"continue with: run CASE --restart {outdir} --out NEW_DIR")
                 saved_to = None
                 if write_outputs:
-                    saved_to = checkpoint.save(outdir, comm, case, problem, history, g3, stepper,
-                                               n, t, steps)
+                    saved_to = _try_checkpoint(outdir, comm, case, problem, history, g3,
+                                               stepper, n, t, steps)
                 log.warning("interrupted (%s) after step %d (t = %g); outputs are complete up to "
                             "this step, checkpoint %s", stop.signal or "another rank", n, t,
                             saved_to or "-")
                 break
-    bar.close()
-    t_loop = time.perf_counter() - loop_start
-    if writer:
-        writer.close()
+        bar.close()
+        t_loop = time.perf_counter() - loop_start
+        if writer:
+            writer.close()
+        summary = _summary(case, comm, problem, rect, diag, solver, stepper, status, failure,
+                           steps, n, t_setup, t_loop, t_start)
+        if write_outputs:
+            _write_final(comm, outdir, case, problem, summary, steps)
+    solver.destroy()
+    return RunResult(summary["status"], summary, problem, history, g3)
 
+
+HINT_SOLVER = ("try a smaller time step (time.N), time.adaptive, time.scheme: implicit, a larger "
+               "solver.delta, or other PETSc options (-snes_monitor to see the iterations)")
+HINT_DIVERGED = ("the explicit scheme is unstable at this time step (see the stability "
+                 "indicator): use time.scheme: implicit or a smaller time step (time.N, "
+                 "time.adaptive)")
+HINT_OUTPUT = ("free space on the output file system or choose another --out; the files of "
+               "the steps written before are intact")
+
+
+def _failure(step: int, t: float, reason: str, hint: str, snes_reason=None) -> dict:
+    """The ``failure`` entry of summary.json."""
+    return {"step": step, "t": t, "reason": reason, "snes_reason": snes_reason, "hint": hint}
+
+
+def _advance(problem, history, g3, solver, t: float, t_new: float, k: float):
+    """One step of scheme (3.2)-(3.4) from t to t_new: H_n, kappa_n (explicit: from step
+    n-1), xi_n, s_n, the loads f_n, u_n from the step inequality (3.4), then sigma_n.
+
+    Returns:
+        (Newton iterations, (||u||_V, ||sigma||_Q) or None, wall time of the Gamma3 history).
+    Raises:
+        StepFailure: the step solve or a local (cell) update failed; a numerical error of the
+        history update (von Mises projection, implicit Perzyna update) is reported alike.
+    """
+    try:
+        if history:
+            history.before_solve(problem, k)        # explicit: H_n, kappa_n from step n-1
+        t_g3 = time.perf_counter()
+        if g3:
+            g3.advance(t, t_new)                    # xi_n, s_n from u_{n-1}
+        t_g3 = time.perf_counter() - t_g3
+        problem.time_data.set_time(t_new)           # f_n
+        its = solver.solve()                        # u_n in U^h, (3.4)
+        # sigma_n (explicit: E eps(u_n) + H_n, (3.2))
+        norms = history.after_solve(problem) if history else problem.update_sigma()
+    except StepFailure:
+        raise
+    except (ArithmeticError, RuntimeError, np.linalg.LinAlgError) as exc:
+        raise StepFailure(f"{exc}") from exc
+    return its, norms, t_g3
+
+
+def _restore(problem, history, g3, saved) -> None:
+    """Undo a rejected adaptive step: the history, the Gamma3 history and sigma of n-1."""
+    if history:
+        history.restore(saved[0])
+    if g3:
+        g3.restore(saved[1])
+    problem.sigma.x.array[:] = saved[2]
+
+
+def _try_checkpoint(outdir, comm, *state) -> Path | None:
+    """The checkpoint of an interrupted run; None (with a warning) if it cannot be written."""
+    try:
+        return checkpoint.save(outdir, comm, *state)
+    except OutputError as exc:
+        log.warning("no checkpoint written: %s", exc)
+        return None
+
+
+def _write_final(comm, outdir: Path, case: Case, problem, summary: dict, steps: list) -> None:
+    """contact.csv and summary.json; if contact.csv cannot be written the summary records
+    the failure; if summary.json cannot be written either, the error is logged."""
+    try:
+        if problem.gamma3 is not None and steps:
+            summary["contact_states"] = write_contact_csv(
+                comm, outdir / "contact.csv", problem.contact_table(), case.contact.g)
+    except OutputError as exc:
+        if summary["status"] == "completed":
+            summary["status"] = "failed"
+            summary["failure"] = _failure(summary["last_good_step"], steps[-1]["t"],
+                                          f"cannot write the outputs: {exc}", HINT_OUTPUT)
+    try:
+        write_json(comm, outdir / "summary.json", summary)
+    except OutputError as exc:
+        log.error("summary.json not written: %s", exc)
+        summary["summary_error"] = str(exc)
+        if summary["status"] == "completed":
+            summary["status"] = "failed"
+            summary["failure"] = _failure(summary["last_good_step"], 0.0,
+                                          f"cannot write summary.json: {exc}", HINT_OUTPUT)
+
+
+def _summary(case, comm, problem, rect, diag, solver, stepper, status, failure, steps, n,
+             t_setup, t_loop, t_start) -> dict:
+    """The content of summary.json (without contact_states, added by _write_final)."""
     summary = {
         "case": case.name,
         "source": case.source,
@@ -321,10 +405,4 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
         summary["step_history"] = stepper.history
     if failure:
         summary["failure"] = failure
-    if write_outputs:
-        if problem.gamma3 is not None and steps:
-            summary["contact_states"] = write_contact_csv(
-                comm, outdir / "contact.csv", problem.contact_table(), case.contact.g)
-        write_json(comm, outdir / "summary.json", summary)
-    solver.destroy()
-    return RunResult(status, summary, problem, history, g3)
+    return summary
