@@ -10,6 +10,18 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import pytest  # noqa: E402
 
+try:   # property-based tests: the same examples on every machine, nothing timed
+    from hypothesis import HealthCheck, settings
+except ImportError:
+    pass
+else:
+    # derandomize: examples from a fixed seed per test; database=None: no .hypothesis/ in the
+    # working directory is read or written; deadline / too_slow time the examples, which
+    # fails on slow or loaded machines
+    settings.register_profile("vpcontact", deadline=None, derandomize=True, database=None,
+                              suppress_health_check=[HealthCheck.too_slow])
+    settings.load_profile("vpcontact")
+
 ROOT = Path(__file__).resolve().parents[1]
 PAPER_CASE = ROOT / "cases" / "wang_cheng_2021.yaml"
 MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",

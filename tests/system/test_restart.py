@@ -1,4 +1,4 @@
-"""Issue 8: checkpoint/restart (serial, mpirun -n 2, across rank counts), SIGINT/SIGTERM,
+"""Checkpoint/restart (serial, mpirun -n 2, across rank counts), SIGINT/SIGTERM,
 a forced solver failure, and readable outputs after each."""
 import json
 import signal
@@ -31,18 +31,31 @@ def _xdmf_steps(out):
 
 
 def _start_long_run(out, *extra):
-    """A long run (h = 1/32, 4000 steps) in the background, once its outputs exist."""
+    """A long run (h = 1/32, 4000 steps) in the background, returned once solution.xdmf
+    holds t = 0 and at least one step: waiting for progress, not for a fixed time, so a
+    slow or loaded machine cannot make the signal land before the first step."""
     cmd = [sys.executable, "-m", "app", "run", str(PAPER_CASE), "--out", str(out),
            "--no-plots", "--set", "mesh.n=32", "--set", "time.N=4000",
            "--set", "solver.method=fast", *extra]
     proc = subprocess.Popen(cmd, cwd=ROOT, env={**MPI_ENV, "PATH": "/usr/bin:/bin",
                                                 "PYTHONPATH": str(ROOT)},
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    for _ in range(600):                  # wait until the time loop runs
-        time.sleep(0.1)
-        if (out / "solution.xdmf").exists():
-            break
+    deadline = time.monotonic() + 600
+    while _written_steps(out) < 2:
+        if proc.poll() is not None or time.monotonic() > deadline:
+            proc.kill()
+            pytest.fail("the run wrote no step: " + proc.communicate()[1][-2000:])
+        time.sleep(0.05)
     return proc
+
+
+def _written_steps(out):
+    """How many time points of u solution.xdmf names (0 while it does not exist); the
+    file is republished atomically, so it is always whole."""
+    try:
+        return (out / "solution.xdmf").read_text().count("solution.h5:/Function/u/")
+    except FileNotFoundError:
+        return 0
 
 
 @pytest.mark.parametrize("name", ["paper", "memory", "memory_slip"])
@@ -94,8 +107,7 @@ def test_restart_refuses_another_case(tmp_path):
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_signal_ends_the_run_cleanly(sig, tmp_path):
     out = tmp_path / "o"
-    proc = _start_long_run(out)
-    time.sleep(1.0)
+    proc = _start_long_run(out)                     # step 1 or later is running
     proc.send_signal(sig)
     stdout, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 3, stderr
@@ -128,7 +140,7 @@ def test_xdmf_is_readable_after_the_process_is_killed(delay, tmp_path):
     import xml.etree.ElementTree as ET
     out = tmp_path / "o"
     proc = _start_long_run(out)
-    time.sleep(delay)
+    time.sleep(delay)                               # any moment after the first step
     proc.kill()
     proc.communicate(timeout=60)
     root = ET.fromstring((out / "solution.xdmf").read_text())

@@ -1,4 +1,4 @@
-"""Stiff and extreme cases (issue 5): explicit vs implicit history, adaptive steps, the
+"""Stiff and extreme cases: explicit vs implicit history, adaptive steps, the
 stability indicator and the well-posedness check of (2.6)."""
 import json
 
@@ -29,7 +29,7 @@ def test_stiff_case_explicit_blows_up_implicit_stays_bounded():
     explicit = run_case(validate_raw(raw))
     assert explicit.summary["diagnostics"]["explicit_stable"] is False
     s = _sigma(explicit)
-    assert explicit.status == "failed" or s.max() / s[0] > 1e6
+    assert explicit.status in ("failed", "diverged") or s.max() / s[0] > 1e6
     raw["time"]["scheme"] = "implicit"
     implicit = run_case(validate_raw(raw))
     assert implicit.status == "completed"
@@ -64,9 +64,13 @@ def test_implicit_local_update_and_tangent():
     r = be.residual(np.column_stack([sig, kap]), s_tr, kp, 0.1)
     assert np.abs(r).max() < 1e-9 * np.abs(s_tr).max()
     assert np.all(kap >= kp - 1e-12)
+    # central differences with a step well above the local Newton's stopping error (its
+    # residual is only below rtol = 1e-12, and where it stops may move with round-off):
+    # the noise / h stays 100x below the tolerance, the O(h^2) error far below it
     eps = np.array([1e-3, -2e-3, 5e-4])
-    h = 1e-6
-    fd = (be.solve(s_tr + h * (eps @ law.Cmat.T), kp, 0.1)[0] - sig) / h
+    h = 1e-4
+    fd = (be.solve(s_tr + h * (eps @ law.Cmat.T), kp, 0.1)[0]
+          - be.solve(s_tr - h * (eps @ law.Cmat.T), kp, 0.1)[0]) / (2 * h)
     np.testing.assert_allclose(fd, np.einsum("nij,j->ni", C, eps), atol=1e-5 * np.abs(fd).max())
 
 
@@ -171,13 +175,15 @@ def test_stability_sweep_cli(tmp_path):
     rows = list(csv.DictReader(open(out / "stability.csv")))
     assert len(rows) >= 40
     for r in rows:
-        assert r["status"] in ("completed", "failed"), r
-        if r["status"] == "failed":
+        assert r["status"] in ("completed", "failed", "diverged"), r
+        if r["status"] != "completed":
             assert r["reason"], r
-    stiff = {(r["variant"], r["scheme"]): r["bounded"] for r in rows
-             if r["variant"].startswith("lambda1=0.01")}
-    assert stiff and all(v == "True" for (name, s), v in stiff.items() if s == "implicit")
-    assert all(v == "False" for (name, s), v in stiff.items() if s == "explicit")
+    # a run stopped as diverged (norms past their bound) is unbounded whatever its growth
+    # up to the stop
+    stiff = {(r["variant"], r["scheme"]): r["bounded"] == "True" and r["status"] != "diverged"
+             for r in rows if r["variant"].startswith("lambda1=0.01")}
+    assert stiff and all(v for (name, s), v in stiff.items() if s == "implicit")
+    assert not any(v for (name, s), v in stiff.items() if s == "explicit")
     md = (out / "stability.md").read_text()
     line = next(x for x in md.splitlines() if x.startswith("- Explicit scheme unbounded"))
     assert "lambda1=0.01, k=1/16" in line and "lambda1=100" not in line

@@ -1,11 +1,13 @@
-"""Issue 8: property-based tests (hypothesis) of case validation: whatever the dictionary,
-validate() returns a Case or raises CaseError, never anything else."""
+"""Property-based tests (hypothesis) of case validation: whatever the dictionary, validate()
+returns a Case or raises CaseError, never anything else.  The hypothesis profile of
+tests/conftest.py makes the examples the same on every machine (derandomized, no example
+database, no deadline or too_slow health check)."""
 import copy
 
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import HealthCheck, example, given, settings  # noqa: E402
+from hypothesis import example, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 from app.case import Case, CaseError, safe_load, validate  # noqa: E402
@@ -31,14 +33,14 @@ def _validate(data):
     return case
 
 
-@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=200)
 @given(st.dictionaries(st.sampled_from(KEYS + ["x"]), values, max_size=6))
 @example({"mesh": {None: 1}, "material": {3: 1.0}})
 def test_random_top_level_dicts(data):
     _validate(data)
 
 
-@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=200)
 @given(st.sampled_from(KEYS), values)
 def test_one_key_of_the_paper_case_replaced(key, value):
     """The valid paper case with one key set to anything: a Case or a CaseError."""
@@ -51,7 +53,7 @@ def test_one_key_of_the_paper_case_replaced(key, value):
     _validate(data)
 
 
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=100)
 @given(st.text(max_size=200))
 @example("?")                       # {None: None}: a non-string key (found by hypothesis)
 @example("mesh: {1: 2}\n")
