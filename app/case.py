@@ -9,6 +9,7 @@ import copy
 import dataclasses
 import math
 import re
+import stat
 import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +19,11 @@ import yaml
 
 from meshes.rectangle import SIDES
 
+from .petscopts import check_petsc_options
 from .schema import DEFAULT_PETSC, SCHEMA
+
+
+MAX_INT_DIGITS = 30
 
 
 class CaseLoader(yaml.SafeLoader):
@@ -37,7 +42,16 @@ class CaseLoader(yaml.SafeLoader):
                 seen[key] = key_node.start_mark.line + 1
         return super().construct_mapping(node, deep)
 
+    def construct_yaml_int(self, node):
+        """An integer of at most MAX_INT_DIGITS digits (Python refuses to convert very long
+        ones, and none is a sensible value here)."""
+        if len(re.sub(r"[^0-9a-fA-F]", "", node.value)) > MAX_INT_DIGITS:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"integer with more than {MAX_INT_DIGITS} digits", node.start_mark)
+        return super().construct_yaml_int(node)
 
+
+CaseLoader.add_constructor("tag:yaml.org,2002:int", CaseLoader.construct_yaml_int)
 CaseLoader.yaml_implicit_resolvers = {k: list(v) for k, v in
                                       yaml.SafeLoader.yaml_implicit_resolvers.items()}
 CaseLoader.add_implicit_resolver(
@@ -88,6 +102,9 @@ def _explain(err: jsonschema.ValidationError) -> str:
         return "; ".join(msgs)
     if err.validator == "required":
         return f"{path}: {err.message}"
+    if err.validator == "pattern" and path == "name":
+        return f"{path}: {err.instance!r} cannot name an output directory (allowed: " \
+               "letters, digits, '_', '.' and '-', starting with a letter or digit)"
     if err.validator == "enum":
         return f"{path}: {err.instance!r} is not allowed (allowed: " \
                f"{', '.join(map(str, err.validator_value))})"
@@ -114,7 +131,10 @@ def parse_override(text: str) -> tuple[str, object]:
     try:
         value = safe_load(raw) if raw.strip() else None
     except yaml.YAMLError as exc:
-        raise CaseError(f"--set {key}: cannot read value {raw!r}: {exc}") from None
+        raise CaseError(f"--set {key}: cannot read value {raw!r}: "
+                        f"{_yaml_error(exc, raw)}") from None
+    except RecursionError:
+        raise CaseError(f"--set {key}: cannot read value: nested too deeply") from None
     return key, value
 
 
@@ -172,18 +192,29 @@ def with_lines(message: str, lines: dict) -> str:
     return re.sub(r"(?<![\w.\[\]])" + _PATH.pattern + r"(?=: )", add, message)
 
 
-def _yaml_error(exc: yaml.YAMLError) -> str:
-    """PyYAML's error on one line: the problem and where."""
+def _yaml_error(exc: yaml.YAMLError, text: str = "") -> str:
+    """PyYAML's error on one line: the problem and where (line and column in ``text``)."""
+    if isinstance(exc, yaml.reader.ReaderError):      # a character YAML does not allow
+        line = text.count("\n", 0, exc.position) + 1
+        column = exc.position - (text.rfind("\n", 0, exc.position) + 1) + 1
+        return f"unacceptable character #x{exc.character:04x} (line {line}, column {column})"
     mark = getattr(exc, "problem_mark", None)
     problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
     where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
     context = getattr(exc, "context", None)
-    return f"{problem}{where}" + (f", {context}" if context else "")
+    return " ".join(f"{problem}{where}{f', {context}' if context else ''}".split())
 
 
 MAX_VERTICES = 1e8           # a mesh larger than this is refused before any computation
 MAX_CASE_SIZE = 2_000_000   # numbers, strings and containers after alias expansion
 MAX_FILE_BYTES = 50_000_000
+# magnitude of a nonzero number of the case (outside PETSc options): products and squares
+# of a few data values stay within double precision
+MIN_MAGNITUDE, MAX_MAGNITUDE = 1e-100, 1e100
+MAX_STEPS = 1_000_000       # time steps (as time.N allows)
+MIN_LENGTH, MAX_LENGTH = 1e-30, 1e30   # a side length outside this range is degenerate [m]
+MAX_ASPECT = 1e6            # largest ratio of two side lengths
+REFERENCE_FORCE = 8.0       # the paper's nodal force scale (N/m, 2D), where snes_atol holds
 
 
 def _check_data(data, path: str, source, budget: list) -> None:
@@ -194,6 +225,13 @@ def _check_data(data, path: str, source, budget: list) -> None:
                         f"{MAX_CASE_SIZE} values after expanding YAML aliases)")
     if isinstance(data, float) and not math.isfinite(data):
         raise CaseError(f"{source}: {path or '(top level)'}: {data} is not a finite number")
+    if isinstance(data, (int, float)) and not isinstance(data, bool) and data != 0 \
+            and not path.startswith("petsc.") \
+            and not MIN_MAGNITUDE <= abs(data) <= MAX_MAGNITUDE:
+        shown = f"{data:g}" if isinstance(data, float) or data.bit_length() < 300 else \
+            f"an integer of {data.bit_length()} bits"
+        raise CaseError(f"{source}: {path}: {shown} is out of range (allowed: 0 or "
+                        f"magnitudes from {MIN_MAGNITUDE:g} to {MAX_MAGNITUDE:g})")
     if isinstance(data, dict):
         for key, value in data.items():
             if not isinstance(key, str):
@@ -205,22 +243,34 @@ def _check_data(data, path: str, source, budget: list) -> None:
             _check_data(value, f"{path}[{i}]", source, budget)
 
 
-def load_raw(path: str | Path, overrides: list[str] = ()) -> dict:
-    """Read the YAML case with a safe loader and apply ``--set`` overrides."""
-    path = Path(path)
+def read_text(path: Path) -> str:
+    """The case file's text: a regular file of at most MAX_FILE_BYTES bytes of UTF-8 (a
+    device, FIFO or directory is refused before it is opened: reading one may never end)."""
     try:
-        if path.stat().st_size > MAX_FILE_BYTES:
-            raise CaseError(f"{path}: the case file is larger than {MAX_FILE_BYTES} bytes")
-        text = path.read_text(encoding="utf-8")
+        if not stat.S_ISREG(path.stat().st_mode):
+            raise CaseError(f"{path}: not a regular file (a case file must be a YAML text "
+                            "file, not a directory, device or pipe)")
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise CaseError(f"{path}: cannot read case file: {exc.strerror}") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise CaseError(f"{path}: the case file is larger than {MAX_FILE_BYTES} bytes")
+    try:
+        return raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise CaseError(f"{path}: not a YAML text file (not UTF-8 at byte {exc.start})") \
             from None
+
+
+def load_raw(path: str | Path, overrides: list[str] = ()) -> dict:
+    """Read the YAML case with a safe loader and apply ``--set`` overrides."""
+    path = Path(path)
+    text = read_text(path)
     try:
         data = safe_load(text)
     except yaml.YAMLError as exc:
-        raise CaseError(f"{path}: not valid YAML: {_yaml_error(exc)}") from None
+        raise CaseError(f"{path}: not valid YAML: {_yaml_error(exc, text)}") from None
     except RecursionError:
         raise CaseError(f"{path}: not valid YAML: nested too deeply") from None
     if not isinstance(data, dict):
@@ -423,8 +473,6 @@ def _check_components(items, path: str, dim: int, source: str, names=("t", "x", 
 
 
 def _time_grid(t: dict, source: str) -> TimeGrid:
-    import math
-
     if "times" in t:
         extra = [k for k in ("N", "k", "grading") if k in t]
         if extra:
@@ -445,7 +493,11 @@ def _time_grid(t: dict, source: str) -> TimeGrid:
     if "k" in t:
         if "grading" in t:
             raise CaseError(f"{source}: time.grading: needs time.N, not time.k")
-        N = round(T / t["k"])
+        steps = T / t["k"]
+        if not steps <= MAX_STEPS + 0.5:
+            raise CaseError(f"{source}: time.k: {t['k']} gives {steps:.3g} steps of T = {T:g} "
+                            f"(limit {MAX_STEPS})")
+        N = round(steps)
         if N < 1 or abs(N * t["k"] - T) > 1e-9 * T:
             raise CaseError(f"{source}: time.k: {t['k']} does not divide T = {T} into whole steps")
         return TimeGrid(tuple(T * n / N for n in range(N + 1)), True)
@@ -453,12 +505,31 @@ def _time_grid(t: dict, source: str) -> TimeGrid:
     r = float(t.get("grading", 1.0))
     if r == 1.0:
         return TimeGrid(tuple(T * n / N for n in range(N + 1)), True)
-    k1 = T * (1.0 - r) / (1.0 - r**N)
-    ts = [0.0] + [k1 * (1.0 - r**n) / (1.0 - r) for n in range(1, N + 1)]
+    try:
+        k1 = T * (1.0 - r) / (1.0 - r**N)
+        ts = [0.0] + [k1 * (1.0 - r**n) / (1.0 - r) for n in range(1, N + 1)]
+    except (OverflowError, ZeroDivisionError):
+        ts = [0.0, math.nan, T]
     ts[-1] = T
     if not all(math.isfinite(x) for x in ts) or any(b <= a for a, b in zip(ts, ts[1:])):
-        raise CaseError(f"{source}: time.grading: {r} with N = {N} gives steps that underflow")
+        raise CaseError(f"{source}: time.grading: {r} with N = {N} gives steps that underflow "
+                        "or overflow")
     return TimeGrid(tuple(ts), False)
+
+
+def _check_adaptive(a: dict | None, times: tuple, source: str) -> None:
+    """k_min <= first step, k_min <= k_max (the stepper could not take a single step)."""
+    if a is None:
+        return
+    k0 = times[1] - times[0]
+    k_min, k_max = a.get("k_min"), a.get("k_max", times[-1])
+    if k_min is not None and k_min > k_max:
+        raise CaseError(f"{source}: time.adaptive.k_min: {k_min:g} is larger than "
+                        f"time.adaptive.k_max = {k_max:g} (allowed: k_min <= k_max)")
+    if k_min is not None and k_min > k0:
+        raise CaseError(f"{source}: time.adaptive.k_min: {k_min:g} is larger than the first "
+                        f"step of the time grid, {k0:g}, where adaptive steps start "
+                        "(allowed: k_min <= first step)")
 
 
 def validate(data: dict, source: str = "<case>") -> Case:
@@ -483,11 +554,37 @@ def _validate(data: dict, source: str) -> Case:
         more = f" (also: {'; '.join(msgs[1:])})" if len(msgs) > 1 else ""
         raise CaseError(f"{source}: {msgs[0]}{more}")
     _fill_defaults(SCHEMA, data)
-    mesh = data["mesh"]
+    _check_mesh(data["mesh"], source)
+    _check_structure(data, source)
+    time_grid = dataclasses.replace(_time_grid(data["time"], source),
+                                    scheme=data["time"]["scheme"],
+                                    adaptive=data["time"].get("adaptive"))
+    _check_adaptive(time_grid.adaptive, time_grid.times, source)
+    stress = _check_values(data, time_grid, source)
+    petsc = {**DEFAULT_PETSC, **scaled_petsc_defaults(data, stress), **data.get("petsc", {})}
+    check_petsc_options(petsc, source)
+    case = _build(data, source, time_grid, petsc)
+    ok, why = fast_eligible(case)
+    if case.numerics.method == "fast" and not ok:
+        raise CaseError(f"{source}: solver.method: 'fast' is not possible here: {why} "
+                        "(allowed: snes_vi, auto)")
+    return case
+
+
+def _check_mesh(mesh: dict, source: str) -> None:
+    """Mesh size within MAX_VERTICES; lengths neither degenerate nor too flat."""
     dim = mesh["dim"]
     if mesh["kind"] == "unstructured" and "h" not in mesh:
         raise CaseError(f"{source}: mesh.h: required when mesh.kind is 'unstructured'")
     lengths = [mesh["L1"], mesh["L2"], mesh["L3"]][:dim]
+    for i, L in enumerate(lengths):
+        if not MIN_LENGTH <= L <= MAX_LENGTH:
+            raise CaseError(f"{source}: mesh.L{i + 1}: {L:g} m is a degenerate length "
+                            f"(allowed: {MIN_LENGTH:g} to {MAX_LENGTH:g})")
+    if max(lengths) > MAX_ASPECT * min(lengths):
+        i = lengths.index(min(lengths))
+        raise CaseError(f"{source}: mesh.L{i + 1}: {lengths[i]:g} m is too thin next to "
+                        f"{max(lengths):g} m (allowed: side ratios up to {MAX_ASPECT:g})")
     if mesh["kind"] == "structured":
         vertices, key = float(mesh["n"] + 1) ** dim, "mesh.n"
     else:
@@ -495,6 +592,11 @@ def _validate(data: dict, source: str) -> Case:
     if vertices > MAX_VERTICES:
         raise CaseError(f"{source}: {key}: the mesh would have about {vertices:.3g} vertices "
                         f"(limit {MAX_VERTICES:.0e}); use a coarser mesh")
+
+
+def _check_structure(data: dict, source: str) -> None:
+    """Cross-key rules: vector lengths, sides, expressions parse, contact and memory."""
+    dim = data["mesh"]["dim"]
     contact = data.get("contact", {})
     loads = data["loads"]
     traction = loads.get("traction", {})
@@ -521,22 +623,8 @@ def _validate(data: dict, source: str) -> Case:
         raise CaseError(f"{source}: contact.friction: b - c1 u1 must be >= 0 (the friction "
                         f"force of law (4.2) may not change sign), got "
                         f"{fr['b'] - fr['c1'] * fr['u1']:g}")
-    mem = contact.get("memory")
-    if mem:
-        need = {"power": ("alpha", "tau"), "table": ("table",)}.get(mem["kernel"], ())
-        for key in need:
-            if key not in mem:
-                raise CaseError(f"{source}: contact.memory.{key}: required for the "
-                                f"{mem['kernel']} kernel")
-        if mem["sum"] == "recursion" and mem["kernel"] != "exponential":
-            raise CaseError(f"{source}: contact.memory.sum: the recursion is exact only for the "
-                            "exponential kernel (allowed here: auto, direct)")
-        if mem["kernel"] == "table":
-            ts = [row[0] for row in mem["table"]]
-            if ts[0] != 0.0 or any(b <= a for a, b in zip(ts, ts[1:])) \
-                    or any(row[1] < 0 for row in mem["table"]):
-                raise CaseError(f"{source}: contact.memory.table: times must start at 0 and "
-                                "increase strictly; values must be >= 0")
+    if contact.get("memory"):
+        _check_memory(contact["memory"], source)
     init = data.get("initial", {})
     if "u0" in init:
         _check_components(init["u0"], "initial.u0", dim, source, ("x", "y", "z"))
@@ -546,19 +634,78 @@ def _validate(data: dict, source: str) -> Case:
             raise CaseError(f"{source}: initial.sigma0: expected a {dim} x {dim} matrix")
         for i, r in enumerate(rows):
             _check_components(r, f"initial.sigma0[{i}]", dim, source, ("x", "y", "z"))
-            for j in range(i):
-                if rows[i][j] != rows[j][i]:
-                    raise CaseError(f"{source}: initial.sigma0: must be symmetric "
-                                    f"([{i}][{j}] != [{j}][{i}])")
-    time_grid = dataclasses.replace(_time_grid(data["time"], source),
-                                    scheme=data["time"]["scheme"],
-                                    adaptive=data["time"].get("adaptive"))
-    petsc = {**DEFAULT_PETSC, **data.get("petsc", {})}
+
+
+def _check_memory(mem: dict, source: str) -> None:
+    need = {"power": ("alpha", "tau"), "table": ("table",)}.get(mem["kernel"], ())
+    for key in need:
+        if key not in mem:
+            raise CaseError(f"{source}: contact.memory.{key}: required for the "
+                            f"{mem['kernel']} kernel")
+    if mem["sum"] == "recursion" and mem["kernel"] != "exponential":
+        raise CaseError(f"{source}: contact.memory.sum: the recursion is exact only for the "
+                        "exponential kernel (allowed here: auto, direct)")
+    if mem["kernel"] == "table":
+        ts = [row[0] for row in mem["table"]]
+        if ts[0] != 0.0 or any(b <= a for a, b in zip(ts, ts[1:])) \
+                or any(row[1] < 0 for row in mem["table"]):
+            raise CaseError(f"{source}: contact.memory.table: times must start at 0 and "
+                            "increase strictly; values must be >= 0")
+
+
+def _check_values(data: dict, time_grid: TimeGrid, source: str) -> float:
+    """The data values at sample points of the body and times (app/datacheck.py): finite,
+    initial values in the model's set.  Returns the stress scale of the data (loads,
+    sigma0 and the stress E |u0| / L of the initial displacement)."""
+    from . import datacheck
+
+    mesh = data["mesh"]
+    lengths = [mesh["L1"], mesh["L2"], mesh["L3"]][:mesh["dim"]]
+    cells = [mesh["n"] if mesh["kind"] == "structured" else math.ceil(L / mesh["h"])
+             for L in lengths]
+    samples = datacheck.Samples(lengths, cells, time_grid.times, time_grid.adaptive is not None)
+    vp = data["material"].get("viscoplastic")
+    init = data.get("initial", {})
+    try:
+        loads = datacheck.check_loads(data["loads"], samples)
+        u0, sigma0 = datacheck.check_initial(init, vp["kappa0"] if vp else None,
+                                             data.get("contact", {}).get("g"), samples)
+    except datacheck.DataError as exc:
+        raise CaseError(f"{source}: {exc}") from None
+    return max(loads, sigma0, data["material"]["E"] * u0 / max(lengths))
+
+
+def scaled_petsc_defaults(data: dict, stress: float) -> dict:
+    """DEFAULT_PETSC's absolute tolerances scaled to the case, so that a body of any size
+    or stiffness converges alike (their values hold for the paper's scales: the unit square
+    under a stress of 8 N/m^2):
+    - snes_atol, on the residual, a vector of nodal forces ~ stress L^(d-1); without loads
+      or initial data (u = 0 exactly) the default value serves;
+    - snes_vi_zero_tolerance, how close to its bound (in m) SNES VI takes a dof as active:
+      relative to the body's size L."""
+    mesh = data["mesh"]
+    length = max([mesh["L1"], mesh["L2"], mesh["L3"]][:mesh["dim"]])
+    force = stress * length ** (mesh["dim"] - 1)
+    atol = DEFAULT_PETSC["snes_atol"]
+    return {"snes_atol": atol * force / REFERENCE_FORCE if force > 0 else atol,
+            "snes_vi_zero_tolerance": DEFAULT_PETSC["snes_vi_zero_tolerance"] * length}
+
+
+def _build(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Case:
+    """The :class:`Case` of a validated, default-filled case dictionary."""
+    mesh, contact, loads = data["mesh"], data.get("contact", {}), data["loads"]
+    init, vp = data.get("initial", {}), data["material"].get("viscoplastic")
+    fr, mem = contact.get("friction"), contact.get("memory")
     slip = fr.get("slip") if fr else None
-    case = Case(
-        name=data.get("name") or Path(source).stem,
+    name = data.get("name") or Path(source).stem
+    if name in ("", ".", ".."):
+        raise CaseError(f"{source}: name: the file name gives the case name {name!r}, which "
+                        "cannot name an output directory; set name (allowed: letters, digits, "
+                        "'_', '.' and '-', starting with a letter or digit)")
+    return Case(
+        name=name,
         source=source,
-        mesh=MeshSpec(dim, float(mesh["L1"]), float(mesh["L2"]), float(mesh["L3"]),
+        mesh=MeshSpec(mesh["dim"], float(mesh["L1"]), float(mesh["L2"]), float(mesh["L3"]),
                       mesh["kind"], int(mesh["n"]) if mesh["kind"] == "structured" else None,
                       float(mesh["h"]) if mesh["kind"] == "unstructured" else None,
                       mesh["diagonal"]),
@@ -577,7 +724,7 @@ def _validate(data: dict, source: str) -> Case:
                    mem.get("tau"), tuple(map(tuple, mem["table"])) if "table" in mem else None,
                    mem["sum"]) if mem else None),
         loads=Loads(tuple(loads["f0"]) if "f0" in loads else None,
-                    {k: tuple(v) for k, v in traction.items()}),
+                    {k: tuple(v) for k, v in loads.get("traction", {}).items()}),
         initial=Initial(tuple(init["u0"]) if "u0" in init else None,
                         tuple(map(tuple, init["sigma0"])) if "sigma0" in init else None),
         time=time_grid,
@@ -586,11 +733,6 @@ def _validate(data: dict, source: str) -> Case:
         output=OutputSpec(**data["output"]),
         raw=data,
     )
-    ok, why = fast_eligible(case)
-    if case.numerics.method == "fast" and not ok:
-        raise CaseError(f"{source}: solver.method: 'fast' is not possible here: {why} "
-                        "(allowed: snes_vi, auto)")
-    return case
 
 
 def fast_eligible(case: Case) -> tuple[bool, str]:

@@ -112,3 +112,20 @@ def to_numpy(tree: ast.Expression, symbols: dict):
            "sqrt": np.sqrt, "abs": np.abs, "tanh": np.tanh, "min": np.minimum,
            "max": np.maximum}
     return _translate(tree, symbols, lib)
+
+
+def names(tree: ast.Expression) -> set[str]:
+    """The variable names (t, x, y, z) an expression uses."""
+    return {n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and n.id not in CONSTANTS}
+
+
+def evaluate(tree: ast.Expression, symbols: dict) -> np.ndarray:
+    """Values of a checked tree for numpy arrays (that broadcast) as the symbols, without
+    warnings: invalid operations give NaN or inf, and a result that is not real (a negative
+    number to a fractional power) gives NaN.  Raises ExpressionError for a Python-level
+    arithmetic error in constants (e.g. 1/0)."""
+    with np.errstate(all="ignore"):
+        value = np.asarray(to_numpy(tree, symbols))
+    if np.iscomplexobj(value):
+        value = np.where(value.imag == 0, value.real, np.nan)
+    return value.astype(float)

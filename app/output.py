@@ -147,18 +147,32 @@ class FieldWriter:
         self.comm.barrier()
 
 
-def classify(u_nu: np.ndarray, g: float | None, tol: float) -> np.ndarray:
-    """Node state from u_nu: 'bound' (u_nu = g), 'compliance' (0 < u_nu < g), 'separated'."""
-    state = np.where(u_nu > tol, "compliance", "separated").astype(object)
+def classify(data: dict, g: float | None) -> np.ndarray:
+    """Node state from the columns of the contact table: 'bound' (u_nu = g), 'compliance'
+    (0 < u_nu < g), 'separated' (u_nu <= 0).
+
+    The tolerances come from the solution, not from g: u_nu counts as positive beyond the
+    round-off of the displacement (1e-9 of its largest component on Gamma3), or when the
+    node carries a contact pressure -sigma_nu above the round-off of the forces (1e-6 of the
+    largest force density): a stiff normal compliance (large c_nu) holds the load with a
+    penetration far below the displacement's round-off.  The bound u_nu <= g is imposed
+    exactly, so 'bound' is u_nu >= g up to the round-off of g."""
+    u_nu = data["u_nu"]
+    u_cols = [v for k, v in data.items() if k.startswith("u_") and k not in ("u_nu",)]
+    u_scale = max((float(np.abs(v).max(initial=0.0)) for v in u_cols), default=0.0)
+    f_cols = [v for k, v in data.items() if k.startswith("neg_sigma")]
+    f_scale = max((float(np.abs(v).max(initial=0.0)) for v in f_cols), default=0.0)
+    pressure = data.get("neg_sigma_nu", np.zeros_like(u_nu))
+    touching = (u_nu > 1e-9 * u_scale) | ((u_nu > 0) & (pressure > 1e-6 * f_scale))
+    state = np.where(touching, "compliance", "separated").astype(object)
     if g is not None:
-        state[u_nu >= g - tol] = "bound"
+        state[u_nu >= g * (1 - 1e-9)] = "bound"
     return state
 
 
 def write_contact_csv(comm, path: Path, table: dict, g: float | None) -> dict:
     """Gather the per-node contact table on rank 0, sort by coordinates and write it (columns
     in the table's order, then ``state``).  Returns counts of node states (on every rank)."""
-    tol = 1e-9 * (g if g else 1.0)
     local = {k: np.asarray(v) for k, v in table.items()}
     parts = comm.gather(local, root=0)
     counts = None
@@ -169,7 +183,7 @@ def write_contact_csv(comm, path: Path, table: dict, g: float | None) -> dict:
         keys = [np.round(data[k] / max(scale, 1e-300), 9) for k in ("z", "y", "x") if k in data]
         order = np.lexsort(tuple(keys))
         data = {k: v[order] for k, v in data.items()}
-        data["state"] = classify(data["u_nu"], g, tol)
+        data["state"] = classify(data, g)
         columns = list(local) + ["state"]
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")

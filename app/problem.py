@@ -192,13 +192,14 @@ class ContactProblem:
                 H0 = H0 + ufl.as_matrix([[_ufl_component(c, sym) for c in row]
                                          for row in init.sigma0])
             self._cell_average(H0, self.H)
+            self._refuse(not np.isfinite(self.H.x.array).all(), "initial.sigma0",
+                         "not a finite number in a cell of the mesh")
         if kappa is not None:
             k0 = self.case.material.viscoplastic.kappa0
             if isinstance(k0, str):
                 self._cell_average(_ufl_component(k0, sym), kappa)
-                if np.any(kappa.x.array < 0):
-                    raise CaseError(f"{self.case.source}: material.viscoplastic.kappa0: "
-                                    "must be >= 0 everywhere")
+                self._refuse(not (kappa.x.array >= 0).all(), "material.viscoplastic.kappa0",
+                             "must be a finite number >= 0 everywhere")
             else:
                 kappa.x.array[:] = k0
 
@@ -213,20 +214,24 @@ class ContactProblem:
         f.x.scatter_forward()
         vec.destroy()
 
+    def _refuse(self, bad: bool, key: str, why: str) -> None:
+        """Raise CaseError on every rank if ``bad`` on any (the exact check on the mesh)."""
+        if self.comm.allreduce(bool(bad), op=MPI.LOR):
+            raise CaseError(f"{self.case.source}: {key}: {why}")
+
     def _check_initial_u(self) -> None:
-        src = self.case.source
+        """u0 at the mesh nodes: zero on Gamma1 (up to round-off of its largest value),
+        u_nu <= g on Gamma3 (the case's validation checked sample points already)."""
         uu = self.u.x.array.reshape(-1, self.dim)
-        if np.abs(uu[self._clamped_nodes]).max(initial=0.0) > 1e-12:
-            bad = True
-        else:
-            bad = False
-        if self.comm.allreduce(bad, op=MPI.LOR):
-            raise CaseError(f"{src}: initial.u0: must vanish on Gamma1 (x = 0)")
+        self._refuse(not np.isfinite(uu).all(), "initial.u0",
+                     "not a finite number at a node of the mesh")
+        scale = self._reduce(float(np.abs(uu).max(initial=0.0)), "MAX")
+        self._refuse(np.abs(uu[self._clamped_nodes]).max(initial=0.0) > 1e-12 * scale,
+                     "initial.u0", "must vanish on Gamma1 (x = 0)")
         g = self.case.contact.g
         if g is not None and self.gamma3 is not None:
-            viol = (uu[self.gamma3_local_nodes] @ self.normal > g * (1 + 1e-12)).any()
-            if self.comm.allreduce(bool(viol), op=MPI.LOR):
-                raise CaseError(f"{src}: initial.u0: violates u_nu <= g on Gamma3")
+            self._refuse((uu[self.gamma3_local_nodes] @ self.normal > g * (1 + 1e-12)).any(),
+                         "initial.u0", "violates u_nu <= g on Gamma3")
 
     # ------------------------------------------------------------------ Gamma3 and bounds
     def _gamma3_nodes(self) -> Gamma3Nodes:

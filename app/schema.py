@@ -21,6 +21,10 @@ _vector = {"type": "array", "items": _component, "minItems": 2, "maxItems": 3,
                           "in t, x, y, z, or {table: [[t, value], ...]} (piecewise linear in t)"}
 
 
+# a case name is one path component below results/: letters, digits, _ . -, not "." or ".."
+NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]*$"
+
+
 def _obj(props: dict, required: list | None = None, description: str = "",
          default=None) -> dict:
     out = {"type": "object", "additionalProperties": False, "properties": props,
@@ -33,7 +37,7 @@ def _obj(props: dict, required: list | None = None, description: str = "",
 
 
 SCHEMA = _obj({
-    "name": {"type": "string", "pattern": r"^[A-Za-z0-9_.-]+$", "maxLength": 100,
+    "name": {"type": "string", "pattern": NAME_PATTERN, "maxLength": 100,
              "description": "case name (default: the file name without extension); "
                             "names the default output directory results/<name>"},
     "description": {"type": "string", "description": "free text"},
@@ -179,13 +183,16 @@ SCHEMA = _obj({
 }, required=["mesh", "material", "loads", "time"])
 SCHEMA["$schema"] = "http://json-schema.org/draft-07/schema#"
 
-# PETSc options used unless the case or the command line says otherwise.
+# PETSc options used unless the case or the command line says otherwise; the absolute
+# tolerances snes_atol and snes_vi_zero_tolerance are for the paper's scales and are
+# scaled to each case's size and loads (app/case.py, scaled_petsc_defaults).
 DEFAULT_PETSC = {
     "snes_type": "vinewtonrsls",
     "snes_linesearch_type": "basic",
     "snes_rtol": 1.0e-10,
     "snes_atol": 1.0e-11,
     "snes_stol": 1.0e-14,
+    "snes_vi_zero_tolerance": 1.0e-8,
     "snes_max_it": 50,
     "ksp_type": "preonly",
     "pc_type": "lu",

@@ -7,10 +7,9 @@ tetrahedra; unstructured ones have target size h.
 """
 from __future__ import annotations
 
-import numpy as np
 from mpi4py import MPI
 
-from .rectangle import BOUNDARY_TAGS, DOMAIN_TAG, RectangleMesh
+from .rectangle import BOUNDARY_TAGS, DOMAIN_TAG, RectangleMesh, gmsh_mesh
 
 _FACES = {"left": (0, 0.0), "right": (0, 1.0), "front": (1, 0.0), "back": (1, 1.0),
           "bottom": (2, 0.0), "top": (2, 1.0)}
@@ -39,9 +38,10 @@ def _gmsh_model(L, n, h):
         gmsh.option.setNumber("Mesh.MeshSizeMin", h)
         gmsh.option.setNumber("Mesh.MeshSizeMax", h)
     for _, s in gmsh.model.getEntities(2):
-        box = np.array(gmsh.model.getBoundingBox(2, s)).reshape(2, 3)
+        # a face is told by its centre (exact; OCC's bounding boxes are padded by 1e-7)
+        centre = gmsh.model.occ.getCenterOfMass(2, s)
         for name, (axis, frac) in _FACES.items():
-            if np.allclose(box[:, axis], frac * L[axis], atol=1e-6 * max(L)):
+            if abs(centre[axis] - frac * L[axis]) <= 1e-6 * L[axis]:
                 gmsh.model.addPhysicalGroup(2, [s], BOUNDARY_TAGS[name])
                 gmsh.model.setPhysicalName(2, BOUNDARY_TAGS[name], name)
     gmsh.model.addPhysicalGroup(3, [vol], DOMAIN_TAG)
@@ -53,19 +53,9 @@ def build_box(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, L3: float = 1.0,
     """Build the box mesh: structured n x n x n (``n`` given) or unstructured of size ``h``."""
     if (n is None) == (h is None):
         raise ValueError("give exactly one of n (structured) or h (unstructured)")
-    import gmsh
-    from dolfinx.io import gmshio
-
     L = (float(L1), float(L2), float(L3))
-    if comm.rank == 0:
-        gmsh.initialize()
-        gmsh.option.setNumber("General.Terminal", 0)
-        try:
-            _gmsh_model(L, n, h)
-            msh, ct, ft = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=3)
-        finally:
-            gmsh.finalize()
-    else:
-        msh, ct, ft = gmshio.model_to_mesh(None, comm, 0, gdim=3)
+    s = max(L)      # gmsh sees the box scaled to unit size (its tolerances are absolute)
+    msh, ct, ft = gmsh_mesh(comm, 3, lambda: _gmsh_model(tuple(x / s for x in L), n,
+                                                         None if h is None else h / s), s)
     return BoxMesh(msh, ct, ft, L[0], L[1], n is not None, n,
                    h if n is None else max(L) / n, None)

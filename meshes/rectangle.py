@@ -88,8 +88,10 @@ def _dolfinx_structured(comm, L1: float, L2: float, n: int, diagonal: str):
                                  dmesh.CellType.triangle,
                                  diagonal=getattr(dmesh.DiagonalType, diagonal))
     tdim = msh.topology.dim
-    sides = {"left": lambda x: np.isclose(x[0], 0.0), "bottom": lambda x: np.isclose(x[1], 0.0),
-             "right": lambda x: np.isclose(x[0], L1), "top": lambda x: np.isclose(x[1], L2)}
+    # vertex coordinates along an axis carry round-off relative to that axis' length
+    tx, ty = 1e-8 * L1, 1e-8 * L2
+    sides = {"left": lambda x: np.abs(x[0]) <= tx, "bottom": lambda x: np.abs(x[1]) <= ty,
+             "right": lambda x: np.abs(x[0] - L1) <= tx, "top": lambda x: np.abs(x[1] - L2) <= ty}
     facets, values = [], []
     for name, where in sides.items():
         f = dmesh.locate_entities_boundary(msh, tdim - 1, where)
@@ -121,6 +123,19 @@ def build_rectangle(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, *, n: int 
         msh, ct, ft = _dolfinx_structured(comm, L1, L2, n, diagonal)
         return RectangleMesh(msh, ct, ft, float(L1), float(L2), True, n, max(L1, L2) / n,
                              diagonal)
+    # gmsh sees the rectangle scaled to unit size (its tolerances are absolute)
+    s = max(L1, L2)
+    msh, ct, ft = gmsh_mesh(comm, 2, lambda: _gmsh_model(L1 / s, L2 / s, n,
+                                                         None if h is None else h / s,
+                                                         diagonal), s)
+    return RectangleMesh(msh, ct, ft, float(L1), float(L2), n is not None, n,
+                         h if n is None else max(L1, L2) / n, diagonal if n is not None else None)
+
+
+def gmsh_mesh(comm: MPI.Comm, gdim: int, build, scale: float):
+    """(mesh, cell tags, facet tags) of the gmsh model that ``build()`` creates on rank 0,
+    distributed by dolfinx, with its coordinates multiplied by ``scale``.  Gmsh's geometric
+    tolerances are absolute, so models are built at unit size and scaled afterwards."""
     import gmsh
     from dolfinx.io import gmshio
 
@@ -128,11 +143,12 @@ def build_rectangle(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, *, n: int 
         gmsh.initialize()
         gmsh.option.setNumber("General.Terminal", 0)
         try:
-            _gmsh_model(L1, L2, n, h, diagonal)
-            msh, ct, ft = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=2)
+            build()
+            msh, ct, ft = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=gdim)
         finally:
             gmsh.finalize()
     else:
-        msh, ct, ft = gmshio.model_to_mesh(None, comm, 0, gdim=2)
-    return RectangleMesh(msh, ct, ft, float(L1), float(L2), n is not None, n,
-                         h if n is None else max(L1, L2) / n, diagonal if n is not None else None)
+        msh, ct, ft = gmshio.model_to_mesh(None, comm, 0, gdim=gdim)
+    if scale != 1.0:
+        msh.geometry.x[:, :gdim] *= scale
+    return msh, ct, ft

@@ -1,0 +1,202 @@
+"""Hostile case data is refused by validation, before any mesh, form or solver exists, with
+one line naming the key: path-like names, expressions that are not finite somewhere on the
+body or in [0, T], initial values outside the model's set, inconsistent adaptive steps,
+degenerate sizes and numbers, unreadable files, PETSc options PETSc would refuse.  Also the
+node states of contact.csv, whose tolerances come from the solution, not from g."""
+import os
+import re
+
+import numpy as np
+import pytest
+
+from app.case import CaseError, load_raw, parse_override
+from app.output import classify
+from conftest import PAPER_CASE, make_case, paper_raw
+
+
+def _refused(pattern: str, raw=None, **sections):
+    """make_case(raw, **sections) raises one line matching pattern (without the '(line N)'
+    that follows key paths read from the file)."""
+    with pytest.raises(CaseError) as info:
+        make_case(raw, **sections)
+    msg = re.sub(r" \(line \d+\)", "", str(info.value))
+    assert "\n" not in msg and re.search(pattern, msg), msg
+
+
+@pytest.mark.parametrize("name", ["..", ".", "../x", "a/b", "", ".hidden", "-x"])
+def test_names_that_are_paths_are_refused(name):
+    _refused(r"name: .*allowed: letters, digits", name=name)
+
+
+def test_a_file_name_that_is_a_path_needs_a_name(tmp_path):
+    from app.case import validate
+    raw = load_raw(PAPER_CASE)
+    del raw["name"]
+    with pytest.raises(CaseError, match="set name"):
+        validate(raw, str(tmp_path / "..yaml"))
+    assert make_case(name="ok_name-1.2").name == "ok_name-1.2"
+
+
+@pytest.mark.parametrize("sections,pattern", [
+    ({"loads": {"traction": {"top": [0, "sqrt(-1)"], "right": [0, 0]}}},
+     r"loads\.traction\.top\[1\]: nan is not a finite number at x = 0, y = 1"),
+    ({"material": {"E": 1000.0, "nu": 0.4, "viscoplastic": {
+        "lambda1": 1.0, "lambda2": 1.0, "kappa0": "sqrt(x - 0.5)"}}},
+     r"material\.viscoplastic\.kappa0: nan is not a finite number at x = 0"),
+    ({"loads": {"f0": [0, "1e308*10"]}}, r"loads\.f0\[1\]: inf is not a finite number"),
+    ({"loads": {"f0": [0, "1/(t - 0.5)"]}, "time": {"T": 1.0, "N": 2}},
+     r"loads\.f0\[1\]: .*inf is not a finite number at .*t = 0\.5"),
+    ({"loads": {"f0": ["(-1)**0.5", 0]}}, r"loads\.f0\[0\]: nan is not a finite number"),
+    ({"loads": {"f0": [0, "1e200*x"]}}, r"loads\.f0\[1\]: .* is out of range at x ="),
+    ({"initial": {"u0": [0, "log(x)"]}}, r"initial\.u0\[1\]: -inf is not a finite number"),
+    ({"initial": {"sigma0": [["1/y", 0], [0, 0]]}}, r"initial\.sigma0\[0\]\[0\]: inf"),
+])
+def test_expressions_not_finite_on_the_body_are_refused(sections, pattern):
+    _refused(pattern, **sections)
+
+
+def test_a_traction_is_sampled_on_its_side_only():
+    # 1/x is infinite on Gamma1 {x = 0}, finite on the right side {x = 1}
+    case = make_case(loads={"traction": {"right": ["1/x", 0], "top": [0, -8.0]}})
+    assert case.loads.traction["right"] == ("1/x", 0)
+
+
+@pytest.mark.parametrize("sections,pattern", [
+    ({"initial": {"u0": [0, "-x"]}}, r"initial\.u0\[1\]: violates u_nu <= g on Gamma3"),
+    ({"initial": {"u0": ["y", 0]}}, r"initial\.u0\[0\]: must vanish on Gamma1"),
+    ({"material": {"E": 1000.0, "nu": 0.4, "viscoplastic": {
+        "lambda1": 1.0, "lambda2": 1.0, "kappa0": "-100"}}},
+     r"kappa0: must be >= 0 everywhere, got -100"),
+    ({"initial": {"sigma0": [[0, "x"], ["y", 0]]}}, r"initial\.sigma0: must be symmetric"),
+])
+def test_initial_values_outside_the_model_are_refused(sections, pattern):
+    _refused(pattern, **sections)
+
+
+def test_initial_values_inside_the_model_are_accepted():
+    case = make_case(initial={"u0": [0, "-0.01*x"], "sigma0": [[0, "x*y"], ["y*x", 0]]})
+    assert case.initial.u0 == (0, "-0.01*x")
+
+
+@pytest.mark.parametrize("time,pattern", [
+    ({"T": 1.0, "N": 16, "adaptive": {"k_min": 1.0, "k_max": 1e-6}},
+     r"k_min: 1 is larger than .*k_max"),
+    ({"T": 1.0, "N": 16, "adaptive": {"k_min": 0.5}}, r"k_min: 0\.5 is larger than the first"),
+    ({"T": 1.0, "k": 1e-90}, r"time\.k: 1e-90 gives 1e\+90 steps .*limit"),
+    ({"T": 1.0, "N": 4, "grading": 1e99}, r"time\.grading: .*overflow"),
+])
+def test_inconsistent_time_settings_are_refused(time, pattern):
+    raw = paper_raw()
+    raw["time"] = time
+    _refused(pattern, raw)
+
+
+def test_adaptive_settings_in_range_are_accepted():
+    case = make_case(time={"adaptive": {"k_min": 1e-3, "k_max": 0.5}})
+    assert case.time.adaptive["k_min"] == 1e-3
+
+
+@pytest.mark.parametrize("sections,pattern", [
+    ({"mesh": {"L1": 1e-120}}, r"mesh\.L1: 1e-120 is out of range"),
+    ({"mesh": {"L1": 1e-35}}, r"mesh\.L1: 1e-35 m is a degenerate length"),
+    ({"mesh": {"L2": 1e-7}}, r"mesh\.L2: 1e-07 m is too thin"),
+    ({"material": {"E": 1e300, "nu": 0.4}}, r"material\.E: 1e\+300 is out of range"),
+    ({"contact": {"g": 1e-300}}, r"contact\.g: 1e-300 is out of range"),
+])
+def test_degenerate_sizes_and_numbers_are_refused(sections, pattern):
+    _refused(pattern, **sections)
+
+
+def test_yaml_errors_are_one_line_with_line_and_column(tmp_path):
+    with pytest.raises(CaseError) as info:
+        parse_override("material.E=[1")
+    assert "\n" not in str(info.value) and "line 1, column 3" in str(info.value)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("mesh:\n  n: 4\nmaterial: {E: 1\n")
+    with pytest.raises(CaseError) as info:
+        load_raw(bad)
+    assert "\n" not in str(info.value) and re.search(r"line \d+, column \d+", str(info.value))
+    bad.write_bytes(b"mesh:\n  n: \x01\n")
+    with pytest.raises(CaseError, match=r"unacceptable character #x0001 \(line 2, column 6\)"):
+        load_raw(bad)
+    bad.write_text("mesh:\n  n: " + "1" * 5000 + "\n")      # Python refuses to read it
+    with pytest.raises(CaseError, match=r"more than 30 digits \(line 2, column 6\)"):
+        load_raw(bad)
+
+
+@pytest.mark.parametrize("kind", ["device", "directory", "fifo"])
+def test_files_that_are_not_regular_are_refused_without_reading(kind, tmp_path):
+    path = {"device": "/dev/zero", "directory": str(tmp_path)}.get(kind, tmp_path / "fifo")
+    if kind == "fifo":
+        os.mkfifo(path)        # opening it would block until a writer comes
+    with pytest.raises(CaseError, match="not a regular file"):
+        load_raw(path)
+
+
+def test_a_file_larger_than_the_limit_is_read_no_further(tmp_path, monkeypatch):
+    import app.case
+    monkeypatch.setattr(app.case, "MAX_FILE_BYTES", 100)
+    big = tmp_path / "big.yaml"
+    big.write_text("# " + "x" * 200 + "\n")
+    with pytest.raises(CaseError, match="larger than 100 bytes"):
+        load_raw(big)
+
+
+@pytest.mark.parametrize("options,pattern", [
+    ({"ksp_type": "nonexistent"}, r"petsc\.ksp_type: 'nonexistent' is not a KSP type "
+                                  r"\(allowed: .*preonly"),
+    ({"snes_type": "foo"}, r"petsc\.snes_type: 'foo' is not a SNES type \(allowed: .*newtonls"),
+    ({"pc_type": "foo"}, r"petsc\.pc_type: 'foo' is not a PC type"),
+    ({"snes_linesearch_type": "foo"}, r"line search type \(allowed: basic, bt"),
+    ({"pc_factor_mat_solver_type": "nosuch"}, r"not a factorisation package \(allowed: .*petsc"),
+    ({"fast_ksp_type": "bad"}, r"petsc\.fast_ksp_type: 'bad' is not a KSP type"),
+    ({"snes_rtol": "abc"}, r"petsc\.snes_rtol: 'abc' is not a tolerance"),
+    ({"snes_max_it": 1.5}, r"petsc\.snes_max_it: 1\.5 is not an integer"),
+    ({"snes_ksp_ew": 3}, r"petsc\.snes_ksp_ew: PETSc refuses it: Unknown logical value"),
+    ({"snes_linesearch_order": "x"}, r"petsc\.snes_linesearch_order: PETSc refuses it"),
+])
+def test_petsc_options_petsc_would_refuse_are_refused(options, pattern):
+    _refused(pattern, petsc=options)
+
+
+def test_valid_petsc_options_pass_and_the_database_is_left_clean():
+    from petsc4py import PETSc
+
+    from app.petscopts import PREFIX, check_petsc_options
+    from app.solver import PREFIX as SOLVER_PREFIX
+    assert PREFIX == SOLVER_PREFIX
+    options = {"snes_monitor": None, "ksp_type": "gmres", "pc_type": "jacobi",
+               "snes_rtol": 1e-12, "snes_max_it": "20", "fast_pc_factor_mat_solver_type": "petsc"}
+    check_petsc_options(options, "test")
+    assert not any(PETSc.Options().hasName(PREFIX + k) for k in options)
+    with pytest.raises(CaseError, match=r"^command line: -ksp_type: 'x' is not a KSP type"):
+        check_petsc_options({"ksp_type": "x"}, "command line", where="-")
+
+
+def test_absolute_petsc_tolerances_scale_with_the_case():
+    paper = make_case().petsc
+    assert paper["snes_atol"] == 1e-11 and paper["snes_vi_zero_tolerance"] == 1e-8
+    tiny = make_case(mesh={"L1": 1e-9, "L2": 1e-9}).petsc
+    assert tiny["snes_atol"] == pytest.approx(1e-20) and \
+        tiny["snes_vi_zero_tolerance"] == pytest.approx(1e-17)
+    assert make_case(petsc={"snes_atol": 1e-6}).petsc["snes_atol"] == 1e-6
+
+
+def _table(u_nu, pressure, u_tau):
+    return {"x": np.arange(len(u_nu)), "u_x": np.asarray(u_tau), "u_y": -np.asarray(u_nu),
+            "u_nu": np.asarray(u_nu), "u_tau": np.asarray(u_tau),
+            "neg_sigma_nu": np.asarray(pressure), "neg_sigma_tau": np.zeros(len(u_nu))}
+
+
+def test_contact_states_do_not_depend_on_the_size_of_g():
+    table = _table([0.011, 0.023, 0.041, -0.002], [1.1, 2.3, 4.1, 1e-15], [-0.01, -0.02, 0, 0])
+    expected = ["compliance", "compliance", "compliance", "separated"]
+    for g in (None, 0.05, 1e8):
+        assert list(classify(table, g)) == expected
+    assert list(classify(table, 0.023)) == ["compliance", "bound", "bound", "separated"]
+
+
+def test_a_stiff_compliance_penetrates_below_round_off_but_is_in_contact():
+    # c_nu = 1e300: u_nu ~ 1e-300 under a finite pressure
+    table = _table([1.7e-300, 3.9e-300, -1e-3], [1.7, 3.9, 0.0], [-2e-3, -4e-3, -5e-3])
+    assert list(classify(table, None)) == ["compliance", "compliance", "separated"]
