@@ -14,6 +14,7 @@ import csv
 import json
 import math
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -22,17 +23,24 @@ from pathlib import Path
 
 import numpy as np
 
+from .case import CaseError, fast_eligible, load_raw, validate
 from .output import atomic_write
 
 ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
        "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
 
 
+def _overrides(n: int, N: int, method: str, steps: int | None = None) -> list[str]:
+    """The --set options of one bench run (``steps``: a shorter warm-up run)."""
+    return [f"mesh.n={n}", f"time.N={steps or N}", f"output.every={steps or N}",
+            f"solver.method={method}"]
+
+
 def _run(case, out, n, N, method, nprocs, steps=None, log=print):
     cmd = [sys.executable, "-m", "app", "run", str(case), "--out", str(out), "--overwrite",
-           "--no-plots",
-           "--quiet", "--set", f"mesh.n={n}", "--set", f"time.N={steps or N}",
-           "--set", f"output.every={steps or N}", "--set", f"solver.method={method}"]
+           "--no-plots", "--quiet"]
+    for item in _overrides(n, N, method, steps):
+        cmd += ["--set", item]
     if nprocs > 1:
         cmd = ["mpirun", "-n", str(nprocs), *cmd]
     t0 = time.perf_counter()
@@ -43,8 +51,50 @@ def _run(case, out, n, N, method, nprocs, steps=None, log=print):
     return wall, json.loads((Path(out) / "summary.json").read_text())
 
 
+def _positive_ints(option: str, values, allowed: str = "positive integers") -> None:
+    for v in values:
+        if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+            raise CaseError(f"{option}: {v!r} is not allowed (allowed: {allowed})")
+
+
+def check_arguments(case, levels, extra=(), nprocs=(1, 2), repeat: int = 1,
+                    memory_steps=(), methods=("snes_vi", "fast")) -> None:
+    """Refuse a bench that cannot run as asked, before anything runs: CaseError naming the
+    option (or the case file) and the allowed values.  The case is read and validated at
+    every level with every step solver."""
+    _positive_ints("--levels", levels)
+    if not levels and not extra:
+        raise CaseError("--levels: nothing to run (allowed: one or more positive integers, "
+                        "or --extra n:N)")
+    for e in extra:
+        if not isinstance(e, (tuple, list)) or len(e) != 2:
+            raise CaseError(f"--extra: {e!r} is not allowed (allowed: n:N, e.g. 256:32)")
+        _positive_ints("--extra", e, "n:N with positive integers, e.g. 256:32")
+    _positive_ints("--ranks", nprocs)
+    if not nprocs:
+        raise CaseError("--ranks: none given (allowed: positive integers, e.g. 1 2)")
+    if any(r > 1 for r in nprocs) and shutil.which("mpirun") is None:
+        raise CaseError(f"--ranks {max(nprocs)}: mpirun is not on PATH (allowed here: 1)")
+    _positive_ints("--repeat", [repeat], "1 or more")
+    _positive_ints("--memory-steps", memory_steps)
+    for n, N in [(L, L) for L in levels] + [tuple(e) for e in extra]:
+        for method in methods:
+            c = validate(load_raw(case, _overrides(n, N, method)), str(case))
+            ok, why = fast_eligible(c)
+            if method == "fast" and not ok:
+                raise CaseError(f"{case}: the bench times the fast step solver, which is not "
+                                f"possible for this case: {why}")
+    for N in memory_steps:
+        for how in ("recursion", "direct"):
+            validate(load_raw(MEMORY_CASE, [*_overrides(16, N, "fast"),
+                                            f"contact.memory.sum={how}"]), str(MEMORY_CASE))
+
+
 def bench(case, outdir: Path, levels, methods=("snes_vi", "fast"), nprocs=(1, 2),
           extra=(), log=print, repeat: int = 1) -> list[dict]:
+    """One row per configuration (level, solver, ranks); a configuration that fails gets a
+    row with its reason under "failed".  CaseError for arguments it cannot run as asked."""
+    check_arguments(case, levels, extra, nprocs, repeat, methods=methods)
     rows = []
     for n, N in [(L, L) for L in levels] + list(extra):
         repeats = repeat if (n, N) not in extra else 1
@@ -99,6 +149,13 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "fast"), nprocs=(1, 2)
                 if "failed" not in r and r["method"] == method and r["nprocs"] == 1:
                     r["step_cost_exponent"] = slope
     return rows
+
+
+def failures(rows: list[dict], memory: list[dict]) -> list[str]:
+    """The configurations of a bench that failed, one short name each."""
+    out = [f"h = 1/{r['n']}, N = {r['N']}, {r['method']}, {r['nprocs']} rank(s)"
+           for r in rows if "failed" in r]
+    return out + [f"memory term {r['sum']}, N = {r['N']}" for r in memory if "failed" in r]
 
 
 MEMORY_CASE = Path(__file__).resolve().parents[1] / "cases" / "memory.yaml"

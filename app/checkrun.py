@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 
 def report(case, comm) -> list[str]:
@@ -57,6 +56,7 @@ def info() -> list[str]:
     from petsc4py import PETSc
 
     from . import __version__
+    from .cachedirs import caches
 
     v = PETSc.Sys.getVersion()
     pkgs = ["mumps", "superlu_dist", "suitesparse", "hypre", "metis", "parmetis", "scalapack",
@@ -67,7 +67,7 @@ def info() -> list[str]:
         gmsh_v = gmsh.__version__
     except Exception as exc:  # noqa: BLE001
         gmsh_v = f"not importable ({exc})"
-    cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
+    dirs = caches()
     lib = MPI.Get_library_version().strip().splitlines()[0]
     return [
         f"vpcontact {__version__}",
@@ -77,8 +77,10 @@ def info() -> list[str]:
         f"external packages: {', '.join(have) or 'none found'}",
         f"MPI: {lib} (MPI {'.'.join(map(str, MPI.Get_version()))})",
         f"gmsh {gmsh_v}, numpy {numpy.__version__}",
-        f"JIT cache (FFCx/cffi): {cache / 'fenics'}",
-        f"run cache (convergence study): "
-        f"{os.environ.get('VPCONTACT_CACHE', cache / 'vpcontact')}",
+        f"JIT cache (FFCx): {dirs.ffcx}",
+        f"compiled kernels (cffi): {dirs.kernels}",
+        f"run cache (convergence study): {dirs.root}",
+        *[f"(not writable: {what} {wanted} ({why}); using {used})"
+          for what, wanted, used, why in dirs.replaced],
         f"python: {os.sys.executable}",
     ]

@@ -57,9 +57,11 @@ class RunRecord:
     snaps: list = field(default_factory=list, repr=False)
 
 
-def plan_runs(levels: list[int], reference: int, vary: str, case=None) -> list[tuple[int, int]]:
+def plan_runs(levels: list[int], reference: int, vary: str, case=None,
+              deltas: list[float] | None = None) -> list[tuple[int, int]]:
     """(n, N) of each level, checking that meshes and time grids nest in the reference (and,
-    given the case, that its mesh is structured)."""
+    given the case, that its mesh is structured and that the case is valid at every level
+    and the reference with every delta).  CaseError names the option and the allowed values."""
     if case is not None and case.mesh.kind != "structured":
         raise CaseError(f"{case.source}: mesh.kind: the convergence study needs nested meshes "
                         "(structured); got 'unstructured'")
@@ -79,8 +81,31 @@ def plan_runs(levels: list[int], reference: int, vary: str, case=None) -> list[t
     if bad:
         raise CaseError(f"--levels {bad}: every level must divide the reference {reference} and "
                         "be smaller (nested meshes and common time points)")
-    return [(L, L) if vary == "both" else (L, reference) if vary == "h" else (reference, L)
+    if deltas is not None and (not deltas or not all(
+            isinstance(d, (int, float)) and math.isfinite(d) and d > 0 for d in deltas)):
+        raise CaseError(f"--deltas {deltas}: not allowed (allowed: one or more finite "
+                        "numbers > 0)")
+    plan = [(L, L) if vary == "both" else (L, reference) if vary == "h" else (reference, L)
             for L in levels]
+    if case is not None:
+        ds = list(deltas) if deltas else [case.numerics.delta]
+        ref_delta = min([case.numerics.delta, *ds])
+        _case_at(case.raw, reference, reference, ref_delta, case.source)
+        for n, N in plan:
+            for delta in ds:
+                _case_at(case.raw, n, N, delta, case.source)
+    return plan
+
+
+def check_cache_dir(cache_dir: Path | None, comm) -> None:
+    """CaseError on every rank unless the run cache ``cache_dir`` is (or can be made) a
+    writable directory (tested on rank 0, which writes the cache)."""
+    if cache_dir is None:
+        return
+    from .cachedirs import unusable
+    why = comm.bcast(unusable(Path(cache_dir)) if comm.rank == 0 else None, root=0)
+    if why:
+        raise CaseError(f"--cache-dir {cache_dir}: not a writable directory ({why})")
 
 
 def _case_at(raw: dict, n: int, N: int, delta: float, source: str):
@@ -89,6 +114,20 @@ def _case_at(raw: dict, n: int, N: int, delta: float, source: str):
     raw["time"].pop("k", None)
     raw.setdefault("solver", {})["delta"] = delta
     return validate(raw, source)
+
+
+def _from_cache(path: Path | None, case, grid: Grid):
+    """(times, snaps, meta) of the cached run at ``path``, or None: not cached, or an entry
+    that is damaged or does not fit the run (a warning; the run is computed again)."""
+    if path is None or not path.exists():
+        return None
+    n = grid.n
+    shapes = {"u": (n + 1, n + 1, 2), "sigma": (n, n, 2, 2, 2), "kappa": (n, n, 2)}
+    try:
+        return runcache.load(path, case.time.times, shapes)
+    except runcache.Unreadable as exc:
+        log.warning("run cache entry %s is not usable (%s): computing the run again", path, exc)
+        return None
 
 
 def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: dict, comm,
@@ -102,9 +141,9 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
     case = dataclasses.replace(case, petsc={**case.petsc, **petsc_cli})
     grid = Grid(n, case.mesh.L1, case.mesh.L2, case.mesh.diagonal)
     path = cache_dir / f"run-{runcache.cache_key(case)}.h5" if cache_dir else None
-    hit = comm.bcast(bool(path and path.exists()) if comm.rank == 0 else None, root=0)
-    if hit:
-        times, snaps, meta = runcache.load(path) if comm.rank == 0 else (None, [], None)
+    cached = _from_cache(path, case, grid) if comm.rank == 0 else None
+    if comm.bcast(cached is not None, root=0):
+        times, snaps, meta = cached if comm.rank == 0 else (None, [], None)
         meta = comm.bcast(meta, root=0)
         times = comm.bcast(times, root=0)
         log.info("  n = %4d, N = %4d, delta = %g: from the cache (%s)", n, N, delta, path.name)
@@ -135,9 +174,12 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
     log.info("  n = %4d, N = %4d, delta = %g: %d dofs, %.2f s (+ set-up %.2f s), "
              "%d Newton iterations", n, N, delta, rec.dofs, rec.solve_s, rec.setup_s, rec.newton)
     if path and comm.rank == 0:
-        runcache.save(path, case.time.times, snaps,
-                      {"dofs": rec.dofs, "solve_s": rec.solve_s, "setup_s": rec.setup_s,
-                       "newton": rec.newton, "n": n, "N": N, "delta": delta})
+        try:
+            runcache.save(path, case.time.times, snaps,
+                          {"dofs": rec.dofs, "solve_s": rec.solve_s, "setup_s": rec.setup_s,
+                           "newton": rec.newton, "n": n, "N": N, "delta": delta})
+        except OSError as exc:        # e.g. a full disk: the study goes on without the entry
+            log.warning("run not cached (%s: %s)", path, exc.strerror or exc)
     return rec
 
 
@@ -190,7 +232,8 @@ def study(raw: dict, source: str, levels: list[int], reference: int, vary: str,
           deltas: list[float], comm, cache_dir: Path | None, petsc_cli: dict) -> dict:
     """Run the study; returns the rows (on every rank) and the reference run's record."""
     base = validate(raw, source)
-    plan = plan_runs(levels, reference, vary, base)
+    plan = plan_runs(levels, reference, vary, base, deltas)
+    check_cache_dir(cache_dir, comm)
     deltas = list(deltas) if deltas else [base.numerics.delta]
     ref_delta = min([base.numerics.delta, *deltas])
     T, L1 = base.time.T, base.mesh.L1

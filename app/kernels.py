@@ -6,9 +6,9 @@ back-substitutions of the fast solver.  The same algorithm as material.VonMisesP
 one cell at a time in C, takes well under a millisecond.  The numpy code stays the reference
 (tests/unit/test_kernels.py compares them) and the fallback when no C compiler is available.
 
-The build goes to $VPCONTACT_CACHE/kernels (default ~/.cache/vpcontact/kernels), keyed by a
-hash of the C source; concurrent builds (mpirun ranks) write to private directories and
-publish the library by an atomic rename.
+The build goes to the ``kernels`` directory of the cache (app/cachedirs.py), keyed by a hash of
+the C source; concurrent builds (mpirun ranks) write to private directories and publish the
+library by an atomic rename.  A cached library that does not load is rebuilt.
 """
 from __future__ import annotations
 
@@ -518,39 +518,63 @@ CFLAGS = ["-O3", "-std=c99", "-fno-math-errno", "-fno-trapping-math"]
 
 
 def cache_dir() -> Path:
-    base = Path(os.environ.get("VPCONTACT_CACHE", Path.home() / ".cache" / "vpcontact"))
-    return base / "kernels"
+    """Where the compiled kernels are kept (app/cachedirs.py)."""
+    from .cachedirs import caches
+    return caches().kernels
 
 
 def _build(name: str, target: Path, cdef: str, source: str, **kwargs) -> None:
+    """Compile into a private temporary directory next to ``target``, then publish the
+    library by an atomic rename: concurrent builds (mpirun ranks, other runs) and builds
+    killed half-way never leave a partial ``target``."""
     import cffi
     ffi = cffi.FFI()
     ffi.cdef(cdef)
     ffi.set_source(name, source, extra_compile_args=CFLAGS, **kwargs)
     target.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
+    with tempfile.TemporaryDirectory(dir=target.parent, prefix=f".{name}-") as tmp:
         built = Path(ffi.compile(tmpdir=tmp, verbose=False))
-        os.replace(built, target)                      # atomic: other ranks see all or nothing
+        os.replace(built, target)
+
+
+def _import(name: str, target: Path):
+    spec = importlib.util.spec_from_file_location(name, target)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def module_name(prefix: str, cdef: str, source: str, **kwargs) -> str:
+    """The cache entry's name: ``prefix`` and a hash of everything the build depends on."""
+    digest = hashlib.sha256((cdef + source + repr(sorted(kwargs.items())) + repr(CFLAGS)
+                             + sys.version)
+                            .encode()).hexdigest()[:16]
+    return f"{prefix}_{digest}"
+
+
+def _load_or_build(name: str, target: Path, cdef: str, source: str, what: str, **kwargs):
+    """The cached module; built first if missing, rebuilt if it does not load (a truncated
+    or otherwise damaged file)."""
+    if target.exists():
+        try:
+            return _import(name, target)
+        except Exception as exc:                        # noqa: BLE001 (any damage)
+            log.info("the cached library %s does not load (%s): rebuilding it", target, exc)
+    else:
+        log.info("compiling %s into %s", what, target.parent)
+    _build(name, target, cdef, source, **kwargs)
+    return _import(name, target)
 
 
 def compiled(prefix: str, cdef: str, source: str, what: str, **kwargs):
     """The cffi module of ``source`` (built once into cache_dir(), keyed by a hash of the
     source), or None if it cannot be built here (``what`` names it in the warning)."""
-    digest = hashlib.sha256((cdef + source + repr(sorted(kwargs.items())) + repr(CFLAGS)
-                             + sys.version)
-                            .encode()).hexdigest()[:16]
-    name = f"{prefix}_{digest}"
+    name = module_name(prefix, cdef, source, **kwargs)
     if name in _MODULES:
         return _MODULES[name]
     target = cache_dir() / f"{name}.so"
-    module = None
     try:
-        if not target.exists():
-            log.info("compiling %s into %s", what, target.parent)
-            _build(name, target, cdef, source, **kwargs)
-        spec = importlib.util.spec_from_file_location(name, target)
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
+        module = _load_or_build(name, target, cdef, source, what, **kwargs)
     except Exception as exc:                            # no compiler (or library): fallback
         log.warning("%s unavailable (%s)", what, exc)
         module = None
@@ -558,10 +582,19 @@ def compiled(prefix: str, cdef: str, source: str, what: str, **kwargs):
     return module
 
 
+CELL_KERNELS = "_vpcontact_kernels"
+CELL_LIBRARIES = ["m"]
+
+
 def load():
     """The compiled cell kernels (``.lib``, ``.ffi``), or None (numpy is used then)."""
-    return compiled("_vpcontact_kernels", CDEF, SOURCE, "compiled cell kernels (using numpy)",
-                    libraries=["m"])
+    return compiled(CELL_KERNELS, CDEF, SOURCE, "compiled cell kernels (using numpy)",
+                    libraries=CELL_LIBRARIES)
+
+
+def library_file() -> Path:
+    """The cache file of the compiled cell kernels (``load`` builds it)."""
+    return cache_dir() / f"{module_name(CELL_KERNELS, CDEF, SOURCE, libraries=CELL_LIBRARIES)}.so"
 
 
 _CTYPES = {np.dtype(np.float64): "double[]", np.dtype(np.intc): "int[]"}

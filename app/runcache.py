@@ -2,7 +2,8 @@
 
 The key is a hash of everything that determines the discrete solution: the validated case
 (physics, mesh, time grid, solver settings, PETSc options) and a format version; the case's
-name, description and output settings do not count.  Files are written atomically.
+name, description and output settings do not count.  Files are written atomically; an entry
+that does not load (or does not fit its run) is recomputed and written again.
 """
 from __future__ import annotations
 
@@ -18,7 +19,9 @@ IGNORED = ("name", "description", "output")
 
 
 def default_cache_dir() -> Path:
-    return Path(os.environ.get("VPCONTACT_CACHE", Path.home() / ".cache" / "vpcontact"))
+    """The run cache of the convergence study (app/cachedirs.py)."""
+    from .cachedirs import cache_root
+    return cache_root()
 
 
 def cache_key(case) -> str:
@@ -33,20 +36,45 @@ def save(path: Path, times: list, snaps: list[dict], meta: dict) -> None:
 
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    with h5py.File(tmp, "w") as f:
-        f.attrs["meta"] = json.dumps(meta)
-        f["times"] = np.asarray(times)
-        for name in ("u", "sigma", "kappa"):
-            f.create_dataset(name, data=np.stack([s[name] for s in snaps]))
-    os.replace(tmp, path)
+    try:
+        with h5py.File(tmp, "w") as f:
+            f.attrs["meta"] = json.dumps(meta)
+            f["times"] = np.asarray(times)
+            for name in ("u", "sigma", "kappa"):
+                f.create_dataset(name, data=np.stack([s[name] for s in snaps]))
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
-def load(path: Path) -> tuple[np.ndarray, list[dict], dict]:
+class Unreadable(Exception):
+    """A cache entry that cannot be used: damaged, or not the run it is named after."""
+
+
+META_KEYS = ("dofs", "solve_s", "setup_s", "newton")
+
+
+def load(path: Path, times=None, shapes: dict | None = None) -> tuple[np.ndarray, list[dict], dict]:
+    """(times, per-step fields, meta) of a cached run.  Raises Unreadable if the file is
+    damaged or does not fit the expected time points ``times`` and per-step ``shapes``."""
     import h5py
 
-    with h5py.File(path, "r") as f:
-        meta = json.loads(f.attrs["meta"])
-        times = f["times"][...]
-        arrays = {name: f[name][...] for name in ("u", "sigma", "kappa")}
-    snaps = [{name: arrays[name][i] for name in arrays} for i in range(len(times))]
-    return times, snaps, meta
+    try:
+        with h5py.File(path, "r") as f:
+            meta = json.loads(f.attrs["meta"])
+            stored = f["times"][...]
+            arrays = {name: f[name][...] for name in ("u", "sigma", "kappa")}
+    except Exception as exc:                      # noqa: BLE001 (any damage)
+        raise Unreadable(f"{type(exc).__name__}: {exc}") from None
+    if not isinstance(meta, dict) or not all(
+            isinstance(meta.get(k), (int, float)) for k in META_KEYS):
+        raise Unreadable(f"meta is not a mapping with {', '.join(META_KEYS)}")
+    if times is not None and (stored.shape != (len(times),) or not np.allclose(
+            stored, times, rtol=1e-12, atol=0.0)):
+        raise Unreadable("its time points are not the run's")
+    for name, a in arrays.items():
+        if a.dtype.kind != "f" or len(a) != len(stored) or not np.isfinite(a).all() \
+                or (shapes is not None and a.shape[1:] != tuple(shapes[name])):
+            raise Unreadable(f"'{name}' does not fit the run (shape {a.shape})")
+    snaps = [{name: arrays[name][i] for name in arrays} for i in range(len(stored))]
+    return stored, snaps, meta

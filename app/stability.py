@@ -136,6 +136,8 @@ def run_variant(raw: dict, variant: Variant, scheme: str, comm, petsc_cli: dict)
     log.setLevel(logging.CRITICAL)
     try:
         res = run(case, None, comm, write_outputs=False)
+    except CaseError as exc:   # found while setting up (e.g. a step solver not possible)
+        return Outcome(variant, scheme, "invalid", str(exc), wall_s=time.perf_counter() - t0)
     except Exception as exc:   # report, do not stop the sweep: every variant gets a row
         return Outcome(variant, scheme, "error", f"{type(exc).__name__}: {exc}",
                        wall_s=time.perf_counter() - t0, finite=False)
@@ -161,12 +163,35 @@ def run_variant(raw: dict, variant: Variant, scheme: str, comm, petsc_cli: dict)
     return out
 
 
-def sweep(raw: dict, comm, petsc_cli: dict, n: int = 8, N: int = 8,
-          variants: list[Variant] | None = None) -> list[Outcome]:
+def base_case(raw: dict, n: int, N: int, source: str = "case") -> dict:
+    """The sweep's base: the case on a structured n x n mesh with N uniform steps.
+    CaseError (naming --n or --steps and the allowed values) if that is not a valid case
+    with either history scheme."""
+    for option, v in (("--n", n), ("--steps", N)):
+        if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+            raise CaseError(f"{option}: {v!r} is not allowed (allowed: positive integers)")
     base = copy.deepcopy(raw)
     base["mesh"]["n"], base["time"] = n, {"T": base["time"].get("T", 1.0), "N": N}
     base["mesh"].pop("h", None)
     base["mesh"]["kind"] = "structured"
+    errors = []
+    for scheme in ("explicit", "implicit"):
+        r = copy.deepcopy(base)
+        r["time"]["scheme"] = scheme
+        try:
+            validate(r, f"{source} (stability base: --n {n}, --steps {N}, {scheme} scheme)")
+        except CaseError as exc:
+            errors.append(exc)
+    if len(errors) == 2:
+        raise errors[0]
+    return base
+
+
+def sweep(raw: dict, comm, petsc_cli: dict, n: int = 8, N: int = 8,
+          variants: list[Variant] | None = None, source: str = "case") -> list[Outcome]:
+    """Run every variant with each of its schemes.  CaseError before anything runs if the
+    base case is not valid, and after the sweep if no variant was valid input."""
+    base = base_case(raw, n, N, source)
     outcomes = []
     for v in variants or default_variants(base):
         for scheme in v.schemes:
@@ -175,6 +200,9 @@ def sweep(raw: dict, comm, petsc_cli: dict, n: int = 8, N: int = 8,
             log.info("  %-16s %-34s %-8s %-9s steps %4d  max newton %3d  growth sigma %-9.3g "
                      "%s (%.2f s)", v.group, v.name, scheme, o.status, o.steps, o.max_newton,
                      o.growth_sigma, "bounded" if o.bounded else "BLOW-UP", o.wall_s)
+    if outcomes and all(o.status == "invalid" for o in outcomes):
+        raise CaseError(f"no variant of the stability sweep is a valid case: "
+                        f"{outcomes[0].reason}")
     baseline = {o.scheme: o for o in outcomes if o.variant.name == "baseline"}
     for o in outcomes:
         if o.variant.scale and o.norms and o.scheme in baseline and baseline[o.scheme].norms:

@@ -1,0 +1,323 @@
+"""Faults of the environment and of the files a run reads back, and the arguments of the study
+commands: unwritable caches (replaced, one warning), a damaged compiled kernel (rebuilt),
+damaged checkpoints, and bench / convergence / stability arguments refused before anything
+runs (one line, exit code 2).
+
+Unwritable paths lie under a regular file: mkdir fails there for root as well."""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+import pytest
+
+from conftest import MPI_ENV, PAPER_CASE, ROOT
+
+TINY = ["--set", "mesh.n=4", "--set", "time.N=2"]
+CACHE_VARS = ("HOME", "XDG_CACHE_HOME", "XDG_CONFIG_HOME", "VPCONTACT_CACHE", "MPLCONFIGDIR")
+
+
+def _cli(args, env=None, nprocs=1):
+    """``python -m app ARGS`` with the environment ``env`` in place of the cache variables."""
+    base = {k: v for k, v in os.environ.items() if k not in CACHE_VARS}
+    base.update(MPI_ENV, PYTHONPATH=str(ROOT), HOME=os.environ.get("HOME", "/root"))
+    cmd = [sys.executable, "-m", "app", *map(str, args)]
+    if nprocs > 1:
+        cmd = ["mpirun", "-n", str(nprocs), *cmd]
+    return subprocess.run(cmd, cwd=ROOT, env={**base, **(env or {})}, capture_output=True,
+                          text=True, timeout=600)
+
+
+def _one_error_line(proc, code=2) -> str:
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == code, proc.stderr
+    assert "Traceback" not in proc.stderr
+    errors = [ln for ln in lines if ln.startswith("vpcontact")]
+    assert len(errors) == 1, proc.stderr
+    return errors[0]
+
+
+@pytest.fixture
+def blocker(tmp_path):
+    """A regular file: no directory can be created under it."""
+    f = tmp_path / "file"
+    f.write_text("not a directory")
+    return f
+
+
+# ------------------------------------------------------------------ caches: usable or replaced
+def test_unwritable_home_runs_on_temporary_caches(blocker):
+    home = blocker / "home"
+    base = os.path.join(tempfile.gettempdir(), f"vpcontact-{os.getuid()}")
+    for args in (["check", PAPER_CASE, *TINY],
+                 ["run", PAPER_CASE, *TINY, "--out", blocker.parent / "out", "--no-plots"]):
+        proc = _cli(args, {"HOME": str(home)})
+        assert proc.returncode == 0, proc.stderr
+        warnings = [ln for ln in proc.stderr.splitlines() if "warning" in ln.lower()]
+        assert len(warnings) == 1, proc.stderr
+        for wanted, used in ((home / ".cache" / "vpcontact", f"{base}/vpcontact"),
+                             (home / ".cache" / "fenics", f"{base}/fenics")):
+            assert f"{wanted} (" in warnings[0] and f"-> {used}" in warnings[0]
+    assert (blocker.parent / "out" / "summary.json").is_file()
+    info = _cli(["info"], {"HOME": str(home)}).stdout
+    assert f"JIT cache (FFCx): {base}/fenics" in info
+    assert f"run cache (convergence study): {base}/vpcontact" in info
+
+
+def test_unwritable_run_cache_only_is_replaced(blocker):
+    proc = _cli(["info"], {"VPCONTACT_CACHE": str(blocker / "cache")})
+    assert proc.returncode == 0
+    line = _one_error_line(proc, 0)
+    assert line.startswith("vpcontact: warning:") and str(blocker / "cache") in line
+    assert "FFCx" not in line
+
+
+def test_nothing_writable_is_one_error_line(blocker, tmp_path):
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    (tmp / f"vpcontact-{os.getuid()}").write_text("taken")
+    proc = _cli(["check", PAPER_CASE, *TINY], {"HOME": str(blocker / "home"),
+                                               "TMPDIR": str(tmp)})
+    line = _one_error_line(proc, 1)
+    assert line.startswith("vpcontact: error: no writable ")
+    assert proc.stdout == ""
+
+
+# ------------------------------------------------------------------ compiled kernels
+def _tiny_module(tmp_path, monkeypatch, tag):
+    from app import kernels
+    monkeypatch.setattr(kernels, "cache_dir", lambda: tmp_path / "kernels")
+    src = f"int plus_{tag}(int x) {{ return x + {len(tag)}; }}"
+    name = kernels.module_name(f"_vpcontact_test_{tag}", f"int plus_{tag}(int x);", src)
+    return kernels, src, tmp_path / "kernels" / f"{name}.so"
+
+
+def test_damaged_cached_kernel_is_rebuilt_in_process(tmp_path, monkeypatch, caplog):
+    kernels, src, target = _tiny_module(tmp_path, monkeypatch, "damaged")
+    target.parent.mkdir(parents=True)
+    target.write_bytes(b"\x7fELF\x02\x01\x01" + bytes(57))      # a truncated library
+    with caplog.at_level("INFO", logger="vpcontact"):
+        mod = kernels.compiled("_vpcontact_test_damaged", "int plus_damaged(int x);", src,
+                               "test kernel")
+    assert mod is not None and mod.lib.plus_damaged(1) == 8
+    assert "rebuilding" in caplog.text and "unavailable" not in caplog.text
+    assert target.stat().st_size > 64
+    assert sorted(p.name for p in target.parent.iterdir()) == [target.name]   # no leftovers
+
+
+def test_damaged_cached_kernel_is_rebuilt_by_a_run(tmp_path):
+    from app import kernels
+    cache = tmp_path / "cache"
+    name = kernels.module_name(kernels.CELL_KERNELS, kernels.CDEF, kernels.SOURCE,
+                               libraries=kernels.CELL_LIBRARIES)
+    target = cache / "kernels" / f"{name}.so"
+    target.parent.mkdir(parents=True)
+    target.write_bytes(b"\x7fELF\x02\x01\x01" + bytes(57))
+    for _ in range(2):            # rebuilt by the first run, used by the second
+        proc = _cli(["run", PAPER_CASE, *TINY, "--out", tmp_path / "out", "--overwrite",
+                     "--no-plots"], {"VPCONTACT_CACHE": str(cache)})
+        assert proc.returncode == 0, proc.stderr
+        assert "unavailable" not in proc.stdout + proc.stderr      # no numpy fallback
+    assert target.stat().st_size > 10000 and "rebuilding" not in proc.stdout
+
+
+# ------------------------------------------------------------------ checkpoints
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ck") / "full"
+    proc = _cli(["run", PAPER_CASE, *TINY, "--set", "output.checkpoint_every=1", "--out", out,
+                 "--no-plots", "--quiet"])
+    assert proc.returncode == 0, proc.stderr
+    return out / "checkpoint_000001.npz"
+
+
+def _variant(src, dst, **changes):
+    data = dict(np.load(src))
+    meta = json.loads(str(data["meta"]))
+    for key, value in changes.items():
+        if key == "meta_changes":
+            data["meta"] = np.array(json.dumps({**meta, **value}))
+        elif value is None:
+            data.pop(key)
+        else:
+            data[key] = value(data[key]) if callable(value) else value
+    np.savez(dst, **data)
+
+
+CORRUPT = {
+    "no kappa_v": dict(kappa_v=None),
+    "no meta": dict(meta=None),
+    "short u_v": dict(u_v=lambda a: a[:-1]),
+    "short u": dict(u_x=lambda a: a[:-1], u_v=lambda a: a[:-1]),   # found against the mesh
+    "moved nodes": dict(u_x=lambda a: a + 0.01),
+    "meta a list": dict(meta=np.array("[1, 2]")),
+    "meta not JSON": dict(meta=np.array("{n: 1")),
+    "n a string": dict(meta_changes={"n": "1"}),
+    "n off the grid": dict(meta_changes={"n": 2}),
+    "steps not records": dict(meta_changes={"steps": [1]}),
+    "stepper missing": dict(meta_changes={"stepper": None}),
+    "memory for a case without": dict(meta_changes={"memory": {"t_prev": [], "k": []}}),
+    "u not finite": dict(u_v=lambda a: np.full_like(a, np.nan)),
+    "u integers": dict(u_v=lambda a: a.astype(np.int64)),
+    "u flat": dict(u_v=lambda a: a.reshape(-1)),
+    "kappa two columns": dict(kappa_v=lambda a: np.hstack([a, a])),
+    "sigma strings": dict(sigma_v=lambda a: a.astype(str)),
+}
+
+
+@pytest.mark.parametrize("name", sorted(CORRUPT))
+def test_corrupt_checkpoint_is_one_error_line(checkpoint, tmp_path, name):
+    bad = tmp_path / "bad.npz"
+    _variant(checkpoint, bad, **CORRUPT[name])
+    proc = _cli(["run", PAPER_CASE, *TINY, "--out", tmp_path / "re", "--no-plots", "--quiet",
+                 "--restart", bad])
+    line = _one_error_line(proc)
+    assert line.startswith(f"vpcontact: error: --restart: {bad} is not a readable checkpoint: ")
+    assert line.count("is not a readable checkpoint") == 1
+    assert not (tmp_path / "re" / "solution.xdmf").exists()
+
+
+def test_garbage_checkpoint_is_one_error_line(tmp_path):
+    bad = tmp_path / "checkpoint_000001.npz"
+    bad.write_bytes(b"PK\x03\x04 truncated")
+    line = _one_error_line(_cli(["run", PAPER_CASE, *TINY, "--out", tmp_path / "re",
+                                 "--restart", bad]))
+    assert "is not a readable checkpoint" in line
+
+
+def test_short_checkpoint_under_mpi_stops_every_rank(checkpoint, tmp_path):
+    bad = tmp_path / "bad.npz"
+    _variant(checkpoint, bad, **CORRUPT["short u"])
+    proc = _cli(["run", PAPER_CASE, *TINY, "--out", tmp_path / "re", "--no-plots", "--quiet",
+                 "--restart", bad], nprocs=2)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.count("is not a readable checkpoint") == 1
+
+
+# ------------------------------------------------------------------ bench
+def test_bench_refuses_bad_input_before_running(tmp_path, blocker):
+    cases = [(["bench", tmp_path / "missing.yaml"], "missing.yaml"),
+             (["bench", "--out", blocker / "b"], "--out"),
+             (["bench", "--out", blocker], "--out"),
+             (["bench", "--levels", "5000"], "mesh.n")]
+    for args, named in cases:
+        if "--out" not in args:
+            args += ["--out", tmp_path / "b"]
+        line = _one_error_line(_cli(args))
+        assert named in line, line
+    assert not (tmp_path / "b").exists()
+
+
+@pytest.mark.parametrize("kwargs, option", [
+    (dict(levels=[0]), "--levels"), (dict(levels=[-3]), "--levels"),
+    (dict(levels=[2.5]), "--levels"), (dict(levels=[], extra=[]), "--levels"),
+    (dict(extra=[(4, 0)]), "--extra"), (dict(extra=["foo"]), "--extra"),
+    (dict(nprocs=[0]), "--ranks"), (dict(nprocs=[]), "--ranks"),
+    (dict(repeat=0), "--repeat"), (dict(memory_steps=[0]), "--memory-steps")])
+def test_bench_arguments_are_checked_by_the_library(kwargs, option):
+    from app import bench
+    from app.case import CaseError
+    args = dict(levels=[4], extra=[], nprocs=[1], repeat=1, memory_steps=[])
+    args.update(kwargs)
+    with pytest.raises(CaseError, match=f"^{option}"):
+        bench.check_arguments(PAPER_CASE, **args)
+    if option != "--memory-steps":    # bench() itself refuses too, before running anything
+        with pytest.raises(CaseError, match=f"^{option}"):
+            bench.bench(PAPER_CASE, None, args["levels"], nprocs=args["nprocs"],
+                        extra=args["extra"], repeat=args["repeat"])
+
+
+def test_bench_fast_solver_impossible_is_refused(tmp_path):
+    from app import bench
+    from app.case import CaseError, load_raw
+    raw = load_raw(PAPER_CASE)
+    raw.setdefault("time", {})["scheme"] = "implicit"
+    case = tmp_path / "implicit.yaml"
+    case.write_text(json.dumps(raw))             # YAML reads JSON
+    with pytest.raises(CaseError, match="fast"):
+        bench.check_arguments(case, [4], [], [1], 1, [])
+
+
+def test_bench_with_failed_configurations_exits_1(tmp_path, monkeypatch, capsys):
+    from app import bench, cli
+    monkeypatch.setattr(bench, "bench", lambda *a, **k: [
+        {"n": 4, "h": 0.25, "N": 4, "method": "fast", "nprocs": 1, "failed": "boom"}])
+    args = cli._parser().parse_args(["bench", "--levels", "4", "--extra", "--ranks", "1",
+                                     "--repeat", "1", "--memory-steps", "--out",
+                                     str(tmp_path / "b")])
+    assert cli.cmd_bench(args) == 1
+    err = capsys.readouterr().err
+    assert "1 bench configuration(s) failed: h = 1/4, N = 4, fast, 1 rank(s)" in err
+    assert "failed: boom" in (tmp_path / "b" / "bench.md").read_text()
+
+
+# ------------------------------------------------------------------ convergence
+def test_convergence_cache_dir_checked_first(tmp_path, blocker):
+    for cache in (blocker, blocker / "sub"):
+        proc = _cli(["convergence", PAPER_CASE, "--levels", "2", "--reference", "4",
+                     "--out", tmp_path / "c", "--cache-dir", cache])
+        line = _one_error_line(proc)
+        assert line.startswith(f"vpcontact: error: --cache-dir {cache}: not a writable")
+        assert "reference run" not in proc.stdout
+    assert not (tmp_path / "c" / "convergence.csv").exists()
+
+
+@pytest.mark.parametrize("deltas", [[float("nan")], [0.0], [-1e-3], [float("inf")], []])
+def test_convergence_deltas_checked_by_the_library(deltas):
+    from app.case import CaseError
+    from app.convergence import plan_runs
+    with pytest.raises(CaseError, match="^--deltas"):
+        plan_runs([2], 4, "both", None, deltas)
+
+
+def test_convergence_plan_validates_every_run():
+    from app.case import CaseError
+    from app.convergence import plan_runs
+    from conftest import make_case
+    with pytest.raises(CaseError, match="mesh.n"):
+        plan_runs([8], 8192, "both", make_case())
+
+
+# ------------------------------------------------------------------ stability
+@pytest.mark.parametrize("n, steps, option", [(0, 8, "--n"), (-3, 8, "--n"),
+                                               (8, 0, "--steps"), (True, 8, "--n")])
+def test_stability_refuses_bad_n_and_steps(n, steps, option):
+    from mpi4py import MPI
+
+    from app import stability
+    from app.case import CaseError
+    from conftest import paper_raw
+    with pytest.raises(CaseError, match=f"^{option}: .* \\(allowed: positive integers\\)"):
+        stability.sweep(paper_raw(), MPI.COMM_WORLD, {}, n, steps)
+
+
+def test_stability_sweep_of_only_invalid_variants_is_an_error():
+    from mpi4py import MPI
+
+    from app import stability
+    from app.case import CaseError
+    from conftest import paper_raw
+    bad = [stability.Variant("material", "E < 0", {"material.E": -1.0})]
+    with pytest.raises(CaseError, match="no variant of the stability sweep"):
+        stability.sweep(paper_raw(), MPI.COMM_WORLD, {}, 4, 2, variants=bad)
+
+
+def test_damaged_run_cache_entries_are_recomputed(tmp_path):
+    from app import runcache
+    cache = tmp_path / "cache"
+    args = ["convergence", PAPER_CASE, "--levels", "2", "--reference", "4", "--out",
+            tmp_path / "c", "--overwrite", "--cache-dir", cache]
+    assert _cli(args).returncode == 0
+    entries = sorted(cache.glob("run-*.h5"))
+    assert len(entries) == 2
+    entries[0].write_bytes(entries[0].read_bytes()[:300])          # truncated
+    entries[1].write_bytes(b"")                                      # empty
+    proc = _cli(args)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.count("is not usable") == 2 and "Traceback" not in proc.stderr
+    for entry in entries:
+        runcache.load(entry)                                         # written again
+    proc = _cli(args)
+    assert proc.stdout.count("from the cache") == 2 and "is not usable" not in proc.stdout
