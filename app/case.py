@@ -466,6 +466,9 @@ def _check_components(items, path: str, dim: int, source: str, names=("t", "x", 
                 expressions.parse(c, names)
             except expressions.ExpressionError as exc:
                 raise CaseError(f"{source}: {path}[{i}]: {exc}") from None
+        elif isinstance(c, dict) and "t" not in names:
+            raise CaseError(f"{source}: {path}[{i}]: a table in time is not an initial value "
+                            f"(allowed: a number or an expression in {', '.join(names)})")
         elif isinstance(c, dict):
             ts = [row[0] for row in c["table"]]
             if any(b <= a for a, b in zip(ts, ts[1:])):
@@ -561,8 +564,9 @@ def _validate(data: dict, source: str) -> Case:
                                     adaptive=data["time"].get("adaptive"))
     _check_adaptive(time_grid.adaptive, time_grid.times, source)
     stress = _check_values(data, time_grid, source)
-    petsc = {**DEFAULT_PETSC, **scaled_petsc_defaults(data, stress), **data.get("petsc", {})}
-    check_petsc_options(petsc, source)
+    defaults = {**DEFAULT_PETSC, **scaled_petsc_defaults(data, stress)}
+    check_petsc_options(data.get("petsc", {}), source, base=defaults)
+    petsc = {**defaults, **data.get("petsc", {})}
     case = _build(data, source, time_grid, petsc)
     ok, why = fast_eligible(case)
     if case.numerics.method == "fast" and not ok:

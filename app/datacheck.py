@@ -143,13 +143,13 @@ def check_initial(initial: dict, kappa0, g: float | None,
         for i, c in enumerate(u0):              # u0 = 0 on Gamma1
             v = finite_values(c, f"initial.u0[{i}]", samples, "left", with_t=False)
             if np.abs(v).max(initial=0.0) > 1e-12 * scale:
-                raise DataError(f"initial.u0[{i}]: must vanish on Gamma1 (x = 0), got "
+                raise DataError(f"initial.u0: must vanish on Gamma1 (x = 0), got u0[{i}] = "
                                 f"{v.flat[np.argmax(np.abs(v))]:.6g}")
         if g is not None:                       # u_nu = -u_d on the bottom side
             v = -finite_values(u0[d - 1], f"initial.u0[{d - 1}]", samples, "bottom",
                                with_t=False)
             if v.max(initial=-math.inf) > g * (1 + 1e-12):
-                raise DataError(f"initial.u0[{d - 1}]: violates u_nu <= g on Gamma3 "
+                raise DataError(f"initial.u0: violates u_nu <= g on Gamma3 "
                                 f"({AXES[d - 1]} = 0): u_nu = {v.max():.6g} > g = {g:g}")
     stress = 0.0
     if "sigma0" in initial:

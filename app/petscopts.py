@@ -72,10 +72,12 @@ def _check_value(key: str, value, types: dict) -> None:
                                    "such as 50)")
 
 
-def check_petsc_options(options: dict, source: str, where: str = "petsc.") -> None:
+def check_petsc_options(options: dict, source: str, where: str = "petsc.",
+                        base: dict | None = None) -> None:
     """Raise CaseError if PETSc would refuse one of ``options`` (name without '-' ->
-    value, as given to app/solver.py's set_petsc_options).  ``where`` prefixes the option
-    name in the message: "petsc." for a case file's section, "-" for the command line."""
+    value, as given to app/solver.py's set_petsc_options) on top of the ``base`` options
+    (accepted already, e.g. the defaults).  ``where`` prefixes the option name in the
+    message: "petsc." for a case file's section, "-" for the command line."""
     from .case import CaseError
 
     types = _type_lists()
@@ -84,13 +86,15 @@ def check_petsc_options(options: dict, source: str, where: str = "petsc.") -> No
             _check_value(str(key), value, types)
         except PetscOptionError as exc:
             raise CaseError(f"{source}: {where}{key}: {exc}") from None
-    items = tuple((str(k), _text(v)) for k, v in options.items())
-    failure = _petsc_failure(items)
+    def failure_without(skip):
+        merged = {**(base or {}), **{k: v for k, v in options.items() if k != skip}}
+        return _petsc_failure(tuple((str(k), _text(v)) for k, v in merged.items()))
+
+    failure = failure_without(None)
     if failure is None:
         return
-    # the option whose removal makes PETSc accept the others (the last given first)
-    culprit = next((k for k in reversed(dict(items))
-                    if _petsc_failure(tuple(kv for kv in items if kv[0] != k)) is None), None)
+    # the given option whose removal makes PETSc accept the rest (the last given first)
+    culprit = next((k for k in reversed(options) if failure_without(k) is None), None)
     if culprit is not None:
         raise CaseError(f"{source}: {where}{culprit}: PETSc refuses it: {failure}")
     raise CaseError(f"{source}: {where[:-1] if where.endswith('.') else 'PETSc options'}: "

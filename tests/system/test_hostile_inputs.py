@@ -25,7 +25,7 @@ def _one_line_exit_2(proc, pattern: str):
     ('loads.traction.top=[0,"sqrt(-1)"]', "loads.traction.top[1]"),
     ('material.viscoplastic.kappa0="sqrt(x-0.5)"', "nan is not a finite number at x = 0"),
     ('loads.f0=[0,"1e308*10"]', "inf is not a finite number"),
-    ('initial.u0=[0,"-x"]', "initial.u0[1]: violates u_nu <= g on Gamma3"),
+    ('initial.u0=[0,"-x"]', "initial.u0: violates u_nu <= g on Gamma3"),
     ('material.viscoplastic.kappa0="-100"', "must be >= 0 everywhere"),
     ("time.adaptive={k_min: 1, k_max: 1e-6}", "1 is larger than time.adaptive.k_max"),
     ("material.E=[1", "line 1, column 3"),

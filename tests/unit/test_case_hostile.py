@@ -62,12 +62,16 @@ def test_a_traction_is_sampled_on_its_side_only():
 
 
 @pytest.mark.parametrize("sections,pattern", [
-    ({"initial": {"u0": [0, "-x"]}}, r"initial\.u0\[1\]: violates u_nu <= g on Gamma3"),
-    ({"initial": {"u0": ["y", 0]}}, r"initial\.u0\[0\]: must vanish on Gamma1"),
+    ({"initial": {"u0": [0, "-x"]}},
+     r"initial\.u0: violates u_nu <= g on Gamma3 \(y = 0\): u_nu = 1 > g"),
+    ({"initial": {"u0": ["y", 0]}},
+     r"initial\.u0: must vanish on Gamma1 \(x = 0\), got u0\[0\] = 1"),
     ({"material": {"E": 1000.0, "nu": 0.4, "viscoplastic": {
         "lambda1": 1.0, "lambda2": 1.0, "kappa0": "-100"}}},
      r"kappa0: must be >= 0 everywhere, got -100"),
     ({"initial": {"sigma0": [[0, "x"], ["y", 0]]}}, r"initial\.sigma0: must be symmetric"),
+    ({"initial": {"u0": [0, {"table": [[0, 0], [1, 1]]}]}},
+     r"initial\.u0\[1\]: a table in time is not an initial value"),
 ])
 def test_initial_values_outside_the_model_are_refused(sections, pattern):
     _refused(pattern, **sections)
@@ -171,6 +175,10 @@ def test_valid_petsc_options_pass_and_the_database_is_left_clean():
     assert not any(PETSc.Options().hasName(PREFIX + k) for k in options)
     with pytest.raises(CaseError, match=r"^command line: -ksp_type: 'x' is not a KSP type"):
         check_petsc_options({"ksp_type": "x"}, "command line", where="-")
+    # refused together with the case's options (MUMPS has no ILU): the given one is named
+    with pytest.raises(CaseError, match=r"^command line: -pc_type: PETSc refuses it: .*ILU"):
+        check_petsc_options({"pc_type": "ilu"}, "command line", where="-",
+                            base=make_case().petsc)
 
 
 def test_absolute_petsc_tolerances_scale_with_the_case():
