@@ -1,4 +1,4 @@
-"""`python3 -m app bench` / `make bench`: whole-process timings of the paper case with each
+"""`./vpcontact bench` / `make bench`: whole-process timings of the paper case with each
 step solver, serial and under mpirun -n 2 (issue 6), written to bench.json and bench.md.
 
 Each configuration runs as separate processes: a warm-up (one step, fills the JIT cache) and

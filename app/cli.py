@@ -1,4 +1,5 @@
-"""Command line: ``python3 -m app run CASE.yaml`` (or the ``vpcontact`` console script).
+"""Command line: ``./vpcontact run CASE.yaml`` (the launcher; ``python -m app`` in the project's
+environment, or its ``vpcontact`` console script, are the same).
 
 Arguments of the form ``-snes_rtol 1e-12`` / ``-ksp_view`` (one leading dash) are PETSc
 options: they are passed unchanged to PETSc under our prefix (``vpcontact_``) and override
@@ -9,6 +10,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import logging
+import os
 import re
 import sys
 import time
@@ -43,6 +45,43 @@ def split_petsc_args(argv: list[str]) -> tuple[list[str], dict]:
     return ours, petsc
 
 
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer (allowed: 1 or more)") \
+            from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} (allowed: 1 or more)")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    import math
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number (allowed: > 0)") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text} (allowed: a finite number > 0)")
+    return value
+
+
+def cells_and_steps(text: str) -> tuple[int, int]:
+    """argparse type of bench --extra: 'n:N' with positive integers."""
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"{text!r} (allowed: n:N, cells per side and time "
+                                         "steps, e.g. 256:32)")
+    try:
+        return positive_int(parts[0]), positive_int(parts[1])
+    except argparse.ArgumentTypeError as exc:
+        raise argparse.ArgumentTypeError(f"{text!r}: {exc} (allowed: n:N, e.g. 256:32)") \
+            from None
+
+
 def _case_options(parser, what: str, default_out: str) -> None:
     """Options shared by the commands that read a case and write an output directory."""
     parser.add_argument("--out", metavar="DIR", help=f"output directory (default: {default_out})")
@@ -59,15 +98,22 @@ def _case_options(parser, what: str, default_out: str) -> None:
                              "PETSc monitors (-snes_monitor, -snes_converged_reason)")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with errors on one line (exit 2), like every other bad-input error."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="vpcontact",
         description="Quasistatic contact of a viscoplastic body with a foundation: normal "
                     "compliance, unilateral constraint u_nu <= g, nonmonotone friction "
                     "(Wang & Cheng 2021, scheme (3.2)-(3.4)), solved with dolfinx + PETSc.",
         epilog="PETSc options (e.g. -snes_monitor, -snes_rtol 1e-12, -pc_factor_mat_solver_type "
                "superlu_dist) may be added anywhere; they reach PETSc with the prefix "
-               "vpcontact_. Run in parallel with: mpirun -n 2 python3 -m app run CASE.yaml")
+               "vpcontact_. Run in parallel with: mpirun -n 2 ./vpcontact run CASE.yaml")
     p.add_argument("--version", action="version", version=f"vpcontact {__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     run = sub.add_parser("run", help="run a case file",
@@ -110,18 +156,19 @@ def _parser() -> argparse.ArgumentParser:
                     "||kappa_n - kappa_n^ref||_Y) per level with observed rates and wall times "
                     "(convergence.csv, convergence.md, convergence.png). Runs are cached.")
     conv.add_argument("case", help="YAML case file with a structured mesh")
-    conv.add_argument("--levels", type=int, nargs="+", default=[8, 16, 32, 64], metavar="L",
+    conv.add_argument("--levels", type=positive_int, nargs="+", default=[8, 16, 32, 64], metavar="L",
                       help="levels: 1/h and/or 1/k of each run (default: 8 16 32 64)")
-    conv.add_argument("--reference", type=int, default=128, metavar="R",
+    conv.add_argument("--reference", type=positive_int, default=128, metavar="R",
                       help="the reference run has n = N = R (default: 128)")
     conv.add_argument("--vary", choices=["both", "h", "k"], default="both",
                       help="refine h and k together, or one with the other at the reference")
-    conv.add_argument("--deltas", type=float, nargs="+", metavar="D",
+    conv.add_argument("--deltas", type=positive_float, nargs="+", metavar="D",
                       help="friction regularisation widths to study (default: the case's); "
                            "the reference uses the smallest of these and the case's")
     _case_options(conv, "study", "results/<case name>/convergence")
     conv.add_argument("--cache-dir", metavar="DIR",
-                      help="run cache (default: $VPCONTACT_CACHE or ~/.cache/vpcontact)")
+                      help="run cache (default: $VPCONTACT_CACHE, else $XDG_CACHE_HOME/vpcontact, "
+                           "else ~/.cache/vpcontact)")
     conv.add_argument("--no-cache", action="store_true", help="recompute every run")
 
     stab = sub.add_parser(
@@ -133,22 +180,22 @@ def _parser() -> argparse.ArgumentParser:
                     "(stability.csv, stability.md).")
     stab.add_argument("case", help="YAML case file (2D)")
     _case_options(stab, "sweep", "results/<case name>/stability")
-    stab.add_argument("--n", type=int, default=8, help="cells per side of the coarse mesh")
-    stab.add_argument("--steps", type=int, default=8, help="time steps of the base variant")
+    stab.add_argument("--n", type=positive_int, default=8, help="cells per side of the coarse mesh")
+    stab.add_argument("--steps", type=positive_int, default=8, help="time steps of the base variant")
 
     b = sub.add_parser("bench", help="time the step solvers on the paper case",
                        description="Whole-process timings of a case with each step solver, "
                                    "serial and under mpirun -n 2 (bench.json, bench.md).")
     b.add_argument("case", nargs="?", default="cases/wang_cheng_2021.yaml")
-    b.add_argument("--levels", type=int, nargs="+", default=[16, 32, 64, 128],
+    b.add_argument("--levels", type=positive_int, nargs="+", default=[16, 32, 64, 128],
                    help="h = k = 1/L levels (default 16 32 64 128)")
-    b.add_argument("--extra", type=str, nargs="*", default=["256:32"], metavar="n:N",
+    b.add_argument("--extra", type=cells_and_steps, nargs="*", default=[(256, 32)], metavar="n:N",
                    help="extra (cells per side : steps) runs (default 256:32)")
-    b.add_argument("--memory-steps", type=int, nargs="*", default=[64, 256, 1024, 4096],
+    b.add_argument("--memory-steps", type=positive_int, nargs="*", default=[64, 256, 1024, 4096],
                    metavar="N", help="step counts of the memory-term cost runs "
                                      "(recursion vs direct sum; none: skip)")
-    b.add_argument("--ranks", type=int, nargs="+", default=[1, 2])
-    b.add_argument("--repeat", type=int, default=3, metavar="R",
+    b.add_argument("--ranks", type=positive_int, nargs="+", default=[1, 2])
+    b.add_argument("--repeat", type=positive_int, default=3, metavar="R",
                    help="measured runs per configuration, every solver alike; the fastest "
                         "is reported, all are kept (default 3; the --extra levels run once)")
     b.add_argument("--out", default="results/bench", help="output directory")
@@ -164,11 +211,40 @@ def quiet_jit_log() -> None:
         handler.setLevel(logging.WARNING)
 
 
+def drop_stdout() -> None:
+    """The reader of our stdout has gone (``vpcontact run ... | head -1``): send the rest of
+    the output to /dev/null, so the run goes on and finishes its files."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
+
+
+class _LogHandler(logging.StreamHandler):
+    """A stdout handler that drops the output once the pipe's reader has gone, instead of
+    printing logging's '--- Logging error ---' traceback for every line."""
+
+    def handleError(self, record):
+        if isinstance(sys.exc_info()[1], BrokenPipeError):
+            drop_stdout()
+            return
+        super().handleError(record)
+
+
+def ignore_sigpipe() -> None:
+    """PETSc's signal handler turns SIGPIPE (stdout piped into a reader that quits) into an
+    MPI_Abort that kills the run; ignored, a write to the closed pipe raises BrokenPipeError,
+    which the log handler and main() turn into dropping stdout."""
+    import signal
+
+    from petsc4py import PETSc  # noqa: F401  (PETSc installs its handlers when initialised)
+    signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+
+
 def _setup_logging(comm, quiet: bool, verbose: bool = False) -> None:
     level = logging.WARNING if quiet else logging.DEBUG if verbose else logging.INFO
     if comm.rank != 0:
-        level = logging.ERROR
-    handler = logging.StreamHandler(sys.stdout)
+        level = logging.CRITICAL     # collective messages: rank 0 says them once
+    handler = _LogHandler(sys.stdout)
     handler.setFormatter(logging.Formatter("[vpcontact] %(message)s"))
     log.handlers[:] = [handler]
     quiet_jit_log()
@@ -176,10 +252,42 @@ def _setup_logging(comm, quiet: bool, verbose: bool = False) -> None:
     log.propagate = False
 
 
+_LOCKS = []      # the output directories' lock files, held open until the process ends
+
+
+def _lock_outdir(outdir: Path) -> str | None:
+    """Create ``outdir`` and take its lock (rank 0); the reason if either is impossible.
+    The lock (flock on outdir/.vpcontact.lock) is released by the kernel when the process
+    ends, however it ends, so it never goes stale."""
+    import fcntl
+    if outdir.exists() and not outdir.is_dir():
+        return f"--out {outdir}: exists and is not a directory (give a directory)"
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+        fh = open(outdir / ".vpcontact.lock", "a+")
+    except OSError as exc:
+        return f"--out {outdir}: cannot write there: {exc.strerror}"
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        fh.close()
+        return (f"--out {outdir}: another vpcontact process is writing into this directory; "
+                "wait for it to end or choose another --out")
+    _LOCKS.append(fh)
+    return None
+
+
 def _prepare_outdir(comm, outdir: Path, overwrite: bool, files=None) -> None:
-    """Refuse to overwrite an earlier run unless asked; create the directory."""
+    """Create and lock the output directory; refuse to overwrite an earlier run unless
+    asked, then remove its files (collective; CaseError on every rank if impossible)."""
     from .output import OUTPUT_FILES
 
+    why = None
+    if comm.rank == 0:
+        why = _lock_outdir(outdir)
+    why = comm.bcast(why, root=0)
+    if why:
+        raise CaseError(why)
     existing = [f for f in (files or OUTPUT_FILES) if (outdir / f).exists()]
     if files is None:       # a run's checkpoints and figures belong to it as well
         from .plot import FIGURES
@@ -190,16 +298,16 @@ def _prepare_outdir(comm, outdir: Path, overwrite: bool, files=None) -> None:
                         "pass --overwrite to replace them or --out DIR for another directory")
     comm.barrier()
     if comm.rank == 0:
-        outdir.mkdir(parents=True, exist_ok=True)
         for f in existing:
             (outdir / f).unlink()
     comm.barrier()
 
 
-def _start(args, subdir: str | None, files=None, check=None):
-    """Common start of the commands: logging, read and validate the case (plus the command's
-    own ``check``), prepare the output directory.  Returns (comm, raw, case, outdir), or
-    (comm, None, None, None) after printing the error (exit code 2: bad input)."""
+def _start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
+    """Common start of the commands: logging, read and validate the case, the PETSc options
+    of the command line and the command's own ``check``, prepare the output directory.
+    Returns (comm, raw, case, outdir), or (comm, None, None, None) after printing the error
+    (exit code 2: bad input)."""
     from mpi4py import MPI
 
     from .case import load_raw, validate
@@ -209,6 +317,9 @@ def _start(args, subdir: str | None, files=None, check=None):
     try:
         raw = load_raw(args.case, args.overrides)
         case = validate(raw, args.case)
+        if petsc_cli:
+            from .petscopts import check_petsc_options
+            check_petsc_options(petsc_cli, "command line", where="-", base=case.petsc)
         if check:
             check(case)
         outdir = Path(args.out) if args.out else \
@@ -238,15 +349,12 @@ def cmd_run(args, petsc_cli: dict) -> int:
                                 "directory (set output.checkpoint_every)")
         elif not path.is_file():
             raise CaseError(f"--restart {args.restart}: no such checkpoint file or directory")
-        try:
-            loaded["checkpoint"] = Checkpoint(path)
-        except Exception as exc:       # noqa: BLE001 (any unreadable file)
-            raise CaseError(f"--restart: {path} is not a readable checkpoint: {exc}") from None
+        loaded["checkpoint"] = Checkpoint(path)   # CheckpointError (a CaseError) if damaged
         why = loaded["checkpoint"].check(case)
         if why:
             raise CaseError(f"--restart: {why}")
 
-    comm, _, case, outdir = _start(args, None, check=check_restart)
+    comm, _, case, outdir = _start(args, None, check=check_restart, petsc_cli=petsc_cli)
     if case is None:
         return 2
 
@@ -260,27 +368,36 @@ def cmd_run(args, petsc_cli: dict) -> int:
     result = run(case, outdir, comm, restart=loaded.get("checkpoint"),
                  progress=not args.quiet and not args.verbose)
     s = result.summary
-    if not args.no_plots and comm.rank == 0 and s["steps"]:
-        _plots(outdir)
-    if result.status == "completed":
+    if result.status == "completed" and not args.no_plots and comm.rank == 0 and s["steps"]:
+        if not _plots(outdir):
+            return EXIT_INTERRUPTED if _plots.interrupted else 0
+    return _report_run(comm, s, outdir, args.no_plots)
+
+
+def _report_run(comm, s: dict, outdir: Path, no_plots: bool) -> int:
+    """The closing lines of a run and its exit code: 0 completed, 1 failed or diverged,
+    3 interrupted."""
+    status = s["status"]
+    if status == "completed":
         log.info("done: %d steps, %d Newton iterations, wall %.2f s (set-up %.2f s, steps %.2f s)",
                  len(s["steps"]), s["newton_iterations_total"], s["wall_s"], s["setup_s"],
                  s["loop_s"])
         if "contact_states" in s:
             log.info("Gamma3 nodes at T: %s", s["contact_states"])
         log.info("outputs: %s/{solution.xdmf, summary.json, contact.csv%s}", outdir,
-                 "" if args.no_plots else ", *.png")
+                 "" if no_plots else ", *.png")
         return 0
-    if result.status == "interrupted":
-        if comm.rank == 0:
-            print(f"vpcontact: {s['failure']['reason']} after step {s['failure']['step']} "
-                  f"(t = {s['failure']['t']:g}); outputs up to that step are in {outdir}; "
-                  f"{s['failure']['hint']}", file=sys.stderr)
+    f = s["failure"]
+    if comm.rank != 0:
+        return EXIT_INTERRUPTED if status == "interrupted" else 1
+    if status == "interrupted":
+        print(f"vpcontact: {f['reason']} after step {f['step']} (t = {f['t']:g}); outputs up to "
+              f"that step are in {outdir}; {f['hint']}", file=sys.stderr)
         return EXIT_INTERRUPTED
-    if comm.rank == 0:
-        print(f"vpcontact: error: {s['failure']['reason']} at step {s['failure']['step']} "
-              f"(t = {s['failure']['t']:g}); outputs up to step {s['last_good_step']} are in "
-              f"{outdir}. Hint: {s['failure']['hint']}", file=sys.stderr)
+    what = "the run diverged" if status == "diverged" else "the run failed"
+    print(f"vpcontact: error: {what} at step {f['step']} (t = {f['t']:g}): {f['reason']}; "
+          f"outputs up to step {s['last_good_step']} are in {outdir}. Hint: {f['hint']}",
+          file=sys.stderr)
     return 1
 
 
@@ -288,18 +405,21 @@ CONVERGENCE_FILES = ("convergence.csv", "convergence.md", "convergence.png")
 
 
 def cmd_convergence(args, petsc_cli: dict) -> int:
-    from .convergence import plan_runs
-
-    comm, raw, case, outdir = _start(
-        args, "convergence", CONVERGENCE_FILES,
-        check=lambda c: plan_runs(args.levels, args.reference, args.vary, c))
-    if case is None:
-        return 2
+    from mpi4py import MPI
 
     from . import convergence as cv
     from .runcache import default_cache_dir
 
     cache_dir = None if args.no_cache else Path(args.cache_dir or default_cache_dir())
+
+    def check(c):                     # every option, before anything is computed
+        cv.plan_runs(args.levels, args.reference, args.vary, c, args.deltas)
+        cv.check_cache_dir(cache_dir, MPI.COMM_WORLD)
+
+    comm, raw, case, outdir = _start(args, "convergence", CONVERGENCE_FILES, check=check,
+                                     petsc_cli=petsc_cli)
+    if case is None:
+        return 2
     log.info("vpcontact %s: convergence study of %s -> %s (cache: %s, %d MPI rank%s)",
              __version__, args.case, outdir, cache_dir or "off", comm.size,
              "s" if comm.size > 1 else "")
@@ -337,14 +457,19 @@ def _two_dimensional(case) -> None:
 
 
 def cmd_stability(args, petsc_cli: dict) -> int:
-    comm, raw, case, outdir = _start(args, "stability", STABILITY_FILES, _two_dimensional)
-    if case is None:
-        return 2
     from . import stability as st
 
+    def check(c):
+        _two_dimensional(c)
+        st.base_case(c.raw, args.n, args.steps, args.case)
+
+    comm, raw, case, outdir = _start(args, "stability", STABILITY_FILES, check,
+                                     petsc_cli=petsc_cli)
+    if case is None:
+        return 2
     log.info("vpcontact %s: stability sweep of %s -> %s", __version__, args.case, outdir)
     t0 = time.perf_counter()
-    outcomes = st.sweep(raw, comm, petsc_cli, args.n, args.steps)
+    outcomes = st.sweep(raw, comm, petsc_cli, args.n, args.steps, source=args.case)
     if comm.rank == 0:
         st.write_csv(outdir / "stability.csv", outcomes)
         st.write_markdown(outdir / "stability.md", outcomes, case.name, args.n, args.steps)
@@ -356,17 +481,22 @@ def cmd_stability(args, petsc_cli: dict) -> int:
 
 def cmd_bench(args) -> int:
     from . import bench as bm
+    from .cachedirs import unusable
 
+    extra = list(args.extra)          # (n, N) pairs, parsed by cells_and_steps
     outdir = Path(args.out)
-    outdir.mkdir(parents=True, exist_ok=True)
-    extra = [tuple(int(x) for x in e.split(":")) for e in args.extra]
+    try:                              # every argument and the case, before anything runs
+        bm.check_arguments(args.case, args.levels, extra, args.ranks, args.repeat,
+                           args.memory_steps or [])
+        why = unusable(outdir)
+        if why:
+            raise CaseError(f"--out {outdir}: not a writable directory ({why})")
+    except CaseError as exc:
+        print(f"vpcontact: error: {exc}", file=sys.stderr)
+        return 2
     print(f"vpcontact bench: {args.case}, levels {args.levels}, extra {extra}, ranks {args.ranks}")
     t0 = time.perf_counter()
     try:
-        if args.repeat < 1:
-            print(f"vpcontact: error: --repeat: {args.repeat} (allowed: 1 or more)",
-                  file=sys.stderr)
-            return 2
         rows = bm.bench(args.case, outdir, args.levels, nprocs=args.ranks, extra=extra,
                         repeat=args.repeat)
         memory = bm.memory_rows(outdir, steps=args.memory_steps) if args.memory_steps else []
@@ -374,6 +504,11 @@ def cmd_bench(args) -> int:
         print(f"vpcontact: error: {exc}", file=sys.stderr)
         return 1
     bm.write(outdir, rows, memory)
+    failed = bm.failures(rows, memory)
+    if failed:
+        print(f"vpcontact: error: {len(failed)} bench configuration(s) failed: "
+              f"{'; '.join(failed)} (reasons in {outdir}/bench.md)", file=sys.stderr)
+        return 1
     print(f"done in {time.perf_counter() - t0:.0f} s: {outdir}/bench.json, {outdir}/bench.md")
     return 0
 
@@ -382,13 +517,22 @@ EXIT_INTERRUPTED = 3
 
 
 def _plots(outdir: Path) -> bool:
-    """Draw the figures of a run (rank 0); a plotting problem is a warning, not a failure."""
+    """Draw the figures of a run (rank 0); a plotting problem is a warning, not a failure.
+    Ctrl-C while drawing stops the drawing only (``_plots.interrupted``): the run's files
+    are complete and its summary stays as written."""
     from .plot import plot_all
+    _plots.interrupted = False
     t0 = time.perf_counter()
     try:
         files = plot_all(outdir, log=log.info)
+    except KeyboardInterrupt:
+        _plots.interrupted = True
+        print(f"vpcontact: interrupted while drawing the figures; the run itself is complete "
+              f"(see {outdir}/summary.json); ./vpcontact plot {outdir} draws them",
+              file=sys.stderr)
+        return False
     except Exception as exc:       # noqa: BLE001 (the run itself succeeded)
-        log.warning("figures not drawn: %s: %s (python3 -m app plot %s retries)",
+        log.warning("figures not drawn: %s: %s (./vpcontact plot %s retries)",
                     type(exc).__name__, exc, outdir)
         return False
     log.info("figures (%.1f s): %s", time.perf_counter() - t0,
@@ -407,7 +551,9 @@ def cmd_plot(args) -> int:
               f"{', '.join(missing)})", file=sys.stderr)
         return 2
     if MPI.COMM_WORLD.rank == 0:
-        return 0 if _plots(outdir) else 1
+        if _plots(outdir):
+            return 0
+        return EXIT_INTERRUPTED if _plots.interrupted else 1
     return 0
 
 
@@ -439,27 +585,56 @@ def cmd_info(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Exit codes: 0 done, 1 a step failed, 2 bad input, 3 interrupted (SIGINT/SIGTERM)."""
+    """Exit codes: 0 done, 1 a step failed (or an environmental fault), 2 bad input,
+    3 interrupted (SIGINT/SIGTERM)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     ours, petsc_cli = split_petsc_args(argv)
     args = _parser().parse_args(ours)
     try:
+        ignore_sigpipe()
         return _dispatch(args, petsc_cli)
     except KeyboardInterrupt:
         print("vpcontact: interrupted before the time loop started", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except CaseError as exc:            # bad input found late (e.g. while building the problem)
+        return _error(str(exc), 2)
+    except BrokenPipeError:             # stdout's reader has gone (| head): nothing to say
+        drop_stdout()
+        return 0
+    except MemoryError:
+        return _error("out of memory: the case is too large for this machine (try a coarser "
+                      "mesh, mesh.n or mesh.h)", 1)
+    except OSError as exc:              # environmental: disk full, read-only, permissions
+        from .output import describe_os_error
+        return _error(describe_os_error(exc), 1)
     except Exception as exc:
-        # An unexpected error on one rank must not leave the others waiting in a collective:
-        # report it and abort the whole MPI job (issue 8).
-        from mpi4py import MPI
-        comm = MPI.COMM_WORLD
-        print(f"vpcontact: internal error on rank {comm.rank}: {type(exc).__name__}: {exc}",
-              file=sys.stderr)
-        if comm.size > 1:
-            import traceback
-            traceback.print_exc()
-            comm.Abort(1)
-        raise
+        return _internal_error(exc)
+
+
+def _error(message: str, code: int) -> int:
+    """One line on stderr (from rank 0 only when every rank has the same error)."""
+    from mpi4py import MPI
+    if MPI.COMM_WORLD.rank == 0:
+        print(f"vpcontact: error: {message}", file=sys.stderr)
+    return code
+
+
+def _internal_error(exc: Exception):
+    """A bug in vpcontact (or a PETSc error we do not translate): the traceback and a line
+    asking for a report.  An error on one rank must not leave the others waiting in a
+    collective: report it and abort the whole MPI job."""
+    import traceback
+
+    from mpi4py import MPI
+    comm = MPI.COMM_WORLD
+    traceback.print_exc()
+    print(f"vpcontact: internal error on rank {comm.rank}: {type(exc).__name__}: {exc}\n"
+          "vpcontact: this is a bug; please report it with the command line and the case file",
+          file=sys.stderr)
+    sys.stderr.flush()
+    if comm.size > 1:
+        comm.Abort(1)
+    return 1
 
 
 def _dispatch(args, petsc_cli: dict) -> int:

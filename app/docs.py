@@ -1,6 +1,6 @@
 """The README's case-file reference, generated from the schema (so it cannot drift).
 
-``python3 -m app.docs`` rewrites the block between the markers in README.md;
+``make docs`` (``python -m app.docs``) rewrites the block between the markers in README.md;
 tests/unit/test_docs.py fails when the README is out of date.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""`python3 -m app stability CASE.yaml`: a sweep of stiff and extreme variants of a case
+"""`./vpcontact stability CASE.yaml`: a sweep of stiff and extreme variants of a case
 (issue 5), each on a coarse mesh, reported in stability.csv and stability.md.
 
 Per variant: the parameters changed, the history scheme, whether it converged (and why not),
@@ -55,7 +55,8 @@ class Outcome:
 
     @property
     def bounded(self) -> bool:
-        return self.finite and self.growth_sigma < BLOWUP and self.growth_u < BLOWUP
+        return (self.status != "diverged" and self.finite and self.growth_sigma < BLOWUP
+                and self.growth_u < BLOWUP)
 
 
 def _scaled(factor: float) -> dict:

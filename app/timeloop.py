@@ -266,8 +266,8 @@ def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
             if interrupted:
                 status = "interrupted"
                 by = stop.signal or "a signal on another rank"
-                failure = _failure(n, t, f"interrupted by {by}",
-                                   f"continue with: run CASE --restart {outdir} --out NEW_DIR")
+                failure = _failure(n, t, f"interrupted by {by}", "continue with: ./vpcontact run "
+                                   f"CASE --restart {outdir} --out NEW_DIR")
                 saved_to = None
                 if write_outputs:
                     saved_to = _try_checkpoint(outdir, comm, case, problem, history, g3,

@@ -1,0 +1,272 @@
+"""Faults during a run: an exploding explicit run stops as "diverged", output faults (disk
+full, read-only) and failing steps record `status: failed` and exit 1 with earlier results
+intact, a closed stdout does not kill the run, two runs cannot share an output directory,
+Ctrl-C while drawing or writing the summary leaves a truthful summary, bad --out / CLI
+numbers are refused in one line before any work."""
+import fcntl
+import json
+import os
+import signal
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+from conftest import MPI_ENV, PAPER_CASE, ROOT, run_cli
+
+TINY = ["--set", "mesh.n=4", "--set", "time.N=4"]
+
+
+def _summary(out):
+    return json.loads((out / "summary.json").read_text())
+
+
+def _xdmf_times(out):
+    root = ET.parse(out / "solution.xdmf").getroot()
+    grid = next(g for g in root.iter("Grid") if g.get("GridType") == "Collection")
+    return [float(g.find("Time").get("Value")) for g in grid.findall("Grid")]
+
+
+def _one_error_line(proc):
+    lines = [x for x in proc.stderr.splitlines() if x.strip()]
+    assert "Traceback" not in proc.stderr + proc.stdout
+    assert len(lines) == 1 and lines[0].startswith("vpcontact"), proc.stderr
+    return lines[0]
+
+
+# ------------------------------------------------------------------ blow-up of the explicit scheme
+def test_exploding_explicit_run_is_diverged(tmp_path):
+    """lambda1 = lambda2 = 0.01: k r_max = 5.2e3; ||sigma||_Q grew to 2.3e55 and the run said
+    'completed'.  Now: status diverged at the step that left the data's bound, exit 1,
+    one line suggesting the implicit scheme, outputs of the earlier steps readable."""
+    out = tmp_path / "boom"
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--quiet",
+                    "--set", "material.viscoplastic.lambda1=0.01",
+                    "--set", "material.viscoplastic.lambda2=0.01"])
+    assert proc.returncode == 1
+    line = _one_error_line(proc)
+    assert "diverged at step" in line and "time.scheme: implicit" in line
+    s = _summary(out)
+    assert s["status"] == "diverged"
+    n = s["failure"]["step"]
+    assert 2 <= n <= 4 and s["last_good_step"] == n - 1 == len(s["steps"])
+    assert "sigma" in s["failure"]["reason"]
+    assert max(st["max_vm"] for st in s["steps"]) < 1e8     # stopped long before 1e55
+    assert _xdmf_times(out) == pytest.approx([j / 16 for j in range(n)])
+
+
+def test_run_just_beyond_the_explicit_limit_still_completes(tmp_path):
+    """k r_max = 2.17 (lambda1 = 24): the overstress oscillates but stays bounded."""
+    out = tmp_path / "edge"
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--quiet",
+                    "--set", "material.viscoplastic.lambda1=24"])
+    assert proc.returncode == 0, proc.stderr
+    s = _summary(out)
+    assert s["status"] == "completed" and s["diagnostics"]["stability_indicator"] > 2
+    assert len(s["steps"]) == 16
+
+
+def test_monitor_names_non_finite_quantities():
+    from app.divergence import BlowUpMonitor
+    mon = BlowUpMonitor.__new__(BlowUpMonitor)
+    mon.scale, mon.bound, mon.kappa_bound = 1.0, 10.0, 10.0
+    rec = {"n": 1, "t": 0.1, "norm_u_V": 1.0, "norm_sigma_Q": float("nan"), "max_vm": 1.0,
+           "max_kappa": 0.0}
+    assert "norm_sigma_Q" in mon.check(rec)
+    assert mon.check({**rec, "norm_sigma_Q": 1.0}) is None
+    assert "exceeds" in mon.check({**rec, "norm_sigma_Q": 1.0, "max_vm": 11.0})
+    assert "kappa" in mon.check({**rec, "norm_sigma_Q": 1.0, "max_kappa": 11.0})
+
+
+def test_extreme_grading_fails_cleanly(tmp_path):
+    """time.grading = 1e10 (first step 1e-150): the von Mises projection failed inside a
+    step with a traceback and no summary.  Now either refused as input (exit 2, one line) or
+    a failed step with its summary (exit 1)."""
+    out = tmp_path / "graded"
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--quiet", "--set", "time.grading=1e10"])
+    assert proc.returncode in (1, 2) and "Traceback" not in proc.stderr, proc.stderr
+    if proc.returncode == 2:
+        assert "time.grading" in _one_error_line(proc)
+    else:
+        s = _summary(out)
+        assert s["status"] == "failed" and s["failure"]["step"] == s["last_good_step"] + 1
+
+
+def test_failing_local_update_is_a_failed_step(tmp_path, monkeypatch, capsys):
+    """A numerical error of the history update (here injected at step 3) is a failed step:
+    summary with status failed naming the step, exit 1, outputs of steps 0-2 intact."""
+    from app import history
+    real, calls = history.ViscoplasticHistory.before_solve, []
+
+    def failing(self, problem, k):
+        calls.append(k)
+        if len(calls) == 3:
+            raise RuntimeError("von Mises projection: secular equation did not converge")
+        return real(self, problem, k)
+
+    monkeypatch.setattr(history.ViscoplasticHistory, "before_solve", failing)
+    out = tmp_path / "local"
+    assert _in_process_run(out, monkeypatch) == 1
+    s = _summary(out)
+    assert s["status"] == "failed" and s["failure"]["step"] == 3 and s["last_good_step"] == 2
+    assert "von Mises projection" in s["failure"]["reason"]
+    assert _xdmf_times(out) == pytest.approx([0.0, 0.25, 0.5])
+    assert "Traceback" not in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ output faults
+def _in_process_run(out, monkeypatch, extra=()):
+    """cli.main in this process (so faults can be injected); returns the exit code."""
+    from app import cli
+    monkeypatch.chdir(ROOT)
+    return cli.main(["run", str(PAPER_CASE), "--out", str(out), "--quiet", "--no-plots",
+                     *TINY, *extra])
+
+
+def test_hdf5_failure_mid_run_is_a_failed_run(tmp_path, monkeypatch, capsys):
+    """The file system fills up at the third field write: status failed naming the file,
+    exit 1, solution.xdmf still describes the two steps written before."""
+    import app.output as output
+    real, calls = output.dio.XDMFFile, []
+
+    def failing(comm, path, mode):
+        if mode == "a":
+            calls.append(path)
+            if len(calls) == 3:
+                raise RuntimeError("Failed to write HDF5 dataset (No space left on device)")
+        return real(comm, path, mode)
+
+    monkeypatch.setattr(output.dio, "XDMFFile", failing)
+    out = tmp_path / "full"
+    assert _in_process_run(out, monkeypatch) == 1
+    s = _summary(out)
+    assert s["status"] == "failed" and "solution.h5" in s["failure"]["reason"]
+    assert "No space left" in s["failure"]["reason"]
+    assert _xdmf_times(out) == pytest.approx([0.0, 0.25])
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "the run failed" in err
+
+
+def test_summary_write_failure_is_reported(tmp_path, monkeypatch, capsys):
+    import app.output as output
+    real = output.atomic_write
+
+    def refuse(path, text):
+        if path.name == "summary.json":
+            raise OSError(28, "No space left on device", str(path))
+        return real(path, text)
+
+    monkeypatch.setattr(output, "atomic_write", refuse)
+    out = tmp_path / "nosummary"
+    assert _in_process_run(out, monkeypatch) == 1
+    err = capsys.readouterr().err
+    assert "summary.json" in err and "No space left" in err and "Traceback" not in err
+    assert not (out / "summary.json").exists()
+    assert not list(out.glob(".summary.json.tmp*"))          # no temporary left behind
+
+
+def test_numpy_types_in_the_summary(tmp_path):
+    """contact.friction.c1 = 0: the well-posedness verdict is a numpy bool; the summary is
+    written (it was 'bool_ is not JSON serializable', exit 1)."""
+    from app.output import to_json
+    assert json.loads(to_json({"a": np.bool_(True), "b": np.float64(2.5),
+                               "c": np.arange(2)})) == {"a": True, "b": 2.5, "c": [0, 1]}
+    out = tmp_path / "c1zero"
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--quiet", *TINY,
+                    "--set", "contact.friction.c1=0"])
+    assert proc.returncode == 0, proc.stderr
+    assert _summary(out)["diagnostics"]["unique"] is True
+
+
+# ------------------------------------------------------------------ output directory
+@pytest.mark.parametrize("target", ["file", "case", "under_file"])
+def test_bad_out_is_refused_in_one_line(tmp_path, target):
+    plain = tmp_path / "plain.txt"
+    plain.write_text("keep me\n")
+    out = {"file": plain, "case": PAPER_CASE, "under_file": plain / "sub"}[target]
+    before = PAPER_CASE.read_text()
+    proc = run_cli(["run", PAPER_CASE, "--out", out, *TINY])
+    assert proc.returncode == 2
+    assert "--out" in _one_error_line(proc)
+    assert plain.read_text() == "keep me\n" and PAPER_CASE.read_text() == before
+
+
+def test_second_run_on_a_locked_directory_is_refused(tmp_path):
+    """While another process holds the directory's lock, a run there (even with
+    --overwrite) exits 2 and touches nothing."""
+    out = tmp_path / "shared"
+    out.mkdir()
+    (out / "summary.json").write_text('{"status": "completed"}\n')
+    with open(out / ".vpcontact.lock", "a+") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        proc = run_cli(["run", PAPER_CASE, "--out", out, "--overwrite", *TINY])
+    assert proc.returncode == 2
+    assert "another vpcontact process" in _one_error_line(proc)
+    assert (out / "summary.json").read_text() == '{"status": "completed"}\n'
+
+
+@pytest.mark.parametrize("args", [["stability", PAPER_CASE, "--n", "0"],
+                                  ["stability", PAPER_CASE, "--n", "-3"],
+                                  ["stability", PAPER_CASE, "--steps", "0"],
+                                  ["bench", "--extra", "foo"],
+                                  ["bench", "--extra", "4:0"],
+                                  ["bench", "--repeat", "0"],
+                                  ["convergence", PAPER_CASE, "--levels", "0"],
+                                  ["convergence", PAPER_CASE, "--deltas", "nan"]])
+def test_bad_command_numbers_are_refused_in_one_line(tmp_path, args):
+    proc = run_cli([*args, "--out", tmp_path / "x"] if args[0] != "bench" else
+                   [*args, "--out", tmp_path / "x"])
+    assert proc.returncode == 2
+    assert "allowed" in _one_error_line(proc)
+    assert not (tmp_path / "x").exists()
+
+
+# ------------------------------------------------------------------ closed stdout, Ctrl-C
+def test_closed_stdout_does_not_kill_the_run(tmp_path):
+    """`run --verbose CASE | head -1`: PETSc turned SIGPIPE into MPI_ABORT (empty output
+    directory).  Now the run finishes its files and exits 0."""
+    out = tmp_path / "piped"
+    cmd = [sys.executable, "-m", "app", "run", str(PAPER_CASE), "--out", str(out), "--verbose",
+           "--no-plots", *TINY]
+    proc = subprocess.Popen(cmd, cwd=ROOT, env={**os.environ, **MPI_ENV},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().startswith("[vpcontact]")
+    proc.stdout.close()                                   # the reader goes away
+    err = proc.stderr.read()
+    assert proc.wait(timeout=300) == 0, err
+    assert "PETSC ERROR" not in err and "Traceback" not in err and "MPI_ABORT" not in err
+    assert _summary(out)["status"] == "completed" and len(_summary(out)["steps"]) == 4
+
+
+def test_ctrl_c_while_drawing_keeps_a_true_summary(tmp_path, monkeypatch, capsys):
+    import app.plot as plot
+
+    def interrupted(outdir, log=None):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(plot, "plot_all", interrupted)
+    from app import cli
+    monkeypatch.chdir(ROOT)
+    out = tmp_path / "drawing"
+    code = cli.main(["run", str(PAPER_CASE), "--out", str(out), "--quiet", *TINY])
+    err = capsys.readouterr().err
+    assert code == 3
+    assert "while drawing the figures" in err and "before the time loop" not in err
+    assert _summary(out)["status"] == "completed"
+
+
+def test_ctrl_c_while_writing_the_summary_still_writes_it(tmp_path, monkeypatch):
+    """SIGINT arriving during the final writes is deferred: summary.json is written."""
+    import app.timeloop as timeloop
+    real = timeloop.write_json
+
+    def signalled(comm, path, data):
+        os.kill(os.getpid(), signal.SIGINT)
+        return real(comm, path, data)
+
+    monkeypatch.setattr(timeloop, "write_json", signalled)
+    out = tmp_path / "summary"
+    assert _in_process_run(out, monkeypatch) == 0
+    assert _summary(out)["status"] == "completed"
