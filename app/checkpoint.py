@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .case import CaseError
+from .output import on_rank0
 
 PATTERN = "checkpoint_*.npz"
 KEEP = 2                       # the newest checkpoints kept in an output directory
@@ -107,16 +108,25 @@ def save(outdir: Path, comm, case, problem, history, g3, stepper, n: int, t: flo
                 "memory": None if g3 is None or g3.memory is None else
                 {"t_prev": g3.memory._t_prev, "k": g3.memory._k}}
         arrays["meta"] = np.array(json.dumps(meta))
-        tmp = path.with_name(f".{path.name}.tmp.npz")
+    on_rank0(comm, _write, path, arrays, outdir)    # OutputError on every rank if it fails
+    return path
+
+
+def _write(path: Path, arrays: dict, outdir) -> None:
+    """Write the checkpoint atomically (a failed write leaves no partial file) and remove
+    checkpoints beyond the newest KEEP."""
+    tmp = path.with_name(f".{path.name}.tmp.npz")
+    try:
         with open(tmp, "wb") as fh:
             np.savez(fh, **arrays)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
-        for old in sorted(Path(outdir).glob(PATTERN))[:-KEEP]:
-            old.unlink()
-    comm.barrier()
-    return path
+    except OSError:
+        tmp.unlink(missing_ok=True)
+        raise
+    for old in sorted(Path(outdir).glob(PATTERN))[:-KEEP]:
+        old.unlink()
 
 
 class CheckpointError(CaseError):

@@ -191,7 +191,7 @@ def write_contact_csv(comm, path: Path, table: dict, g: float | None) -> dict:
         for i in range(len(data["x"])):
             writer.writerow([repr(float(data[c][i])) if c != "state" else data[c][i]
                              for c in columns])
-        atomic_write(path, buf.getvalue())
         counts = {s: int(np.sum(data["state"] == s)) for s in ("bound", "compliance", "separated")}
         counts["nodes"] = int(len(data["x"]))
+    on_rank0(comm, lambda: atomic_write(path, buf.getvalue()))    # OutputError on every rank
     return comm.bcast(counts, root=0)

@@ -270,3 +270,22 @@ def test_ctrl_c_while_writing_the_summary_still_writes_it(tmp_path, monkeypatch)
     out = tmp_path / "summary"
     assert _in_process_run(out, monkeypatch) == 0
     assert _summary(out)["status"] == "completed"
+
+
+def test_checkpoint_write_failure_is_a_failed_run(tmp_path, monkeypatch, capsys):
+    """The disk fills up while a checkpoint is written: status failed naming the file, no
+    partial checkpoint left, exit 1 (collective: no rank waits for rank 0)."""
+    import app.checkpoint as checkpoint
+
+    def full(fh, **arrays):
+        fh.write(b"partial")
+        raise OSError(28, "No space left on device", fh.name)
+
+    monkeypatch.setattr(checkpoint.np, "savez", full)
+    out = tmp_path / "ckpt"
+    assert _in_process_run(out, monkeypatch, ["--set", "output.checkpoint_every=2"]) == 1
+    s = _summary(out)
+    assert s["status"] == "failed" and s["failure"]["step"] == 2
+    assert "No space left" in s["failure"]["reason"]
+    assert not list(out.glob("*checkpoint*"))
+    assert "Traceback" not in capsys.readouterr().err
