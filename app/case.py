@@ -412,6 +412,7 @@ class Case:
     petsc: dict
     output: OutputSpec
     raw: dict = field(repr=False)
+    data_stress: float = 0.0     # the stress scale of loads and initial data (validation)
 
     @property
     def dim(self) -> int:
@@ -567,7 +568,7 @@ def _validate(data: dict, source: str) -> Case:
     defaults = {**DEFAULT_PETSC, **scaled_petsc_defaults(data, stress)}
     check_petsc_options(data.get("petsc", {}), source, base=defaults)
     petsc = {**defaults, **data.get("petsc", {})}
-    case = _build(data, source, time_grid, petsc)
+    case = dataclasses.replace(_build(data, source, time_grid, petsc), data_stress=stress)
     ok, why = fast_eligible(case)
     if case.numerics.method == "fast" and not ok:
         raise CaseError(f"{source}: solver.method: 'fast' is not possible here: {why} "

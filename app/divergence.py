@@ -8,12 +8,13 @@ up to k r_max - 1 per step, so the norms grow geometrically and would reach 1e55
 dozen steps while the run still "completes".
 
 ``stress_scale`` collects the data's stress levels (no solve needed):
-- the loads: |f2| on the traction sides and |f0| L (div sigma = -f0), sampled at the mesh
-  vertices and over the time grid;
+- the loads and initial data: |f2| on the traction sides, |f0| L (div sigma = -f0),
+  |sigma0| and E |u0| / L, sampled over the body and the time grid when the case was
+  validated (Case.data_stress, app/datacheck.py);
 - the contact laws: c_nu g (the normal compliance force at the bound), the memory force
   b0 T g, the friction bound's constants;
 - the elastic stress of a displacement g over the body, E_max g / L;
-- the initial state: max ||sigma_0||_VM and max kappa_0.
+- the initial state as built: max ||sigma_0||_VM, and max kappa_0 for kappa's bound.
 A step is diverged if a value is not finite, or if max ||sigma_n||_VM exceeds
 BLOWUP_FACTOR (L / h) times that scale (L / h allows for stresses concentrated at corners
 and on single contact nodes), or max kappa_n exceeds kappa_0 + 2 T / (3 lambda2) times that
@@ -26,47 +27,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from mpi4py import MPI
-
-from . import expressions
 
 BLOWUP_FACTOR = 1e4
-MAX_TIME_SAMPLES = 256
-
-
-def _component_max(component, points: np.ndarray, times) -> float:
-    """max |component| over the points (rows x, y[, z]) and times."""
-    if isinstance(component, (int, float)):
-        return abs(float(component))
-    if isinstance(component, dict):
-        return float(np.max(np.abs(np.asarray(component["table"], dtype=float)[:, 1])))
-    tree = expressions.parse(component)
-    zero = np.zeros(len(points))
-    sym = {"x": points[:, 0], "y": points[:, 1],
-           "z": points[:, 2] if points.shape[1] > 2 else zero}
-    with np.errstate(all="ignore"):
-        values = [np.abs(zero + expressions.to_numpy(tree, {**sym, "t": t})) for t in times]
-    values = np.concatenate(values) if values else zero
-    return float(np.max(values, initial=0.0))
-
-
-def _time_samples(times) -> np.ndarray:
-    times = np.asarray(times, dtype=float)
-    if len(times) <= MAX_TIME_SAMPLES:
-        return times
-    return times[np.linspace(0, len(times) - 1, MAX_TIME_SAMPLES).round().astype(int)]
-
-
-def load_scale(case, points: np.ndarray, length: float) -> float:
-    """max over the vertices and time samples of |f2| (traction sides) and |f0| L."""
-    times = _time_samples(case.time.times)
-    scale = 0.0
-    for comps in case.loads.traction.values():
-        scale = max([scale] + [_component_max(c, points, times) for c in comps])
-    if case.loads.f0:
-        scale = max([scale] + [_component_max(c, points, times) * length
-                               for c in case.loads.f0])
-    return scale
 
 
 def contact_scale(case, E_max: float, length: float) -> float:
@@ -89,13 +51,9 @@ def contact_scale(case, E_max: float, length: float) -> float:
 
 def stress_scale(case, problem) -> float:
     """The data's stress scale (see the module docstring); collective."""
-    length = problem.length_scale
     E_max = float(np.max(np.linalg.eigvals(problem.law.Cmat).real))
-    points = problem.mesh.geometry.x[:, :problem.dim]
-    local = max(load_scale(case, points, length), contact_scale(case, E_max, length))
-    local = local if math.isfinite(local) else 0.0
-    initial = problem.cell_max(problem.sigma_vm)
-    return max(problem.comm.allreduce(local, op=MPI.MAX), initial)
+    data = max(case.data_stress, contact_scale(case, E_max, problem.length_scale))
+    return max(data if math.isfinite(data) else 0.0, problem.cell_max(problem.sigma_vm))
 
 
 class BlowUpMonitor:
