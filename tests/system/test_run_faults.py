@@ -94,18 +94,25 @@ def test_extreme_grading_fails_cleanly(tmp_path):
         assert s["status"] == "failed" and s["failure"]["step"] == s["last_good_step"] + 1
 
 
+def _fails_at_call(real, nth: int, error: Exception, counts=lambda *args: True):
+    """``real`` wrapped so that its nth counted call raises ``error``."""
+    calls = []
+
+    def wrapper(*args):
+        if counts(*args):
+            calls.append(args)
+            if len(calls) == nth:
+                raise error
+        return real(*args)
+    return wrapper
+
+
 def test_failing_local_update_is_a_failed_step(tmp_path, monkeypatch, capsys):
     """A numerical error of the history update (here injected at step 3) is a failed step:
     summary with status failed naming the step, exit 1, outputs of steps 0-2 intact."""
     from app import history
-    real, calls = history.ViscoplasticHistory.before_solve, []
-
-    def failing(self, problem, k):
-        calls.append(k)
-        if len(calls) == 3:
-            raise RuntimeError("von Mises projection: secular equation did not converge")
-        return real(self, problem, k)
-
+    failing = _fails_at_call(history.ViscoplasticHistory.before_solve, 3, RuntimeError(
+        "von Mises projection: secular equation did not converge"))
     monkeypatch.setattr(history.ViscoplasticHistory, "before_solve", failing)
     out = tmp_path / "local"
     assert _in_process_run(out, monkeypatch) == 1
@@ -129,15 +136,9 @@ def test_hdf5_failure_mid_run_is_a_failed_run(tmp_path, monkeypatch, capsys):
     """The file system fills up at the third field write: status failed naming the file,
     exit 1, solution.xdmf still describes the two steps written before."""
     import app.output as output
-    real, calls = output.dio.XDMFFile, []
-
-    def failing(comm, path, mode):
-        if mode == "a":
-            calls.append(path)
-            if len(calls) == 3:
-                raise RuntimeError("Failed to write HDF5 dataset (No space left on device)")
-        return real(comm, path, mode)
-
+    failing = _fails_at_call(output.dio.XDMFFile, 3, RuntimeError(
+        "Failed to write HDF5 dataset (No space left on device)"),
+        counts=lambda comm, path, mode: mode == "a")             # the field writes only
     monkeypatch.setattr(output.dio, "XDMFFile", failing)
     out = tmp_path / "full"
     assert _in_process_run(out, monkeypatch) == 1
