@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import logging
-import os
 import re
 import sys
 import time
@@ -82,9 +81,16 @@ def cells_and_steps(text: str) -> tuple[int, int]:
             from None
 
 
+def path_arg(text: str) -> str:
+    """argparse type of a file or directory argument: not empty."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path (allowed: a file or directory name)")
+    return text
+
+
 def _case_options(parser, what: str, default_out: str) -> None:
     """Options shared by the commands that read a case and write an output directory."""
-    parser.add_argument("--out", metavar="DIR", help=f"output directory (default: {default_out})")
+    parser.add_argument("--out", metavar="DIR", type=path_arg, help=f"output directory (default: {default_out})")
     parser.add_argument("--set", dest="overrides", action="append", default=[],
                         metavar="KEY=VALUE",
                         help="override a case key, e.g. --set mesh.n=32 --set time.N=32 "
@@ -121,7 +127,7 @@ def _parser() -> argparse.ArgumentParser:
                                      "solution.xdmf, summary.json and contact.csv.")
     run.add_argument("case", help="YAML case file (see cases/)")
     _case_options(run, "run", "results/<case name>")
-    run.add_argument("--restart", metavar="DIR",
+    run.add_argument("--restart", metavar="DIR", type=path_arg,
                      help="continue from the newest DIR/checkpoint_*.npz (or a given "
                           "checkpoint file), written with output.checkpoint_every or when a "
                           "run is interrupted; the case must be the same (solver and output "
@@ -166,7 +172,7 @@ def _parser() -> argparse.ArgumentParser:
                       help="friction regularisation widths to study (default: the case's); "
                            "the reference uses the smallest of these and the case's")
     _case_options(conv, "study", "results/<case name>/convergence")
-    conv.add_argument("--cache-dir", metavar="DIR",
+    conv.add_argument("--cache-dir", metavar="DIR", type=path_arg,
                       help="run cache (default: $VPCONTACT_CACHE, else $XDG_CACHE_HOME/vpcontact, "
                            "else ~/.cache/vpcontact)")
     conv.add_argument("--no-cache", action="store_true", help="recompute every run")
@@ -198,7 +204,7 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--repeat", type=positive_int, default=3, metavar="R",
                    help="measured runs per configuration, every solver alike; the fastest "
                         "is reported, all are kept (default 3; the --extra levels run once)")
-    b.add_argument("--out", default="results/bench", help="output directory")
+    b.add_argument("--out", default="results/bench", type=path_arg, help="output directory")
     return p
 
 
@@ -211,40 +217,27 @@ def quiet_jit_log() -> None:
         handler.setLevel(logging.WARNING)
 
 
-def drop_stdout() -> None:
-    """The reader of our stdout has gone (``vpcontact run ... | head -1``): send the rest of
-    the output to /dev/null, so the run goes on and finishes its files."""
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, sys.stdout.fileno())
-    os.close(devnull)
-
-
-class _LogHandler(logging.StreamHandler):
-    """A stdout handler that drops the output once the pipe's reader has gone, instead of
-    printing logging's '--- Logging error ---' traceback for every line."""
-
-    def handleError(self, record):
-        if isinstance(sys.exc_info()[1], BrokenPipeError):
-            drop_stdout()
-            return
-        super().handleError(record)
-
-
-def ignore_sigpipe() -> None:
-    """PETSc's signal handler turns SIGPIPE (stdout piped into a reader that quits) into an
-    MPI_Abort that kills the run; ignored, a write to the closed pipe raises BrokenPipeError,
-    which the log handler and main() turn into dropping stdout."""
+def take_signals() -> None:
+    """Signals as the CLI wants them, after PETSc has installed its handlers (it does when
+    first imported): SIGPIPE ignored (PETSc would turn it into an MPI_Abort of the run; a
+    write to a closed pipe then fails and app/streams.py drops the stream), SIGTERM ends
+    the start-up like Ctrl-C (the time loop installs its own handler for both)."""
     import signal
 
     from petsc4py import PETSc  # noqa: F401  (PETSc installs its handlers when initialised)
     signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _terminate)
+
+
+def _terminate(signum, frame):
+    raise KeyboardInterrupt
 
 
 def _setup_logging(comm, quiet: bool, verbose: bool = False) -> None:
     level = logging.WARNING if quiet else logging.DEBUG if verbose else logging.INFO
     if comm.rank != 0:
         level = logging.CRITICAL     # collective messages: rank 0 says them once
-    handler = _LogHandler(sys.stdout)
+    handler = logging.StreamHandler(sys.stdout)
     handler.setFormatter(logging.Formatter("[vpcontact] %(message)s"))
     log.handlers[:] = [handler]
     quiet_jit_log()
@@ -262,6 +255,12 @@ def _lock_outdir(outdir: Path) -> str | None:
     import fcntl
     if outdir.exists() and not outdir.is_dir():
         return f"--out {outdir}: exists and is not a directory (give a directory)"
+    if outdir.is_dir():
+        foreign = foreign_files(outdir)
+        if foreign:
+            shown = ", ".join(foreign[:5]) + (", ..." if len(foreign) > 5 else "")
+            return (f"--out {outdir}: holds files that are not vpcontact outputs ({shown}); "
+                    "give a new or empty directory, or one of an earlier run")
     try:
         outdir.mkdir(parents=True, exist_ok=True)
         fh = open(outdir / ".vpcontact.lock", "a+")
@@ -275,6 +274,20 @@ def _lock_outdir(outdir: Path) -> str | None:
                 "wait for it to end or choose another --out")
     _LOCKS.append(fh)
     return None
+
+
+# what may be in an output directory besides the outputs of the command at hand: the files
+# of the other commands (a run's directory holds its convergence/ and stability/ studies)
+OURS = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv", "convergence.csv",
+        "convergence.md", "convergence.png", "stability.csv", "stability.md", "bench.json",
+        "bench.md", "convergence", "stability", "bench")
+OURS_PATTERNS = ("checkpoint_*.npz", "*.png", ".vpcontact.lock", ".solution.work.*", ".*.tmp*")
+
+
+def foreign_files(outdir: Path) -> list[str]:
+    """Names in ``outdir`` that no vpcontact command writes (sorted)."""
+    return sorted(p.name for p in outdir.iterdir() if p.name not in OURS
+                  and not any(p.match(pattern) for pattern in OURS_PATTERNS))
 
 
 def _prepare_outdir(comm, outdir: Path, overwrite: bool, files=None) -> None:
@@ -326,8 +339,7 @@ def _start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
             Path("results") / case.name / subdir if subdir else Path("results") / case.name
         _prepare_outdir(comm, outdir, args.overwrite, files)
     except CaseError as exc:
-        if comm.rank == 0:
-            print(f"vpcontact: error: {exc}", file=sys.stderr)
+        _error(str(exc), 2)
         return comm, None, None, None
     return comm, raw, case, outdir
 
@@ -349,6 +361,11 @@ def cmd_run(args, petsc_cli: dict) -> int:
                                 "directory (set output.checkpoint_every)")
         elif not path.is_file():
             raise CaseError(f"--restart {args.restart}: no such checkpoint file or directory")
+        out = Path(args.out) if args.out else Path("results") / case.name
+        if out.resolve() == path.parent.resolve():
+            raise CaseError(f"--restart {args.restart}: --out {out} is the directory of the "
+                            "checkpoint; give another --out (the new run would replace the "
+                            "files it continues from)")
         loaded["checkpoint"] = Checkpoint(path)   # CheckpointError (a CaseError) if damaged
         why = loaded["checkpoint"].check(case)
         if why:
@@ -427,13 +444,9 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
         res = cv.study(raw, args.case, args.levels, args.reference, args.vary, args.deltas,
                        comm, cache_dir, petsc_cli)
     except CaseError as exc:
-        if comm.rank == 0:
-            print(f"vpcontact: error: {exc}", file=sys.stderr)
-        return 2
+        return _error(str(exc), 2)
     except RuntimeError as exc:
-        if comm.rank == 0:
-            print(f"vpcontact: error: {exc}", file=sys.stderr)
-        return 1
+        return _error(str(exc), 1)
     if comm.rank == 0:
         cv.write_csv(outdir / "convergence.csv", res)
         cv.write_markdown(outdir / "convergence.md", res, case.name)
@@ -492,8 +505,7 @@ def cmd_bench(args) -> int:
         if why:
             raise CaseError(f"--out {outdir}: not a writable directory ({why})")
     except CaseError as exc:
-        print(f"vpcontact: error: {exc}", file=sys.stderr)
-        return 2
+        return _error(str(exc), 2)
     print(f"vpcontact bench: {args.case}, levels {args.levels}, extra {extra}, ranks {args.ranks}")
     t0 = time.perf_counter()
     try:
@@ -501,8 +513,7 @@ def cmd_bench(args) -> int:
                         repeat=args.repeat)
         memory = bm.memory_rows(outdir, steps=args.memory_steps) if args.memory_steps else []
     except RuntimeError as exc:
-        print(f"vpcontact: error: {exc}", file=sys.stderr)
-        return 1
+        return _error(str(exc), 1)
     bm.write(outdir, rows, memory)
     failed = bm.failures(rows, memory)
     if failed:
@@ -567,9 +578,7 @@ def cmd_check(args) -> int:
     try:
         case = validate(load_raw(args.case, args.overrides), args.case)
     except CaseError as exc:
-        if comm.rank == 0:
-            print(f"vpcontact: error: {exc}", file=sys.stderr)
-        return 2
+        return _error(str(exc), 2)
     from .checkrun import report
     for line in report(case, comm):
         if comm.rank == 0:
@@ -584,23 +593,28 @@ def cmd_info(args) -> int:
     return 0
 
 
+def console() -> None:
+    """The ``vpcontact`` console script: as ``python -m app`` (app/__main__.py)."""
+    from .startup import quick_exit
+    from .streams import repair_std_streams
+    repair_std_streams()
+    quick_exit(main())
+
+
 def main(argv: list[str] | None = None) -> int:
     """Exit codes: 0 done, 1 a step failed (or an environmental fault), 2 bad input,
     3 interrupted (SIGINT/SIGTERM)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     ours, petsc_cli = split_petsc_args(argv)
-    args = _parser().parse_args(ours)
     try:
-        ignore_sigpipe()
+        args = _parser().parse_args(ours)
+        take_signals()
         return _dispatch(args, petsc_cli)
     except KeyboardInterrupt:
         print("vpcontact: interrupted before the time loop started", file=sys.stderr)
         return EXIT_INTERRUPTED
     except CaseError as exc:            # bad input found late (e.g. while building the problem)
         return _error(str(exc), 2)
-    except BrokenPipeError:             # stdout's reader has gone (| head): nothing to say
-        drop_stdout()
-        return 0
     except MemoryError:
         return _error("out of memory: the case is too large for this machine (try a coarser "
                       "mesh, mesh.n or mesh.h)", 1)
@@ -608,12 +622,24 @@ def main(argv: list[str] | None = None) -> int:
         from .output import describe_os_error
         return _error(describe_os_error(exc), 1)
     except Exception as exc:
+        from petsc4py import PETSc
+        if isinstance(exc, PETSc.Error):  # PETSc refused an option or a matrix: not our bug
+            from .solver import describe_petsc_error
+            return _error(f"{describe_petsc_error(exc)} (check the PETSc options; -help "
+                          "lists them)", 1)
         return _internal_error(exc)
 
 
+MAX_MESSAGE = 1000      # characters of an error line; a longer one echoes a huge input
+
+
 def _error(message: str, code: int) -> int:
-    """One line on stderr (from rank 0 only when every rank has the same error)."""
+    """One line on stderr (from rank 0 only: every rank has the same error); returns code."""
     from mpi4py import MPI
+    message = " ".join(message.split("\n"))
+    if len(message) > MAX_MESSAGE:
+        cut = len(message) - 800
+        message = f"{message[:700]} ... ({cut} characters left out) ... {message[-100:]}"
     if MPI.COMM_WORLD.rank == 0:
         print(f"vpcontact: error: {message}", file=sys.stderr)
     return code

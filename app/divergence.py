@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-BLOWUP_FACTOR = 1e4
+BLOWUP_FACTOR = 100.0
 
 
 def contact_scale(case, E_max: float, length: float) -> float:

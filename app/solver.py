@@ -26,6 +26,16 @@ class StepFailure(RuntimeError):
         self.reason = reason
 
 
+def describe_petsc_error(exc: Exception) -> str:
+    """One line for a PETSc error: petsc4py's text is 'error code N', PETSc's stack of
+    calls ('[0] SNESSolve() at file:line', ...) and the message; keep the code and the
+    message."""
+    lines = [x.strip() for x in str(exc).splitlines() if x.strip()]
+    message = [x for x in lines[1:] if not (x.startswith("[") and "() at " in x)]
+    message = [x.split("] ", 1)[1] if x.startswith("[") and "] " in x else x for x in message]
+    return "; ".join(([f"PETSc {lines[0]}"] if lines else []) + message)
+
+
 def reason_name(reason: int) -> str:
     return _REASONS.get(reason, str(reason))
 

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from meshes import build_box, build_rectangle
 
@@ -23,7 +24,7 @@ from .progress import Progress
 from .divergence import BlowUpMonitor
 from .output import FieldWriter, OutputError, write_contact_csv, write_json
 from .problem import ContactProblem
-from .solver import SNESVISolver, StepFailure
+from .solver import SNESVISolver, StepFailure, describe_petsc_error
 from .stepping import StepTooSmall, make_stepper
 
 log = logging.getLogger("vpcontact")
@@ -298,7 +299,8 @@ HINT_OUTPUT = ("free space on the output file system or choose another --out; th
 
 
 def _failure(step: int, t: float, reason: str, hint: str, snes_reason=None) -> dict:
-    """The ``failure`` entry of summary.json."""
+    """The ``failure`` entry of summary.json (the reason on one line)."""
+    reason = "; ".join(x.strip() for x in str(reason).splitlines() if x.strip())
     return {"step": step, "t": t, "reason": reason, "snes_reason": snes_reason, "hint": hint}
 
 
@@ -325,6 +327,8 @@ def _advance(problem, history, g3, solver, t: float, t_new: float, k: float):
         norms = history.after_solve(problem) if history else problem.update_sigma()
     except StepFailure:
         raise
+    except PETSc.Error as exc:                      # e.g. -ksp_error_if_not_converged
+        raise StepFailure(describe_petsc_error(exc)) from exc
     except (ArithmeticError, RuntimeError, np.linalg.LinAlgError) as exc:
         raise StepFailure(f"{exc}") from exc
     return its, norms, t_g3

@@ -290,3 +290,91 @@ def test_checkpoint_write_failure_is_a_failed_run(tmp_path, monkeypatch, capsys)
     assert "No space left" in s["failure"]["reason"]
     assert not list(out.glob("*checkpoint*"))
     assert "Traceback" not in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ second probe
+@pytest.mark.parametrize("lambda1, N", [(10, 6), (2, 3), (5, 4), (20, 6)])
+def test_coarse_explicit_blow_up_is_diverged(tmp_path, lambda1, N):
+    """Unstable explicit runs on a 4 x 4 mesh whose stresses reached 1e4-5e5 (stable: ~20)
+    and 'completed' with contact states flipping from step to step."""
+    out = tmp_path / "coarse"
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--quiet", "--set", "mesh.n=4",
+                    "--set", f"time.N={N}", "--set", f"material.viscoplastic.lambda1={lambda1}",
+                    "--set", "solver.method=fast"])
+    assert proc.returncode == 1, proc.stderr
+    assert _summary(out)["status"] == "diverged"
+
+
+@pytest.mark.parametrize("target", ["repo", "cases", "nonempty"])
+def test_out_with_foreign_files_is_refused(tmp_path, target):
+    """--out ., --out cases, or any directory holding files that no vpcontact command
+    writes: outputs were written among them (even into / and .git)."""
+    other = tmp_path / "mine"
+    other.mkdir()
+    (other / "notes.txt").write_text("keep\n")
+    out = {"repo": ROOT, "cases": ROOT / "cases", "nonempty": other}[target]
+    before = sorted(p.name for p in out.iterdir())
+    proc = run_cli(["run", PAPER_CASE, "--out", out, *TINY])
+    assert proc.returncode == 2
+    assert "not vpcontact outputs" in _one_error_line(proc)
+    assert sorted(p.name for p in out.iterdir()) == before
+
+
+def test_out_of_an_earlier_run_with_studies_is_accepted(tmp_path):
+    """A run's directory may hold its convergence/ and stability/ subdirectories."""
+    out = tmp_path / "run"
+    (out / "convergence").mkdir(parents=True)
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--quiet", *TINY])
+    assert proc.returncode == 0, proc.stderr
+
+
+@pytest.mark.parametrize("redirect", [">&-", ">/dev/full", "2>&-", "2>/dev/full"])
+def test_closed_or_full_std_streams_do_not_stop_the_run(tmp_path, redirect):
+    out = tmp_path / "streams"
+    cmd = (f"{sys.executable} -m app run {PAPER_CASE} --out {out} --no-plots "
+           f"{' '.join(TINY)} {redirect}")
+    proc = subprocess.run(["bash", "-c", cmd], cwd=ROOT, env={**os.environ, **MPI_ENV},
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stdout + proc.stderr
+    assert "Logging error" not in proc.stdout + proc.stderr
+    assert _summary(out)["status"] == "completed"
+
+
+def test_petsc_errors_are_one_line(tmp_path):
+    """-ksp_error_if_not_converged: PETSc's error (code 91) carries its call stack; the
+    failure says the code and the message on one line."""
+    out = tmp_path / "ksp"
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--quiet", *TINY,
+                    "--set", "solver.method=snes_vi", "-ksp_type", "gmres", "-pc_type",
+                    "jacobi", "-ksp_max_it", "2", "-ksp_error_if_not_converged"])
+    assert proc.returncode == 1
+    line = [x for x in proc.stderr.splitlines() if x.startswith("vpcontact: error")]
+    assert len(line) == 1 and "PETSc error code 91" in line[0] and "DIVERGED_ITS" in line[0]
+    assert "() at " not in proc.stderr
+    assert "\n" not in _summary(out)["failure"]["reason"]
+
+
+def test_restart_into_its_own_directory_is_refused(tmp_path):
+    """--restart DIR --out DIR --overwrite deleted the checkpoint it continued from."""
+    out = tmp_path / "ck"
+    assert run_cli(["run", PAPER_CASE, "--out", out, "--quiet", *TINY,
+                    "--set", "output.checkpoint_every=2"]).returncode == 0
+    before = sorted(p.name for p in out.iterdir())
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--overwrite", "--restart", out, *TINY,
+                    "--set", "output.checkpoint_every=2"])
+    assert proc.returncode == 2
+    assert "--restart" in _one_error_line(proc)
+    assert sorted(p.name for p in out.iterdir()) == before
+
+
+@pytest.mark.parametrize("option", ["--out", "--restart"])
+def test_empty_paths_are_refused(option):
+    proc = run_cli(["run", PAPER_CASE, option, "", *TINY])
+    assert proc.returncode == 2 and "empty path" in _one_error_line(proc)
+
+
+def test_huge_values_are_not_echoed_in_full():
+    proc = run_cli(["check", PAPER_CASE, "--set", "name=" + "a" * 100000])
+    assert proc.returncode == 2
+    assert len(_one_error_line(proc)) < 1200
