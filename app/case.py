@@ -19,7 +19,7 @@ import yaml
 
 from meshes.rectangle import SIDES
 
-from .petscopts import check_petsc_options
+from .petscopts import PetscOptions, check_petsc_options
 from .schema import DEFAULT_PETSC, SCHEMA
 
 
@@ -566,8 +566,9 @@ def _validate(data: dict, source: str) -> Case:
     _check_adaptive(time_grid.adaptive, time_grid.times, source)
     stress = _check_values(data, time_grid, source)
     defaults = {**DEFAULT_PETSC, **scaled_petsc_defaults(data, stress)}
-    check_petsc_options(data.get("petsc", {}), source, base=defaults)
-    petsc = {**defaults, **data.get("petsc", {})}
+    limits = petsc_limits(data, stress)
+    check_petsc_options(data.get("petsc", {}), source, base=defaults, limits=limits)
+    petsc = PetscOptions({**defaults, **data.get("petsc", {})}, limits)
     case = dataclasses.replace(_build(data, source, time_grid, petsc), data_stress=stress)
     ok, why = fast_eligible(case)
     if case.numerics.method == "fast" and not ok:
@@ -694,6 +695,27 @@ def scaled_petsc_defaults(data: dict, stress: float) -> dict:
     atol = DEFAULT_PETSC["snes_atol"]
     return {"snes_atol": atol * force / REFERENCE_FORCE if force > 0 else atol,
             "snes_vi_zero_tolerance": DEFAULT_PETSC["snes_vi_zero_tolerance"] * length}
+
+
+def petsc_limits(data: dict, stress: float) -> dict:
+    """The largest absolute tolerances that still solve a step of this case, with the
+    reason (for petscopts.check_petsc_options): a residual tolerance of 1e-3 of the nodal
+    force scale stress L^(d-1) (none without loads or initial data: u = 0 exactly), an
+    active-set tolerance of 1e-3 of the gap g and of the body's size L."""
+    mesh = data["mesh"]
+    length = max([mesh["L1"], mesh["L2"], mesh["L3"]][:mesh["dim"]])
+    force = stress * length ** (mesh["dim"] - 1)
+    limits = {}
+    if force > 0:
+        limits["snes_atol"] = (1e-3 * force, f"Newton would stop before solving, the "
+                               f"residual's nodal forces are of order {force:.3g} "
+                               "(stress x L^(d-1))")
+    g = data.get("contact", {}).get("g")
+    scale, what = (g, "the gap g") if g is not None and 0 < g < length else (length, "L")
+    limits["snes_vi_zero_tolerance"] = (1e-3 * scale, f"SNES VI would take dofs "
+                                        f"{1e-3 * scale:.3g} m (1e-3 {what}) or farther "
+                                        "from their bound as active")
+    return limits
 
 
 def _build(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Case:

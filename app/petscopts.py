@@ -7,7 +7,11 @@ itself would only complain when the solver is set up, after the mesh and forms a
 with an error code and a traceback.  Here:
 - ``*_type`` options are checked against PETSc's type lists (KSP, PC, SNES, line search,
   factorisation packages of this PETSc build);
-- tolerances (``*_rtol``, ...) must be numbers >= 0, counts (``*_max_it``, ...) integers;
+- tolerances (``*_rtol``, ...) must be numbers >= 0 (relative ones below 1), counts
+  (``*_max_it``, ...) integers of a 32-bit PetscInt;
+- what the step problems need: SNES VI types (the bound u_nu <= g), an exact factorisation
+  for the fast solver by a package its matrix type supports, absolute tolerances below the
+  case's scales (``limits``), at most MAX_OPTIONS options;
 - as a catch-all, a throwaway SNES and KSP with the same prefixes read the options and set
   up a small matrix; a PETSc error there is reported naming the option that causes it.
 """
@@ -27,6 +31,17 @@ _SOLVER_PACKAGES = {"cholmod": "suitesparse", "umfpack": "suitesparse", "klu": "
 _REAL = re.compile(r"(^|_)(rtol|atol|stol|divtol|dtol)$")
 _INTEGER = re.compile(r"(^|_)(max_it|max_funcs|max_fail|max_linear_solve_fail|restart|"
                       r"lag_jacobian|lag_preconditioner)$")
+_RELATIVE = re.compile(r"(^|_)(rtol|stol)$")
+_SIGNED = re.compile(r"(^|_)(lag_jacobian|lag_preconditioner)$")   # -1, -2 have a meaning
+MAX_PETSC_INT = 2**31 - 1         # PetscInt of the Debian PETSc build (32 bit)
+MAX_OPTIONS = 100                 # PETSc's database holds 512 in all (its own ones included)
+# the step problem is a variational inequality: only SNES VI types honour the bound
+VI_SNES_TYPES = ("vinewtonrsls", "vinewtonssls")
+# the fast solver's matrix (app/fastsolver.py): BAIJ in serial, AIJ under mpirun; packages
+# that factorise it exactly, by PC type (measured with this PETSc build)
+FAST_PACKAGES = {(True, "lu"): ("mumps", "petsc"), (True, "cholesky"): ("petsc",),
+                 (False, "lu"): ("mumps", "superlu_dist"),
+                 (False, "cholesky"): ("mumps", "superlu_dist")}
 
 
 class PetscOptionError(ValueError):
@@ -66,26 +81,45 @@ def _check_value(key: str, value, types: dict) -> None:
             number = math.nan
         if not (math.isfinite(number) and number >= 0):
             raise PetscOptionError(f"{value!r} is not a tolerance (allowed: a number >= 0)")
+        if _RELATIVE.search(key) and number >= 1:
+            raise PetscOptionError(f"{value!r} is not a relative tolerance: the solver would "
+                                   "stop at once (allowed: 0 <= value < 1)")
     elif _INTEGER.search(key):
         if isinstance(value, bool) or not re.fullmatch(r"[-+]?\d+", str(value)):
             raise PetscOptionError(f"{value!r} is not an integer (allowed: whole numbers "
                                    "such as 50)")
+        low = -MAX_PETSC_INT if _SIGNED.search(key) else 0
+        if not low <= int(value) <= MAX_PETSC_INT:
+            raise PetscOptionError(f"{value!r} is out of range (allowed: integers from {low} "
+                                   f"to {MAX_PETSC_INT})")
 
 
 def check_petsc_options(options: dict, source: str, where: str = "petsc.",
-                        base: dict | None = None) -> None:
+                        base: dict | None = None, limits: dict | None = None) -> None:
     """Raise CaseError if PETSc would refuse one of ``options`` (name without '-' ->
     value, as given to app/solver.py's set_petsc_options) on top of the ``base`` options
-    (accepted already, e.g. the defaults).  ``where`` prefixes the option name in the
-    message: "petsc." for a case file's section, "-" for the command line."""
+    (accepted already, e.g. the defaults), or if they would make a step solver give a
+    wrong answer.  ``where`` prefixes the option name in the message: "petsc." for a case
+    file's section, "-" for the command line.  ``limits`` (default: ``base.limits``, see
+    PetscOptions) maps an absolute tolerance to its largest value and the reason."""
     from .case import CaseError
 
+    if limits is None:
+        limits = getattr(base, "limits", {})
+    merged = {**(base or {}), **options}
+    if len(merged) > MAX_OPTIONS:
+        raise CaseError(f"{source}: {where[:-1] if where.endswith('.') else 'PETSc options'}: "
+                        f"{len(merged)} options (with the case's) are too many (allowed: at most "
+                        f"{MAX_OPTIONS})")
     types = _type_lists()
     for key, value in options.items():
         try:
             _check_value(str(key), value, types)
         except PetscOptionError as exc:
             raise CaseError(f"{source}: {where}{key}: {exc}") from None
+    for key, why in _step_problem_faults(merged, limits):
+        shown = f"{where}{key}" if key in options else f"petsc.{key}"
+        raise CaseError(f"{source}: {shown}: {why}")
     def failure_without(skip):
         merged = {**(base or {}), **{k: v for k, v in options.items() if k != skip}}
         return _petsc_failure(tuple((str(k), _text(v)) for k, v in merged.items()))
@@ -99,6 +133,54 @@ def check_petsc_options(options: dict, source: str, where: str = "petsc.",
         raise CaseError(f"{source}: {where}{culprit}: PETSc refuses it: {failure}")
     raise CaseError(f"{source}: {where[:-1] if where.endswith('.') else 'PETSc options'}: "
                     f"PETSc refuses this combination: {failure}")
+
+
+class PetscOptions(dict):
+    """A case's PETSc options with the largest absolute tolerances its scales allow
+    (``limits``: option -> (largest value, why)), for checking options given later."""
+
+    def __init__(self, options: dict, limits: dict):
+        super().__init__(options)
+        self.limits = limits
+
+
+def _step_problem_faults(merged: dict, limits: dict):
+    """(option, why) for each option of ``merged`` (all options in force) that PETSc
+    accepts but that would make a step solver ignore the model or solve it inexactly."""
+    from mpi4py import MPI
+
+    snes_type = merged.get("snes_type", VI_SNES_TYPES[0])
+    if snes_type not in VI_SNES_TYPES:
+        yield "snes_type", (f"{snes_type!r} ignores the bound u_nu <= g of the step's "
+                            f"variational inequality (allowed: {', '.join(VI_SNES_TYPES)})")
+    ksp_type = merged.get("fast_ksp_type", "preonly")
+    if ksp_type != "preonly":
+        yield "fast_ksp_type", (f"{ksp_type!r}: the fast solver needs an exact factorisation "
+                                "(allowed: preonly)")
+    pc_type = merged.get("fast_pc_type", "lu")
+    if pc_type not in ("lu", "cholesky"):
+        yield "fast_pc_type", (f"{pc_type!r}: the fast solver needs an exact factorisation "
+                               "(allowed: lu, cholesky)")
+        return
+    serial = MPI.COMM_WORLD.size == 1
+    packages = FAST_PACKAGES[(serial, pc_type)]
+    package = merged.get("fast_pc_factor_mat_solver_type")
+    if package is not None and package not in packages:
+        yield "fast_pc_factor_mat_solver_type", (
+            f"{package!r} cannot factorise the fast solver's {'BAIJ' if serial else 'AIJ'} "
+            f"matrix by {pc_type} {'in serial' if serial else 'under mpirun'} "
+            f"(allowed: {', '.join(packages)})")
+    for key, (largest, why) in limits.items():
+        if key in merged and _number(merged[key]) > largest:
+            yield key, (f"{merged[key]!r} is too large: {why} (allowed: a number >= 0 up to "
+                        f"{largest:.3g})")
+
+
+def _number(value) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
 
 
 def _text(value) -> str:

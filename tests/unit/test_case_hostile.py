@@ -208,3 +208,45 @@ def test_a_stiff_compliance_penetrates_below_round_off_but_is_in_contact():
     # c_nu = 1e300: u_nu ~ 1e-300 under a finite pressure
     table = _table([1.7e-300, 3.9e-300, -1e-3], [1.7, 3.9, 0.0], [-2e-3, -4e-3, -5e-3])
     assert list(classify(table, None)) == ["compliance", "compliance", "separated"]
+
+
+@pytest.mark.parametrize("options,pattern", [
+    ({"snes_type": "newtonls"}, r"petsc\.snes_type: 'newtonls' ignores the bound u_nu <= g .*"
+                                r"\(allowed: vinewtonrsls, vinewtonssls\)"),
+    ({"snes_type": "ksponly"}, r"petsc\.snes_type: 'ksponly' ignores the bound"),
+    ({"fast_pc_type": "jacobi"}, r"petsc\.fast_pc_type: 'jacobi': the fast solver needs an "
+                                 r"exact factorisation \(allowed: lu, cholesky\)"),
+    ({"fast_ksp_type": "cg", "fast_pc_type": "none"},
+     r"petsc\.fast_ksp_type: 'cg': .*exact factorisation \(allowed: preonly\)"),
+    ({"fast_pc_factor_mat_solver_type": "superlu"},
+     r"petsc\.fast_pc_factor_mat_solver_type: 'superlu' cannot factorise the fast solver's "
+     r"BAIJ matrix by lu in serial \(allowed: mumps, petsc\)"),
+    ({"fast_pc_type": "cholesky", "fast_pc_factor_mat_solver_type": "cholmod"},
+     r"'cholmod' cannot factorise .* by cholesky in serial \(allowed: petsc\)"),
+    ({"snes_rtol": 1e300}, r"petsc\.snes_rtol: 1e\+300 is not a relative tolerance.*"
+                           r"\(allowed: 0 <= value < 1\)"),
+    ({"snes_stol": 1}, r"petsc\.snes_stol: 1 is not a relative tolerance"),
+    ({"ksp_rtol": 2.0}, r"petsc\.ksp_rtol: 2\.0 is not a relative tolerance"),
+    ({"snes_atol": 1e90}, r"petsc\.snes_atol: 1e\+90 is too large: Newton would stop before "
+                          r"solving.*of order 8 .*\(allowed: a number >= 0 up to 0\.008\)"),
+    ({"snes_vi_zero_tolerance": 1e10}, r"petsc\.snes_vi_zero_tolerance: 10+\.0 is too large: "
+                                       r"SNES VI would take dofs .*\(1e-3 the gap g\)"),
+    ({"snes_max_it": 10**12}, r"petsc\.snes_max_it: 1000000000000 is out of range \(allowed: "
+                              r"integers from 0 to 2147483647\)"),
+    ({"ksp_max_it": -1}, r"petsc\.ksp_max_it: -1 is out of range"),
+    ({"snes_lag_jacobian": -2**40}, r"snes_lag_jacobian: .* is out of range \(allowed: "
+                                    r"integers from -2147483647"),
+    ({f"foo_{i}": 1 for i in range(600)}, r"petsc: 610 options .*too many \(allowed: at most "
+                                          r"100\)"),
+])
+def test_petsc_options_that_would_solve_a_different_problem_are_refused(options, pattern):
+    _refused(pattern, petsc=options)
+
+
+def test_the_case_scales_bound_the_absolute_tolerances_given_later():
+    from app.petscopts import check_petsc_options
+    petsc = make_case(mesh={"L1": 1e-3, "L2": 1e-3}).petsc
+    with pytest.raises(CaseError, match=r"^command line: -snes_atol: .*up to 8e-06"):
+        check_petsc_options({"snes_atol": 1e-5}, "command line", where="-", base=petsc)
+    check_petsc_options({"snes_atol": 1e-6, "snes_lag_jacobian": -2, "snes_type": "vinewtonssls",
+                         "fast_pc_type": "cholesky"}, "command line", where="-", base=petsc)
