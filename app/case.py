@@ -522,11 +522,15 @@ def _time_grid(t: dict, source: str) -> TimeGrid:
 
 
 def _check_adaptive(a: dict | None, times: tuple, source: str) -> None:
-    """k_min <= first step, k_min <= k_max (the stepper could not take a single step)."""
+    """k_min <= first step, k_min <= k_max (the stepper could not take a single step);
+    T / k_max within MAX_STEPS (the stepper takes at least that many steps)."""
     if a is None:
         return
     k0 = times[1] - times[0]
     k_min, k_max = a.get("k_min"), a.get("k_max", times[-1])
+    if not times[-1] / k_max <= MAX_STEPS + 0.5:
+        raise CaseError(f"{source}: time.adaptive.k_max: {k_max:g} gives at least "
+                        f"{times[-1] / k_max:.3g} steps of T = {times[-1]:g} (limit {MAX_STEPS})")
     if k_min is not None and k_min > k_max:
         raise CaseError(f"{source}: time.adaptive.k_min: {k_min:g} is larger than "
                         f"time.adaptive.k_max = {k_max:g} (allowed: k_min <= k_max)")

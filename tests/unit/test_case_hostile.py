@@ -87,6 +87,9 @@ def test_initial_values_inside_the_model_are_accepted():
      r"k_min: 1 is larger than .*k_max"),
     ({"T": 1.0, "N": 16, "adaptive": {"k_min": 0.5}}, r"k_min: 0\.5 is larger than the first"),
     ({"T": 1.0, "k": 1e-90}, r"time\.k: 1e-90 gives 1e\+90 steps .*limit"),
+    ({"T": 1.0, "N": 4, "adaptive": {"k_min": 1e-9, "k_max": 1e-9}},
+     r"time\.adaptive\.k_max: 1e-09 gives at least 1e\+09 steps of T = 1 \(limit 1000000\)"),
+    ({"T": 1.0, "N": 4, "adaptive": {"k_max": 1e-7}}, r"time\.adaptive\.k_max: 1e-07 gives"),
     ({"T": 1.0, "N": 4, "grading": 1e99}, r"time\.grading: .*overflow"),
 ])
 def test_inconsistent_time_settings_are_refused(time, pattern):
