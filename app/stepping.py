@@ -65,6 +65,9 @@ class AdaptiveSteps:
         if self.finished(t):
             return None
         k = min(self.k, self.k_max)
+        if self.limit is not None and self.limit < self.k_min:
+            raise StepTooSmall(f"the stability indicator needs k <= {self.limit:g}, below "
+                               f"time.adaptive.k_min = {self.k_min:g}")
         while self.limit is not None and k > self.limit:
             self.history.append({"t": t, "k": k, "accepted": False,
                                  "reason": "stability indicator"})

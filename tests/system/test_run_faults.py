@@ -378,3 +378,15 @@ def test_huge_values_are_not_echoed_in_full():
     proc = run_cli(["check", PAPER_CASE, "--set", "name=" + "a" * 100000])
     assert proc.returncode == 2
     assert len(_one_error_line(proc)) < 1200
+
+
+def test_adaptive_limit_below_k_min_fails_at_once(tmp_path):
+    """max_indicator = 1e-9: the stepper halved 31 times to k = 2e-10, far below k_min,
+    before failing; now it fails at once, naming both numbers."""
+    out = tmp_path / "adaptive"
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--quiet", "--set", "mesh.n=4",
+                    "--set", "time.N=4", "--set", "time.adaptive={max_indicator: 1e-9}"])
+    assert proc.returncode == 1
+    s = _summary(out)
+    assert s["status"] == "failed" and "k_min" in s["failure"]["reason"]
+    assert s["step_history"] == []
