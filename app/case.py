@@ -454,10 +454,13 @@ class Case:
         return out
 
 
-def _check_components(items, path: str, dim: int, source: str, names=("t", "x", "y", "z")):
-    """Length = dim; expressions parse with the allowed names; tables increase in t."""
+def _check_components(items, path: str, dim: int, source: str, in_time: bool = True,
+                      space_dim: int | None = None):
+    """Length = dim; expressions parse with the allowed names (t if ``in_time``, the
+    coordinates of a body of dimension ``space_dim``, default dim); tables increase in t."""
     from . import expressions
 
+    names = ("t",) * in_time + ("x", "y", "z")[:space_dim or dim]
     if len(items) != dim:
         raise CaseError(f"{source}: {path}: expected {dim} components (the mesh dimension), "
                         f"got {len(items)}")
@@ -627,7 +630,7 @@ def _check_structure(data: dict, source: str) -> None:
     vp = data["material"].get("viscoplastic")
     if vp and isinstance(vp["kappa0"], str):
         _check_components([vp["kappa0"]], "material.viscoplastic.kappa0", 1, source,
-                          ("x", "y", "z"))
+                          in_time=False, space_dim=dim)
     fr = contact.get("friction")
     if fr and fr["b"] - fr["c1"] * fr["u1"] < 0:
         raise CaseError(f"{source}: contact.friction: b - c1 u1 must be >= 0 (the friction "
@@ -637,13 +640,13 @@ def _check_structure(data: dict, source: str) -> None:
         _check_memory(contact["memory"], source)
     init = data.get("initial", {})
     if "u0" in init:
-        _check_components(init["u0"], "initial.u0", dim, source, ("x", "y", "z"))
+        _check_components(init["u0"], "initial.u0", dim, source, in_time=False)
     if "sigma0" in init:
         rows = init["sigma0"]
         if len(rows) != dim or any(len(r) != dim for r in rows):
             raise CaseError(f"{source}: initial.sigma0: expected a {dim} x {dim} matrix")
         for i, r in enumerate(rows):
-            _check_components(r, f"initial.sigma0[{i}]", dim, source, ("x", "y", "z"))
+            _check_components(r, f"initial.sigma0[{i}]", dim, source, in_time=False)
 
 
 def _check_memory(mem: dict, source: str) -> None:

@@ -31,6 +31,7 @@ def _one_line_exit_2(proc, pattern: str):
     ("material.E=[1", "line 1, column 3"),
     ("petsc={ksp_type: nonexistent}", "petsc.ksp_type: 'nonexistent' is not a KSP type"),
     ("mesh.L2=1e-9", "1e-09 m is too thin"),
+    ('loads.f0=["z*1e200",0]', "unknown name 'z' (allowed: t, x, y, e, pi)"),
 ])
 def test_check_refuses_bad_data_in_one_line(setting, pattern):
     _one_line_exit_2(run_cli(["check", PAPER_CASE, *SMALL, "--set", setting]), pattern)

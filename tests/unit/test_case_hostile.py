@@ -253,3 +253,19 @@ def test_the_case_scales_bound_the_absolute_tolerances_given_later():
         check_petsc_options({"snes_atol": 1e-5}, "command line", where="-", base=petsc)
     check_petsc_options({"snes_atol": 1e-6, "snes_lag_jacobian": -2, "snes_type": "vinewtonssls",
                          "fast_pc_type": "cholesky"}, "command line", where="-", base=petsc)
+
+
+@pytest.mark.parametrize("sections,name", [
+    ({"loads": {"f0": ["z*1e200", 0]}}, "loads.f0[0]"),
+    ({"loads": {"f0": [0, 0], "traction": {"top": ["z", 0]}}}, "loads.traction.top[0]"),
+    ({"initial": {"u0": [0, "z"]}}, "initial.u0[1]"),
+    ({"initial": {"sigma0": [[0, "z"], ["z", 0]]}}, "initial.sigma0[0][1]"),
+])
+def test_a_2d_case_has_no_z(sections, name):
+    _refused(re.escape(name) + r": unknown name 'z' \(allowed: t?,? ?x, y, e, pi\)", **sections)
+
+
+def test_kappa0_of_a_2d_case_has_no_z():
+    raw = paper_raw()
+    raw["material"]["viscoplastic"]["kappa0"] = "1 + z"
+    _refused(r"kappa0\[0\]: unknown name 'z' \(allowed: x, y, e, pi\)", raw)
