@@ -26,6 +26,7 @@ import numpy as np
 from .case import CaseError, fast_eligible, load_raw, validate
 from .output import atomic_write
 
+MAX_REPEAT = 100             # --repeat: more gives no better minimum, only a longer bench
 ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
        "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
 
@@ -75,7 +76,14 @@ def check_arguments(case, levels, extra=(), nprocs=(1, 2), repeat: int = 1,
         raise CaseError("--ranks: none given (allowed: positive integers, e.g. 1 2)")
     if any(r > 1 for r in nprocs) and shutil.which("mpirun") is None:
         raise CaseError(f"--ranks {max(nprocs)}: mpirun is not on PATH (allowed here: 1)")
+    cores = os.cpu_count() or 1
+    if max(nprocs) > cores:
+        raise CaseError(f"--ranks {max(nprocs)}: more ranks than the {cores} cores of this "
+                        f"machine; mpirun would refuse them or oversubscribe, timing nothing "
+                        f"useful (allowed here: 1 to {cores})")
     _positive_ints("--repeat", [repeat], "1 or more")
+    if repeat > MAX_REPEAT:
+        raise CaseError(f"--repeat: {repeat} is not allowed (allowed: 1 to {MAX_REPEAT})")
     _positive_ints("--memory-steps", memory_steps)
     for n, N in [(L, L) for L in levels] + [tuple(e) for e in extra]:
         for method in methods:

@@ -85,6 +85,9 @@ def plan_runs(levels: list[int], reference: int, vary: str, case=None,
             isinstance(d, (int, float)) and math.isfinite(d) and d > 0 for d in deltas)):
         raise CaseError(f"--deltas {deltas}: not allowed (allowed: one or more finite "
                         "numbers > 0)")
+    if deltas and len(set(deltas)) != len(deltas):
+        raise CaseError(f"--deltas {deltas}: a delta is repeated (allowed: distinct finite "
+                        "numbers > 0)")
     plan = [(L, L) if vary == "both" else (L, reference) if vary == "h" else (reference, L)
             for L in levels]
     if case is not None:

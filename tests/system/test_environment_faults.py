@@ -215,7 +215,9 @@ def test_bench_refuses_bad_input_before_running(tmp_path, blocker):
     (dict(levels=[2.5]), "--levels"), (dict(levels=[], extra=[]), "--levels"),
     (dict(extra=[(4, 0)]), "--extra"), (dict(extra=["foo"]), "--extra"),
     (dict(nprocs=[0]), "--ranks"), (dict(nprocs=[]), "--ranks"),
-    (dict(repeat=0), "--repeat"), (dict(memory_steps=[0]), "--memory-steps")])
+    (dict(repeat=0), "--repeat"), (dict(memory_steps=[0]), "--memory-steps"),
+    (dict(nprocs=[1, 99999]), "--ranks 99999: more ranks than the"),
+    (dict(repeat=99999999999), r"--repeat: 99999999999 is not allowed \(allowed: 1 to 100\)")])
 def test_bench_arguments_are_checked_by_the_library(kwargs, option):
     from app import bench
     from app.case import CaseError
@@ -264,7 +266,8 @@ def test_convergence_cache_dir_checked_first(tmp_path, blocker):
     assert not (tmp_path / "c" / "convergence.csv").exists()
 
 
-@pytest.mark.parametrize("deltas", [[float("nan")], [0.0], [-1e-3], [float("inf")], []])
+@pytest.mark.parametrize("deltas", [[float("nan")], [0.0], [-1e-3], [float("inf")], [],
+                                    [1e-3, 1e-3], [1e-4, 1e-3, 0.001]])
 def test_convergence_deltas_checked_by_the_library(deltas):
     from app.case import CaseError
     from app.convergence import plan_runs
