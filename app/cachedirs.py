@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 CONFIG_FILES = (("ffcx", "ffcx_parameters.json"), ("dolfinx", "dolfinx_jit_parameters.json"))
+XDG_VARS = ("XDG_CACHE_HOME", "XDG_CONFIG_HOME")
 
 
 class CacheUnusable(OSError):
@@ -38,18 +39,24 @@ class Caches:
     root: Path
     ffcx: Path
     replaced: list = field(default_factory=list)
+    ignored: list = field(default_factory=list)     # (variable, value) not absolute
 
     @property
     def kernels(self) -> Path:
         return self.root / "kernels"
 
     def warning(self) -> str | None:
-        """One line naming each unusable directory and the one used instead, or None."""
-        if not self.replaced:
-            return None
-        parts = [f"{what} {wanted} ({why}) -> {used}" for what, wanted, used, why in self.replaced]
-        return "vpcontact: warning: not writable, using a temporary directory instead: " \
-            + "; ".join(parts)
+        """One line naming each unusable directory and the one used instead, and each
+        relative XDG variable ignored, or None."""
+        lines = [f"vpcontact: warning: {var}={value!r} is not an absolute path, ignored (as "
+                 "the XDG base directory specification asks)" for var, value in self.ignored
+                 if value]
+        if self.replaced:
+            parts = [f"{what} {wanted} ({why}) -> {used}"
+                     for what, wanted, used, why in self.replaced]
+            lines.append("vpcontact: warning: not writable, using a temporary directory "
+                         "instead: " + "; ".join(parts))
+        return "\n".join(lines) or None
 
 
 def unusable(path: Path) -> str | None:
@@ -142,6 +149,10 @@ def prepare(env=None) -> Caches:
     os.environ, is updated).  Raises CacheUnusable if a replacement is not writable either."""
     env = os.environ if env is None else env
     replaced: list = []
+    # empty or relative XDG values are invalid (XDG base directory specification): removed,
+    # so that dolfinx, FFCx and matplotlib, which read them too, use the home directory's
+    ignored = [(var, env.pop(var)) for var in XDG_VARS
+               if var in env and not os.path.isabs(env[var])]
     cfg = config_dir(env)
     why = _config_unreadable(cfg)
     if why:
@@ -159,7 +170,7 @@ def prepare(env=None) -> Caches:
     why = unusable(mpl)
     if why:
         _replace(env, replaced, "matplotlib", mpl, why, "MPLCONFIGDIR", "matplotlib")
-    return Caches(root, ffcx, replaced)
+    return Caches(root, ffcx, replaced, ignored)
 
 
 _CACHES: Caches | None = None

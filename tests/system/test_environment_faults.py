@@ -85,6 +85,31 @@ def test_nothing_writable_is_one_error_line(blocker, tmp_path):
     assert proc.stdout == ""
 
 
+@pytest.mark.parametrize("value", ["", "relative/cache", "."])
+@pytest.mark.parametrize("var", ["XDG_CACHE_HOME", "XDG_CONFIG_HOME"])
+def test_empty_or_relative_xdg_values_are_ignored(tmp_path, var, value):
+    """No cache or settings directory relative to the current one: dolfinx, matplotlib and
+    vpcontact all use the home directory's, as the XDG specification asks."""
+    work, home = tmp_path / "work", tmp_path / "home"
+    work.mkdir()
+    code = ("import app, matplotlib; from dolfinx import jit; from app import cachedirs; "
+            "print(jit.DOLFINX_DEFAULT_JIT_PARAMETERS['cache_dir'][0]); "
+            "print(cachedirs.cache_root()); print(matplotlib.get_cachedir())")
+    env = {k: v for k, v in os.environ.items() if k not in CACHE_VARS}
+    env.update(MPI_ENV, PYTHONPATH=str(ROOT), HOME=str(home), **{var: value})
+    proc = subprocess.run([sys.executable, "-c", code], cwd=work, env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == [str(home / ".cache" / "fenics"),
+                                   str(home / ".cache" / "vpcontact"),
+                                   str(home / ".cache" / "matplotlib")]
+    assert list(work.iterdir()) == []
+    warnings = [ln for ln in proc.stderr.splitlines() if ln.startswith("vpcontact")]
+    assert warnings == ([f"vpcontact: warning: {var}={value!r} is not an absolute path, "
+                         "ignored (as the XDG base directory specification asks)"]
+                        if value else [])
+
+
 # ------------------------------------------------------------------ compiled kernels
 def _tiny_module(tmp_path, monkeypatch, tag):
     from app import kernels
