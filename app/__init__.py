@@ -7,6 +7,17 @@ import os as _os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
     _os.environ.setdefault(_var, "1")
 
+# Open MPI (and tempfile) keep their session files under $TMPDIR: one that is not a writable
+# directory makes MPI_Init print pages of mkdir errors.  It is dropped (the system's /tmp
+# serves) with one warning line, by the first rank only.
+_tmp = _os.environ.get("TMPDIR")
+if _tmp and not (_os.path.isdir(_tmp) and _os.access(_tmp, _os.W_OK | _os.X_OK)):
+    del _os.environ["TMPDIR"]
+    if _os.environ.get("OMPI_COMM_WORLD_RANK", _os.environ.get("PMIX_RANK", "0")) == "0":
+        import sys as _sys
+        print(f"vpcontact: warning: TMPDIR={_tmp!r} is not a writable directory, ignored",
+              file=_sys.stderr)
+
 # A run started without mpirun is an Open MPI singleton.  Its MPI_Init probes the UCX network
 # layer and starts a runtime daemon: 0.29 s of a 3 s run (measured; 0.04 s with these).  One
 # process communicates with nobody, so the shared-memory/self transports suffice.  Runs under

@@ -110,6 +110,18 @@ def test_empty_or_relative_xdg_values_are_ignored(tmp_path, var, value):
                         if value else [])
 
 
+@pytest.mark.parametrize("where", ["file", "missing"])
+def test_a_tmpdir_that_is_no_writable_directory_is_ignored(blocker, where):
+    """MPI starts (no pages of Open MPI mkdir errors) and the run says so in one line."""
+    tmp = blocker if where == "file" else blocker.parent / "missing"
+    proc = _cli(["run", PAPER_CASE, *TINY, "--out", blocker.parent / "out", "--no-plots",
+                 "--quiet"], {"TMPDIR": str(tmp)})
+    assert proc.returncode == 0, proc.stderr
+    assert [ln for ln in proc.stderr.splitlines() if "warning" in ln or "mkdir" in ln] == \
+        [f"vpcontact: warning: TMPDIR={str(tmp)!r} is not a writable directory, ignored"]
+    assert (blocker.parent / "out" / "summary.json").is_file()
+
+
 # ------------------------------------------------------------------ compiled kernels
 def _tiny_module(tmp_path, monkeypatch, tag):
     from app import kernels
