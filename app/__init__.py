@@ -1,6 +1,20 @@
 """vpcontact: viscoplastic contact with normal compliance, unilateral constraint and
 nonmonotone friction (Wang & Cheng 2021), on FEniCSx/dolfinx 0.5.2."""
 import os as _os
+import signal as _signal
+import sys as _sys
+
+
+def _interrupted_while_starting(signum, frame):
+    """Ctrl-C or SIGTERM while `python -m app` loads its modules: one line, exit 3 (the
+    CLI takes the signals over once it runs, app/cli.py take_signals)."""
+    _os.write(2, b"vpcontact: interrupted while starting; nothing was computed\n")
+    _os._exit(3)
+
+
+if _sys.argv[:1] == ["-m"]:      # `python -m app` (./vpcontact) is starting: argv[0] is "-m"
+    for _sig in (_signal.SIGINT, _signal.SIGTERM):
+        _signal.signal(_sig, _interrupted_while_starting)
 
 # Multithreaded OpenBLAS makes the small dense per-cell algebra 30-100x slower on these
 # machines; set before numpy is imported anywhere in the application.
@@ -14,7 +28,6 @@ _tmp = _os.environ.get("TMPDIR")
 if _tmp and not (_os.path.isdir(_tmp) and _os.access(_tmp, _os.W_OK | _os.X_OK)):
     del _os.environ["TMPDIR"]
     if _os.environ.get("OMPI_COMM_WORLD_RANK", _os.environ.get("PMIX_RANK", "0")) == "0":
-        import sys as _sys
         print(f"vpcontact: warning: TMPDIR={_tmp!r} is not a writable directory, ignored",
               file=_sys.stderr)
 

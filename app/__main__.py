@@ -1,12 +1,8 @@
-import sys
+from app.streams import repair_std_streams
 
-try:
-    from app.streams import repair_std_streams
-    repair_std_streams()                # before ufl keeps a reference to sys.stdout
-    from app.cli import main
-    from app.startup import quick_exit
-except KeyboardInterrupt:               # Ctrl-C / SIGTERM while the modules load
-    sys.stderr.write("vpcontact: interrupted while starting; nothing was computed\n")
-    raise SystemExit(3) from None
+repair_std_streams()                    # before ufl keeps a reference to sys.stdout
+
+from app.cli import main  # noqa: E402
+from app.startup import quick_exit  # noqa: E402
 
 quick_exit(main())      # an exception propagates as usual (traceback, exit status 1)

@@ -220,13 +220,15 @@ def quiet_jit_log() -> None:
 def take_signals() -> None:
     """Signals as the CLI wants them, after PETSc has installed its handlers (it does when
     first imported): SIGPIPE ignored (PETSc would turn it into an MPI_Abort of the run; a
-    write to a closed pipe then fails and app/streams.py drops the stream), SIGTERM ends
-    the start-up like Ctrl-C (the time loop installs its own handler for both)."""
+    write to a closed pipe then fails and app/streams.py drops the stream), SIGINT and
+    SIGTERM end the start-up with KeyboardInterrupt, caught by main (the time loop installs
+    its own handler for both)."""
     import signal
 
     from petsc4py import PETSc  # noqa: F401  (PETSc installs its handlers when initialised)
     signal.signal(signal.SIGPIPE, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _terminate)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def _terminate(signum, frame):
@@ -622,6 +624,9 @@ def main(argv: list[str] | None = None) -> int:
         from .output import describe_os_error
         return _error(describe_os_error(exc), 1)
     except Exception as exc:
+        if _caused_by_interrupt(exc):     # a signal inside a C extension's import or call
+            print("vpcontact: interrupted before the time loop started", file=sys.stderr)
+            return EXIT_INTERRUPTED
         from petsc4py import PETSc
         if isinstance(exc, PETSc.Error):  # PETSc refused an option or a matrix: not our bug
             from .solver import describe_petsc_error
@@ -631,6 +636,18 @@ def main(argv: list[str] | None = None) -> int:
 
 
 MAX_MESSAGE = 1000      # characters of an error line; a longer one echoes a huge input
+
+
+def _caused_by_interrupt(exc: BaseException) -> bool:
+    """True if a KeyboardInterrupt (Ctrl-C, SIGTERM) is among the exception's causes, as
+    when it arrives while a C extension initialises (ImportError 'initialization failed')."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def _error(message: str, code: int) -> int:

@@ -390,3 +390,24 @@ def test_adaptive_limit_below_k_min_fails_at_once(tmp_path):
     s = _summary(out)
     assert s["status"] == "failed" and "k_min" in s["failure"]["reason"]
     assert s["step_history"] == []
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_signal_while_starting_is_one_line(tmp_path, sig):
+    """Ctrl-C or SIGTERM while the modules load (here: once MPI is loaded) printed a
+    KeyboardInterrupt traceback (or nothing, exit 143); now one line and exit 3."""
+    cmd = [sys.executable, "-m", "app", "run", str(PAPER_CASE), "--out", str(tmp_path / "s"),
+           "--no-plots", *TINY]
+    proc = subprocess.Popen(cmd, cwd=ROOT, env={**os.environ, **MPI_ENV},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    maps = f"/proc/{proc.pid}/maps"
+    for _ in range(20000):                      # until mpi4py's extension is mapped
+        try:
+            if "mpi4py" in open(maps).read():
+                break
+        except OSError:
+            pass
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 3, err
+    assert "Traceback" not in out + err and "interrupted" in err
