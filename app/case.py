@@ -695,13 +695,16 @@ def scaled_petsc_defaults(data: dict, stress: float) -> dict:
     - snes_atol, on the residual, a vector of nodal forces ~ stress L^(d-1); without loads
       or initial data (u = 0 exactly) the default value serves;
     - snes_vi_zero_tolerance, how close to its bound (in m) SNES VI takes a dof as active:
-      relative to the body's size L."""
+      relative to the body's size L, and at most 1e-4 of the gap g (a tenth of the limit
+      in petsc_limits, so that a small gap keeps a valid default)."""
     mesh = data["mesh"]
     length = max([mesh["L1"], mesh["L2"], mesh["L3"]][:mesh["dim"]])
     force = stress * length ** (mesh["dim"] - 1)
     atol = DEFAULT_PETSC["snes_atol"]
+    zero = DEFAULT_PETSC["snes_vi_zero_tolerance"] * length
+    g = data.get("contact", {}).get("g")
     return {"snes_atol": atol * force / REFERENCE_FORCE if force > 0 else atol,
-            "snes_vi_zero_tolerance": DEFAULT_PETSC["snes_vi_zero_tolerance"] * length}
+            "snes_vi_zero_tolerance": min(zero, 1e-4 * g) if g else zero}
 
 
 def petsc_limits(data: dict, stress: float) -> dict:

@@ -269,3 +269,12 @@ def test_kappa0_of_a_2d_case_has_no_z():
     raw = paper_raw()
     raw["material"]["viscoplastic"]["kappa0"] = "1 + z"
     _refused(r"kappa0\[0\]: unknown name 'z' \(allowed: x, y, e, pi\)", raw)
+
+
+def test_a_small_gap_keeps_a_valid_default_active_set_tolerance():
+    """g = 1e-6: the default snes_vi_zero_tolerance (1e-8 L) was above its own limit
+    (1e-3 g) and the paper case with a small gap was refused."""
+    from conftest import make_case
+    case = make_case(contact={"g": 1e-6})
+    assert case.petsc["snes_vi_zero_tolerance"] <= 1e-4 * 1e-6 * (1 + 1e-12)
+    assert make_case().petsc["snes_vi_zero_tolerance"] == 1e-8      # the paper's value
