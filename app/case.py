@@ -1,7 +1,7 @@
 """Reading, overriding and validating case files (YAML, safe loader, JSON schema).
 
 A validated case is split into plain dataclasses: physical data, numerical settings,
-PETSc options and output settings are separate objects (STYLE.md).
+PETSc options and output settings are separate objects.
 """
 from __future__ import annotations
 

@@ -3,7 +3,7 @@
 Error = max_n ( ||sigma_n - sigma_n^ref||_Q + ||u_n - u_n^ref||_V + ||kappa_n - kappa_n^ref||_Y )
 over the time points t_n of the coarse run (all of them are reference time points), with the
 coarse fields prolonged exactly to the reference mesh (app/grid.py) and the norms integrated
-there (MODEL.md section 5).  ``vary``: "both" refines h = L/n and k = T/N together (n = N =
+there (the paper's Table 1).  ``vary``: "both" refines h = L/n and k = T/N together (n = N =
 level), "h" keeps k at the reference, "k" keeps h at the reference.
 
 Wall time of a run = the sum of its steps' times (history update, SNES solve, stress update),
@@ -34,7 +34,7 @@ log = logging.getLogger("vpcontact")
 # Wang & Cheng (2021), Table 1: h = k = 1/8 .. 1/64 against h = k = 1/128.
 PAPER_TABLE1 = {8: 23.1363, 16: 19.6575, 32: 13.2976, 64: 6.1820}
 PAPER_RATES = {16: 0.2351, 32: 0.5639, 64: 1.1050}
-PAPER_DATA = {  # MODEL.md section 5
+PAPER_DATA = {  # the paper's Section 4
     ("mesh", "L1"): 1.0, ("mesh", "L2"): 1.0, ("time", "T"): 1.0,
     ("material", "E"): 1000.0, ("material", "nu"): 0.4,
 }
@@ -187,7 +187,7 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
 
 
 def run_error(level: RunRecord, ref: RunRecord) -> dict:
-    """Error of MODEL.md section 5 and its parts at the maximising time point (rank 0)."""
+    """Error of the paper's Table 1 and its parts at the maximising time point (rank 0)."""
     best = None
     for i, t in enumerate(level.times):
         m = int(np.argmin(np.abs(ref.times - t)))
@@ -378,7 +378,7 @@ def explain(res: dict) -> list[str]:
         out.append(f"- The paper's Errors ({big} at h = 1/8) exceed the size of the solution "
                    f"itself (max_n ||sigma_n||_Q = {nr['sigma_Q']:.3g}); an error of that size "
                    "cannot be this Error in these norms for this solution, so the paper's norms "
-                   "(or their scaling) must differ from MODEL.md section 5; the paper does not "
+                   "(or their scaling) must differ from the Error defined above; the paper does not "
                    "say how they were computed. Compare the rates, not the magnitudes.")
     return out + [""]
 

@@ -1,5 +1,5 @@
-"""History terms on Gamma3 (MODEL.md sections 3-4): the memory term xi_n and the
-accumulated slip s_n, per Gamma3 node.
+"""History terms on Gamma3 (the paper's memory term; slip dependence is our extension): the
+memory term xi_n and the accumulated slip s_n, per Gamma3 node.
 
 xi_n = sum_{j=1..n} k_j b(t_n - t_{j-1}) u_{j-1,nu}^+,     s_n = sum_{j=1..n} k_j |u_{j-1,tau}|.
 
@@ -94,7 +94,7 @@ class SlipSum:
         self.s = state.copy()
 
     def theta(self) -> np.ndarray:
-        """theta(s) = theta_inf + (1 - theta_inf) exp(-s / s0) (MODEL.md section 4)."""
+        """theta(s) = theta_inf + (1 - theta_inf) exp(-s / s0)."""
         return self.theta_inf + (1.0 - self.theta_inf) * np.exp(-self.s / self.s0)
 
 

@@ -1,5 +1,5 @@
 """Fields of a structured-mesh run on its canonical grid, exact prolongation between nested
-meshes, and the error norms of MODEL.md section 5 computed on the fine mesh.
+meshes, and the error norms of the paper's Table 1 computed on the fine mesh.
 
 A structured mesh (``mesh.kind: structured``) has vertices (I, J) at (I hx, J hy) and, per
 square (i, j), two triangles t = 0, 1: with diagonal "right" t = 0 is the triangle below the

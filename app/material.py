@@ -1,4 +1,4 @@
-"""Perzyna viscoplasticity of the paper (Section 4; MODEL.md section 2), in 2D and 3D.
+"""Perzyna viscoplasticity of the paper (Section 4), in 2D and 3D.
 
 Stresses are stored per cell (DG0) as d x d arrays; the per-cell algebra uses coordinates
 t = (t11, t22, t12) in 2D and t = (t11, t22, t33, t23, t13, t12) in 3D, vectorised over cells:

@@ -1,6 +1,6 @@
 """The discrete step problem of scheme (3.2)-(3.4) on one mesh (2D or 3D).
 
-Spaces (MODEL.md section 3): V^h = continuous P1 vectors, Q^h = DG0 tensors (sigma, H_n),
+Spaces: V^h = continuous P1 vectors, Q^h = DG0 tensors (sigma, H_n),
 Y^h = DG0 scalars (kappa).  The problem object holds the unknown u, the pre-stress H_n, the
 Gamma3 nodal fields xi_n (memory) and theta(s_n) (slip dependence) when the case has them,
 the compiled forms, the Dirichlet condition on Gamma1, the box bounds of U^h on the normal

@@ -1,4 +1,4 @@
-"""Contact and friction terms on Gamma3 (MODEL.md section 4, paper (4.1)-(4.2)).
+"""Contact and friction terms on Gamma3 (paper (4.1)-(4.2)).
 
 All terms enter as energies whose derivative gives the step residual:
 - normal compliance P(r) = c_nu / 2 (r^+)^2, P' = p(r) = c_nu r^+;
@@ -41,7 +41,7 @@ def positive_part(r):
 
 
 def regularised_positive_part(r, delta):
-    """r^+ regularised as (r + sqrt(r^2 + delta^2)) / 2 (MODEL.md section 4)."""
+    """r^+ regularised as (r + sqrt(r^2 + delta^2)) / 2."""
     return 0.5 * (r + ufl.sqrt(r**2 + delta**2))
 
 
@@ -51,7 +51,7 @@ def normal_compliance_energy(u_nu, c_nu):
 
 
 def regularised_norm(xi, delta):
-    """|xi|_delta = sqrt(xi . xi + delta^2) (MODEL.md section 4)."""
+    """|xi|_delta = sqrt(xi . xi + delta^2)."""
     return ufl.sqrt(ufl.dot(xi, xi) + delta**2)
 
 

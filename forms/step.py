@@ -2,7 +2,7 @@
 
 u_n is the stationary point over U^h = {v in V^h : v_nu <= g at Gamma3 nodes} of
   J_n(v) = 1/2 (E eps(v), eps(v)) + (H_n, eps(v)) - f_n(v)
-           + int_Gamma3 [ P(v_nu) + xi_n v_nu^+ + theta(s_n) psi(|v_tau|) ]  (MODEL.md section 3)
+           + int_Gamma3 [ P(v_nu) + xi_n v_nu^+ + theta(s_n) psi(|v_tau|) ]
 with H_n the DG0 pre-stress (viscoplastic history).  The residual F = dJ_n/du gives (3.4)
 with sigma_n = E eps(u_n) + H_n; the constraint is imposed by SNES VI bounds, not here.
 Terms a case does not enable are simply not added (no friction form when frictionless).

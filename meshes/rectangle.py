@@ -45,7 +45,7 @@ class RectangleMesh:
     h: float | None
     diagonal: str | None
 
-    # Gamma3 is the bottom side; its outward unit normal and unit tangent(s) (MODEL.md sec. 1).
+    # Gamma3 is the bottom side; its outward unit normal and unit tangent(s).
     normal = (0.0, -1.0)
     tangent = ((1.0, 0.0),)
 

@@ -1,4 +1,4 @@
-"""Memory term and accumulated slip on Gamma3 (MODEL.md sections 3-4)."""
+"""Memory term and accumulated slip on Gamma3."""
 import numpy as np
 import pytest
 
