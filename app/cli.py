@@ -278,18 +278,19 @@ def _lock_outdir(outdir: Path) -> str | None:
     return None
 
 
-# what may be in an output directory besides the outputs of the command at hand: the files
-# of the other commands (a run's directory holds its convergence/ and stability/ studies)
-OURS = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv", "convergence.csv",
-        "convergence.md", "convergence.png", "stability.csv", "stability.md", "bench.json",
-        "bench.md", "convergence", "stability", "bench")
-OURS_PATTERNS = ("checkpoint_*.npz", "*.png", ".vpcontact.lock", ".solution.work.*", ".*.tmp*")
+# besides the files of each command: a run's directory holds its convergence/ and
+# stability/ studies; checkpoints, figures, the lock and temporary files of atomic writes
+OUR_DIRECTORIES = ("convergence", "stability", "bench")
+OUR_PATTERNS = ("checkpoint_*.npz", "*.png", ".vpcontact.lock", ".solution.work.*", ".*.tmp*")
 
 
 def foreign_files(outdir: Path) -> list[str]:
     """Names in ``outdir`` that no vpcontact command writes (sorted)."""
-    return sorted(p.name for p in outdir.iterdir() if p.name not in OURS
-                  and not any(p.match(pattern) for pattern in OURS_PATTERNS))
+    from .output import OUTPUT_FILES
+    ours = {*OUTPUT_FILES, *CONVERGENCE_FILES, *STABILITY_FILES, *BENCH_FILES,
+            *OUR_DIRECTORIES}
+    return sorted(p.name for p in outdir.iterdir() if p.name not in ours
+                  and not any(p.match(pattern) for pattern in OUR_PATTERNS))
 
 
 def _prepare_outdir(comm, outdir: Path, overwrite: bool, files=None) -> None:
@@ -388,8 +389,8 @@ def cmd_run(args, petsc_cli: dict) -> int:
                  progress=not args.quiet and not args.verbose)
     s = result.summary
     if result.status == "completed" and not args.no_plots and comm.rank == 0 and s["steps"]:
-        if not _plots(outdir):
-            return EXIT_INTERRUPTED if _plots.interrupted else 0
+        if _plots(outdir) == "interrupted":
+            return EXIT_INTERRUPTED
     return _report_run(comm, s, outdir, args.no_plots)
 
 
@@ -464,6 +465,7 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
 
 
 STABILITY_FILES = ("stability.csv", "stability.md")
+BENCH_FILES = ("bench.json", "bench.md")
 
 
 def _two_dimensional(case) -> None:
@@ -519,9 +521,8 @@ def cmd_bench(args) -> int:
     bm.write(outdir, rows, memory)
     failed = bm.failures(rows, memory)
     if failed:
-        print(f"vpcontact: error: {len(failed)} bench configuration(s) failed: "
-              f"{'; '.join(failed)} (reasons in {outdir}/bench.md)", file=sys.stderr)
-        return 1
+        return _error(f"{len(failed)} bench configuration(s) failed: {'; '.join(failed)} "
+                      f"(reasons in {outdir}/bench.md)", 1)
     print(f"done in {time.perf_counter() - t0:.0f} s: {outdir}/bench.json, {outdir}/bench.md")
     return 0
 
@@ -529,28 +530,26 @@ def cmd_bench(args) -> int:
 EXIT_INTERRUPTED = 3
 
 
-def _plots(outdir: Path) -> bool:
-    """Draw the figures of a run (rank 0); a plotting problem is a warning, not a failure.
-    Ctrl-C while drawing stops the drawing only (``_plots.interrupted``): the run's files
-    are complete and its summary stays as written."""
+def _plots(outdir: Path) -> str:
+    """Draw the figures of a run (rank 0): "drawn", "failed" (a plotting problem is a
+    warning, not a failure of the run) or "interrupted" (Ctrl-C stops the drawing only: the
+    run's files are complete and its summary stays as written)."""
     from .plot import plot_all
-    _plots.interrupted = False
     t0 = time.perf_counter()
     try:
         files = plot_all(outdir, log=log.info)
     except KeyboardInterrupt:
-        _plots.interrupted = True
         print(f"vpcontact: interrupted while drawing the figures; the run itself is complete "
               f"(see {outdir}/summary.json); ./vpcontact plot {outdir} draws them",
               file=sys.stderr)
-        return False
+        return "interrupted"
     except Exception as exc:       # noqa: BLE001 (the run itself succeeded)
         log.warning("figures not drawn: %s: %s (./vpcontact plot %s retries)",
                     type(exc).__name__, exc, outdir)
-        return False
+        return "failed"
     log.info("figures (%.1f s): %s", time.perf_counter() - t0,
              ", ".join(f.name for f in files))
-    return True
+    return "drawn"
 
 
 def cmd_plot(args) -> int:
@@ -564,9 +563,7 @@ def cmd_plot(args) -> int:
               f"{', '.join(missing)})", file=sys.stderr)
         return 2
     if MPI.COMM_WORLD.rank == 0:
-        if _plots(outdir):
-            return 0
-        return EXIT_INTERRUPTED if _plots.interrupted else 1
+        return {"drawn": 0, "failed": 1, "interrupted": EXIT_INTERRUPTED}[_plots(outdir)]
     return 0
 
 

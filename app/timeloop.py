@@ -371,7 +371,8 @@ def _write_final(comm, outdir: Path, case: Case, problem, summary: dict, steps: 
         summary["summary_error"] = str(exc)
         if summary["status"] == "completed":
             summary["status"] = "failed"
-            summary["failure"] = _failure(summary["last_good_step"], 0.0,
+            summary["failure"] = _failure(summary["last_good_step"],
+                                          steps[-1]["t"] if steps else 0.0,
                                           f"cannot write summary.json: {exc}", HINT_OUTPUT)
 
 

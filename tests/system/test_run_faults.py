@@ -19,6 +19,18 @@ from conftest import MPI_ENV, PAPER_CASE, ROOT, run_cli
 TINY = ["--set", "mesh.n=4", "--set", "time.N=4"]
 
 
+@pytest.fixture(autouse=True)
+def _restore_log():
+    """cli.main sets up the 'vpcontact' logger (own handler, no propagation): put it back,
+    so that later tests' caplog sees its records."""
+    import logging
+    logger = logging.getLogger("vpcontact")
+    state = logger.handlers[:], logger.propagate, logger.level
+    yield
+    logger.handlers[:], logger.propagate = state[0], state[1]
+    logger.setLevel(state[2])
+
+
 def _summary(out):
     return json.loads((out / "summary.json").read_text())
 
