@@ -31,7 +31,7 @@ help:
 	@echo "make convergence  the paper's Table 1 study (h = k = 1/8..1/64 vs 1/128) for three deltas"
 	@echo "make stability    stiff and extreme variants of the paper case (stability.md/.csv)"
 	@echo "make bench        step solver timings (results/bench/bench.json, bench.md)"
-	@echo "make docs         regenerate the README's case-file reference from app/schema.py"
+	@echo "make docs         regenerate the README's case-file reference from app/io/schema.py"
 	@echo "make clean        remove results/ and .pytest_cache"
 	@echo "After make setup, the commands: ./vpcontact run|check|plot|info|convergence|stability|bench"
 	@echo "  (./vpcontact --help); in parallel: mpirun -n 2 ./vpcontact run CASE.yaml, as root with"
@@ -76,7 +76,7 @@ bench: setup
 	./vpcontact bench $(CASE)
 
 docs: setup
-	$(PY) -m app.docs README.md
+	$(PY) -m app.io.docs README.md
 
 clean:
 	rm -rf results .pytest_cache

@@ -7,7 +7,7 @@ import sys as _sys
 
 def _interrupted_while_starting(signum, frame):
     """Ctrl-C or SIGTERM while `python -m app` loads its modules: one line, exit 3 (the
-    CLI takes the signals over once it runs, app/cli.py take_signals)."""
+    CLI takes the signals over once it runs, app/cli/main.py take_signals)."""
     _os.write(2, b"vpcontact: interrupted while starting; nothing was computed\n")
     _os._exit(3)
 
@@ -48,13 +48,13 @@ from mpi4py import MPI as _MPI  # noqa: E402  (MPI_Init reads the settings now)
 for _var in _added:              # not inherited by child processes (mpirun -n 2 from here)
     del _os.environ[_var]
 
-from app.cachedirs import start as _start_caches  # noqa: E402
-from app.startup import install_pkg_resources_stand_in as _stand_in  # noqa: E402
+from app.io.cachedirs import start as _start_caches  # noqa: E402
+from app.cli.startup import install_pkg_resources_stand_in as _stand_in  # noqa: E402
 
 # Every cache writable, or replaced by a temporary one: before dolfinx reads its JIT cache
 # directory (when it is imported) and before anything is computed.
 _start_caches(_MPI.COMM_WORLD.rank)
 
-_stand_in()                      # before ufl/ffcx: see app/startup.py
+_stand_in()                      # before ufl/ffcx: see app/cli/startup.py
 
 __version__ = "0.1.0"

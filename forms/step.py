@@ -55,7 +55,7 @@ def build_step_forms(u, H, *, E, nu, dim=2, f0, tractions, ds, ds_c=None, normal
     c_nu: normal compliance stiffness or None; friction: dict(b, c1, c2, u1) or None;
     theta: P1 Function theta(s_n) of the slip law or None; xi: P1 Function xi_n (memory
     term) or None; delta: regularisation width of |u_tau| and u_nu^+.
-    stress, tangent: the implicit history variant (app/implicit.py) replaces the elastic
+    stress, tangent: the implicit history variant (app/model/implicit.py) replaces the elastic
     energy and H_n by the residual (stress, eps(v)) with a per-cell stress Function and the
     Jacobian (tangent eps_t(du)) . eps_t(v) (t-coordinates, shears weighted twice).
     """

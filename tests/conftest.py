@@ -29,14 +29,14 @@ MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
 
 
 def paper_raw() -> dict:
-    from app.case import load_raw
+    from app.io.case import load_raw
     return load_raw(PAPER_CASE)
 
 
 def make_case(raw: dict | None = None, **sections):
     """Validate the paper case, with whole sections or keys replaced: make_case(time={'N': 2})
     merges into the section; a value of None removes the section."""
-    from app.case import validate
+    from app.io.case import validate
     raw = copy.deepcopy(raw if raw is not None else paper_raw())
     for name, value in sections.items():
         if value is None:
@@ -51,7 +51,7 @@ def make_case(raw: dict | None = None, **sections):
 def run_case(case):
     """Run in this process without writing outputs; returns the RunResult."""
     from mpi4py import MPI
-    from app.timeloop import run
+    from app.simulation import run
     return run(case, None, MPI.COMM_WORLD, write_outputs=False)
 
 
@@ -76,5 +76,5 @@ def paper_run():
 
 
 def validate_raw(raw: dict):
-    from app.case import validate
+    from app.io.case import validate
     return validate(raw, "test-case")

@@ -40,7 +40,7 @@ def test_3d_uniform_stress_patch(size):
 
 def test_box_case_nodal_laws():
     """Normal law (4.1) and the vector friction law at every Gamma3 node of the 3D case."""
-    from app.case import load_raw
+    from app.io.case import load_raw
     raw = load_raw(BOX)
     raw["mesh"]["n"] = 4
     raw["time"]["N"] = 4

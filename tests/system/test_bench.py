@@ -1,4 +1,4 @@
-"""`bench` (issue 6) on tiny levels: both solvers, the same solution, factorisation counts,
+"""`bench` on tiny levels: both solvers, the same solution, factorisation counts,
 speed-up and cost columns, and the memory-term cost rows (recursion == direct sum)."""
 import json
 

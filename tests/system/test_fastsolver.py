@@ -1,11 +1,11 @@
-"""The fast step solver (issue 6) solves the same discrete problem as SNES VI."""
+"""The fast step solver solves the same discrete problem as SNES VI."""
 import csv
 import json
 
 import numpy as np
 import pytest
 
-from app.case import CaseError
+from app.io.case import CaseError
 from conftest import PAPER_CASE, ROOT, paper_raw, run_case, run_cli, validate_raw
 from test_step_kkt import check_complementarity
 
@@ -40,7 +40,7 @@ def test_fast_equals_snes_vi_on_the_paper_case():
 
 
 def test_fast_equals_snes_vi_with_memory_and_slip():
-    from app.case import load_raw
+    from app.io.case import load_raw
     raw = load_raw(ROOT / "cases" / "memory.yaml")
     raw["contact"]["friction"]["slip"] = {"theta_inf": 0.3, "s0": 0.002}
     raw["mesh"]["n"] = 8
@@ -50,7 +50,7 @@ def test_fast_equals_snes_vi_with_memory_and_slip():
 
 
 def test_fast_equals_snes_vi_in_3d():
-    from app.case import load_raw
+    from app.io.case import load_raw
     raw = load_raw(ROOT / "cases" / "box3d.yaml")
     raw["mesh"]["n"] = 4
     raw["time"]["N"] = 2

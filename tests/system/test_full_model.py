@@ -1,18 +1,18 @@
-"""The full model (issue 4): memory term, slip dependence, time-dependent loads, initial
+"""The full model: memory term, slip dependence, time-dependent loads, initial
 values, non-uniform time grids; terms that are off allocate nothing."""
 import copy
 
 import numpy as np
 import pytest
 
-from app.case import CaseError, load_case
+from app.io.case import CaseError, load_case
 from conftest import ROOT, paper_raw, run_case, validate_raw
 
 CASES = ROOT / "cases"
 
 
 def _raw(name):
-    from app.case import load_raw
+    from app.io.case import load_raw
     return load_raw(CASES / f"{name}.yaml")
 
 

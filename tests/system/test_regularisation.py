@@ -6,7 +6,7 @@ the default delta, for the paper case (all nodes slip) and a sticking case (all 
 import numpy as np
 import pytest
 
-from app.schema import SCHEMA
+from app.io.schema import SCHEMA
 from conftest import paper_raw, run_case, validate_raw
 
 DEFAULT_DELTA = SCHEMA["properties"]["solver"]["properties"]["delta"]["default"]

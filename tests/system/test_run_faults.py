@@ -81,7 +81,7 @@ def test_run_just_beyond_the_explicit_limit_still_completes(tmp_path):
 
 
 def test_monitor_names_non_finite_quantities():
-    from app.divergence import BlowUpMonitor
+    from app.post.divergence import BlowUpMonitor
     mon = BlowUpMonitor.__new__(BlowUpMonitor)
     mon.scale, mon.bound, mon.kappa_bound = 1.0, 10.0, 10.0
     rec = {"n": 1, "t": 0.1, "norm_u_V": 1.0, "norm_sigma_Q": float("nan"), "max_vm": 1.0,
@@ -122,7 +122,7 @@ def _fails_at_call(real, nth: int, error: Exception, counts=lambda *args: True):
 def test_failing_local_update_is_a_failed_step(tmp_path, monkeypatch, capsys):
     """A numerical error of the history update (here injected at step 3) is a failed step:
     summary with status failed naming the step, exit 1, outputs of steps 0-2 intact."""
-    from app import history
+    from app.model import history
     failing = _fails_at_call(history.ViscoplasticHistory.before_solve, 3, RuntimeError(
         "von Mises projection: secular equation did not converge"))
     monkeypatch.setattr(history.ViscoplasticHistory, "before_solve", failing)
@@ -138,7 +138,7 @@ def test_failing_local_update_is_a_failed_step(tmp_path, monkeypatch, capsys):
 # ------------------------------------------------------------------ output faults
 def _in_process_run(out, monkeypatch, extra=()):
     """cli.main in this process (so faults can be injected); returns the exit code."""
-    from app import cli
+    import app.cli.main as cli
     monkeypatch.chdir(ROOT)
     return cli.main(["run", str(PAPER_CASE), "--out", str(out), "--quiet", "--no-plots",
                      *TINY, *extra])
@@ -147,7 +147,7 @@ def _in_process_run(out, monkeypatch, extra=()):
 def test_hdf5_failure_mid_run_is_a_failed_run(tmp_path, monkeypatch, capsys):
     """The file system fills up at the third field write: status failed naming the file,
     exit 1, solution.xdmf still describes the two steps written before."""
-    import app.output as output
+    import app.io.output as output
     failing = _fails_at_call(output.dio.XDMFFile, 3, RuntimeError(
         "Failed to write HDF5 dataset (No space left on device)"),
         counts=lambda comm, path, mode: mode == "a")             # the field writes only
@@ -163,7 +163,7 @@ def test_hdf5_failure_mid_run_is_a_failed_run(tmp_path, monkeypatch, capsys):
 
 
 def test_summary_write_failure_is_reported(tmp_path, monkeypatch, capsys):
-    import app.output as output
+    import app.io.output as output
     real = output.atomic_write
 
     def refuse(path, text):
@@ -183,7 +183,7 @@ def test_summary_write_failure_is_reported(tmp_path, monkeypatch, capsys):
 def test_numpy_types_in_the_summary(tmp_path):
     """contact.friction.c1 = 0: the well-posedness verdict is a numpy bool; the summary is
     written (it was 'bool_ is not JSON serializable', exit 1)."""
-    from app.output import to_json
+    from app.io.output import to_json
     assert json.loads(to_json({"a": np.bool_(True), "b": np.float64(2.5),
                                "c": np.arange(2)})) == {"a": True, "b": 2.5, "c": [0, 1]}
     out = tmp_path / "c1zero"
@@ -254,13 +254,13 @@ def test_closed_stdout_does_not_kill_the_run(tmp_path):
 
 
 def test_ctrl_c_while_drawing_keeps_a_true_summary(tmp_path, monkeypatch, capsys):
-    import app.plot as plot
+    import app.post.plot as plot
 
     def interrupted(outdir, log=None):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(plot, "plot_all", interrupted)
-    from app import cli
+    import app.cli.main as cli
     monkeypatch.chdir(ROOT)
     out = tmp_path / "drawing"
     code = cli.main(["run", str(PAPER_CASE), "--out", str(out), "--quiet", *TINY])
@@ -272,7 +272,7 @@ def test_ctrl_c_while_drawing_keeps_a_true_summary(tmp_path, monkeypatch, capsys
 
 def test_ctrl_c_while_writing_the_summary_still_writes_it(tmp_path, monkeypatch):
     """SIGINT arriving during the final writes is deferred: summary.json is written."""
-    import app.timeloop as timeloop
+    import app.simulation as timeloop
     real = timeloop.write_json
 
     def signalled(comm, path, data):
@@ -288,7 +288,7 @@ def test_ctrl_c_while_writing_the_summary_still_writes_it(tmp_path, monkeypatch)
 def test_checkpoint_write_failure_is_a_failed_run(tmp_path, monkeypatch, capsys):
     """The disk fills up while a checkpoint is written: status failed naming the file, no
     partial checkpoint left, exit 1 (collective: no rank waits for rank 0)."""
-    import app.checkpoint as checkpoint
+    import app.io.checkpoint as checkpoint
 
     def full(fh, **arrays):
         fh.write(b"partial")

@@ -1,4 +1,4 @@
-"""app/cachedirs.py: one definition of every cache directory, and a temporary replacement
+"""app/io/cachedirs.py: one definition of every cache directory, and a temporary replacement
 for the ones that are not writable.  Unwritable paths lie under a regular file (mkdir fails
 there for root as well)."""
 import os
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from app import cachedirs
+from app.io import cachedirs
 
 
 @pytest.fixture
@@ -39,7 +39,7 @@ def test_ffcx_cache_is_where_dolfinx_puts_it():
 
 def test_the_caches_in_use_are_one_definition(tmp_path):
     """Kernels, run cache, `info` and dolfinx agree, with XDG_CACHE_HOME set as well."""
-    code = ("from app import kernels, runcache, checkrun; from dolfinx import jit; "
+    code = ("from app.solvers import kernels; from app.studies import runcache; from app.cli import checkrun; from dolfinx import jit; "
             "print(kernels.cache_dir()); print(runcache.default_cache_dir()); "
             "print(jit.DOLFINX_DEFAULT_JIT_PARAMETERS['cache_dir'][0]); "
             "print(*checkrun.info(), sep='\\n')")

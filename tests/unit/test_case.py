@@ -1,8 +1,8 @@
 """Case files: schema validation with clear messages, overrides, YAML floats, PETSc args."""
 import pytest
 
-from app.case import CaseError, load_case, parse_override, safe_load, validate
-from app.cli import split_petsc_args
+from app.io.case import CaseError, load_case, parse_override, safe_load, validate
+from app.cli.main import split_petsc_args
 from conftest import PAPER_CASE, make_case, paper_raw
 
 

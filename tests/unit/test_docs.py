@@ -1,6 +1,6 @@
 """The README's case-file reference matches the schema (regenerate: make docs)."""
-from app.docs import END, START, render
-from app.schema import SCHEMA
+from app.io.docs import END, START, render
+from app.io.schema import SCHEMA
 from conftest import ROOT
 
 

@@ -4,9 +4,9 @@ import pytest
 from dolfinx import fem, geometry
 from mpi4py import MPI
 
-from app.grid import (Grid, GridSampler, cell_centroids, cell_l2_norm, prolong_dg0,
+from app.studies.grid import (Grid, GridSampler, cell_centroids, cell_l2_norm, prolong_dg0,
                       prolong_p1, strain_norm)
-from app.problem import ContactProblem
+from app.model.problem import ContactProblem
 from conftest import make_case
 from meshes import build_rectangle
 
@@ -18,7 +18,7 @@ def _problem(n, diagonal, L1=1.0, L2=1.0):
 
 
 def _eval(f, points):
-    """Evaluate a dolfinx Function at points with its own mesh (independent of app.grid)."""
+    """Evaluate a dolfinx Function at points with its own mesh (independent of app.studies.grid)."""
     msh = f.function_space.mesh
     tree = geometry.BoundingBoxTree(msh, msh.topology.dim)
     cand = geometry.compute_collisions(tree, points)

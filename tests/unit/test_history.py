@@ -3,9 +3,9 @@ kappa_n = kappa_{n-1} + k_n Gk(sigma_{n-1}, kappa_{n-1}), cell by cell."""
 import numpy as np
 from mpi4py import MPI
 
-from app.history import ViscoplasticHistory
-from app.material import Perzyna, PlaneStress, to_voigt
-from app.problem import ContactProblem
+from app.model.history import ViscoplasticHistory
+from app.model.material import Perzyna, PlaneStress, to_voigt
+from app.model.problem import ContactProblem
 from conftest import make_case
 from meshes import build_rectangle
 

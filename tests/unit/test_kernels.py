@@ -1,9 +1,9 @@
-"""The compiled Perzyna update (app/kernels.py) equals the numpy reference (material.py)."""
+"""The compiled Perzyna update (app/solvers/kernels.py) equals the numpy reference (material.py)."""
 import numpy as np
 import pytest
 
-from app import kernels
-from app.material import Elasticity, Perzyna, VonMisesProjection, from_voigt, to_voigt
+from app.solvers import kernels
+from app.model.material import Elasticity, Perzyna, VonMisesProjection, from_voigt, to_voigt
 
 module = kernels.load()
 pytestmark = pytest.mark.skipif(module is None, reason="no C compiler")
@@ -68,7 +68,7 @@ def test_kernel_checks_arrays():
 def test_nodal_contact_equals_numpy(dim, terms):
     """The compiled nodal contact energy of the fast solver equals the numpy reference, for
     nodes in separation, compliance, stick (|y_tau| ~ delta) and slip on both branches."""
-    from app.fastsolver import NodalContact
+    from app.solvers.fast import NodalContact
     rng = np.random.default_rng(7 + dim)
     n = 300
     nu = np.zeros(dim)

@@ -5,7 +5,7 @@ import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from app.material import Perzyna, PlaneStress, from_voigt, to_voigt
+from app.model.material import Perzyna, PlaneStress, from_voigt, to_voigt
 from forms.elasticity import elasticity_operator
 
 

@@ -5,8 +5,8 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from app import ldl
-from app.schur import CSR, GLastLDL, GLastLU, gamma3_flexibility
+from app.solvers import ldl
+from app.solvers.schur import CSR, GLastLDL, GLastLU, gamma3_flexibility
 
 
 def _spd(n=60, seed=0):
@@ -101,8 +101,8 @@ def test_split_solve_with_given_gamma3_values(bs, kind):
     """kernels.GLastSolve: forward, y0 = Z r, backward with u_G = y solves the interior
     equations exactly, and u_G = y0 is the unconstrained solution K^-1 b; with scalar and
     2 x 2 block storage of L (G is two whole nodes, so the nodal ordering applies)."""
-    from app import kernels
-    from app.schur import flexibility
+    from app.solvers import kernels
+    from app.solvers.schur import flexibility
     module = kernels.load()
     if module is None:
         pytest.skip("no C compiler")
@@ -137,7 +137,7 @@ def test_interior_graph_is_the_nonzero_pattern(bs):
     """schur._interior_graph (numpy) against scipy: the pattern of the nonzero entries of
     A_II, of its nodes for bs = 2 (a node pair is an edge if any entry of the block is
     nonzero); stored zeros (Dirichlet rows) are no edges."""
-    from app.schur import _interior_graph
+    from app.solvers.schur import _interior_graph
     A = _spd(30, seed=4)
     row = slice(A.indptr[8], A.indptr[9])           # a Dirichlet-like row: stored zeros
     A.data[row] = np.where(A.indices[row] == 8, 1.0, 0.0)
@@ -156,7 +156,7 @@ def test_interior_graph_is_the_nonzero_pattern(bs):
 def test_cholmod_blocks_in_place_equal_a_copy(bs):
     """ldl.Factor writes the blocks over CHOLMOD's values; forced to copy them into a new
     array (and free CHOLMOD's factor) it gives the same blocks, D and L_GG bit for bit."""
-    from app.schur import interior_last_ordering
+    from app.solvers.schur import interior_last_ordering
     module = ldl.load()
     if module is None:
         pytest.skip("CHOLMOD not available")

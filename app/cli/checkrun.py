@@ -1,0 +1,86 @@
+"""`check` (dry run) and `info`: what a run would do, and what it runs on."""
+from __future__ import annotations
+
+import os
+
+
+def report(case, comm) -> list[str]:
+    """Validate-and-set-up report of a case: mesh, dofs, steps, terms, solver, diagnostics.
+    Builds the mesh, spaces and forms (JIT) but solves nothing and writes nothing."""
+    import numpy as np
+
+    from app.io.case import fast_eligible
+    from app.post.diagnostics import diagnose
+    from app.model.problem import ContactProblem
+    from app.simulation import AUTO_FAST_MAX_GAMMA3_DOFS, build_mesh
+
+    problem = ContactProblem(case, build_mesh(case, comm))
+    ks = np.diff(case.time.times)
+    n_g = comm.allreduce(len(problem.gamma3.nodes) if problem.gamma3 else 0)
+    ok, why = fast_eligible(case)
+    method = case.numerics.method
+    if method == "auto":
+        method = "fast" if ok and n_g * problem.dim <= AUTO_FAST_MAX_GAMMA3_DOFS else "snes_vi"
+    m = case.mesh
+    mesh = (f"structured {m.n} x {m.n}" + (f" x {m.n}" if m.dim == 3 else "")
+            if m.kind == "structured" else f"unstructured, h = {m.h:g}")
+    lines = [
+        f"case {case.name} ({case.source}): valid",
+        f"mesh: {m.dim}D, {mesh}, {problem.num_cells} cells, {problem.num_vertices} vertices",
+        f"dofs: {problem.num_dofs} (P1 displacement), Gamma3 nodes: {n_g}",
+        f"time: T = {case.time.T:g}, {case.time.N} steps, k = "
+        + (f"{ks[0]:g}" if case.time.uniform else f"{ks.min():g}..{ks.max():g}")
+        + f", {case.time.scheme} history scheme"
+        + (", adaptive" if case.time.adaptive is not None else ""),
+        "active terms: " + ", ".join(case.active_terms()),
+        "left out: " + (", ".join(case.omitted_terms()) or "nothing"),
+        f"step solver: {method}" + (f" (solver.method: auto)" if case.numerics.method == "auto"
+                                    else "") + ("" if ok else f"; fast not possible: {why}"),
+    ]
+    diag = diagnose(problem)
+    lines += [text for _, text in diag.messages()]
+    lines.append(f"outputs every {case.output.every} step(s)"
+                 + (f", checkpoints every {case.output.checkpoint_every}"
+                    if case.output.checkpoint_every else "") + "; nothing solved or written")
+    return lines
+
+
+def info() -> list[str]:
+    """Versions of the numerical stack and where the JIT caches are."""
+    import basix
+    import dolfinx
+    import ffcx
+    import numpy
+    import ufl
+    from mpi4py import MPI
+    from petsc4py import PETSc
+
+    from app import __version__
+    from app.io.cachedirs import caches
+
+    v = PETSc.Sys.getVersion()
+    pkgs = ["mumps", "superlu_dist", "suitesparse", "hypre", "metis", "parmetis", "scalapack",
+            "ptscotch", "hdf5"]
+    have = [p for p in pkgs if PETSc.Sys.hasExternalPackage(p)]
+    try:
+        import gmsh
+        gmsh_v = gmsh.__version__
+    except Exception as exc:  # noqa: BLE001
+        gmsh_v = f"not importable ({exc})"
+    dirs = caches()
+    lib = MPI.Get_library_version().strip().splitlines()[0]
+    return [
+        f"vpcontact {__version__}",
+        f"dolfinx {dolfinx.__version__} (git {dolfinx.git_commit_hash[:10]}), "
+        f"ufl {ufl.__version__}, ffcx {ffcx.__version__}, basix {basix.__version__}",
+        f"PETSc {v[0]}.{v[1]}.{v[2]} (petsc4py, scalar {PETSc.ScalarType.__name__}), "
+        f"external packages: {', '.join(have) or 'none found'}",
+        f"MPI: {lib} (MPI {'.'.join(map(str, MPI.Get_version()))})",
+        f"gmsh {gmsh_v}, numpy {numpy.__version__}",
+        f"JIT cache (FFCx): {dirs.ffcx}",
+        f"compiled kernels (cffi): {dirs.kernels}",
+        f"run cache (convergence study): {dirs.root}",
+        *[f"(not writable: {what} {wanted} ({why}); using {used})"
+          for what, wanted, used, why in dirs.replaced],
+        f"python: {os.sys.executable}",
+    ]

@@ -1,0 +1,60 @@
+"""Progress of a long run on rank 0: a bar with step, t, iterations and an ETA.
+
+On a terminal the bar is redrawn in place (stderr); into a file or pipe it prints a line at
+every 10% of the simulated time, so logs stay short.  The ETA extrapolates the wall time per
+unit of simulated time (right for uniform and adaptive steps alike).
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+
+def _clock(seconds: float) -> str:
+    seconds = int(round(max(seconds, 0.0)))
+    h, rest = divmod(seconds, 3600)
+    m, s = divmod(rest, 60)
+    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+
+
+class Progress:
+    def __init__(self, T: float, total: int | None, t0: float = 0.0, enabled: bool = True,
+                 stream=None, width: int = 24):
+        self.T, self.total, self.t0 = T, total, t0
+        self.stream = stream or sys.stderr
+        self.enabled = enabled
+        self.tty = enabled and hasattr(self.stream, "isatty") and self.stream.isatty()
+        self.width = width
+        self.start = time.perf_counter()
+        self._next_line = 0.1
+        self._drawn = False
+
+    def text(self, n: int, t: float, its: int) -> str:
+        frac = min(max((t - self.t0) / max(self.T - self.t0, 1e-300), 0.0), 1.0)
+        elapsed = time.perf_counter() - self.start
+        eta = elapsed * (1 - frac) / frac if frac > 0 else float("nan")
+        bar = "#" * int(round(frac * self.width))
+        steps = f"{n}/{self.total}" if self.total else f"{n}"
+        eta_s = _clock(eta) if eta == eta else "?"
+        return (f"[{bar:<{self.width}}] {100 * frac:5.1f}%  step {steps}  t = {t:<9.4g} "
+                f"iterations {its:2d}  elapsed {_clock(elapsed)}  ETA {eta_s}")
+
+    def update(self, n: int, t: float, its: int) -> None:
+        if not self.enabled:
+            return
+        line = self.text(n, t, its)
+        frac = (t - self.t0) / max(self.T - self.t0, 1e-300)
+        if self.tty:
+            self.stream.write("\r" + line)
+            self.stream.flush()
+            self._drawn = True
+        elif frac >= self._next_line - 1e-12 or frac >= 1 - 1e-12:
+            self.stream.write(line + "\n")
+            self.stream.flush()
+            while self._next_line <= frac + 1e-12:
+                self._next_line += 0.1
+
+    def close(self) -> None:
+        if self.enabled and self.tty and self._drawn:
+            self.stream.write("\n")
+            self.stream.flush()

@@ -1,0 +1,355 @@
+"""Checkpoint and restart: the full state of scheme (3.2)-(3.4) after step n.
+
+Saved: t_n and the step counter, the stepper (adaptive k and history), the step records, and
+every field the next step reads: u_n (P1), sigma_n, H_n (DG0 tensors), kappa_n (DG0), and the
+active Gamma3 histories (memory term: xi_n, and for the direct sum the stored u_nu^+ history;
+slip: s_n).  Values are stored with the coordinates of their nodes / cell midpoints, gathered
+on rank 0 into one ``checkpoint.npz`` (written atomically), so a run can restart on any number
+of MPI ranks: each rank matches its own nodes and cells by coordinates.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from app.io.case import CaseError
+from app.io.output import on_rank0
+
+PATTERN = "checkpoint_*.npz"
+KEEP = 2                       # the newest checkpoints kept in an output directory
+_DECIMALS = 10
+
+
+def file_name(n: int) -> str:
+    return f"checkpoint_{n:06d}.npz"
+
+
+def latest(directory: Path) -> Path | None:
+    files = sorted(Path(directory).glob(PATTERN))
+    return files[-1] if files else None
+
+
+def case_fingerprint(case) -> str:
+    """What must agree between the checkpointed run and the restart: mesh, material, contact,
+    loads, initial values, time grid and scheme (not solver or output settings)."""
+    raw = case.raw
+    keys = ("mesh", "material", "contact", "loads", "initial")
+    data = {k: raw.get(k) for k in keys}
+    data["times"] = list(case.time.times)
+    data["scheme"] = case.time.scheme
+    data["adaptive"] = case.time.adaptive
+    return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def _owned_rows(function):
+    """(coordinates, values) of the owned nodes / cells of a P1 or DG0 Function."""
+    V = function.function_space
+    n = V.dofmap.index_map.size_local
+    bs = V.dofmap.index_map_bs
+    x = V.tabulate_dof_coordinates()[:n]
+    return x, function.x.array[:n * bs].reshape(n, bs)
+
+
+def _key(x: np.ndarray) -> list[tuple]:
+    return [tuple(r) for r in np.round(x, _DECIMALS)]
+
+
+def _gather(comm, x, v):
+    parts = comm.gather((x, v), root=0)
+    if comm.rank != 0:
+        return None, None
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+
+def _fields(problem, history):
+    out = {"u": problem.u, "sigma": problem.sigma}
+    if problem.H is not None:
+        out["H"] = problem.H
+    if history is not None:
+        out["kappa"] = history.kappa
+    return out
+
+
+def save(outdir: Path, comm, case, problem, history, g3, stepper, n: int, t: float,
+         steps: list) -> Path:
+    """Write the state after step n to outdir/checkpoint_<n>.npz (collective); older
+    checkpoints beyond the newest KEEP are removed."""
+    path = Path(outdir) / file_name(n)
+    arrays = {}
+    for name, f in _fields(problem, history).items():
+        x, v = _gather(comm, *_owned_rows(f))
+        if comm.rank == 0:
+            arrays[f"{name}_x"], arrays[f"{name}_v"] = x, v
+    if g3 is not None:
+        V = problem.V
+        own = problem.gamma3.nodes                       # owned Gamma3 nodes (local index)
+        pos = np.searchsorted(problem.gamma3_local_nodes, own)
+        xg = V.tabulate_dof_coordinates()[own]
+        cols = {}
+        if g3.memory is not None:
+            cols["xi"] = g3.memory.xi[pos][:, None]
+            if not g3.memory.recursion and g3.memory.stored_steps:
+                cols["mem_r"] = np.asarray(g3.memory._r)[:, pos].T
+        if g3.slip is not None:
+            cols["slip_s"] = g3.slip.s[pos][:, None]
+        for name, v in cols.items():
+            x, vv = _gather(comm, xg, v)
+            if comm.rank == 0:
+                arrays[f"g3_{name}_x"], arrays[f"g3_{name}_v"] = x, vv
+    if comm.rank == 0:
+        meta = {"n": n, "t": t, "fingerprint": case_fingerprint(case), "steps": steps,
+                "stepper": {"adaptive": stepper.adaptive, "n": getattr(stepper, "n", None),
+                            "k": getattr(stepper, "k", None), "history": stepper.history},
+                "memory": None if g3 is None or g3.memory is None else
+                {"t_prev": g3.memory._t_prev, "k": g3.memory._k}}
+        arrays["meta"] = np.array(json.dumps(meta))
+    on_rank0(comm, _write, path, arrays, outdir)    # OutputError on every rank if it fails
+    return path
+
+
+def _write(path: Path, arrays: dict, outdir) -> None:
+    """Write the checkpoint atomically (a failed write leaves no partial file) and remove
+    checkpoints beyond the newest KEEP."""
+    tmp = path.with_name(f".{path.name}.tmp.npz")
+    try:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except OSError:
+        tmp.unlink(missing_ok=True)
+        raise
+    for old in sorted(Path(outdir).glob(PATTERN))[:-KEEP]:
+        old.unlink()
+
+
+class CheckpointError(CaseError):
+    """A checkpoint that a run cannot continue from (bad input: the CLI prints the message
+    as one line and exits with code 2)."""
+
+    def __init__(self, path, why: str):
+        super().__init__(f"--restart: {path} is not a readable checkpoint: {why}")
+        self.path, self.why = path, why
+
+
+STEP_KEYS = ("n", "t", "norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa",
+             "newton_iterations", "wall_s")
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _integer(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _check_meta(meta) -> str | None:
+    """Why the checkpoint's meta data is unusable (types and internal consistency), or None."""
+    if not isinstance(meta, dict):
+        return f"meta is a {type(meta).__name__}, not a mapping"
+    for key in ("n", "t", "fingerprint", "steps", "stepper", "memory"):
+        if key not in meta:
+            return f"meta: '{key}' is missing"
+    n, t, steps, st = meta["n"], meta["t"], meta["steps"], meta["stepper"]
+    if not _integer(n) or n < 0:
+        return f"meta: n = {n!r} is not a step number"
+    if not _number(t) or t < 0:
+        return f"meta: t = {t!r} is not a time"
+    if not isinstance(meta["fingerprint"], str):
+        return "meta: fingerprint is not a string"
+    if not isinstance(steps, list) or len(steps) != n:
+        return f"meta: steps is not a list of {n} step records"
+    for i, rec in enumerate(steps):
+        if not isinstance(rec, dict) or not all(_number(rec.get(k)) for k in STEP_KEYS) \
+                or rec["n"] != i + 1 or not _integer(rec["newton_iterations"]):
+            return f"meta: steps[{i}] is not the record of step {i + 1}"
+    if not isinstance(st, dict) or not isinstance(st.get("adaptive"), bool) \
+            or not isinstance(st.get("history"), list) \
+            or not all(isinstance(h, dict) for h in st["history"]):
+        return "meta: stepper is not a stepper state (adaptive, n, k, history)"
+    if st["adaptive"] and not (_number(st.get("k")) and st["k"] > 0):
+        return f"meta: stepper.k = {st.get('k')!r} is not a positive step"
+    if not st["adaptive"] and st.get("n") != n:
+        return f"meta: stepper.n = {st.get('n')!r} is not the step number {n}"
+    mem = meta["memory"]
+    if mem is not None and not (isinstance(mem, dict) and all(
+            isinstance(mem.get(k), list) and all(_number(x) for x in mem[k])
+            for k in ("t_prev", "k")) and len(mem["t_prev"]) == len(mem["k"])):
+        return "meta: memory is not a memory-term state (t_prev, k: lists of equal length)"
+    return None
+
+
+def _check_arrays(arrays: dict) -> str | None:
+    """Why the stored fields are unusable: every ``<name>_x`` (coordinates) needs its
+    ``<name>_v`` (values), both finite float tables with the same number of rows."""
+    names = {k[:-2] for k in arrays if k.endswith(("_x", "_v"))}
+    for name in sorted(names):
+        x, v = arrays.get(f"{name}_x"), arrays.get(f"{name}_v")
+        if x is None or v is None:
+            return f"'{name}_{'x' if x is None else 'v'}' is missing"
+        for key, a in ((f"{name}_x", x), (f"{name}_v", v)):
+            if a.dtype.kind != "f" or a.ndim != 2:
+                return f"'{key}' is not a table of floats (dtype {a.dtype}, shape {a.shape})"
+            if not np.isfinite(a).all():
+                return f"'{key}' holds values that are not finite"
+        if len(x) != len(v):
+            return f"'{name}': {len(x)} coordinates but {len(v)} values"
+    return None
+
+
+def _required(case) -> dict[str, int]:
+    """The fields a checkpoint of ``case`` must hold, with their values per node/cell."""
+    d = case.dim
+    need = {"u": d, "sigma": d * d}
+    vp = case.material.viscoplastic
+    if vp is not None or case.initial.u0 is not None or case.initial.sigma0 is not None:
+        need["H"] = d * d
+    if vp is not None:
+        need["kappa"] = 1
+    c = case.contact
+    if c.memory is not None:
+        need["g3_xi"] = 1
+    if c.friction is not None and c.friction.slip is not None:
+        need["g3_slip_s"] = 1
+    return need
+
+
+class Checkpoint:
+    """A loaded and checked checkpoint; ``restore`` puts its state into a freshly set-up run.
+    Every problem with the file's content raises CheckpointError."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                self.arrays = {k: data[k] for k in data.files}
+            meta = self.arrays.pop("meta", None)
+            if meta is None:
+                raise CheckpointError(path, "'meta' is missing")
+            self.meta = json.loads(str(meta))
+        except CheckpointError:
+            raise
+        except Exception as exc:                  # noqa: BLE001 (any unreadable file)
+            raise CheckpointError(path, f"{type(exc).__name__}: {exc}") from None
+        why = _check_meta(self.meta) or _check_arrays(self.arrays)
+        if why:
+            raise CheckpointError(path, why)
+
+    @property
+    def n(self) -> int:
+        return self.meta["n"]
+
+    @property
+    def t(self) -> float:
+        return self.meta["t"]
+
+    def check(self, case) -> str | None:
+        """None if the checkpoint belongs to this case, else the reason it does not; raises
+        CheckpointError if it does but lacks what a restart of the case needs."""
+        if self.meta["fingerprint"] != case_fingerprint(case):
+            return (f"{self.path} was written for a different case (mesh, material, contact, "
+                    "loads, initial values or time grid differ)")
+        for name, cols in _required(case).items():
+            v = self.arrays.get(f"{name}_v")
+            if v is None:
+                raise CheckpointError(self.path, f"'{name}_v' is missing")
+            if v.shape[1] != cols:
+                raise CheckpointError(self.path, f"'{name}_v' has {v.shape[1]} values per row, "
+                                                 f"not {cols}")
+        self._check_time(case)
+        mem = self.meta["memory"]
+        if (mem is None) != (case.contact.memory is None):
+            raise CheckpointError(self.path, "meta: memory does not match the case's memory term")
+        stored = self.arrays["g3_mem_r_v"].shape[1] if "g3_mem_r_v" in self.arrays else 0
+        if mem is not None and stored != len(mem["t_prev"]):
+            raise CheckpointError(self.path, f"'g3_mem_r_v' holds {stored} steps of the memory "
+                                             f"term, meta {len(mem['t_prev'])}")
+        return None
+
+    def _check_time(self, case) -> None:
+        """Step n and time t on the case's time grid (adaptive: within [0, T])."""
+        n, t, times = self.n, self.t, case.time.times
+        if self.meta["stepper"]["adaptive"] != (case.time.adaptive is not None):
+            raise CheckpointError(self.path, "meta: stepper.adaptive does not match the case")
+        if case.time.adaptive is not None:
+            if t > case.time.T * (1 + 1e-12):
+                raise CheckpointError(self.path, f"meta: t = {t:g} is after T = {case.time.T:g}")
+        elif n >= len(times) or abs(times[n] - t) > 1e-12 * max(1.0, abs(t)):
+            raise CheckpointError(self.path, f"meta: step {n} at t = {t:g} is not on the case's "
+                                             "time grid")
+        if self.meta["steps"] and abs(self.meta["steps"][-1]["t"] - t) > 1e-12 * max(1.0, t):
+            raise CheckpointError(self.path, "meta: the last step record is not at t")
+
+    def _lookup(self, name: str, x_local: np.ndarray, rows: int) -> np.ndarray:
+        """The values of ``name`` at the local coordinates ``x_local``; ``rows`` is the
+        global number of nodes or cells the checkpoint must hold."""
+        x, values = self.arrays.get(f"{name}_x"), self.arrays.get(f"{name}_v")
+        if x is None:
+            raise CheckpointError(self.path, f"'{name}_x' is missing")
+        if len(x) != rows:
+            raise CheckpointError(self.path, f"'{name}' holds {len(x)} rows, the mesh has "
+                                             f"{rows} nodes or cells for it")
+        if x.shape[1] != x_local.shape[1]:
+            raise CheckpointError(self.path, f"'{name}_x' has {x.shape[1]} coordinates per "
+                                             f"row, not {x_local.shape[1]}")
+        table = dict(zip(_key(x), values))
+        try:
+            rows = [table[k] for k in _key(x_local)]
+        except KeyError:
+            raise CheckpointError(self.path, f"the mesh does not match '{name}'") from None
+        return np.array(rows).reshape(len(rows), *values.shape[1:])
+
+    def restore(self, problem, history, g3, stepper) -> list:
+        """Set the fields and histories; returns the step records up to step n.  Collective:
+        if the checkpoint does not fit the problem on any rank, CheckpointError on all."""
+        comm = problem.comm
+        n_g3 = comm.allreduce(len(problem.gamma3.nodes) if problem.gamma3 is not None else 0)
+        try:
+            self._restore_fields(problem, history, g3, n_g3)
+            why = None
+        except CheckpointError as exc:
+            why = exc.why
+        why = next((w for w in comm.allgather(why) if w), None)
+        if why:
+            raise CheckpointError(self.path, why)
+        st = self.meta["stepper"]
+        if stepper.adaptive:
+            stepper.k = st["k"]
+        else:
+            stepper.n = st["n"]
+        stepper.history = list(st["history"])
+        problem.update_vm()
+        return list(self.meta["steps"])
+
+    def _restore_fields(self, problem, history, g3, n_g3: int) -> None:
+        """The fields of u, sigma, H, kappa and the Gamma3 histories (local, no collectives)."""
+        for name, f in _fields(problem, history).items():
+            V = f.function_space
+            x = V.tabulate_dof_coordinates()           # owned and ghost: no scatter needed
+            values = self._lookup(name, x, V.dofmap.index_map.size_global)
+            if values.size != f.x.array.size:
+                raise CheckpointError(self.path, f"'{name}_v' has {values.shape[1]} values "
+                                                 f"per row, not {V.dofmap.index_map_bs}")
+            f.x.array[:] = values.reshape(-1)
+        if g3 is None:
+            return
+        xg = problem.V.tabulate_dof_coordinates()[problem.gamma3_local_nodes]
+        if g3.memory is not None:
+            xi = self._lookup("g3_xi", xg, n_g3)[:, 0].copy()
+            r = self._lookup("g3_mem_r", xg, n_g3) if "g3_mem_r_x" in self.arrays else None
+            mem = self.meta["memory"]
+            g3.memory.xi = xi
+            g3.memory._t_prev, g3.memory._k = list(mem["t_prev"]), list(mem["k"])
+            if r is not None:                                    # (m, steps)
+                g3.memory._r = [r[:, j].copy() for j in range(r.shape[1])]
+            g3.xi.set(g3.memory.xi)
+        if g3.slip is not None:
+            g3.slip.s = self._lookup("g3_slip_s", xg, n_g3)[:, 0].copy()
+            g3.theta.set(g3.slip.theta())

@@ -1,0 +1,75 @@
+"""The README's case-file reference, generated from the schema (so it cannot drift).
+
+``make docs`` (``python -m app.io.docs``) rewrites the block between the markers in README.md;
+tests/unit/test_docs.py fails when the README is out of date.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from app.io.schema import DEFAULT_PETSC, SCHEMA
+
+START, END = "<!-- case-reference:start -->", "<!-- case-reference:end -->"
+
+
+def _type(sub: dict) -> str:
+    if "enum" in sub:
+        return " \\| ".join(f"`{v}`" for v in sub["enum"])
+    if "oneOf" in sub:
+        return " or ".join(_type(s) for s in sub["oneOf"])
+    t = sub.get("type", "")
+    if t == "array":
+        return "list"
+    bounds = []
+    if "minimum" in sub:
+        bounds.append(f">= {sub['minimum']}")
+    if "exclusiveMinimum" in sub:
+        bounds.append(f"> {sub['exclusiveMinimum']}")
+    if "maximum" in sub:
+        bounds.append(f"<= {sub['maximum']}")
+    if "exclusiveMaximum" in sub:
+        bounds.append(f"< {sub['exclusiveMaximum']}")
+    return t + (f" ({', '.join(bounds)})" if bounds else "")
+
+
+def _rows(schema: dict, prefix: str = ""):
+    required = set(schema.get("required", []))
+    for key, sub in schema.get("properties", {}).items():
+        path = f"{prefix}{key}"
+        req = key in required
+        if sub.get("type") == "object" and "properties" in sub:
+            yield path, req, "section", "", sub.get("description", "")
+            yield from _rows(sub, path + ".")
+        else:
+            default = json.dumps(sub["default"]) if "default" in sub else ""
+            yield path, req, _type(sub), default, sub.get("description", "")
+
+
+def reference_markdown() -> str:
+    lines = ["| key | type / allowed | default | meaning |", "|---|---|---|---|"]
+    for path, req, typ, default, desc in _rows(SCHEMA):
+        name = f"`{path}`" + (" (required)" if req else "")
+        desc = desc.replace("|", "\\|")
+        lines.append(f"| {name} | {typ} | {default} | {desc} |")
+    lines += ["", "Default PETSc options: " + ", ".join(f"`{k} {v}`" for k, v in
+                                                   DEFAULT_PETSC.items()) + "."]
+    return "\n".join(lines)
+
+
+def render(readme: str) -> str:
+    head, rest = readme.split(START, 1)
+    _, tail = rest.split(END, 1)
+    return f"{head}{START}\n{reference_markdown()}\n{END}{tail}"
+
+
+def main() -> int:
+    path = Path(sys.argv[1] if len(sys.argv) > 1 else "README.md")
+    path.write_text(render(path.read_text()))
+    print(f"updated the case-file reference in {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

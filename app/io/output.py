@@ -1,0 +1,197 @@
+"""Outputs of a run: solution.xdmf (+ .h5), summary.json, contact.csv.
+
+JSON and CSV are written atomically (temporary file + rename) by rank 0; the XDMF file is
+written collectively, its mesh once and the fields at every output time.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+from dolfinx import io as dio
+
+OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv")
+# 2D columns; in 3D z, u_z and two tangential components (u_tau1, u_tau2, neg_sigma_tau1,
+# neg_sigma_tau2) appear, and xi (memory) / theta (slip dependence) when the case has them.
+CONTACT_COLUMNS = ("x", "y", "u_x", "u_y", "u_nu", "u_tau", "neg_sigma_nu", "neg_sigma_tau",
+                   "state")
+
+
+def atomic_write(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file and a rename."""
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        with open(tmp, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except OSError as exc:          # disk full, read-only: the old file stays as it was
+        if exc.filename is None:
+            exc.filename = str(path)
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+        raise
+
+
+class OutputError(OSError):
+    """Writing an output file failed (disk full, read-only file system, ...): the same
+    error on every rank, so that no rank waits in a collective for one that gave up."""
+
+
+def on_rank0(comm, action, *args):
+    """Run ``action(*args)`` on rank 0 only and return its result on rank 0 (None
+    elsewhere); an OSError there is raised as OutputError on every rank (collective)."""
+    result, error = None, None
+    if comm.rank == 0:
+        try:
+            result = action(*args)
+        except OSError as exc:
+            error = describe_os_error(exc)
+    error = comm.bcast(error, root=0)
+    if error is not None:
+        raise OutputError(error)
+    return result
+
+
+def describe_os_error(exc: OSError) -> str:
+    """'<file>: <reason>' for an OSError (or the message of an error without a file)."""
+    name = exc.filename or ""
+    reason = exc.strerror or str(exc)
+    return f"{name}: {reason}" if name else reason
+
+
+def _json_default(value):
+    """numpy scalars and arrays in summaries (np.bool_, np.float64, ...) as plain JSON."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def to_json(data) -> str:
+    """The JSON text of a summary: numpy types as plain numbers, non-finite numbers kept
+    as JSON's NaN/Infinity extension (Python's json reads them back)."""
+    return json.dumps(data, indent=2, default=_json_default) + "\n"
+
+
+def write_json(comm, path: Path, data: dict) -> None:
+    """Write ``data`` to ``path`` atomically on rank 0 (collective; OutputError on failure)."""
+    text = to_json(data) if comm.rank == 0 else None
+    on_rank0(comm, atomic_write, path, text)
+
+
+class FieldWriter:
+    """solution.xdmf: u (P1 vector), sigma (DG0 tensor), sigma_vm, kappa (DG0) per time.
+
+    Crash safety: dolfinx rewrites its XML file when it closes it, so a run killed
+    during a write would leave a truncated XDMF.  dolfinx therefore writes to a work file
+    ``.solution.work.xdmf`` whose HDF5 name ``.solution.work.h5`` is a symlink to
+    solution.h5; after every output step the file is closed (HDF5 flushed) and its XML is
+    published as solution.xdmf by an atomic rename, pointing at solution.h5.  solution.xdmf
+    is thus always a complete description of the steps written so far."""
+
+    def __init__(self, comm, path: Path, mesh, fields):
+        self.fields, self.comm, self.path = fields, comm, Path(path)
+        stem = self.path.stem
+        self.work = self.path.with_name(f".{stem}.work.xdmf")
+        self.h5 = self.path.with_suffix(".h5")
+        self.work_h5 = self.work.with_suffix(".h5")
+        on_rank0(comm, self._fresh_files)
+        try:
+            with dio.XDMFFile(comm, str(self.work), "w") as f:
+                f.write_mesh(mesh)
+        except RuntimeError as exc:             # dolfinx's HDF5 layer
+            raise OutputError(f"{self.h5}: cannot write the mesh ({exc})") from None
+        self._publish()
+
+    def _fresh_files(self) -> None:
+        for p in (self.work, self.work_h5, self.h5):
+            if p.is_symlink() or p.exists():
+                p.unlink()
+        self.work_h5.symlink_to(self.h5.name)
+
+    def _publish(self) -> None:
+        def publish():
+            text = self.work.read_text().replace(f"{self.work_h5.name}:", f"{self.h5.name}:")
+            atomic_write(self.path, text)
+        on_rank0(self.comm, publish)
+
+    def write(self, t: float) -> None:
+        """Append the fields at time t and republish solution.xdmf; OutputError if HDF5 or
+        the file system refuses (solution.xdmf then still describes the earlier steps)."""
+        try:
+            with dio.XDMFFile(self.comm, str(self.work), "a") as f:
+                for fn in self.fields:
+                    f.write_function(fn, t)
+        except RuntimeError as exc:             # dolfinx's HDF5 layer: disk full, read-only
+            raise OutputError(f"{self.h5}: cannot write the fields at t = {t:g} ({exc})") \
+                from None
+        self._publish()
+
+    def close(self) -> None:
+        self.comm.barrier()
+        if self.comm.rank == 0:
+            for p in (self.work, self.work_h5):
+                if p.is_symlink() or p.exists():
+                    p.unlink()
+        self.comm.barrier()
+
+
+def classify(data: dict, g: float | None) -> np.ndarray:
+    """Node state from the columns of the contact table: 'bound' (u_nu = g), 'compliance'
+    (0 < u_nu < g), 'separated' (u_nu <= 0).
+
+    The tolerances come from the solution, not from g: u_nu counts as positive beyond the
+    round-off of the displacement (1e-9 of its largest component on Gamma3), or when the
+    node carries a contact pressure -sigma_nu above the round-off of the forces (1e-6 of the
+    largest force density): a stiff normal compliance (large c_nu) holds the load with a
+    penetration far below the displacement's round-off.  The bound u_nu <= g is imposed
+    exactly, so 'bound' is u_nu >= g up to the round-off of g."""
+    u_nu = data["u_nu"]
+    u_cols = [v for k, v in data.items() if k.startswith("u_") and k not in ("u_nu",)]
+    u_scale = max((float(np.abs(v).max(initial=0.0)) for v in u_cols), default=0.0)
+    f_cols = [v for k, v in data.items() if k.startswith("neg_sigma")]
+    f_scale = max((float(np.abs(v).max(initial=0.0)) for v in f_cols), default=0.0)
+    pressure = data.get("neg_sigma_nu", np.zeros_like(u_nu))
+    touching = (u_nu > 1e-9 * u_scale) | ((u_nu > 0) & (pressure > 1e-6 * f_scale))
+    state = np.where(touching, "compliance", "separated").astype(object)
+    if g is not None:
+        state[u_nu >= g * (1 - 1e-9)] = "bound"
+    return state
+
+
+def write_contact_csv(comm, path: Path, table: dict, g: float | None) -> dict:
+    """Gather the per-node contact table on rank 0, sort by coordinates and write it (columns
+    in the table's order, then ``state``).  Returns counts of node states (on every rank)."""
+    local = {k: np.asarray(v) for k, v in table.items()}
+    parts = comm.gather(local, root=0)
+    counts = None
+    if comm.rank == 0:
+        data = {k: np.concatenate([p[k] for p in parts]) for k in local}
+        # sort on rounded coordinates: dof coordinates carry rank-dependent round-off
+        scale = max(np.abs(data[k]).max(initial=0.0) for k in ("x", "y", "z") if k in data)
+        keys = [np.round(data[k] / max(scale, 1e-300), 9) for k in ("z", "y", "x") if k in data]
+        order = np.lexsort(tuple(keys))
+        data = {k: v[order] for k, v in data.items()}
+        data["state"] = classify(data, g)
+        columns = list(local) + ["state"]
+        buf = io.StringIO()
+        writer = csv.writer(buf, lineterminator="\n")
+        writer.writerow(columns)
+        for i in range(len(data["x"])):
+            writer.writerow([repr(float(data[c][i])) if c != "state" else data[c][i]
+                             for c in columns])
+        counts = {s: int(np.sum(data["state"] == s)) for s in ("bound", "compliance", "separated")}
+        counts["nodes"] = int(len(data["x"]))
+    on_rank0(comm, lambda: atomic_write(path, buf.getvalue()))    # OutputError on every rank
+    return comm.bcast(counts, root=0)

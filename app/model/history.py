@@ -1,0 +1,110 @@
+"""History terms of scheme (3.2)-(3.3), explicit (left end point) as in the paper.
+
+H_n     = sum_{j=1..n} k_j Gfun(sigma_{j-1}, kappa_{j-1}) + sigma0 - E eps(u0)   (DG0 tensor)
+kappa_n = sum_{j=1..n} k_j Gk(sigma_{j-1}, kappa_{j-1}) + kappa0                  (DG0 scalar)
+so H_n = H_{n-1} + k_n Gfun(sigma_{n-1}, kappa_{n-1}) with H_0 = sigma0 - E eps(u0), and
+likewise for kappa.  Only a case with a viscoplastic law has this history; an elastic case
+creates no history object at all.  The state is committed only through ``advance`` (after
+the previous step converged), so a failed step leaves it untouched.
+"""
+from __future__ import annotations
+
+from dolfinx import fem
+
+from app.solvers import kernels
+from app.model.implicit import BackwardEulerPerzyna, LocalFailure
+from app.model.material import Perzyna, VonMisesProjection
+
+
+class ViscoplasticHistory:
+    """Holds H_n (the problem's DG0 function ``H``) and kappa_n, and advances them.
+    H_0 = sigma0 - E eps(u0) and kappa_0 are set by ``problem.set_initial_values``."""
+
+    def __init__(self, problem, lambda1: float, lambda2: float):
+        self.elasticity = problem.law
+        self.law = Perzyna(problem.law, lambda1, lambda2)
+        self.H = problem.H
+        self.kappa = fem.Function(problem.Y, name="kappa")
+        # the same update compiled (kernels.py), unless no C compiler is available
+        module = kernels.load()
+        self.kernel = None if module is None else kernels.PerzynaKernel(
+            problem.law, VonMisesProjection(problem.law), lambda1, lambda2, module)
+
+    def snapshot(self):
+        return self.H.x.array.copy(), self.kappa.x.array.copy()
+
+    def restore(self, state) -> None:
+        self.H.x.array[:], self.kappa.x.array[:] = state
+
+    def before_solve(self, problem, k: float) -> None:
+        """H_n, kappa_n from sigma_{n-1}, kappa_{n-1} (explicit: known before the solve)."""
+        self.advance(problem.sigma, k)
+
+    def after_solve(self, problem) -> tuple[float, float] | None:
+        """sigma_n = E eps(u_n) + H_n (3.2); returns problem.update_sigma's norms."""
+        return problem.update_sigma()
+
+    def advance(self, sigma_prev, k: float) -> None:
+        """H_n = H_{n-1} + k_n Gfun(sigma_{n-1}, kappa_{n-1}), same for kappa (3.2)-(3.3).
+
+        ``sigma_prev`` is the DG0 function holding sigma_{n-1}; ``self.kappa`` holds kappa_{n-1}
+        on entry and kappa_n on exit.  All local cells (owned and ghost) are updated with the
+        same data, so ghosts stay consistent without communication.
+        """
+        if self.kernel is not None:         # writes nothing if it fails: the state of n - 1
+            if self.kernel.advance(sigma_prev.x.array, self.H.x.array, self.kappa.x.array, k):
+                raise RuntimeError("von Mises projection: secular equation did not converge")
+            return
+        t = self.elasticity.to_voigt(sigma_prev.x.array)
+        g_sigma, g_kappa = self.law.rates(t, self.kappa.x.array)
+        self.H.x.array[:] += k * self.elasticity.from_voigt(g_sigma).reshape(-1)
+        self.kappa.x.array[:] += k * g_kappa
+
+
+class ImplicitViscoplasticHistory:
+    """The right-end-point variant (app/model/implicit.py): H and kappa hold the committed state
+    H_{n-1} = sigma_{n-1} - E eps(u_{n-1}) and kappa_{n-1}; during the solve of step n every
+    residual evaluation updates sigma (and the tangent) from the current u; after the solve
+    the state at u_n is committed."""
+
+    def __init__(self, problem, lambda1: float, lambda2: float):
+        self.elasticity = problem.law
+        self.law = Perzyna(problem.law, lambda1, lambda2)
+        self.local = BackwardEulerPerzyna(self.law)
+        self.H = problem.H
+        self.kappa = fem.Function(problem.Y, name="kappa")
+        self._kappa_trial = None
+        self.k = None
+        problem.constitutive = self
+
+    def snapshot(self):
+        return self.H.x.array.copy(), self.kappa.x.array.copy()
+
+    def restore(self, state) -> None:
+        self.H.x.array[:], self.kappa.x.array[:] = state
+
+    def before_solve(self, problem, k: float) -> None:
+        self.k = k
+
+    def update(self, problem) -> bool:
+        law = self.elasticity
+        eps_t = problem.strain_voigt()
+        s_tr = law.apply(eps_t) + law.to_voigt(self.H.x.array)
+        try:
+            sigma, kappa, C = self.local.solve(s_tr, self.kappa.x.array, self.k)
+        except LocalFailure:
+            return False
+        problem.sigma.x.array[:] = law.from_voigt(sigma).reshape(-1)
+        problem.C_alg.x.array[:] = C.reshape(-1)
+        self._kappa_trial = kappa
+        self._eps_t = eps_t
+        self._sigma_t = sigma
+        return True
+
+    def after_solve(self, problem) -> None:
+        if not self.update(problem):   # at the converged u_n
+            raise LocalFailure("implicit Perzyna update failed at the converged step")
+        law = self.elasticity
+        self.kappa.x.array[:] = self._kappa_trial
+        self.H.x.array[:] = law.from_voigt(self._sigma_t - law.apply(self._eps_t)).reshape(-1)
+        problem.update_vm()

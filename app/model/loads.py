@@ -1,0 +1,55 @@
+"""Time- and space-dependent data of a case as UFL: loads f0(t), f2(t), initial values.
+
+A component of a load vector is one of
+- a number (constant in time and space);
+- {"table": [[t0, v0], [t1, v1], ...]}: piecewise linear in t (constant beyond the ends);
+- an expression string in t, x, y, z (app/io/expressions.py).
+Time enters through dolfinx Constants updated by ``set_time`` at every step, so the compiled
+forms do not change with t.
+"""
+from __future__ import annotations
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from petsc4py import PETSc
+
+from app.io import expressions
+
+
+def is_zero(component) -> bool:
+    return isinstance(component, (int, float)) and component == 0
+
+
+class TimeData:
+    """Builds UFL for case data and keeps the time-dependent Constants up to date."""
+
+    def __init__(self, mesh):
+        self.mesh = mesh
+        self.t = fem.Constant(mesh, PETSc.ScalarType(0.0))
+        self._tables: list[tuple[fem.Constant, np.ndarray, np.ndarray]] = []
+        x = ufl.SpatialCoordinate(mesh)
+        self.symbols = {"t": self.t, "x": x[0], "y": x[1],
+                        "z": x[2] if mesh.geometry.dim == 3 else 0.0}
+
+    def scalar(self, component):
+        """UFL for one component (number, table or expression)."""
+        if isinstance(component, (int, float)):   # a Constant: no recompilation per value
+            return fem.Constant(self.mesh, PETSc.ScalarType(component))
+        if isinstance(component, dict):
+            pts = np.asarray(component["table"], dtype=float)
+            c = fem.Constant(self.mesh, PETSc.ScalarType(pts[0, 1]))
+            self._tables.append((c, pts[:, 0], pts[:, 1]))
+            return c
+        return expressions.to_ufl(expressions.parse(component), self.symbols)
+
+    def vector(self, components):
+        """UFL vector for a list of components, or None if every component is 0."""
+        if all(is_zero(c) for c in components):
+            return None
+        return ufl.as_vector([self.scalar(c) for c in components])
+
+    def set_time(self, t: float) -> None:
+        self.t.value = t
+        for c, ts, vs in self._tables:
+            c.value = np.interp(t, ts, vs)

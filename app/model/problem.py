@@ -1,0 +1,365 @@
+"""The discrete step problem of scheme (3.2)-(3.4) on one mesh (2D or 3D).
+
+Spaces: V^h = continuous P1 vectors, Q^h = DG0 tensors (sigma, H_n),
+Y^h = DG0 scalars (kappa).  The problem object holds the unknown u, the pre-stress H_n, the
+Gamma3 nodal fields xi_n (memory) and theta(s_n) (slip dependence) when the case has them,
+the compiled forms, the Dirichlet condition on Gamma1, the box bounds of U^h on the normal
+dofs of Gamma3 nodes, and computes derived quantities: sigma_n, norms, contact forces.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from forms.contact import gamma3_measure
+from forms.elasticity import elasticity_operator, eps
+from forms.step import build_step_forms
+from meshes import BOUNDARY_TAGS
+
+from app.io import expressions
+from app.io.case import Case, CaseError
+from app.model.gamma3 import NodalField
+from app.model.loads import TimeData
+from app.model.material import Elasticity
+from app.model.strain import StrainOperator
+
+GAMMA1, GAMMA3 = "left", "bottom"
+
+
+@dataclass
+class Gamma3Nodes:
+    """The locally owned Gamma3 nodes (not on Gamma1), with their weights."""
+
+    nodes: np.ndarray    # local node (block) indices, owned, sorted by coordinates
+    x: np.ndarray        # (m, d) coordinates
+    weight: np.ndarray   # int_Gamma3 phi_i ds (the nodal rule's weight)
+
+
+class _Constants(dict):
+    """Named dolfinx Constants of the forms (physical parameters, delta)."""
+
+    def __init__(self, mesh):
+        super().__init__()
+        self._mesh = mesh
+
+    def __call__(self, name, value):
+        self[name] = fem.Constant(self._mesh, PETSc.ScalarType(value))
+        return self[name]
+
+
+class ContactProblem:
+    """Forms and data of the step problem for a case on a mesh (Rectangle/BoxMesh)."""
+
+    def __init__(self, case: Case, rect):
+        self.case, self.rect = case, rect
+        msh = self.mesh = rect.mesh
+        self.comm = msh.comm
+        d = self.dim = rect.dim
+        self.law = Elasticity(case.material.E, case.material.nu, d)
+        self.V = fem.VectorFunctionSpace(msh, ("CG", 1))
+        self.Q = fem.TensorFunctionSpace(msh, ("DG", 0))
+        self.Y = fem.FunctionSpace(msh, ("DG", 0))
+        self.u = fem.Function(self.V, name="u")
+        self.sigma = fem.Function(self.Q, name="sigma")
+        self.sigma_vm = fem.Function(self.Y, name="sigma_vm")
+        # H_n exists only with a history (viscoplastic law) or nonzero initial values.
+        init = case.initial
+        has_H = case.material.viscoplastic is not None or init.u0 is not None \
+            or init.sigma0 is not None
+        self.H = fem.Function(self.Q, name="H") if has_H else None
+        # Implicit history variant: the forms take sigma and the algorithmic tangent per
+        # cell (updated by ``constitutive`` before every residual), not E eps(u) + H_n.
+        self.implicit = case.time.scheme == "implicit" and case.material.viscoplastic is not None
+        self.constitutive = None
+        self.C_alg = None
+        if self.implicit:
+            m = self.law.m
+            self.C_alg = fem.Function(fem.TensorFunctionSpace(msh, ("DG", 0), shape=(m, m)),
+                                      name="C_alg")
+        self.normal = np.array(rect.normal)
+        self.tangents = np.array(rect.tangent)
+        self.time_data = TimeData(msh)
+
+        fdim = msh.topology.dim - 1
+        ft = rect.facet_tags
+        self._facets = {name: ft.indices[ft.values == tag] for name, tag in BOUNDARY_TAGS.items()}
+        clamped = fem.locate_dofs_topological(self.V, fdim, self._facets[GAMMA1])
+        self.bcs = [fem.dirichletbc(np.zeros(d, dtype=PETSc.ScalarType), clamped, self.V)]
+        self._clamped_nodes = clamped
+
+        c = case.contact
+        self.gamma3 = None
+        self.xi = self.theta = None
+        if c.active:
+            self.gamma3 = self._gamma3_nodes()
+            if c.memory is not None:
+                self.xi = NodalField(self.V, self.gamma3_local_nodes, "xi")
+            if c.friction is not None and c.friction.slip is not None:
+                self.theta = NodalField(self.V, self.gamma3_local_nodes, "theta")
+                self.theta.function.x.array[:] = 1.0
+
+        ds = ufl.Measure("ds", domain=msh, subdomain_data=ft)
+        self.ds_c = gamma3_measure(msh, ft, BOUNDARY_TAGS[GAMMA3], case.numerics.quadrature,
+                                   case.numerics.gauss_degree)
+        # Parameters enter the forms as Constants: one compiled form serves every value.
+        const = self.constants = _Constants(msh)
+        E, nu = const("E", case.material.E), const("nu", case.material.nu)
+        f0 = self.time_data.vector(case.loads.f0) if case.loads.f0 else None
+        tractions = []
+        for name, comps in case.loads.traction.items():
+            vec = self.time_data.vector(comps)
+            if vec is not None:
+                tractions.append((vec, BOUNDARY_TAGS[name]))
+        friction = None
+        if c.friction is not None:
+            friction = {k: const(k, getattr(c.friction, k)) for k in ("b", "c1", "c2", "u1")}
+        needs_delta = c.friction is not None or c.memory is not None
+        self.forms = build_step_forms(
+            self.u, None if self.implicit else self.H, E=E, nu=nu, dim=d, f0=f0,
+            tractions=tractions, ds=ds,
+            stress=self.sigma if self.implicit else None, tangent=self.C_alg,
+            ds_c=self.ds_c, normal=tuple(self.normal),
+            c_nu=const("c_nu", c.c_nu) if c.c_nu is not None else None,
+            friction=friction,
+            theta=self.theta.function if self.theta else None,
+            xi=self.xi.function if self.xi else None,
+            delta=const("delta", case.numerics.delta) if needs_delta else None)
+        self._bulk_form = fem.form(self.forms.bulk_residual)
+
+        # sigma_n = E eps(u_n) + H_n per cell (exact: eps(u) is constant on cells), app/model/strain.py
+        self._C = elasticity_operator(E, nu, d)
+        self.strain_operator = StrainOperator(self.V, self.Q, case.material.E, case.material.nu)
+
+    # The step residual and Jacobian (SNES VI) and the strain interpolation (the numpy
+    # stress path) are compiled when first used: the fast solver with the compiled kernels
+    # needs none of them (25 ms of set-up at h = 1/128; collective, like every use of them).
+    @cached_property
+    def F_form(self):
+        return fem.form(self.forms.residual)
+
+    @cached_property
+    def J_form(self):
+        return fem.form(self.forms.jacobian)
+
+    @cached_property
+    def _eps_fn(self):
+        return fem.Function(self.Q)
+
+    @cached_property
+    def _eps_expr(self):
+        return fem.Expression(eps(self.u), self.Q.element.interpolation_points())
+
+    @property
+    def length_scale(self) -> float:
+        m = self.case.mesh
+        return max(m.L1, m.L2, m.L3 if self.dim == 3 else 0.0)
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def num_cells(self) -> int:
+        return self.mesh.topology.index_map(self.dim).size_global
+
+    @property
+    def num_vertices(self) -> int:
+        return self.mesh.topology.index_map(0).size_global
+
+    @property
+    def num_dofs(self) -> int:
+        return self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
+
+    @property
+    def num_owned_cells(self) -> int:
+        return self.mesh.topology.index_map(self.dim).size_local
+
+    # ------------------------------------------------------------------ initial values
+    def set_initial_values(self, kappa=None) -> None:
+        """u = u0, H_0 = sigma0 - E eps(u0) (3.2), kappa = kappa0 (cell averages)."""
+        init, sym = self.case.initial, self.time_data.symbols
+        if init.u0 is not None:
+            vec = ufl.as_vector([_ufl_component(c, sym) for c in init.u0])
+            self.u.interpolate(fem.Expression(vec, self.V.element.interpolation_points()))
+            self.u.x.scatter_forward()
+            self._check_initial_u()
+        if self.H is not None:
+            H0 = -self._C(eps(self.u))
+            if init.sigma0 is not None:
+                H0 = H0 + ufl.as_matrix([[_ufl_component(c, sym) for c in row]
+                                         for row in init.sigma0])
+            self._cell_average(H0, self.H)
+            self._refuse(not np.isfinite(self.H.x.array).all(), "initial.sigma0",
+                         "not a finite number in a cell of the mesh")
+        if kappa is not None:
+            k0 = self.case.material.viscoplastic.kappa0
+            if isinstance(k0, str):
+                self._cell_average(_ufl_component(k0, sym), kappa)
+                self._refuse(not (kappa.x.array >= 0).all(), "material.viscoplastic.kappa0",
+                             "must be a finite number >= 0 everywhere")
+            else:
+                kappa.x.array[:] = k0
+
+    def _cell_average(self, expr, f) -> None:
+        """f = P_{Q^h} expr, the L2 projection onto DG0 (cell averages)."""
+        w = ufl.TestFunction(f.function_space)
+        vec = fem.petsc.assemble_vector(fem.form(ufl.inner(expr, w) * ufl.dx))
+        bs = f.function_space.dofmap.index_map_bs
+        owned = vec.array.size
+        vol = np.repeat(self._cell_volumes()[:owned // bs], bs)
+        f.x.array[:owned] = vec.array / vol
+        f.x.scatter_forward()
+        vec.destroy()
+
+    def _refuse(self, bad: bool, key: str, why: str) -> None:
+        """Raise CaseError on every rank if ``bad`` on any (the exact check on the mesh)."""
+        if self.comm.allreduce(bool(bad), op=MPI.LOR):
+            raise CaseError(f"{self.case.source}: {key}: {why}")
+
+    def _check_initial_u(self) -> None:
+        """u0 at the mesh nodes: zero on Gamma1 (up to round-off of its largest value),
+        u_nu <= g on Gamma3 (the case's validation checked sample points already)."""
+        uu = self.u.x.array.reshape(-1, self.dim)
+        self._refuse(not np.isfinite(uu).all(), "initial.u0",
+                     "not a finite number at a node of the mesh")
+        scale = self._reduce(float(np.abs(uu).max(initial=0.0)), "MAX")
+        self._refuse(np.abs(uu[self._clamped_nodes]).max(initial=0.0) > 1e-12 * scale,
+                     "initial.u0", "must vanish on Gamma1 (x = 0)")
+        g = self.case.contact.g
+        if g is not None and self.gamma3 is not None:
+            self._refuse((uu[self.gamma3_local_nodes] @ self.normal > g * (1 + 1e-12)).any(),
+                         "initial.u0", "violates u_nu <= g on Gamma3")
+
+    # ------------------------------------------------------------------ Gamma3 and bounds
+    def _gamma3_nodes(self) -> Gamma3Nodes:
+        fdim = self.mesh.topology.dim - 1
+        nodes = fem.locate_dofs_topological(self.V, fdim, self._facets[GAMMA3])
+        nodes = np.setdiff1d(nodes, self._clamped_nodes)
+        self.gamma3_local_nodes = nodes  # owned and ghost
+        owned = nodes[nodes < self.V.dofmap.index_map.size_local]
+        # weights w_i = int_Gamma3 phi_i ds, exact (phi_i is linear on each facet)
+        v = ufl.TestFunction(self.V)
+        ds3 = gamma3_measure(self.mesh, self.rect.facet_tags, BOUNDARY_TAGS[GAMMA3], "gauss", 2)
+        wvec = fem.petsc.assemble_vector(fem.form(v[0] * ds3))
+        wvec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        weight = wvec.array_r[self.dim * owned]
+        wvec.destroy()
+        x = self.V.tabulate_dof_coordinates()[owned, :self.dim]
+        order = np.lexsort(tuple(x[:, i] for i in reversed(range(self.dim))))
+        return Gamma3Nodes(owned[order], x[order], weight[order])
+
+    def bounds(self) -> tuple[PETSc.Vec, PETSc.Vec]:
+        """Box bounds of U^h: u_nu <= g on the normal dofs of Gamma3 nodes, +-inf elsewhere."""
+        lb, ub = self.u.vector.duplicate(), self.u.vector.duplicate()
+        with lb.localForm() as lo, ub.localForm() as up:
+            lo.set(PETSc.NINFINITY)
+            up.set(PETSc.INFINITY)
+            g = self.case.contact.g
+            if g is not None:
+                comp = int(np.argmax(np.abs(self.normal)))
+                sign = self.normal[comp]
+                dofs = self.dim * self.gamma3_local_nodes + comp
+                if sign > 0:   # u_nu = +u_comp <= g
+                    up.array[dofs] = g
+                else:          # u_nu = -u_comp <= g  <=>  u_comp >= -g
+                    lo.array[dofs] = -g
+        return lb, ub
+
+    # ------------------------------------------------------------------ derived quantities
+    def update_sigma(self) -> tuple[float, float] | None:
+        """sigma_n = E eps(u_n) + H_n (3.2) and its von Mises norm, per cell.  Returns
+        (||u_n||_V, ||sigma_n||_Q) where the compiled cell pass computed them on the way (the
+        step record's norms without a second pass), else None."""
+        sums = self.strain_operator.update_sigma(self.u, self.H, self.sigma, self.sigma_vm)
+        if sums is None:
+            self.update_vm()
+            return None
+        return float(np.sqrt(max(sums[0], 0.0))), float(np.sqrt(max(sums[1], 0.0)))
+
+    def update_vm(self) -> None:
+        self.sigma_vm.x.array[:] = self.law.von_mises(self.law.to_voigt(self.sigma.x.array))
+        self.sigma_vm.x.scatter_forward()
+
+    def strain_voigt(self) -> np.ndarray:
+        """eps(u) per cell (owned and ghost) in t-coordinates."""
+        self._eps_fn.interpolate(self._eps_expr)
+        self._eps_fn.x.scatter_forward()
+        return self.law.to_voigt(self._eps_fn.x.array)
+
+    def before_residual(self) -> bool:
+        """Called with the current u before every residual assembly: the implicit variant's
+        local stress update.  Returns False if it failed (the residual is then NaN)."""
+        return self.constitutive.update(self) if self.constitutive is not None else True
+
+    def _reduce(self, value: float, op) -> float:
+        return self.comm.allreduce(value, op=getattr(MPI, op))
+
+    def norm(self, which: str) -> float:
+        """||u||_V = ||eps(u)||_L2 ("V") or ||sigma||_Q ("Q"), reduced over ranks; exact cell
+        sums (eps(u) and sigma are constant on cells)."""
+        op = self.strain_operator
+        if which == "V":
+            return float(np.sqrt(max(op.strain_norm2(self.u), 0.0)))
+        local = op.energy_norm2(self.sigma.x.array[:op.n_owned * self.dim**2])
+        return float(np.sqrt(self._reduce(local, "SUM")))
+
+    def cell_norm(self, f) -> float:
+        """L2 norm of a DG0 scalar function (||kappa||_Y), reduced over ranks."""
+        n = self.num_owned_cells
+        vol = self._cell_volumes()[:n]
+        return float(np.sqrt(self._reduce(float(np.sum(vol * f.x.array[:n] ** 2)), "SUM")))
+
+    def cell_max(self, f) -> float:
+        n = self.num_owned_cells
+        local = float(np.max(f.x.array[:n])) if n else -np.inf
+        return float(self._reduce(local, "MAX"))
+
+    def _cell_volumes(self) -> np.ndarray:
+        if not hasattr(self, "_vol"):
+            w = ufl.TestFunction(self.Y)
+            vec = fem.petsc.assemble_vector(fem.form(w * ufl.dx))
+            self._vol = vec.array_r.copy()
+            vec.destroy()
+        return self._vol
+
+    def contact_table(self) -> dict[str, np.ndarray]:
+        """Per owned Gamma3 node: coordinates, displacement, u_nu, tangential components and
+        the contact force densities -sigma_nu, -sigma_tau (and xi, s when active).
+
+        The force at node i is minus the bulk residual r_i = (sigma_n, eps(phi_i)) - f(phi_i)
+        divided by the node's weight w_i = int phi_i ds: with the nodal rule this is exactly
+        p(u_nu) + memory force + (bound multiplier)/w_i in the normal direction and the
+        friction force in the tangential ones.
+        """
+        gm, d = self.gamma3, self.dim
+        r = fem.petsc.assemble_vector(self._bulk_form)
+        r.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        rr = r.array_r.reshape(-1, d)[gm.nodes]
+        r.destroy()
+        uu = self.u.x.array.reshape(-1, d)[gm.nodes]
+        axes = "xyz"[:d]
+        table = {a: gm.x[:, i] for i, a in enumerate(axes)}
+        table.update({f"u_{a}": uu[:, i] for i, a in enumerate(axes)})
+        table["u_nu"] = uu @ self.normal
+        suffix = [""] if d == 2 else ["1", "2"]
+        for s, t in zip(suffix, self.tangents):
+            table[f"u_tau{s}"] = uu @ t
+        table["neg_sigma_nu"] = -(rr @ self.normal) / gm.weight
+        for s, t in zip(suffix, self.tangents):
+            table[f"neg_sigma_tau{s}"] = -(rr @ t) / gm.weight
+        pos = np.searchsorted(self.gamma3_local_nodes, gm.nodes)
+        if self.xi is not None:
+            table["xi"] = self.xi.function.x.array[self.xi.dofs[pos]]
+        if self.theta is not None:
+            table["theta"] = self.theta.function.x.array[self.theta.dofs[pos]]
+        return table
+
+
+def _ufl_component(c, symbols):
+    """UFL for a number or an expression string (initial values: no tables)."""
+    if isinstance(c, (int, float)):
+        return float(c)
+    return expressions.to_ufl(expressions.parse(c), symbols)

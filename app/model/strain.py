@@ -1,0 +1,191 @@
+"""The cell-strain operator of P1 displacements: eps(u) per cell as one sparse matrix.
+
+For P1 elements eps(u) is constant on each cell, so with the DG0 tensor space Q
+    D[q, j] = int_Omega eps(phi_j) : tau_q dx     (phi_j in V^h, tau_q in Q^h)
+gives (D u)_c = |c| eps_c(u) exactly, and D^T H = int H : eps(v) dx for H in Q^h; likewise
+D_sigma[q, j] = int E eps(phi_j) : tau_q / |c| dx gives (D_sigma u)_c = E eps_c(u).  One
+matrix-vector product thus replaces an interpolation of sigma_n = E eps(u_n) + H_n (3.2) and
+one an assembly of the pre-stress load (H_n, eps(v)) of (3.4) in every step, and the norms
+||u||_V = ||eps(u)||_L2 and ||sigma||_Q are exact cell sums.
+
+With the compiled kernels (kernels.cell_pass, cell_load) the same operator D is applied cell
+by cell from |c| grad phi_a of the cell's d + 1 vertex functions (from the cell geometry: a
+quarter of the data of D's rows, and D itself is then never assembled; set-up 0.14 -> 0.03 s
+at h = 1/128): sigma, its von Mises norm and the squared norms ||eps(u)||^2, ||sigma||_Q^2 in
+one pass, D^T H in another.  At h = 1/128 they take about 1.0 and 0.4 ms per step (from D's
+rows 1.0-1.6 and 0.5-1.1 ms; the PETSc products, the numpy von Mises norm and the A-norm
+about 6 ms).  The PETSc products of the assembled D stay the reference
+(tests/unit/test_strain.py) and the fallback.
+"""
+from __future__ import annotations
+
+from functools import cached_property
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from forms.elasticity import elasticity_operator, eps, lame_constants
+
+from app.solvers import kernels
+
+
+def _inverse(J: np.ndarray) -> np.ndarray:
+    """The inverses of a stack of 2 x 2 or 3 x 3 matrices by their adjugates (np.linalg.inv
+    calls LAPACK once per matrix: 20-60 ms for the 32,768 cells at h = 1/128, against 4 ms;
+    measured).  For columns c0, c1(, c2) of J the rows of J^-1 are orthogonal to the other
+    columns: (c1 x c2, c2 x c0, c0 x c1) / det in 3D."""
+    if J.shape[-1] == 2:
+        a, b, c, e = J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1]
+        rows = np.stack([np.stack([e, -b], -1), np.stack([-c, a], -1)], 1)
+        det = a * e - b * c
+    else:
+        c0, c1, c2 = J[:, :, 0], J[:, :, 1], J[:, :, 2]
+        rows = np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], 1)
+        det = np.einsum("ij,ij->i", c0, rows[:, 0])
+    return rows / det[:, None, None]
+
+
+class StrainOperator:
+    """sigma = E eps(u) + H per cell, the pre-stress load D^T H, and the norms."""
+
+    def __init__(self, V, Q, E: float, nu: float):
+        self.d = d = V.mesh.geometry.dim
+        tau = ufl.TestFunction(Q)
+        self._V, self._Q, self._E, self._nu = V, Q, E, nu
+        vol = fem.petsc.assemble_vector(fem.form(tau[0, 0] * ufl.dx))
+        self.n_owned = Q.dofmap.index_map.size_local
+        self.vol = vol.array_r.reshape(-1, d * d)[:, 0].copy()      # owned cells, Q order
+        vol.destroy()
+        self.comm = V.mesh.comm
+        self.lmbda, self.two_mu = lame_constants(E, nu, d)
+        self.mod = kernels.load()
+        cells = self._cell_gradients(V, Q) if self.mod is not None else None
+        # one path on every rank (the PETSc products and the lazy assembly are collective)
+        self._cells = cells if self.comm.allreduce(cells is not None, op=MPI.LAND) else None
+        self._work = fem.Function(V) if self._cells is not None else None   # ghosted
+
+    @staticmethod
+    def _assembled(a) -> PETSc.Mat:
+        M = fem.petsc.assemble_matrix(fem.form(a))
+        M.assemble()
+        return M
+
+    @cached_property
+    def D(self) -> PETSc.Mat:
+        """D[q, j] = int eps(phi_j) : tau_q dx; assembled when first used (not by the
+        compiled path)."""
+        du, tau = ufl.TrialFunction(self._V), ufl.TestFunction(self._Q)
+        return self._assembled(ufl.inner(eps(du), tau) * ufl.dx)
+
+    @cached_property
+    def _b(self) -> PETSc.Vec:
+        return self.D.createVecRight()
+
+    @cached_property
+    def D_sigma(self) -> PETSc.Mat:
+        """(D_sigma u)_c = E eps_c(u); assembled when first used (not by the compiled
+        path)."""
+        du, tau = ufl.TrialFunction(self._V), ufl.TestFunction(self._Q)
+        C = elasticity_operator(self._E, self._nu, self.d)
+        return self._assembled(ufl.inner(C(eps(du)), tau) / ufl.CellVolume(self._V.mesh)
+                               * ufl.dx)
+
+    @cached_property
+    def A(self) -> PETSc.Mat:
+        """||eps(u)||^2 = u . A u; assembled when first used (not by the compiled path)."""
+        du, v = ufl.TrialFunction(self._V), ufl.TestFunction(self._V)
+        return self._assembled(ufl.inner(eps(du), eps(v)) * ufl.dx)
+
+    def _cell_gradients(self, V, Q):
+        """(vertices, G): per owned cell (in Q's dof order, the rows of D) its d + 1 vertices
+        (local node numbers of V: dofs node * d + k) and G_a = |c| grad phi_a, from the cell
+        geometry (affine P1 cells: grad phi_a = rows of J^-1 for a >= 1, minus their sum for
+        a = 0).  Then D_c[(i,j), (a,k)] = (delta_ik G_aj + delta_jk G_ai) / 2; the tests
+        compare the cell passes with the assembled D.  None if the spaces are not P1
+        displacements on an affine simplex mesh with DG0 cell data."""
+        d, msh = self.d, V.mesh
+        geometry = msh.geometry.dofmap.array
+        nv = d + 1
+        if (V.dofmap.index_map_bs != d or V.dofmap.dof_layout.num_dofs != nv
+                or Q.dofmap.dof_layout.num_dofs != 1 or len(geometry) % nv
+                or msh.geometry.cmap.degree != 1):
+            return None
+        qdof = Q.dofmap.list.array                        # one DG0 block per cell
+        cell = np.empty(len(qdof), dtype=np.int64)
+        cell[qdof] = np.arange(len(qdof))
+        cell = cell[:self.n_owned]                        # the owned rows of D, in order
+        vertices = V.dofmap.list.array.reshape(-1, nv)[cell]
+        X = msh.geometry.x[geometry.reshape(-1, nv)[cell], :d]            # (cells, d + 1, d)
+        J = (X[:, 1:, :] - X[:, :1, :]).transpose(0, 2, 1)              # columns X_a - X_0
+        Jinv = _inverse(J)                                # rows: grad phi_1 .. grad phi_d
+        grads = np.concatenate([-Jinv.sum(axis=1, keepdims=True), Jinv], axis=1)
+        return (np.ascontiguousarray(vertices, dtype=np.intc),
+                np.ascontiguousarray(self.vol[:, None, None] * grads, dtype=float))
+
+    def _cell_pass(self, u, H=None, sigma=None, vm=None) -> tuple[float, float]:
+        """kernels.cell_pass on the owned cells; returns this rank's ||eps(u)||^2 and (with
+        sigma) ||sigma||_Q^2 (else 0)."""
+        ffi, n, dd = self.mod.ffi, self.n_owned, self.d * self.d
+        vertices, G = self._cells
+        ss = ffi.new("double *")
+        e2 = self.mod.lib.cell_pass(
+            n, self.d, kernels.buf(ffi, vertices), kernels.buf(ffi, G), kernels.buf(ffi, self.vol),
+            self.lmbda, self.two_mu, kernels.buf(ffi, u.x.array),
+            kernels.buf(ffi, None if H is None else H.x.array[:n * dd]),
+            kernels.buf(ffi, None if sigma is None else sigma.x.array[:n * dd]),
+            kernels.buf(ffi, None if vm is None else vm.x.array[:n]), ss)
+        return e2, ss[0]
+
+    def update_sigma(self, u, H, sigma, vm=None) -> tuple[float, float] | None:
+        """sigma = E eps(u) + H on the owned cells, ghosts by scatter.  With the compiled
+        kernel also vm = ||sigma||_VM (a DG0 function), and the pass's global sums
+        (||eps(u)||_L2^2, ||sigma||_Q^2) are returned (else None)."""
+        if self._cells is not None and vm is not None:
+            sums = np.array(self._cell_pass(u, H, sigma, vm))
+            self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)   # buffer: no pickling
+            sigma.x.scatter_forward()
+            vm.x.scatter_forward()
+            return float(sums[0]), float(sums[1])
+        if H is None:
+            self.D_sigma.mult(u.vector, sigma.vector)
+        else:
+            self.D_sigma.multAdd(u.vector, H.vector, sigma.vector)
+        sigma.x.scatter_forward()
+        return None
+
+    def strain_norm2(self, u) -> float:
+        """||eps(u)||_L2^2 (global: reduced over the ranks)."""
+        if self._cells is not None:
+            return self.comm.allreduce(self._cell_pass(u)[0], op=MPI.SUM)
+        self.A.mult(u.vector, self._b)
+        return self._b.dot(u.vector)
+
+    def energy_norm2(self, cell_tensors: np.ndarray) -> float:
+        """sum_c |c| t_c : t_c over the owned cells (this rank's part of ||t||_L2^2)."""
+        flat = cell_tensors.reshape(len(self.vol), -1)
+        return float(self.vol @ np.einsum("ij,ij->i", flat, flat))
+
+    def pre_stress_load(self, H, b: PETSc.Vec) -> None:
+        """b -= D^T H = (H, eps(v)) for all v (the pre-stress term of the step's load)."""
+        if self._cells is not None:
+            ffi, w = self.mod.ffi, self._work
+            vertices, G = self._cells
+            w.x.array[:] = 0.0
+            n, dd = self.n_owned, self.d * self.d
+            self.mod.lib.cell_load(n, self.d, kernels.buf(ffi, vertices), kernels.buf(ffi, G),
+                                   kernels.buf(ffi, H.x.array[:n * dd]),
+                                   kernels.buf(ffi, w.x.array))
+            w.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            b.axpy(-1.0, w.vector)
+            return
+        self.D.multTranspose(H.vector, self._b)
+        b.axpy(-1.0, self._b)
+
+    def destroy(self):
+        for name in ("D", "_b", "D_sigma", "A"):
+            obj = self.__dict__.get(name)
+            if obj is not None:
+                obj.destroy()

@@ -1,0 +1,195 @@
+"""Stability and well-posedness diagnostics printed before a run.
+
+- Explicit stability indicator: the history update of (3.2) relaxes the stress like
+  sigma_n ~ (I - k E/(2 lambda1)) sigma_{n-1} on the excess over the yield ball, so with the
+  largest relaxation rate r_max = lambda_max(E) / (2 lambda1) the explicit scheme needs
+  k_max r_max <= 2 (above 1 the relaxation overshoots and oscillates).  The implicit variant
+  has no such limit.
+- Well-posedness (2.6): m_E > max{sqrt(3) c1~, m_j} ||gamma||^2 with m_E the smallest
+  eigenvalue of E, m_j = c1 (relaxed monotonicity of law (4.2); theta <= 1 with slip
+  dependence), c1~ = 0 (theta is bounded: the friction bound does not grow with the slip)
+  and ||gamma||^2 = max_v ||v||^2_{L2(Gamma3)} / ||eps(v)||^2_{L2} on the discrete space,
+  computed by power iteration with the factorised stiffness.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from petsc4py import PETSc
+
+from forms.contact import gamma3_measure
+from forms.elasticity import eps
+from meshes import BOUNDARY_TAGS
+
+from app.solvers.snesvi import direct_solver
+
+STABILITY_LIMIT = 2.0
+
+
+def relaxation_rate(law, lambda1: float) -> float:
+    """r_max = lambda_max(E) / (2 lambda1), E acting on symmetric tensors."""
+    return float(np.max(np.linalg.eigvals(law.Cmat).real)) / (2.0 * lambda1)
+
+
+def ellipticity(law) -> float:
+    """m_E, the smallest eigenvalue of E on symmetric tensors."""
+    return float(np.min(np.linalg.eigvals(law.Cmat).real))
+
+
+def _gamma3_mass(problem) -> PETSc.Mat:
+    """M = (v, w)_{L2(Gamma3)} on V^h (Gauss degree 2: exact for P1)."""
+    u, v = ufl.TrialFunction(problem.V), ufl.TestFunction(problem.V)
+    ds3 = gamma3_measure(problem.mesh, problem.rect.facet_tags, BOUNDARY_TAGS["bottom"],
+                         "gauss", 2)
+    M = fem.petsc.assemble_matrix(fem.form(ufl.inner(u, v) * ds3))
+    M.assemble()
+    return M
+
+
+def trace_constant(problem, rtol: float = 1e-8, max_iter: int = 500) -> tuple[float, int]:
+    """||gamma||^2 = largest eigenvalue of M v = lam K v, M = (v, w)_{L2(Gamma3)},
+    K = (eps(v), eps(w)) on V^h with v = 0 on Gamma1; power iteration x <- K^-1 M x until
+    the Rayleigh quotient (a lower bound of lam converging at twice the rate of the vector)
+    changes by less than rtol."""
+    V, comm = problem.V, problem.comm
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    a = fem.form(ufl.inner(eps(u), eps(v)) * ufl.dx)
+    K = fem.petsc.create_matrix(a, "baij" if comm.size == 1 else None)
+    fem.petsc.assemble_matrix(K, a, bcs=problem.bcs)
+    K.assemble()
+    M = _gamma3_mass(problem)                                        # Dirichlet rows: below
+    ksp = direct_solver(K, comm)
+    x, y, Mx = K.createVecRight(), K.createVecRight(), K.createVecRight()
+    x.setRandom(PETSc.Random().create(comm))
+    lam, its = 0.0, 0
+    for its in range(1, max_iter + 1):
+        M.mult(x, Mx)
+        fem.petsc.set_bc(Mx, problem.bcs, scale=0.0)   # v = 0 on Gamma1: K^-1 keeps it 0
+        ksp.solve(Mx, y)
+        new = _adot(M, y) / max(_adot(K, y), 1e-300)   # Rayleigh quotient (y = 0 on Gamma1)
+        y.normalize()
+        y.copy(x)
+        if abs(new - lam) <= rtol * abs(new):
+            lam = new
+            break
+        lam = new
+    for obj in (K, M, ksp, x, y, Mx):
+        obj.destroy()
+    return float(lam), its
+
+
+def trace_constant_bound(problem, solver) -> float | None:
+    """Upper bound of ||gamma||^2 from the fast solver's Schur complement S (no extra
+    factorisation): with the Gamma3 mass matrix M_G,
+        lam_K = max_v |v|^2_{L2(Gamma3)} / (E eps(v), eps(v)) = lam_max(M_G x = lam S x),
+    and since (E tau):tau <= c_max tau:tau (c_max the largest eigenvalue of E),
+        ||gamma||^2 <= c_max lam_K.
+    None if the solver has no condensed Gamma3 problem."""
+    if not getattr(solver, "gamma3", False) or not hasattr(solver, "S"):
+        return None
+    M = _gamma3_mass(problem)
+    rows, cols = solver._owned_rows.astype(np.int32), solver.global_G_dofs()  # collective
+    local = M.getValues(rows, cols) if len(rows) else np.zeros((0, solver.m))
+    M.destroy()
+    MG = solver.gather_GG(local)
+    MG = 0.5 * (MG + MG.T)
+    # the generalised eigenproblem by Cholesky, S = L L^T: lam(L^-1 M_G L^-T) (numpy only)
+    L = np.linalg.cholesky(solver.S)
+    C = np.linalg.solve(L, np.linalg.solve(L, MG).T)
+    lam_K = float(np.linalg.eigvalsh(0.5 * (C + C.T))[-1])
+    return float(np.max(np.linalg.eigvals(problem.law.Cmat).real)) * lam_K
+
+
+def _adot(A, y):
+    """y . A y"""
+    Ay = A.createVecLeft()
+    A.mult(y, Ay)
+    val = y.dot(Ay)
+    Ay.destroy()
+    return val
+
+
+@dataclass
+class Diagnostics:
+    scheme: str
+    k_max: float
+    relaxation_rate: float | None
+    stability_indicator: float | None
+    stability_limit: float
+    explicit_stable: bool | None
+    m_E: float
+    m_j: float
+    c1_tilde: float
+    gamma2: float | None
+    wellposedness_margin: float | None
+    unique: bool | None
+    adaptive: bool = False
+    gamma2_is_bound: bool = False    # gamma2 is the upper bound c_max lam_K, not the value
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    def messages(self) -> list[tuple[str, str]]:
+        """(level, text) lines for the run log."""
+        out = []
+        if self.stability_indicator is not None:
+            text = (f"stability indicator k_max r_max = {self.k_max:g} x {self.relaxation_rate:.4g}"
+                    f" = {self.stability_indicator:.3g} (explicit limit {self.stability_limit:g})")
+            if self.scheme == "explicit" and not self.explicit_stable and self.adaptive:
+                out.append(("info", text + ": adaptive steps will keep k r_max within "
+                                           "time.adaptive.max_indicator"))
+            elif self.scheme == "explicit" and not self.explicit_stable:
+                out.append(("warning", text + ": the explicit scheme is unstable here (errors "
+                                              f"can grow by up to {self.stability_indicator - 1:.3g}x "
+                                              "per step); use time.scheme: implicit, a smaller "
+                                              "time step or time.adaptive"))
+            else:
+                out.append(("info", text + ("" if self.scheme == "explicit" else
+                                            "; the implicit scheme has no such limit")))
+        if self.gamma2 is not None:
+            rel = "<=" if self.gamma2_is_bound else "="
+            text = (f"well-posedness (2.6): m_E = {self.m_E:.4g} vs max(sqrt(3) c1~, m_j) "
+                    f"||gamma||^2 {rel} {max(np.sqrt(3) * self.c1_tilde, self.m_j):.4g} x "
+                    f"{self.gamma2:.4g}: margin {'>= ' if self.gamma2_is_bound else ''}"
+                    f"{self.wellposedness_margin:.4g}"
+                    + (" (upper bound of ||gamma||^2 from the condensed stiffness)"
+                       if self.gamma2_is_bound else ""))
+            if self.unique:
+                out.append(("info", text))
+            else:
+                out.append(("warning", text + " <= 0: uniqueness of the solution is not "
+                                              "guaranteed (the friction softening c1 is too "
+                                              "large for this body)"))
+        return out
+
+
+def diagnose(problem, solver=None) -> Diagnostics:
+    """The diagnostics of a case.  With the fast solver the trace constant is first bounded
+    from its Schur complement (no factorisation); the exact power iteration runs only when
+    that bound cannot show the margin of (2.6) to be positive."""
+    case, law = problem.case, problem.law
+    ks = np.diff(case.time.times)
+    k_max = float(ks.max())
+    vp = case.material.viscoplastic
+    rate = relaxation_rate(law, vp.lambda1) if vp else None
+    indicator = k_max * rate if vp else None
+    fr = case.contact.friction
+    m_E = ellipticity(law)
+    m_j = fr.c1 if fr else 0.0
+    gamma2 = margin = unique = None
+    is_bound = False
+    if fr is not None:
+        bound = trace_constant_bound(problem, solver) if solver is not None else None
+        if bound is not None and m_E - m_j * bound > 0:
+            gamma2, is_bound = bound, True
+        else:
+            gamma2, _ = trace_constant(problem)
+        margin = m_E - max(np.sqrt(3) * 0.0, m_j) * gamma2
+        unique = margin > 0
+    return Diagnostics(case.time.scheme, k_max, rate, indicator, STABILITY_LIMIT,
+                       None if indicator is None else indicator <= STABILITY_LIMIT,
+                       m_E, m_j, 0.0, gamma2, margin, unique, case.time.adaptive is not None,
+                       is_bound)

@@ -1,0 +1,84 @@
+"""Blow-up detection: growth that the model cannot produce stops a run as "diverged".
+
+The exact solution of the model stays within a bound set by the data: the Perzyna law
+relaxes the stress towards the yield set, and every force acting on the body is bounded by
+the loads, the initial state and the contact laws.  An explicit history update beyond its
+stability limit (k r_max > 2, see app/post/diagnostics.py) instead amplifies the overstress by
+up to k r_max - 1 per step, so the norms grow geometrically and would reach 1e55 in a few
+dozen steps while the run still "completes".
+
+``stress_scale`` collects the data's stress levels (no solve needed):
+- the loads and initial data: |f2| on the traction sides, |f0| L (div sigma = -f0),
+  |sigma0| and E |u0| / L, sampled over the body and the time grid when the case was
+  validated (Case.data_stress, app/io/datacheck.py);
+- the contact laws: c_nu g (the normal compliance force at the bound), the memory force
+  b0 T g, the friction bound's constants;
+- the elastic stress of a displacement g over the body, E_max g / L;
+- the initial state as built: max ||sigma_0||_VM, and max kappa_0 for kappa's bound.
+A step is diverged if a value is not finite, or if max ||sigma_n||_VM exceeds
+BLOWUP_FACTOR (L / h) times that scale (L / h allows for stresses concentrated at corners
+and on single contact nodes), or max kappa_n exceeds kappa_0 + 2 T / (3 lambda2) times that
+bound (the growth of kappa under the same overstress).  The factor is generous: a run near
+the explicit limit whose norms stay bounded is never stopped, and a genuinely exploding run
+is stopped after a few steps.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+BLOWUP_FACTOR = 100.0
+
+
+def contact_scale(case, E_max: float, length: float) -> float:
+    """Stress levels of the contact laws: c_nu g, b0 T g, the friction constants, E g / L."""
+    c = case.contact
+    g = c.g if c.g is not None else 0.0
+    values = [E_max * g / length]
+    if c.c_nu is not None:
+        values.append(c.c_nu * (g if c.g is not None else length))
+    if c.memory is not None:
+        b = abs(c.memory.b0 or 0.0)
+        if c.memory.table:
+            b = max(b, float(np.max(np.abs(np.asarray(c.memory.table, dtype=float)[:, 1]))))
+        values.append(b * case.time.T * (g if c.g is not None else length))
+    if c.friction is not None:
+        fr = c.friction
+        values += [abs(fr.b), abs(fr.c1 * fr.u1), abs(fr.c2 * fr.u1)]
+    return max(values)
+
+
+def stress_scale(case, problem) -> float:
+    """The data's stress scale (see the module docstring); collective."""
+    E_max = float(np.max(np.linalg.eigvals(problem.law.Cmat).real))
+    data = max(case.data_stress, contact_scale(case, E_max, problem.length_scale))
+    return max(data if math.isfinite(data) else 0.0, problem.cell_max(problem.sigma_vm))
+
+
+class BlowUpMonitor:
+    """Checks each step record of the time loop (see the module docstring)."""
+
+    def __init__(self, case, problem, kappa0_max: float = 0.0):
+        vp = case.material.viscoplastic
+        self.scale = stress_scale(case, problem)
+        m = case.mesh
+        h = m.h if m.h else problem.length_scale / (m.n or 1)
+        self.bound = BLOWUP_FACTOR * (problem.length_scale / h) * self.scale
+        self.kappa_bound = kappa0_max + (2.0 * case.time.T / (3.0 * vp.lambda2) * self.bound
+                                         if vp else 0.0)
+
+    def check(self, rec: dict) -> str | None:
+        """None if the step is plausible, else what exceeded which bound."""
+        bad = [key for key, v in rec.items() if isinstance(v, float) and not math.isfinite(v)]
+        if bad:
+            return f"non-finite values (NaN/Inf) in {', '.join(bad)}"
+        if self.scale <= 0.0:           # no data at all: the solution is 0, nothing to bound
+            return None
+        if rec["max_vm"] > self.bound:
+            return (f"max ||sigma||_VM = {rec['max_vm']:.3g} exceeds {self.bound:.3g}, "
+                    f"{BLOWUP_FACTOR:g} (L/h) times the data's stress scale {self.scale:.3g}")
+        if rec["max_kappa"] > self.kappa_bound:
+            return (f"max kappa = {rec['max_kappa']:.3g} exceeds {self.kappa_bound:.3g}, the "
+                    "growth the stress bound allows")
+        return None

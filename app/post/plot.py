@@ -1,0 +1,374 @@
+"""Figures of a run, drawn headless with matplotlib (Agg) from the files of a results
+directory: solution.xdmf/.h5 (mesh and fields), contact.csv (Gamma3 table) and summary.json
+(case data and step history).
+
+- fig3_deformed_contact.png: deformed mesh at T (displacement magnified, factor printed) with
+  the interface forces -sigma_nu along Gamma3 as in the paper's Fig. 3; at nodes with
+  u_nu = g the bar shows c_nu g (the paper plots the normal compliance part there);
+- fig4_tangential.png: u_tau and -sigma_tau along Gamma3 with u1 marked (Fig. 4);
+- fig5_vm_kappa.png: ||sigma||_VM and kappa at T with colour bars (Fig. 5);
+- fig2_laws.png: the normal and tangential contact laws of the case (Fig. 2);
+- history.png: norms, max von Mises, max kappa and iterations against time.
+In 3D the field views show the bottom face Gamma3 and the volume clipped at y = L2/2.
+"""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+FIGURES = ("fig3_deformed_contact.png", "fig4_tangential.png", "fig5_vm_kappa.png",
+           "fig2_laws.png", "history.png")
+DPI = 110
+
+
+def _mpl():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+# ----------------------------------------------------------------------------- reading
+class Results:
+    """The data of a results directory needed by the figures."""
+
+    def __init__(self, outdir: Path):
+        self.dir = Path(outdir)
+        self.summary = json.loads((self.dir / "summary.json").read_text())
+        self.case = self.summary.get("case_data", {})
+        self._read_fields()
+        self.contact = self._read_contact()
+
+    def _read_fields(self):
+        import h5py
+        with h5py.File(self.dir / "solution.h5", "r") as f:
+            self.x = f["Mesh/mesh/geometry"][...]
+            self.cells = f["Mesh/mesh/topology"][...].astype(np.int64)
+            self.fields, self.times = {}, {}
+            for name in f["Function"]:
+                keys = list(f["Function"][name])
+                last = max(keys, key=lambda k: float(k.replace("_", ".")))
+                self.fields[name] = f["Function"][name][last][...]
+                self.times[name] = float(last.replace("_", "."))
+        self.dim = self.cells.shape[1] - 1
+        self.gdim = self.dim
+        self.x = self.x[:, :self.dim]
+        self.t = self.times.get("u", 0.0)
+
+    def _read_contact(self):
+        path = self.dir / "contact.csv"
+        if not path.exists():
+            return None
+        rows = list(csv.DictReader(open(path)))
+        if not rows:
+            return None
+        out = {k: np.array([r[k] for r in rows]) for k in rows[0]}
+        for k in out:
+            if k != "state":
+                out[k] = out[k].astype(float)
+        return out
+
+    @property
+    def u(self) -> np.ndarray:
+        return self.fields["u"][:, :self.dim]
+
+    def cell_field(self, name: str) -> np.ndarray | None:
+        v = self.fields.get(name)
+        return None if v is None else v.reshape(len(self.cells), -1)[:, 0]
+
+    def magnification(self) -> float:
+        """Displacement factor (1, 2 or 5 x 10^k) making the largest displacement about 25% of
+        the body size."""
+        size = float(np.ptp(self.x, axis=0).max())
+        umax = float(np.abs(self.u).max())
+        if umax <= 0:
+            return 1.0
+        raw = 0.25 * size / umax
+        return float(10 ** np.floor(np.log10(raw)) * np.array([1, 2, 5])[
+            np.searchsorted([1, 2, 5], raw / 10 ** np.floor(np.log10(raw)), side="right") - 1])
+
+
+# ----------------------------------------------------------------------------- 2D / 3D views
+MAX_DRAWN_CELLS = 8192          # finer 2D meshes are drawn by their outline
+
+
+def _boundary_edges(cells: np.ndarray) -> np.ndarray:
+    """Edges (vertex pairs) of a triangle mesh that belong to one triangle only."""
+    e = np.concatenate([cells[:, [0, 1]], cells[:, [1, 2]], cells[:, [2, 0]]])
+    key = np.sort(e, axis=1)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return e[counts[inv] == 1]
+
+
+def _faces_3d(cells: np.ndarray) -> np.ndarray:
+    """Boundary faces (triangles) of a set of tetrahedra."""
+    f = np.concatenate([cells[:, [0, 1, 2]], cells[:, [0, 1, 3]], cells[:, [0, 2, 3]],
+                        cells[:, [1, 2, 3]]])
+    owner = np.tile(np.arange(len(cells)), 4)
+    key = np.sort(f, axis=1)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    once = counts[inv] == 1
+    return f[once], owner[once]
+
+
+def _bottom_faces(res: Results):
+    """Triangles of the bottom face z = 0 and the cell each belongs to (3D)."""
+    faces, owner = _faces_3d(res.cells)
+    z = res.x[:, 2]
+    on = np.all(np.abs(z[faces]) <= 1e-9 * max(1.0, float(np.ptp(z))), axis=1)
+    return faces[on], owner[on]
+
+
+def _draw_cells(ax, fig, res: Results, values, title, label, factor=0.0, cmap="viridis"):
+    """A cell field on the (deformed) 2D mesh, or on the bottom face and clipped volume (3D)."""
+    X = res.x + factor * res.u
+    if res.dim == 2:
+        tpc = ax.tripcolor(X[:, 0], X[:, 1], res.cells, facecolors=values, cmap=cmap,
+                           shading="flat")
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+    else:
+        faces, owner = _bottom_faces(res)
+        tpc = ax.tripcolor(X[:, 0], X[:, 1], faces, facecolors=values[owner], cmap=cmap,
+                           shading="flat")
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        title += " (bottom face z = 0)"
+    ax.set_title(title, fontsize=10)
+    fig.colorbar(tpc, ax=ax, label=label, shrink=0.85)
+    return tpc
+
+
+def _clipped_volume(fig, pos, res: Results, values, title, label):
+    """3D: boundary faces of the cells with centroid y <= L2/2, coloured by the cell value."""
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+    import matplotlib as mpl
+    ax = fig.add_subplot(pos, projection="3d")
+    centroid_y = res.x[res.cells][:, :, 1].mean(axis=1)
+    keep = centroid_y <= 0.5 * (res.x[:, 1].min() + res.x[:, 1].max())
+    faces, owner = _faces_3d(res.cells[keep])
+    vals = values[keep][owner]
+    norm = mpl.colors.Normalize(vals.min(), vals.max() if vals.max() > vals.min() else
+                                vals.min() + 1)
+    cmap = mpl.cm.viridis
+    poly = Poly3DCollection(res.x[faces], facecolors=cmap(norm(vals)), edgecolor="none")
+    ax.add_collection3d(poly)
+    lo, hi = res.x.min(axis=0), res.x.max(axis=0)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ax.set_title(title + " (clipped at y = L2/2)", fontsize=10)
+    fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, label=label, shrink=0.6)
+
+
+def _save(plt, fig, path: Path, title: str | None = None) -> None:
+    """Title, tight layout, write the PNG, free the figure."""
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+# ----------------------------------------------------------------------------- figures
+def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None) -> float:
+    """Deformed mesh at T with the contact forces along Gamma3; returns the factor used."""
+    plt = _mpl()
+    factor = res.magnification() if factor is None else factor
+    fig, ax = plt.subplots(figsize=(7.5, 6.5))
+    X = res.x + factor * res.u
+    if res.dim == 2 and len(res.cells) > MAX_DRAWN_CELLS:
+        # a fine mesh would be a solid block of lines: the outlines, the body shaded
+        edges = _boundary_edges(res.cells)
+        ax.tripcolor(X[:, 0], X[:, 1], res.cells, facecolors=np.zeros(len(res.cells)),
+                     cmap="Blues", vmin=-1, vmax=3, shading="flat")
+        for P, colour in ((res.x, "0.6"), (X, "tab:blue")):
+            ax.plot(P[edges].transpose(1, 0, 2)[..., 0], P[edges].transpose(1, 0, 2)[..., 1],
+                    color=colour, lw=0.8)
+    elif res.dim == 2:
+        ax.triplot(res.x[:, 0], res.x[:, 1], res.cells, color="0.85", lw=0.4)
+        ax.triplot(X[:, 0], X[:, 1], res.cells, color="tab:blue", lw=0.5)
+    else:
+        faces, _ = _bottom_faces(res)
+        ax.triplot(res.x[:, 0], res.x[:, 1], faces, color="0.85", lw=0.4)
+        ax.triplot(X[:, 0], X[:, 1], faces, color="tab:blue", lw=0.5)
+    c = res.contact
+    if c is not None and res.dim == 2:
+        c_nu = (res.case.get("contact", {}).get("normal_compliance") or {}).get("c_nu")
+        g = res.case.get("contact", {}).get("g")
+        force = c["neg_sigma_nu"].copy()
+        bound = c["state"] == "bound"
+        if c_nu is not None and g is not None:
+            force[bound] = c_nu * g              # the paper's Fig. 3 convention
+        scale = 0.15 * float(np.ptp(res.x[:, 1])) / max(np.abs(force).max(), 1e-300)
+        xb = c["x"] + factor * c["u_x"]
+        yb = c["y"] + factor * c["u_y"]
+        for state, colour in (("bound", "tab:red"), ("compliance", "tab:green"),
+                              ("separated", "0.5")):
+            m = c["state"] == state
+            if m.any():
+                ax.vlines(xb[m], yb[m] - scale * force[m], yb[m], colors=colour, lw=2,
+                          label=f"-sigma_nu, {state} ({int(m.sum())} nodes)")
+        ax.legend(loc="upper right", fontsize=8)
+        ax.set_ylim(min(yb.min() - scale * max(force.max(), 0) - 0.05, -0.3), None)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]" if res.dim == 2 else "y [m] (bottom face z = 0)")
+    ax.set_title(f"Deformed configuration at t = {res.t:g} (displacement x {factor:g}); "
+                 "contact forces on Gamma3", fontsize=10)
+    _save(plt, fig, path)
+    return factor
+
+
+def fig4_tangential(res: Results, path: Path) -> None:
+    plt = _mpl()
+    fig, axes = plt.subplots(2, 1, figsize=(7.5, 6.5), sharex=True)
+    c = res.contact
+    u1 = (res.case.get("contact", {}).get("friction") or {}).get("u1")
+    if c is None:
+        axes[0].text(0.5, 0.5, "no contact boundary in this case", ha="center")
+    else:
+        key = "u_tau" if "u_tau" in c else "u_tau1"
+        skey = "neg_sigma_tau" if "neg_sigma_tau" in c else "neg_sigma_tau1"
+        order = np.argsort(c["x"])
+        x = c["x"][order]
+        axes[0].plot(x, c[key][order], "o-", ms=3, label="u_tau . tau")
+        if u1:
+            for s in (-u1, u1):
+                axes[0].axhline(s, color="tab:red", ls="--", lw=1)
+            axes[0].text(x.min(), -u1, " -u1", color="tab:red", va="bottom", fontsize=8)
+        axes[0].set_ylabel("u_tau . tau [m]")
+        axes[0].legend(fontsize=8)
+        axes[1].plot(x, c[skey][order], "o-", ms=3, color="tab:orange",
+                     label="-sigma_tau . tau")
+        axes[1].set_ylabel("-sigma_tau . tau [N/m^2]")
+        axes[1].legend(fontsize=8)
+        if res.dim == 3:
+            axes[0].set_title("3D: first tangential component, all Gamma3 nodes", fontsize=9)
+    axes[1].set_xlabel("x on Gamma3 [m]")
+    _save(plt, fig, path,
+          f"Tangential displacement and friction stress along Gamma3 at t = {res.t:g}")
+
+
+def fig5_vm_kappa(res: Results, path: Path) -> None:
+    plt = _mpl()
+    vm, kappa = res.cell_field("sigma_vm"), res.cell_field("kappa")
+    panels = [(vm, "||sigma||_VM", "von Mises stress [N/m^2]")]
+    if kappa is not None:
+        panels.append((kappa, "kappa", "kappa [N/m^2]"))
+    if res.dim == 2:
+        fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 5))
+        for ax, (v, title, label) in zip(np.atleast_1d(axes), panels):
+            _draw_cells(ax, fig, res, v, f"{title} at t = {res.t:g}", label)
+    else:
+        fig = plt.figure(figsize=(6 * len(panels), 10))
+        for i, (v, title, label) in enumerate(panels):
+            ax = fig.add_subplot(2, len(panels), i + 1)
+            _draw_cells(ax, fig, res, v, f"{title} at t = {res.t:g}", label)
+            _clipped_volume(fig, int(f"2{len(panels)}{len(panels) + i + 1}"), res, v, title,
+                            label)
+    _save(plt, fig, path)
+
+
+def normal_law(c_nu, g, r):
+    """-sigma_nu = p(u_nu) = c_nu u_nu^+ for u_nu < g (Fig. 2a; at u_nu = g any value above)."""
+    return (c_nu or 0.0) * np.maximum(r, 0.0)
+
+
+def tangential_law(fr, rho):
+    """|sigma_tau| = psi'(|u_tau|) of law (4.2) for |u_tau| > 0 (Fig. 2b)."""
+    b, c1, c2, u1 = fr["b"], fr["c1"], fr["c2"], fr["u1"]
+    return np.where(rho <= u1, b - c1 * rho, c2 * (rho - u1) + b - c1 * u1)
+
+
+def fig2_laws(res: Results, path: Path) -> None:
+    plt = _mpl()
+    contact = res.case.get("contact") or {}
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+    g = contact.get("g")
+    c_nu = (contact.get("normal_compliance") or {}).get("c_nu")
+    ax = axes[0]
+    if g is not None or c_nu is not None:
+        top = g if g is not None else 0.02
+        r = np.linspace(-0.5 * top, top, 200)
+        ax.plot(r, normal_law(c_nu, g, r), color="tab:blue", label="p(u_nu) = c_nu u_nu^+")
+        if g is not None:
+            pg = normal_law(c_nu, g, np.array([g]))[0]
+            ax.vlines(g, pg, pg + max(pg, 1.0), color="tab:red",
+                      label="u_nu = g: -sigma_nu >= c_nu g (unilateral)")
+            ax.axvline(g, color="tab:red", ls=":", lw=0.8)
+        ax.legend(fontsize=8)
+    else:
+        ax.text(0.5, 0.5, "no normal contact law", ha="center", transform=ax.transAxes)
+    ax.set_xlabel("u_nu [m]")
+    ax.set_ylabel("-sigma_nu [N/m^2]")
+    ax.set_title("normal law (4.1)", fontsize=10)
+    fr = contact.get("friction")
+    ax = axes[1]
+    if fr:
+        rho = np.linspace(0, 3 * fr["u1"], 300)[1:]
+        ax.plot(rho, tangential_law(fr, rho), color="tab:blue", label="psi'(|u_tau|)")
+        ax.vlines(0, 0, fr["b"], color="tab:blue", lw=3, label="|u_tau| = 0: [0, b] (stick)")
+        ax.axvline(fr["u1"], color="tab:red", ls="--", lw=1)
+        ax.text(fr["u1"], 0, " u1", color="tab:red", va="bottom")
+        ax.legend(fontsize=8)
+        ax.set_ylim(bottom=0)
+    else:
+        ax.text(0.5, 0.5, "frictionless", ha="center", transform=ax.transAxes)
+    ax.set_xlabel("|u_tau| [m]")
+    ax.set_ylabel("|sigma_tau| [N/m^2]")
+    ax.set_title("nonmonotone friction law (4.2)", fontsize=10)
+    _save(plt, fig, path, f"Contact laws of case {res.summary.get('case')} (the paper's Fig. 2)")
+
+
+def history(res: Results, path: Path) -> None:
+    plt = _mpl()
+    steps = res.summary.get("steps", [])
+    t = np.array([s["t"] for s in steps])
+    fig, axes = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
+
+    def col(k):
+        return np.array([s[k] for s in steps])
+    if len(t):
+        ax = axes[0, 0]
+        ax.plot(t, col("norm_u_V"), "o-", ms=2, label="||u||_V")
+        ax.set_ylabel("||u||_V")
+        ax2 = ax.twinx()
+        ax2.plot(t, col("norm_sigma_Q"), "s-", ms=2, color="tab:orange", label="||sigma||_Q")
+        ax2.set_ylabel("||sigma||_Q")
+        ax.set_title("norms", fontsize=10)
+        axes[0, 1].plot(t, col("max_vm"), "o-", ms=2)
+        axes[0, 1].set_title("max ||sigma||_VM", fontsize=10)
+        axes[1, 0].plot(t, col("max_kappa"), "o-", ms=2, color="tab:green")
+        axes[1, 0].set_title("max kappa", fontsize=10)
+        axes[1, 1].bar(t, col("newton_iterations"), width=0.8 * (t[1] - t[0]) if len(t) > 1
+                       else 0.1, color="tab:purple")
+        axes[1, 1].set_title("Newton / Gamma3 iterations per step", fontsize=10)
+    for ax in axes[1]:
+        ax.set_xlabel("t [s]")
+    _save(plt, fig, path, f"History of run {res.summary.get('case')} "
+                          f"({res.summary.get('status')})")
+
+
+def plot_all(outdir: Path, log=None) -> list[Path]:
+    """Write every figure into ``outdir`` (atomically: temporary file, then rename)."""
+    import os
+    res = Results(outdir)
+    written = []
+    for name, fn in (("fig3_deformed_contact.png", fig3_deformed_contact),
+                     ("fig4_tangential.png", fig4_tangential),
+                     ("fig5_vm_kappa.png", fig5_vm_kappa),
+                     ("fig2_laws.png", fig2_laws), ("history.png", history)):
+        path = Path(outdir) / name
+        tmp = path.with_name(f".{name}.tmp.png")
+        out = fn(res, tmp)
+        os.replace(tmp, path)
+        written.append(path)
+        if log and name.startswith("fig3"):
+            log(f"{name}: displacement magnified x {out:g}")
+    return written

@@ -1,0 +1,414 @@
+"""Fast step solver: one factorisation of the elasticity matrix per run, and per
+step only back-substitutions plus a small problem on the Gamma3 dofs.
+
+With the nodal (vertex) Gamma3 rule every boundary term is a sum of nodal energies, so the
+step problem (3.4) reads: find u minimising 1/2 u^T K u - F_n^T u + sum_i w_i phi_i(u_i) with
+u_nu,i <= g, where K is the (constant) elasticity matrix, F_n = f_n - B^T H_n the step's
+right-hand side and phi_i the nodal contact energy (normal compliance, memory, friction with
+the same regularisation delta as the SNES path).  Condensing onto the Gamma3 dofs G
+(Z = K^-1 E_G once, S = (Z_GG)^-1 the Schur complement) leaves per step
+    min_y  1/2 (y - y0)^T S (y - y0) + sum_i w_i phi_i(y_i),  y0 = (K^-1 F_n)_G,  y_nu <= g,
+which is solved redundantly on every rank by a projected Newton method with an Armijo line
+search on this (convex under (2.6)) energy, started from the previous step's Gamma3 values;
+then u = K^-1 (F_n + E_G lambda) with the Gamma3 forces lambda = S (y - y0).  Both paths solve
+the same discrete problem.
+
+Serial runs factorise K once, the Gamma3 dofs ordered last: K = L D L^T by CHOLMOD
+(schur.GLastLDL; SuperLU's L U where CHOLMOD is missing).  The trailing blocks give
+S = L_GG D_G L_GG^T, and a step is one forward sweep (which yields y0), the Gamma3 problem,
+and one backward sweep with u_G = y (kernels.GLastSolve: L in d x d node blocks, compiled):
+at h = 1/128 about 6 ms per step against 9.4-12 ms for the two PETSc back-substitutions
+u_free = K^-1 F_n, u = K^-1 (F_n + E_G lambda) of the general path.  That general path
+serves mpirun (MUMPS, distributed interior solves; Z_GG from a G-last factorisation of the
+matrix gathered on rank 0: two factorisations, counted), runs without a C compiler,
+and runs when PETSc options for the fast solver are given
+(-vpcontact_fast_pc_factor_mat_solver_type ...).
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from forms.elasticity import elasticity_operator, eps
+
+from app.io.case import fast_eligible
+from app.solvers import dense
+from app.solvers import kernels
+from app.solvers.schur import GLastLDL, flexibility, g_last_factor, gamma3_flexibility, gather_csr
+from app.solvers.snesvi import StepFailure
+
+log = logging.getLogger("vpcontact")
+
+
+eligible = fast_eligible
+
+
+class NodalContact:
+    """Energy, gradient and Hessian of sum_i w_i phi_i(y_i) (vectorised over nodes)."""
+
+    def __init__(self, w, normal, c_nu, friction, delta, module=None):
+        self.w, self.nu = np.ascontiguousarray(w, dtype=float), np.asarray(normal, dtype=float)
+        self.c = 0.0 if c_nu is None else c_nu
+        self.fr, self.delta = friction, delta
+        self.xi = None
+        self.theta = None
+        self.mod = module                 # kernels.nodal_contact, or None: numpy
+        if module is not None:
+            n, d = len(self.w), len(self.nu)
+            self._grad, self._hess = np.empty((n, d)), np.empty((n, d, d))
+
+    def _psi(self, rho):
+        b, c1, c2, u1 = self.fr
+        low = rho <= u1
+        psi = np.where(low, b * rho - 0.5 * c1 * rho**2,
+                       0.5 * c2 * (rho - u1) ** 2 + (b - c1 * u1) * (rho - u1) + b * u1
+                       - 0.5 * c1 * u1**2)
+        d1 = np.where(low, b - c1 * rho, c2 * (rho - u1) + b - c1 * u1)
+        d2 = np.where(low, -c1, c2)
+        return psi, d1, d2
+
+    def evaluate(self, y, need_hessian=True):
+        """y (n, d) -> energy, gradient (n, d), Hessian blocks (n, d, d).  The compiled
+        kernel returns views of work arrays that the next call overwrites."""
+        if self.mod is not None:
+            return self._evaluate_compiled(np.ascontiguousarray(y, dtype=float), need_hessian)
+        return self._evaluate_numpy(y, need_hessian)
+
+    def _evaluate_compiled(self, y, need_hessian):
+        ffi = self.mod.ffi
+
+        def ptr(a):
+            return kernels.buf(ffi, None if a is None else np.ascontiguousarray(a, dtype=float))
+        b, c1, c2, u1 = self.fr if self.fr is not None else (0.0, 0.0, 0.0, 0.0)
+        e = self.mod.lib.nodal_contact(
+            y.shape[0], y.shape[1], ptr(y), ptr(self.nu), self.c, ptr(self.xi),
+            ptr(self.theta), int(self.fr is not None), b, c1, c2, u1, self.delta,
+            ptr(self.w), ptr(self._grad), ptr(self._hess if need_hessian else None))
+        return e, self._grad, (self._hess if need_hessian else None)
+
+    def _evaluate_numpy(self, y, need_hessian=True):
+        nu, d, w = self.nu, y.shape[1], self.w
+        r = y @ nu
+        rp = np.maximum(r, 0.0)
+        energy = 0.5 * self.c * rp**2
+        dr = self.c * rp
+        hr = self.c * (r > 0)
+        if self.xi is not None:
+            sq = np.sqrt(r**2 + self.delta**2)
+            energy = energy + self.xi * 0.5 * (r + sq)
+            dr = dr + self.xi * 0.5 * (1 + r / sq)
+            hr = hr + self.xi * 0.5 * self.delta**2 / sq**3
+        grad = dr[:, None] * nu[None, :]
+        H = hr[:, None, None] * np.outer(nu, nu)[None] if need_hessian else None
+        if self.fr is not None:
+            tau = y - r[:, None] * nu[None, :]
+            rho = np.sqrt(np.sum(tau**2, axis=1) + self.delta**2)
+            psi, d1, d2 = self._psi(rho)
+            th = self.theta if self.theta is not None else 1.0
+            energy = energy + th * psi
+            grad = grad + (th * d1 / rho)[:, None] * tau
+            if need_hessian:
+                P = np.eye(d) - np.outer(nu, nu)
+                tt = np.einsum("ni,nj->nij", tau, tau)
+                H = H + (th * (d2 / rho**2 - d1 / rho**3))[:, None, None] * tt \
+                    + (th * d1 / rho)[:, None, None] * P[None]
+        return np.sum(w * energy), w[:, None] * grad, \
+            (w[:, None, None] * H if need_hessian else None)
+
+
+class FastStepSolver:
+    """Drop-in replacement of SNESVISolver for eligible cases (explicit, nodal Gamma3 rule)."""
+
+    def __init__(self, problem, options: dict | None = None, rtol: float = 1e-13):
+        self.problem = problem
+        self.u = problem.u
+        self.comm = problem.comm
+        self.continuation_stages, self.fallback, self.sticky_robust = 0, None, False
+        self.factorisations = 0
+        self.rtol = rtol
+        self.options = options or {}
+        self._snes = None
+        case, V, d = problem.case, problem.V, problem.dim
+        self.d = d
+        C = elasticity_operator(problem.constants["E"], problem.constants["nu"], d)
+        du, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+        serial = self.comm.size == 1
+        a = fem.form(ufl.inner(C(eps(du)), eps(v)) * ufl.dx)
+        # serial: d x d blocks (BAIJ), the fastest PETSc back-substitution
+        K = fem.petsc.create_matrix(a, "baij" if serial else None)
+        fem.petsc.assemble_matrix(K, a, bcs=problem.bcs)
+        K.assemble()
+        self.K = K
+        self.ksp, self._split = None, None
+        # the step's right-hand side F_n = f_n - B^T H_n (the bulk residual at u = 0): the
+        # loads by assembly, the pre-stress by B^T = the transposed cell-strain operator
+        self.loads_form = fem.form(problem.forms.loads) if problem.forms.loads is not None \
+            else None
+        self._loads = fem.petsc.create_vector(self.loads_form) if self.loads_form else None
+        self.b, self.x = K.createVecRight(), K.createVecRight()
+        self._y_prev = []               # (t, y) of the last two steps (_start)
+        self._setup_gamma3()
+        if not self.gamma3:
+            self._factorise(np.zeros(0, dtype=np.int32))
+
+    def _factorise(self, G_rows: np.ndarray) -> np.ndarray | None:
+        """Factorise K once; returns Z_GG = E_G^T K^-1 E_G (None without Gamma3 dofs).
+
+        Serial, with the compiled sweeps (kernels.py): one factorisation with the Gamma3
+        dofs last (CHOLMOD L D L^T, else SuperLU L U) gives Z_GG (its trailing blocks) and
+        every step's solve, one forward and one backward sweep with the Gamma3 problem in
+        between (kernels.GLastSolve).  Otherwise (mpirun, no C compiler, or PETSc options
+        for the fast solver given): PETSc's direct solver for the steps (MUMPS in parallel:
+        the interior solves are distributed) and Z_GG from a G-last factorisation of the
+        gathered matrix on rank 0 -- two factorisations per run, counted as such."""
+        from app.solvers.snesvi import PREFIX, clear_petsc_options, direct_solver, set_petsc_options
+        petsc_options = any(str(k).startswith("fast_") for k in self.options)
+        module = kernels.load() if self.comm.size == 1 and not petsc_options else None
+        if module is not None:
+            factor = g_last_factor(gather_csr(self.K, self.comm), G_rows, self.d)
+            self._split = kernels.GLastSolve(factor, module, self.d)
+            self.factorisations = 1
+            log.info("  fast solver: one %s factorisation (Gamma3 last), compiled sweeps",
+                     "CHOLMOD L D L^T" if isinstance(factor, GLastLDL) else "SuperLU L U")
+            return flexibility(factor) if len(G_rows) else None
+        self.ksp = direct_solver(self.K, self.comm, PREFIX + "fast_")
+        set_petsc_options(self.options, PREFIX)      # user options, e.g. -fast_ksp_view
+        try:
+            self.ksp.setFromOptions()
+        finally:
+            clear_petsc_options(self.options, PREFIX)
+        self.ksp.setUp()
+        self.factorisations = 1
+        log.info("  fast solver: PETSc %s for the steps%s",
+                 self.ksp.getPC().getFactorSolverType() or "LU",
+                 ", a G-last factorisation on rank 0 for Z_GG" if len(G_rows) else "")
+        if not len(G_rows):
+            return None
+        self.factorisations += 1
+        return gamma3_flexibility(self.K, G_rows, self.comm)
+
+    # ------------------------------------------------------------------ Gamma3 condensation
+    def _setup_gamma3(self):
+        p, d = self.problem, self.d
+        self.gamma3 = p.gamma3 is not None
+        if not self.gamma3:
+            return
+        imap = p.V.dofmap.index_map
+        owned_nodes = p.gamma3.nodes
+        glob_nodes = imap.local_to_global(owned_nodes.astype(np.int32))
+        parts = self.comm.allgather((glob_nodes, p.gamma3.weight))
+        gn = np.concatenate([a for a, _ in parts])
+        w = np.concatenate([b for _, b in parts])
+        order = np.argsort(gn)
+        self.g_nodes, self.w = gn[order], w[order]
+        self._gather_perm = order
+        self.m = d * len(self.g_nodes)
+        # positions in G of the owned Gamma3 nodes, and their dofs in the local vector
+        self.local_owned_g = np.searchsorted(self.g_nodes, glob_nodes)   # positions in G
+        self.owned_dofs_local = (owned_nodes[:, None] * d + np.arange(d)).ravel()
+        self._owned_positions = (self.local_owned_g[:, None] * d + np.arange(d)).ravel()
+        # Z_GG = E_G^T K^-1 E_G (m x m) from the trailing blocks of one G-last LU (schur.py)
+        start = self.K.getOwnershipRange()[0]
+        self._owned_rows = start + self.owned_dofs_local          # global rows of owned G dofs
+        Z = self._factorise(self.global_G_dofs())
+        self.Z = Z
+        self.S = np.linalg.inv(Z)
+        self.S = 0.5 * (self.S + self.S.T)
+        self._direction = dense.NewtonDirection(self.S, d, dense.load())
+        c = p.case.contact
+        fr = c.friction
+        self.contact = NodalContact(self.w, p.normal, c.c_nu,
+                                    None if fr is None else (fr.b, fr.c1, fr.c2, fr.u1),
+                                    p.case.numerics.delta, kernels.load())
+        comp = int(np.argmax(np.abs(p.normal)))
+        self.lb = np.full((len(self.g_nodes), d), -np.inf)
+        self.ub = np.full((len(self.g_nodes), d), np.inf)
+        if c.g is not None:
+            if p.normal[comp] > 0:
+                self.ub[:, comp] = c.g
+            else:
+                self.lb[:, comp] = -c.g
+
+    def _place_on_all(self, positions, values, shape, dtype=float) -> np.ndarray:
+        """The array of ``shape`` whose entries at every rank's ``positions`` are that rank's
+        ``values``, assembled on every rank (collective)."""
+        out = np.empty(shape, dtype=dtype)
+        for pos, vals in self.comm.allgather((positions, values)):
+            out[pos] = vals
+        return out
+
+    def gather_GG(self, local_rows: np.ndarray) -> np.ndarray:
+        """The m x m matrix (columns in G order) whose rows at this rank's owned Gamma3
+        positions are ``local_rows``, assembled on every rank."""
+        return self._place_on_all(self._owned_positions, local_rows, (self.m, self.m))
+
+    def global_G_dofs(self) -> np.ndarray:
+        """The global dof (matrix row) of every Gamma3 dof, in G order, on every rank."""
+        return self._place_on_all(self._owned_positions, self._owned_rows, self.m, np.int32)
+
+    def _gather_G(self, vec) -> np.ndarray:
+        """Values of a PETSc vector at the Gamma3 dofs, in G order, on every rank."""
+        return self._place_on_all(self._owned_positions, vec.array_r[self.owned_dofs_local],
+                                  self.m)
+
+    def _gather_nodal(self, field) -> np.ndarray:
+        """A Gamma3 NodalField's values at the owned nodes, in G order, on every rank."""
+        pos = np.searchsorted(self.problem.gamma3_local_nodes, self.problem.gamma3.nodes)
+        return self._place_on_all(self.local_owned_g, field.function.x.array[field.dofs[pos]],
+                                  len(self.g_nodes))
+
+    # ------------------------------------------------------------------ the step
+    def _assemble_rhs(self):
+        """b = F_n = f_n - B^T H_n (zero at the clamped dofs)."""
+        p = self.problem
+        self.b.set(0.0)
+        if self._loads is not None:
+            with self._loads.localForm() as bl:   # ghosted: dolfinx assembles the local form
+                bl.set(0.0)
+            fem.petsc.assemble_vector(self._loads, self.loads_form)
+            self._loads.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            self.b.array[:] = self._loads.array_r
+        if p.H is not None:
+            p.strain_operator.pre_stress_load(p.H, self.b)        # b -= B^T H_n
+        fem.petsc.set_bc(self.b, p.bcs, scale=0.0)
+
+    def _small_problem(self, y0: np.ndarray) -> tuple[np.ndarray, int]:
+        """Projected Newton for min 1/2 (y-y0)^T S (y-y0) + sum w phi(y_i), lb <= y <= ub."""
+        S, d = self.S, self.d
+        lb, ub = self.lb.ravel(), self.ub.ravel()
+        y = np.clip(self._start(y0), lb, ub)
+        scale = max(np.abs(S @ y0).max(), np.abs(self.w).max(), 1e-300)
+
+        def energy_grad(yv, hess=True):
+            e, g, H = self.contact.evaluate(yv.reshape(-1, d), hess)
+            dy = yv - y0
+            Sdy = S @ dy
+            return 0.5 * dy @ Sdy + e, Sdy + g.ravel(), H
+
+        E, g, Hn = energy_grad(y)
+        lo, hi = lb + 1e-14 * scale, ub - 1e-14 * scale
+        for it in range(1, 200):
+            binding = ((y <= lo) & (g > 0)) | ((y >= hi) & (g < 0))
+            pg = np.where(binding, 0.0, g)
+            if np.abs(pg).max() <= self.rtol * scale:
+                self._remember(y)
+                return y, it - 1
+            p = self._direction(Hn, g, binding)
+            if p is None:                 # not positive definite here: LU, else -pg
+                H = self._direction.matrix(Hn)
+                f = np.flatnonzero(~binding)
+                p = np.zeros_like(y)
+                try:
+                    p[f] = np.linalg.solve(H[np.ix_(f, f)], -g[f])
+                except np.linalg.LinAlgError:
+                    p[f] = -g[f]
+            if pg @ p >= 0:               # not a descent direction: steepest descent
+                p = -pg
+            alpha = 1.0
+            for _ in range(60):
+                yt = np.minimum(np.maximum(y + alpha * p, lb), ub)
+                Et, gt, Ht = energy_grad(yt)
+                # Armijo, or a step so small that the energy cannot resolve it any more.
+                # (Accepting steps up to the round-off of E instead let the iteration zig-zag
+                # at h = 1/256: 670 iterations against 278 for 32 steps; measured.)
+                if Et <= E + 1e-4 * g @ (yt - y) or np.abs(yt - y).max() <= 1e-16 * scale:
+                    break
+                alpha *= 0.5
+            y, E, g, Hn = yt, Et, gt, Ht
+        if np.abs(pg).max() <= 1e-9 * scale:   # converged to round-off, not to rtol
+            self._remember(y)
+            return y, it
+        raise StepFailure("fast solver: the Gamma3 problem did not converge in 200 iterations")
+
+    def _start(self, y0: np.ndarray) -> np.ndarray:
+        """The Gamma3 iteration's start: the linear extrapolation in time of the last two
+        steps' solutions (the step problems change smoothly: 276 Newton iterations against
+        351 from the last solution alone at h = k = 1/128, measured), the last solution
+        after one step or a restart, y0 (the free solution) at the first step."""
+        t = float(self.problem.time_data.t.value)
+        if len(self._y_prev) == 2:
+            (t0, y_0), (t1, y_1) = self._y_prev
+            if t0 is not None and t > t1 > t0:
+                return y_1 + (t - t1) / (t1 - t0) * (y_1 - y_0)
+        return self._y_prev[-1][1].copy() if self._y_prev else y0.copy()
+
+    def _remember(self, y: np.ndarray) -> None:
+        """Keep this step's Gamma3 solution (and its time) for the next start."""
+        t = float(self.problem.time_data.t.value)
+        self._y_prev = [*self._y_prev[-1:], (t, y)]
+
+    def warm_start(self) -> None:
+        """Start the next Gamma3 problem from the current u (after a restart)."""
+        if self.gamma3:
+            self._y_prev = [(None, self._gather_G(self.u.vector))]
+
+    def solve(self) -> int:
+        """One step.  If the Gamma3 problem fails (the projected Newton iteration can zig-zag
+        when nodes sit at nearly nonsmooth points), this step is solved by SNES VI instead
+        (the same discrete problem; ``self.fallback`` = "snes_vi")."""
+        self.fallback = None
+        try:
+            return self._solve_fast()
+        except StepFailure as exc:
+            if self._snes is None:
+                from app.solvers.snesvi import SNESVISolver
+                self._snes = SNESVISolver(self.problem, self.options)
+            log.warning("  fast solver: %s; solving this step with SNES VI", exc)
+            its = self._snes.solve()
+            self.fallback = "snes_vi"
+            return its
+
+    def _gamma3_inputs(self) -> None:
+        """The step's memory term xi_n and slip factor theta(s_n) at the Gamma3 nodes."""
+        p = self.problem
+        if p.xi is not None:
+            self.contact.xi = self._gather_nodal(p.xi)
+        if p.theta is not None:
+            self.contact.theta = self._gather_nodal(p.theta)
+
+    def _solve_split(self) -> int:
+        """Serial step with the compiled sweeps: u = K^-1 (F_n + E_G lambda) in one solve."""
+        self._assemble_rhs()
+        r = self._split.forward(self.b.array_r)       # r = F_G - K_GI K_II^-1 F_I
+        its, y = 0, np.zeros(0)
+        if self.gamma3:
+            self._gamma3_inputs()
+            y, its = self._small_problem(self.Z @ r)  # y0 = S^-1 r: the Gamma3 values if free
+        self._split.backward(y, self.x.array)
+        self._set_u()
+        return its
+
+    def _set_u(self) -> None:
+        """u = x, unless x is not finite anywhere (then StepFailure on every rank)."""
+        if self.comm.allreduce(not np.all(np.isfinite(self.x.array_r)), op=MPI.LOR):
+            raise StepFailure("fast solver: non-finite solution")
+        self.u.vector.array[:self.x.getLocalSize()] = self.x.array_r
+        self.u.x.scatter_forward()
+
+    def _solve_fast(self) -> int:
+        if self._split is not None:
+            return self._solve_split()
+        self._assemble_rhs()
+        self.ksp.solve(self.b, self.x)               # u_free = K^-1 F_n
+        its = 0
+        if self.gamma3:
+            y0 = self._gather_G(self.x)
+            self._gamma3_inputs()
+            y, its = self._small_problem(y0)
+            lam = self.S @ (y - y0)                   # Gamma3 forces
+            self.b.array[self.owned_dofs_local] += lam[self._owned_positions]
+            self.ksp.solve(self.b, self.x)           # u = K^-1 (F_n + E_G lambda)
+        self._set_u()
+        return its
+
+    def destroy(self):
+        for obj in (self.K, self.ksp, self.b, self.x, self._loads):
+            if obj is not None:
+                obj.destroy()
+        if self._snes is not None:
+            self._snes.destroy()

@@ -1,0 +1,253 @@
+"""Step solver: PETSc SNES vinewtonrsls for the discrete inequality (3.4) on U^h.
+
+Bounds only on the normal dofs of Gamma3 nodes; Dirichlet dofs of Gamma1 are imposed in the
+residual and Jacobian (set_bc / diagonal 1).  Direct LU (MUMPS) by default.  Options are read
+from the PETSc options database under our prefix, so every PETSc option works.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from dolfinx import fem
+from petsc4py import PETSc
+
+PREFIX = "vpcontact_"
+log = logging.getLogger("vpcontact")
+
+_REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
+
+
+class StepFailure(RuntimeError):
+    """A step solve failed; carries the SNES converged reason."""
+
+    def __init__(self, message: str, reason: int | None = None):
+        super().__init__(message)
+        self.reason = reason
+
+
+def describe_petsc_error(exc: Exception) -> str:
+    """One line for a PETSc error: petsc4py's text is 'error code N', PETSc's stack of
+    calls ('[0] SNESSolve() at file:line', ...) and the message; keep the code and the
+    message."""
+    lines = [x.strip() for x in str(exc).splitlines() if x.strip()]
+    message = [x for x in lines[1:] if not (x.startswith("[") and "() at " in x)]
+    message = [x.split("] ", 1)[1] if x.startswith("[") and "] " in x else x for x in message]
+    return "; ".join(([f"PETSc {lines[0]}"] if lines else []) + message)
+
+
+def reason_name(reason: int) -> str:
+    return _REASONS.get(reason, str(reason))
+
+
+def set_petsc_options(options: dict, prefix: str = PREFIX) -> None:
+    """Put ``options`` (name without '-' -> value) into the PETSc database under ``prefix``."""
+    db = PETSc.Options()
+    for key, value in options.items():
+        if value is None or value is True:
+            db.setValue(prefix + key, "")
+        elif value is False:
+            db.setValue(prefix + key, "false")
+        else:
+            db.setValue(prefix + key, str(value))
+
+
+def clear_petsc_options(options: dict, prefix: str = PREFIX) -> None:
+    db = PETSc.Options()
+    for key in options:
+        db.delValue(prefix + key)
+
+
+def direct_solver(A: PETSc.Mat, comm, prefix: str | None = None) -> PETSc.KSP:
+    """A KSP applying A^-1 by LU: PETSc's own LU with nested dissection in serial (the
+    fastest back-substitution measured here), MUMPS in parallel.  Options under
+    ``prefix`` (e.g. -vpcontact_fast_pc_factor_mat_solver_type mumps) are read by the caller's
+    setFromOptions."""
+    ksp = PETSc.KSP().create(comm)
+    if prefix:
+        ksp.setOptionsPrefix(prefix)
+    ksp.setOperators(A)
+    ksp.setType("preonly")
+    pc = ksp.getPC()
+    pc.setType("lu")
+    if comm.size == 1:
+        pc.setFactorSolverType("petsc")
+        pc.setFactorOrdering("nd")
+    else:
+        pc.setFactorSolverType("mumps")
+    return ksp
+
+
+def continuation_deltas(target: float, length: float) -> list[float]:
+    """delta_0 = 1e-4 length (at least the target), then /10 per stage, ending at target."""
+    start = max(target, 1e-4 * length)
+    n = int(np.ceil(np.log10(start / target) - 1e-9))
+    return [target * 10.0 ** k for k in range(n, 0, -1)] + [target] if n > 0 else [target]
+
+
+class SNESVISolver:
+    """Solves one step: u_n = argmin J_n over U^h, starting from the current ``problem.u``.
+
+    A second SNES with a backtracking line search (other options as given) is the fallback when
+    the first fails: full Newton steps can cycle between two iterates when a node crosses a
+    nearly nonsmooth point (u_nu = 0 with a memory force, |u_tau| = 0 with friction)."""
+
+    ROBUST = {"snes_linesearch_type": "bt"}
+
+    def __init__(self, problem, options: dict, prefix: str = PREFIX):
+        self.problem = problem
+        self.u = problem.u
+        self.b = fem.petsc.create_vector(problem.F_form)
+        self.A = fem.petsc.create_matrix(problem.J_form)
+        self._setup_jacobian_reuse(problem)
+        self.x = self.u.vector.copy()
+        self.options, self.prefix = options, prefix
+        self.snes = self._create(options)
+        self._robust = None
+        self.continuation_stages = 0
+        self.fallback = None
+        self.sticky_robust = False
+
+    def _create(self, options: dict):
+        snes = PETSc.SNES().create(self.problem.comm)
+        snes.setOptionsPrefix(self.prefix)
+        snes.setFunction(self._F, self.b)
+        snes.setJacobian(self._J, self.A, self.A)
+        # Options pass through unchanged under our prefix; removed again once read so that
+        # they cannot leak into another solver created in the same process.
+        set_petsc_options(options, self.prefix)
+        try:
+            snes.setFromOptions()
+        finally:
+            clear_petsc_options(options, self.prefix)
+        if snes.getType().startswith("vi"):
+            lb, ub = self.problem.bounds()
+            snes.setVariableBounds(lb, ub)
+        return snes
+
+    @property
+    def robust(self):
+        if self._robust is None:
+            self._robust = self._create({**self.options, **self.ROBUST})
+        return self._robust
+
+    def _F(self, snes, x, b):
+        x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        x.copy(self.u.vector)
+        self.u.x.scatter_forward()
+        with b.localForm() as bl:
+            bl.set(0.0)
+        if not self.problem.before_residual():
+            with b.localForm() as bl:   # the local stress update failed: let SNES see NaN
+                bl.set(np.nan)
+            return
+        fem.petsc.assemble_vector(b, self.problem.F_form)
+        fem.petsc.apply_lifting(b, [self.problem.J_form], [self.problem.bcs], x0=[x], scale=-1.0)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fem.petsc.set_bc(b, self.problem.bcs, x, -1.0)
+
+    def _setup_jacobian_reuse(self, problem) -> None:
+        """Explicit scheme: the bulk Jacobian (E eps(du), eps(v)) is the same in every Newton
+        iteration of every step.  Assemble it once (K) and per iteration only the Gamma3
+        terms (B, a few facets): J = K + B with the same sparsity pattern, so the direct
+        solver keeps its symbolic factorisation and only refactorises numerically."""
+        self.K = self.B = self._boundary_form = None
+        forms = problem.forms
+        if problem.implicit or forms.bulk_jacobian is None:
+            return
+        # A and B get the full pattern of J once (assembly drops unused preallocated entries,
+        # and J = K + B needs the same pattern in all three)
+        fem.petsc.assemble_matrix(self.A, problem.J_form, problem.bcs)
+        self.A.assemble()
+        self.K = self.A.duplicate()
+        self.K.zeroEntries()
+        fem.petsc.assemble_matrix(self.K, fem.form(forms.bulk_jacobian), problem.bcs)
+        self.K.assemble()
+        if forms.boundary_jacobian is not None:
+            self._boundary_form = fem.form(forms.boundary_jacobian)
+            self.B = self.A.duplicate()
+
+    def _J(self, snes, x, A, P):
+        if self.K is None:                       # implicit scheme: the tangent changes
+            A.zeroEntries()
+            fem.petsc.assemble_matrix(A, self.problem.J_form, self.problem.bcs)
+            A.assemble()
+            return
+        self.K.copy(A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        A.assemble()                             # (a never-assembled A stays flagged so)
+        if self.B is not None:
+            self.B.zeroEntries()
+            # Dirichlet rows/columns: zero here (their 1 on the diagonal is in K)
+            fem.petsc.assemble_matrix(self.B, self._boundary_form, self.problem.bcs,
+                                      diagonal=0.0)
+            self.B.assemble()
+            A.axpy(1.0, self.B, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+
+    def _solve_once(self, snes) -> int:
+        self.u.vector.copy(self.x)
+        snes.solve(None, self.x)
+        reason = snes.getConvergedReason()
+        its = snes.getIterationNumber()
+        if reason <= 0:
+            raise StepFailure(f"SNES did not converge: {reason_name(reason)} ({reason}) after "
+                              f"{its} Newton iterations", reason)
+        self.x.copy(self.u.vector)
+        self.u.x.scatter_forward()
+        return its
+
+    def solve(self) -> int:
+        """Solve from the current u (u_{n-1}); on success u holds u_n and the Newton
+        iteration count is returned.  On failure u is restored and StepFailure raised.
+
+        Fallbacks when SNES fails: (1) the backtracking SNES at the case's delta; (2) if the
+        step has a regularised term, continuation in delta with it, from a wide
+        regularisation down to the case's delta by factors of 10, each stage warm-started.
+        Every fallback ends on the same discrete problem; ``self.fallback`` says which one
+        was used (None: none) and ``self.continuation_stages`` how many stages.  After the
+        first step that needed backtracking, later steps start with the backtracking SNES."""
+        start = self.u.x.array.copy()
+        self.continuation_stages, self.fallback = 0, None
+        its = 0
+        if not self.sticky_robust:
+            try:
+                return self._solve_once(self.snes)
+            except StepFailure as exc:
+                first = exc
+            its = self.snes.getIterationNumber()
+            self.u.x.array[:] = start
+        else:
+            first = StepFailure("(basic Newton skipped after an earlier failure)")
+        try:
+            its += self._solve_once(self.robust)
+            if not self.sticky_robust:
+                self.fallback = "backtracking"
+                self.sticky_robust = True  # the basic iteration cycles here: skip it from now on
+            return its
+        except StepFailure as exc:
+            second = exc
+        its += self.robust.getIterationNumber()
+        delta = self.problem.constants.get("delta")
+        self.u.x.array[:] = start  # keep the last good state u_{n-1}
+        if delta is None:
+            raise StepFailure(f"{first}; with backtracking: {second}", second.reason)
+        target = float(delta.value)
+        stages = continuation_deltas(target, self.problem.length_scale)
+        try:
+            for d in stages:
+                delta.value = d
+                its += self._solve_once(self.robust)
+        except StepFailure as exc:
+            self.u.x.array[:] = start
+            raise StepFailure(f"{first}; with backtracking: {second}; delta continuation "
+                              f"{stages[0]:g} -> {target:g} failed at delta = {d:g}: {exc}",
+                              exc.reason) from None
+        finally:
+            delta.value = target
+        self.fallback = "delta continuation"
+        self.continuation_stages = len(stages)
+        return its
+
+    def destroy(self):
+        for obj in (self.snes, self._robust, self.A, self.b, self.x, self.K, self.B):
+            if obj is not None:
+                obj.destroy()

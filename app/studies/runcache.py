@@ -1,0 +1,80 @@
+"""Cache of run histories (u, sigma, kappa on the structured grid at every step) in HDF5.
+
+The key is a hash of everything that determines the discrete solution: the validated case
+(physics, mesh, time grid, solver settings, PETSc options) and a format version; the case's
+name, description and output settings do not count.  Files are written atomically; an entry
+that does not load (or does not fit its run) is recomputed and written again.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+FORMAT_VERSION = 1
+IGNORED = ("name", "description", "output")
+
+
+def default_cache_dir() -> Path:
+    """The run cache of the convergence study (app/io/cachedirs.py)."""
+    from app.io.cachedirs import cache_root
+    return cache_root()
+
+
+def cache_key(case) -> str:
+    content = {k: v for k, v in case.raw.items() if k not in IGNORED}
+    content["petsc"] = case.petsc
+    text = json.dumps({"version": FORMAT_VERSION, "case": content}, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+def save(path: Path, times: list, snaps: list[dict], meta: dict) -> None:
+    import h5py
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        with h5py.File(tmp, "w") as f:
+            f.attrs["meta"] = json.dumps(meta)
+            f["times"] = np.asarray(times)
+            for name in ("u", "sigma", "kappa"):
+                f.create_dataset(name, data=np.stack([s[name] for s in snaps]))
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+class Unreadable(Exception):
+    """A cache entry that cannot be used: damaged, or not the run it is named after."""
+
+
+META_KEYS = ("dofs", "solve_s", "setup_s", "newton")
+
+
+def load(path: Path, times=None, shapes: dict | None = None) -> tuple[np.ndarray, list[dict], dict]:
+    """(times, per-step fields, meta) of a cached run.  Raises Unreadable if the file is
+    damaged or does not fit the expected time points ``times`` and per-step ``shapes``."""
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as f:
+            meta = json.loads(f.attrs["meta"])
+            stored = f["times"][...]
+            arrays = {name: f[name][...] for name in ("u", "sigma", "kappa")}
+    except Exception as exc:                      # noqa: BLE001 (any damage)
+        raise Unreadable(f"{type(exc).__name__}: {exc}") from None
+    if not isinstance(meta, dict) or not all(
+            isinstance(meta.get(k), (int, float)) for k in META_KEYS):
+        raise Unreadable(f"meta is not a mapping with {', '.join(META_KEYS)}")
+    if times is not None and (stored.shape != (len(times),) or not np.allclose(
+            stored, times, rtol=1e-12, atol=0.0)):
+        raise Unreadable("its time points are not the run's")
+    for name, a in arrays.items():
+        if a.dtype.kind != "f" or len(a) != len(stored) or not np.isfinite(a).all() \
+                or (shapes is not None and a.shape[1:] != tuple(shapes[name])):
+            raise Unreadable(f"'{name}' does not fit the run (shape {a.shape})")
+    snaps = [{name: arrays[name][i] for name in arrays} for i in range(len(stored))]
+    return stored, snaps, meta
