@@ -22,12 +22,14 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OPENBLAS_NUM_THREADS := 1
 export OMP_NUM_THREADS := 1
 
-.PHONY: help setup demo test convergence stability bench docs clean
+.PHONY: help setup demo test lint convergence stability bench docs clean
 
 help:
-	@echo "make setup        install Debian packages, create $(VENV), pip install -e . (idempotent)"
+	@echo "make setup        install Debian packages, create $(VENV), pip install -e . and ruff"
+	@echo "                  (idempotent)"
 	@echo "make demo         run $(CASE) (the paper's Section 4 example) into results/"
 	@echo "make test         run the test suite (serial and mpirun -n 2)"
+	@echo "make lint         ruff check of app, forms, meshes, tests and demos (pyproject.toml)"
 	@echo "make convergence  the paper's Table 1 study (h = k = 1/8..1/64 vs 1/128) for three deltas"
 	@echo "make stability    stiff and extreme variants of the paper case (stability.md/.csv)"
 	@echo "make bench        step solver timings (results/bench/bench.json, bench.md)"
@@ -44,6 +46,8 @@ setup:
 	  echo "setup: installing Debian packages:" $$missing; \
 	  apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y $$missing; \
 	fi
+	@# the stamp is redone when pyproject.toml changed or ruff went missing
+	@$(PY) -m ruff --version >/dev/null 2>&1 || rm -f $(STAMP)
 	@$(MAKE) --no-print-directory $(STAMP)
 	@# byte-compile our modules (the editable install does not, and with PYTHONDONTWRITEBYTECODE
 	@# set, as on these machines, every run would compile them again: 0.08 s, measured)
@@ -52,6 +56,9 @@ setup:
 $(STAMP): pyproject.toml
 	[ -x $(PY) ] || /usr/bin/python3 -m venv --system-site-packages $(VENV)
 	$(PY) -m pip install --quiet --no-build-isolation --no-deps -e .
+	@# ruff (make lint) is not a Debian bookworm package: from PyPI.  Without network access
+	@# the rest still works; the next make setup tries again.
+	$(PY) -m pip install --quiet ruff || echo "setup: warning: ruff not installed (make lint needs it)"
 	@$(PY) -c "import dolfinx, petsc4py, gmsh, yaml, jsonschema, app; print('setup: dolfinx', dolfinx.__version__, 'ok')"
 	@touch $(STAMP)
 
@@ -62,8 +69,13 @@ demo: setup
 test: setup
 	$(PY) -m pytest -ra tests
 
+# demos/ is linted once it exists
+lint: setup
+	$(PY) -m ruff check app forms meshes tests $(wildcard demos)
+
 # The paper's Table 1 configuration, for the default delta and two larger ones (work-precision
-# view across the friction regularisation). Runs are cached in ~/.cache/vpcontact.
+# view across the friction regularisation). Runs are cached in the run cache: $VPCONTACT_CACHE,
+# else $XDG_CACHE_HOME/vpcontact, else ~/.cache/vpcontact (./vpcontact info names it).
 CONV_DELTAS ?= 1e-7 1e-3 1e-2
 convergence: setup
 	./vpcontact convergence $(CASE) --levels 8 16 32 64 --reference 128 --vary both \

@@ -4,6 +4,10 @@ import os as _os
 import signal as _signal
 import sys as _sys
 
+# The one statement of the version: pyproject.toml reads it from here (a literal, so
+# setuptools reads it without importing the package).
+__version__ = "0.1.0"
+
 
 def _interrupted_while_starting(signum, frame):
     """Ctrl-C or SIGTERM while `python -m app` loads its modules: one line, exit 3 (the
@@ -43,18 +47,16 @@ if not any(_v in _os.environ for _v in ("OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PM
         if _var not in _os.environ:
             _os.environ[_var] = _val
             _added.append(_var)
-from mpi4py import MPI as _MPI  # noqa: E402  (MPI_Init reads the settings now)
+from mpi4py import MPI as _MPI  # MPI_Init reads the settings now
 
 for _var in _added:              # not inherited by child processes (mpirun -n 2 from here)
     del _os.environ[_var]
 
-from app.io.cachedirs import start as _start_caches  # noqa: E402
-from app.cli.startup import install_pkg_resources_stand_in as _stand_in  # noqa: E402
+from app.cli.startup import install_pkg_resources_stand_in as _stand_in
+from app.io.cachedirs import start as _start_caches
 
 # Every cache writable, or replaced by a temporary one: before dolfinx reads its JIT cache
 # directory (when it is imported) and before anything is computed.
 _start_caches(_MPI.COMM_WORLD.rank)
 
 _stand_in()                      # before ufl/ffcx: see app/cli/startup.py
-
-__version__ = "0.1.0"

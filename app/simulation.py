@@ -1,6 +1,18 @@
-"""The time loop of scheme (3.2)-(3.4): for n = 1..N build H_n, kappa_n, xi_n, s_n from step
-n-1, set the loads f_n, solve the step inequality for u_n (SNES VI), set
-sigma_n = E eps(u_n) + H_n, record, write.  Steps k_n = t_n - t_{n-1} may vary.
+"""The time loop of scheme (3.2)-(3.4) as an object: :class:`Simulation`.
+
+For n = 1..N (steps k_n = t_n - t_{n-1} may vary, or adapt):
+
+1. H_n, kappa_n from sigma_{n-1}, kappa_{n-1} (3.2)-(3.3) (explicit scheme; the implicit
+   variant updates them with u_n during the solve), xi_n and s_n on Gamma3 from u_{n-1};
+2. the loads f_n at t_n;
+3. u_n from the step inequality (3.4) (the StepSolver);
+4. sigma_n = E eps(u_n) + H_n (3.2); the step is recorded, checked and observed.
+
+``setup()`` builds the mesh, the problem, the history terms, the step solver, the step
+control and the diagnostics (and restores a checkpoint); ``step()`` does one step (an
+adaptive step rejected by the solver is undone through ``state()``/``load_state()`` and
+retried with k/2); ``run()`` steps to T and returns the RunSummary.  Outputs, checkpoints,
+progress and samplers are observers (app/observers.py) added with ``add()``.
 """
 from __future__ import annotations
 
@@ -13,33 +25,32 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from meshes import build_box, build_rectangle
-
-from app.io import checkpoint
 from app.io.case import Case
-from app.post.diagnostics import diagnose
+from app.io.output import OutputError
 from app.model.gamma3 import Gamma3History, Kernel
 from app.model.history import ImplicitViscoplasticHistory, ViscoplasticHistory
-from app.cli.progress import Progress
-from app.post.divergence import BlowUpMonitor
-from app.io.output import FieldWriter, OutputError, write_contact_csv, write_json
 from app.model.problem import ContactProblem
-from app.solvers.snesvi import SNESVISolver, StepFailure, describe_petsc_error
 from app.model.stepping import StepTooSmall, make_stepper
+from app.observers import Observer, StopRun
+from app.post.diagnostics import diagnose
+from app.records import HINT_OUTPUT, HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
+from app.solvers import select_solver
+from app.solvers.snesvi import StepSolveError, describe_petsc_error
+from meshes import build_box, build_rectangle
 
 log = logging.getLogger("vpcontact")
 
 
-@dataclass
-class RunResult:
-    status: str
-    summary: dict
-    problem: ContactProblem = field(repr=False)
-    history: ViscoplasticHistory | None = field(repr=False, default=None)
-    gamma3_history: Gamma3History | None = field(repr=False, default=None)
-
-
 def build_mesh(case: Case, comm):
+    """The body's mesh with its boundary tags (meshes/).
+
+    Args:
+        case: the validated Case (mesh section).
+        comm: the MPI communicator.
+
+    Returns:
+        A meshes.RectangleMesh (2D) or meshes.BoxMesh (3D).
+    """
     m = case.mesh
     size = {"n": m.n} if m.kind == "structured" else {"h": m.h}
     if m.dim == 3:
@@ -47,8 +58,33 @@ def build_mesh(case: Case, comm):
     return build_rectangle(comm, m.L1, m.L2, diagonal=m.diagonal, **size)
 
 
+def build_history(case: Case, problem):
+    """The viscoplastic history H_n, kappa_n of (3.2)-(3.3), if the case has a Perzyna law.
+
+    Args:
+        case: the validated Case.
+        problem: the ContactProblem.
+
+    Returns:
+        A ViscoplasticHistory (explicit scheme), an ImplicitViscoplasticHistory, or None.
+    """
+    vp = case.material.viscoplastic
+    if not vp:
+        return None
+    cls = ImplicitViscoplasticHistory if problem.implicit else ViscoplasticHistory
+    return cls(problem, vp.lambda1, vp.lambda2)
+
+
 def build_gamma3_history(case: Case, problem) -> Gamma3History | None:
-    """The memory term and accumulated slip, only if the case enables them."""
+    """The memory term xi_n and the accumulated slip s_n, only if the case enables them.
+
+    Args:
+        case: the validated Case (contact.memory, contact.friction.slip).
+        problem: the ContactProblem.
+
+    Returns:
+        A Gamma3History, or None.
+    """
     c = case.contact
     memory = slip = None
     if c.memory is not None:
@@ -62,45 +98,6 @@ def build_gamma3_history(case: Case, problem) -> Gamma3History | None:
     if memory is None and slip is None:
         return None
     return Gamma3History(problem, memory=memory, slip=slip)
-
-
-AUTO_FAST_MAX_GAMMA3_DOFS = 3000
-
-
-def make_solver(case: Case, problem):
-    """The step solver the case asks for (solver.method); auto picks the fast one where it
-    applies and the Gamma3 problem is small enough for dense algebra."""
-    from app.io.case import CaseError
-    from app.solvers.fast import FastStepSolver, eligible
-
-    method = case.numerics.method
-    ok, why = eligible(case)
-    if method == "fast" and not ok:
-        raise CaseError(f"{case.source}: solver.method: 'fast' is not possible here: {why} "
-                        "(allowed: snes_vi, auto)")
-    if method == "auto":
-        n_g = problem.comm.allreduce(len(problem.gamma3.nodes) if problem.gamma3 else 0)
-        method = "fast" if ok and n_g * problem.dim <= AUTO_FAST_MAX_GAMMA3_DOFS else "snes_vi"
-    if method == "fast":
-        return FastStepSolver(problem, case.petsc)
-    return SNESVISolver(problem, case.petsc)
-
-
-def _step_record(problem, history, n, t, its, wall, norms=None):
-    """The step's line of summary.json; ``norms`` = (||u||_V, ||sigma||_Q) if the stress
-    update computed them already (problem.update_sigma), else they are computed here."""
-    kappa = history.kappa if history else None
-    norm_u, norm_sigma = norms or (problem.norm("V"), problem.norm("Q"))
-    return {
-        "n": n, "t": t,
-        "norm_u_V": norm_u,
-        "norm_sigma_Q": norm_sigma,
-        "norm_kappa_Y": problem.cell_norm(kappa) if kappa else 0.0,
-        "max_vm": problem.cell_max(problem.sigma_vm),
-        "max_kappa": problem.cell_max(kappa) if kappa else 0.0,
-        "newton_iterations": its,
-        "wall_s": wall,
-    }
 
 
 class _StopRequest:
@@ -129,285 +126,386 @@ class _StopRequest:
         return False
 
 
-def run(case: Case, outdir: Path | None, comm, write_outputs: bool = True,
-        on_step=None, restart=None, progress: bool = False) -> RunResult:
-    """Run the case; write outputs to ``outdir`` (created by the caller) if asked.
+class Simulation:
+    """A run of scheme (3.2)-(3.4) for one case (see the module docstring).
 
-    ``on_step(n, t, problem, history)`` is called for n = 0 (initial state) and after every
-    converged step.  ``restart`` (app/io/checkpoint.Checkpoint) continues from its step n;
-    ``progress`` shows the progress bar (rank 0).  A step's ``wall_s`` covers the history
-    update, the step solve and the stress update only: not mesh generation, JIT
-    compilation, outputs or ``on_step``.
+    Args:
+        case: the validated Case.
+        comm: the MPI communicator.
+        outdir: the directory the output observers write to (None: a run in memory).
+        restart: an app.io.checkpoint.Checkpoint to continue from (None: start at t = 0).
+
+    Attributes:
+        problem: the ContactProblem (u, sigma, forms, norms).
+        history: the viscoplastic history H_n, kappa_n (None for an elastic body).
+        gamma3_history: the Gamma3 history xi_n, s_n (None without memory and slip terms).
+        solver: the StepSolver of (3.4).
+        stepper: the step control (FixedSteps or AdaptiveSteps).
+        diagnostics: the case's diagnostics (stability indicator, well-posedness).
+        n, t: the last accepted step and its time t_n.
+        steps: the step records of the accepted steps (app/records.py).
+        status, failure: "completed" or how and why the run stopped (a StepFailure).
+        interrupted: a signal asked to stop after the current step.
+        last_checkpoint: the checkpoint written last (set by the Checkpointer).
     """
-    t_start = time.perf_counter()
-    rect = build_mesh(case, comm)
-    problem = ContactProblem(case, rect)
-    vp = case.material.viscoplastic
-    history = None
-    if vp:
-        cls = ImplicitViscoplasticHistory if problem.implicit else ViscoplasticHistory
-        history = cls(problem, vp.lambda1, vp.lambda2)
-    problem.set_initial_values(history.kappa if history else None)
-    g3 = build_gamma3_history(case, problem)
-    solver = make_solver(case, problem)
-    t_setup = time.perf_counter() - t_start
-    ks = [b - a for a, b in zip(case.time.times, case.time.times[1:])]
-    log.info("case %s (%dD): %d cells, %d vertices, %d dofs, %d steps (k = %s)", case.name,
-             problem.dim, problem.num_cells, problem.num_vertices, problem.num_dofs,
-             case.time.N, f"{ks[0]:g}" if case.time.uniform else f"{min(ks):g}..{max(ks):g}")
-    if case.time.adaptive is not None:
-        log.info("adaptive time steps: starting from k = %g to T = %g", ks[0], case.time.T)
-    log.info("active terms: %s", ", ".join(case.active_terms()))
-    diag = diagnose(problem, solver)
-    for level, text in diag.messages():
-        getattr(log, level)(text)
-    log.info("step solver: %s, set-up (mesh, JIT, matrices) %.2f s",
-             f"SNES {solver.snes.getType()}" if hasattr(solver, "snes") else
-             f"fast (one factorisation, {solver.m} Gamma3 dofs condensed)"
-             if getattr(solver, "gamma3", False) else "fast (one factorisation)", t_setup)
 
-    stepper = make_stepper(case, diag.relaxation_rate)
-    N = stepper.total
-    steps, status, failure = [], "completed", None
-    t, n = 0.0, 0
-    if restart is not None:
-        steps = restart.restore(problem, history, g3, stepper)
-        n, t = restart.n, restart.t
-        if hasattr(solver, "warm_start"):
-            solver.warm_start()
-        log.info("restarted from %s at step %d (t = %g)", restart.path, n, t)
-    else:
-        problem.update_sigma()
+    def __init__(self, case: Case, comm, outdir: Path | None = None, restart=None):
+        self.case, self.comm, self.outdir, self.restart = case, comm, outdir, restart
+        self.observers: list[Observer] = []
+        self.domain = self.problem = self.history = self.gamma3_history = None
+        self.solver = self.stepper = self.diagnostics = None
+        self.n, self.t, self.steps = 0, 0.0, []
+        self.status, self.failure = "completed", None
+        self.interrupted, self.last_checkpoint = False, None
+        self._signals = None
+        self._clock = {}
 
-    monitor = BlowUpMonitor(case, problem, problem.cell_max(history.kappa) if history else 0.0)
-    writer = None
-    checkpoint_every = case.output.checkpoint_every if write_outputs else None
-    bar = Progress(case.time.T, N, t, enabled=progress and comm.rank == 0)
-    with _StopRequest() as stop:        # also shields the final writes from SIGINT/SIGTERM
+    def add(self, observer: Observer) -> Simulation:
+        """Register an observer (called in the order added).
+
+        Args:
+            observer: an app.observers.Observer.
+
+        Returns:
+            The simulation itself.
+        """
+        self.observers.append(observer)
+        return self
+
+    # ------------------------------------------------------------------ set-up
+    def setup(self) -> None:
+        """Mesh, problem, history terms (initial values), step solver, diagnostics, step
+        control, and the state of the checkpoint to continue from (else sigma_0)."""
+        self._clock["start"] = time.perf_counter()
+        case = self.case
+        self.domain = build_mesh(case, self.comm)
+        self.problem = problem = ContactProblem(case, self.domain)
+        self.history = build_history(case, problem)
+        problem.set_initial_values(self.history.kappa if self.history else None)
+        self.gamma3_history = build_gamma3_history(case, problem)
+        self.solver = select_solver(case, problem)
+        self._clock["setup"] = time.perf_counter() - self._clock["start"]
+        self._log_case()
+        self.diagnostics = diagnose(problem, self.solver)
+        for level, text in self.diagnostics.messages():
+            getattr(log, level)(text)
+        log.info("step solver: %s, set-up (mesh, JIT, matrices) %.2f s", self.solver.describe(),
+                 self._clock["setup"])
+        self.stepper = make_stepper(case, self.diagnostics.relaxation_rate)
+        if self.restart is not None:
+            self.steps = self.restart.restore(self)
+            self.n, self.t = self.restart.n, self.restart.t
+            self.solver.warm_start()
+            log.info("restarted from %s at step %d (t = %g)", self.restart.path, self.n, self.t)
+        else:
+            self.problem.update_sigma()                 # sigma_0
+
+    def _log_case(self) -> None:
+        """The run's first lines: mesh, dofs, steps, adaptive steps, active terms."""
+        case, p = self.case, self.problem
+        ks = [b - a for a, b in zip(case.time.times, case.time.times[1:])]
+        log.info("case %s (%dD): %d cells, %d vertices, %d dofs, %d steps (k = %s)", case.name,
+                 p.dim, p.num_cells, p.num_vertices, p.num_dofs, case.time.N,
+                 f"{ks[0]:g}" if case.time.uniform else f"{min(ks):g}..{max(ks):g}")
+        if case.time.adaptive is not None:
+            log.info("adaptive time steps: starting from k = %g to T = %g", ks[0], case.time.T)
+        log.info("active terms: %s", ", ".join(case.active_terms()))
+
+    # ------------------------------------------------------------------ the loop
+    @property
+    def finished(self) -> bool:
+        """True once the step control reached T."""
+        return self.stepper.finished(self.t)
+
+    def run(self) -> RunSummary:
+        """Step from the initial (or restarted) state to T, or until a step fails, an
+        observer stops the run, or SIGINT/SIGTERM asks to stop (after the current step).
+
+        Returns:
+            The RunSummary (its status says how the run ended).
+        """
+        if self.problem is None:
+            self.setup()
+        with _StopRequest() as self._signals:   # also shields the final writes
+            try:
+                self._start()
+                while not self.finished:
+                    self.step()                  # n-1 -> n: (3.2)-(3.4), observed
+            except StopRun as stop:
+                self.status, self.failure = stop.status, stop.failure
+            summary = self._finish()
+        self._signals = None
+        self.solver.destroy()
+        return summary
+
+    def step(self) -> dict | None:
+        """One step n-1 -> n of scheme (3.2)-(3.4) (see ``advance``), recorded, checked by
+        the observers and accepted; an adaptive step whose solve fails is undone and
+        retried with k/2.
+
+        Returns:
+            The step's record (app/records.py), or None if the run is at T already.
+
+        Raises:
+            StopRun: the step failed (or an observer refused it, or a signal stopped the
+                run after it); ``n`` is the last good step.
+        """
+        if self.finished:
+            return None
+        k, t_new, its, norms, t_g3, t0 = self._solve_step()
+        wall = time.perf_counter() - t0
+        self.n, self.t = self.n + 1, t_new
+        self.stepper.accept(k, its)
+        record = self._record(its, wall, norms, k, t_g3)
+        self._accept(record)
+        return record
+
+    def advance(self, k: float, t_new: float):
+        """The scheme's step from t_{n-1} = ``self.t`` to t_n = ``t_new``: H_n, kappa_n
+        (explicit: from step n-1) (3.2)-(3.3), xi_n, s_n, the loads f_n, u_n from the step
+        inequality (3.4), then sigma_n (3.2).  ``n`` and ``t`` are not changed.
+
+        Args:
+            k: the step k_n.
+            t_new: t_n.
+
+        Returns:
+            (iterations, (||u||_V, ||sigma||_Q) or None, wall time of the Gamma3 history).
+
+        Raises:
+            StepSolveError: the step solve or a local (cell) update failed; a numerical
+                error of the history update (von Mises projection, implicit Perzyna update)
+                is reported alike.
+        """
+        p, history, g3 = self.problem, self.history, self.gamma3_history
         try:
-            if write_outputs:
-                fields = [problem.u, problem.sigma, problem.sigma_vm]
-                if history:
-                    fields.append(history.kappa)
-                writer = FieldWriter(comm, outdir / "solution.xdmf", problem.mesh, fields)
-                writer.write(t)
-        except OutputError as exc:
-            status, failure = "failed", _failure(n, t, f"cannot write the outputs: {exc}",
-                                                 HINT_OUTPUT)
-        if on_step and failure is None:
-            on_step(n, t, problem, history)
-        loop_start = time.perf_counter()
-        while failure is None:
-            try:
-                k = stepper.next_k(t)
-            except StepTooSmall as exc:
-                status, failure = "failed", _failure(n + 1, t, str(exc), "lower time.adaptive."
-                                                     "k_min or use time.scheme: implicit")
-                log.error("step %d (t = %g) failed: %s", n + 1, t, exc)
-                break
-            if k is None:
-                break
-            t_new = stepper.next_t(t, k)
-            t0 = time.perf_counter()
-            saved = (history.snapshot() if history else None, g3.snapshot() if g3 else None,
-                     problem.sigma.x.array.copy()) if stepper.adaptive else None
-            try:
-                its, norms, t_g3 = _advance(problem, history, g3, solver, t, t_new, k)
-            except StepFailure as exc:
-                if saved is not None:               # adaptive: undo the history, retry k/2
-                    _restore(problem, history, g3, saved)
-                    if stepper.reject(k, str(exc)):
-                        log.warning("step at t = %g with k = %g rejected (%s); retrying with "
-                                    "k = %g", t, k, exc.args[0].split(";")[0], stepper.k)
-                        continue
-                status, failure = "failed", _failure(n + 1, t_new, str(exc), HINT_SOLVER,
-                                                     getattr(exc, "reason", None))
-                log.error("step %d (t = %g) failed: %s; the last good state is step %d",
-                          n + 1, t_new, exc, n)
-                break
-            n, t = n + 1, t_new
-            stepper.accept(k, its)
-            rec = _step_record(problem, history, n, t, its, time.perf_counter() - t0, norms)
-            rec["k"] = k
+            if history:
+                history.before_solve(p, k)          # explicit: H_n, kappa_n from step n-1
+            t_g3 = time.perf_counter()
             if g3:
-                rec["gamma3_history_s"] = t_g3      # memory term / slip update of this step
-            blow_up = monitor.check(rec)
-            if blow_up:
-                status, failure = "diverged", _failure(n, t, blow_up, HINT_DIVERGED)
-                log.error("step %d (t = %g) diverged: %s; stopping, the last good state is "
-                          "step %d", n, t, blow_up, n - 1)
-                n -= 1
-                break
-            if solver.fallback:
-                rec["fallback"] = solver.fallback
-                if solver.continuation_stages:
-                    rec["delta_continuation_stages"] = solver.continuation_stages
-                log.warning("step %d: the basic Newton iteration failed; solved with %s (%d Newton "
-                            "iterations in all)%s", n, solver.fallback, its,
-                            "; later steps start with backtracking" if solver.sticky_robust else "")
-            steps.append(rec)
-            if on_step:
-                on_step(n, t, problem, history)
-            interrupted = comm.allreduce(stop.signal is not None, op=MPI.LOR)  # all ranks agree
+                g3.advance(self.t, t_new)           # xi_n, s_n from u_{n-1}
+            t_g3 = time.perf_counter() - t_g3
+            p.time_data.set_time(t_new)             # f_n
+            its = self.solver.solve()               # u_n in U^h, (3.4)
+            # sigma_n (explicit: E eps(u_n) + H_n, (3.2))
+            norms = history.after_solve(p) if history else p.update_sigma()
+        except StepSolveError:
+            raise
+        except PETSc.Error as exc:                  # e.g. -ksp_error_if_not_converged
+            raise StepSolveError(describe_petsc_error(exc)) from exc
+        except (ArithmeticError, RuntimeError, np.linalg.LinAlgError) as exc:
+            raise StepSolveError(f"{exc}") from exc
+        return its, norms, t_g3
+
+    def state(self) -> dict:
+        """The history of the scheme after the last accepted step: sigma_n, the viscoplastic
+        history (H_n, kappa_n) and the Gamma3 history (xi_n, s_n).  (u_n is not part of it:
+        a failed step solve leaves u at u_n itself.)
+
+        Returns:
+            {"sigma": array, "history": dict or None, "gamma3": dict or None}.
+        """
+        return {"sigma": self.problem.sigma.x.array.copy(),
+                "history": self.history.state() if self.history else None,
+                "gamma3": self.gamma3_history.state() if self.gamma3_history else None}
+
+    def load_state(self, state: dict) -> None:
+        """Restore ``state()`` (undo a rejected adaptive step).
+
+        Args:
+            state: as returned by ``state()``.
+        """
+        if self.history:
+            self.history.load_state(state["history"])
+        if self.gamma3_history:
+            self.gamma3_history.load_state(state["gamma3"])
+        self.problem.sigma.x.array[:] = state["sigma"]
+
+    # ------------------------------------------------------------------ step internals
+    def _next_k(self) -> float:
+        """The step control's next k; StopRun if it cannot give one above k_min."""
+        try:
+            return self.stepper.next_k(self.t)
+        except StepTooSmall as exc:
+            log.error("step %d (t = %g) failed: %s", self.n + 1, self.t, exc)
+            raise StopRun("failed", StepFailure(self.n + 1, self.t, str(exc),
+                                                hint=HINT_STEP_TOO_SMALL)) from None
+
+    def _solve_step(self):
+        """``advance`` with the adaptive retries.  Returns (k, t_n, iterations, norms,
+        Gamma3 history time, start time of the successful attempt)."""
+        while True:
+            k = self._next_k()
+            t_new = self.stepper.next_t(self.t, k)
+            t0 = time.perf_counter()
+            saved = self.state() if self.stepper.adaptive else None
             try:
-                if writer and (n % case.output.every == 0 or stepper.finished(t) or interrupted):
-                    writer.write(t)
-                if checkpoint_every and n % checkpoint_every == 0 and not interrupted:
-                    checkpoint.save(outdir, comm, case, problem, history, g3, stepper, n, t, steps)
-            except OutputError as exc:
-                status, failure = "failed", _failure(n, t, f"cannot write the outputs: {exc}",
-                                                     HINT_OUTPUT)
-                log.error("step %d (t = %g): %s; stopping", n, t, failure["reason"])
-                break
-            bar.update(n, t, its)
-            log.debug("step %3d/%s  t = %-8.5g newton %2d  |u|_V = %.6e  |sigma|_Q = %.6e  "
-                      "max vm = %.5g  max kappa = %.5g  (%.3f s)", n, N or "?", t, its,
-                      rec["norm_u_V"], rec["norm_sigma_Q"], rec["max_vm"], rec["max_kappa"],
-                      rec["wall_s"])
-            if interrupted:
-                status = "interrupted"
-                by = stop.signal or "a signal on another rank"
-                failure = _failure(n, t, f"interrupted by {by}", "continue with: ./vpcontact run "
-                                   f"CASE --restart {outdir} --out NEW_DIR")
-                saved_to = None
-                if write_outputs:
-                    saved_to = _try_checkpoint(outdir, comm, case, problem, history, g3,
-                                               stepper, n, t, steps)
-                log.warning("interrupted (%s) after step %d (t = %g); outputs are complete up to "
-                            "this step, checkpoint %s", stop.signal or "another rank", n, t,
-                            saved_to or "-")
-                break
-        bar.close()
-        t_loop = time.perf_counter() - loop_start
-        if writer:
-            writer.close()
-        summary = _summary(case, comm, problem, rect, diag, solver, stepper, status, failure,
-                           steps, n, t_setup, t_loop, t_start)
-        if write_outputs:
-            _write_final(comm, outdir, case, problem, summary, steps)
-    solver.destroy()
-    return RunResult(summary["status"], summary, problem, history, g3)
+                return (k, t_new, *self.advance(k, t_new), t0)
+            except StepSolveError as exc:
+                if saved is not None:               # adaptive: undo the history, retry k/2
+                    self.load_state(saved)
+                    if self.stepper.reject(k, str(exc)):
+                        log.warning("step at t = %g with k = %g rejected (%s); retrying with "
+                                    "k = %g", self.t, k, exc.args[0].split(";")[0],
+                                    self.stepper.k)
+                        continue
+                failure = StepFailure(self.n + 1, t_new, str(exc), getattr(exc, "reason", None),
+                                      HINT_SOLVER)
+                log.error("step %d (t = %g) failed: %s; the last good state is step %d",
+                          self.n + 1, t_new, exc, self.n)
+                raise StopRun("failed", failure) from None
+
+    def _record(self, its: int, wall: float, norms, k: float, t_g3: float) -> dict:
+        """The step's record (app/records.py); ``norms`` = (||u||_V, ||sigma||_Q) if the
+        stress update computed them already, else they are computed here (collective)."""
+        p = self.problem
+        kappa = self.history.kappa if self.history else None
+        norm_u, norm_sigma = norms or (p.norm("V"), p.norm("Q"))
+        record = {
+            "n": self.n, "t": self.t,
+            "norm_u_V": norm_u,
+            "norm_sigma_Q": norm_sigma,
+            "norm_kappa_Y": p.cell_norm(kappa) if kappa is not None else 0.0,
+            "max_vm": p.cell_max(p.sigma_vm),
+            "max_kappa": p.cell_max(kappa) if kappa is not None else 0.0,
+            "newton_iterations": its,
+            "wall_s": wall,
+            "k": k,
+        }
+        if self.gamma3_history:
+            record["gamma3_history_s"] = t_g3       # memory term / slip update of this step
+        if self.solver.fallback:
+            record["fallback"] = self.solver.fallback
+            if self.solver.continuation_stages:
+                record["delta_continuation_stages"] = self.solver.continuation_stages
+        return record
+
+    def _accept(self, record: dict) -> None:
+        """Check step n with the observers, accept it (record, observers' ``step``), and
+        stop after it if a signal asked to (StopRun in each case that ends the run)."""
+        try:
+            for obs in self.observers:
+                obs.check(self, record)
+        except StopRun:
+            self.n -= 1                             # refused: the last good state is n - 1
+            raise
+        if self.solver.fallback:
+            log.warning("step %d: the basic Newton iteration failed; solved with %s (%d Newton "
+                        "iterations in all)%s", self.n, self.solver.fallback,
+                        record["newton_iterations"], "; later steps start with backtracking"
+                        if self.solver.sticky_robust else "")
+        self.steps.append(record)
+        signalled = self._signals is not None and self._signals.signal is not None
+        self.interrupted = self.comm.allreduce(signalled, op=MPI.LOR)   # all ranks agree
+        try:
+            for obs in self.observers:
+                obs.step(self, record)
+        except OutputError as exc:
+            failure = StepFailure(self.n, self.t, f"cannot write the outputs: {exc}",
+                                  hint=HINT_OUTPUT)
+            log.error("step %d (t = %g): %s; stopping", self.n, self.t, failure.reason)
+            raise StopRun("failed", failure) from None
+        if self.interrupted:
+            raise self._interrupt()
+
+    def _interrupt(self) -> StopRun:
+        """The stop after a signal: outputs are complete up to step n."""
+        signal = self._signals.signal if self._signals is not None else None
+        failure = StepFailure(self.n, self.t,
+                              f"interrupted by {signal or 'a signal on another rank'}",
+                              hint=f"continue with: ./vpcontact run CASE --restart "
+                                   f"{self.outdir} --out NEW_DIR")
+        log.warning("interrupted (%s) after step %d (t = %g); outputs are complete up to "
+                    "this step, checkpoint %s", signal or "another rank", self.n, self.t,
+                    self.last_checkpoint or "-")
+        return StopRun("interrupted", failure)
+
+    # ------------------------------------------------------------------ start and end
+    def _start(self) -> None:
+        """The observers' ``start``; an output that cannot be written fails the run."""
+        try:
+            for obs in self.observers:
+                obs.start(self)
+        except OutputError as exc:
+            raise StopRun("failed", StepFailure(self.n, self.t,
+                                                f"cannot write the outputs: {exc}",
+                                                hint=HINT_OUTPUT)) from None
+        finally:
+            self._clock["loop_start"] = time.perf_counter()
+
+    def _finish(self) -> RunSummary:
+        """The RunSummary, then the observers' ``end`` (which may amend it)."""
+        self._clock["loop"] = time.perf_counter() - self._clock["loop_start"]
+        summary = self.summary()
+        for obs in self.observers:
+            obs.end(self, summary)
+        return summary
+
+    def summary(self) -> RunSummary:
+        """Returns: the RunSummary of the run so far (summary.json without contact_states)."""
+        case, p, stepper = self.case, self.problem, self.stepper
+        return RunSummary(
+            case=case.name, source=case.source, case_data=case.raw, status=self.status,
+            mesh={"cells": p.num_cells, "vertices": p.num_vertices, "dofs": p.num_dofs,
+                  "kind": case.mesh.kind, "n": case.mesh.n, "h": self.domain.h,
+                  "diagonal": self.domain.diagonal},
+            time={"T": case.time.T, "N": self.n, "uniform": case.time.uniform,
+                  "scheme": case.time.scheme, "adaptive": stepper.adaptive},
+            mpi_ranks=self.comm.size, active_terms=case.active_terms(),
+            diagnostics=self.diagnostics.as_dict(),
+            solver={"method": case.numerics.method, "used": self.solver.name,
+                    "factorisations": self.solver.factorisations,
+                    "delta": case.numerics.delta, "quadrature": case.numerics.quadrature,
+                    "petsc_options": dict(case.petsc)},
+            steps=self.steps, setup_s=self._clock["setup"],
+            loop_s=self._clock.get("loop", 0.0),
+            wall_s=time.perf_counter() - self._clock["start"],
+            step_history=stepper.decisions if stepper.adaptive else None,
+            failure=self.failure)
 
 
-HINT_SOLVER = ("try a smaller time step (time.N), time.adaptive, time.scheme: implicit, a larger "
-               "solver.delta, or other PETSc options (-snes_monitor to see the iterations)")
-HINT_DIVERGED = ("the explicit scheme is unstable at this time step (see the stability "
-                 "indicator): use time.scheme: implicit or a smaller time step (time.N, "
-                 "time.adaptive)")
-HINT_OUTPUT = ("free space on the output file system or choose another --out; the files of "
-               "the steps written before are intact")
+@dataclass
+class RunResult:
+    """What ``run`` returns.
+
+    Attributes:
+        status: the run's status.
+        summary: the content of summary.json (a dict).
+        problem: the ContactProblem at the end of the run.
+        history: the viscoplastic history (None for an elastic body).
+        gamma3_history: the Gamma3 history (None without memory and slip terms).
+    """
+
+    status: str
+    summary: dict
+    problem: ContactProblem = field(repr=False)
+    history: ViscoplasticHistory | None = field(repr=False, default=None)
+    gamma3_history: Gamma3History | None = field(repr=False, default=None)
 
 
-def _failure(step: int, t: float, reason: str, hint: str, snes_reason=None) -> dict:
-    """The ``failure`` entry of summary.json (the reason on one line)."""
-    reason = "; ".join(x.strip() for x in str(reason).splitlines() if x.strip())
-    return {"step": step, "t": t, "reason": reason, "snes_reason": snes_reason, "hint": hint}
+def run(case: Case, comm, observers=(), *, outdir: Path | None = None, restart=None,
+        monitor: bool = True) -> RunResult:
+    """Run a case: a Simulation with the blow-up monitor (unless ``monitor`` is False) and
+    the given observers.  Writes nothing unless an observer does.
 
-
-def _advance(problem, history, g3, solver, t: float, t_new: float, k: float):
-    """One step of scheme (3.2)-(3.4) from t to t_new: H_n, kappa_n (explicit: from step
-    n-1), xi_n, s_n, the loads f_n, u_n from the step inequality (3.4), then sigma_n.
+    Args:
+        case: the validated Case.
+        comm: the MPI communicator.
+        observers: app.observers.Observer instances, called in this order.
+        outdir: the directory the output observers write to.
+        restart: an app.io.checkpoint.Checkpoint to continue from.
+        monitor: stop a run whose norms blow up as "diverged" (app/post/divergence.py).
 
     Returns:
-        (Newton iterations, (||u||_V, ||sigma||_Q) or None, wall time of the Gamma3 history).
-    Raises:
-        StepFailure: the step solve or a local (cell) update failed; a numerical error of the
-        history update (von Mises projection, implicit Perzyna update) is reported alike.
+        The RunResult (status, summary dict, and the problem and histories at the end).
     """
-    try:
-        if history:
-            history.before_solve(problem, k)        # explicit: H_n, kappa_n from step n-1
-        t_g3 = time.perf_counter()
-        if g3:
-            g3.advance(t, t_new)                    # xi_n, s_n from u_{n-1}
-        t_g3 = time.perf_counter() - t_g3
-        problem.time_data.set_time(t_new)           # f_n
-        its = solver.solve()                        # u_n in U^h, (3.4)
-        # sigma_n (explicit: E eps(u_n) + H_n, (3.2))
-        norms = history.after_solve(problem) if history else problem.update_sigma()
-    except StepFailure:
-        raise
-    except PETSc.Error as exc:                      # e.g. -ksp_error_if_not_converged
-        raise StepFailure(describe_petsc_error(exc)) from exc
-    except (ArithmeticError, RuntimeError, np.linalg.LinAlgError) as exc:
-        raise StepFailure(f"{exc}") from exc
-    return its, norms, t_g3
+    from app.post.divergence import BlowUpMonitor
 
-
-def _restore(problem, history, g3, saved) -> None:
-    """Undo a rejected adaptive step: the history, the Gamma3 history and sigma of n-1."""
-    if history:
-        history.restore(saved[0])
-    if g3:
-        g3.restore(saved[1])
-    problem.sigma.x.array[:] = saved[2]
-
-
-def _try_checkpoint(outdir, comm, *state) -> Path | None:
-    """The checkpoint of an interrupted run; None (with a warning) if it cannot be written."""
-    try:
-        return checkpoint.save(outdir, comm, *state)
-    except OutputError as exc:
-        log.warning("no checkpoint written: %s", exc)
-        return None
-
-
-def _write_final(comm, outdir: Path, case: Case, problem, summary: dict, steps: list) -> None:
-    """contact.csv and summary.json; if contact.csv cannot be written the summary records
-    the failure; if summary.json cannot be written either, the error is logged."""
-    try:
-        if problem.gamma3 is not None and steps:
-            summary["contact_states"] = write_contact_csv(
-                comm, outdir / "contact.csv", problem.contact_table(), case.contact.g)
-    except OutputError as exc:
-        if summary["status"] == "completed":
-            summary["status"] = "failed"
-            summary["failure"] = _failure(summary["last_good_step"], steps[-1]["t"],
-                                          f"cannot write the outputs: {exc}", HINT_OUTPUT)
-    try:
-        write_json(comm, outdir / "summary.json", summary)
-    except OutputError as exc:
-        log.error("summary.json not written: %s", exc)
-        summary["summary_error"] = str(exc)
-        if summary["status"] == "completed":
-            summary["status"] = "failed"
-            summary["failure"] = _failure(summary["last_good_step"],
-                                          steps[-1]["t"] if steps else 0.0,
-                                          f"cannot write summary.json: {exc}", HINT_OUTPUT)
-
-
-def _summary(case, comm, problem, rect, diag, solver, stepper, status, failure, steps, n,
-             t_setup, t_loop, t_start) -> dict:
-    """The content of summary.json (without contact_states, added by _write_final)."""
-    summary = {
-        "case": case.name,
-        "source": case.source,
-        "case_data": case.raw,
-        "status": status,
-        "mesh": {"cells": problem.num_cells, "vertices": problem.num_vertices,
-                 "dofs": problem.num_dofs, "kind": case.mesh.kind, "n": case.mesh.n,
-                 "h": rect.h, "diagonal": rect.diagonal},
-        "time": {"T": case.time.T, "N": n, "uniform": case.time.uniform,
-                 "scheme": case.time.scheme, "adaptive": stepper.adaptive},
-        "mpi_ranks": comm.size,
-        "active_terms": case.active_terms(),
-        "diagnostics": diag.as_dict(),
-        "solver": {"method": case.numerics.method,
-                   "used": "snes_vi" if hasattr(solver, "snes") else "fast",
-                   "factorisations": getattr(solver, "factorisations", None),
-                   "delta": case.numerics.delta,
-                   "quadrature": case.numerics.quadrature,
-                   "petsc_options": {k: v for k, v in case.petsc.items()}},
-        "last_good_step": steps[-1]["n"] if steps else 0,
-        "steps": steps,
-        "newton_iterations_total": sum(s["newton_iterations"] for s in steps),
-        "solve_s": sum(s["wall_s"] for s in steps),
-        "setup_s": t_setup,
-        "loop_s": t_loop,
-        "wall_s": time.perf_counter() - t_start,
-    }
-    if stepper.adaptive:
-        summary["step_history"] = stepper.history
-    if failure:
-        summary["failure"] = failure
-    return summary
+    sim = Simulation(case, comm, outdir=outdir, restart=restart)
+    if monitor:
+        sim.add(BlowUpMonitor())
+    for obs in observers:
+        sim.add(obs)
+    summary = sim.run()
+    return RunResult(summary.status, summary.as_dict(), sim.problem, sim.history,
+                     sim.gamma3_history)

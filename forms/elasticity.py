@@ -12,13 +12,33 @@ import ufl
 
 
 def eps(u):
-    """Linearised strain eps(u) = (grad u + grad u^T) / 2."""
+    """The linearised strain.
+
+    Args:
+        u: a displacement (UFL vector).
+
+    Returns:
+        eps(u) = (grad u + grad u^T) / 2.
+    """
     return ufl.sym(ufl.grad(u))
 
 
 def lame_constants(E, nu, dim: int = 2):
-    """(lmbda, two_mu) with E tau = lmbda tr(tau) I + two_mu tau: plane stress in 2D,
-    isotropic Hooke in 3D.  Works for floats and UFL constants."""
+    """The constants of E tau = lmbda tr(tau) I + two_mu tau.
+
+    Plane stress in 2D, isotropic Hooke in 3D.
+
+    Args:
+        E: Young's modulus (float or UFL constant).
+        nu: Poisson's ratio (float or UFL constant).
+        dim: space dimension (2 or 3).
+
+    Returns:
+        (lmbda, two_mu).
+
+    Raises:
+        ValueError: if dim is not 2 or 3.
+    """
     if dim == 2:
         return E * nu / (1.0 - nu**2), E / (1.0 + nu)
     if dim == 3:
@@ -27,12 +47,29 @@ def lame_constants(E, nu, dim: int = 2):
 
 
 def plane_stress_constants(E, nu):
-    """(lmbda, two_mu) of the paper's plane-stress law."""
+    """The constants of the paper's plane-stress law.
+
+    Args:
+        E: Young's modulus.
+        nu: Poisson's ratio.
+
+    Returns:
+        (lmbda, two_mu), as lame_constants(E, nu, 2).
+    """
     return lame_constants(E, nu, 2)
 
 
 def elasticity_operator(E, nu, dim: int = 2):
-    """Return tau -> E tau as a UFL-building function."""
+    """The elasticity operator E.
+
+    Args:
+        E: Young's modulus (float or UFL constant).
+        nu: Poisson's ratio (float or UFL constant).
+        dim: space dimension (2 or 3).
+
+    Returns:
+        A function tau -> E tau building UFL.
+    """
     lmbda, two_mu = lame_constants(E, nu, dim)
 
     def apply(tau):

@@ -5,6 +5,8 @@ u_n is the stationary point over U^h = {v in V^h : v_nu <= g at Gamma3 nodes} of
            + int_Gamma3 [ P(v_nu) + xi_n v_nu^+ + theta(s_n) psi(|v_tau|) ]
 with H_n the DG0 pre-stress (viscoplastic history).  The residual F = dJ_n/du gives (3.4)
 with sigma_n = E eps(u_n) + H_n; the constraint is imposed by SNES VI bounds, not here.
+The data of J_n come in two parts: the bulk (``BulkData``: elasticity, H_n, loads f_n) and
+the contact surface Gamma3 (``ContactData``: laws (4.1)-(4.2), memory xi_n, slip theta(s_n)).
 Terms a case does not enable are simply not added (no friction form when frictionless).
 """
 from __future__ import annotations
@@ -19,113 +21,201 @@ from .elasticity import elasticity_operator, eps
 
 @dataclass
 class StepForms:
-    """UFL forms of one step: energy, residual, Jacobian, and the bulk residual.
+    """UFL forms of one step: residual, Jacobian, the bulk residual and the parts of them.
 
     ``bulk_residual`` is (E eps(u) + H, eps(v)) - f(v): at a Gamma3 node its value divided by
     the node's weight int phi_i ds is minus the contact force density (sigma nu at the node).
+
+    Attributes:
+        residual: F = dJ_n/du (3.4) (implicit variant: (sigma, eps(v)) - f_n(v) + Gamma3 terms).
+        jacobian: dF/du.
+        bulk_residual: the residual without the Gamma3 terms.
+        terms: names of the terms present, for logs and tests.
+        loads: f_n(v) alone (body force and tractions); None without loads or in the implicit
+            variant.
+        bulk_jacobian: (E eps(du), eps(v)), constant in time (explicit variant only).
+        boundary_jacobian: the Gamma3 terms' Jacobian alone (explicit variant, None without
+            Gamma3 terms).
     """
 
-    energy: ufl.Form | None   # None for the implicit variant (no potential)
     residual: ufl.Form
     jacobian: ufl.Form
     bulk_residual: ufl.Form
     terms: list = field(default_factory=list)
-    rhs: ufl.Form | None = None   # F_n = f_n(v) - (H_n, eps(v)), the explicit step's load vector
-    loads: ufl.Form | None = None  # f_n(v) alone (body force and tractions)
-    bulk_jacobian: ufl.Form | None = None      # (E eps(du), eps(v)): constant (explicit)
-    boundary_jacobian: ufl.Form | None = None  # the Gamma3 terms' Jacobian alone
+    loads: ufl.Form | None = None
+    bulk_jacobian: ufl.Form | None = None
+    boundary_jacobian: ufl.Form | None = None
+
+
+@dataclass
+class BulkData:
+    """The bulk part of J_n: elasticity, pre-stress H_n and loads f_n.
+
+    Numbers may be floats or dolfinx Constants (Constants keep one compiled form for all
+    values).
+
+    Attributes:
+        E: Young's modulus.
+        nu: Poisson's ratio.
+        dim: space dimension d (2: plane stress, 3: isotropic Hooke).
+        H: DG0 tensor Function, the pre-stress H_n of (3.2)-(3.3), or None.
+        f0: body force (UFL vector) or None.
+        tractions: (traction UFL vector, subdomain id) pairs on the parts of Gamma2.
+        ds: the boundary measure with the facet tags, for the tractions.
+        stress: the implicit history variant (app/model/implicit.py): a per-cell stress
+            Function whose residual (stress, eps(v)) replaces the elastic energy and H_n.
+        tangent: with ``stress``, the algorithmic tangent per cell in t-coordinates (shears
+            weighted twice): the Jacobian (tangent eps_t(du)) . eps_t(v).
+    """
+
+    E: object
+    nu: object
+    dim: int = 2
+    H: object = None
+    f0: object = None
+    tractions: list = field(default_factory=list)
+    ds: object = None
+    stress: object = None
+    tangent: object = None
+
+
+@dataclass
+class ContactData:
+    """The Gamma3 part of J_n: normal compliance (4.1), friction (4.2), history terms.
+
+    Attributes:
+        ds_c: the Gamma3 measure (forms.contact.gamma3_measure).
+        normal: the outward unit normal nu (tuple).
+        c_nu: normal compliance stiffness, or None.
+        friction: dict(b, c1, c2, u1) of law (4.2), or None.
+        theta: P1 Function theta(s_n) of the slip-dependent friction, or None.
+        xi: P1 Function xi_n of the memory term, or None.
+        delta: regularisation width of |u_tau| and u_nu^+.
+    """
+
+    ds_c: object
+    normal: tuple
+    c_nu: object = None
+    friction: dict | None = None
+    theta: object = None
+    xi: object = None
+    delta: object = None
 
 
 def voigt(tau, dim: int):
-    """t-coordinates of a symmetric tensor: (t11, t22, t12) or (t11, t22, t33, t23, t13, t12)."""
+    """t-coordinates of a symmetric tensor.
+
+    Args:
+        tau: a symmetric UFL tensor.
+        dim: space dimension (2 or 3).
+
+    Returns:
+        The UFL vector (t11, t22, t12) or (t11, t22, t33, t23, t13, t12).
+    """
     pairs = [(0, 0), (1, 1), (0, 1)] if dim == 2 else \
         [(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)]
     return ufl.as_vector([tau[i, j] for i, j in pairs])
 
 
-def build_step_forms(u, H, *, E, nu, dim=2, f0, tractions, ds, ds_c=None, normal=None,
-                     c_nu=None, friction=None, theta=None, xi=None, delta=None,
-                     stress=None, tangent=None) -> StepForms:
-    """Build J_n and its derivatives.
+def build_step_forms(u, bulk: BulkData, gamma3: ContactData | None = None) -> StepForms:
+    """Build J_n of (3.4) and its derivatives.
 
-    Parameters may be floats or dolfinx Constants (Constants keep one compiled form for all
-    values).  u: P1 displacement Function; H: DG0 tensor Function (pre-stress H_n) or None;
-    f0: body force (UFL vector) or None; tractions: list of (traction UFL vector, subdomain
-    id) on Gamma2 parts, integrated with ``ds``; ds_c: Gamma3 measure; normal: nu (tuple);
-    c_nu: normal compliance stiffness or None; friction: dict(b, c1, c2, u1) or None;
-    theta: P1 Function theta(s_n) of the slip law or None; xi: P1 Function xi_n (memory
-    term) or None; delta: regularisation width of |u_tau| and u_nu^+.
-    stress, tangent: the implicit history variant (app/model/implicit.py) replaces the elastic
-    energy and H_n by the residual (stress, eps(v)) with a per-cell stress Function and the
-    Jacobian (tangent eps_t(du)) . eps_t(v) (t-coordinates, shears weighted twice).
+    Args:
+        u: the P1 displacement Function.
+        bulk: elasticity, pre-stress H_n and loads f_n (or the implicit variant's stress).
+        gamma3: the Gamma3 terms, or None without contact.
+
+    Returns:
+        The residual, Jacobian and their bulk and boundary parts.
     """
-    V = u.function_space
-    v = ufl.TestFunction(V)
-    du = ufl.TrialFunction(V)
-    C = elasticity_operator(E, nu, dim)
-    dx = ufl.dx(domain=V.mesh)
+    dx = ufl.dx(domain=u.function_space.mesh)
+    loads, terms = _loads(u, bulk, dx)
+    boundary, boundary_terms = _boundary_energy(u, gamma3)
+    if bulk.stress is None:
+        return _explicit_forms(u, bulk, loads, boundary, terms + boundary_terms, dx)
+    return _implicit_forms(u, bulk, loads, boundary, terms + boundary_terms, dx)
 
-    loads = 0
-    terms = []
-    if f0 is not None:
-        loads += ufl.dot(f0, u) * dx
+
+def _loads(u, bulk: BulkData, dx):
+    """f_n(u) = (f0, u) + sum of (traction, u)_Gamma2-part, or None; the term names."""
+    parts, terms = [], []
+    if bulk.f0 is not None:
+        parts.append(ufl.dot(bulk.f0, u) * dx)
         terms.append("body force f0")
-    for traction, tag in tractions:
-        loads += ufl.dot(traction, u) * ds(tag)
+    for traction, tag in bulk.tractions:
+        parts.append(ufl.dot(traction, u) * bulk.ds(tag))
         terms.append(f"traction on part {tag}")
-    if stress is None:
-        bulk = 0.5 * ufl.inner(C(eps(u)), eps(u)) * dx
-        terms.insert(0, "elasticity")
-        if H is not None:
-            bulk += ufl.inner(H, eps(u)) * dx
-            terms.insert(1, "pre-stress H_n")
-        if loads != 0:
-            bulk -= loads
-    else:
-        terms.insert(0, "implicit Perzyna stress (algorithmic tangent)")
+    return (sum(parts) if parts else None), terms
 
-    boundary = 0
-    if c_nu is not None or friction is not None or xi is not None:
-        nu_vec = ufl.as_vector(normal)
-        u_nu = ufl.dot(u, nu_vec)
-        if c_nu is not None:
-            boundary += contact.normal_compliance_energy(u_nu, c_nu) * ds_c
-            terms.append("normal compliance")
-        if xi is not None:
-            boundary += xi * contact.regularised_positive_part(u_nu, delta) * ds_c
-            terms.append("memory term xi_n u_nu^+ (regularised)")
-        if friction is not None:
-            u_tau = u - u_nu * nu_vec
-            j = contact.friction_energy(u_tau, delta, **friction)
-            if theta is not None:
-                j = theta * j
-                terms.append("slip dependence theta(s_n)")
-            boundary += j * ds_c
-            terms.append("friction (regularised Clarke term)")
 
-    if stress is None:
-        energy = bulk + boundary if boundary != 0 else bulk
-        residual = ufl.derivative(energy, u, v)
-        jacobian = ufl.derivative(residual, u, du)
-        f_n = ufl.derivative(loads, u, v) if loads != 0 else None
-        rhs = f_n
-        if H is not None:
-            rhs = -ufl.inner(H, eps(v)) * dx if rhs is None else rhs - ufl.inner(H, eps(v)) * dx
-        bulk_jacobian = ufl.inner(C(eps(du)), eps(v)) * dx
-        boundary_jacobian = ufl.derivative(ufl.derivative(boundary, u, v), u, du) \
-            if boundary != 0 else None
-        return StepForms(energy, residual, jacobian, ufl.derivative(bulk, u, v), terms, rhs,
-                         f_n, bulk_jacobian, boundary_jacobian)
+def _boundary_energy(u, gamma3: ContactData | None):
+    """int_Gamma3 [P(u_nu) + xi_n u_nu^+ + theta(s_n) psi(|u_tau|)] (4.1)-(4.2), regularised
+    with delta, or None; the term names."""
+    parts, terms = [], []
+    if gamma3 is None or (gamma3.c_nu is None and gamma3.friction is None
+                          and gamma3.xi is None):
+        return None, terms
+    ds_c, delta = gamma3.ds_c, gamma3.delta
+    nu_vec = ufl.as_vector(gamma3.normal)
+    u_nu = ufl.dot(u, nu_vec)
+    if gamma3.c_nu is not None:
+        parts.append(contact.normal_compliance_energy(u_nu, gamma3.c_nu) * ds_c)
+        terms.append("normal compliance")
+    if gamma3.xi is not None:
+        parts.append(gamma3.xi * contact.regularised_positive_part(u_nu, delta) * ds_c)
+        terms.append("memory term xi_n u_nu^+ (regularised)")
+    if gamma3.friction is not None:
+        u_tau = u - u_nu * nu_vec
+        j = contact.friction_energy(u_tau, delta, **gamma3.friction)
+        if gamma3.theta is not None:
+            j = gamma3.theta * j
+            terms.append("slip dependence theta(s_n)")
+        parts.append(j * ds_c)
+        terms.append("friction (regularised Clarke term)")
+    return (sum(parts) if parts else None), terms
+
+
+def _explicit_forms(u, bulk: BulkData, loads, boundary, terms, dx) -> StepForms:
+    """The paper's scheme: J_n = 1/2 (E eps(u), eps(u)) + (H_n, eps(u)) - f_n(u) + boundary."""
+    V = u.function_space
+    v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
+    C = elasticity_operator(bulk.E, bulk.nu, bulk.dim)
+    energy = 0.5 * ufl.inner(C(eps(u)), eps(u)) * dx
+    named = ["elasticity"]
+    if bulk.H is not None:
+        energy += ufl.inner(bulk.H, eps(u)) * dx
+        named.append("pre-stress H_n")
+    if loads is not None:
+        energy -= loads
+    bulk_residual = ufl.derivative(energy, u, v)
+    if boundary is not None:
+        energy = energy + boundary
+    residual = ufl.derivative(energy, u, v)
+    return StepForms(
+        residual=residual, jacobian=ufl.derivative(residual, u, du),
+        bulk_residual=bulk_residual, terms=named + terms,
+        loads=ufl.derivative(loads, u, v) if loads is not None else None,
+        bulk_jacobian=ufl.inner(C(eps(du)), eps(v)) * dx,
+        boundary_jacobian=(ufl.derivative(ufl.derivative(boundary, u, v), u, du)
+                           if boundary is not None else None))
+
+
+def _implicit_forms(u, bulk: BulkData, loads, boundary, terms, dx) -> StepForms:
+    """The implicit history variant: residual (stress, eps(v)) - f_n(v) + boundary terms, and
+    the Jacobian from the algorithmic tangent."""
+    V, dim = u.function_space, bulk.dim
+    v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
     w = [1.0] * dim + [2.0] * (len(voigt(eps(u), dim)) - dim)
     ev = voigt(eps(v), dim)
     weighted = ufl.as_vector([w[i] * ev[i] for i in range(len(w))])
-    bulk_residual = ufl.inner(stress, eps(v)) * dx
-    if loads != 0:
+    bulk_residual = ufl.inner(bulk.stress, eps(v)) * dx
+    if loads is not None:
         bulk_residual -= ufl.derivative(loads, u, v)
-    bulk_jacobian = ufl.dot(ufl.dot(tangent, voigt(eps(du), dim)), weighted) * dx
+    bulk_jacobian = ufl.dot(ufl.dot(bulk.tangent, voigt(eps(du), dim)), weighted) * dx
     residual, jacobian = bulk_residual, bulk_jacobian
-    if boundary != 0:
+    if boundary is not None:
         contact_residual = ufl.derivative(boundary, u, v)
         residual = residual + contact_residual
         jacobian = jacobian + ufl.derivative(contact_residual, u, du)
-    return StepForms(None, residual, jacobian, bulk_residual, terms)
+    return StepForms(residual=residual, jacobian=jacobian, bulk_residual=bulk_residual,
+                     terms=["implicit Perzyna stress (algorithmic tangent)"] + terms)

@@ -50,7 +50,20 @@ def _gmsh_model(L, n, h):
 
 def build_box(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, L3: float = 1.0, *,
               n: int | None = None, h: float | None = None) -> BoxMesh:
-    """Build the box mesh: structured n x n x n (``n`` given) or unstructured of size ``h``."""
+    """Build the box mesh; collective on ``comm``.
+
+    Args:
+        comm: the communicator the mesh is distributed over.
+        L1, L2, L3: the box's sides (x, y, z).
+        n: cells per side of a structured mesh (n x n x n blocks of tetrahedra), or None.
+        h: target cell size of an unstructured mesh, or None.
+
+    Returns:
+        The BoxMesh.
+
+    Raises:
+        ValueError: unless exactly one of n and h is given.
+    """
     if (n is None) == (h is None):
         raise ValueError("give exactly one of n (structured) or h (unstructured)")
     L = (float(L1), float(L2), float(L3))

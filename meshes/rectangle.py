@@ -33,7 +33,18 @@ _GMSH_ARRANGEMENT = {"right": "Right", "left": "Left"}
 
 @dataclass
 class RectangleMesh:
-    """A distributed dolfinx mesh with its cell and facet tags and geometry data."""
+    """A distributed dolfinx mesh with its cell and facet tags and geometry data.
+
+    Attributes:
+        mesh: the dolfinx mesh.
+        cell_tags: the cell tags (DOMAIN_TAG).
+        facet_tags: the boundary facet tags (BOUNDARY_TAGS).
+        L1, L2: the sides in x and y.
+        structured: built as n x n squares (or blocks).
+        n: cells per side of a structured mesh, else None.
+        h: the cell size (L / n when structured).
+        diagonal: the diagonal of a structured rectangle, else None.
+    """
 
     mesh: object
     cell_tags: object
@@ -51,6 +62,7 @@ class RectangleMesh:
 
     @property
     def dim(self) -> int:
+        """The space dimension (2 for the rectangle, 3 for the box)."""
         return len(self.normal)
 
 
@@ -108,10 +120,22 @@ def _dolfinx_structured(comm, L1: float, L2: float, n: int, diagonal: str):
 def build_rectangle(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, *, n: int | None = None,
                     h: float | None = None, diagonal: str = "right",
                     engine: str = "dolfinx") -> RectangleMesh:
-    """Build the rectangle mesh: structured n x n (``n`` given) or unstructured of size ``h``.
-    ``engine`` ("dolfinx" or "gmsh") builds structured meshes; unstructured ones use gmsh.
+    """Build the rectangle mesh; collective on ``comm``.
 
-    Returns a :class:`RectangleMesh`; collective on ``comm``.
+    Args:
+        comm: the communicator the mesh is distributed over.
+        L1, L2: the sides in x and y.
+        n: squares per side of a structured mesh, or None.
+        h: target cell size of an unstructured (gmsh) mesh, or None.
+        diagonal: "right" or "left", the cut of every square of a structured mesh.
+        engine: "dolfinx" or "gmsh", which builds a structured mesh.
+
+    Returns:
+        The RectangleMesh.
+
+    Raises:
+        ValueError: unless exactly one of n and h is given, or for an unknown diagonal or
+            engine.
     """
     if (n is None) == (h is None):
         raise ValueError("give exactly one of n (structured) or h (unstructured)")
@@ -133,9 +157,20 @@ def build_rectangle(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, *, n: int 
 
 
 def gmsh_mesh(comm: MPI.Comm, gdim: int, build, scale: float):
-    """(mesh, cell tags, facet tags) of the gmsh model that ``build()`` creates on rank 0,
-    distributed by dolfinx, with its coordinates multiplied by ``scale``.  Gmsh's geometric
-    tolerances are absolute, so models are built at unit size and scaled afterwards."""
+    """The dolfinx mesh of a gmsh model built on rank 0; collective on ``comm``.
+
+    Gmsh's geometric tolerances are absolute, so models are built at unit size and scaled
+    afterwards.
+
+    Args:
+        comm: the communicator the mesh is distributed over.
+        gdim: the geometric dimension.
+        build: called on rank 0 (gmsh initialised) to create the model and generate its mesh.
+        scale: the factor applied to the coordinates.
+
+    Returns:
+        (mesh, cell tags, facet tags).
+    """
     import gmsh
     from dolfinx.io import gmshio
 

@@ -51,8 +51,9 @@ def make_case(raw: dict | None = None, **sections):
 def run_case(case):
     """Run in this process without writing outputs; returns the RunResult."""
     from mpi4py import MPI
+
     from app.simulation import run
-    return run(case, None, MPI.COMM_WORLD, write_outputs=False)
+    return run(case, MPI.COMM_WORLD)
 
 
 def run_cli(args, nprocs: int = 1, cwd=None, timeout=600, plots=False):

@@ -6,21 +6,29 @@ import os
 
 def report(case, comm) -> list[str]:
     """Validate-and-set-up report of a case: mesh, dofs, steps, terms, solver, diagnostics.
-    Builds the mesh, spaces and forms (JIT) but solves nothing and writes nothing."""
+    Builds the mesh, spaces and forms (JIT) but solves nothing and writes nothing.
+
+    Args:
+        case: the validated Case.
+        comm: the MPI communicator.
+
+    Returns:
+        The report's lines.
+    """
     import numpy as np
 
     from app.io.case import fast_eligible
-    from app.post.diagnostics import diagnose
     from app.model.problem import ContactProblem
-    from app.simulation import AUTO_FAST_MAX_GAMMA3_DOFS, build_mesh
+    from app.post.diagnostics import diagnose
+    from app.simulation import build_mesh
+    from app.solvers import choose_method, gamma3_dofs
 
     problem = ContactProblem(case, build_mesh(case, comm))
     ks = np.diff(case.time.times)
-    n_g = comm.allreduce(len(problem.gamma3.nodes) if problem.gamma3 else 0)
+    n_dofs = gamma3_dofs(problem)
+    n_g = n_dofs // problem.dim
     ok, why = fast_eligible(case)
-    method = case.numerics.method
-    if method == "auto":
-        method = "fast" if ok and n_g * problem.dim <= AUTO_FAST_MAX_GAMMA3_DOFS else "snes_vi"
+    method = choose_method(case, n_dofs)
     m = case.mesh
     mesh = (f"structured {m.n} x {m.n}" + (f" x {m.n}" if m.dim == 3 else "")
             if m.kind == "structured" else f"unstructured, h = {m.h:g}")
@@ -34,7 +42,7 @@ def report(case, comm) -> list[str]:
         + (", adaptive" if case.time.adaptive is not None else ""),
         "active terms: " + ", ".join(case.active_terms()),
         "left out: " + (", ".join(case.omitted_terms()) or "nothing"),
-        f"step solver: {method}" + (f" (solver.method: auto)" if case.numerics.method == "auto"
+        f"step solver: {method}" + (" (solver.method: auto)" if case.numerics.method == "auto"
                                     else "") + ("" if ok else f"; fast not possible: {why}"),
     ]
     diag = diagnose(problem)
@@ -46,7 +54,11 @@ def report(case, comm) -> list[str]:
 
 
 def info() -> list[str]:
-    """Versions of the numerical stack and where the JIT caches are."""
+    """Versions of the numerical stack and where the JIT caches are.
+
+    Returns:
+        The lines of ``vpcontact info``.
+    """
     import basix
     import dolfinx
     import ffcx

@@ -348,6 +348,16 @@ def _start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
 
 
 def cmd_run(args, petsc_cli: dict) -> int:
+    """``vpcontact run``: a Simulation with the command line's observers (solution.xdmf,
+    checkpoints, progress bar, per-step log, contact.csv and summary.json), then the figures.
+
+    Args:
+        args: the parsed command line.
+        petsc_cli: PETSc options given on the command line.
+
+    Returns:
+        The exit code (see _report_run; 2: bad input).
+    """
     from app.io.case import CaseError
     from app.io.checkpoint import Checkpoint, latest
 
@@ -378,6 +388,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
     if case is None:
         return 2
 
+    from app.observers import Checkpointer, FieldOutput, ProgressBar, RunFiles, StepLog
     from app.simulation import run
 
     if args.verbose:
@@ -385,8 +396,9 @@ def cmd_run(args, petsc_cli: dict) -> int:
     case = dataclasses.replace(case, petsc={**case.petsc, **petsc_cli})
     log.info("vpcontact %s: case %s -> %s (%d MPI rank%s)", __version__, args.case, outdir,
              comm.size, "s" if comm.size > 1 else "")
-    result = run(case, outdir, comm, restart=loaded.get("checkpoint"),
-                 progress=not args.quiet and not args.verbose)
+    progress = [ProgressBar()] if not args.quiet and not args.verbose else []
+    observers = [FieldOutput(), Checkpointer(), *progress, StepLog(), RunFiles()]
+    result = run(case, comm, observers, outdir=outdir, restart=loaded.get("checkpoint"))
     s = result.summary
     if result.status == "completed" and not args.no_plots and comm.rank == 0 and s["steps"]:
         if _plots(outdir) == "interrupted":
@@ -395,8 +407,17 @@ def cmd_run(args, petsc_cli: dict) -> int:
 
 
 def _report_run(comm, s: dict, outdir: Path, no_plots: bool) -> int:
-    """The closing lines of a run and its exit code: 0 completed, 1 failed or diverged,
-    3 interrupted."""
+    """The closing lines of a run and its exit code.
+
+    Args:
+        comm: the MPI communicator.
+        s: the run's summary (summary.json's content).
+        outdir: the output directory.
+        no_plots: --no-plots was given.
+
+    Returns:
+        0 completed, 1 failed or diverged, 3 interrupted.
+    """
     status = s["status"]
     if status == "completed":
         log.info("done: %d steps, %d Newton iterations, wall %.2f s (set-up %.2f s, steps %.2f s)",

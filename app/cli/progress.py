@@ -18,6 +18,17 @@ def _clock(seconds: float) -> str:
 
 
 class Progress:
+    """The bar (see the module docstring); app/observers.ProgressBar drives it in a run.
+
+    Args:
+        T: the final time.
+        total: the number of steps (None: adaptive, unknown).
+        t0: the start time (a restart's t_n).
+        enabled: False: draw nothing (ranks other than 0, --quiet).
+        stream: where to draw (default stderr).
+        width: the bar's width in characters.
+    """
+
     def __init__(self, T: float, total: int | None, t0: float = 0.0, enabled: bool = True,
                  stream=None, width: int = 24):
         self.T, self.total, self.t0 = T, total, t0
@@ -30,6 +41,7 @@ class Progress:
         self._drawn = False
 
     def text(self, n: int, t: float, its: int) -> str:
+        """The bar's line after step n at time t with ``its`` iterations."""
         frac = min(max((t - self.t0) / max(self.T - self.t0, 1e-300), 0.0), 1.0)
         elapsed = time.perf_counter() - self.start
         eta = elapsed * (1 - frac) / frac if frac > 0 else float("nan")
@@ -40,6 +52,7 @@ class Progress:
                 f"iterations {its:2d}  elapsed {_clock(elapsed)}  ETA {eta_s}")
 
     def update(self, n: int, t: float, its: int) -> None:
+        """Redraw (terminal) or print a line at every 10% of T (file, pipe) after step n."""
         if not self.enabled:
             return
         line = self.text(n, t, its)
@@ -55,6 +68,7 @@ class Progress:
                 self._next_line += 0.1
 
     def close(self) -> None:
+        """End the redrawn line on a terminal."""
         if self.enabled and self.tty and self._drawn:
             self.stream.write("\n")
             self.stream.flush()

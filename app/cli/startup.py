@@ -48,7 +48,11 @@ def install_pkg_resources_stand_in() -> None:
 def quick_exit(code: int):
     """Exit with ``code`` after what the interpreter's teardown would do that matters: flush
     sys.stdout/stderr, run the atexit handlers (logging's among them), finalise PETSc (its
-    -log_view report) and MPI (mpirun expects every rank to), flush C's stdio buffers."""
+    -log_view report) and MPI (mpirun expects every rank to), flush C's stdio buffers.
+
+    Args:
+        code: the exit status.
+    """
     import atexit
     import ctypes
     for stream in (sys.stdout, sys.stderr):

@@ -22,7 +22,12 @@ def _devnull_at(fd: int) -> None:
 
 class SafeStream:
     """A text stream whose writes cannot fail: after the first OSError (EPIPE, ENOSPC,
-    EBADF) its descriptor points at /dev/null and output is dropped."""
+    EBADF) its descriptor points at /dev/null and output is dropped.
+
+    Args:
+        stream: the text stream wrapped.
+        fd: its descriptor.
+    """
 
     def __init__(self, stream, fd: int):
         self._stream, self._fd = stream, fd
@@ -31,6 +36,14 @@ class SafeStream:
         _devnull_at(self._fd)
 
     def write(self, text: str) -> int:
+        """Write, or drop the text if the stream failed.
+
+        Args:
+            text: the text.
+
+        Returns:
+            The characters written (all of them when dropped).
+        """
         try:
             return self._stream.write(text)
         except OSError:
@@ -38,6 +51,7 @@ class SafeStream:
             return len(text)
 
     def flush(self) -> None:
+        """Flush; a failure sends the stream to /dev/null."""
         try:
             self._stream.flush()
         except OSError:

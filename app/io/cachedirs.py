@@ -1,8 +1,8 @@
 """Where vpcontact and the libraries it drives keep their caches, and a usable replacement
 when one of them is not writable (a read-only, missing or file-valued home directory).
 
-- run and kernel cache: $VPCONTACT_CACHE, else $XDG_CACHE_HOME/vpcontact, else
-  ~/.cache/vpcontact (compiled kernels in its ``kernels`` subdirectory);
+- run and kernel cache (``CACHE_SEARCH``): $VPCONTACT_CACHE, else $XDG_CACHE_HOME/vpcontact,
+  else ~/.cache/vpcontact (compiled kernels in its ``kernels`` subdirectory);
 - FFCx JIT cache of dolfinx: $XDG_CACHE_HOME/fenics, else ~/.cache/fenics (dolfinx.jit reads
   it once, when it is imported);
 - matplotlib's configuration directory: $MPLCONFIGDIR, else $XDG_CONFIG_HOME/matplotlib, else
@@ -26,6 +26,8 @@ from pathlib import Path
 
 CONFIG_FILES = (("ffcx", "ffcx_parameters.json"), ("dolfinx", "dolfinx_jit_parameters.json"))
 XDG_VARS = ("XDG_CACHE_HOME", "XDG_CONFIG_HOME")
+# The run and kernel cache as ``vpcontact_dir`` finds it, for help texts and messages.
+CACHE_SEARCH = "$VPCONTACT_CACHE, else $XDG_CACHE_HOME/vpcontact, else ~/.cache/vpcontact"
 
 
 class CacheUnusable(OSError):
@@ -34,7 +36,14 @@ class CacheUnusable(OSError):
 
 @dataclass
 class Caches:
-    """The directories in use and the ones replaced: (what, wanted, used, why not)."""
+    """The directories in use and the ones replaced.
+
+    Attributes:
+        root: the run and kernel cache.
+        ffcx: dolfinx's FFCx JIT cache.
+        replaced: (what, wanted, used, why not) of each directory replaced.
+        ignored: (variable, value) of each XDG variable ignored (not an absolute path).
+    """
 
     root: Path
     ffcx: Path
@@ -43,11 +52,16 @@ class Caches:
 
     @property
     def kernels(self) -> Path:
+        """The compiled kernels' directory, ``kernels`` in the run cache."""
         return self.root / "kernels"
 
     def warning(self) -> str | None:
-        """One line naming each unusable directory and the one used instead, and each
-        relative XDG variable ignored, or None."""
+        """The warning for the user.
+
+        Returns:
+            One line naming each unusable directory and the one used instead, and one per
+            relative XDG variable ignored; None if there is nothing to say.
+        """
         lines = [f"vpcontact: warning: {var}={value!r} is not an absolute path, ignored (as "
                  "the XDG base directory specification asks)" for var, value in self.ignored
                  if value]
@@ -60,8 +74,15 @@ class Caches:
 
 
 def unusable(path: Path) -> str | None:
-    """None if ``path`` is, or can be made, a directory this process can write a file into;
-    else the reason it cannot (e.g. 'Read-only file system')."""
+    """Whether a cache directory is usable (it is created if missing).
+
+    Args:
+        path: the directory.
+
+    Returns:
+        None if ``path`` is, or can be made, a directory this process can write a file into;
+        else the reason it cannot (e.g. 'Read-only file system').
+    """
     try:
         path.mkdir(parents=True, exist_ok=True)
         fd, name = tempfile.mkstemp(dir=path, prefix=".vpcontact-write-test-")
@@ -79,7 +100,14 @@ def _home(env) -> Path:
 
 
 def vpcontact_dir(env) -> Path:
-    """The run/kernel cache the environment asks for (empty variables count as unset)."""
+    """The run and kernel cache the environment asks for (``CACHE_SEARCH``).
+
+    Args:
+        env: the environment (a mapping); empty variables count as unset.
+
+    Returns:
+        The directory (not checked).
+    """
     if env.get("VPCONTACT_CACHE"):
         return Path(env["VPCONTACT_CACHE"])
     if env.get("XDG_CACHE_HOME"):
@@ -88,13 +116,27 @@ def vpcontact_dir(env) -> Path:
 
 
 def ffcx_dir(env) -> Path:
-    """dolfinx's FFCx cache, read the way dolfinx.jit reads it."""
+    """dolfinx's FFCx cache, read the way dolfinx.jit reads it.
+
+    Args:
+        env: the environment (a mapping).
+
+    Returns:
+        $XDG_CACHE_HOME/fenics, else ~/.cache/fenics.
+    """
     base = env["XDG_CACHE_HOME"] if "XDG_CACHE_HOME" in env else _home(env) / ".cache"
     return Path(base) / "fenics"
 
 
 def config_dir(env) -> Path:
-    """The user configuration directory, read the way FFCx and dolfinx read it."""
+    """The user configuration directory, read the way FFCx and dolfinx read it.
+
+    Args:
+        env: the environment (a mapping).
+
+    Returns:
+        $XDG_CONFIG_HOME, else ~/.config.
+    """
     return Path(env["XDG_CONFIG_HOME"] if "XDG_CONFIG_HOME" in env else _home(env) / ".config")
 
 
@@ -111,7 +153,14 @@ def _config_unreadable(root: Path) -> str | None:
 
 
 def fallback_base() -> Path:
-    """tempfile.gettempdir()/vpcontact-<uid>, a directory of this user only."""
+    """The base of the replacement caches, a directory of this user only.
+
+    Returns:
+        tempfile.gettempdir()/vpcontact-<uid>, created with mode 0700.
+
+    Raises:
+        CacheUnusable: if it cannot be created or is not a directory of this user.
+    """
     try:
         base = Path(tempfile.gettempdir()) / f"vpcontact-{os.getuid()}"
     except OSError as exc:                  # no usable temporary directory at all
@@ -145,8 +194,17 @@ def _replace(env, replaced: list, what: str, wanted: Path, why: str, var: str,
 
 
 def prepare(env=None) -> Caches:
-    """Test every cache and settings directory; replace the unusable ones (``env``, default
-    os.environ, is updated).  Raises CacheUnusable if a replacement is not writable either."""
+    """Test every cache and settings directory and replace the unusable ones.
+
+    Args:
+        env: the environment, updated in place (default os.environ).
+
+    Returns:
+        The directories in use.
+
+    Raises:
+        CacheUnusable: if a replacement is not writable either.
+    """
     env = os.environ if env is None else env
     replaced: list = []
     # empty or relative XDG values are invalid (XDG base directory specification): removed,
@@ -177,7 +235,11 @@ _CACHES: Caches | None = None
 
 
 def caches() -> Caches:
-    """The directories in use (prepared once per process)."""
+    """The directories in use (prepared once per process).
+
+    Returns:
+        The Caches of this process.
+    """
     global _CACHES
     if _CACHES is None:
         _CACHES = prepare()
@@ -185,14 +247,26 @@ def caches() -> Caches:
 
 
 def cache_root() -> Path:
-    """The run cache (convergence study); compiled kernels go to its ``kernels``."""
+    """The run cache (convergence study); compiled kernels go to its ``kernels``.
+
+    Returns:
+        The directory (``CACHE_SEARCH``, or its replacement).
+    """
     return caches().root
 
 
 def start(rank: int) -> None:
     """At import of the package: prepare the caches; rank 0 prints the warning, if any.
+
     With no writable directory at all, the one-line error and exit code 1 (an environmental
-    fault, like a full disk)."""
+    fault, like a full disk).
+
+    Args:
+        rank: this process's MPI rank.
+
+    Raises:
+        SystemExit: (1) if no writable directory could be found for a cache.
+    """
     global _CACHES
     try:
         _CACHES = prepare()

@@ -7,21 +7,19 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import difflib
 import math
 import re
 import stat
-import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import jsonschema
 import yaml
 
-from meshes.rectangle import SIDES
-
 from app.io.petscopts import PetscOptions, check_petsc_options
 from app.io.schema import DEFAULT_PETSC, SCHEMA
-
+from meshes.rectangle import SIDES
 
 MAX_INT_DIGITS = 30
 
@@ -31,6 +29,18 @@ class CaseLoader(yaml.SafeLoader):
     rejects duplicate keys (PyYAML would silently keep the last one)."""
 
     def construct_mapping(self, node, deep=False):
+        """A mapping, refused if a key repeats.
+
+        Args:
+            node: the YAML mapping node.
+            deep: construct the values recursively.
+
+        Returns:
+            The dict.
+
+        Raises:
+            yaml.constructor.ConstructorError: for a duplicate key (naming both lines).
+        """
         seen = {}
         for key_node, _ in node.value:
             key = self.construct_object(key_node, deep=True)
@@ -44,7 +54,17 @@ class CaseLoader(yaml.SafeLoader):
 
     def construct_yaml_int(self, node):
         """An integer of at most MAX_INT_DIGITS digits (Python refuses to convert very long
-        ones, and none is a sensible value here)."""
+        ones, and none is a sensible value here).
+
+        Args:
+            node: the YAML scalar node.
+
+        Returns:
+            The int.
+
+        Raises:
+            yaml.constructor.ConstructorError: for more than MAX_INT_DIGITS digits.
+        """
         if len(re.sub(r"[^0-9a-fA-F]", "", node.value)) > MAX_INT_DIGITS:
             raise yaml.constructor.ConstructorError(
                 None, None, f"integer with more than {MAX_INT_DIGITS} digits", node.start_mark)
@@ -65,7 +85,17 @@ CaseLoader.add_implicit_resolver(
 
 
 def safe_load(text: str):
-    """Parse YAML with :class:`CaseLoader` (safe: plain data only, no Python objects)."""
+    """Parse YAML with :class:`CaseLoader` (safe: plain data only, no Python objects).
+
+    Args:
+        text: the YAML text.
+
+    Returns:
+        The parsed data.
+
+    Raises:
+        yaml.YAMLError: for text that is not valid YAML or has a duplicate key.
+    """
     return yaml.load(text, Loader=CaseLoader)
 
 
@@ -122,7 +152,17 @@ def _set_path(data: dict, dotted: str, value) -> None:
 
 
 def parse_override(text: str) -> tuple[str, object]:
-    """'section.key=value' -> (path, value), the value read as YAML (numbers, lists, ...)."""
+    """Read one ``--set`` override.
+
+    Args:
+        text: 'section.key=value'.
+
+    Returns:
+        (dotted key path, value), the value read as YAML (numbers, lists, ...).
+
+    Raises:
+        CaseError: if the text is not of that form or the value is not YAML.
+    """
     if "=" not in text:
         raise CaseError(f"--set {text!r}: expected section.key=value")
     key, raw = text.split("=", 1)
@@ -145,7 +185,14 @@ class RawCase(dict):
 
 
 def key_lines(text: str) -> dict[str, int]:
-    """Dotted key path -> line of the key in the YAML text (as far as the parser can tell)."""
+    """Where the keys of a YAML text are.
+
+    Args:
+        text: the YAML text.
+
+    Returns:
+        Dotted key path -> 1-based line of the key (as far as the parser can tell).
+    """
     out: dict[str, int] = {}
     seen: set[int] = set()
 
@@ -175,7 +222,15 @@ _PATH = re.compile(r"[A-Za-z_]\w*(?:\.[A-Za-z_]\w*|\[\d+\])*")
 
 
 def with_lines(message: str, lines: dict) -> str:
-    """Add '(line N)' after the first key path of each message line that the YAML text has."""
+    """Add '(line N)' after the first key path of each message line that the YAML text has.
+
+    Args:
+        message: a CaseError message.
+        lines: key path -> line (``key_lines``).
+
+    Returns:
+        The message with the lines.
+    """
     if not lines:
         return message
 
@@ -244,8 +299,19 @@ def _check_data(data, path: str, source, budget: list) -> None:
 
 
 def read_text(path: Path) -> str:
-    """The case file's text: a regular file of at most MAX_FILE_BYTES bytes of UTF-8 (a
-    device, FIFO or directory is refused before it is opened: reading one may never end)."""
+    """The case file's text.
+
+    A device, FIFO or directory is refused before it is opened: reading one may never end.
+
+    Args:
+        path: the case file.
+
+    Returns:
+        The text of a regular file of at most MAX_FILE_BYTES bytes of UTF-8.
+
+    Raises:
+        CaseError: for anything else, or a file that cannot be read.
+    """
     try:
         if not stat.S_ISREG(path.stat().st_mode):
             raise CaseError(f"{path}: not a regular file (a case file must be a YAML text "
@@ -264,7 +330,19 @@ def read_text(path: Path) -> str:
 
 
 def load_raw(path: str | Path, overrides: list[str] = ()) -> dict:
-    """Read the YAML case with a safe loader and apply ``--set`` overrides."""
+    """Read the YAML case with a safe loader and apply ``--set`` overrides.
+
+    Args:
+        path: the case file.
+        overrides: 'section.key=value' strings.
+
+    Returns:
+        The RawCase (with the lines of its keys), not yet validated.
+
+    Raises:
+        CaseError: if the file cannot be read, is not a YAML mapping, or holds non-finite,
+            out-of-range or too much data.
+    """
     path = Path(path)
     text = read_text(path)
     try:
@@ -294,6 +372,8 @@ def load_raw(path: str | Path, overrides: list[str] = ()) -> dict:
 # ----------------------------------------------------------------------------- the case
 @dataclass(frozen=True)
 class MeshSpec:
+    """The ``mesh`` section: dimension, sides, structured (n) or unstructured (h)."""
+
     dim: int
     L1: float
     L2: float
@@ -306,6 +386,8 @@ class MeshSpec:
 
 @dataclass(frozen=True)
 class Viscoplastic:
+    """``material.viscoplastic``: the Perzyna law's lambda1, lambda2 and kappa0."""
+
     lambda1: float
     lambda2: float
     kappa0: float | str
@@ -313,6 +395,8 @@ class Viscoplastic:
 
 @dataclass(frozen=True)
 class Material:
+    """The ``material`` section: E, nu, and the viscoplastic law or None (elastic)."""
+
     E: float
     nu: float
     viscoplastic: Viscoplastic | None
@@ -320,12 +404,16 @@ class Material:
 
 @dataclass(frozen=True)
 class Slip:
+    """``contact.friction.slip``: theta(s) = theta_inf + (1 - theta_inf) exp(-s/s0)."""
+
     theta_inf: float
     s0: float
 
 
 @dataclass(frozen=True)
 class Friction:
+    """``contact.friction``: the parameters of law (4.2) and the slip dependence or None."""
+
     b: float
     c1: float
     c2: float
@@ -335,6 +423,8 @@ class Friction:
 
 @dataclass(frozen=True)
 class Memory:
+    """``contact.memory``: the memory kernel b(t) and how its sum is computed."""
+
     b0: float
     beta: float
     kernel: str
@@ -346,6 +436,8 @@ class Memory:
 
 @dataclass(frozen=True)
 class Contact:
+    """The ``contact`` section: gap g, normal compliance c_nu (4.1), friction, memory."""
+
     g: float | None
     c_nu: float | None
     friction: Friction | None
@@ -353,23 +445,30 @@ class Contact:
 
     @property
     def active(self) -> bool:
+        """Any Gamma3 term present."""
         return any(x is not None for x in (self.g, self.c_nu, self.friction, self.memory))
 
 
 @dataclass(frozen=True)
 class Loads:
+    """The ``loads`` section: body force f0 and tractions per side of Gamma2."""
+
     f0: tuple | None
     traction: dict
 
 
 @dataclass(frozen=True)
 class Initial:
+    """The ``initial`` section: u0 and sigma0, or None (zero)."""
+
     u0: tuple | None
     sigma0: tuple | None
 
 
 @dataclass(frozen=True)
 class TimeGrid:
+    """The ``time`` section: the time points t_0..t_N, the history scheme, adaptivity."""
+
     times: tuple
     uniform: bool
     scheme: str = "explicit"
@@ -377,15 +476,19 @@ class TimeGrid:
 
     @property
     def T(self) -> float:
+        """The final time t_N."""
         return self.times[-1]
 
     @property
     def N(self) -> int:
+        """The number of steps."""
         return len(self.times) - 1
 
 
 @dataclass(frozen=True)
 class Numerics:
+    """The ``solver`` section: step solver, delta, Gamma3 quadrature."""
+
     method: str
     delta: float
     quadrature: str
@@ -394,12 +497,16 @@ class Numerics:
 
 @dataclass(frozen=True)
 class OutputSpec:
+    """The ``output`` section: field output and checkpoint intervals (steps)."""
+
     every: int
     checkpoint_every: int | None = None
 
 
 @dataclass(frozen=True)
 class Case:
+    """A validated case: its sections as separate objects, and the raw mapping."""
+
     name: str
     source: str
     mesh: MeshSpec
@@ -416,9 +523,15 @@ class Case:
 
     @property
     def dim(self) -> int:
+        """The space dimension."""
         return self.mesh.dim
 
     def active_terms(self) -> list[str]:
+        """The model's terms this case has, for the run log.
+
+        Returns:
+            Their names.
+        """
         terms = ["plane-stress elasticity" if self.dim == 2 else "isotropic elasticity (3D)"]
         if self.material.viscoplastic:
             terms.append("Perzyna viscoplastic history H_n, kappa_n"
@@ -437,7 +550,11 @@ class Case:
         return terms
 
     def omitted_terms(self) -> list[str]:
-        """The model's terms this case leaves out (nothing is allocated or computed for them)."""
+        """The model's terms this case leaves out (nothing is allocated or computed for them).
+
+        Returns:
+            Their names.
+        """
         out = []
         if not self.material.viscoplastic:
             out.append("viscoplastic history (elastic body)")
@@ -544,8 +661,19 @@ def _check_adaptive(a: dict | None, times: tuple, source: str) -> None:
 
 
 def validate(data: dict, source: str = "<case>") -> Case:
-    """Validate a raw case dictionary against the schema; return a :class:`Case`.  Error
-    messages name the file, the key path and (for a file read by load_raw) its line."""
+    """Validate a raw case dictionary against the schema.
+
+    Args:
+        data: the case mapping (a RawCase from load_raw, or a dict built in code).
+        source: the file name for messages.
+
+    Returns:
+        The Case.
+
+    Raises:
+        CaseError: one line naming the file, the key path and (for a file read by
+            load_raw) its line.
+    """
     try:
         return _validate(data, source)
     except CaseError as exc:          # one line, with the YAML lines of the keys named
@@ -696,7 +824,15 @@ def scaled_petsc_defaults(data: dict, stress: float) -> dict:
       or initial data (u = 0 exactly) the default value serves;
     - snes_vi_zero_tolerance, how close to its bound (in m) SNES VI takes a dof as active:
       relative to the body's size L, and at most 1e-4 of the gap g (a tenth of the limit
-      in petsc_limits, so that a small gap keeps a valid default)."""
+      in petsc_limits, so that a small gap keeps a valid default).
+
+    Args:
+        data: the default-filled case mapping.
+        stress: the stress scale of the case's loads and initial data.
+
+    Returns:
+        PETSc option name -> default value.
+    """
     mesh = data["mesh"]
     length = max([mesh["L1"], mesh["L2"], mesh["L3"]][:mesh["dim"]])
     force = stress * length ** (mesh["dim"] - 1)
@@ -711,7 +847,15 @@ def petsc_limits(data: dict, stress: float) -> dict:
     """The largest absolute tolerances that still solve a step of this case, with the
     reason (for petscopts.check_petsc_options): a residual tolerance of 1e-3 of the nodal
     force scale stress L^(d-1) (none without loads or initial data: u = 0 exactly), an
-    active-set tolerance of 1e-3 of the gap g and of the body's size L."""
+    active-set tolerance of 1e-3 of the gap g and of the body's size L.
+
+    Args:
+        data: the default-filled case mapping.
+        stress: the stress scale of the case's loads and initial data.
+
+    Returns:
+        PETSc option name -> (largest value, reason).
+    """
     mesh = data["mesh"]
     length = max([mesh["L1"], mesh["L2"], mesh["L3"]][:mesh["dim"]])
     force = stress * length ** (mesh["dim"] - 1)
@@ -773,7 +917,14 @@ def _build(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Case:
 
 
 def fast_eligible(case: Case) -> tuple[bool, str]:
-    """Can the fast step solver (app/solvers/fast.py) solve this case?  (bool, why not)"""
+    """Can the fast step solver (app/solvers/fast.py) solve this case?
+
+    Args:
+        case: the case.
+
+    Returns:
+        (eligible, why not: "" when eligible).
+    """
     if case.time.scheme != "explicit" and case.material.viscoplastic is not None:
         return False, "the implicit history variant makes the bulk problem nonlinear"
     if case.numerics.quadrature != "vertex" and case.contact.active:
@@ -782,5 +933,16 @@ def fast_eligible(case: Case) -> tuple[bool, str]:
 
 
 def load_case(path: str | Path, overrides: list[str] = ()) -> Case:
-    """Read, override and validate a case file.  Raises :class:`CaseError`."""
+    """Read, override and validate a case file.
+
+    Args:
+        path: the case file.
+        overrides: 'section.key=value' strings (``--set``).
+
+    Returns:
+        The Case.
+
+    Raises:
+        CaseError: for any problem, in one line naming the file and key.
+    """
     return validate(load_raw(path, overrides), str(path))

@@ -1,11 +1,14 @@
 """Checkpoint and restart: the full state of scheme (3.2)-(3.4) after step n.
 
-Saved: t_n and the step counter, the stepper (adaptive k and history), the step records, and
-every field the next step reads: u_n (P1), sigma_n, H_n (DG0 tensors), kappa_n (DG0), and the
-active Gamma3 histories (memory term: xi_n, and for the direct sum the stored u_nu^+ history;
-slip: s_n).  Values are stored with the coordinates of their nodes / cell midpoints, gathered
-on rank 0 into one ``checkpoint.npz`` (written atomically), so a run can restart on any number
-of MPI ranks: each rank matches its own nodes and cells by coordinates.
+Saved: t_n and the step counter, the stepper's state (the adaptive k and its decisions,
+stored under the key "history" of the file's meta data), the step records, and every field
+the next step reads: u_n (P1), sigma_n, H_n (DG0 tensors), kappa_n (DG0), and the active
+Gamma3 history terms as their ``state()`` gives them (memory term: xi_n, and for the direct
+sum the stored u_nu^+ history; slip: s_n).  Values are stored with the coordinates of their
+nodes / cell midpoints, gathered on rank 0 into one ``checkpoint.npz`` (written
+atomically), so a run can restart on any number of MPI ranks: each rank matches its own
+nodes and cells by coordinates.  A restart puts the state back through the same
+``load_state`` methods.
 """
 from __future__ import annotations
 
@@ -26,17 +29,26 @@ _DECIMALS = 10
 
 
 def file_name(n: int) -> str:
+    """The checkpoint file name of step n (checkpoint_000012.npz)."""
     return f"checkpoint_{n:06d}.npz"
 
 
 def latest(directory: Path) -> Path | None:
+    """The newest checkpoint in ``directory``, or None if it holds none."""
     files = sorted(Path(directory).glob(PATTERN))
     return files[-1] if files else None
 
 
 def case_fingerprint(case) -> str:
     """What must agree between the checkpointed run and the restart: mesh, material, contact,
-    loads, initial values, time grid and scheme (not solver or output settings)."""
+    loads, initial values, time grid and scheme (not solver or output settings).
+
+    Args:
+        case: the validated Case.
+
+    Returns:
+        A SHA-256 hex digest of those sections.
+    """
     raw = case.raw
     keys = ("mesh", "material", "contact", "loads", "initial")
     data = {k: raw.get(k) for k in keys}
@@ -75,41 +87,62 @@ def _fields(problem, history):
     return out
 
 
-def save(outdir: Path, comm, case, problem, history, g3, stepper, n: int, t: float,
-         steps: list) -> Path:
+def save(outdir: Path, sim) -> Path:
     """Write the state after step n to outdir/checkpoint_<n>.npz (collective); older
-    checkpoints beyond the newest KEEP are removed."""
-    path = Path(outdir) / file_name(n)
+    checkpoints beyond the newest KEEP are removed.
+
+    Args:
+        outdir: the run's output directory.
+        sim: the Simulation (its comm, case, problem, history, gamma3_history, stepper,
+            n, t and step records).
+
+    Returns:
+        The checkpoint's path.
+
+    Raises:
+        OutputError: the file could not be written (on every rank).
+    """
+    comm, problem = sim.comm, sim.problem
+    path = Path(outdir) / file_name(sim.n)
     arrays = {}
-    for name, f in _fields(problem, history).items():
+    for name, f in _fields(problem, sim.history).items():
         x, v = _gather(comm, *_owned_rows(f))
         if comm.rank == 0:
             arrays[f"{name}_x"], arrays[f"{name}_v"] = x, v
+    g3 = sim.gamma3_history.state() if sim.gamma3_history is not None else None
     if g3 is not None:
-        V = problem.V
-        own = problem.gamma3.nodes                       # owned Gamma3 nodes (local index)
-        pos = np.searchsorted(problem.gamma3_local_nodes, own)
-        xg = V.tabulate_dof_coordinates()[own]
-        cols = {}
-        if g3.memory is not None:
-            cols["xi"] = g3.memory.xi[pos][:, None]
-            if not g3.memory.recursion and g3.memory.stored_steps:
-                cols["mem_r"] = np.asarray(g3.memory._r)[:, pos].T
-        if g3.slip is not None:
-            cols["slip_s"] = g3.slip.s[pos][:, None]
-        for name, v in cols.items():
-            x, vv = _gather(comm, xg, v)
-            if comm.rank == 0:
-                arrays[f"g3_{name}_x"], arrays[f"g3_{name}_v"] = x, vv
+        _gamma3_arrays(comm, problem, g3, arrays)
     if comm.rank == 0:
-        meta = {"n": n, "t": t, "fingerprint": case_fingerprint(case), "steps": steps,
-                "stepper": {"adaptive": stepper.adaptive, "n": getattr(stepper, "n", None),
-                            "k": getattr(stepper, "k", None), "history": stepper.history},
-                "memory": None if g3 is None or g3.memory is None else
-                {"t_prev": g3.memory._t_prev, "k": g3.memory._k}}
+        st = sim.stepper.state()
+        mem = g3["memory"] if g3 is not None else None
+        meta = {"n": sim.n, "t": sim.t, "fingerprint": case_fingerprint(sim.case),
+                "steps": sim.steps,
+                "stepper": {"adaptive": st["adaptive"], "n": st["n"], "k": st["k"],
+                            "history": st["decisions"]},
+                "memory": None if mem is None else {"t_prev": mem["t_prev"], "k": mem["k"]}}
         arrays["meta"] = np.array(json.dumps(meta))
     on_rank0(comm, _write, path, arrays, outdir)    # OutputError on every rank if it fails
     return path
+
+
+def _gamma3_arrays(comm, problem, g3: dict, arrays: dict) -> None:
+    """The Gamma3 history's nodal values (xi_n, the direct sum's u_nu^+ history, s_n) at
+    the owned Gamma3 nodes, with their coordinates, gathered into ``arrays`` on rank 0."""
+    own = problem.gamma3.nodes                       # owned Gamma3 nodes (local index)
+    pos = np.searchsorted(problem.gamma3_local_nodes, own)
+    xg = problem.V.tabulate_dof_coordinates()[own]
+    cols = {}
+    mem, slip = g3["memory"], g3["slip"]
+    if mem is not None:
+        cols["xi"] = mem["xi"][pos][:, None]
+        if mem["r"]:                                 # the direct sum's stored steps
+            cols["mem_r"] = np.asarray(mem["r"])[:, pos].T
+    if slip is not None:
+        cols["slip_s"] = slip["s"][pos][:, None]
+    for name, v in cols.items():
+        x, vv = _gather(comm, xg, v)
+        if comm.rank == 0:
+            arrays[f"g3_{name}_x"], arrays[f"g3_{name}_v"] = x, vv
 
 
 def _write(path: Path, arrays: dict, outdir) -> None:
@@ -223,7 +256,14 @@ def _required(case) -> dict[str, int]:
 
 class Checkpoint:
     """A loaded and checked checkpoint; ``restore`` puts its state into a freshly set-up run.
-    Every problem with the file's content raises CheckpointError."""
+    Every problem with the file's content raises CheckpointError.
+
+    Args:
+        path: the checkpoint file.
+
+    Raises:
+        CheckpointError: the file is unreadable or its content inconsistent.
+    """
 
     def __init__(self, path: Path):
         self.path = path
@@ -244,15 +284,26 @@ class Checkpoint:
 
     @property
     def n(self) -> int:
+        """The step n the checkpoint was written after."""
         return self.meta["n"]
 
     @property
     def t(self) -> float:
+        """The time t_n of that step."""
         return self.meta["t"]
 
     def check(self, case) -> str | None:
-        """None if the checkpoint belongs to this case, else the reason it does not; raises
-        CheckpointError if it does but lacks what a restart of the case needs."""
+        """Whether the checkpoint belongs to ``case``.
+
+        Args:
+            case: the validated Case of the restart.
+
+        Returns:
+            None if it does, else the reason it does not.
+
+        Raises:
+            CheckpointError: it does, but lacks what a restart of the case needs.
+        """
         if self.meta["fingerprint"] != case_fingerprint(case):
             return (f"{self.path} was written for a different case (mesh, material, contact, "
                     "loads, initial values or time grid differ)")
@@ -306,13 +357,25 @@ class Checkpoint:
             raise CheckpointError(self.path, f"the mesh does not match '{name}'") from None
         return np.array(rows).reshape(len(rows), *values.shape[1:])
 
-    def restore(self, problem, history, g3, stepper) -> list:
-        """Set the fields and histories; returns the step records up to step n.  Collective:
-        if the checkpoint does not fit the problem on any rank, CheckpointError on all."""
+    def restore(self, sim) -> list:
+        """Set the fields and the history terms of a freshly set-up run to the checkpoint's.
+        Collective: if the checkpoint does not fit the problem on any rank, CheckpointError
+        on all.
+
+        Args:
+            sim: the Simulation (its problem, history, gamma3_history and stepper are set).
+
+        Returns:
+            The step records up to step n.
+
+        Raises:
+            CheckpointError: the checkpoint does not fit the problem.
+        """
+        problem = sim.problem
         comm = problem.comm
         n_g3 = comm.allreduce(len(problem.gamma3.nodes) if problem.gamma3 is not None else 0)
         try:
-            self._restore_fields(problem, history, g3, n_g3)
+            self._restore_fields(problem, sim.history, sim.gamma3_history, n_g3)
             why = None
         except CheckpointError as exc:
             why = exc.why
@@ -320,11 +383,8 @@ class Checkpoint:
         if why:
             raise CheckpointError(self.path, why)
         st = self.meta["stepper"]
-        if stepper.adaptive:
-            stepper.k = st["k"]
-        else:
-            stepper.n = st["n"]
-        stepper.history = list(st["history"])
+        sim.stepper.load_state({"adaptive": st["adaptive"], "n": st.get("n"),
+                                "k": st.get("k"), "decisions": st["history"]})
         problem.update_vm()
         return list(self.meta["steps"])
 
@@ -341,15 +401,14 @@ class Checkpoint:
         if g3 is None:
             return
         xg = problem.V.tabulate_dof_coordinates()[problem.gamma3_local_nodes]
+        state = {"memory": None, "slip": None}
         if g3.memory is not None:
+            mem = self.meta["memory"]
             xi = self._lookup("g3_xi", xg, n_g3)[:, 0].copy()
             r = self._lookup("g3_mem_r", xg, n_g3) if "g3_mem_r_x" in self.arrays else None
-            mem = self.meta["memory"]
-            g3.memory.xi = xi
-            g3.memory._t_prev, g3.memory._k = list(mem["t_prev"]), list(mem["k"])
-            if r is not None:                                    # (m, steps)
-                g3.memory._r = [r[:, j].copy() for j in range(r.shape[1])]
-            g3.xi.set(g3.memory.xi)
+            state["memory"] = {"xi": xi, "t_prev": mem["t_prev"], "k": mem["k"],
+                               "r": [] if r is None else [r[:, j].copy()
+                                                          for j in range(r.shape[1])]}
         if g3.slip is not None:
-            g3.slip.s = self._lookup("g3_slip_s", xg, n_g3)[:, 0].copy()
-            g3.theta.set(g3.slip.theta())
+            state["slip"] = {"s": self._lookup("g3_slip_s", xg, n_g3)[:, 0].copy()}
+        g3.load_state(state)

@@ -36,7 +36,15 @@ class DataError(ValueError):
 
 
 class Samples:
-    """Sample points of the body and its sides, and sample times of [0, T]."""
+    """Sample points of the body and its sides, and sample times of [0, T].
+
+    Args:
+        lengths: the body's sides (L1, L2[, L3]).
+        cells: the mesh's cells per side (the sample grid has twice as many, at most
+            MAX_CELLS).
+        times: the time grid t_0..t_N.
+        adaptive: the steps are adaptive: ADAPTIVE_TIMES more times in [0, T].
+    """
 
     def __init__(self, lengths, cells, times, adaptive: bool):
         self.dim = len(lengths)
@@ -49,7 +57,14 @@ class Samples:
         self.times = t
 
     def points(self, side: str | None = None) -> np.ndarray:
-        """(P, dim) points of the closed body, or of one side."""
+        """The sample points.
+
+        Args:
+            side: a side's name, or None for the whole closed body.
+
+        Returns:
+            (P, dim) points.
+        """
         axes = list(self.axes)
         if side is not None:
             axis, end = SIDE_AXIS[self.dim][side]
@@ -59,9 +74,22 @@ class Samples:
 
 
 def evaluate(component, points: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Values (M, P) of a component (number, table or expression) at the points and at M
-    of the times (all of them unless that exceeds MAX_EVALUATIONS), and those M times.
-    Values that are not real numbers (e.g. (-1)**0.5) are NaN."""
+    """Values of a data component at sample points and times.
+
+    Values that are not real numbers (e.g. (-1)**0.5) are NaN.
+
+    Args:
+        component: a number, {"table": ...} or an expression string.
+        points: (P, dim) points.
+        times: sample times.
+
+    Returns:
+        (values (M, P), the M times used): all the times unless that exceeds
+        MAX_EVALUATIONS (one time or point when the component does not depend on it).
+
+    Raises:
+        ExpressionError: for an expression that does not parse.
+    """
     if isinstance(component, (int, float)):
         return np.full((1, len(points)), float(component)), times[:1]
     if isinstance(component, dict):
@@ -94,7 +122,21 @@ def _where(points, times, index, dim: int, with_t: bool) -> str:
 
 def finite_values(component, path: str, samples: Samples, side: str | None = None,
                   with_t: bool = True) -> np.ndarray:
-    """The component's sample values; raises DataError if one is not a finite number."""
+    """The component's sample values, all finite.
+
+    Args:
+        component: a number, table or expression string.
+        path: its key path, for messages.
+        samples: the sample points and times.
+        side: a side's name, or None for the whole body.
+        with_t: the component depends on time (loads; initial values do not).
+
+    Returns:
+        The values (M, P).
+
+    Raises:
+        DataError: if a value is not a finite number of at most MAX_MAGNITUDE.
+    """
     points = samples.points(side)
     try:
         values, times = evaluate(component, points, samples.times)
@@ -116,8 +158,18 @@ def finite_values(component, path: str, samples: Samples, side: str | None = Non
 
 
 def check_loads(loads: dict, samples: Samples) -> float:
-    """Loads finite on the body (f0) and on their sides (tractions); returns the largest
-    stress they apply: max |f2| and max |f0| L."""
+    """Loads finite on the body (f0) and on their sides (tractions).
+
+    Args:
+        loads: the case's ``loads`` section.
+        samples: the sample points and times.
+
+    Returns:
+        The largest stress they apply: max |f2| and max |f0| L.
+
+    Raises:
+        DataError: for a value that is not finite or out of range.
+    """
     scale = 0.0
     for side, comps in loads.get("traction", {}).items():
         for i, c in enumerate(comps):
@@ -131,8 +183,21 @@ def check_loads(loads: dict, samples: Samples) -> float:
 
 def check_initial(initial: dict, kappa0, g: float | None,
                   samples: Samples) -> tuple[float, float]:
-    """u0, sigma0 and kappa0 finite and in the model's set; returns max |u0| and
-    max |sigma0|."""
+    """u0, sigma0 and kappa0 finite and in the model's set.
+
+    Args:
+        initial: the case's ``initial`` section.
+        kappa0: material.viscoplastic.kappa0 (a number or expression), or None.
+        g: the gap, or None.
+        samples: the sample points.
+
+    Returns:
+        (max |u0|, max |sigma0|).
+
+    Raises:
+        DataError: for a value that is not finite, u0 not 0 on Gamma1 or beyond g on
+            Gamma3, sigma0 not symmetric, or kappa0 < 0.
+    """
     d = samples.dim
     scale = 0.0
     if "u0" in initial:

@@ -48,6 +48,12 @@ def _rows(schema: dict, prefix: str = ""):
 
 
 def reference_markdown() -> str:
+    """The case-file reference from the schema.
+
+    Returns:
+        A Markdown table of every key (type, default, meaning) and the default PETSc
+        options.
+    """
     lines = ["| key | type / allowed | default | meaning |", "|---|---|---|---|"]
     for path, req, typ, default, desc in _rows(SCHEMA):
         name = f"`{path}`" + (" (required)" if req else "")
@@ -59,12 +65,25 @@ def reference_markdown() -> str:
 
 
 def render(readme: str) -> str:
+    """The README with its generated block replaced.
+
+    Args:
+        readme: the README's text, with the START and END markers.
+
+    Returns:
+        The text with ``reference_markdown()`` between the markers.
+    """
     head, rest = readme.split(START, 1)
     _, tail = rest.split(END, 1)
     return f"{head}{START}\n{reference_markdown()}\n{END}{tail}"
 
 
 def main() -> int:
+    """``python -m app.io.docs [README.md]``: regenerate the README's reference block.
+
+    Returns:
+        The exit status, 0.
+    """
     path = Path(sys.argv[1] if len(sys.argv) > 1 else "README.md")
     path.write_text(render(path.read_text()))
     print(f"updated the case-file reference in {path}")

@@ -21,14 +21,28 @@ CONSTANTS = {"pi": math.pi, "e": math.e}
 FUNCTIONS = ("sin", "cos", "tan", "exp", "log", "sqrt", "abs", "tanh", "min", "max")
 _BINOPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
            ast.Div: operator.truediv, ast.Pow: operator.pow}
+_NUMPY = {"sin": np.sin, "cos": np.cos, "tan": np.tan, "exp": np.exp, "log": np.log,
+          "sqrt": np.sqrt, "abs": np.abs, "tanh": np.tanh, "min": np.minimum,
+          "max": np.maximum}
 
 
 class ExpressionError(ValueError):
-    pass
+    """An expression that is not in the language, with the reason."""
 
 
 def parse(text: str, allowed_names=NAMES) -> ast.Expression:
-    """Parse and check an expression; raises ExpressionError with the reason."""
+    """Parse and check an expression.
+
+    Args:
+        text: the expression.
+        allowed_names: the variable names it may use.
+
+    Returns:
+        The checked tree.
+
+    Raises:
+        ExpressionError: with the reason, if the text is not an allowed expression.
+    """
     if not isinstance(text, str) or not text.strip():
         raise ExpressionError("empty expression")
     if len(text) > MAX_LENGTH:
@@ -98,7 +112,15 @@ def _translate(node, symbols: dict, lib: dict):
 
 
 def to_ufl(tree: ast.Expression, symbols: dict):
-    """UFL expression of a checked tree; ``symbols`` maps t, x, y, z to UFL objects."""
+    """The UFL expression of a checked tree.
+
+    Args:
+        tree: a tree from ``parse``.
+        symbols: t, x, y, z -> UFL objects.
+
+    Returns:
+        The UFL expression.
+    """
     import ufl
     lib = {"sin": ufl.sin, "cos": ufl.cos, "tan": ufl.tan, "exp": ufl.exp, "log": ufl.ln,
            "sqrt": ufl.sqrt, "abs": abs, "tanh": ufl.tanh, "min": ufl.min_value,
@@ -106,26 +128,36 @@ def to_ufl(tree: ast.Expression, symbols: dict):
     return _translate(tree, symbols, lib)
 
 
-def to_numpy(tree: ast.Expression, symbols: dict):
-    """Evaluate a checked tree with numpy arrays or floats for the symbols."""
-    lib = {"sin": np.sin, "cos": np.cos, "tan": np.tan, "exp": np.exp, "log": np.log,
-           "sqrt": np.sqrt, "abs": np.abs, "tanh": np.tanh, "min": np.minimum,
-           "max": np.maximum}
-    return _translate(tree, symbols, lib)
-
-
 def names(tree: ast.Expression) -> set[str]:
-    """The variable names (t, x, y, z) an expression uses."""
+    """The variable names an expression uses.
+
+    Args:
+        tree: a tree from ``parse``.
+
+    Returns:
+        The names among t, x, y, z.
+    """
     return {n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and n.id not in CONSTANTS}
 
 
 def evaluate(tree: ast.Expression, symbols: dict) -> np.ndarray:
-    """Values of a checked tree for numpy arrays (that broadcast) as the symbols, without
-    warnings: invalid operations give NaN or inf, and a result that is not real (a negative
-    number to a fractional power) gives NaN.  Raises ExpressionError for a Python-level
-    arithmetic error in constants (e.g. 1/0)."""
+    """Values of a checked tree, without warnings.
+
+    Invalid operations give NaN or inf, and a result that is not real (a negative number to a
+    fractional power) gives NaN.
+
+    Args:
+        tree: a tree from ``parse``.
+        symbols: t, x, y, z -> numpy arrays (that broadcast) or floats.
+
+    Returns:
+        The values (float array).
+
+    Raises:
+        ExpressionError: for a Python-level arithmetic error in constants (e.g. 1/0).
+    """
     with np.errstate(all="ignore"):
-        value = np.asarray(to_numpy(tree, symbols))
+        value = np.asarray(_translate(tree, symbols, _NUMPY))
     if np.iscomplexobj(value):
         value = np.where(value.imag == 0, value.real, np.nan)
     return value.astype(float)

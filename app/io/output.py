@@ -15,14 +15,18 @@ import numpy as np
 from dolfinx import io as dio
 
 OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv")
-# 2D columns; in 3D z, u_z and two tangential components (u_tau1, u_tau2, neg_sigma_tau1,
-# neg_sigma_tau2) appear, and xi (memory) / theta (slip dependence) when the case has them.
-CONTACT_COLUMNS = ("x", "y", "u_x", "u_y", "u_nu", "u_tau", "neg_sigma_nu", "neg_sigma_tau",
-                   "state")
 
 
 def atomic_write(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename."""
+    """Write ``text`` to ``path`` through a temporary file and a rename.
+
+    Args:
+        path: the file.
+        text: its new content.
+
+    Raises:
+        OSError: the write failed (the old file, if any, is unchanged).
+    """
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
         with open(tmp, "w") as fh:
@@ -46,8 +50,19 @@ class OutputError(OSError):
 
 
 def on_rank0(comm, action, *args):
-    """Run ``action(*args)`` on rank 0 only and return its result on rank 0 (None
-    elsewhere); an OSError there is raised as OutputError on every rank (collective)."""
+    """Run ``action(*args)`` on rank 0 only (collective).
+
+    Args:
+        comm: the MPI communicator.
+        action: the function to call.
+        *args: its arguments.
+
+    Returns:
+        Its result on rank 0, None elsewhere.
+
+    Raises:
+        OutputError: on every rank, if ``action`` raised an OSError on rank 0.
+    """
     result, error = None, None
     if comm.rank == 0:
         try:
@@ -61,7 +76,14 @@ def on_rank0(comm, action, *args):
 
 
 def describe_os_error(exc: OSError) -> str:
-    """'<file>: <reason>' for an OSError (or the message of an error without a file)."""
+    """One line for an OSError.
+
+    Args:
+        exc: the error.
+
+    Returns:
+        '<file>: <reason>' (or the message of an error without a file).
+    """
     name = exc.filename or ""
     reason = exc.strerror or str(exc)
     return f"{name}: {reason}" if name else reason
@@ -80,12 +102,28 @@ def _json_default(value):
 
 def to_json(data) -> str:
     """The JSON text of a summary: numpy types as plain numbers, non-finite numbers kept
-    as JSON's NaN/Infinity extension (Python's json reads them back)."""
+    as JSON's NaN/Infinity extension (Python's json reads them back).
+
+    Args:
+        data: the summary (dicts, lists, numbers, strings, numpy values).
+
+    Returns:
+        The indented JSON text with a final newline.
+    """
     return json.dumps(data, indent=2, default=_json_default) + "\n"
 
 
 def write_json(comm, path: Path, data: dict) -> None:
-    """Write ``data`` to ``path`` atomically on rank 0 (collective; OutputError on failure)."""
+    """Write ``data`` to ``path`` atomically on rank 0 (collective).
+
+    Args:
+        comm: the MPI communicator.
+        path: the JSON file.
+        data: the content (see to_json).
+
+    Raises:
+        OutputError: on every rank, if the file could not be written.
+    """
     text = to_json(data) if comm.rank == 0 else None
     on_rank0(comm, atomic_write, path, text)
 
@@ -98,7 +136,17 @@ class FieldWriter:
     ``.solution.work.xdmf`` whose HDF5 name ``.solution.work.h5`` is a symlink to
     solution.h5; after every output step the file is closed (HDF5 flushed) and its XML is
     published as solution.xdmf by an atomic rename, pointing at solution.h5.  solution.xdmf
-    is thus always a complete description of the steps written so far."""
+    is thus always a complete description of the steps written so far.
+
+    Args:
+        comm: the MPI communicator.
+        path: the XDMF file (its HDF5 file is the same name with .h5).
+        mesh: the dolfinx mesh, written once.
+        fields: the Functions written at every output time.
+
+    Raises:
+        OutputError: the files could not be created or the mesh not written.
+    """
 
     def __init__(self, comm, path: Path, mesh, fields):
         self.fields, self.comm, self.path = fields, comm, Path(path)
@@ -139,6 +187,7 @@ class FieldWriter:
         self._publish()
 
     def close(self) -> None:
+        """Remove the work file and its link (solution.xdmf and solution.h5 stay)."""
         self.comm.barrier()
         if self.comm.rank == 0:
             for p in (self.work, self.work_h5):
@@ -156,7 +205,15 @@ def classify(data: dict, g: float | None) -> np.ndarray:
     node carries a contact pressure -sigma_nu above the round-off of the forces (1e-6 of the
     largest force density): a stiff normal compliance (large c_nu) holds the load with a
     penetration far below the displacement's round-off.  The bound u_nu <= g is imposed
-    exactly, so 'bound' is u_nu >= g up to the round-off of g."""
+    exactly, so 'bound' is u_nu >= g up to the round-off of g.
+
+    Args:
+        data: the columns of the contact table (u_nu, the u_* and neg_sigma* columns).
+        g: the bound of the unilateral constraint (None: no bound).
+
+    Returns:
+        The state of each node (an object array of strings).
+    """
     u_nu = data["u_nu"]
     u_cols = [v for k, v in data.items() if k.startswith("u_") and k not in ("u_nu",)]
     u_scale = max((float(np.abs(v).max(initial=0.0)) for v in u_cols), default=0.0)
@@ -172,7 +229,23 @@ def classify(data: dict, g: float | None) -> np.ndarray:
 
 def write_contact_csv(comm, path: Path, table: dict, g: float | None) -> dict:
     """Gather the per-node contact table on rank 0, sort by coordinates and write it (columns
-    in the table's order, then ``state``).  Returns counts of node states (on every rank)."""
+    in the table's order, then ``state``).  In 2D the columns are x, y, u_x, u_y, u_nu,
+    u_tau, neg_sigma_nu, neg_sigma_tau; in 3D z, u_z and two tangential components
+    (u_tau1, u_tau2, neg_sigma_tau1, neg_sigma_tau2) appear, and xi (memory) / theta (slip
+    dependence) when the case has them.  Collective.
+
+    Args:
+        comm: the MPI communicator.
+        path: the CSV file.
+        table: this rank's columns (problem.contact_table()).
+        g: the bound of the unilateral constraint (None: no bound).
+
+    Returns:
+        The counts of node states (bound, compliance, separated, nodes) on every rank.
+
+    Raises:
+        OutputError: on every rank, if the file could not be written.
+    """
     local = {k: np.asarray(v) for k, v in table.items()}
     parts = comm.gather(local, root=0)
     counts = None

@@ -21,7 +21,8 @@ import functools
 import math
 import re
 
-PREFIX = "vpcontact_"               # app/solvers/snesvi.py's PREFIX (tests/unit/test_case_hostile.py)
+# app/solvers/snesvi.py's PREFIX (tests/unit/test_case_hostile.py)
+PREFIX = "vpcontact_"
 FAST_PREFIX = PREFIX + "fast_"      # app/solvers/fast.py's direct solver
 LINE_SEARCH_TYPES = ("basic", "bt", "l2", "cp", "nleqerr", "shell")
 # factorisation package -> the external package PETSc must be built with
@@ -96,12 +97,22 @@ def _check_value(key: str, value, types: dict) -> None:
 
 def check_petsc_options(options: dict, source: str, where: str = "petsc.",
                         base: dict | None = None, limits: dict | None = None) -> None:
-    """Raise CaseError if PETSc would refuse one of ``options`` (name without '-' ->
-    value, as given to app/solvers/snesvi.py's set_petsc_options) on top of the ``base`` options
-    (accepted already, e.g. the defaults), or if they would make a step solver give a
-    wrong answer.  ``where`` prefixes the option name in the message: "petsc." for a case
-    file's section, "-" for the command line.  ``limits`` (default: ``base.limits``, see
-    PetscOptions) maps an absolute tolerance to its largest value and the reason."""
+    """Check PETSc options before PETSc sees them.
+
+    Args:
+        options: name without '-' -> value, as given to app/solvers/snesvi.py's
+            set_petsc_options.
+        source: the case file, for messages.
+        where: prefix of the option name in messages: "petsc." for a case file's section,
+            "-" for the command line.
+        base: the options accepted already (e.g. the defaults) under ``options``.
+        limits: an absolute tolerance -> (its largest value, the reason); default
+            ``base.limits`` (see PetscOptions).
+
+    Raises:
+        CaseError: if PETSc would refuse one of ``options`` on top of ``base``, or if they
+            would make a step solver give a wrong answer.
+    """
     from app.io.case import CaseError
 
     if limits is None:
@@ -136,8 +147,13 @@ def check_petsc_options(options: dict, source: str, where: str = "petsc.",
 
 
 class PetscOptions(dict):
-    """A case's PETSc options with the largest absolute tolerances its scales allow
-    (``limits``: option -> (largest value, why)), for checking options given later."""
+    """A case's PETSc options with the largest absolute tolerances its scales allow, for
+    checking options given later.
+
+    Args:
+        options: option name (without '-') -> value.
+        limits: option -> (largest value, why).
+    """
 
     def __init__(self, options: dict, limits: dict):
         super().__init__(options)

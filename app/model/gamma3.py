@@ -18,7 +18,17 @@ from dolfinx import fem
 
 # ----------------------------------------------------------------------------- kernels
 class Kernel:
-    """b(t) of the memory term: exponential, power law or a piecewise-linear table."""
+    """b(t) of the memory term: exponential b0 exp(-beta t), power law
+    b0 (1 + t / tau)^-alpha, or b0 times a piecewise-linear table.
+
+    Args:
+        kind: "exponential", "power" or "table".
+        b0: the factor b0.
+        beta: the exponential kernel's rate.
+        alpha: the power law's exponent.
+        tau: the power law's time scale.
+        table: (t, b) points of the table kernel.
+    """
 
     def __init__(self, kind: str, b0: float, beta: float = 0.0, alpha: float = 1.0,
                  tau: float = 1.0, table=None):
@@ -30,6 +40,7 @@ class Kernel:
             raise ValueError(f"unknown kernel {kind!r}")
 
     def __call__(self, t):
+        """b(t) (elementwise for arrays)."""
         t = np.asarray(t, dtype=float)
         if self.kind == "exponential":
             return self.b0 * np.exp(-self.beta * t)
@@ -39,7 +50,14 @@ class Kernel:
 
 
 class MemorySum:
-    """xi_n at m nodes; ``advance`` takes u_{n-1,nu}^+ (m,), t_{n-1}, t_n and returns xi_n."""
+    """The memory term xi_n = sum_{j=1..n} k_j b(t_n - t_{j-1}) u_{j-1,nu}^+ at m nodes.
+
+    Args:
+        kernel: b(t).
+        m: the number of nodes.
+        recursion: the exact O(1) recursion (exponential kernel only); None: the recursion
+            for the exponential kernel, the direct sum otherwise.
+    """
 
     def __init__(self, kernel: Kernel, m: int, recursion: bool | None = None):
         self.kernel = kernel
@@ -53,16 +71,41 @@ class MemorySum:
 
     @property
     def stored_steps(self) -> int:
+        """Steps of u_nu^+ kept for the direct sum (0 with the recursion)."""
         return len(self._r)
 
-    def snapshot(self):
-        return self.xi.copy(), len(self._r)
+    def state(self) -> dict:
+        """xi_n and, for the direct sum, the stored t_{j-1}, k_j and u_{j-1,nu}^+.
 
-    def restore(self, state) -> None:
-        self.xi, n = state[0].copy(), state[1]
-        del self._t_prev[n:], self._k[n:], self._r[n:]
+        Returns:
+            {"xi": array (m,), "t_prev": list, "k": list, "r": list of arrays (m,)}; the
+            lists are copies (their arrays are never changed in place), so taking the state
+            costs O(n), not O(n m).
+        """
+        return {"xi": self.xi.copy(), "t_prev": list(self._t_prev), "k": list(self._k),
+                "r": list(self._r)}
+
+    def load_state(self, state: dict) -> None:
+        """Set xi and the stored history from ``state()`` (or a checkpoint's copy of it).
+
+        Args:
+            state: {"xi", "t_prev", "k", "r"} as returned by ``state()``.
+        """
+        self.xi = np.array(state["xi"], dtype=float)
+        self._t_prev, self._k = list(state["t_prev"]), list(state["k"])
+        self._r = [np.asarray(r, dtype=float) for r in state["r"]]
 
     def advance(self, r_plus: np.ndarray, t_prev: float, t_n: float) -> np.ndarray:
+        """xi_n from xi_{n-1} (recursion) or from the stored history (direct sum).
+
+        Args:
+            r_plus: u_{n-1,nu}^+ at the m nodes.
+            t_prev: t_{n-1}.
+            t_n: t_n.
+
+        Returns:
+            xi_n (m,).
+        """
         k = t_n - t_prev
         if self.recursion:
             decay = np.exp(-self.kernel.beta * k)
@@ -77,21 +120,42 @@ class MemorySum:
 
 
 class SlipSum:
-    """s_n = s_{n-1} + k_n |u_{n-1,tau}| at m nodes, and theta(s) of the slip law."""
+    """s_n = s_{n-1} + k_n |u_{n-1,tau}| at m nodes, and theta(s) of the slip law.
+
+    Args:
+        m: the number of nodes.
+        theta_inf: theta(s) for s -> infinity.
+        s0: the slip scale of theta.
+    """
 
     def __init__(self, m: int, theta_inf: float, s0: float):
         self.s = np.zeros(m)
         self.theta_inf, self.s0 = theta_inf, s0
 
     def advance(self, abs_tau: np.ndarray, k: float) -> np.ndarray:
+        """s_n = s_{n-1} + k_n |u_{n-1,tau}|.
+
+        Args:
+            abs_tau: |u_{n-1,tau}| at the m nodes.
+            k: the step k_n.
+
+        Returns:
+            s_n (m,).
+        """
         self.s = self.s + k * abs_tau
         return self.s
 
-    def snapshot(self):
-        return self.s.copy()
+    def state(self) -> dict:
+        """Returns: {"s": a copy of s_n (m,)}."""
+        return {"s": self.s.copy()}
 
-    def restore(self, state) -> None:
-        self.s = state.copy()
+    def load_state(self, state: dict) -> None:
+        """Set s from ``state()`` (or a checkpoint's copy of it).
+
+        Args:
+            state: {"s": array (m,)}.
+        """
+        self.s = np.array(state["s"], dtype=float)
 
     def theta(self) -> np.ndarray:
         """theta(s) = theta_inf + (1 - theta_inf) exp(-s / s0)."""
@@ -101,7 +165,13 @@ class SlipSum:
 # ----------------------------------------------------------------------------- wiring
 class NodalField:
     """A P1 scalar Function whose values at the Gamma3 nodes (given as nodes of the vector
-    space V, owned and ghost) are set from numpy arrays."""
+    space V, owned and ghost) are set from numpy arrays.
+
+    Args:
+        V: the P1 vector space of u.
+        nodes: the local Gamma3 nodes (owned and ghost) as nodes of V.
+        name: the Function's name.
+    """
 
     def __init__(self, V, nodes: np.ndarray, name: str):
         W, parent = V.sub(0).collapse()
@@ -113,11 +183,20 @@ class NodalField:
         self.dofs = node_to_w[nodes]
 
     def set(self, values: np.ndarray) -> None:
+        """Set the Function's values at the nodes (one value per node)."""
         self.function.x.array[self.dofs] = values
 
 
 class Gamma3History:
-    """xi_n and theta(s_n) as P1 Functions on Gamma3, advanced from u_{n-1} before step n."""
+    """The history terms on Gamma3: xi_n (memory) and s_n (slip), with xi_n and theta(s_n)
+    as P1 Functions of the step forms, advanced from u_{n-1} before step n.
+
+    Args:
+        problem: the ContactProblem (u, the Gamma3 nodes and normal, the Functions xi and
+            theta).
+        memory: {"kernel": Kernel, "recursion": bool | None}, or None: no memory term.
+        slip: {"theta_inf": ..., "s0": ...}, or None: no slip dependence.
+    """
 
     def __init__(self, problem, memory=None, slip=None):
         self.u = problem.u
@@ -135,20 +214,35 @@ class Gamma3History:
             self.theta = problem.theta
             self.theta.set(self.slip.theta())
 
-    def snapshot(self):
-        return (self.memory.snapshot() if self.memory else None,
-                self.slip.snapshot() if self.slip else None)
+    def state(self) -> dict:
+        """The history at the local Gamma3 nodes (owned and ghost).
 
-    def restore(self, state) -> None:
+        Returns:
+            {"memory": MemorySum.state() or None, "slip": SlipSum.state() or None}.
+        """
+        return {"memory": self.memory.state() if self.memory else None,
+                "slip": self.slip.state() if self.slip else None}
+
+    def load_state(self, state: dict) -> None:
+        """Set the history from ``state()`` and the Functions xi, theta(s) from it.
+
+        Args:
+            state: {"memory": ..., "slip": ...} as returned by ``state()``.
+        """
         if self.memory is not None:
-            self.memory.restore(state[0])
+            self.memory.load_state(state["memory"])
             self.xi.set(self.memory.xi)
         if self.slip is not None:
-            self.slip.restore(state[1])
+            self.slip.load_state(state["slip"])
             self.theta.set(self.slip.theta())
 
     def advance(self, t_prev: float, t_n: float) -> None:
-        """xi_n, s_n from u_{n-1} (the current u), before solving step n."""
+        """xi_n, s_n from u_{n-1} (the current u), before solving step n.
+
+        Args:
+            t_prev: t_{n-1}.
+            t_n: t_n.
+        """
         u = self.u.x.array.reshape(-1, self.dim)[self.nodes]
         u_nu = u @ self.normal
         if self.memory is not None:

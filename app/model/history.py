@@ -11,45 +11,90 @@ from __future__ import annotations
 
 from dolfinx import fem
 
-from app.solvers import kernels
 from app.model.implicit import BackwardEulerPerzyna, LocalFailure
 from app.model.material import Perzyna, VonMisesProjection
+from app.solvers import kernels
 
 
-class ViscoplasticHistory:
-    """Holds H_n (the problem's DG0 function ``H``) and kappa_n, and advances them.
-    H_0 = sigma0 - E eps(u0) and kappa_0 are set by ``problem.set_initial_values``."""
+class _CommittedHistory:
+    """The committed state of a viscoplastic history: H (the problem's DG0 tensor function)
+    and kappa (DG0 scalar); what adaptive rollback and checkpoints save and restore."""
+
+    H: fem.Function
+    kappa: fem.Function
+
+    def state(self) -> dict:
+        """The committed history (H_n, kappa_n of (3.2)-(3.3)) as copies of the local arrays.
+
+        Returns:
+            {"H": H values, "kappa": kappa values} (owned and ghost cells).
+        """
+        return {"H": self.H.x.array.copy(), "kappa": self.kappa.x.array.copy()}
+
+    def load_state(self, state: dict) -> None:
+        """Set the committed history from ``state()`` of the same run (e.g. to undo a
+        rejected step).
+
+        Args:
+            state: {"H": ..., "kappa": ...} as returned by ``state()``.
+        """
+        self.H.x.array[:], self.kappa.x.array[:] = state["H"], state["kappa"]
+
+
+class ViscoplasticHistory(_CommittedHistory):
+    """Holds H_n (the problem's DG0 function ``H``) and kappa_n, and advances them by the
+    explicit sums (3.2)-(3.3).  H_0 = sigma0 - E eps(u0) and kappa_0 are set by
+    ``problem.set_initial_values``.
+
+    Args:
+        problem: the ContactProblem (its elasticity law, H, and the DG0 space Y).
+        lambda1: the Perzyna law's lambda1.
+        lambda2: the Perzyna law's lambda2.
+    """
 
     def __init__(self, problem, lambda1: float, lambda2: float):
-        self.elasticity = problem.law
-        self.law = Perzyna(problem.law, lambda1, lambda2)
+        self.elasticity = problem.elasticity
+        self.law = Perzyna(problem.elasticity, lambda1, lambda2)
         self.H = problem.H
         self.kappa = fem.Function(problem.Y, name="kappa")
         # the same update compiled (kernels.py), unless no C compiler is available
         module = kernels.load()
         self.kernel = None if module is None else kernels.PerzynaKernel(
-            problem.law, VonMisesProjection(problem.law), lambda1, lambda2, module)
-
-    def snapshot(self):
-        return self.H.x.array.copy(), self.kappa.x.array.copy()
-
-    def restore(self, state) -> None:
-        self.H.x.array[:], self.kappa.x.array[:] = state
+            problem.elasticity, VonMisesProjection(problem.elasticity), lambda1, lambda2, module)
 
     def before_solve(self, problem, k: float) -> None:
-        """H_n, kappa_n from sigma_{n-1}, kappa_{n-1} (explicit: known before the solve)."""
+        """H_n, kappa_n from sigma_{n-1}, kappa_{n-1} (explicit: known before the solve).
+
+        Args:
+            problem: the ContactProblem (its sigma holds sigma_{n-1}).
+            k: the step k_n.
+        """
         self.advance(problem.sigma, k)
 
     def after_solve(self, problem) -> tuple[float, float] | None:
-        """sigma_n = E eps(u_n) + H_n (3.2); returns problem.update_sigma's norms."""
+        """sigma_n = E eps(u_n) + H_n (3.2).
+
+        Args:
+            problem: the ContactProblem (its u holds u_n).
+
+        Returns:
+            problem.update_sigma's norms (||u||_V, ||sigma||_Q), or None.
+        """
         return problem.update_sigma()
 
     def advance(self, sigma_prev, k: float) -> None:
         """H_n = H_{n-1} + k_n Gfun(sigma_{n-1}, kappa_{n-1}), same for kappa (3.2)-(3.3).
 
-        ``sigma_prev`` is the DG0 function holding sigma_{n-1}; ``self.kappa`` holds kappa_{n-1}
-        on entry and kappa_n on exit.  All local cells (owned and ghost) are updated with the
-        same data, so ghosts stay consistent without communication.
+        ``self.kappa`` holds kappa_{n-1} on entry and kappa_n on exit.  All local cells (owned
+        and ghost) are updated with the same data, so ghosts stay consistent without
+        communication.
+
+        Args:
+            sigma_prev: the DG0 function holding sigma_{n-1}.
+            k: the step k_n.
+
+        Raises:
+            RuntimeError: the von Mises projection failed (the state is unchanged).
         """
         if self.kernel is not None:         # writes nothing if it fails: the state of n - 1
             if self.kernel.advance(sigma_prev.x.array, self.H.x.array, self.kappa.x.array, k):
@@ -61,15 +106,21 @@ class ViscoplasticHistory:
         self.kappa.x.array[:] += k * g_kappa
 
 
-class ImplicitViscoplasticHistory:
+class ImplicitViscoplasticHistory(_CommittedHistory):
     """The right-end-point variant (app/model/implicit.py): H and kappa hold the committed state
     H_{n-1} = sigma_{n-1} - E eps(u_{n-1}) and kappa_{n-1}; during the solve of step n every
-    residual evaluation updates sigma (and the tangent) from the current u; after the solve
-    the state at u_n is committed."""
+    residual evaluation updates sigma (and the tangent) from the current u (the trial state);
+    after the solve the state at u_n is committed.
+
+    Args:
+        problem: the ContactProblem (becomes its ``constitutive`` update).
+        lambda1: the Perzyna law's lambda1.
+        lambda2: the Perzyna law's lambda2.
+    """
 
     def __init__(self, problem, lambda1: float, lambda2: float):
-        self.elasticity = problem.law
-        self.law = Perzyna(problem.law, lambda1, lambda2)
+        self.elasticity = problem.elasticity
+        self.law = Perzyna(problem.elasticity, lambda1, lambda2)
         self.local = BackwardEulerPerzyna(self.law)
         self.H = problem.H
         self.kappa = fem.Function(problem.Y, name="kappa")
@@ -77,16 +128,25 @@ class ImplicitViscoplasticHistory:
         self.k = None
         problem.constitutive = self
 
-    def snapshot(self):
-        return self.H.x.array.copy(), self.kappa.x.array.copy()
-
-    def restore(self, state) -> None:
-        self.H.x.array[:], self.kappa.x.array[:] = state
-
     def before_solve(self, problem, k: float) -> None:
+        """Keep k_n for the local updates of step n's residual evaluations.
+
+        Args:
+            problem: the ContactProblem.
+            k: the step k_n.
+        """
         self.k = k
 
     def update(self, problem) -> bool:
+        """The trial state at the current u: sigma, kappa and the algorithmic tangent by the
+        backward Euler Perzyna update from the committed H_{n-1}, kappa_{n-1}.
+
+        Args:
+            problem: the ContactProblem (its u, sigma and C_alg).
+
+        Returns:
+            False if the local update failed in some cell (nothing is committed).
+        """
         law = self.elasticity
         eps_t = problem.strain_voigt()
         s_tr = law.apply(eps_t) + law.to_voigt(self.H.x.array)
@@ -102,6 +162,14 @@ class ImplicitViscoplasticHistory:
         return True
 
     def after_solve(self, problem) -> None:
+        """Commit the state at the converged u_n: sigma_n, kappa_n, H_n = sigma_n - E eps(u_n).
+
+        Args:
+            problem: the ContactProblem (its u holds u_n).
+
+        Raises:
+            LocalFailure: the local update failed at u_n.
+        """
         if not self.update(problem):   # at the converged u_n
             raise LocalFailure("implicit Perzyna update failed at the converged step")
         law = self.elasticity

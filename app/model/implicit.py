@@ -22,25 +22,43 @@ from app.model.material import Perzyna
 
 
 class LocalFailure(RuntimeError):
-    pass
+    """The local Newton iteration of the implicit update failed at some cells."""
 
 
 class BackwardEulerPerzyna:
-    """Vectorised per-cell solver of the implicit Perzyna update; t-coordinates (n, m)."""
+    """Vectorised per-cell solver of the implicit Perzyna update; t-coordinates (n, m).
+
+    Args:
+        perzyna: the Perzyna law (its elasticity E, lambda1, lambda2).
+        rtol: tolerance of the scaled local residual.
+        max_iter: local Newton iterations allowed.
+    """
 
     def __init__(self, perzyna: Perzyna, rtol: float = 1e-12, max_iter: int = 60):
         self.pz = perzyna
-        self.law = perzyna.law
-        self.m = self.law.m
+        self.elasticity = perzyna.elasticity
+        self.m = self.elasticity.m
         self.rtol, self.max_iter = rtol, max_iter
 
     def residual(self, z, s_tr, kappa_prev, k):
+        """The local residual (R_s, R_k) of the backward-Euler update.
+
+        Args:
+            z: (n, m + 1) unknowns: sigma in t-coordinates, then kappa.
+            s_tr: (n, m) trial stresses E eps(u_n) + H_{n-1}.
+            kappa_prev: (n,) kappa_{n-1}.
+            k: the time step k_n.
+
+        Returns:
+            The (n, m + 1) residuals.
+        """
         m, pz = self.m, self.pz
         s, kap = z[:, :m], z[:, m]
         excess = s - pz.project(s, np.maximum(kap, 0.0))
         r = np.empty_like(z)
-        r[:, :m] = s - s_tr + (0.5 * k / pz.lambda1) * self.law.apply(excess)
-        r[:, m] = kap - kappa_prev - (2.0 * k / (3.0 * pz.lambda2)) * self.law.von_mises(excess)
+        r[:, :m] = s - s_tr + (0.5 * k / pz.lambda1) * self.elasticity.apply(excess)
+        r[:, m] = kap - kappa_prev \
+            - (2.0 * k / (3.0 * pz.lambda2)) * self.elasticity.von_mises(excess)
         return r
 
     def _jacobian(self, z, r0, s_tr, kappa_prev, k, scale):
@@ -54,13 +72,27 @@ class BackwardEulerPerzyna:
         return J
 
     def solve(self, s_tr, kappa_prev, k):
-        """(sigma_n, kappa_n, C_alg) per cell; C_alg (n, m, m) maps d eps (t-coordinates)
-        to d sigma.  Cells inside the ball K(kappa_{n-1}) are elastic: sigma = s_tr."""
+        """Solve the local system per cell.
+
+        Cells inside the ball K(kappa_{n-1}) are elastic: sigma = s_tr.
+
+        Args:
+            s_tr: (n, m) trial stresses E eps(u_n) + H_{n-1} in t-coordinates.
+            kappa_prev: (n,) kappa_{n-1}.
+            k: the time step k_n.
+
+        Returns:
+            (sigma_n (n, m), kappa_n (n,), C_alg (n, m, m)): C_alg maps d eps
+            (t-coordinates) to d sigma, the algorithmic tangent.
+
+        Raises:
+            LocalFailure: if the local Newton iteration stalls or does not converge.
+        """
         m = self.m
         n = s_tr.shape[0]
         sigma, kappa = s_tr.copy(), kappa_prev.copy()
-        C = np.broadcast_to(self.law.Cmat, (n, m, m)).copy()
-        flow = self.law.von_mises(s_tr) > kappa_prev
+        C = np.broadcast_to(self.elasticity.Cmat, (n, m, m)).copy()
+        flow = self.elasticity.von_mises(s_tr) > kappa_prev
         if not np.any(flow):
             return sigma, kappa, C
         st, kp = s_tr[flow], kappa_prev[flow]
@@ -103,5 +135,5 @@ class BackwardEulerPerzyna:
         J = self._jacobian(z, r, st, kp, k, scale[:, 0])
         Jinv = np.linalg.inv(J)
         sigma[flow], kappa[flow] = z[:, :m], z[:, m]
-        C[flow] = Jinv[:, :m, :m] @ self.law.Cmat
+        C[flow] = Jinv[:, :m, :m] @ self.elasticity.Cmat
         return sigma, kappa, C

@@ -18,11 +18,27 @@ from app.io import expressions
 
 
 def is_zero(component) -> bool:
+    """Whether a load component is the number 0.
+
+    Args:
+        component: a number, table or expression string.
+
+    Returns:
+        True for the number 0 (a table or expression never counts as zero).
+    """
     return isinstance(component, (int, float)) and component == 0
 
 
 class TimeData:
-    """Builds UFL for case data and keeps the time-dependent Constants up to date."""
+    """Builds UFL for case data and keeps the time-dependent Constants up to date.
+
+    Args:
+        mesh: the dolfinx mesh (its coordinates are x, y, z).
+
+    Attributes:
+        t: the time Constant.
+        symbols: t, x, y, z as UFL, for expressions.
+    """
 
     def __init__(self, mesh):
         self.mesh = mesh
@@ -33,7 +49,14 @@ class TimeData:
                         "z": x[2] if mesh.geometry.dim == 3 else 0.0}
 
     def scalar(self, component):
-        """UFL for one component (number, table or expression)."""
+        """UFL for one component.
+
+        Args:
+            component: a number, {"table": [[t, value], ...]} or an expression string.
+
+        Returns:
+            A Constant (number, table) or a UFL expression.
+        """
         if isinstance(component, (int, float)):   # a Constant: no recompilation per value
             return fem.Constant(self.mesh, PETSc.ScalarType(component))
         if isinstance(component, dict):
@@ -44,12 +67,24 @@ class TimeData:
         return expressions.to_ufl(expressions.parse(component), self.symbols)
 
     def vector(self, components):
-        """UFL vector for a list of components, or None if every component is 0."""
+        """UFL vector of a load.
+
+        Args:
+            components: one component per space direction.
+
+        Returns:
+            The UFL vector, or None if every component is 0.
+        """
         if all(is_zero(c) for c in components):
             return None
         return ufl.as_vector([self.scalar(c) for c in components])
 
     def set_time(self, t: float) -> None:
+        """Set t and the tables' Constants to their values at t (t_n of the step).
+
+        Args:
+            t: the time.
+        """
         self.t.value = t
         for c, ts, vs in self._tables:
             c.value = np.interp(t, ts, vs)

@@ -33,13 +33,30 @@ _FROM = {d: np.array([next(k for k, p in enumerate(_PAIRS[d]) if set(p) == {i, j
 
 
 def to_voigt(tau: np.ndarray, dim: int = 2) -> np.ndarray:
-    """(n, d, d) symmetric tensors (or their flat arrays) -> (n, m) coordinates (m = 3 in 2D,
-    6 in 3D).  The tensors are symmetric (sigma, H, eps), so the upper triangle is read."""
+    """Symmetric tensors to t-coordinates.
+
+    The tensors are symmetric (sigma, H, eps), so the upper triangle is read.
+
+    Args:
+        tau: (n, d, d) symmetric tensors, or their flat (row-major) array.
+        dim: space dimension d.
+
+    Returns:
+        The (n, m) coordinates (m = 3 in 2D, 6 in 3D).
+    """
     return np.asarray(tau).reshape(-1, dim * dim)[:, _FLAT[dim]]
 
 
 def from_voigt(t: np.ndarray, dim: int = 2) -> np.ndarray:
-    """(n, m) coordinates -> (n, d, d) symmetric tensors."""
+    """t-coordinates to symmetric tensors.
+
+    Args:
+        t: (n, m) coordinates (or their flat array).
+        dim: space dimension d.
+
+    Returns:
+        The (n, d, d) symmetric tensors.
+    """
     t = np.asarray(t).reshape(-1, len(_PAIRS[dim]))
     return t[:, _FROM[dim]].reshape(-1, dim, dim)
 
@@ -56,7 +73,13 @@ def _von_mises_matrix(dim: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Elasticity:
-    """The elasticity operator and the quadratic forms in t-coordinates (d = 2 or 3)."""
+    """The elasticity operator E and the quadratic forms in t-coordinates (d = 2 or 3).
+
+    Attributes:
+        E: Young's modulus.
+        nu: Poisson's ratio.
+        dim: space dimension d (2: the paper's plane stress, 3: isotropic Hooke).
+    """
 
     E: float
     nu: float
@@ -64,10 +87,12 @@ class Elasticity:
 
     @property
     def m(self) -> int:
+        """The number of t-coordinates (3 in 2D, 6 in 3D)."""
         return len(_PAIRS[self.dim])
 
     @property
     def Cmat(self) -> np.ndarray:
+        """The (m, m) matrix of E in t-coordinates: (E tau) = Cmat t."""
         lmbda, two_mu = lame_constants(self.E, self.nu, self.dim)
         d, m = self.dim, self.m
         C = two_mu * np.eye(m)
@@ -81,29 +106,69 @@ class Elasticity:
 
     @property
     def A(self) -> np.ndarray:
+        """The energy form: (E tau):tau = t^T A t (shears counted twice)."""
         return np.diag(self.weights) @ self.Cmat
 
     @property
     def M(self) -> np.ndarray:
+        """The von Mises form: ||tau||_VM^2 = t^T M t."""
         return _von_mises_matrix(self.dim)
 
     def apply(self, t: np.ndarray) -> np.ndarray:
-        """E tau for rows t (n, m)."""
+        """E tau.
+
+        Args:
+            t: rows (n, m) of t-coordinates.
+
+        Returns:
+            The rows (n, m) of E tau.
+        """
         return t @ self.Cmat.T
 
     def von_mises(self, t: np.ndarray) -> np.ndarray:
-        """||tau||_VM for rows t (n, m)."""
+        """The von Mises norm.
+
+        Args:
+            t: rows (n, m) of t-coordinates.
+
+        Returns:
+            ||tau||_VM per row, (n,).
+        """
         return np.sqrt(np.maximum(np.einsum("ni,ni->n", t @ self.M, t), 0.0))
 
     def to_voigt(self, tau):
+        """``to_voigt`` in this dimension.
+
+        Args:
+            tau: (n, d, d) symmetric tensors, or their flat array.
+
+        Returns:
+            The (n, m) t-coordinates.
+        """
         return to_voigt(tau, self.dim)
 
     def from_voigt(self, t):
+        """``from_voigt`` in this dimension.
+
+        Args:
+            t: (n, m) t-coordinates.
+
+        Returns:
+            The (n, d, d) symmetric tensors.
+        """
         return from_voigt(t, self.dim)
 
 
 def PlaneStress(E: float, nu: float) -> Elasticity:
-    """The paper's plane-stress law (d = 2)."""
+    """The paper's plane-stress elasticity (d = 2).
+
+    Args:
+        E: Young's modulus.
+        nu: Poisson's ratio.
+
+    Returns:
+        Elasticity(E, nu, 2).
+    """
     return Elasticity(E, nu, 2)
 
 
@@ -115,17 +180,24 @@ class RadialReturn:
     a multiple of the Frobenius one, so the closest point in the energy norm keeps the
     hydrostatic part and scales the deviator radially:
         P tau = tr(tau)/3 I + min(1, kappa / ||tau||_VM) dev(tau).
+
+    Args:
+        elasticity: the (3D) elasticity.
+
+    Raises:
+        ValueError: if ``elasticity`` is not 3D.
     """
 
-    def __init__(self, law: Elasticity):
-        if law.dim != 3:
+    def __init__(self, elasticity: Elasticity):
+        if elasticity.dim != 3:
             raise ValueError("RadialReturn is the 3D projection")
-        self.law = law
+        self.elasticity = elasticity
 
     def __call__(self, s: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+        """Project rows s (n, 6) onto K(kappa) (kappa: (n,) >= 0); returns (n, 6)."""
         s = np.asarray(s, dtype=float).reshape(-1, 6)
         kappa = np.broadcast_to(np.asarray(kappa, dtype=float), (s.shape[0],))
-        vm = self.law.von_mises(s)
+        vm = self.elasticity.von_mises(s)
         scale = np.where(vm > kappa, kappa / np.where(vm > 0, vm, 1.0), 1.0)
         mean = s[:, :3].mean(axis=1, keepdims=True)
         out = s * scale[:, None]
@@ -133,9 +205,16 @@ class RadialReturn:
         return out
 
 
-def make_projection(law: Elasticity):
-    """The exact energy-norm projection onto the von Mises ball for this law."""
-    return VonMisesProjection(law) if law.dim == 2 else RadialReturn(law)
+def make_projection(elasticity: Elasticity):
+    """The exact energy-norm projection P_K(kappa) onto the von Mises ball.
+
+    Args:
+        elasticity: the elasticity E that defines the energy inner product.
+
+    Returns:
+        A callable (t, kappa) -> P t: VonMisesProjection in 2D, RadialReturn in 3D.
+    """
+    return VonMisesProjection(elasticity) if elasticity.dim == 2 else RadialReturn(elasticity)
 
 
 class VonMisesProjection:
@@ -148,10 +227,15 @@ class VonMisesProjection:
     monotonically (as for the trust-region subproblem); iterations are vectorised over cells.
     Equal eigenvalues are grouped (in plane stress lam takes two values: the directions
     (1, -1, 0) and (0, 0, 1) share one), so q costs one term per distinct eigenvalue.
+
+    Args:
+        elasticity: the elasticity E that defines the energy inner product.
+        rtol: relative tolerance of the secular equation.
+        max_iter: Newton iterations allowed.
     """
 
-    def __init__(self, law: Elasticity, rtol: float = 1e-14, max_iter: int = 100):
-        A, M = law.A, law.M
+    def __init__(self, elasticity: Elasticity, rtol: float = 1e-14, max_iter: int = 100):
+        A, M = elasticity.A, elasticity.M
         self.m = A.shape[0]
         L = np.linalg.cholesky(A)
         Linv = np.linalg.inv(L)
@@ -172,7 +256,18 @@ class VonMisesProjection:
         self.groups = groups
 
     def __call__(self, s: np.ndarray, kappa: np.ndarray) -> np.ndarray:
-        """Project rows s (n, m) onto K(kappa) (kappa: (n,) >= 0); returns (n, m)."""
+        """Project onto K(kappa).
+
+        Args:
+            s: rows (n, m) of t-coordinates.
+            kappa: (n,) radii >= 0 (or a scalar).
+
+        Returns:
+            The rows (n, m) of P_K(kappa) s; NaN rows for non-finite input.
+
+        Raises:
+            RuntimeError: if the secular equation does not converge.
+        """
         s = np.asarray(s, dtype=float).reshape(-1, self.m)
         kappa = np.broadcast_to(np.asarray(kappa, dtype=float), (s.shape[0],))
         out = s.copy()
@@ -231,20 +326,44 @@ class VonMisesProjection:
 
 @dataclass(frozen=True)
 class Perzyna:
-    """Perzyna rates of the paper: (Gfun, Gk) at (sigma, kappa), rows in t-coordinates."""
+    """The paper's Perzyna law (Section 4): the rates (Gfun, Gk) at (sigma, kappa).
 
-    law: Elasticity
+    Attributes:
+        elasticity: the elasticity E.
+        lambda1: viscosity of the stress rate Gfun.
+        lambda2: viscosity of the hardening rate Gk.
+    """
+
+    elasticity: Elasticity
     lambda1: float
     lambda2: float
 
     def __post_init__(self):
-        object.__setattr__(self, "_project", make_projection(self.law))
+        object.__setattr__(self, "_project", make_projection(self.elasticity))
 
     def project(self, t: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+        """The projection P_K(kappa).
+
+        Args:
+            t: rows (n, m) of t-coordinates.
+            kappa: (n,) radii >= 0.
+
+        Returns:
+            The rows (n, m) of P_K(kappa) t.
+        """
         return self._project(t, kappa)
 
     def rates(self, t: np.ndarray, kappa: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Gfun = -1/(2 lambda1) E (sigma - P sigma), Gk = 2/(3 lambda2) ||sigma - P sigma||_VM."""
+        """The rates of the history sums H_n, kappa_n of (3.2)-(3.3).
+
+        Args:
+            t: rows (n, m) of sigma in t-coordinates.
+            kappa: (n,) hardening values.
+
+        Returns:
+            (Gfun, Gk): Gfun = -1/(2 lambda1) E (sigma - P sigma), rows (n, m), and
+            Gk = 2/(3 lambda2) ||sigma - P sigma||_VM, (n,).
+        """
         excess = t - self._project(t, kappa)
-        return (-0.5 / self.lambda1) * self.law.apply(excess), \
-            (2.0 / (3.0 * self.lambda2)) * self.law.von_mises(excess)
+        return (-0.5 / self.lambda1) * self.elasticity.apply(excess), \
+            (2.0 / (3.0 * self.lambda2)) * self.elasticity.von_mises(excess)

@@ -17,17 +17,16 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from forms.contact import gamma3_measure
-from forms.elasticity import elasticity_operator, eps
-from forms.step import build_step_forms
-from meshes import BOUNDARY_TAGS
-
 from app.io import expressions
 from app.io.case import Case, CaseError
 from app.model.gamma3 import NodalField
 from app.model.loads import TimeData
 from app.model.material import Elasticity
 from app.model.strain import StrainOperator
+from forms.contact import gamma3_measure
+from forms.elasticity import elasticity_operator, eps
+from forms.step import BulkData, ContactData, build_step_forms
+from meshes import BOUNDARY_TAGS
 
 GAMMA1, GAMMA3 = "left", "bottom"
 
@@ -54,14 +53,29 @@ class _Constants(dict):
 
 
 class ContactProblem:
-    """Forms and data of the step problem for a case on a mesh (Rectangle/BoxMesh)."""
+    """Forms and data of the step problem (3.4) for a case on a mesh.
+
+    Args:
+        case: the validated case.
+        rect: the mesh with its facet tags (meshes.RectangleMesh or BoxMesh).
+
+    Attributes:
+        elasticity: the Elasticity E of the case (app/model/material.py).
+        V, Q, Y: the spaces V^h (P1 vectors), Q^h (DG0 tensors), Y^h (DG0 scalars).
+        u, sigma, sigma_vm: u_n, sigma_n and its von Mises norm.
+        H: the pre-stress H_n of (3.2), or None without history and initial values.
+        xi, theta: the Gamma3 nodal fields xi_n (memory) and theta(s_n) (slip), or None.
+        forms: the StepForms of J_n (forms/step.py).
+        bcs: the Dirichlet condition u = 0 on Gamma1.
+        gamma3: the owned Gamma3 nodes and their weights, or None without contact.
+    """
 
     def __init__(self, case: Case, rect):
         self.case, self.rect = case, rect
         msh = self.mesh = rect.mesh
         self.comm = msh.comm
         d = self.dim = rect.dim
-        self.law = Elasticity(case.material.E, case.material.nu, d)
+        self.elasticity = Elasticity(case.material.E, case.material.nu, d)
         self.V = fem.VectorFunctionSpace(msh, ("CG", 1))
         self.Q = fem.TensorFunctionSpace(msh, ("DG", 0))
         self.Y = fem.FunctionSpace(msh, ("DG", 0))
@@ -79,7 +93,7 @@ class ContactProblem:
         self.constitutive = None
         self.C_alg = None
         if self.implicit:
-            m = self.law.m
+            m = self.elasticity.m
             self.C_alg = fem.Function(fem.TensorFunctionSpace(msh, ("DG", 0), shape=(m, m)),
                                       name="C_alg")
         self.normal = np.array(rect.normal)
@@ -104,6 +118,18 @@ class ContactProblem:
                 self.theta = NodalField(self.V, self.gamma3_local_nodes, "theta")
                 self.theta.function.x.array[:] = 1.0
 
+        self.forms = self._step_forms()
+        self._bulk_form = fem.form(self.forms.bulk_residual)
+
+        # sigma_n = E eps(u_n) + H_n per cell (exact: eps(u) is constant on cells),
+        # app/model/strain.py
+        self._C = elasticity_operator(self.constants["E"], self.constants["nu"], d)
+        self.strain_operator = StrainOperator(self.V, self.Q, case.material.E, case.material.nu)
+
+    def _step_forms(self):
+        """J_n's data (loads, laws (4.1)-(4.2), history fields) and forms/step.py's forms."""
+        case, msh, ft, d = self.case, self.mesh, self.rect.facet_tags, self.dim
+        c = case.contact
         ds = ufl.Measure("ds", domain=msh, subdomain_data=ft)
         self.ds_c = gamma3_measure(msh, ft, BOUNDARY_TAGS[GAMMA3], case.numerics.quadrature,
                                    case.numerics.gauss_degree)
@@ -120,31 +146,29 @@ class ContactProblem:
         if c.friction is not None:
             friction = {k: const(k, getattr(c.friction, k)) for k in ("b", "c1", "c2", "u1")}
         needs_delta = c.friction is not None or c.memory is not None
-        self.forms = build_step_forms(
-            self.u, None if self.implicit else self.H, E=E, nu=nu, dim=d, f0=f0,
-            tractions=tractions, ds=ds,
-            stress=self.sigma if self.implicit else None, tangent=self.C_alg,
-            ds_c=self.ds_c, normal=tuple(self.normal),
+        bulk = BulkData(E, nu, d, H=None if self.implicit else self.H, f0=f0,
+                        tractions=tractions, ds=ds,
+                        stress=self.sigma if self.implicit else None, tangent=self.C_alg)
+        gamma3 = ContactData(
+            self.ds_c, tuple(self.normal),
             c_nu=const("c_nu", c.c_nu) if c.c_nu is not None else None,
             friction=friction,
             theta=self.theta.function if self.theta else None,
             xi=self.xi.function if self.xi else None,
             delta=const("delta", case.numerics.delta) if needs_delta else None)
-        self._bulk_form = fem.form(self.forms.bulk_residual)
-
-        # sigma_n = E eps(u_n) + H_n per cell (exact: eps(u) is constant on cells), app/model/strain.py
-        self._C = elasticity_operator(E, nu, d)
-        self.strain_operator = StrainOperator(self.V, self.Q, case.material.E, case.material.nu)
+        return build_step_forms(self.u, bulk, gamma3)
 
     # The step residual and Jacobian (SNES VI) and the strain interpolation (the numpy
     # stress path) are compiled when first used: the fast solver with the compiled kernels
     # needs none of them (25 ms of set-up at h = 1/128; collective, like every use of them).
     @cached_property
     def F_form(self):
+        """The compiled residual of (3.4) (dolfinx Form)."""
         return fem.form(self.forms.residual)
 
     @cached_property
     def J_form(self):
+        """The compiled Jacobian of the residual (dolfinx Form)."""
         return fem.form(self.forms.jacobian)
 
     @cached_property
@@ -157,29 +181,42 @@ class ContactProblem:
 
     @property
     def length_scale(self) -> float:
+        """The largest side of the body (L1, L2, L3)."""
         m = self.case.mesh
         return max(m.L1, m.L2, m.L3 if self.dim == 3 else 0.0)
 
     # ------------------------------------------------------------------ sizes
     @property
     def num_cells(self) -> int:
+        """Cells of the mesh (all ranks)."""
         return self.mesh.topology.index_map(self.dim).size_global
 
     @property
     def num_vertices(self) -> int:
+        """Vertices of the mesh (all ranks)."""
         return self.mesh.topology.index_map(0).size_global
 
     @property
     def num_dofs(self) -> int:
+        """Degrees of freedom of V^h (all ranks)."""
         return self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
 
     @property
     def num_owned_cells(self) -> int:
+        """Cells owned by this rank."""
         return self.mesh.topology.index_map(self.dim).size_local
 
     # ------------------------------------------------------------------ initial values
     def set_initial_values(self, kappa=None) -> None:
-        """u = u0, H_0 = sigma0 - E eps(u0) (3.2), kappa = kappa0 (cell averages)."""
+        """u = u0, H_0 = sigma0 - E eps(u0) (3.2), kappa = kappa0 (3.3) (cell averages).
+
+        Args:
+            kappa: the DG0 Function kappa, or None without viscoplasticity.
+
+        Raises:
+            CaseError: if the initial values are not finite, kappa0 < 0 somewhere, or u0
+                violates u = 0 on Gamma1 or u_nu <= g on Gamma3 (on every rank).
+        """
         init, sym = self.case.initial, self.time_data.symbols
         if init.u0 is not None:
             vec = ufl.as_vector([_ufl_component(c, sym) for c in init.u0])
@@ -252,7 +289,11 @@ class ContactProblem:
         return Gamma3Nodes(owned[order], x[order], weight[order])
 
     def bounds(self) -> tuple[PETSc.Vec, PETSc.Vec]:
-        """Box bounds of U^h: u_nu <= g on the normal dofs of Gamma3 nodes, +-inf elsewhere."""
+        """Box bounds of U^h: u_nu <= g on the normal dofs of Gamma3 nodes, +-inf elsewhere.
+
+        Returns:
+            (lower, upper) bound vectors like u (owned and ghost entries set).
+        """
         lb, ub = self.u.vector.duplicate(), self.u.vector.duplicate()
         with lb.localForm() as lo, ub.localForm() as up:
             lo.set(PETSc.NINFINITY)
@@ -270,9 +311,12 @@ class ContactProblem:
 
     # ------------------------------------------------------------------ derived quantities
     def update_sigma(self) -> tuple[float, float] | None:
-        """sigma_n = E eps(u_n) + H_n (3.2) and its von Mises norm, per cell.  Returns
-        (||u_n||_V, ||sigma_n||_Q) where the compiled cell pass computed them on the way (the
-        step record's norms without a second pass), else None."""
+        """sigma_n = E eps(u_n) + H_n (3.2) and its von Mises norm, per cell.
+
+        Returns:
+            (||u_n||_V, ||sigma_n||_Q) where the compiled cell pass computed them on the way
+            (the step record's norms without a second pass), else None.
+        """
         sums = self.strain_operator.update_sigma(self.u, self.H, self.sigma, self.sigma_vm)
         if sums is None:
             self.update_vm()
@@ -280,26 +324,44 @@ class ContactProblem:
         return float(np.sqrt(max(sums[0], 0.0))), float(np.sqrt(max(sums[1], 0.0)))
 
     def update_vm(self) -> None:
-        self.sigma_vm.x.array[:] = self.law.von_mises(self.law.to_voigt(self.sigma.x.array))
+        """sigma_vm = ||sigma||_VM per cell, from sigma."""
+        el = self.elasticity
+        self.sigma_vm.x.array[:] = el.von_mises(el.to_voigt(self.sigma.x.array))
         self.sigma_vm.x.scatter_forward()
 
     def strain_voigt(self) -> np.ndarray:
-        """eps(u) per cell (owned and ghost) in t-coordinates."""
+        """eps(u) per cell.
+
+        Returns:
+            (cells, m) strains in t-coordinates, owned and ghost cells.
+        """
         self._eps_fn.interpolate(self._eps_expr)
         self._eps_fn.x.scatter_forward()
-        return self.law.to_voigt(self._eps_fn.x.array)
+        return self.elasticity.to_voigt(self._eps_fn.x.array)
 
     def before_residual(self) -> bool:
         """Called with the current u before every residual assembly: the implicit variant's
-        local stress update.  Returns False if it failed (the residual is then NaN)."""
+        local stress update.
+
+        Returns:
+            False if the update failed (the residual is then NaN), else True.
+        """
         return self.constitutive.update(self) if self.constitutive is not None else True
 
     def _reduce(self, value: float, op) -> float:
         return self.comm.allreduce(value, op=getattr(MPI, op))
 
     def norm(self, which: str) -> float:
-        """||u||_V = ||eps(u)||_L2 ("V") or ||sigma||_Q ("Q"), reduced over ranks; exact cell
-        sums (eps(u) and sigma are constant on cells)."""
+        """A norm of the step record, reduced over ranks; collective.
+
+        Exact cell sums (eps(u) and sigma are constant on cells).
+
+        Args:
+            which: "V" for ||u||_V = ||eps(u)||_L2, "Q" for ||sigma||_Q.
+
+        Returns:
+            The norm.
+        """
         op = self.strain_operator
         if which == "V":
             return float(np.sqrt(max(op.strain_norm2(self.u), 0.0)))
@@ -307,12 +369,27 @@ class ContactProblem:
         return float(np.sqrt(self._reduce(local, "SUM")))
 
     def cell_norm(self, f) -> float:
-        """L2 norm of a DG0 scalar function (||kappa||_Y), reduced over ranks."""
+        """L2 norm of a DG0 scalar function (||kappa||_Y), reduced over ranks; collective.
+
+        Args:
+            f: a DG0 scalar Function on the mesh.
+
+        Returns:
+            The norm.
+        """
         n = self.num_owned_cells
         vol = self._cell_volumes()[:n]
         return float(np.sqrt(self._reduce(float(np.sum(vol * f.x.array[:n] ** 2)), "SUM")))
 
     def cell_max(self, f) -> float:
+        """The largest cell value of a DG0 scalar function, over ranks; collective.
+
+        Args:
+            f: a DG0 scalar Function on the mesh.
+
+        Returns:
+            The maximum (-inf without cells).
+        """
         n = self.num_owned_cells
         local = float(np.max(f.x.array[:n])) if n else -np.inf
         return float(self._reduce(local, "MAX"))
@@ -333,6 +410,9 @@ class ContactProblem:
         divided by the node's weight w_i = int phi_i ds: with the nodal rule this is exactly
         p(u_nu) + memory force + (bound multiplier)/w_i in the normal direction and the
         friction force in the tangential ones.
+
+        Returns:
+            Column name -> values of the owned Gamma3 nodes (sorted by coordinates).
         """
         gm, d = self.gamma3, self.dim
         r = fem.petsc.assemble_vector(self._bulk_form)

@@ -1,51 +1,89 @@
-"""Time step control: the case's fixed grid, or adaptive steps.
+"""Time step control: the case's fixed grid, or adaptive steps k_n = t_n - t_{n-1}.
 
 Adaptive: start with the grid's first step; before a step, halve k while the explicit
-scheme's stability indicator k r_max exceeds ``max_indicator``; when SNES fails, the step is
-rejected (all history restored by the caller) and k halved; after a step with at most
-``fast_newton`` Newton iterations k grows by ``grow`` (up to ``k_max``).  Every attempt is
-recorded for summary.json.
+scheme's stability indicator k r_max exceeds ``max_indicator``; when the step solve fails,
+the step is rejected (the history terms restored by the caller) and k halved; after a step
+with at most ``fast_newton`` Newton iterations k grows by ``grow`` (up to ``k_max``).  Every
+decision (accepted or rejected step) is kept in ``decisions`` for summary.json
+("step_history").
 """
 from __future__ import annotations
 
 
 class StepTooSmall(RuntimeError):
-    pass
+    """The adaptive step would have to fall below time.adaptive.k_min."""
 
 
 class FixedSteps:
-    """The case's time grid t_0 < ... < t_N."""
+    """The case's time grid t_0 < ... < t_N.
+
+    Args:
+        times: t_0, ..., t_N.
+    """
 
     adaptive = False
 
     def __init__(self, times):
         self.times = list(times)
         self.n = 0
-        self.history: list[dict] = []
+        self.decisions: list[dict] = []
 
     @property
     def total(self) -> int | None:
+        """The number of steps N."""
         return len(self.times) - 1
 
     def finished(self, t: float) -> bool:
+        """True once the last step of the grid was accepted."""
         return self.n >= len(self.times) - 1
 
     def next_k(self, t: float) -> float | None:
+        """k_{n+1} of the grid, or None when finished."""
         if self.finished(t):
             return None
         return self.times[self.n + 1] - self.times[self.n]
 
     def next_t(self, t: float, k: float) -> float:
+        """t_{n+1} of the grid (exactly, not t + k)."""
         return self.times[self.n + 1]
 
     def accept(self, k: float, its: int) -> None:
+        """The step was accepted: move to the next grid point."""
         self.n += 1
 
     def reject(self, k: float, reason: str) -> bool:
+        """A fixed grid never retries a step.  Returns: False."""
         return False
+
+    def state(self) -> dict:
+        """Returns: {"adaptive": False, "n": steps taken, "k": None, "decisions": [...]}."""
+        return {"adaptive": False, "n": self.n, "k": None, "decisions": list(self.decisions)}
+
+    def load_state(self, state: dict) -> None:
+        """Continue from ``state()`` (of a checkpoint).
+
+        Args:
+            state: {"n": steps taken, "decisions": [...]} (other keys are ignored).
+        """
+        self.n = state["n"]
+        self.decisions = list(state["decisions"])
 
 
 class AdaptiveSteps:
+    """Adaptive steps on [0, T] (see the module docstring).
+
+    Args:
+        T: the final time.
+        k0: the first step tried.
+        rate: the relaxation rate r_max of the explicit scheme (None: no stability limit).
+        scheme: "explicit" or "implicit" (only the explicit scheme has the limit).
+        k_min: the smallest step (default k0 / 1024).
+        k_max: the largest step (default T).
+        grow: the factor k grows by after a fast step.
+        fast_newton: at most this many Newton iterations make a step fast.
+        max_indicator: the largest stability indicator k r_max allowed.
+    """
+
     adaptive = True
 
     def __init__(self, T: float, k0: float, rate: float | None, scheme: str, k_min=None,
@@ -55,13 +93,19 @@ class AdaptiveSteps:
         self.k_max = k_max if k_max is not None else T
         self.grow, self.fast = grow, fast_newton
         self.limit = max_indicator / rate if (rate and scheme == "explicit") else None
-        self.history: list[dict] = []
+        self.decisions: list[dict] = []
         self.total = None
 
     def finished(self, t: float) -> bool:
+        """True once t reached T."""
         return t >= self.T * (1 - 1e-12)
 
     def next_k(self, t: float) -> float | None:
+        """The next step from t (None when finished), within the stability limit.
+
+        Raises:
+            StepTooSmall: the stability limit needs a step below k_min.
+        """
         if self.finished(t):
             return None
         k = min(self.k, self.k_max)
@@ -69,8 +113,8 @@ class AdaptiveSteps:
             raise StepTooSmall(f"the stability indicator needs k <= {self.limit:g}, below "
                                f"time.adaptive.k_min = {self.k_min:g}")
         while self.limit is not None and k > self.limit:
-            self.history.append({"t": t, "k": k, "accepted": False,
-                                 "reason": "stability indicator"})
+            self.decisions.append({"t": t, "k": k, "accepted": False,
+                                   "reason": "stability indicator"})
             k *= 0.5
         if k < self.k_min:
             raise StepTooSmall(f"the step k = {k:g} needed by the stability indicator is below "
@@ -80,21 +124,46 @@ class AdaptiveSteps:
         return rest if k >= rest * (1 - 1e-9) else k   # land exactly on T
 
     def next_t(self, t: float, k: float) -> float:
+        """t + k, exactly T at the end."""
         return self.T if abs(t + k - self.T) <= 1e-12 * self.T else t + k
 
     def accept(self, k: float, its: int) -> None:
-        self.history.append({"k": k, "accepted": True, "newton": its})
+        """The step was accepted after ``its`` Newton iterations: grow k if it was fast."""
+        self.decisions.append({"k": k, "accepted": True, "newton": its})
         if its <= self.fast:   # grow, but not past the stability limit (no reject loop)
             self.k = min(self.k * self.grow, self.k_max,
                          self.limit if self.limit is not None else float("inf"))
 
     def reject(self, k: float, reason: str) -> bool:
-        self.history.append({"k": k, "accepted": False, "reason": reason})
+        """The step k failed: halve it.  Returns: whether the halved step may be tried."""
+        self.decisions.append({"k": k, "accepted": False, "reason": reason})
         self.k = 0.5 * k
         return self.k >= self.k_min
 
+    def state(self) -> dict:
+        """Returns: {"adaptive": True, "n": None, "k": the next step, "decisions": [...]}."""
+        return {"adaptive": True, "n": None, "k": self.k, "decisions": list(self.decisions)}
 
-def make_stepper(case, rate: float | None):
+    def load_state(self, state: dict) -> None:
+        """Continue from ``state()`` (of a checkpoint).
+
+        Args:
+            state: {"k": the next step, "decisions": [...]} (other keys are ignored).
+        """
+        self.k = state["k"]
+        self.decisions = list(state["decisions"])
+
+
+def make_stepper(case, rate: float | None) -> FixedSteps | AdaptiveSteps:
+    """The step control of a case: its fixed grid, or adaptive steps (time.adaptive).
+
+    Args:
+        case: the validated Case.
+        rate: the relaxation rate r_max (diagnostics), for the explicit stability limit.
+
+    Returns:
+        A FixedSteps or an AdaptiveSteps.
+    """
     a = case.time.adaptive
     if a is None:
         return FixedSteps(case.time.times)

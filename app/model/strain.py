@@ -27,9 +27,8 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from forms.elasticity import elasticity_operator, eps, lame_constants
-
 from app.solvers import kernels
+from forms.elasticity import elasticity_operator, eps, lame_constants
 
 
 def _inverse(J: np.ndarray) -> np.ndarray:
@@ -49,7 +48,14 @@ def _inverse(J: np.ndarray) -> np.ndarray:
 
 
 class StrainOperator:
-    """sigma = E eps(u) + H per cell, the pre-stress load D^T H, and the norms."""
+    """sigma = E eps(u) + H per cell (3.2), the pre-stress load D^T H of (3.4), the norms.
+
+    Args:
+        V: the P1 displacement space V^h.
+        Q: the DG0 tensor space Q^h.
+        E: Young's modulus.
+        nu: Poisson's ratio.
+    """
 
     def __init__(self, V, Q, E: float, nu: float):
         self.d = d = V.mesh.geometry.dim
@@ -140,9 +146,18 @@ class StrainOperator:
         return e2, ss[0]
 
     def update_sigma(self, u, H, sigma, vm=None) -> tuple[float, float] | None:
-        """sigma = E eps(u) + H on the owned cells, ghosts by scatter.  With the compiled
-        kernel also vm = ||sigma||_VM (a DG0 function), and the pass's global sums
-        (||eps(u)||_L2^2, ||sigma||_Q^2) are returned (else None)."""
+        """sigma = E eps(u) + H (3.2) on the owned cells, ghosts by scatter; collective.
+
+        Args:
+            u: the displacement (P1 Function).
+            H: the pre-stress (DG0 tensor Function) or None.
+            sigma: the DG0 tensor Function to fill.
+            vm: a DG0 scalar Function for ||sigma||_VM, filled by the compiled kernel only.
+
+        Returns:
+            With the compiled kernel and ``vm``, the pass's global sums
+            (||eps(u)||_L2^2, ||sigma||_Q^2); else None.
+        """
         if self._cells is not None and vm is not None:
             sums = np.array(self._cell_pass(u, H, sigma, vm))
             self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)   # buffer: no pickling
@@ -157,19 +172,38 @@ class StrainOperator:
         return None
 
     def strain_norm2(self, u) -> float:
-        """||eps(u)||_L2^2 (global: reduced over the ranks)."""
+        """||eps(u)||_L2^2, reduced over the ranks; collective.
+
+        Args:
+            u: the displacement (P1 Function).
+
+        Returns:
+            The squared norm.
+        """
         if self._cells is not None:
             return self.comm.allreduce(self._cell_pass(u)[0], op=MPI.SUM)
         self.A.mult(u.vector, self._b)
         return self._b.dot(u.vector)
 
     def energy_norm2(self, cell_tensors: np.ndarray) -> float:
-        """sum_c |c| t_c : t_c over the owned cells (this rank's part of ||t||_L2^2)."""
+        """sum_c |c| t_c : t_c over the owned cells.
+
+        Args:
+            cell_tensors: the owned cells' d x d tensors (flat or shaped).
+
+        Returns:
+            This rank's part of ||t||_L2^2.
+        """
         flat = cell_tensors.reshape(len(self.vol), -1)
         return float(self.vol @ np.einsum("ij,ij->i", flat, flat))
 
     def pre_stress_load(self, H, b: PETSc.Vec) -> None:
-        """b -= D^T H = (H, eps(v)) for all v (the pre-stress term of the step's load)."""
+        """b -= D^T H = (H, eps(v)) for all v, the pre-stress term of the load of (3.4).
+
+        Args:
+            H: the pre-stress H_n (DG0 tensor Function).
+            b: the load vector, updated in place.
+        """
         if self._cells is not None:
             ffi, w = self.mod.ffi, self._work
             vertices, G = self._cells
@@ -183,9 +217,3 @@ class StrainOperator:
             return
         self.D.multTranspose(H.vector, self._b)
         b.axpy(-1.0, self._b)
-
-    def destroy(self):
-        for name in ("D", "_b", "D_sigma", "A"):
-            obj = self.__dict__.get(name)
-            if obj is not None:
-                obj.destroy()

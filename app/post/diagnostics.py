@@ -20,23 +20,37 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
+from app.solvers.snesvi import direct_solver
 from forms.contact import gamma3_measure
 from forms.elasticity import eps
 from meshes import BOUNDARY_TAGS
 
-from app.solvers.snesvi import direct_solver
-
 STABILITY_LIMIT = 2.0
 
 
-def relaxation_rate(law, lambda1: float) -> float:
-    """r_max = lambda_max(E) / (2 lambda1), E acting on symmetric tensors."""
-    return float(np.max(np.linalg.eigvals(law.Cmat).real)) / (2.0 * lambda1)
+def relaxation_rate(elasticity, lambda1: float) -> float:
+    """The largest relaxation rate of the explicit history update (3.2).
+
+    Args:
+        elasticity: the Elasticity E (app/model/material.py).
+        lambda1: the Perzyna viscosity lambda1.
+
+    Returns:
+        r_max = lambda_max(E) / (2 lambda1), E acting on symmetric tensors.
+    """
+    return float(np.max(np.linalg.eigvals(elasticity.Cmat).real)) / (2.0 * lambda1)
 
 
-def ellipticity(law) -> float:
-    """m_E, the smallest eigenvalue of E on symmetric tensors."""
-    return float(np.min(np.linalg.eigvals(law.Cmat).real))
+def ellipticity(elasticity) -> float:
+    """The ellipticity constant m_E of (2.6).
+
+    Args:
+        elasticity: the Elasticity E (app/model/material.py).
+
+    Returns:
+        m_E, the smallest eigenvalue of E on symmetric tensors.
+    """
+    return float(np.min(np.linalg.eigvals(elasticity.Cmat).real))
 
 
 def _gamma3_mass(problem) -> PETSc.Mat:
@@ -50,10 +64,21 @@ def _gamma3_mass(problem) -> PETSc.Mat:
 
 
 def trace_constant(problem, rtol: float = 1e-8, max_iter: int = 500) -> tuple[float, int]:
-    """||gamma||^2 = largest eigenvalue of M v = lam K v, M = (v, w)_{L2(Gamma3)},
-    K = (eps(v), eps(w)) on V^h with v = 0 on Gamma1; power iteration x <- K^-1 M x until
-    the Rayleigh quotient (a lower bound of lam converging at twice the rate of the vector)
-    changes by less than rtol."""
+    """The squared trace constant ||gamma||^2 of (2.6) on the discrete space; collective.
+
+    ||gamma||^2 is the largest eigenvalue of M v = lam K v, M = (v, w)_{L2(Gamma3)},
+    K = (eps(v), eps(w)) on V^h with v = 0 on Gamma1: power iteration x <- K^-1 M x until the
+    Rayleigh quotient (a lower bound of lam converging at twice the rate of the vector)
+    changes by less than rtol.
+
+    Args:
+        problem: the ContactProblem.
+        rtol: relative change of the Rayleigh quotient that stops the iteration.
+        max_iter: iterations allowed.
+
+    Returns:
+        (||gamma||^2, the iterations used).
+    """
     V, comm = problem.V, problem.comm
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     a = fem.form(ufl.inner(eps(u), eps(v)) * ufl.dx)
@@ -65,7 +90,7 @@ def trace_constant(problem, rtol: float = 1e-8, max_iter: int = 500) -> tuple[fl
     x, y, Mx = K.createVecRight(), K.createVecRight(), K.createVecRight()
     x.setRandom(PETSc.Random().create(comm))
     lam, its = 0.0, 0
-    for its in range(1, max_iter + 1):
+    for its in range(1, max_iter + 1):  # noqa: B007  (its, the count, is returned)
         M.mult(x, Mx)
         fem.petsc.set_bc(Mx, problem.bcs, scale=0.0)   # v = 0 on Gamma1: K^-1 keeps it 0
         ksp.solve(Mx, y)
@@ -82,12 +107,20 @@ def trace_constant(problem, rtol: float = 1e-8, max_iter: int = 500) -> tuple[fl
 
 
 def trace_constant_bound(problem, solver) -> float | None:
-    """Upper bound of ||gamma||^2 from the fast solver's Schur complement S (no extra
-    factorisation): with the Gamma3 mass matrix M_G,
+    """Upper bound of ||gamma||^2 from the fast solver's Schur complement S; collective.
+
+    No extra factorisation: with the Gamma3 mass matrix M_G,
         lam_K = max_v |v|^2_{L2(Gamma3)} / (E eps(v), eps(v)) = lam_max(M_G x = lam S x),
     and since (E tau):tau <= c_max tau:tau (c_max the largest eigenvalue of E),
         ||gamma||^2 <= c_max lam_K.
-    None if the solver has no condensed Gamma3 problem."""
+
+    Args:
+        problem: the ContactProblem.
+        solver: the step solver.
+
+    Returns:
+        c_max lam_K, or None if the solver has no condensed Gamma3 problem.
+    """
     if not getattr(solver, "gamma3", False) or not hasattr(solver, "S"):
         return None
     M = _gamma3_mass(problem)
@@ -100,7 +133,7 @@ def trace_constant_bound(problem, solver) -> float | None:
     L = np.linalg.cholesky(solver.S)
     C = np.linalg.solve(L, np.linalg.solve(L, MG).T)
     lam_K = float(np.linalg.eigvalsh(0.5 * (C + C.T))[-1])
-    return float(np.max(np.linalg.eigvals(problem.law.Cmat).real)) * lam_K
+    return float(np.max(np.linalg.eigvals(problem.elasticity.Cmat).real)) * lam_K
 
 
 def _adot(A, y):
@@ -114,6 +147,25 @@ def _adot(A, y):
 
 @dataclass
 class Diagnostics:
+    """The stability indicator and the well-posedness margin of (2.6) of a case.
+
+    Attributes:
+        scheme: time.scheme (explicit or implicit).
+        k_max: the largest time step.
+        relaxation_rate: r_max, or None without viscoplasticity.
+        stability_indicator: k_max r_max, or None without viscoplasticity.
+        stability_limit: the explicit scheme's limit of k_max r_max.
+        explicit_stable: the indicator is within the limit (None without viscoplasticity).
+        m_E: the ellipticity constant of E.
+        m_j: the relaxed-monotonicity constant of the friction law (4.2) (c1).
+        c1_tilde: the growth constant c1~ of (2.6).
+        gamma2: ||gamma||^2 (or its upper bound), None without friction.
+        wellposedness_margin: m_E - max(sqrt(3) c1~, m_j) ||gamma||^2, None without friction.
+        unique: the margin is positive, None without friction.
+        adaptive: the case has time.adaptive.
+        gamma2_is_bound: gamma2 is the upper bound c_max lam_K, not the value.
+    """
+
     scheme: str
     k_max: float
     relaxation_rate: float | None
@@ -130,10 +182,19 @@ class Diagnostics:
     gamma2_is_bound: bool = False    # gamma2 is the upper bound c_max lam_K, not the value
 
     def as_dict(self) -> dict:
+        """The fields as a dict.
+
+        Returns:
+            Field name -> value (summary.json's "diagnostics").
+        """
         return asdict(self)
 
     def messages(self) -> list[tuple[str, str]]:
-        """(level, text) lines for the run log."""
+        """The lines for the run log.
+
+        Returns:
+            (level, text) pairs, level "info" or "warning".
+        """
         out = []
         if self.stability_indicator is not None:
             text = (f"stability indicator k_max r_max = {self.k_max:g} x {self.relaxation_rate:.4g}"
@@ -142,10 +203,11 @@ class Diagnostics:
                 out.append(("info", text + ": adaptive steps will keep k r_max within "
                                            "time.adaptive.max_indicator"))
             elif self.scheme == "explicit" and not self.explicit_stable:
+                growth = self.stability_indicator - 1
                 out.append(("warning", text + ": the explicit scheme is unstable here (errors "
-                                              f"can grow by up to {self.stability_indicator - 1:.3g}x "
-                                              "per step); use time.scheme: implicit, a smaller "
-                                              "time step or time.adaptive"))
+                                              f"can grow by up to {growth:.3g}x per step); use "
+                                              "time.scheme: implicit, a smaller time step or "
+                                              "time.adaptive"))
             else:
                 out.append(("info", text + ("" if self.scheme == "explicit" else
                                             "; the implicit scheme has no such limit")))
@@ -167,17 +229,27 @@ class Diagnostics:
 
 
 def diagnose(problem, solver=None) -> Diagnostics:
-    """The diagnostics of a case.  With the fast solver the trace constant is first bounded
-    from its Schur complement (no factorisation); the exact power iteration runs only when
-    that bound cannot show the margin of (2.6) to be positive."""
-    case, law = problem.case, problem.law
+    """The diagnostics of a case; collective.
+
+    With the fast solver the trace constant is first bounded from its Schur complement (no
+    factorisation); the exact power iteration runs only when that bound cannot show the
+    margin of (2.6) to be positive.
+
+    Args:
+        problem: the ContactProblem.
+        solver: the step solver, or None.
+
+    Returns:
+        The Diagnostics.
+    """
+    case, elasticity = problem.case, problem.elasticity
     ks = np.diff(case.time.times)
     k_max = float(ks.max())
     vp = case.material.viscoplastic
-    rate = relaxation_rate(law, vp.lambda1) if vp else None
+    rate = relaxation_rate(elasticity, vp.lambda1) if vp else None
     indicator = k_max * rate if vp else None
     fr = case.contact.friction
-    m_E = ellipticity(law)
+    m_E = ellipticity(elasticity)
     m_j = fr.c1 if fr else 0.0
     gamma2 = margin = unique = None
     is_bound = False

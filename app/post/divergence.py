@@ -24,15 +24,29 @@ is stopped after a few steps.
 """
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
 
+from app.observers import Observer, StopRun
+from app.records import HINT_DIVERGED, StepFailure
+
 BLOWUP_FACTOR = 100.0
+log = logging.getLogger("vpcontact")
 
 
 def contact_scale(case, E_max: float, length: float) -> float:
-    """Stress levels of the contact laws: c_nu g, b0 T g, the friction constants, E g / L."""
+    """Stress levels of the contact laws: c_nu g, b0 T g, the friction constants, E g / L.
+
+    Args:
+        case: the validated Case.
+        E_max: the largest eigenvalue of the elasticity tensor.
+        length: the body's length scale L.
+
+    Returns:
+        The largest of these levels.
+    """
     c = case.contact
     g = c.g if c.g is not None else 0.0
     values = [E_max * g / length]
@@ -50,16 +64,37 @@ def contact_scale(case, E_max: float, length: float) -> float:
 
 
 def stress_scale(case, problem) -> float:
-    """The data's stress scale (see the module docstring); collective."""
-    E_max = float(np.max(np.linalg.eigvals(problem.law.Cmat).real))
+    """The data's stress scale (see the module docstring); collective.
+
+    Args:
+        case: the validated Case (its data_stress from validation).
+        problem: the ContactProblem (elasticity, length scale, initial sigma_vm).
+
+    Returns:
+        The scale (0 if the data has no stress at all).
+    """
+    E_max = float(np.max(np.linalg.eigvals(problem.elasticity.Cmat).real))
     data = max(case.data_stress, contact_scale(case, E_max, problem.length_scale))
     return max(data if math.isfinite(data) else 0.0, problem.cell_max(problem.sigma_vm))
 
 
-class BlowUpMonitor:
-    """Checks each step record of the time loop (see the module docstring)."""
+class BlowUpMonitor(Observer):
+    """Stops a run as "diverged" at the first step whose record leaves the bounds (see the
+    module docstring): an observer whose ``check`` refuses the step, so the last good
+    state is step n - 1.  The bounds are set when the run starts (``start``: from the
+    initial or restarted state), or by ``set_bounds``."""
 
-    def __init__(self, case, problem, kappa0_max: float = 0.0):
+    def __init__(self):
+        self.scale = self.bound = self.kappa_bound = None
+
+    def set_bounds(self, case, problem, kappa0_max: float = 0.0) -> None:
+        """The bounds of max ||sigma||_VM and max kappa (collective).
+
+        Args:
+            case: the validated Case.
+            problem: the ContactProblem in its initial (or restarted) state.
+            kappa0_max: max kappa of that state.
+        """
         vp = case.material.viscoplastic
         self.scale = stress_scale(case, problem)
         m = case.mesh
@@ -68,8 +103,32 @@ class BlowUpMonitor:
         self.kappa_bound = kappa0_max + (2.0 * case.time.T / (3.0 * vp.lambda2) * self.bound
                                          if vp else 0.0)
 
-    def check(self, rec: dict) -> str | None:
-        """None if the step is plausible, else what exceeded which bound."""
+    def start(self, sim) -> None:
+        """Set the bounds from the run's state before its first step."""
+        p = sim.problem
+        self.set_bounds(sim.case, p, p.cell_max(sim.history.kappa) if sim.history else 0.0)
+
+    def check(self, sim, record: dict) -> None:
+        """Refuse step n if its record is implausible.
+
+        Raises:
+            StopRun: status "diverged", with what exceeded which bound.
+        """
+        why = self.blow_up(record)
+        if why:
+            log.error("step %d (t = %g) diverged: %s; stopping, the last good state is step %d",
+                      sim.n, sim.t, why, sim.n - 1)
+            raise StopRun("diverged", StepFailure(sim.n, sim.t, why, hint=HINT_DIVERGED))
+
+    def blow_up(self, rec: dict) -> str | None:
+        """What exceeded which bound in a step record.
+
+        Args:
+            rec: the step record (app/records.py).
+
+        Returns:
+            None if the step is plausible, else the reason.
+        """
         bad = [key for key, v in rec.items() if isinstance(v, float) and not math.isfinite(v)]
         if bad:
             return f"non-finite values (NaN/Inf) in {', '.join(bad)}"

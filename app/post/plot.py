@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from app.model import contact_laws
+
 FIGURES = ("fig3_deformed_contact.png", "fig4_tangential.png", "fig5_vm_kappa.png",
            "fig2_laws.png", "history.png")
 DPI = 110
@@ -33,7 +35,17 @@ def _mpl():
 
 # ----------------------------------------------------------------------------- reading
 class Results:
-    """The data of a results directory needed by the figures."""
+    """The data of a results directory needed by the figures.
+
+    Args:
+        outdir: the results directory (solution.h5, contact.csv, summary.json).
+
+    Attributes:
+        summary: summary.json's data; ``case``: its case data.
+        x, cells: the mesh's vertex coordinates and cells.
+        fields: the last stored value of each field; ``t``: the time of u.
+        contact: contact.csv's columns, or None.
+    """
 
     def __init__(self, outdir: Path):
         self.dir = Path(outdir)
@@ -54,7 +66,6 @@ class Results:
                 self.fields[name] = f["Function"][name][last][...]
                 self.times[name] = float(last.replace("_", "."))
         self.dim = self.cells.shape[1] - 1
-        self.gdim = self.dim
         self.x = self.x[:, :self.dim]
         self.t = self.times.get("u", 0.0)
 
@@ -73,15 +84,28 @@ class Results:
 
     @property
     def u(self) -> np.ndarray:
+        """The displacement at the vertices, (vertices, d)."""
         return self.fields["u"][:, :self.dim]
 
     def cell_field(self, name: str) -> np.ndarray | None:
+        """A DG0 scalar field's cell values.
+
+        Args:
+            name: the field's name (e.g. sigma_vm, kappa).
+
+        Returns:
+            One value per cell, or None if the run did not write the field.
+        """
         v = self.fields.get(name)
         return None if v is None else v.reshape(len(self.cells), -1)[:, 0]
 
     def magnification(self) -> float:
-        """Displacement factor (1, 2 or 5 x 10^k) making the largest displacement about 25% of
-        the body size."""
+        """The factor of the deformed views.
+
+        Returns:
+            1, 2 or 5 x 10^k making the largest displacement about 25% of the body size (1
+            without displacement).
+        """
         size = float(np.ptp(self.x, axis=0).max())
         umax = float(np.abs(self.u).max())
         if umax <= 0:
@@ -146,8 +170,8 @@ def _draw_cells(ax, fig, res: Results, values, title, label, factor=0.0, cmap="v
 
 def _clipped_volume(fig, pos, res: Results, values, title, label):
     """3D: boundary faces of the cells with centroid y <= L2/2, coloured by the cell value."""
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
     import matplotlib as mpl
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
     ax = fig.add_subplot(pos, projection="3d")
     centroid_y = res.x[res.cells][:, :, 1].mean(axis=1)
     keep = centroid_y <= 0.5 * (res.x[:, 1].min() + res.x[:, 1].max())
@@ -177,7 +201,16 @@ def _save(plt, fig, path: Path, title: str | None = None) -> None:
 
 # ----------------------------------------------------------------------------- figures
 def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None) -> float:
-    """Deformed mesh at T with the contact forces along Gamma3; returns the factor used."""
+    """Deformed mesh at T with the contact forces along Gamma3 (the paper's Fig. 3).
+
+    Args:
+        res: the run's data.
+        path: the PNG file to write.
+        factor: the displacement factor, default ``res.magnification()``.
+
+    Returns:
+        The factor used.
+    """
     plt = _mpl()
     factor = res.magnification() if factor is None else factor
     fig, ax = plt.subplots(figsize=(7.5, 6.5))
@@ -226,6 +259,12 @@ def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None)
 
 
 def fig4_tangential(res: Results, path: Path) -> None:
+    """u_tau and -sigma_tau along Gamma3 at T, with u1 marked (the paper's Fig. 4).
+
+    Args:
+        res: the run's data.
+        path: the PNG file to write.
+    """
     plt = _mpl()
     fig, axes = plt.subplots(2, 1, figsize=(7.5, 6.5), sharex=True)
     c = res.contact
@@ -256,6 +295,12 @@ def fig4_tangential(res: Results, path: Path) -> None:
 
 
 def fig5_vm_kappa(res: Results, path: Path) -> None:
+    """||sigma||_VM and kappa at T (the paper's Fig. 5); 3D: bottom face and clipped volume.
+
+    Args:
+        res: the run's data.
+        path: the PNG file to write.
+    """
     plt = _mpl()
     vm, kappa = res.cell_field("sigma_vm"), res.cell_field("kappa")
     panels = [(vm, "||sigma||_VM", "von Mises stress [N/m^2]")]
@@ -276,17 +321,39 @@ def fig5_vm_kappa(res: Results, path: Path) -> None:
 
 
 def normal_law(c_nu, g, r):
-    """-sigma_nu = p(u_nu) = c_nu u_nu^+ for u_nu < g (Fig. 2a; at u_nu = g any value above)."""
-    return (c_nu or 0.0) * np.maximum(r, 0.0)
+    """-sigma_nu of (4.1) for the figure (Fig. 2a).
+
+    Args:
+        c_nu: the compliance coefficient, or None (no normal compliance: 0).
+        g: the bound of u_nu (at u_nu = g any value from c_nu g up is admissible).
+        r: normal displacements u_nu <= g.
+
+    Returns:
+        p(u_nu) = c_nu u_nu^+ (app/model/contact_laws.py).
+    """
+    return contact_laws.normal_compliance(r, c_nu or 0.0)
 
 
 def tangential_law(fr, rho):
-    """|sigma_tau| = psi'(|u_tau|) of law (4.2) for |u_tau| > 0 (Fig. 2b)."""
-    b, c1, c2, u1 = fr["b"], fr["c1"], fr["c2"], fr["u1"]
-    return np.where(rho <= u1, b - c1 * rho, c2 * (rho - u1) + b - c1 * u1)
+    """|sigma_tau| = psi'(|u_tau|) of law (4.2) for |u_tau| > 0 (Fig. 2b).
+
+    Args:
+        fr: the case's friction parameters (b, c1, c2, u1).
+        rho: slips |u_tau| > 0.
+
+    Returns:
+        psi'(rho) (app/model/contact_laws.py).
+    """
+    return contact_laws.dpsi(rho, fr["b"], fr["c1"], fr["c2"], fr["u1"])
 
 
 def fig2_laws(res: Results, path: Path) -> None:
+    """The case's normal law (4.1) and friction law (4.2) (the paper's Fig. 2).
+
+    Args:
+        res: the run's data.
+        path: the PNG file to write.
+    """
     plt = _mpl()
     contact = res.case.get("contact") or {}
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
@@ -327,6 +394,12 @@ def fig2_laws(res: Results, path: Path) -> None:
 
 
 def history(res: Results, path: Path) -> None:
+    """Norms, max von Mises stress, max kappa and iterations against time.
+
+    Args:
+        res: the run's data.
+        path: the PNG file to write.
+    """
     plt = _mpl()
     steps = res.summary.get("steps", [])
     t = np.array([s["t"] for s in steps])
@@ -356,7 +429,15 @@ def history(res: Results, path: Path) -> None:
 
 
 def plot_all(outdir: Path, log=None) -> list[Path]:
-    """Write every figure into ``outdir`` (atomically: temporary file, then rename)."""
+    """Write every figure into ``outdir`` (atomically: temporary file, then rename).
+
+    Args:
+        outdir: the results directory.
+        log: called with a line naming fig3's displacement factor, or None.
+
+    Returns:
+        The files written (FIGURES).
+    """
     import os
     res = Results(outdir)
     written = []

@@ -1,0 +1,106 @@
+"""Step solvers of the discrete inequality (3.4), and the one place that chooses between them.
+
+Two solvers implement :class:`StepSolver`: ``SNESVISolver`` (app/solvers/snesvi.py, PETSc
+SNES VI on the whole of U^h, any case) and ``FastStepSolver`` (app/solvers/fast.py, one
+factorisation per run and a small problem on the Gamma3 dofs per step; explicit history
+scheme and the nodal Gamma3 rule only).  ``select_solver`` builds the one a case asks for
+(``solver.method``); ``choose_method`` is its rule for ``auto``.  The solver modules are
+imported only when a solver is built, so that importing a submodule (the compiled kernels,
+the Schur complement helpers) stays cheap.
+"""
+from __future__ import annotations
+
+from typing import Protocol
+
+# auto: the fast solver while the condensed Gamma3 problem (dense m x m algebra) is small
+AUTO_FAST_MAX_GAMMA3_DOFS = 3000
+
+
+class StepSolver(Protocol):
+    """What the time loop needs of a step solver: solve (3.4) for u_n from u_{n-1}.
+
+    Attributes:
+        name: "snes_vi" or "fast" (summary.json: solver.used).
+        fallback: None if the step was solved by the solver's basic method, else what
+            solved it ("backtracking", "delta continuation", "snes_vi").
+        continuation_stages: the delta continuation's stages of the last step (0: none).
+        sticky_robust: later steps start with the fallback (SNES VI: backtracking).
+        factorisations: matrix factorisations per run (None: refactorised per iteration).
+    """
+
+    name: str
+    fallback: str | None
+    continuation_stages: int
+    sticky_robust: bool
+    factorisations: int | None
+
+    def solve(self) -> int:
+        """Solve step (3.4) from the current u (u_{n-1}); on return u holds u_n.
+
+        Returns:
+            The (Newton) iterations of the step.
+
+        Raises:
+            StepSolveError: the step could not be solved; u holds u_{n-1}.
+        """
+
+    def describe(self) -> str:
+        """The solver as the run's log line 'step solver: ...' names it."""
+
+    def warm_start(self) -> None:
+        """Prepare the next solve from the current u (after a restart from a checkpoint)."""
+
+    def destroy(self) -> None:
+        """Free the PETSc objects."""
+
+
+def choose_method(case, n_gamma3_dofs: int) -> str:
+    """The step solver a case runs with: ``solver.method``, and for ``auto`` the fast solver
+    where it applies (app/io/case.fast_eligible) and the condensed Gamma3 problem has at
+    most AUTO_FAST_MAX_GAMMA3_DOFS dofs, else SNES VI.  (``fast`` where it does not apply
+    is refused when the case is validated.)
+
+    Args:
+        case: the validated Case.
+        n_gamma3_dofs: the global number of Gamma3 dofs (nodes times dimension).
+
+    Returns:
+        "fast" or "snes_vi".
+    """
+    from app.io.case import fast_eligible
+
+    method = case.numerics.method
+    if method != "auto":
+        return method
+    ok, _ = fast_eligible(case)
+    return "fast" if ok and n_gamma3_dofs <= AUTO_FAST_MAX_GAMMA3_DOFS else "snes_vi"
+
+
+def gamma3_dofs(problem) -> int:
+    """The global number of Gamma3 dofs of ``problem`` (collective).
+
+    Args:
+        problem: the ContactProblem.
+
+    Returns:
+        Gamma3 nodes (over all ranks) times the dimension; 0 without Gamma3.
+    """
+    nodes = problem.comm.allreduce(len(problem.gamma3.nodes) if problem.gamma3 else 0)
+    return nodes * problem.dim
+
+
+def select_solver(case, problem) -> StepSolver:
+    """Build the step solver of (3.4) that ``choose_method`` picks (collective).
+
+    Args:
+        case: the validated Case (solver.method, PETSc options).
+        problem: the ContactProblem to solve.
+
+    Returns:
+        A FastStepSolver or an SNESVISolver.
+    """
+    if choose_method(case, gamma3_dofs(problem)) == "fast":
+        from app.solvers.fast import FastStepSolver
+        return FastStepSolver(problem, case.petsc)
+    from app.solvers.snesvi import SNESVISolver
+    return SNESVISolver(problem, case.petsc)

@@ -34,95 +34,28 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from forms.elasticity import elasticity_operator, eps
-
-from app.io.case import fast_eligible
-from app.solvers import dense
-from app.solvers import kernels
+from app.solvers import dense, kernels
+from app.solvers.nodal import NodalContact
 from app.solvers.schur import GLastLDL, flexibility, g_last_factor, gamma3_flexibility, gather_csr
-from app.solvers.snesvi import StepFailure
+from app.solvers.snesvi import StepSolveError
+from forms.elasticity import elasticity_operator, eps
 
 log = logging.getLogger("vpcontact")
 
 
-eligible = fast_eligible
-
-
-class NodalContact:
-    """Energy, gradient and Hessian of sum_i w_i phi_i(y_i) (vectorised over nodes)."""
-
-    def __init__(self, w, normal, c_nu, friction, delta, module=None):
-        self.w, self.nu = np.ascontiguousarray(w, dtype=float), np.asarray(normal, dtype=float)
-        self.c = 0.0 if c_nu is None else c_nu
-        self.fr, self.delta = friction, delta
-        self.xi = None
-        self.theta = None
-        self.mod = module                 # kernels.nodal_contact, or None: numpy
-        if module is not None:
-            n, d = len(self.w), len(self.nu)
-            self._grad, self._hess = np.empty((n, d)), np.empty((n, d, d))
-
-    def _psi(self, rho):
-        b, c1, c2, u1 = self.fr
-        low = rho <= u1
-        psi = np.where(low, b * rho - 0.5 * c1 * rho**2,
-                       0.5 * c2 * (rho - u1) ** 2 + (b - c1 * u1) * (rho - u1) + b * u1
-                       - 0.5 * c1 * u1**2)
-        d1 = np.where(low, b - c1 * rho, c2 * (rho - u1) + b - c1 * u1)
-        d2 = np.where(low, -c1, c2)
-        return psi, d1, d2
-
-    def evaluate(self, y, need_hessian=True):
-        """y (n, d) -> energy, gradient (n, d), Hessian blocks (n, d, d).  The compiled
-        kernel returns views of work arrays that the next call overwrites."""
-        if self.mod is not None:
-            return self._evaluate_compiled(np.ascontiguousarray(y, dtype=float), need_hessian)
-        return self._evaluate_numpy(y, need_hessian)
-
-    def _evaluate_compiled(self, y, need_hessian):
-        ffi = self.mod.ffi
-
-        def ptr(a):
-            return kernels.buf(ffi, None if a is None else np.ascontiguousarray(a, dtype=float))
-        b, c1, c2, u1 = self.fr if self.fr is not None else (0.0, 0.0, 0.0, 0.0)
-        e = self.mod.lib.nodal_contact(
-            y.shape[0], y.shape[1], ptr(y), ptr(self.nu), self.c, ptr(self.xi),
-            ptr(self.theta), int(self.fr is not None), b, c1, c2, u1, self.delta,
-            ptr(self.w), ptr(self._grad), ptr(self._hess if need_hessian else None))
-        return e, self._grad, (self._hess if need_hessian else None)
-
-    def _evaluate_numpy(self, y, need_hessian=True):
-        nu, d, w = self.nu, y.shape[1], self.w
-        r = y @ nu
-        rp = np.maximum(r, 0.0)
-        energy = 0.5 * self.c * rp**2
-        dr = self.c * rp
-        hr = self.c * (r > 0)
-        if self.xi is not None:
-            sq = np.sqrt(r**2 + self.delta**2)
-            energy = energy + self.xi * 0.5 * (r + sq)
-            dr = dr + self.xi * 0.5 * (1 + r / sq)
-            hr = hr + self.xi * 0.5 * self.delta**2 / sq**3
-        grad = dr[:, None] * nu[None, :]
-        H = hr[:, None, None] * np.outer(nu, nu)[None] if need_hessian else None
-        if self.fr is not None:
-            tau = y - r[:, None] * nu[None, :]
-            rho = np.sqrt(np.sum(tau**2, axis=1) + self.delta**2)
-            psi, d1, d2 = self._psi(rho)
-            th = self.theta if self.theta is not None else 1.0
-            energy = energy + th * psi
-            grad = grad + (th * d1 / rho)[:, None] * tau
-            if need_hessian:
-                P = np.eye(d) - np.outer(nu, nu)
-                tt = np.einsum("ni,nj->nij", tau, tau)
-                H = H + (th * (d2 / rho**2 - d1 / rho**3))[:, None, None] * tt \
-                    + (th * d1 / rho)[:, None, None] * P[None]
-        return np.sum(w * energy), w[:, None] * grad, \
-            (w[:, None, None] * H if need_hessian else None)
-
-
 class FastStepSolver:
-    """Drop-in replacement of SNESVISolver for eligible cases (explicit, nodal Gamma3 rule)."""
+    """Solves one step of (3.4) by condensation onto the Gamma3 dofs (see the module
+    docstring): the same discrete problem as SNESVISolver, for eligible cases (explicit
+    history scheme, nodal Gamma3 rule).  A StepSolver (app/solvers/__init__.py).
+
+    Args:
+        problem: the ContactProblem.
+        options: PETSc options; options named fast_* configure the direct solver of K
+            (and select the PETSc path); all are passed to the SNES VI fallback.
+        rtol: relative tolerance of the projected gradient of the Gamma3 problem.
+    """
+
+    name = "fast"
 
     def __init__(self, problem, options: dict | None = None, rtol: float = 1e-13):
         self.problem = problem
@@ -133,7 +66,7 @@ class FastStepSolver:
         self.rtol = rtol
         self.options = options or {}
         self._snes = None
-        case, V, d = problem.case, problem.V, problem.dim
+        V, d = problem.V, problem.dim
         self.d = d
         C = elasticity_operator(problem.constants["E"], problem.constants["nu"], d)
         du, v = ufl.TrialFunction(V), ufl.TestFunction(V)
@@ -206,7 +139,6 @@ class FastStepSolver:
         w = np.concatenate([b for _, b in parts])
         order = np.argsort(gn)
         self.g_nodes, self.w = gn[order], w[order]
-        self._gather_perm = order
         self.m = d * len(self.g_nodes)
         # positions in G of the owned Gamma3 nodes, and their dofs in the local vector
         self.local_owned_g = np.searchsorted(self.g_nodes, glob_nodes)   # positions in G
@@ -323,7 +255,7 @@ class FastStepSolver:
         if np.abs(pg).max() <= 1e-9 * scale:   # converged to round-off, not to rtol
             self._remember(y)
             return y, it
-        raise StepFailure("fast solver: the Gamma3 problem did not converge in 200 iterations")
+        raise StepSolveError("fast solver: the Gamma3 problem did not converge in 200 iterations")
 
     def _start(self, y0: np.ndarray) -> np.ndarray:
         """The Gamma3 iteration's start: the linear extrapolation in time of the last two
@@ -342,19 +274,32 @@ class FastStepSolver:
         t = float(self.problem.time_data.t.value)
         self._y_prev = [*self._y_prev[-1:], (t, y)]
 
+    def describe(self) -> str:
+        """The solver as the run's log line names it."""
+        return (f"fast (one factorisation, {self.m} Gamma3 dofs condensed)" if self.gamma3
+                else "fast (one factorisation)")
+
     def warm_start(self) -> None:
         """Start the next Gamma3 problem from the current u (after a restart)."""
         if self.gamma3:
             self._y_prev = [(None, self._gather_G(self.u.vector))]
 
     def solve(self) -> int:
-        """One step.  If the Gamma3 problem fails (the projected Newton iteration can zig-zag
-        when nodes sit at nearly nonsmooth points), this step is solved by SNES VI instead
-        (the same discrete problem; ``self.fallback`` = "snes_vi")."""
+        """Solve step (3.4) from u_{n-1}; on success u holds u_n.  If the Gamma3 problem
+        fails (the projected Newton iteration can zig-zag when nodes sit at nearly nonsmooth
+        points), this step is solved by SNES VI instead (the same discrete problem;
+        ``self.fallback`` = "snes_vi").
+
+        Returns:
+            The iterations of the Gamma3 problem (or SNES's Newton iterations).
+
+        Raises:
+            StepSolveError: the SNES VI fallback failed too.
+        """
         self.fallback = None
         try:
             return self._solve_fast()
-        except StepFailure as exc:
+        except StepSolveError as exc:
             if self._snes is None:
                 from app.solvers.snesvi import SNESVISolver
                 self._snes = SNESVISolver(self.problem, self.options)
@@ -384,9 +329,9 @@ class FastStepSolver:
         return its
 
     def _set_u(self) -> None:
-        """u = x, unless x is not finite anywhere (then StepFailure on every rank)."""
+        """u = x, unless x is not finite anywhere (then StepSolveError on every rank)."""
         if self.comm.allreduce(not np.all(np.isfinite(self.x.array_r)), op=MPI.LOR):
-            raise StepFailure("fast solver: non-finite solution")
+            raise StepSolveError("fast solver: non-finite solution")
         self.u.vector.array[:self.x.getLocalSize()] = self.x.array_r
         self.u.x.scatter_forward()
 
@@ -406,7 +351,8 @@ class FastStepSolver:
         self._set_u()
         return its
 
-    def destroy(self):
+    def destroy(self) -> None:
+        """Free the PETSc objects (and those of the SNES VI fallback, if it was created)."""
         for obj in (self.K, self.ksp, self.b, self.x, self._loads):
             if obj is not None:
                 obj.destroy()

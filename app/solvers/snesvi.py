@@ -18,8 +18,14 @@ log = logging.getLogger("vpcontact")
 _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
 
 
-class StepFailure(RuntimeError):
-    """A step solve failed; carries the SNES converged reason."""
+class StepSolveError(RuntimeError):
+    """A step solve of (3.4) failed (raised by every StepSolver); carries the SNES
+    converged reason, if SNES ran.
+
+    Args:
+        message: what failed, on one line where possible.
+        reason: the SNES converged reason (negative), or None.
+    """
 
     def __init__(self, message: str, reason: int | None = None):
         super().__init__(message)
@@ -37,6 +43,7 @@ def describe_petsc_error(exc: Exception) -> str:
 
 
 def reason_name(reason: int) -> str:
+    """The name of a SNES converged reason (e.g. DIVERGED_MAX_IT), or the number."""
     return _REASONS.get(reason, str(reason))
 
 
@@ -53,6 +60,7 @@ def set_petsc_options(options: dict, prefix: str = PREFIX) -> None:
 
 
 def clear_petsc_options(options: dict, prefix: str = PREFIX) -> None:
+    """Remove ``options`` (set by set_petsc_options) from the PETSc database again."""
     db = PETSc.Options()
     for key in options:
         db.delValue(prefix + key)
@@ -86,13 +94,23 @@ def continuation_deltas(target: float, length: float) -> list[float]:
 
 
 class SNESVISolver:
-    """Solves one step: u_n = argmin J_n over U^h, starting from the current ``problem.u``.
+    """Solves one step of (3.4): u_n = argmin J_n over U^h (the variational inequality on the
+    convex set of the bound u_nu <= g), starting from the current ``problem.u``.  A StepSolver
+    (app/solvers/__init__.py).
 
     A second SNES with a backtracking line search (other options as given) is the fallback when
     the first fails: full Newton steps can cycle between two iterates when a node crosses a
-    nearly nonsmooth point (u_nu = 0 with a memory force, |u_tau| = 0 with friction)."""
+    nearly nonsmooth point (u_nu = 0 with a memory force, |u_tau| = 0 with friction).
+
+    Args:
+        problem: the ContactProblem (forms F, J, bounds, Dirichlet conditions).
+        options: PETSc options (name without '-' -> value), set under ``prefix``.
+        prefix: the PETSc options prefix of the SNES.
+    """
 
     ROBUST = {"snes_linesearch_type": "bt"}
+    name = "snes_vi"
+    factorisations = None          # SNES VI refactorises in every Newton iteration
 
     def __init__(self, problem, options: dict, prefix: str = PREFIX):
         self.problem = problem
@@ -125,8 +143,16 @@ class SNESVISolver:
             snes.setVariableBounds(lb, ub)
         return snes
 
+    def describe(self) -> str:
+        """The solver as the run's log line names it, e.g. 'SNES vinewtonrsls'."""
+        return f"SNES {self.snes.getType()}"
+
+    def warm_start(self) -> None:
+        """Nothing to do: every solve starts from the current u (after a restart: u_n)."""
+
     @property
     def robust(self):
+        """The fallback SNES with a backtracking line search (created when first needed)."""
         if self._robust is None:
             self._robust = self._create({**self.options, **self.ROBUST})
         return self._robust
@@ -189,65 +215,72 @@ class SNESVISolver:
         reason = snes.getConvergedReason()
         its = snes.getIterationNumber()
         if reason <= 0:
-            raise StepFailure(f"SNES did not converge: {reason_name(reason)} ({reason}) after "
-                              f"{its} Newton iterations", reason)
+            raise StepSolveError(f"SNES did not converge: {reason_name(reason)} ({reason}) "
+                                 f"after {its} Newton iterations", reason)
         self.x.copy(self.u.vector)
         self.u.x.scatter_forward()
         return its
 
     def solve(self) -> int:
-        """Solve from the current u (u_{n-1}); on success u holds u_n and the Newton
-        iteration count is returned.  On failure u is restored and StepFailure raised.
+        """Solve (3.4) from the current u (u_{n-1}); on success u holds u_n.
 
         Fallbacks when SNES fails: (1) the backtracking SNES at the case's delta; (2) if the
         step has a regularised term, continuation in delta with it, from a wide
         regularisation down to the case's delta by factors of 10, each stage warm-started.
         Every fallback ends on the same discrete problem; ``self.fallback`` says which one
         was used (None: none) and ``self.continuation_stages`` how many stages.  After the
-        first step that needed backtracking, later steps start with the backtracking SNES."""
+        first step that needed backtracking, later steps start with the backtracking SNES.
+
+        Returns:
+            The Newton iterations of all attempts of this step.
+
+        Raises:
+            StepSolveError: every attempt failed; u is restored to u_{n-1}.
+        """
         start = self.u.x.array.copy()
         self.continuation_stages, self.fallback = 0, None
         its = 0
         if not self.sticky_robust:
             try:
                 return self._solve_once(self.snes)
-            except StepFailure as exc:
+            except StepSolveError as exc:
                 first = exc
             its = self.snes.getIterationNumber()
             self.u.x.array[:] = start
         else:
-            first = StepFailure("(basic Newton skipped after an earlier failure)")
+            first = StepSolveError("(basic Newton skipped after an earlier failure)")
         try:
             its += self._solve_once(self.robust)
             if not self.sticky_robust:
                 self.fallback = "backtracking"
                 self.sticky_robust = True  # the basic iteration cycles here: skip it from now on
             return its
-        except StepFailure as exc:
+        except StepSolveError as exc:
             second = exc
         its += self.robust.getIterationNumber()
         delta = self.problem.constants.get("delta")
         self.u.x.array[:] = start  # keep the last good state u_{n-1}
         if delta is None:
-            raise StepFailure(f"{first}; with backtracking: {second}", second.reason)
+            raise StepSolveError(f"{first}; with backtracking: {second}", second.reason)
         target = float(delta.value)
         stages = continuation_deltas(target, self.problem.length_scale)
         try:
             for d in stages:
                 delta.value = d
                 its += self._solve_once(self.robust)
-        except StepFailure as exc:
+        except StepSolveError as exc:
             self.u.x.array[:] = start
-            raise StepFailure(f"{first}; with backtracking: {second}; delta continuation "
-                              f"{stages[0]:g} -> {target:g} failed at delta = {d:g}: {exc}",
-                              exc.reason) from None
+            raise StepSolveError(f"{first}; with backtracking: {second}; delta continuation "
+                                 f"{stages[0]:g} -> {target:g} failed at delta = {d:g}: {exc}",
+                                 exc.reason) from None
         finally:
             delta.value = target
         self.fallback = "delta continuation"
         self.continuation_stages = len(stages)
         return its
 
-    def destroy(self):
+    def destroy(self) -> None:
+        """Free the PETSc objects (SNES, matrices, vectors)."""
         for obj in (self.snes, self._robust, self.A, self.b, self.x, self.K, self.B):
             if obj is not None:
                 obj.destroy()

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import csv
 import json
-import math
 import os
 import shutil
 import statistics
@@ -60,9 +59,22 @@ def _positive_ints(option: str, values, allowed: str = "positive integers") -> N
 
 def check_arguments(case, levels, extra=(), nprocs=(1, 2), repeat: int = 1,
                     memory_steps=(), methods=("snes_vi", "fast")) -> None:
-    """Refuse a bench that cannot run as asked, before anything runs: CaseError naming the
-    option (or the case file) and the allowed values.  The case is read and validated at
-    every level with every step solver."""
+    """Refuse a bench that cannot run as asked, before anything runs.
+
+    The case is read and validated at every level with every step solver.
+
+    Args:
+        case: the case file.
+        levels: mesh levels n (h = k = 1/n).
+        extra: further (n, N) configurations.
+        nprocs: MPI rank counts.
+        repeat: timed runs per configuration.
+        memory_steps: step counts of the memory-term rows.
+        methods: the step solvers timed.
+
+    Raises:
+        CaseError: naming the option (or the case file) and the allowed values.
+    """
     _positive_ints("--levels", levels)
     if not levels and not extra:
         raise CaseError("--levels: nothing to run (allowed: one or more positive integers, "
@@ -100,8 +112,25 @@ def check_arguments(case, levels, extra=(), nprocs=(1, 2), repeat: int = 1,
 
 def bench(case, outdir: Path, levels, methods=("snes_vi", "fast"), nprocs=(1, 2),
           extra=(), log=print, repeat: int = 1) -> list[dict]:
-    """One row per configuration (level, solver, ranks); a configuration that fails gets a
-    row with its reason under "failed".  CaseError for arguments it cannot run as asked."""
+    """Time the step solvers on the case, each configuration in its own process.
+
+    Args:
+        case: the case file.
+        outdir: the bench directory (runs go to its ``runs``).
+        levels: mesh levels n (h = k = 1/n).
+        methods: the step solvers timed.
+        nprocs: MPI rank counts.
+        extra: further (n, N) configurations, run once.
+        log: called with one line per configuration.
+        repeat: timed runs per level configuration (the fastest counts).
+
+    Returns:
+        One row per configuration (level, solver, ranks); a configuration that fails gets a
+        row with its reason under "failed".
+
+    Raises:
+        CaseError: for arguments it cannot run as asked.
+    """
     check_arguments(case, levels, extra, nprocs, repeat, methods=methods)
     rows = []
     for n, N in [(L, L) for L in levels] + list(extra):
@@ -160,7 +189,15 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "fast"), nprocs=(1, 2)
 
 
 def failures(rows: list[dict], memory: list[dict]) -> list[str]:
-    """The configurations of a bench that failed, one short name each."""
+    """The configurations of a bench that failed.
+
+    Args:
+        rows: the solver rows (``bench``).
+        memory: the memory-term rows (``memory_rows``).
+
+    Returns:
+        One short name per failed configuration.
+    """
     out = [f"h = 1/{r['n']}, N = {r['N']}, {r['method']}, {r['nprocs']} rank(s)"
            for r in rows if "failed" in r]
     return out + [f"memory term {r['sum']}, N = {r['N']}" for r in memory if "failed" in r]
@@ -173,7 +210,17 @@ def memory_rows(outdir: Path, steps=(64, 256, 1024), n: int = 16, log=print) -> 
     """Per-step cost of the memory term: the exponential kernel's exact recursion (O(1) per
     step) against the direct sum over the stored history (O(n) at step n), on
     cases/memory.yaml with the fast solver; per-step wall times of the first and last tenth
-    of the steps show the growth."""
+    of the steps show the growth.
+
+    Args:
+        outdir: the bench directory (runs go to its ``runs``).
+        steps: the step counts N.
+        n: the mesh level.
+        log: called with one line per run.
+
+    Returns:
+        One row per (sum, N); a failed run's row has its reason under "failed".
+    """
     rows = []
     for N in steps:
         for how in ("recursion", "direct"):
@@ -215,6 +262,13 @@ def memory_rows(outdir: Path, steps=(64, 256, 1024), n: int = 16, log=print) -> 
 
 
 def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None) -> None:
+    """Write bench.json and bench.md (atomically).
+
+    Args:
+        outdir: the bench directory.
+        rows: the solver rows.
+        memory: the memory-term rows, or None.
+    """
     atomic_write(outdir / "bench.json", json.dumps({"solvers": rows, "memory_term": memory or []},
                                                    indent=2) + "\n")
     lines = ["# Benchmark: paper case (Wang & Cheng 2021, Section 4)", "",

@@ -24,10 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from app.studies import runcache
 from app.io.case import CaseError, validate
-from app.studies.grid import Grid, GridSampler, cell_l2_norm, prolong_dg0, prolong_p1, strain_norm
 from app.io.output import atomic_write
+from app.observers import Observer
+from app.studies import runcache
+from app.studies.grid import Grid, GridSampler, cell_l2_norm, prolong_dg0, prolong_p1, strain_norm
 
 log = logging.getLogger("vpcontact")
 
@@ -119,6 +120,31 @@ def _case_at(raw: dict, n: int, N: int, delta: float, source: str):
     return validate(raw, source)
 
 
+class GridSamples(Observer):
+    """Samples u_n, sigma_n, kappa_n on the study's grid at t_0 and after every step (an
+    observer of the run); ``snaps`` (one dict per time point) on rank 0 only.
+
+    Args:
+        grid: the structured grid of the run's mesh.
+    """
+
+    def __init__(self, grid: Grid):
+        self.grid, self.snaps, self.sampler = grid, [], None
+
+    def start(self, sim) -> None:
+        self._sample(sim)
+
+    def step(self, sim, record: dict) -> None:
+        self._sample(sim)
+
+    def _sample(self, sim) -> None:
+        if self.sampler is None:
+            self.sampler = GridSampler(sim.problem, self.grid)
+        snap = self.sampler.sample(sim.problem, sim.history)     # collective
+        if sim.comm.rank == 0:
+            self.snaps.append(snap)
+
+
 def _from_cache(path: Path | None, case, grid: Grid):
     """(times, snaps, meta) of the cached run at ``path``, or None: not cached, or an entry
     that is damaged or does not fit the run (a warning; the run is computed again)."""
@@ -153,21 +179,14 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
         return RunRecord(n, N, delta, grid, meta["dofs"], np.asarray(times), meta["solve_s"],
                          meta["setup_s"], meta["newton"], True, snaps)
 
-    snaps, sampler = [], {}
-
-    def on_step(k, t, problem, history):
-        if "s" not in sampler:
-            sampler["s"] = GridSampler(problem, grid)
-        snap = sampler["s"].sample(problem, history)
-        if comm.rank == 0:
-            snaps.append(snap)
-
+    sampler = GridSamples(grid)
     level = log.level
     log.setLevel(max(level, logging.WARNING))   # one line per run, not per step
     try:
-        result = run(case, None, comm, write_outputs=False, on_step=on_step)
+        result = run(case, comm, [sampler])
     finally:
         log.setLevel(level)
+    snaps = sampler.snaps
     s = result.summary
     if result.status != "completed":
         raise RuntimeError(f"run n = {n}, N = {N}, delta = {delta:g} failed: "

@@ -22,7 +22,15 @@ import numpy as np
 
 @dataclass
 class Grid:
-    """A structured n x n grid on (0, L1) x (0, L2) with a diagonal direction."""
+    """A structured n x n grid on (0, L1) x (0, L2) with a diagonal direction.
+
+    Cells are indexed (i, j, t): square (i, j) and its triangle t (0 below the diagonal).
+
+    Attributes:
+        n: squares per side.
+        L1, L2: the sides.
+        diagonal: "right" or "left" (meshes/rectangle.py).
+    """
 
     n: int
     L1: float
@@ -31,14 +39,26 @@ class Grid:
 
     @property
     def hx(self) -> float:
+        """The squares' width L1 / n."""
         return self.L1 / self.n
 
     @property
     def hy(self) -> float:
+        """The squares' height L2 / n."""
         return self.L2 / self.n
 
     def vertex_index(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(I, J) of vertices at coordinates x (m, >=2)."""
+        """Grid indices of vertices.
+
+        Args:
+            x: (m, >= 2) vertex coordinates.
+
+        Returns:
+            (I, J), each (m,).
+
+        Raises:
+            ValueError: if a vertex is not on the grid.
+        """
         I = np.rint(x[:, 0] / self.hx).astype(int)
         J = np.rint(x[:, 1] / self.hy).astype(int)
         if np.abs(x[:, 0] - I * self.hx).max(initial=0) > 1e-6 * self.hx or \
@@ -47,7 +67,14 @@ class Grid:
         return I, J
 
     def cell_index(self, c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(i, j, t) of the cells whose centroids (or interior points) are c (m, >=2)."""
+        """Grid indices of cells.
+
+        Args:
+            c: (m, >= 2) centroids (or other interior points) of the cells.
+
+        Returns:
+            (i, j, t), each (m,).
+        """
         fx, fy = c[:, 0] / self.hx, c[:, 1] / self.hy
         i = np.clip(np.floor(fx).astype(int), 0, self.n - 1)
         j = np.clip(np.floor(fy).astype(int), 0, self.n - 1)
@@ -58,7 +85,19 @@ class Grid:
 
 # ----------------------------------------------------------------------------- prolongation
 def prolong_p1(u: np.ndarray, coarse: Grid, fine: Grid) -> np.ndarray:
-    """Coarse P1 values (n_c+1, n_c+1, ...) -> values at the fine vertices (exact)."""
+    """Prolong a P1 field to the vertices of a nested finer grid (exact).
+
+    Args:
+        u: coarse vertex values (n_c+1, n_c+1, ...).
+        coarse: the coarse grid.
+        fine: the fine grid (n_f a multiple of n_c).
+
+    Returns:
+        Fine vertex values (n_f+1, n_f+1, ...).
+
+    Raises:
+        ValueError: if the grids are not nested.
+    """
     r = _ratio(coarse, fine)
     I = np.arange(fine.n + 1)
     i = np.minimum(I // r, coarse.n - 1)
@@ -81,7 +120,19 @@ def prolong_p1(u: np.ndarray, coarse: Grid, fine: Grid) -> np.ndarray:
 
 
 def prolong_dg0(f: np.ndarray, coarse: Grid, fine: Grid) -> np.ndarray:
-    """Coarse DG0 values (n_c, n_c, 2, ...) -> fine DG0 values (n_f, n_f, 2, ...) (exact)."""
+    """Prolong a DG0 field to the cells of a nested finer grid (exact).
+
+    Args:
+        f: coarse cell values (n_c, n_c, 2, ...).
+        coarse: the coarse grid.
+        fine: the fine grid (n_f a multiple of n_c).
+
+    Returns:
+        Fine cell values (n_f, n_f, 2, ...).
+
+    Raises:
+        ValueError: if the grids are not nested.
+    """
     _ratio(coarse, fine)
     c = cell_centroids(fine).reshape(-1, 2)
     i, j, t = coarse.cell_index(c)
@@ -89,7 +140,14 @@ def prolong_dg0(f: np.ndarray, coarse: Grid, fine: Grid) -> np.ndarray:
 
 
 def cell_centroids(grid: Grid) -> np.ndarray:
-    """Centroids (n, n, 2, 2) of the cells (i, j, t)."""
+    """The centroids of a grid's cells.
+
+    Args:
+        grid: the grid.
+
+    Returns:
+        (n, n, 2, 2): the centroid (x, y) of cell (i, j, t).
+    """
     i, j = np.meshgrid(np.arange(grid.n), np.arange(grid.n), indexing="ij")
     if grid.diagonal == "right":
         local = np.array([[2 / 3, 1 / 3], [1 / 3, 2 / 3]])   # t = 0 below the diagonal
@@ -112,7 +170,15 @@ def _ratio(coarse: Grid, fine: Grid) -> int:
 
 # ----------------------------------------------------------------------------- norms
 def strain_norm(d: np.ndarray, grid: Grid) -> float:
-    """||eps(d)||_L2 (Frobenius) of a P1 vector field given by vertex values (n+1, n+1, 2)."""
+    """||eps(d)||_L2 (Frobenius), the norm ||.||_V of a P1 vector field.
+
+    Args:
+        d: vertex values (n+1, n+1, 2).
+        grid: the grid.
+
+    Returns:
+        The norm.
+    """
     hx, hy = grid.hx, grid.hy
     d00, d10, d01, d11 = d[:-1, :-1], d[1:, :-1], d[:-1, 1:], d[1:, 1:]
     if grid.diagonal == "right":
@@ -129,13 +195,26 @@ def strain_norm(d: np.ndarray, grid: Grid) -> float:
 
 
 def cell_l2_norm(f: np.ndarray, grid: Grid) -> float:
-    """L2 norm (Frobenius for tensors) of a DG0 field (n, n, 2, ...)."""
+    """L2 norm (Frobenius for tensors) of a DG0 field: ||.||_Q or ||.||_Y.
+
+    Args:
+        f: cell values (n, n, 2, ...).
+        grid: the grid.
+
+    Returns:
+        The norm.
+    """
     return float(np.sqrt(np.sum(f**2) * grid.hx * grid.hy / 2))
 
 
 # ----------------------------------------------------------------------------- extraction
 class GridSampler:
-    """Extracts u, sigma, kappa of a dolfinx run into grid arrays on rank 0."""
+    """Extracts u, sigma, kappa of a dolfinx run into grid arrays on rank 0.
+
+    Args:
+        problem: the ContactProblem on a structured rectangle mesh.
+        grid: its grid.
+    """
 
     def __init__(self, problem, grid: Grid):
         self.grid, self.comm = grid, problem.comm
@@ -152,12 +231,24 @@ class GridSampler:
         self._nc = nc
 
     def sample(self, problem, history) -> dict | None:
-        """Gather this state; returns dict(u, sigma, kappa) on rank 0, None elsewhere."""
+        """Gather the current state; collective.
+
+        Args:
+            problem: the ContactProblem.
+            history: the viscoplastic history (its kappa), or None.
+
+        Returns:
+            dict(u, sigma, kappa) of grid arrays on rank 0, None elsewhere.
+
+        Raises:
+            RuntimeError: if a vertex or cell of the grid was not found.
+        """
         g = self.grid
         u = problem.u.x.array.reshape(-1, 2)[:self._nv]
         s = problem.sigma.x.array.reshape(-1, 2, 2)[:self._nc]
         k = history.kappa.x.array[:self._nc] if history else np.zeros(self._nc)
-        parts = self.comm.gather((self._vI, self._vJ, u, self._ci, self._cj, self._ct, s, k), root=0)
+        parts = self.comm.gather((self._vI, self._vJ, u, self._ci, self._cj, self._ct, s, k),
+                                 root=0)
         if self.comm.rank != 0:
             return None
         U = np.full((g.n + 1, g.n + 1, 2), np.nan)

@@ -19,12 +19,25 @@ IGNORED = ("name", "description", "output")
 
 
 def default_cache_dir() -> Path:
-    """The run cache of the convergence study (app/io/cachedirs.py)."""
+    """The run cache of the convergence study.
+
+    Returns:
+        app/io/cachedirs.py's cache root (``CACHE_SEARCH``, or its replacement).
+    """
     from app.io.cachedirs import cache_root
     return cache_root()
 
 
 def cache_key(case) -> str:
+    """The key of a run: a hash of what determines its discrete solution.
+
+    Args:
+        case: the validated case.
+
+    Returns:
+        24 hexadecimal digits of the SHA-256 of the case (without IGNORED) and
+        FORMAT_VERSION.
+    """
     content = {k: v for k, v in case.raw.items() if k not in IGNORED}
     content["petsc"] = case.petsc
     text = json.dumps({"version": FORMAT_VERSION, "case": content}, sort_keys=True, default=str)
@@ -32,6 +45,14 @@ def cache_key(case) -> str:
 
 
 def save(path: Path, times: list, snaps: list[dict], meta: dict) -> None:
+    """Write a run's history atomically (temporary file, then rename).
+
+    Args:
+        path: the HDF5 file.
+        times: the time points.
+        snaps: per time point, dict(u, sigma, kappa) of grid arrays.
+        meta: the run's data (META_KEYS and more), stored as JSON.
+    """
     import h5py
 
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -55,8 +76,19 @@ META_KEYS = ("dofs", "solve_s", "setup_s", "newton")
 
 
 def load(path: Path, times=None, shapes: dict | None = None) -> tuple[np.ndarray, list[dict], dict]:
-    """(times, per-step fields, meta) of a cached run.  Raises Unreadable if the file is
-    damaged or does not fit the expected time points ``times`` and per-step ``shapes``."""
+    """Read a cached run.
+
+    Args:
+        path: the HDF5 file.
+        times: the expected time points, or None.
+        shapes: the expected per-step shapes of u, sigma, kappa, or None.
+
+    Returns:
+        (times, per-step dict(u, sigma, kappa), meta).
+
+    Raises:
+        Unreadable: if the file is damaged or does not fit ``times`` and ``shapes``.
+    """
     import h5py
 
     try:

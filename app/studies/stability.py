@@ -136,8 +136,8 @@ def run_variant(raw: dict, variant: Variant, scheme: str, comm, petsc_cli: dict)
     level = log.level
     log.setLevel(logging.CRITICAL)
     try:
-        res = run(case, None, comm, write_outputs=False)
-    except CaseError as exc:   # found while setting up (e.g. a step solver not possible)
+        res = run(case, comm)
+    except CaseError as exc:   # found while setting up
         return Outcome(variant, scheme, "invalid", str(exc), wall_s=time.perf_counter() - t0)
     except Exception as exc:   # report, do not stop the sweep: every variant gets a row
         return Outcome(variant, scheme, "error", f"{type(exc).__name__}: {exc}",

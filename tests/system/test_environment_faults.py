@@ -124,7 +124,7 @@ def test_a_tmpdir_that_is_no_writable_directory_is_ignored(blocker, where):
 
 # ------------------------------------------------------------------ compiled kernels
 def _tiny_module(tmp_path, monkeypatch, tag):
-    from app.solvers import kernels
+    from app.solvers.kernels import build as kernels
     monkeypatch.setattr(kernels, "cache_dir", lambda: tmp_path / "kernels")
     src = f"int plus_{tag}(int x) {{ return x + {len(tag)}; }}"
     name = kernels.module_name(f"_vpcontact_test_{tag}", f"int plus_{tag}(int x);", src)
@@ -147,8 +147,7 @@ def test_damaged_cached_kernel_is_rebuilt_in_process(tmp_path, monkeypatch, capl
 def test_damaged_cached_kernel_is_rebuilt_by_a_run(tmp_path):
     from app.solvers import kernels
     cache = tmp_path / "cache"
-    name = kernels.module_name(kernels.CELL_KERNELS, kernels.CDEF, kernels.SOURCE,
-                               libraries=kernels.CELL_LIBRARIES)
+    name = kernels.CELL_KERNELS.name()
     target = cache / "kernels" / f"{name}.so"
     target.parent.mkdir(parents=True)
     target.write_bytes(b"\x7fELF\x02\x01\x01" + bytes(57))

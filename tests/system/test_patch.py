@@ -24,7 +24,8 @@ def test_uniform_stress_patch(mesh):
     raw["mesh"] = {"L1": 1.0, "L2": 1.0, **mesh}
     raw["loads"] = {"traction": {"right": sigma @ [1, 0], "top": sigma @ [0, 1],
                                  "bottom": sigma @ [0, -1]}}
-    raw["loads"] = {"traction": {k: [float(x) for x in v] for k, v in raw["loads"]["traction"].items()}}
+    raw["loads"] = {"traction": {k: [float(x) for x in v]
+                                 for k, v in raw["loads"]["traction"].items()}}
     raw["time"] = {"T": 1.0, "N": 1}
     res = run_case(make_case(raw))
     p = res.problem

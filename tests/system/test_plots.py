@@ -1,5 +1,4 @@
 """The figures of a run, the progress bar, check (dry run) and info."""
-import json
 import struct
 
 import numpy as np

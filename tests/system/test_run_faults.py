@@ -86,10 +86,10 @@ def test_monitor_names_non_finite_quantities():
     mon.scale, mon.bound, mon.kappa_bound = 1.0, 10.0, 10.0
     rec = {"n": 1, "t": 0.1, "norm_u_V": 1.0, "norm_sigma_Q": float("nan"), "max_vm": 1.0,
            "max_kappa": 0.0}
-    assert "norm_sigma_Q" in mon.check(rec)
-    assert mon.check({**rec, "norm_sigma_Q": 1.0}) is None
-    assert "exceeds" in mon.check({**rec, "norm_sigma_Q": 1.0, "max_vm": 11.0})
-    assert "kappa" in mon.check({**rec, "norm_sigma_Q": 1.0, "max_kappa": 11.0})
+    assert "norm_sigma_Q" in mon.blow_up(rec)
+    assert mon.blow_up({**rec, "norm_sigma_Q": 1.0}) is None
+    assert "exceeds" in mon.blow_up({**rec, "norm_sigma_Q": 1.0, "max_vm": 11.0})
+    assert "kappa" in mon.blow_up({**rec, "norm_sigma_Q": 1.0, "max_kappa": 11.0})
 
 
 def test_extreme_grading_fails_cleanly(tmp_path):
@@ -272,14 +272,14 @@ def test_ctrl_c_while_drawing_keeps_a_true_summary(tmp_path, monkeypatch, capsys
 
 def test_ctrl_c_while_writing_the_summary_still_writes_it(tmp_path, monkeypatch):
     """SIGINT arriving during the final writes is deferred: summary.json is written."""
-    import app.simulation as timeloop
-    real = timeloop.write_json
+    import app.observers as observers
+    real = observers.write_json
 
     def signalled(comm, path, data):
         os.kill(os.getpid(), signal.SIGINT)
         return real(comm, path, data)
 
-    monkeypatch.setattr(timeloop, "write_json", signalled)
+    monkeypatch.setattr(observers, "write_json", signalled)
     out = tmp_path / "summary"
     assert _in_process_run(out, monkeypatch) == 0
     assert _summary(out)["status"] == "completed"

@@ -95,7 +95,7 @@ def test_adaptive_rejection_restores_every_history(monkeypatch):
     (all histories rolled back) and the run continues with k = 0.25.  With memory and slip
     dependence active, the result must equal the fixed grid N = 4 to round-off."""
     from app.io.case import load_raw
-    from app.solvers.snesvi import SNESVISolver, StepFailure
+    from app.solvers.snesvi import SNESVISolver, StepSolveError
     from conftest import ROOT
 
     raw = load_raw(ROOT / "cases" / "memory.yaml")
@@ -111,7 +111,7 @@ def test_adaptive_rejection_restores_every_history(monkeypatch):
     def failing(self):
         t = float(self.problem.time_data.t.value)
         if t - last_t["t"] > 0.3 + 1e-12:
-            raise StepFailure("injected failure", -5)
+            raise StepSolveError("injected failure", -5)
         last_t["t"] = t
         return original(self)
 

@@ -31,6 +31,13 @@ def test_precedence_of_the_run_cache(tmp_path):
     assert cachedirs.vpcontact_dir({**xdg, "VPCONTACT_CACHE": ""}) == tmp_path / "x" / "vpcontact"
 
 
+def test_the_run_cache_is_described_once():
+    """The convergence command's --cache-dir help says what vpcontact_dir does."""
+    out = subprocess.run([sys.executable, "-m", "app", "convergence", "--help"],
+                         capture_output=True, text=True, check=True).stdout
+    assert cachedirs.CACHE_SEARCH in " ".join(out.split())
+
+
 def test_ffcx_cache_is_where_dolfinx_puts_it():
     from dolfinx.jit import DOLFINX_DEFAULT_JIT_PARAMETERS
     assert cachedirs.ffcx_dir(os.environ) == Path(DOLFINX_DEFAULT_JIT_PARAMETERS["cache_dir"][0])
@@ -39,7 +46,8 @@ def test_ffcx_cache_is_where_dolfinx_puts_it():
 
 def test_the_caches_in_use_are_one_definition(tmp_path):
     """Kernels, run cache, `info` and dolfinx agree, with XDG_CACHE_HOME set as well."""
-    code = ("from app.solvers import kernels; from app.studies import runcache; from app.cli import checkrun; from dolfinx import jit; "
+    code = ("from app.solvers import kernels; from app.studies import runcache; "
+            "from app.cli import checkrun; from dolfinx import jit; "
             "print(kernels.cache_dir()); print(runcache.default_cache_dir()); "
             "print(jit.DOLFINX_DEFAULT_JIT_PARAMETERS['cache_dir'][0]); "
             "print(*checkrun.info(), sep='\\n')")
@@ -77,7 +85,7 @@ def test_unusable_home_is_replaced_with_one_warning(tmp_root, home):
     assert cachedirs.ffcx_dir(env) == caches.ffcx
     line = caches.warning()
     assert "\n" not in line and line.startswith("vpcontact: warning: ")
-    for what, wanted, used, _ in caches.replaced:
+    for _what, wanted, used, _ in caches.replaced:
         assert f"{wanted} (" in line and f"-> {used}" in line
     assert str(tmp_root / home / ".cache" / "fenics") in line
     assert oct(base.stat().st_mode & 0o777) == "0o700"

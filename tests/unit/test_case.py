@@ -1,8 +1,8 @@
 """Case files: schema validation with clear messages, overrides, YAML floats, PETSc args."""
 import pytest
 
-from app.io.case import CaseError, load_case, parse_override, safe_load, validate
 from app.cli.main import split_petsc_args
+from app.io.case import CaseError, load_case, parse_override, safe_load, validate
 from conftest import PAPER_CASE, make_case, paper_raw
 
 
@@ -30,7 +30,8 @@ def test_overrides_and_yaml_floats():
 def test_unknown_key_is_named_with_suggestion():
     raw = paper_raw()
     raw["material"]["lamda1"] = 3.0
-    with pytest.raises(CaseError, match=r"material\.lamda1( \(line \d+\))?: unknown key.*allowed: E, nu"):
+    with pytest.raises(CaseError,
+                       match=r"material\.lamda1( \(line \d+\))?: unknown key.*allowed: E, nu"):
         validate(raw, "my.yaml")
     raw = paper_raw()
     raw["contact"]["friction"]["u_1"] = 3.0

@@ -55,3 +55,38 @@ def test_slip_sum_and_theta():
     np.testing.assert_allclose(slip.s, [0.5 * 0.01 + 0.25 * 0.03, 0.0])
     np.testing.assert_allclose(slip.theta()[0], 0.4 + 0.6 * np.exp(-0.0125 / 0.01))
     assert slip.theta()[1] == 1.0
+
+
+@pytest.mark.parametrize("recursion", [True, False])
+def test_memory_state_round_trip(recursion):
+    """state() after n steps, more steps, load_state(): the next steps repeat exactly, for
+    the recursion and for the direct sum (whose stored u_nu^+ history is part of the state)."""
+    rng = np.random.default_rng(2)
+    t = _steps(rng, 12)
+    rs = [np.abs(rng.normal(size=4)) for _ in range(len(t) - 1)]
+    mem = MemorySum(Kernel("exponential", b0=1.5, beta=0.8), 4, recursion=recursion)
+    for n in range(1, 6):
+        mem.advance(rs[n - 1], t[n - 1], t[n])
+    saved = mem.state()
+    first = [mem.advance(rs[n - 1], t[n - 1], t[n]).copy() for n in range(6, len(t))]
+    assert mem.stored_steps == (0 if recursion else len(t) - 1)
+    mem.load_state(saved)
+    assert mem.stored_steps == (0 if recursion else 5)
+    np.testing.assert_array_equal(mem.xi, saved["xi"])
+    again = [mem.advance(rs[n - 1], t[n - 1], t[n]).copy() for n in range(6, len(t))]
+    np.testing.assert_array_equal(np.array(again), np.array(first))
+    fresh = MemorySum(Kernel("exponential", b0=1.5, beta=0.8), 4, recursion=recursion)
+    fresh.load_state(saved)                    # into another object: the same state
+    assert fresh.state()["t_prev"] == saved["t_prev"] and fresh.state()["k"] == saved["k"]
+
+
+def test_slip_state_round_trip():
+    slip = SlipSum(3, theta_inf=0.4, s0=0.1)
+    slip.advance(np.array([1.0, 2.0, 3.0]), 0.1)
+    saved = slip.state()
+    slip.advance(np.array([5.0, 5.0, 5.0]), 0.2)
+    slip.load_state(saved)
+    expected = 0.1 * np.array([1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(slip.s, expected)
+    saved["s"][:] = 0.0                        # the state is a copy
+    np.testing.assert_array_equal(slip.s, expected)

@@ -1,12 +1,19 @@
 """Grid sampling, exact prolongation between nested meshes, and the grid error norms."""
 import numpy as np
 import pytest
-from dolfinx import fem, geometry
+from dolfinx import geometry
 from mpi4py import MPI
 
-from app.studies.grid import (Grid, GridSampler, cell_centroids, cell_l2_norm, prolong_dg0,
-                      prolong_p1, strain_norm)
 from app.model.problem import ContactProblem
+from app.studies.grid import (
+    Grid,
+    GridSampler,
+    cell_centroids,
+    cell_l2_norm,
+    prolong_dg0,
+    prolong_p1,
+    strain_norm,
+)
 from conftest import make_case
 from meshes import build_rectangle
 

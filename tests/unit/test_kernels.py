@@ -1,20 +1,28 @@
-"""The compiled Perzyna update (app/solvers/kernels.py) equals the numpy reference (material.py)."""
+"""The compiled kernels (app/solvers/kernels/) equal their numpy references: the Perzyna
+update, the cell passes, the split solve's sweeps, CHOLMOD's factor; the build reads the cdef
+from the headers, hashes every file, and falls back to numpy where nothing can be built."""
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from app.solvers import kernels
-from app.model.material import Elasticity, Perzyna, VonMisesProjection, from_voigt, to_voigt
+from app.model.material import Elasticity, VonMisesProjection, from_voigt, to_voigt
+from app.solvers import dense, kernels, ldl
+from app.solvers.kernels import build
 
+ROOT = Path(__file__).resolve().parents[2]
 module = kernels.load()
-pytestmark = pytest.mark.skipif(module is None, reason="no C compiler")
+needs_c = pytest.mark.skipif(module is None, reason="no C compiler")
 
 
 def _reference(law, sigma, H, kappa, k, l1, l2):
-    t = to_voigt(sigma, law.dim)
-    gs, gk = Perzyna(law, l1, l2).rates(t, kappa)
-    return H + k * from_voigt(gs, law.dim).reshape(-1), kappa + k * gk
+    H, kappa = H.copy(), kappa.copy()
+    kernels.perzyna_advance_numpy(law, l1, l2, sigma, H, kappa, k)
+    return H, kappa
 
 
+@needs_c
 @pytest.mark.parametrize("dim", [2, 3])
 def test_kernel_equals_numpy(dim):
     rng = np.random.default_rng(dim)
@@ -43,6 +51,7 @@ def test_kernel_equals_numpy(dim):
     assert np.array_equal(H.reshape(n, -1)[inside], H0.reshape(n, -1)[inside])   # no flow
 
 
+@needs_c
 def test_kernel_propagates_nan():
     law = Elasticity(1000.0, 0.4, 2)
     t = np.array([[1.0, 2.0, np.nan], [3.0, 0.0, 1.0]])
@@ -54,6 +63,7 @@ def test_kernel_propagates_nan():
     assert np.isfinite(H[4:]).all() and np.isfinite(kappa[1])
 
 
+@needs_c
 def test_kernel_checks_arrays():
     law = Elasticity(1000.0, 0.4, 2)
     kern = kernels.PerzynaKernel(law, VonMisesProjection(law), 1.0, 1.0, module)
@@ -63,33 +73,7 @@ def test_kernel_checks_arrays():
         kern.advance(np.zeros(8, dtype=np.float32), np.zeros(8), np.zeros(2), 0.1)
 
 
-@pytest.mark.parametrize("dim", [2, 3])
-@pytest.mark.parametrize("terms", ["compliance", "memory", "friction", "all"])
-def test_nodal_contact_equals_numpy(dim, terms):
-    """The compiled nodal contact energy of the fast solver equals the numpy reference, for
-    nodes in separation, compliance, stick (|y_tau| ~ delta) and slip on both branches."""
-    from app.solvers.fast import NodalContact
-    rng = np.random.default_rng(7 + dim)
-    n = 300
-    nu = np.zeros(dim)
-    nu[1] = -1.0
-    w = rng.uniform(0.5, 2.0, size=n) / n
-    fr = (1.0, 60.0, 60.0, 0.01) if terms in ("friction", "all") else None
-    y = rng.normal(size=(n, dim)) * 10.0 ** rng.uniform(-9, -1, size=(n, 1))
-    args = (w, nu, 100.0 if terms != "friction" else None, fr, 1e-7)
-    ref, comp = NodalContact(*args), NodalContact(*args, module=module)
-    if terms in ("memory", "all"):
-        ref.xi = comp.xi = rng.uniform(0.0, 5.0, size=n)
-    if terms == "all":
-        ref.theta = comp.theta = rng.uniform(0.3, 1.0, size=n)
-    e0, g0, H0 = ref.evaluate(y)
-    e1, g1, H1 = comp.evaluate(y)
-    assert abs(e1 - e0) <= 1e-13 * max(abs(e0), 1e-300)
-    assert np.abs(g1 - g0).max() <= 1e-13 * np.abs(g0).max()
-    assert np.abs(H1 - H0).max() <= 1e-13 * np.abs(H0).max()
-    assert comp.evaluate(y, need_hessian=False)[2] is None
-
-
+@needs_c
 @pytest.mark.parametrize("factor", [1.0, 1e3, 1e-3])
 def test_kernel_start_from_last_roots(factor):
     """Each cell's root search starts from its root of the last call (PerzynaKernel.mu); a
@@ -110,6 +94,7 @@ def test_kernel_start_from_last_roots(factor):
     assert np.abs(k2 - k1).max() <= 1e-13 * np.abs(k1).max()
 
 
+@needs_c
 def test_kernel_failure_writes_nothing():
     """If a cell's root search does not converge (here: one sweep allowed), the kernel says
     so and leaves H and kappa as they were (the history keeps step n - 1)."""
@@ -123,3 +108,201 @@ def test_kernel_failure_writes_nothing():
     kern = kernels.PerzynaKernel(law, VonMisesProjection(law), 1.0, 1.0, module, max_iter=1)
     assert kern.advance(sigma, H, kappa, 0.1) > 0
     assert np.array_equal(H, H0) and np.array_equal(kappa, kappa0)
+
+
+# ------------------------------------------------------------------ cell passes
+def _cells(dim, n_cells=300, n_nodes=120, seed=0):
+    rng = np.random.default_rng(seed)
+    nodes = np.array([rng.choice(n_nodes, dim + 1, replace=False) for _ in range(n_cells)],
+                     dtype=np.intc)
+    G = rng.normal(size=(n_cells, dim + 1, dim))
+    vol = rng.uniform(0.5, 2.0, size=n_cells)
+    u = rng.normal(size=n_nodes * dim)
+    H = rng.normal(size=n_cells * dim * dim)
+    return nodes, G, vol, u, H
+
+
+@needs_c
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("with_H", [False, True])
+def test_cell_pass_equals_numpy(dim, with_H):
+    """cell_pass: the same sums, sigma and von Mises norm as the numpy reference (sums in
+    another order: 1e-13 relative)."""
+    nodes, G, vol, u, H = _cells(dim, seed=dim)
+    H = H if with_H else None
+    n = len(nodes)
+    out = [(np.empty(n * dim * dim), np.empty(n)) for _ in range(2)]
+    e2, s2 = kernels.cell_pass(module, nodes, G, vol, 0.7, 1.3, u, H, *out[0])
+    e2r, s2r = kernels.cell_pass_numpy(nodes, G, vol, 0.7, 1.3, u, H, *out[1])
+    assert e2 == pytest.approx(e2r, rel=1e-13) and s2 == pytest.approx(s2r, rel=1e-13)
+    for a, b in zip(out[0], out[1]):
+        assert np.abs(a - b).max() <= 1e-13 * np.abs(b).max()
+    e2_only = kernels.cell_pass(module, nodes, G, vol, 0.7, 1.3, u)
+    assert e2_only == (pytest.approx(e2r, rel=1e-13), 0.0)
+    assert kernels.cell_pass_numpy(nodes, G, vol, 0.7, 1.3, u)[1] == 0.0
+
+
+@needs_c
+@pytest.mark.parametrize("dim", [2, 3])
+def test_cell_load_equals_numpy(dim):
+    nodes, G, vol, u, H = _cells(dim, seed=10 + dim)
+    b, bref = np.ones(len(u)), np.ones(len(u))
+    kernels.cell_load(module, nodes, G, H, b)
+    kernels.cell_load_numpy(nodes, G, H, bref)
+    assert np.abs(b - bref).max() <= 1e-13 * np.abs(bref).max()
+
+
+# ------------------------------------------------------------------ split solve, CHOLMOD
+def _spd(n, seed):
+    rng = np.random.default_rng(seed)
+    B = rng.normal(size=(n, n)) * (rng.random((n, n)) < 0.1)
+    return B @ B.T + n * np.eye(n)
+
+
+@needs_c
+@pytest.mark.parametrize("kind", ["superlu", "cholmod"])
+@pytest.mark.parametrize("bs", [1, 2])
+def test_split_solve_equals_numpy(kind, bs):
+    """GLastSolve's forward and backward sweeps against split_solve_numpy with numpy's L D L^T
+    (ldl_numpy) in the same order: different factorisations of a well-conditioned matrix,
+    equal to 1e-12."""
+    import scipy.sparse as sp
+
+    from app.solvers.schur import CSR, GLastLDL, GLastLU
+    A = _spd(40, seed=bs)
+    G = np.array([6, 7, 30, 31])
+    S = sp.csr_matrix(A)
+    csr = CSR(S.indptr, S.indices, S.data)
+    if kind == "cholmod":
+        if ldl.load() is None:
+            pytest.skip("CHOLMOD not available")
+        f = GLastLDL(csr, G, bs, ldl.load())
+    else:
+        f = GLastLU(csr, G, bs)
+    split = kernels.GLastSolve(f, module, bs)
+    L, D = ldl.ldl_numpy(A, f.perm)
+    rng = np.random.default_rng(4)
+    b, y = rng.normal(size=40), rng.normal(size=4)
+    r = split.forward(b).copy()
+    u = np.empty(40)
+    split.backward(y, u)
+    r_ref, u_ref = kernels.split_solve_numpy(L, D, f.perm, 4, b, y)
+    assert np.abs(r - r_ref).max() <= 1e-12 * np.abs(r_ref).max()
+    assert np.abs(u - u_ref).max() <= 1e-12 * np.abs(u_ref).max()
+    assert kernels.split_solve_numpy(L, D, f.perm, 4, b)[1] is None
+
+
+def test_cholmod_factor_equals_numpy():
+    """ldl.Factor's D and L_GG against ldl_numpy (dense Cholesky) in the same order."""
+    module_c = ldl.load()
+    if module_c is None:
+        pytest.skip("CHOLMOD not available")
+    import scipy.sparse as sp
+    A = _spd(30, seed=7)
+    S = sp.csr_matrix(A)
+    perm = np.random.default_rng(1).permutation(30)
+    f = ldl.Factor(module_c, S.indptr, S.indices, S.data, perm, 5, blocks=False)
+    L, D = ldl.ldl_numpy(A, perm)
+    assert np.abs(f.D - D).max() <= 1e-13 * np.abs(D).max()
+    assert np.abs(f.L_GG - L[25:, 25:]).max() <= 1e-13
+
+
+# ------------------------------------------------------------------ the build
+LIBRARIES = {
+    "cells": (kernels.CELL_KERNELS, ["app/solvers/kernels/perzyna.py",
+                                     "app/solvers/kernels/sweeps.py",
+                                     "app/solvers/kernels/cells.py", "app/solvers/nodal.py",
+                                     "app/model/strain.py"]),
+    "dense": (dense.DENSE, ["app/solvers/dense.py"]),
+    "cholmod": (ldl.CHOLMOD, ["app/solvers/ldl.py"]),
+}
+
+
+def _declared(cdef: str) -> set[str]:
+    return set(re.findall(r"\b(\w+)\s*\(", cdef))
+
+
+def test_read_cdef_keeps_the_prototypes_only():
+    header = ("/* a comment\n   over lines */\n#ifndef X_H\n#define X_H\n"
+              "// another\nint f(int a,\n      double *b);   /* f */\n#endif\n")
+    assert build.read_cdef(header) == "int f(int a,\n      double *b);"
+
+
+@pytest.mark.parametrize("name", LIBRARIES)
+def test_header_declares_every_function_the_wrappers_call(name):
+    """The cdef read from the headers parses (cffi), declares every lib.<function> of the
+    wrapper modules, and every declared function is defined in the .c files (and exported by
+    the library where it can be built)."""
+    import cffi
+    library, wrappers = LIBRARIES[name]
+    cdef = library.cdef()
+    cffi.FFI().cdef(cdef)
+    declared = _declared(cdef)
+    called = set()
+    for path in wrappers:
+        called |= set(re.findall(r"\blib\.(\w+)\s*\(", (ROOT / path).read_text()))
+    assert called and called <= declared, called - declared
+    source = "".join(p.read_text() for p in library.sources())
+    for fn in declared:
+        assert re.search(rf"^[\w ]+\*?{fn}\(", source, re.M), fn
+    mod = library.load()
+    if mod is not None:
+        assert all(hasattr(mod.lib, fn) for fn in declared)
+
+
+def test_every_c_file_belongs_to_a_library():
+    here = build.HERE
+    used = {p.name for lib, _ in LIBRARIES.values() for p in (*lib.sources(), *lib.headers())}
+    assert used == {p.name for p in (*here.glob("*.c"), *here.glob("*.h"))}
+
+
+def test_no_c_source_in_python_files():
+    """The C lives in .c/.h files: no Python file of the application holds C source."""
+    c_source = re.compile(r"#include|#define|for \(int |\brestrict\b"
+                          r"|\b(?:double|int|void)\s*\*?\s*\w+\s*\([^()]*\)\s*[;{]")
+    offenders = [str(p.relative_to(ROOT)) for p in (ROOT / "app").rglob("*.py")
+                 if c_source.search(p.read_text())]
+    assert offenders == []
+
+
+def test_the_name_hashes_every_file(tmp_path, monkeypatch):
+    """A change to any .c or .h (a comment too), the flags or the libraries is a new cache
+    entry; the package's location is not part of it."""
+    for p in build.HERE.glob("*.[ch]"):
+        (tmp_path / p.name).write_text(p.read_text())
+    lib = kernels.CELL_KERNELS
+    name = lib.name()
+    monkeypatch.setattr(build, "HERE", tmp_path)
+    assert lib.name() == name                               # moved: the same entry
+    names = {name}
+    for part in ("contact.h", "cells.c"):
+        f = tmp_path / part
+        f.write_text(f.read_text() + "/* changed */\n")
+        names.add(lib.name())
+    monkeypatch.setattr(build, "CFLAGS", [*build.CFLAGS, "-g"])
+    names.add(lib.name())
+    names.add(build.Library(lib.prefix, lib.parts, lib.what).name())   # no libm
+    assert len(names) == 5
+
+
+def test_no_compiler_falls_back_to_numpy(tmp_path, monkeypatch, caplog):
+    """Where nothing can be built (here: the compiler fails), every load returns None with
+    a warning, and the numpy references serve."""
+    from app.solvers.nodal import NodalContact
+
+    def no_compiler(*args, **kwargs):
+        raise RuntimeError("no C compiler")
+    monkeypatch.setattr(build, "cache_dir", lambda: tmp_path / "kernels")
+    monkeypatch.setattr(build, "_MODULES", {})
+    monkeypatch.setattr(build, "_build", no_compiler)
+    with caplog.at_level("WARNING", logger="vpcontact"):
+        assert kernels.load() is None and dense.load() is None and ldl.load() is None
+    assert caplog.text.count("unavailable (no C compiler)") == 3
+    assert "using numpy" in caplog.text and "using SuperLU" in caplog.text
+    contact = NodalContact(np.ones(2), [0.0, -1.0], 100.0, (1.0, 60.0, 60.0, 0.01), 1e-7,
+                           kernels.load())
+    e, g, H = contact.evaluate(np.array([[0.0, -0.01], [0.02, 0.0]]))
+    assert np.isfinite(e) and g.shape == (2, 2) and H.shape == (2, 2, 2)
+    direction = dense.NewtonDirection(np.eye(4), 2, dense.load())
+    assert np.array_equal(direction(np.zeros((2, 2, 2)), np.ones(4), np.zeros(4, bool)),
+                          -np.ones(4))

@@ -1,7 +1,6 @@
 """Plane-stress matrices agree with the UFL operator; Perzyna rates follow the paper."""
 import numpy as np
 import pytest
-import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 

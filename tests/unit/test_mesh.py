@@ -40,7 +40,8 @@ def test_boundary_tags(engine):
         facets = ft.indices[ft.values == BOUNDARY_TAGS[name]]
         assert len(facets) == 8, name
         pts = np.array([x[f2v.links(f)] for f in facets]).reshape(-1, 3)
-        coord, val = {"left": (0, 0.0), "right": (0, 1.0), "bottom": (1, 0.0), "top": (1, 1.0)}[name]
+        sides = {"left": (0, 0.0), "right": (0, 1.0), "bottom": (1, 0.0), "top": (1, 1.0)}
+        coord, val = sides[name]
         np.testing.assert_allclose(pts[:, coord], val, atol=1e-12)
 
 

@@ -8,7 +8,8 @@ import sys
 def test_singleton_settings_are_not_inherited():
     env = {k: v for k, v in os.environ.items() if not k.startswith("OMPI_MCA_")}
     code = ("import os, app; from mpi4py import MPI; "
-            "print(MPI.COMM_WORLD.size, sorted(k for k in os.environ if k.startswith('OMPI_MCA_')))")
+            "print(MPI.COMM_WORLD.size, "
+            "sorted(k for k in os.environ if k.startswith('OMPI_MCA_')))")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                          text=True, check=True).stdout.split(None, 1)
     assert out == ["1", "[]\n"]

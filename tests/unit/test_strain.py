@@ -38,7 +38,7 @@ def test_cell_passes_equal_the_assembled_operators(dim):
     # the PETSc reference: D_sigma u + H, the numpy von Mises norm, u^T A u, D^T H
     op.D_sigma.multAdd(p.u.vector, p.H.vector, p.sigma.vector)
     sigma_ref = p.sigma.x.array[:n].copy()
-    vm_ref = p.law.von_mises(p.law.to_voigt(sigma_ref))
+    vm_ref = p.elasticity.von_mises(p.elasticity.to_voigt(sigma_ref))
     op.A.mult(p.u.vector, op._b)
     e2_ref = op._b.dot(p.u.vector)
     b_ref = op._b.duplicate()

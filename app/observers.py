@@ -1,0 +1,169 @@
+"""Everything that watches a run: one small interface (:class:`Observer`) and the observers
+of the command line's ``run``.
+
+A Simulation calls, in the order the observers were added (``sim.add``):
+
+- ``start(sim)`` once, before the first step (the state t_0, or the restart's step);
+- ``check(sim, record)`` after each step n of scheme (3.2)-(3.4) was solved, before it is
+  accepted: raising :class:`StopRun` refuses it (the last good state is then step n - 1);
+- ``step(sim, record)`` after step n was accepted (``sim.steps`` ends with ``record``);
+- ``end(sim, summary)`` once after the loop, also after a failure (a run summary exists then).
+
+An observer stops a run by raising StopRun (status and StepFailure); an OutputError raised
+by ``start`` or ``step`` ends the run as "failed" (the files written before stay intact).
+The command line registers FieldOutput, Checkpointer, ProgressBar, StepLog and RunFiles
+(app/cli/main.py); every run has the blow-up monitor (app/post/divergence.py); the
+convergence study adds its sampler (app/studies/convergence.py).
+"""
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from app.cli.progress import Progress
+from app.io import checkpoint
+from app.io.output import FieldWriter, OutputError, write_contact_csv, write_json
+from app.records import HINT_OUTPUT, StepFailure
+
+log = logging.getLogger("vpcontact")
+
+
+class StopRun(Exception):
+    """Raised by an observer (or the step itself) to end a run early.
+
+    Args:
+        status: the run's status ("failed", "diverged", "interrupted").
+        failure: why, for summary.json.
+    """
+
+    def __init__(self, status: str, failure: StepFailure):
+        super().__init__(failure.reason)
+        self.status, self.failure = status, failure
+
+
+class Observer:
+    """Watches a Simulation (see the module docstring); every hook does nothing by default."""
+
+    def start(self, sim) -> None:
+        """Before the first step.
+
+        Args:
+            sim: the Simulation, set up (sim.n, sim.t: the initial or restarted state).
+        """
+
+    def check(self, sim, record: dict) -> None:
+        """Step n is solved but not yet accepted; raise StopRun to refuse it.
+
+        Args:
+            sim: the Simulation (sim.n, sim.t: the new step).
+            record: the step's record (app/records.py).
+        """
+
+    def step(self, sim, record: dict) -> None:
+        """Step n was accepted.
+
+        Args:
+            sim: the Simulation (sim.interrupted: a signal asked to stop after this step).
+            record: the step's record, the last of sim.steps.
+        """
+
+    def end(self, sim, summary) -> None:
+        """After the loop (completed or not).
+
+        Args:
+            sim: the Simulation.
+            summary: the RunSummary (an observer may amend it, e.g. a failed final write).
+        """
+
+
+class FieldOutput(Observer):
+    """solution.xdmf in ``sim.outdir``: u, sigma, sigma_vm (and kappa) at the start, every
+    output.every-th step, the last step and the step a signal stopped at."""
+
+    def __init__(self):
+        self.writer = None
+
+    def start(self, sim) -> None:
+        p = sim.problem
+        fields = [p.u, p.sigma, p.sigma_vm] + ([sim.history.kappa] if sim.history else [])
+        self.writer = FieldWriter(sim.comm, Path(sim.outdir) / "solution.xdmf", p.mesh, fields)
+        self.writer.write(sim.t)
+
+    def step(self, sim, record: dict) -> None:
+        if (sim.n % sim.case.output.every == 0 or sim.stepper.finished(sim.t)
+                or sim.interrupted):
+            self.writer.write(sim.t)
+
+    def end(self, sim, summary) -> None:
+        if self.writer is not None:
+            self.writer.close()
+
+
+class Checkpointer(Observer):
+    """checkpoint_<n>.npz in ``sim.outdir`` (app/io/checkpoint.py): every
+    output.checkpoint_every-th step, and at the step a signal stopped the run at (then a
+    failed write is a warning, not a failure).  Sets ``sim.last_checkpoint``."""
+
+    def step(self, sim, record: dict) -> None:
+        every = sim.case.output.checkpoint_every
+        if sim.interrupted:
+            try:
+                sim.last_checkpoint = checkpoint.save(sim.outdir, sim)
+            except OutputError as exc:
+                log.warning("no checkpoint written: %s", exc)
+                sim.last_checkpoint = None
+        elif every and sim.n % every == 0:
+            sim.last_checkpoint = checkpoint.save(sim.outdir, sim)
+
+
+class ProgressBar(Observer):
+    """The progress bar on rank 0 (app/cli/progress.py)."""
+
+    def __init__(self):
+        self.bar = None
+
+    def start(self, sim) -> None:
+        self.bar = Progress(sim.case.time.T, sim.stepper.total, sim.t,
+                            enabled=sim.comm.rank == 0)
+
+    def step(self, sim, record: dict) -> None:
+        self.bar.update(sim.n, sim.t, record["newton_iterations"])
+
+    def end(self, sim, summary) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+class StepLog(Observer):
+    """One debug line per step (shown with --verbose)."""
+
+    def step(self, sim, record: dict) -> None:
+        log.debug("step %3d/%s  t = %-8.5g newton %2d  |u|_V = %.6e  |sigma|_Q = %.6e  "
+                  "max vm = %.5g  max kappa = %.5g  (%.3f s)", sim.n, sim.stepper.total or "?",
+                  sim.t, record["newton_iterations"], record["norm_u_V"],
+                  record["norm_sigma_Q"], record["max_vm"], record["max_kappa"],
+                  record["wall_s"])
+
+
+class RunFiles(Observer):
+    """contact.csv and summary.json in ``sim.outdir``, written once at the end.  A completed
+    run whose contact.csv cannot be written is "failed"; if summary.json cannot be written
+    either, the error is logged and kept in the summary (summary_error)."""
+
+    def end(self, sim, summary) -> None:
+        outdir, steps = Path(sim.outdir), sim.steps
+        try:
+            if sim.problem.gamma3 is not None and steps:
+                summary.contact_states = write_contact_csv(
+                    sim.comm, outdir / "contact.csv", sim.problem.contact_table(),
+                    sim.case.contact.g)
+        except OutputError as exc:
+            summary.fail(StepFailure(summary.last_good_step, steps[-1]["t"],
+                                     f"cannot write the outputs: {exc}", hint=HINT_OUTPUT))
+        try:
+            write_json(sim.comm, outdir / "summary.json", summary.as_dict())
+        except OutputError as exc:
+            log.error("summary.json not written: %s", exc)
+            summary.summary_error = str(exc)
+            summary.fail(StepFailure(summary.last_good_step, steps[-1]["t"] if steps else 0.0,
+                                     f"cannot write summary.json: {exc}", hint=HINT_OUTPUT))

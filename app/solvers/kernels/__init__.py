@@ -1,0 +1,50 @@
+"""Compiled kernels: C files of this package, built once with cffi and cached (build.py).
+
+The C sources and their headers live beside the Python wrappers, one pair per job:
+    perzyna.c/.h      the explicit Perzyna update (3.2)-(3.3)      perzyna.py
+    ldl_blocks.c/.h   the fast solver's split solve (node blocks)   sweeps.py
+    contact.c/.h      the nodal contact energy (4.1)-(4.2)          app/solvers/nodal.py
+    cells.c/.h        the cell-strain operator                      cells.py
+    dense.c/.h        the Gamma3 problem's Newton direction         app/solvers/dense.py
+    cholmod_ldl.c/.h  CHOLMOD's L D L^T                              app/solvers/ldl.py
+Each wrapper module has the numpy reference of its kernel beside it; the tests compare them,
+and the numpy (or PETSc, SuperLU) path is the fallback where no C compiler is available.
+The first four are one library (``load``); dense and CHOLMOD link LAPACK and libcholmod and
+are built by their modules.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from app.solvers.kernels.build import Library, buf, cache_dir, compiled, module_name
+from app.solvers.kernels.cells import cell_load, cell_load_numpy, cell_pass, cell_pass_numpy
+from app.solvers.kernels.perzyna import PerzynaKernel, perzyna_advance_numpy
+from app.solvers.kernels.sweeps import GLastSolve, block_size, split_solve_numpy
+
+__all__ = [
+    "CELL_KERNELS", "GLastSolve", "Library", "PerzynaKernel", "block_size", "buf", "cache_dir",
+    "cell_load", "cell_load_numpy", "cell_pass", "cell_pass_numpy", "compiled", "library_file",
+    "load", "module_name", "perzyna_advance_numpy", "split_solve_numpy",
+]
+
+CELL_KERNELS = Library("_vpcontact_kernels", ("perzyna", "ldl_blocks", "contact", "cells"),
+                       "compiled cell kernels (using numpy)", libraries=("m",))
+
+
+def load():
+    """The compiled cell kernels: Perzyna update, split-solve sweeps, nodal contact energy,
+    cell passes.
+
+    Returns:
+        The cffi module (``.lib``, ``.ffi``), or None (numpy is used then).
+    """
+    return CELL_KERNELS.load()
+
+
+def library_file() -> Path:
+    """The cache file of the compiled cell kernels (``load`` builds it).
+
+    Returns:
+        Its path in cache_dir().
+    """
+    return CELL_KERNELS.library_file()

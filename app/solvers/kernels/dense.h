@@ -1,0 +1,11 @@
+/* The projected Newton direction of the fast solver's Gamma3 problem (dense.c). */
+#ifndef VPCONTACT_DENSE_H
+#define VPCONTACT_DENSE_H
+
+/* p_f = -(S + W)_ff^-1 g_f on the nf free dofs free_, p = 0 on the others, by LAPACK's
+   Cholesky factorisation of the free block.  Returns LAPACK's info (0: done; > 0: the free
+   block is not positive definite). */
+int newton_direction(int m, int d, const double *S, const double *W, const int *free_,
+                     int nf, const double *g, double *p, double *work);
+
+#endif
