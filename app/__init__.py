@@ -32,8 +32,8 @@ _tmp = _os.environ.get("TMPDIR")
 if _tmp and not (_os.path.isdir(_tmp) and _os.access(_tmp, _os.W_OK | _os.X_OK)):
     del _os.environ["TMPDIR"]
     if _os.environ.get("OMPI_COMM_WORLD_RANK", _os.environ.get("PMIX_RANK", "0")) == "0":
-        print(f"vpcontact: warning: TMPDIR={_tmp!r} is not a writable directory, ignored",
-              file=_sys.stderr)
+        from app.io.messages import warning as _warning
+        _warning(f"TMPDIR={_tmp!r} is not a writable directory, ignored", rank=0)
 
 # A run started without mpirun is an Open MPI singleton.  Its MPI_Init probes the UCX network
 # layer and starts a runtime daemon: 0.29 s of a 3 s run (measured; 0.04 s with these).  One

@@ -11,16 +11,15 @@ A Simulation calls, in the order the observers were added (``sim.add``):
 
 An observer stops a run by raising StopRun (status and StepFailure); an OutputError raised
 by ``start`` or ``step`` ends the run as "failed" (the files written before stay intact).
-The command line registers FieldOutput, Checkpointer, ProgressBar, StepLog and RunFiles
-(app/cli/main.py); every run has the blow-up monitor (app/post/divergence.py); the
-convergence study adds its sampler (app/studies/convergence.py).
+The command line registers FieldOutput, Checkpointer, StepLog, RunFiles and its progress bar
+(ProgressBar, app/cli/progress.py) in app/cli/commands.py; every run has the blow-up monitor
+(app/post/divergence.py); the convergence study adds its sampler (app/studies/convergence.py).
 """
 from __future__ import annotations
 
 import logging
 from pathlib import Path
 
-from app.cli.progress import Progress
 from app.io import checkpoint
 from app.io.output import FieldWriter, OutputError, write_contact_csv, write_json
 from app.records import HINT_OUTPUT, StepFailure
@@ -84,17 +83,41 @@ class FieldOutput(Observer):
         self.writer = None
 
     def start(self, sim) -> None:
+        """Open solution.xdmf, write the mesh and the fields at the start time.
+
+        Args:
+            sim: the Simulation, set up (sim.t: t_0 or the restarted time).
+
+        Raises:
+            OutputError: solution.xdmf cannot be written.
+        """
         p = sim.problem
         fields = [p.u, p.sigma, p.sigma_vm] + ([sim.history.kappa] if sim.history else [])
         self.writer = FieldWriter(sim.comm, Path(sim.outdir) / "solution.xdmf", p.mesh, fields)
         self.writer.write(sim.t)
 
     def step(self, sim, record: dict) -> None:
+        """Write the fields at sim.t if step n is an output step (every output.every-th,
+        the last, or the one a signal stopped at).
+
+        Args:
+            sim: the Simulation after step n was accepted.
+            record: the step's record (unused).
+
+        Raises:
+            OutputError: the write failed.
+        """
         if (sim.n % sim.case.output.every == 0 or sim.stepper.finished(sim.t)
                 or sim.interrupted):
             self.writer.write(sim.t)
 
     def end(self, sim, summary) -> None:
+        """Close solution.xdmf (if it was opened).
+
+        Args:
+            sim: the Simulation (unused).
+            summary: the RunSummary (unused).
+        """
         if self.writer is not None:
             self.writer.close()
 
@@ -105,6 +128,16 @@ class Checkpointer(Observer):
     failed write is a warning, not a failure).  Sets ``sim.last_checkpoint``."""
 
     def step(self, sim, record: dict) -> None:
+        """Save checkpoint_<n>.npz if step n is a checkpoint step or a signal stopped the run.
+
+        Args:
+            sim: the Simulation after step n was accepted; ``sim.last_checkpoint`` is set
+                to the file written (None if a write at a signal failed).
+            record: the step's record (unused).
+
+        Raises:
+            OutputError: a regular (not signal-triggered) checkpoint cannot be written.
+        """
         every = sim.case.output.checkpoint_every
         if sim.interrupted:
             try:
@@ -116,28 +149,16 @@ class Checkpointer(Observer):
             sim.last_checkpoint = checkpoint.save(sim.outdir, sim)
 
 
-class ProgressBar(Observer):
-    """The progress bar on rank 0 (app/cli/progress.py)."""
-
-    def __init__(self):
-        self.bar = None
-
-    def start(self, sim) -> None:
-        self.bar = Progress(sim.case.time.T, sim.stepper.total, sim.t,
-                            enabled=sim.comm.rank == 0)
-
-    def step(self, sim, record: dict) -> None:
-        self.bar.update(sim.n, sim.t, record["newton_iterations"])
-
-    def end(self, sim, summary) -> None:
-        if self.bar is not None:
-            self.bar.close()
-
-
 class StepLog(Observer):
     """One debug line per step (shown with --verbose)."""
 
     def step(self, sim, record: dict) -> None:
+        """Log step n: t, Newton iterations, |u|_V, |sigma|_Q, max von Mises, max kappa.
+
+        Args:
+            sim: the Simulation after step n was accepted.
+            record: the step's record (app/records.py).
+        """
         log.debug("step %3d/%s  t = %-8.5g newton %2d  |u|_V = %.6e  |sigma|_Q = %.6e  "
                   "max vm = %.5g  max kappa = %.5g  (%.3f s)", sim.n, sim.stepper.total or "?",
                   sim.t, record["newton_iterations"], record["norm_u_V"],
@@ -151,6 +172,13 @@ class RunFiles(Observer):
     either, the error is logged and kept in the summary (summary_error)."""
 
     def end(self, sim, summary) -> None:
+        """Write contact.csv (if the case has Gamma3 and a step was taken) and summary.json.
+
+        Args:
+            sim: the Simulation after the loop.
+            summary: the RunSummary; a write failure marks it failed (StepFailure with
+                HINT_OUTPUT), and a summary.json failure also sets ``summary_error``.
+        """
         outdir, steps = Path(sim.outdir), sim.steps
         try:
             if sim.problem.gamma3 is not None and steps:

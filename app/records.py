@@ -100,7 +100,11 @@ class RunSummary:
 
     def fail(self, failure: StepFailure) -> None:
         """Mark a completed run as failed (an output written after the loop failed); a run
-        that stopped early keeps its status and failure."""
+        that stopped early keeps its status and failure.
+
+        Args:
+            failure: why the run failed (kept only if the status was "completed").
+        """
         if self.status == "completed":
             self.status, self.failure = "failed", failure
 

@@ -228,14 +228,13 @@ class Simulation:
             self.setup()
         with _StopRequest() as self._signals:   # also shields the final writes
             try:
-                self._start()
+                self.start()
                 while not self.finished:
                     self.step()                  # n-1 -> n: (3.2)-(3.4), observed
             except StopRun as stop:
                 self.status, self.failure = stop.status, stop.failure
-            summary = self._finish()
+            summary = self.finish()
         self._signals = None
-        self.solver.destroy()
         return summary
 
     def step(self) -> dict | None:
@@ -421,8 +420,13 @@ class Simulation:
         return StopRun("interrupted", failure)
 
     # ------------------------------------------------------------------ start and end
-    def _start(self) -> None:
-        """The observers' ``start``; an output that cannot be written fails the run."""
+    def start(self) -> None:
+        """Start the observers (``run`` does; call it yourself when you drive the loop
+        with ``step``).
+
+        Raises:
+            StopRun: an output could not be written (the run has failed at step n).
+        """
         try:
             for obs in self.observers:
                 obs.start(self)
@@ -433,12 +437,19 @@ class Simulation:
         finally:
             self._clock["loop_start"] = time.perf_counter()
 
-    def _finish(self) -> RunSummary:
-        """The RunSummary, then the observers' ``end`` (which may amend it)."""
+    def finish(self) -> RunSummary:
+        """End the run: the RunSummary, the observers' ``end`` (which may amend it and
+        write the final files), then free the step solver.  ``run`` calls it; call it
+        yourself after the last ``step`` when you drive the loop.
+
+        Returns:
+            The RunSummary.
+        """
         self._clock["loop"] = time.perf_counter() - self._clock["loop_start"]
         summary = self.summary()
         for obs in self.observers:
             obs.end(self, summary)
+        self.solver.destroy()
         return summary
 
     def summary(self) -> RunSummary:

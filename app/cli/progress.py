@@ -9,6 +9,8 @@ from __future__ import annotations
 import sys
 import time
 
+from app.observers import Observer
+
 
 def _clock(seconds: float) -> str:
     seconds = int(round(max(seconds, 0.0)))
@@ -41,7 +43,16 @@ class Progress:
         self._drawn = False
 
     def text(self, n: int, t: float, its: int) -> str:
-        """The bar's line after step n at time t with ``its`` iterations."""
+        """The bar's line after a step.
+
+        Args:
+            n: the step.
+            t: its time.
+            its: its iterations.
+
+        Returns:
+            The line, without a newline.
+        """
         frac = min(max((t - self.t0) / max(self.T - self.t0, 1e-300), 0.0), 1.0)
         elapsed = time.perf_counter() - self.start
         eta = elapsed * (1 - frac) / frac if frac > 0 else float("nan")
@@ -52,7 +63,13 @@ class Progress:
                 f"iterations {its:2d}  elapsed {_clock(elapsed)}  ETA {eta_s}")
 
     def update(self, n: int, t: float, its: int) -> None:
-        """Redraw (terminal) or print a line at every 10% of T (file, pipe) after step n."""
+        """Redraw (terminal) or print a line at every 10% of T (file, pipe) after a step.
+
+        Args:
+            n: the step.
+            t: its time.
+            its: its iterations.
+        """
         if not self.enabled:
             return
         line = self.text(n, t, its)
@@ -72,3 +89,38 @@ class Progress:
         if self.enabled and self.tty and self._drawn:
             self.stream.write("\n")
             self.stream.flush()
+
+
+class ProgressBar(Observer):
+    """The observer that draws the Progress bar of a run on rank 0."""
+
+    def __init__(self):
+        self.bar = None
+
+    def start(self, sim) -> None:
+        """Create the bar (drawn on rank 0 only).
+
+        Args:
+            sim: the Simulation, set up (T, the number of steps if fixed, the start time).
+        """
+        self.bar = Progress(sim.case.time.T, sim.stepper.total, sim.t,
+                            enabled=sim.comm.rank == 0)
+
+    def step(self, sim, record: dict) -> None:
+        """Advance the bar to step n.
+
+        Args:
+            sim: the Simulation after step n was accepted.
+            record: the step's record (its Newton iterations are shown).
+        """
+        self.bar.update(sim.n, sim.t, record["newton_iterations"])
+
+    def end(self, sim, summary) -> None:
+        """Finish the bar's line.
+
+        Args:
+            sim: the Simulation (unused).
+            summary: the RunSummary (unused).
+        """
+        if self.bar is not None:
+            self.bar.close()

@@ -19,10 +19,11 @@ from __future__ import annotations
 
 import os
 import stat
-import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from app.io.messages import EXIT_FAILED, error, warning, warning_line
 
 CONFIG_FILES = (("ffcx", "ffcx_parameters.json"), ("dolfinx", "dolfinx_jit_parameters.json"))
 XDG_VARS = ("XDG_CACHE_HOME", "XDG_CONFIG_HOME")
@@ -55,22 +56,29 @@ class Caches:
         """The compiled kernels' directory, ``kernels`` in the run cache."""
         return self.root / "kernels"
 
-    def warning(self) -> str | None:
-        """The warning for the user.
+    def warnings(self) -> list[str]:
+        """The warnings for the user, without the ``vpcontact: warning:`` prefix.
 
         Returns:
-            One line naming each unusable directory and the one used instead, and one per
-            relative XDG variable ignored; None if there is nothing to say.
+            One message per relative XDG variable ignored, and one naming each unusable
+            directory and the one used instead; empty if there is nothing to say.
         """
-        lines = [f"vpcontact: warning: {var}={value!r} is not an absolute path, ignored (as "
-                 "the XDG base directory specification asks)" for var, value in self.ignored
-                 if value]
+        messages = [f"{var}={value!r} is not an absolute path, ignored (as the XDG base "
+                    "directory specification asks)" for var, value in self.ignored if value]
         if self.replaced:
             parts = [f"{what} {wanted} ({why}) -> {used}"
                      for what, wanted, used, why in self.replaced]
-            lines.append("vpcontact: warning: not writable, using a temporary directory "
-                         "instead: " + "; ".join(parts))
-        return "\n".join(lines) or None
+            messages.append("not writable, using a temporary directory instead: "
+                            + "; ".join(parts))
+        return messages
+
+    def warning(self) -> str | None:
+        """The warning lines as printed (see ``warnings``).
+
+        Returns:
+            The lines, joined by newlines; None if there is nothing to say.
+        """
+        return "\n".join(warning_line(m) for m in self.warnings()) or None
 
 
 def unusable(path: Path) -> str | None:
@@ -271,9 +279,6 @@ def start(rank: int) -> None:
     try:
         _CACHES = prepare()
     except CacheUnusable as exc:
-        if rank == 0:
-            print(f"vpcontact: error: {exc}", file=sys.stderr)
-        raise SystemExit(1) from None
-    line = _CACHES.warning()
-    if line and rank == 0:
-        print(line, file=sys.stderr)
+        raise SystemExit(error(str(exc), EXIT_FAILED, rank)) from None
+    for message in _CACHES.warnings():
+        warning(message, rank)

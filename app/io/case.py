@@ -17,6 +17,7 @@ from pathlib import Path
 import jsonschema
 import yaml
 
+from app.io.errors import CaseError
 from app.io.petscopts import PetscOptions, check_petsc_options
 from app.io.schema import DEFAULT_PETSC, SCHEMA
 from meshes.rectangle import SIDES
@@ -97,10 +98,6 @@ def safe_load(text: str):
         yaml.YAMLError: for text that is not valid YAML or has a duplicate key.
     """
     return yaml.load(text, Loader=CaseLoader)
-
-
-class CaseError(ValueError):
-    """An invalid case: the message names the file, the key path and what is allowed."""
 
 
 # ----------------------------------------------------------------------------- loading

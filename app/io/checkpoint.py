@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.io.case import CaseError
+from app.io.errors import CaseError
 from app.io.output import on_rank0
 
 PATTERN = "checkpoint_*.npz"
@@ -29,12 +29,26 @@ _DECIMALS = 10
 
 
 def file_name(n: int) -> str:
-    """The checkpoint file name of step n (checkpoint_000012.npz)."""
+    """The checkpoint file name of a step.
+
+    Args:
+        n: the step number.
+
+    Returns:
+        checkpoint_<n, six digits>.npz, e.g. checkpoint_000012.npz.
+    """
     return f"checkpoint_{n:06d}.npz"
 
 
 def latest(directory: Path) -> Path | None:
-    """The newest checkpoint in ``directory``, or None if it holds none."""
+    """The newest checkpoint (highest step) in a directory.
+
+    Args:
+        directory: an output directory.
+
+    Returns:
+        The path of its checkpoint_<n>.npz with the largest n, or None if it holds none.
+    """
     files = sorted(Path(directory).glob(PATTERN))
     return files[-1] if files else None
 

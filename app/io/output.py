@@ -175,8 +175,15 @@ class FieldWriter:
         on_rank0(self.comm, publish)
 
     def write(self, t: float) -> None:
-        """Append the fields at time t and republish solution.xdmf; OutputError if HDF5 or
-        the file system refuses (solution.xdmf then still describes the earlier steps)."""
+        """Append the fields at time t and republish solution.xdmf (collective).
+
+        Args:
+            t: the time t_n the fields belong to.
+
+        Raises:
+            OutputError: HDF5 or the file system refused (solution.xdmf then still
+                describes the earlier steps).
+        """
         try:
             with dio.XDMFFile(self.comm, str(self.work), "a") as f:
                 for fn in self.fields:

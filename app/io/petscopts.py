@@ -21,6 +21,8 @@ import functools
 import math
 import re
 
+from app.io.errors import CaseError
+
 # app/solvers/snesvi.py's PREFIX (tests/unit/test_case_hostile.py)
 PREFIX = "vpcontact_"
 FAST_PREFIX = PREFIX + "fast_"      # app/solvers/fast.py's direct solver
@@ -109,12 +111,13 @@ def check_petsc_options(options: dict, source: str, where: str = "petsc.",
         limits: an absolute tolerance -> (its largest value, the reason); default
             ``base.limits`` (see PetscOptions).
 
+    Returns:
+        None; every check that fails raises.
+
     Raises:
         CaseError: if PETSc would refuse one of ``options`` on top of ``base``, or if they
             would make a step solver give a wrong answer.
     """
-    from app.io.case import CaseError
-
     if limits is None:
         limits = getattr(base, "limits", {})
     merged = {**(base or {}), **options}

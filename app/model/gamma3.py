@@ -1,5 +1,7 @@
 """History terms on Gamma3 (the paper's memory term; slip dependence is our extension): the
-memory term xi_n and the accumulated slip s_n, per Gamma3 node.
+memory term xi_n and the accumulated slip s_n, per Gamma3 node: the discrete sums of the step
+inequality (3.4) (the memory integral of (1.7) and the total slip of (1.6), by the left
+rectangle rule):
 
 xi_n = sum_{j=1..n} k_j b(t_n - t_{j-1}) u_{j-1,nu}^+,     s_n = sum_{j=1..n} k_j |u_{j-1,tau}|.
 
@@ -28,6 +30,9 @@ class Kernel:
         alpha: the power law's exponent.
         tau: the power law's time scale.
         table: (t, b) points of the table kernel.
+
+    Raises:
+        ValueError: an unknown ``kind``.
     """
 
     def __init__(self, kind: str, b0: float, beta: float = 0.0, alpha: float = 1.0,
@@ -40,7 +45,14 @@ class Kernel:
             raise ValueError(f"unknown kernel {kind!r}")
 
     def __call__(self, t):
-        """b(t) (elementwise for arrays)."""
+        """Evaluate the kernel.
+
+        Args:
+            t: time(s) since the contribution, >= 0 (a number or an array).
+
+        Returns:
+            b(t), elementwise (an array of t's shape).
+        """
         t = np.asarray(t, dtype=float)
         if self.kind == "exponential":
             return self.b0 * np.exp(-self.beta * t)
@@ -50,13 +62,17 @@ class Kernel:
 
 
 class MemorySum:
-    """The memory term xi_n = sum_{j=1..n} k_j b(t_n - t_{j-1}) u_{j-1,nu}^+ at m nodes.
+    """The memory term xi_n = sum_{j=1..n} k_j b(t_n - t_{j-1}) u_{j-1,nu}^+ of (3.4) at m
+    nodes.
 
     Args:
         kernel: b(t).
         m: the number of nodes.
         recursion: the exact O(1) recursion (exponential kernel only); None: the recursion
             for the exponential kernel, the direct sum otherwise.
+
+    Raises:
+        ValueError: the recursion asked for with a kernel that is not exponential.
     """
 
     def __init__(self, kernel: Kernel, m: int, recursion: bool | None = None):
@@ -120,7 +136,8 @@ class MemorySum:
 
 
 class SlipSum:
-    """s_n = s_{n-1} + k_n |u_{n-1,tau}| at m nodes, and theta(s) of the slip law.
+    """The accumulated slip s_n = s_{n-1} + k_n |u_{n-1,tau}| of (3.4) at m nodes, and
+    theta(s) of the slip-dependent friction (4.2).
 
     Args:
         m: the number of nodes.
@@ -158,7 +175,12 @@ class SlipSum:
         self.s = np.array(state["s"], dtype=float)
 
     def theta(self) -> np.ndarray:
-        """theta(s) = theta_inf + (1 - theta_inf) exp(-s / s0)."""
+        """The slip-dependent friction factor of j_tau(s, xi) = theta(s) psi(|xi|) (the
+        slip version of (4.2)) at the current s_n.
+
+        Returns:
+            theta(s_n) = theta_inf + (1 - theta_inf) exp(-s_n / s0), shape (m,).
+        """
         return self.theta_inf + (1.0 - self.theta_inf) * np.exp(-self.s / self.s0)
 
 
@@ -183,7 +205,11 @@ class NodalField:
         self.dofs = node_to_w[nodes]
 
     def set(self, values: np.ndarray) -> None:
-        """Set the Function's values at the nodes (one value per node)."""
+        """Set the Function's values at the nodes.
+
+        Args:
+            values: one value per node of ``nodes``, shape (len(nodes),).
+        """
         self.function.x.array[self.dofs] = values
 
 

@@ -34,25 +34,60 @@ class FixedSteps:
         return len(self.times) - 1
 
     def finished(self, t: float) -> bool:
-        """True once the last step of the grid was accepted."""
+        """Whether the last step of the grid was accepted.
+
+        Args:
+            t: the current time t_n (unused: the grid counts its steps).
+
+        Returns:
+            True once n = N.
+        """
         return self.n >= len(self.times) - 1
 
     def next_k(self, t: float) -> float | None:
-        """k_{n+1} of the grid, or None when finished."""
+        """The grid's next step k_{n+1} = t_{n+1} - t_n.
+
+        Args:
+            t: the current time t_n (unused).
+
+        Returns:
+            k_{n+1}, or None when finished.
+        """
         if self.finished(t):
             return None
         return self.times[self.n + 1] - self.times[self.n]
 
     def next_t(self, t: float, k: float) -> float:
-        """t_{n+1} of the grid (exactly, not t + k)."""
+        """The grid's next time, exactly t_{n+1} (not t + k, which may round).
+
+        Args:
+            t: the current time t_n (unused).
+            k: the step from ``next_k`` (unused).
+
+        Returns:
+            t_{n+1}.
+        """
         return self.times[self.n + 1]
 
     def accept(self, k: float, its: int) -> None:
-        """The step was accepted: move to the next grid point."""
+        """The step was accepted: move to the next grid point.
+
+        Args:
+            k: the accepted step (unused).
+            its: its Newton iterations (unused).
+        """
         self.n += 1
 
     def reject(self, k: float, reason: str) -> bool:
-        """A fixed grid never retries a step.  Returns: False."""
+        """A fixed grid never retries a step.
+
+        Args:
+            k: the failed step (unused).
+            reason: why it failed (unused).
+
+        Returns:
+            False.
+        """
         return False
 
     def state(self) -> dict:
@@ -97,11 +132,28 @@ class AdaptiveSteps:
         self.total = None
 
     def finished(self, t: float) -> bool:
-        """True once t reached T."""
+        """Whether the run reached T.
+
+        Args:
+            t: the current time t_n.
+
+        Returns:
+            True once t >= T (up to a relative 1e-12).
+        """
         return t >= self.T * (1 - 1e-12)
 
     def next_k(self, t: float) -> float | None:
-        """The next step from t (None when finished), within the stability limit.
+        """The next step from t, within the stability limit.
+
+        Halves k while the explicit scheme's indicator k r_max exceeds ``max_indicator``
+        (each halving is recorded in ``decisions``); the last step is stretched or shortened
+        to land exactly on T.
+
+        Args:
+            t: the current time t_n.
+
+        Returns:
+            k_{n+1}, or None when finished.
 
         Raises:
             StepTooSmall: the stability limit needs a step below k_min.
@@ -124,18 +176,40 @@ class AdaptiveSteps:
         return rest if k >= rest * (1 - 1e-9) else k   # land exactly on T
 
     def next_t(self, t: float, k: float) -> float:
-        """t + k, exactly T at the end."""
+        """The time after a step of k from t.
+
+        Args:
+            t: the current time t_n.
+            k: the step from ``next_k``.
+
+        Returns:
+            t + k, exactly T when it is within 1e-12 T of T.
+        """
         return self.T if abs(t + k - self.T) <= 1e-12 * self.T else t + k
 
     def accept(self, k: float, its: int) -> None:
-        """The step was accepted after ``its`` Newton iterations: grow k if it was fast."""
+        """The step was accepted: record it and grow k if it was fast.
+
+        Args:
+            k: the accepted step.
+            its: its Newton iterations; at most ``fast_newton`` makes k grow by ``grow``
+                (up to k_max and the stability limit).
+        """
         self.decisions.append({"k": k, "accepted": True, "newton": its})
         if its <= self.fast:   # grow, but not past the stability limit (no reject loop)
             self.k = min(self.k * self.grow, self.k_max,
                          self.limit if self.limit is not None else float("inf"))
 
     def reject(self, k: float, reason: str) -> bool:
-        """The step k failed: halve it.  Returns: whether the halved step may be tried."""
+        """The step k failed: record it and halve k.
+
+        Args:
+            k: the failed step.
+            reason: why it failed (kept in ``decisions``).
+
+        Returns:
+            Whether the halved step is at least k_min (may be tried).
+        """
         self.decisions.append({"k": k, "accepted": False, "reason": reason})
         self.k = 0.5 * k
         return self.k >= self.k_min

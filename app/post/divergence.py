@@ -104,12 +104,21 @@ class BlowUpMonitor(Observer):
                                          if vp else 0.0)
 
     def start(self, sim) -> None:
-        """Set the bounds from the run's state before its first step."""
+        """Set the bounds from the run's state before its first step (collective).
+
+        Args:
+            sim: the Simulation, set up (its problem and kappa: the initial or restarted
+                state).
+        """
         p = sim.problem
         self.set_bounds(sim.case, p, p.cell_max(sim.history.kappa) if sim.history else 0.0)
 
     def check(self, sim, record: dict) -> None:
-        """Refuse step n if its record is implausible.
+        """Refuse step n if its record is implausible (see ``blow_up``).
+
+        Args:
+            sim: the Simulation (sim.n, sim.t: the new step, not yet accepted).
+            record: the step's record (app/records.py).
 
         Raises:
             StopRun: status "diverged", with what exceeded which bound.

@@ -399,6 +399,9 @@ def history(res: Results, path: Path) -> None:
     Args:
         res: the run's data.
         path: the PNG file to write.
+
+    Returns:
+        None (the figure is written to ``path``).
     """
     plt = _mpl()
     steps = res.summary.get("steps", [])

@@ -175,12 +175,24 @@ class FastStepSolver:
         return out
 
     def gather_GG(self, local_rows: np.ndarray) -> np.ndarray:
-        """The m x m matrix (columns in G order) whose rows at this rank's owned Gamma3
-        positions are ``local_rows``, assembled on every rank."""
+        """Assemble an m x m matrix from the ranks' rows (collective).
+
+        Args:
+            local_rows: this rank's rows, at its owned Gamma3 positions in G order, shape
+                (number owned, m), columns in G order.
+
+        Returns:
+            The whole matrix, shape (m, m), on every rank.
+        """
         return self._place_on_all(self._owned_positions, local_rows, (self.m, self.m))
 
     def global_G_dofs(self) -> np.ndarray:
-        """The global dof (matrix row) of every Gamma3 dof, in G order, on every rank."""
+        """The global dof numbers of the Gamma3 dofs (collective).
+
+        Returns:
+            The global matrix row of every Gamma3 dof, in G order, shape (m,) (int32), on
+            every rank.
+        """
         return self._place_on_all(self._owned_positions, self._owned_rows, self.m, np.int32)
 
     def _gather_G(self, vec) -> np.ndarray:
@@ -275,7 +287,12 @@ class FastStepSolver:
         self._y_prev = [*self._y_prev[-1:], (t, y)]
 
     def describe(self) -> str:
-        """The solver as the run's log line names it."""
+        """The solver as the run's log line names it.
+
+        Returns:
+            'fast (one factorisation, <m> Gamma3 dofs condensed)', or without the count if
+            the case has no Gamma3.
+        """
         return (f"fast (one factorisation, {self.m} Gamma3 dofs condensed)" if self.gamma3
                 else "fast (one factorisation)")
 

@@ -27,23 +27,42 @@ log = logging.getLogger("vpcontact")
 
 @dataclass
 class CSR:
-    """A sparse matrix as CSR arrays (row pointers, column indices, values)."""
+    """A square sparse matrix as CSR arrays.
+
+    Args:
+        indptr: row pointers, shape (n + 1,).
+        indices: column indices, shape (nnz,).
+        data: values, shape (nnz,).
+    """
     indptr: np.ndarray
     indices: np.ndarray
     data: np.ndarray
 
     @property
     def n(self) -> int:
+        """The number of rows (and columns)."""
         return len(self.indptr) - 1
 
     def scipy(self):
-        """The scipy.sparse CSR matrix (imports scipy)."""
+        """The same matrix for scipy (imports scipy).
+
+        Returns:
+            A scipy.sparse.csr_matrix of shape (n, n) sharing these arrays.
+        """
         import scipy.sparse as sp
         return sp.csr_matrix((self.data, self.indices, self.indptr), shape=(self.n, self.n))
 
 
 def gather_csr(K: PETSc.Mat, comm) -> CSR | None:
-    """The global matrix K as CSR arrays on rank 0 (None on the other ranks)."""
+    """The global matrix K as CSR arrays on rank 0 (collective).
+
+    Args:
+        K: a distributed PETSc AIJ matrix (each rank owns a contiguous block of rows).
+        comm: K's MPI communicator.
+
+    Returns:
+        On rank 0, the CSR of the whole matrix (rows in global order); None elsewhere.
+    """
     indptr, indices, data = K.getValuesCSR()
     parts = comm.gather((indptr, indices, data), root=0)
     if comm.rank != 0:
@@ -85,7 +104,16 @@ def interior_last_ordering(A: CSR, G: np.ndarray, bs: int = 1) -> np.ndarray:
     """A fill-reducing order of the dofs with G (in the given order) last: nested dissection
     (PETSc) of the interior block K_II, then G.  With bs > 1 and an interior made of whole
     nodes (dofs bs i .. bs i + bs - 1), the dissection is of the node graph and a node's dofs
-    stay consecutive (the blocks of kernels.GLastSolve)."""
+    stay consecutive (the blocks of kernels.GLastSolve).
+
+    Args:
+        A: the matrix K (its nonzero pattern is used).
+        G: the Gamma3 dofs, shape (m,), in the order they get at the end.
+        bs: the block size (dofs per node).
+
+    Returns:
+        The permutation: position i holds dof ``order[i]``, shape (n,), G last.
+    """
     n = A.n
     interior = np.ones(n, dtype=bool)
     interior[G] = False
@@ -108,7 +136,16 @@ def interior_last_ordering(A: CSR, G: np.ndarray, bs: int = 1) -> np.ndarray:
 class GLastLU:
     """K = L U with the dofs ordered interior first (nested dissection), G last (serial,
     SuperLU on the CSR arrays).  ``perm[i]`` is the dof at position i; ``L``, ``U`` are scipy
-    CSC matrices; ``Lp``, ``Li``, ``Lx`` the arrays of L and ``D`` = diag(U)."""
+    CSC matrices; ``Lp``, ``Li``, ``Lx`` the arrays of L and ``D`` = diag(U).
+
+    Args:
+        A: the symmetric positive definite matrix K.
+        G: the Gamma3 dofs, shape (m,), ordered last.
+        bs: the block size (dofs per node), for the interior ordering.
+
+    Raises:
+        RuntimeError: SuperLU permuted rows or columns (the trailing blocks would not be G's).
+    """
 
     def __init__(self, A: CSR, G: np.ndarray, bs: int = 1):
         import scipy.sparse.linalg as sla
@@ -128,7 +165,11 @@ class GLastLU:
         self.D = self.U.diagonal()        # U = D L^T to round-off (K symmetric, no pivoting)
 
     def trailing(self) -> tuple[np.ndarray, np.ndarray]:
-        """The dense m x m trailing blocks L_GG (unit lower) and U_GG (upper)."""
+        """The trailing blocks of the factors, whose product is the Schur complement S.
+
+        Returns:
+            (L_GG, U_GG): dense (m, m), unit lower and upper triangular, S = L_GG U_GG.
+        """
         k = self.n - self.m
         return self.L[k:, k:].toarray(), self.U[k:, k:].toarray()
 
@@ -137,7 +178,18 @@ class GLastLDL:
     """K = L D L^T by CHOLMOD (app/solvers/ldl.py) in the same order as GLastLU (interior by nested
     dissection, G last): half the work of an L U factorisation (at h = 1/128: 0.16-0.19 s
     against 0.35-0.48 s for SuperLU, measured).  ``D``: the pivots; ``blocks``: the interior
-    columns of L in blocks, ready for kernels.GLastSolve (ldl.Factor); U = D L^T."""
+    columns of L in blocks, ready for kernels.GLastSolve (ldl.Factor); U = D L^T.
+
+    Args:
+        A: the symmetric positive definite matrix K.
+        G: the Gamma3 dofs, shape (m,), ordered last.
+        bs: the block size (dofs per node).
+        module: the CHOLMOD wrapper module (``ldl.load()``).
+        blocks: whether to prepare the interior blocks for the split solve.
+
+    Raises:
+        RuntimeError: CHOLMOD failed.
+    """
 
     def __init__(self, A: CSR, G: np.ndarray, bs: int, module, blocks: bool = True):
         from app.solvers.ldl import Factor
@@ -148,13 +200,28 @@ class GLastLDL:
         self.D, self.blocks = self._factor.D, self._factor.blocks
 
     def trailing(self) -> tuple[np.ndarray, np.ndarray]:
+        """The trailing blocks of the factors, as GLastLU.trailing gives them.
+
+        Returns:
+            (L_GG, U_GG = D_G L_GG^T): dense (m, m), S = L_GG U_GG.
+        """
         L_GG = self._factor.L_GG
         return L_GG, self.D[self.n - self.m:, None] * L_GG.T
 
 
 def g_last_factor(A: CSR, G: np.ndarray, bs: int = 1, blocks: bool = True):
-    """CHOLMOD's L D L^T if it is available here, else SuperLU's L U (same order);
-    ``blocks=False``: only for the Schur complement (no blocks for the split solve)."""
+    """Factorise K with G last: CHOLMOD's L D L^T if it is available here (and succeeds),
+    else SuperLU's L U (same order).
+
+    Args:
+        A: the symmetric positive definite matrix K (on one rank).
+        G: the Gamma3 dofs, shape (m,), ordered last.
+        bs: the block size (dofs per node).
+        blocks: False: only for the Schur complement (no blocks for the split solve).
+
+    Returns:
+        A GLastLDL or a GLastLU.
+    """
     from app.solvers import ldl
     module = ldl.load()
     if module is not None:
@@ -166,15 +233,31 @@ def g_last_factor(A: CSR, G: np.ndarray, bs: int = 1, blocks: bool = True):
 
 
 def flexibility(factor: GLastLU | GLastLDL) -> np.ndarray:
-    """Z_GG = U_GG^-1 L_GG^-1 (symmetrised) from a G-last factorisation."""
+    """The flexibility Z_GG = S^-1 = U_GG^-1 L_GG^-1 from a G-last factorisation.
+
+    Args:
+        factor: a GLastLU or GLastLDL of K.
+
+    Returns:
+        Z_GG, dense (m, m), symmetrised ((Z + Z^T) / 2).
+    """
     L_GG, U_GG = factor.trailing()
     Z = np.linalg.solve(U_GG, np.linalg.solve(L_GG, np.eye(factor.m)))
     return 0.5 * (Z + Z.T)
 
 
 def gamma3_flexibility(K: PETSc.Mat, G_rows: np.ndarray, comm) -> np.ndarray:
-    """Z_GG = E_G^T K^-1 E_G (m x m, symmetric), rows/columns in the order of ``G_rows``
-    (global matrix rows of the Gamma3 dofs), on every rank."""
+    """The Gamma3 flexibility matrix Z_GG = E_G^T K^-1 E_G (collective; factorised on rank 0).
+
+    Args:
+        K: the assembled stiffness matrix (PETSc, distributed).
+        G_rows: the global matrix rows of the Gamma3 dofs, shape (m,).
+        comm: K's MPI communicator.
+
+    Returns:
+        Z_GG, dense (m, m), symmetric, rows/columns in the order of ``G_rows``, on every
+        rank.
+    """
     A = gather_csr(K, comm)
     Z = flexibility(g_last_factor(A, np.asarray(G_rows), blocks=False)) \
         if comm.rank == 0 else None

@@ -35,7 +35,14 @@ class StepSolveError(RuntimeError):
 def describe_petsc_error(exc: Exception) -> str:
     """One line for a PETSc error: petsc4py's text is 'error code N', PETSc's stack of
     calls ('[0] SNESSolve() at file:line', ...) and the message; keep the code and the
-    message."""
+    message.
+
+    Args:
+        exc: a petsc4py.PETSc.Error (or any exception: its text is used).
+
+    Returns:
+        'PETSc error code N; <message lines joined by '; '>'.
+    """
     lines = [x.strip() for x in str(exc).splitlines() if x.strip()]
     message = [x for x in lines[1:] if not (x.startswith("[") and "() at " in x)]
     message = [x.split("] ", 1)[1] if x.startswith("[") and "] " in x else x for x in message]
@@ -43,12 +50,26 @@ def describe_petsc_error(exc: Exception) -> str:
 
 
 def reason_name(reason: int) -> str:
-    """The name of a SNES converged reason (e.g. DIVERGED_MAX_IT), or the number."""
+    """The name of a SNES converged reason.
+
+    Args:
+        reason: SNES.getConvergedReason() (negative: diverged).
+
+    Returns:
+        The name in PETSc.SNES.ConvergedReason (e.g. 'DIVERGED_MAX_IT'), or the number as
+        text if it has none.
+    """
     return _REASONS.get(reason, str(reason))
 
 
 def set_petsc_options(options: dict, prefix: str = PREFIX) -> None:
-    """Put ``options`` (name without '-' -> value) into the PETSc database under ``prefix``."""
+    """Put options into the PETSc options database under a prefix.
+
+    Args:
+        options: name without '-' -> value; None or True set a flag (empty value), False
+            sets "false", anything else its str().
+        prefix: the options prefix (e.g. "vpcontact_": -vpcontact_snes_rtol).
+    """
     db = PETSc.Options()
     for key, value in options.items():
         if value is None or value is True:
@@ -60,7 +81,12 @@ def set_petsc_options(options: dict, prefix: str = PREFIX) -> None:
 
 
 def clear_petsc_options(options: dict, prefix: str = PREFIX) -> None:
-    """Remove ``options`` (set by set_petsc_options) from the PETSc database again."""
+    """Remove options (set by set_petsc_options) from the PETSc options database again.
+
+    Args:
+        options: the names (without '-') to remove; only the keys are used.
+        prefix: the prefix they were set under.
+    """
     db = PETSc.Options()
     for key in options:
         db.delValue(prefix + key)
@@ -70,7 +96,16 @@ def direct_solver(A: PETSc.Mat, comm, prefix: str | None = None) -> PETSc.KSP:
     """A KSP applying A^-1 by LU: PETSc's own LU with nested dissection in serial (the
     fastest back-substitution measured here), MUMPS in parallel.  Options under
     ``prefix`` (e.g. -vpcontact_fast_pc_factor_mat_solver_type mumps) are read by the caller's
-    setFromOptions."""
+    setFromOptions.
+
+    Args:
+        A: the matrix to factorise (square, assembled).
+        comm: A's MPI communicator (one rank: PETSc LU; more: MUMPS).
+        prefix: the KSP's options prefix, or None for none.
+
+    Returns:
+        The KSP (type preonly, PC lu), not yet set up.
+    """
     ksp = PETSc.KSP().create(comm)
     if prefix:
         ksp.setOptionsPrefix(prefix)
@@ -87,7 +122,17 @@ def direct_solver(A: PETSc.Mat, comm, prefix: str | None = None) -> PETSc.KSP:
 
 
 def continuation_deltas(target: float, length: float) -> list[float]:
-    """delta_0 = 1e-4 length (at least the target), then /10 per stage, ending at target."""
+    """The stages of the continuation in the regularisation delta (of |xi|_delta =
+    sqrt(|xi|^2 + delta^2) in the friction (4.2) and of r^+ in the memory term).
+
+    Args:
+        target: the case's delta [m].
+        length: the problem's length scale [m].
+
+    Returns:
+        Decreasing deltas from delta_0 = max(target, 1e-4 length) by factors of 10, the last
+        exactly ``target`` (just [target] if delta_0 = target).
+    """
     start = max(target, 1e-4 * length)
     n = int(np.ceil(np.log10(start / target) - 1e-9))
     return [target * 10.0 ** k for k in range(n, 0, -1)] + [target] if n > 0 else [target]
@@ -144,7 +189,11 @@ class SNESVISolver:
         return snes
 
     def describe(self) -> str:
-        """The solver as the run's log line names it, e.g. 'SNES vinewtonrsls'."""
+        """The solver as the run's log line names it.
+
+        Returns:
+            'SNES <type>', e.g. 'SNES vinewtonrsls'.
+        """
         return f"SNES {self.snes.getType()}"
 
     def warm_start(self) -> None:

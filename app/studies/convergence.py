@@ -43,7 +43,21 @@ PAPER_DATA = {  # the paper's Section 4
 
 @dataclass
 class RunRecord:
-    """One run of the study; ``snaps`` (grid fields per step) only on rank 0."""
+    """One run of the study.
+
+    Args:
+        n: cells per side of the mesh (h = L1 / n).
+        N: time steps (k = T / N).
+        delta: the regularisation width of the run.
+        grid: the structured grid of its mesh.
+        dofs: the number of displacement dofs.
+        times: t_0, ..., t_N, shape (N + 1,).
+        solve_s: wall time of the steps [s].
+        setup_s: wall time of the set-up [s].
+        newton: Newton iterations of all steps.
+        cached: whether it came from the run cache.
+        snaps: the grid fields (u, sigma, kappa) per time point; only on rank 0.
+    """
 
     n: int
     N: int
@@ -60,9 +74,25 @@ class RunRecord:
 
 def plan_runs(levels: list[int], reference: int, vary: str, case=None,
               deltas: list[float] | None = None) -> list[tuple[int, int]]:
-    """(n, N) of each level, checking that meshes and time grids nest in the reference (and,
-    given the case, that its mesh is structured and that the case is valid at every level
-    and the reference with every delta).  CaseError names the option and the allowed values."""
+    """The resolutions of the study's levels, checking that meshes and time grids nest in the
+    reference (and, given the case, that its mesh is structured and that the case is valid at
+    every level and the reference with every delta).
+
+    Args:
+        levels: the levels (n = N = level for vary "both"), strictly increasing, each a
+            divisor of ``reference``.
+        reference: the reference level (h = k = 1/128 for Table 1).
+        vary: "both" (h and k together), "h" (k at the reference) or "k" (h at the
+            reference).
+        case: the validated Case, or None to check the numbers only.
+        deltas: the regularisation widths to run (None: the case's).
+
+    Returns:
+        (n, N) of each level: cells per side and time steps.
+
+    Raises:
+        CaseError: naming the option and the allowed values.
+    """
     if case is not None and case.mesh.kind != "structured":
         raise CaseError(f"{case.source}: mesh.kind: the convergence study needs nested meshes "
                         "(structured); got 'unstructured'")
@@ -102,8 +132,16 @@ def plan_runs(levels: list[int], reference: int, vary: str, case=None,
 
 
 def check_cache_dir(cache_dir: Path | None, comm) -> None:
-    """CaseError on every rank unless the run cache ``cache_dir`` is (or can be made) a
-    writable directory (tested on rank 0, which writes the cache)."""
+    """Check the run cache directory (collective; tested on rank 0, which writes the cache).
+
+    Args:
+        cache_dir: the run cache directory, or None (no cache: nothing to check).
+        comm: the MPI communicator.
+
+    Raises:
+        CaseError: on every rank, unless ``cache_dir`` is (or can be made) a writable
+            directory.
+    """
     if cache_dir is None:
         return
     from app.io.cachedirs import unusable
@@ -132,9 +170,20 @@ class GridSamples(Observer):
         self.grid, self.snaps, self.sampler = grid, [], None
 
     def start(self, sim) -> None:
+        """Sample the start state (t_0) (collective).
+
+        Args:
+            sim: the Simulation, set up.
+        """
         self._sample(sim)
 
     def step(self, sim, record: dict) -> None:
+        """Sample u_n, sigma_n, kappa_n after step n (collective).
+
+        Args:
+            sim: the Simulation after step n was accepted.
+            record: the step's record (unused).
+        """
         self._sample(sim)
 
     def _sample(self, sim) -> None:
@@ -161,7 +210,25 @@ def _from_cache(path: Path | None, case, grid: Grid):
 
 def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: dict, comm,
                cache_dir: Path | None) -> RunRecord:
-    """Run (or load from the cache) the case at resolution (n, N) with regularisation delta."""
+    """Run (or load from the cache) the case at resolution (n, N) with regularisation delta
+    (collective); a computed run is added to the cache.
+
+    Args:
+        raw: the case as read (a dict).
+        n: cells per side.
+        N: time steps.
+        delta: the regularisation width.
+        source: the case file, for messages.
+        petsc_cli: PETSc options from the command line (over the case's).
+        comm: the MPI communicator.
+        cache_dir: the run cache directory, or None.
+
+    Returns:
+        The RunRecord (with its grid samples on rank 0).
+
+    Raises:
+        RuntimeError: the run did not complete.
+    """
     import dataclasses
 
     from app.simulation import run
@@ -206,7 +273,22 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
 
 
 def run_error(level: RunRecord, ref: RunRecord) -> dict:
-    """Error of the paper's Table 1 and its parts at the maximising time point (rank 0)."""
+    """The Error of the paper's Table 1 of a level against the reference (on rank 0):
+    max over the level's time points t_n of
+    ||sigma_n - sigma_n^ref||_Q + ||u_n - u_n^ref||_V + ||kappa_n - kappa_n^ref||_Y,
+    the level's fields prolonged exactly to the reference grid.
+
+    Args:
+        level: the level's run (with snaps).
+        ref: the reference run (with snaps).
+
+    Returns:
+        {"error", "e_sigma", "e_u", "e_kappa", "n_max", "t_max"}: the Error, its three
+        parts at the maximising time point, and that point's index and time.
+
+    Raises:
+        ValueError: a time point of the level is not a reference time point.
+    """
     best = None
     for i, t in enumerate(level.times):
         m = int(np.argmin(np.abs(ref.times - t)))
@@ -224,13 +306,29 @@ def run_error(level: RunRecord, ref: RunRecord) -> dict:
 
 
 def observed_rates(x: list[float], err: list[float]) -> list[float | None]:
-    """rate_i = log(E_{i-1} / E_i) / log(x_{i-1} / x_i); None for the first level."""
+    """The observed convergence rates between consecutive levels (Table 1's rates).
+
+    Args:
+        x: the mesh size (or step) of each level.
+        err: the Error of each level.
+
+    Returns:
+        rate_i = log(E_{i-1} / E_i) / log(x_{i-1} / x_i); None for the first level.
+    """
     return [None] + [math.log(err[i - 1] / err[i]) / math.log(x[i - 1] / x[i])
                      for i in range(1, len(err))]
 
 
 def matches_paper(raw: dict) -> bool:
-    """True if the case carries the paper's Section 4 data (so Table 1 applies)."""
+    """Whether a case carries the paper's Section 4 data (so Table 1 applies).
+
+    Args:
+        raw: the case as read (a dict).
+
+    Returns:
+        True if it validates and has the paper's geometry, material, contact, friction (4.2)
+        and loads; False otherwise.
+    """
     try:
         c = validate(raw, "paper-check")
     except CaseError:
@@ -252,7 +350,28 @@ COLUMNS = ["delta", "level", "h", "k", "n", "N", "dofs", "steps", "error", "e_si
 
 def study(raw: dict, source: str, levels: list[int], reference: int, vary: str,
           deltas: list[float], comm, cache_dir: Path | None, petsc_cli: dict) -> dict:
-    """Run the study; returns the rows (on every rank) and the reference run's record."""
+    """Run the convergence study (collective): the reference run, then every level with
+    every delta, and the Error of Table 1 of each against the reference.
+
+    Args:
+        raw: the case as read (a dict).
+        source: the case file, for messages.
+        levels: the levels, strictly increasing, each dividing ``reference``.
+        reference: the reference level.
+        vary: "both", "h" or "k" (see plan_runs).
+        deltas: the regularisation widths (empty: the case's).
+        comm: the MPI communicator.
+        cache_dir: the run cache directory, or None.
+        petsc_cli: PETSc options from the command line.
+
+    Returns:
+        {"rows": one dict per (delta, level) with the COLUMNS, "reference": its RunRecord,
+        "ref_norms": the reference's max_n norms, "vary", "levels", "reference_level",
+        "deltas", "ref_delta", "paper": whether Table 1 applies, "total_s"}, on every rank.
+
+    Raises:
+        CaseError: the study's options or the case do not fit (see plan_runs).
+    """
     base = validate(raw, source)
     plan = plan_runs(levels, reference, vary, base, deltas)
     check_cache_dir(cache_dir, comm)
@@ -304,6 +423,12 @@ def _fmt(v, digits=4):
 
 
 def write_csv(path: Path, res: dict) -> None:
+    """Write the study's rows as CSV (the COLUMNS; floats at full precision), atomically.
+
+    Args:
+        path: the CSV file.
+        res: the result of ``study``.
+    """
     buf = io.StringIO()
     w = csv.DictWriter(buf, COLUMNS, lineterminator="\n")
     w.writeheader()
@@ -314,6 +439,15 @@ def write_csv(path: Path, res: dict) -> None:
 
 
 def paper_sentence(rows: list[dict]) -> str:
+    """Compare the study's Errors and rates with the paper's Table 1.
+
+    Args:
+        rows: the study's rows of one delta.
+
+    Returns:
+        One sentence: the range of our/paper Error ratios, whether they agree to 10%, and
+        the observed rates beside the paper's; "" if no level is one of the paper's.
+    """
     ours = {r["level"]: r for r in rows}
     common = [L for L in PAPER_TABLE1 if L in ours]
     if not common:
@@ -329,6 +463,14 @@ def paper_sentence(rows: list[dict]) -> str:
 
 
 def write_markdown(path: Path, res: dict, case_name: str) -> None:
+    """Write the study's report (the Error definition, a table per delta, the paper's
+    Table 1 beside it when it applies, and ``explain``), atomically.
+
+    Args:
+        path: the Markdown file.
+        res: the result of ``study``.
+        case_name: the case's name, for the title.
+    """
     ref = res["reference"]
     var = "h = k" if res["vary"] == "both" else res["vary"]
     lines = [f"# Convergence study: {case_name}", "",
@@ -373,7 +515,14 @@ def write_markdown(path: Path, res: dict, case_name: str) -> None:
 
 
 def explain(res: dict) -> list[str]:
-    """Facts that explain where the Error comes from (and, for Table 1, the differences)."""
+    """Facts that explain where the Error comes from (and, for Table 1, the differences).
+
+    Args:
+        res: the result of ``study``.
+
+    Returns:
+        Markdown lines (a section with bullet points), or [] if there are no rows.
+    """
     rows = [r for r in res["rows"] if r["delta"] == res["deltas"][0]]
     if not rows:
         return []
@@ -397,12 +546,19 @@ def explain(res: dict) -> list[str]:
         out.append(f"- The paper's Errors ({big} at h = 1/8) exceed the size of the solution "
                    f"itself (max_n ||sigma_n||_Q = {nr['sigma_Q']:.3g}); an error of that size "
                    "cannot be this Error in these norms for this solution, so the paper's norms "
-                   "(or their scaling) must differ from the Error defined above; the paper does not "
-                   "say how they were computed. Compare the rates, not the magnitudes.")
+                   "(or their scaling) must differ from the Error defined above; the paper does "
+                   "not say how they were computed. Compare the rates, not the magnitudes.")
     return out + [""]
 
 
 def write_plot(path: Path, res: dict) -> None:
+    """Plot Error against h (or k) and against wall time (work-precision), with the
+    paper's Table 1 when it applies, to a PNG (atomically).
+
+    Args:
+        path: the PNG file.
+        res: the result of ``study``.
+    """
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -29,6 +29,18 @@ BLOWUP = 1e3
 
 @dataclass
 class Variant:
+    """One variant of the sweep: changes to the base case.
+
+    Args:
+        group: the report's group (e.g. "stiff viscosity", "near-Signorini").
+        name: the variant's name in the report.
+        changes: dotted key (e.g. "contact.friction.b") -> new value; None deletes the key,
+            ("scale", f) multiplies every number under it by f.
+        schemes: the history schemes to run it with ("explicit", "implicit").
+        scale: the material scaling factor (compared with the exactly scaled baseline), or
+            None.
+    """
+
     group: str
     name: str
     changes: dict                      # dotted key -> value (None: delete the key)
@@ -38,6 +50,27 @@ class Variant:
 
 @dataclass
 class Outcome:
+    """The result of one variant with one scheme (a row of stability.csv).
+
+    Args:
+        variant: the Variant.
+        scheme: "explicit" or "implicit".
+        status: the run's status, or "invalid" (the variant is no valid case) or "error"
+            (an exception).
+        reason: why it did not complete ("" if it did).
+        steps: steps done.
+        max_newton: the largest Newton count of a step.
+        growth_sigma: max_n ||sigma_n||_Q / ||sigma_1||_Q (NaN if undefined).
+        growth_u: max_n ||u_n||_V / ||u_1||_V (NaN if undefined).
+        finite: whether every norm was finite.
+        indicator: the explicit stability indicator k_max r_max.
+        margin: the well-posedness margin of (2.6).
+        scaling_error: for a scaling variant, the relative distance from the scaled
+            baseline (u unchanged, sigma scaled), else None.
+        wall_s: wall time [s].
+        norms: the last step's u, sigma and kappa norms.
+    """
+
     variant: Variant
     scheme: str
     status: str
@@ -55,6 +88,7 @@ class Outcome:
 
     @property
     def bounded(self) -> bool:
+        """Not diverged, finite, and both growths below BLOWUP."""
         return (self.status != "diverged" and self.finite and self.growth_sigma < BLOWUP
                 and self.growth_u < BLOWUP)
 
@@ -68,6 +102,17 @@ def _scaled(factor: float) -> dict:
 
 
 def default_variants(raw: dict) -> list[Variant]:
+    """The standard sweep: stiff viscosity (lambda1 with two steps), near-Signorini contact
+    (large c_nu of (4.1), small and large gaps g), friction (4.2) (all stick, frictionless,
+    violating (2.6)), tiny, large and pulling loads, extreme Poisson ratios, material
+    scaling, and very large and small time steps.
+
+    Args:
+        raw: the base case (unused: the variants are the same for every case).
+
+    Returns:
+        The Variants, the baseline first.
+    """
     V = Variant
     out = [V("baseline", "baseline", {})]
     for lam in (100.0, 1.0, 0.01):
@@ -95,6 +140,18 @@ def default_variants(raw: dict) -> list[Variant]:
 
 
 def apply_changes(raw: dict, changes: dict) -> dict:
+    """A copy of a case with a variant's changes.
+
+    Args:
+        raw: the case as read (not modified).
+        changes: dotted key -> value, None (delete) or ("scale", f) (see Variant).
+
+    Returns:
+        The changed copy (missing sections are created).
+
+    Raises:
+        CaseError: ("scale", f) met something other than numbers.
+    """
     raw = copy.deepcopy(raw)
     for key, value in changes.items():
         *path, last = key.split(".")
@@ -121,6 +178,19 @@ def _scale(v, f):
 
 
 def run_variant(raw: dict, variant: Variant, scheme: str, comm, petsc_cli: dict) -> Outcome:
+    """Run one variant with one history scheme (collective); never raises for a bad
+    variant: an invalid case or an exception becomes its Outcome.
+
+    Args:
+        raw: the sweep's base case (a dict).
+        variant: the Variant.
+        scheme: "explicit" or "implicit".
+        comm: the MPI communicator.
+        petsc_cli: PETSc options from the command line.
+
+    Returns:
+        The Outcome (status, Newton counts, growth of the norms, diagnostics, wall time).
+    """
     import dataclasses
 
     from app.simulation import run
@@ -166,8 +236,20 @@ def run_variant(raw: dict, variant: Variant, scheme: str, comm, petsc_cli: dict)
 
 def base_case(raw: dict, n: int, N: int, source: str = "case") -> dict:
     """The sweep's base: the case on a structured n x n mesh with N uniform steps.
-    CaseError (naming --n or --steps and the allowed values) if that is not a valid case
-    with either history scheme."""
+
+    Args:
+        raw: the case as read (not modified).
+        n: cells per side (--n).
+        N: time steps (--steps).
+        source: the case file, for messages.
+
+    Returns:
+        The base case as a dict.
+
+    Raises:
+        CaseError: naming --n or --steps and the allowed values, or if the base is not a
+            valid case with either history scheme.
+    """
     for option, v in (("--n", n), ("--steps", N)):
         if not isinstance(v, int) or isinstance(v, bool) or v < 1:
             raise CaseError(f"{option}: {v!r} is not allowed (allowed: positive integers)")
@@ -190,8 +272,25 @@ def base_case(raw: dict, n: int, N: int, source: str = "case") -> dict:
 
 def sweep(raw: dict, comm, petsc_cli: dict, n: int = 8, N: int = 8,
           variants: list[Variant] | None = None, source: str = "case") -> list[Outcome]:
-    """Run every variant with each of its schemes.  CaseError before anything runs if the
-    base case is not valid, and after the sweep if no variant was valid input."""
+    """Run every variant with each of its schemes (collective), then compare the scaling
+    variants with the baseline.
+
+    Args:
+        raw: the case as read.
+        comm: the MPI communicator.
+        petsc_cli: PETSc options from the command line.
+        n: cells per side of the base mesh.
+        N: time steps of the base.
+        variants: the variants (None: default_variants).
+        source: the case file, for messages.
+
+    Returns:
+        One Outcome per (variant, scheme), in order.
+
+    Raises:
+        CaseError: before anything runs if the base case is not valid, and after the sweep
+            if no variant was valid input.
+    """
     base = base_case(raw, n, N, source)
     outcomes = []
     for v in variants or default_variants(base):
@@ -228,6 +327,12 @@ def _row(o: Outcome) -> dict:
 
 
 def write_csv(path, outcomes) -> None:
+    """Write stability.csv (the COLUMNS, one row per Outcome), atomically.
+
+    Args:
+        path: the CSV file.
+        outcomes: the Outcomes of ``sweep``.
+    """
     buf = io.StringIO()
     w = csv.DictWriter(buf, COLUMNS, lineterminator="\n")
     w.writeheader()
@@ -241,6 +346,16 @@ def _g(v, d=3):
 
 
 def write_markdown(path, outcomes, case_name: str, n: int, N: int) -> None:
+    """Write stability.md: a table of the Outcomes and a summary (runs completed, explicit
+    blow-ups where the implicit scheme stays bounded), atomically.
+
+    Args:
+        path: the Markdown file.
+        outcomes: the Outcomes of ``sweep``.
+        case_name: the case's name, for the title.
+        n: cells per side of the base mesh.
+        N: time steps of the base.
+    """
     lines = [f"# Stability report: {case_name}", "",
              f"Each variant runs on a structured {n} x {n} mesh with k = T/{N} unless it sets "
              "k itself, with the explicit (paper) and the implicit (right-end-point) history "

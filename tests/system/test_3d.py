@@ -11,7 +11,8 @@ from forms.elasticity import lame_constants
 BOX = ROOT / "cases" / "box3d.yaml"
 
 
-@pytest.mark.parametrize("size", [{"kind": "structured", "n": 2}, {"kind": "unstructured", "h": 0.5}])
+@pytest.mark.parametrize("size", [{"kind": "structured", "n": 2},
+                                  {"kind": "unstructured", "h": 0.5}])
 def test_3d_uniform_stress_patch(size):
     """u = (a x, b x, c x) vanishes on x = 0 with uniform strain; tractions sigma n on the
     other five faces make it exact, and P1 tetrahedra must reproduce it to round-off."""

@@ -2,7 +2,6 @@
 earlier results are not overwritten; PETSc options reach the solver; failures exit 1."""
 import csv
 import json
-import shutil
 import xml.etree.ElementTree as ET
 from pathlib import Path
 

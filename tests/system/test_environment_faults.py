@@ -255,8 +255,8 @@ def test_bench_refuses_bad_input_before_running(tmp_path, blocker):
     (dict(nprocs=[1, 99999]), "--ranks 99999: more ranks than the"),
     (dict(repeat=99999999999), r"--repeat: 99999999999 is not allowed \(allowed: 1 to 100\)")])
 def test_bench_arguments_are_checked_by_the_library(kwargs, option):
+    from app.io.errors import CaseError
     from app.studies import bench
-    from app.io.case import CaseError
     args = dict(levels=[4], extra=[], nprocs=[1], repeat=1, memory_steps=[])
     args.update(kwargs)
     with pytest.raises(CaseError, match=f"^{option}"):
@@ -268,8 +268,8 @@ def test_bench_arguments_are_checked_by_the_library(kwargs, option):
 
 
 def test_bench_fast_solver_impossible_is_refused(tmp_path):
-    from app.studies import bench
     from app.io.case import CaseError, load_raw
+    from app.studies import bench
     raw = load_raw(PAPER_CASE)
     raw.setdefault("time", {})["scheme"] = "implicit"
     case = tmp_path / "implicit.yaml"
@@ -279,14 +279,15 @@ def test_bench_fast_solver_impossible_is_refused(tmp_path):
 
 
 def test_bench_with_failed_configurations_exits_1(tmp_path, monkeypatch, capsys):
+    from app.cli.commands import cmd_bench
+    from app.cli.parser import build_parser
     from app.studies import bench
-    import app.cli.main as cli
     monkeypatch.setattr(bench, "bench", lambda *a, **k: [
         {"n": 4, "h": 0.25, "N": 4, "method": "fast", "nprocs": 1, "failed": "boom"}])
-    args = cli._parser().parse_args(["bench", "--levels", "4", "--extra", "--ranks", "1",
-                                     "--repeat", "1", "--memory-steps", "--out",
-                                     str(tmp_path / "b")])
-    assert cli.cmd_bench(args) == 1
+    args = build_parser().parse_args(["bench", "--levels", "4", "--extra", "--ranks", "1",
+                                      "--repeat", "1", "--memory-steps", "--out",
+                                      str(tmp_path / "b")])
+    assert cmd_bench(args) == 1
     err = capsys.readouterr().err
     assert "1 bench configuration(s) failed: h = 1/4, N = 4, fast, 1 rank(s)" in err
     assert "failed: boom" in (tmp_path / "b" / "bench.md").read_text()
@@ -306,14 +307,14 @@ def test_convergence_cache_dir_checked_first(tmp_path, blocker):
 @pytest.mark.parametrize("deltas", [[float("nan")], [0.0], [-1e-3], [float("inf")], [],
                                     [1e-3, 1e-3], [1e-4, 1e-3, 0.001]])
 def test_convergence_deltas_checked_by_the_library(deltas):
-    from app.io.case import CaseError
+    from app.io.errors import CaseError
     from app.studies.convergence import plan_runs
     with pytest.raises(CaseError, match="^--deltas"):
         plan_runs([2], 4, "both", None, deltas)
 
 
 def test_convergence_plan_validates_every_run():
-    from app.io.case import CaseError
+    from app.io.errors import CaseError
     from app.studies.convergence import plan_runs
     from conftest import make_case
     with pytest.raises(CaseError, match="mesh.n"):
@@ -326,8 +327,8 @@ def test_convergence_plan_validates_every_run():
 def test_stability_refuses_bad_n_and_steps(n, steps, option):
     from mpi4py import MPI
 
+    from app.io.errors import CaseError
     from app.studies import stability
-    from app.io.case import CaseError
     from conftest import paper_raw
     with pytest.raises(CaseError, match=f"^{option}: .* \\(allowed: positive integers\\)"):
         stability.sweep(paper_raw(), MPI.COMM_WORLD, {}, n, steps)
@@ -336,8 +337,8 @@ def test_stability_refuses_bad_n_and_steps(n, steps, option):
 def test_stability_sweep_of_only_invalid_variants_is_an_error():
     from mpi4py import MPI
 
+    from app.io.errors import CaseError
     from app.studies import stability
-    from app.io.case import CaseError
     from conftest import paper_raw
     bad = [stability.Variant("material", "E < 0", {"material.E": -1.0})]
     with pytest.raises(CaseError, match="no variant of the stability sweep"):

@@ -4,10 +4,10 @@ import json
 
 import numpy as np
 import pytest
-
-from app.io.case import CaseError
-from conftest import PAPER_CASE, ROOT, paper_raw, run_case, run_cli, validate_raw
 from test_step_kkt import check_complementarity
+
+from app.io.errors import CaseError
+from conftest import PAPER_CASE, ROOT, paper_raw, run_case, run_cli, validate_raw
 
 
 def _pair(raw):

@@ -197,7 +197,8 @@ def test_initial_stress_with_matching_tractions():
     raw["initial"] = {"sigma0": S.tolist()}
     raw["loads"] = {"traction": {"right": list(S @ [1, 0]), "top": list(S @ [0, 1]),
                                  "bottom": list(S @ [0, -1])}}
-    raw["loads"] = {"traction": {k: [float(v) for v in vs] for k, vs in raw["loads"]["traction"].items()}}
+    raw["loads"] = {"traction": {k: [float(v) for v in vs]
+                                 for k, vs in raw["loads"]["traction"].items()}}
     p = run_case(validate_raw(raw)).problem
     assert np.abs(p.u.x.array).max() < 1e-13
     np.testing.assert_allclose(p.sigma.x.array.reshape(-1, 2, 2), np.broadcast_to(S, (32, 2, 2)),
@@ -219,7 +220,8 @@ def test_kappa0_expression():
 
 @pytest.mark.parametrize("patch,pattern", [
     ({"loads": {"traction": {"top": [0, 0, -8]}}}, r"loads\.traction\.top: expected 2"),
-    ({"loads": {"traction": {"top": [0, "sin(q)"]}}}, r"loads\.traction\.top\[1\]: unknown name 'q'"),
+    ({"loads": {"traction": {"top": [0, "sin(q)"]}}},
+     r"loads\.traction\.top\[1\]: unknown name 'q'"),
     ({"loads": {"traction": {"top": [0, "__import__('os')"]}}}, r"top\[1\]: function not allowed"),
     ({"loads": {"traction": {"front": [0, 1]}}}, r"loads\.traction\.front: no such side in 2D"),
     ({"initial": {"u0": ["t", 0]}}, r"initial\.u0\[0\]: unknown name 't'"),

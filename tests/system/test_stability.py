@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from app.post.diagnostics import trace_constant
 from app.model.problem import ContactProblem
+from app.post.diagnostics import trace_constant
 from app.simulation import build_mesh
 from conftest import PAPER_CASE, make_case, paper_raw, run_case, run_cli, validate_raw
 

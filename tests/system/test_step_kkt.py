@@ -1,10 +1,9 @@
 """Discrete complementarity of converged steps at every Gamma3 node (laws (4.1), (4.2)),
 symmetry of the step Jacobian, and terms a case does not enable are not built."""
 import numpy as np
-import pytest
 from dolfinx import fem
 
-from conftest import make_case, paper_raw, run_case, validate_raw
+from conftest import paper_raw, run_case, validate_raw
 
 
 def dpsi(r, b, c1, c2, u1):
@@ -35,7 +34,8 @@ def check_complementarity(res, stick_tol=1e-5):
     slip = r > stick_tol
     expected = dpsi(r[slip], fr.b, fr.c1, fr.c2, fr.u1) * np.sign(u_tau[slip])
     # the regularisation changes the force by O(delta^2 / r^2) relative
-    np.testing.assert_allclose(f_tau[slip], expected, rtol=1e-6 + (delta / stick_tol) ** 2, atol=tol)
+    np.testing.assert_allclose(f_tau[slip], expected, rtol=1e-6 + (delta / stick_tol) ** 2,
+                               atol=tol)
     assert np.all(np.abs(f_tau[~slip]) <= fr.b * (1 + 1e-9))
     return {"bound": int(at_bound.sum()), "compliance": int(inside.sum()),
             "separated": int(separated.sum()), "slip": int(slip.sum()),

@@ -1,7 +1,7 @@
 """Case files: schema validation with clear messages, overrides, YAML floats, PETSc args."""
 import pytest
 
-from app.cli.main import split_petsc_args
+from app.cli.parser import split_petsc_args
 from app.io.case import CaseError, load_case, parse_override, safe_load, validate
 from conftest import PAPER_CASE, make_case, paper_raw
 

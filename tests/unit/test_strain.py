@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from app.solvers import kernels
 from app.model.problem import ContactProblem
 from app.simulation import build_mesh
+from app.solvers import kernels
 from conftest import ROOT, make_case
 
 pytestmark = pytest.mark.skipif(kernels.load() is None, reason="no C compiler")

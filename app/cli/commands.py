@@ -1,0 +1,374 @@
+"""The commands: ``cmd_<name>(args, ...)`` runs ``vpcontact <name>`` with the parsed command
+line and returns its exit code (0 done, 1 failed, 2 bad input, 3 interrupted).
+
+run, convergence and stability start alike (``start``: logging, the case and the PETSc
+options validated, the output directory prepared) and take the PETSc options of the command
+line; bench, plot, check and info take the parsed arguments only.
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+
+from app import __version__
+from app.cli import outdir as outdirs
+from app.cli.logs import log, setup_logging
+from app.cli.outdir import CONVERGENCE_FILES, STABILITY_FILES
+from app.io.errors import CaseError
+from app.io.messages import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED, error, interrupted
+
+
+def start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
+    """The common start of run, convergence and stability.
+
+    Sets up logging, reads and validates the case, checks the command line's PETSc options
+    and the command's own ``check``, and prepares the output directory.
+
+    Args:
+        args: the parsed command line (case, overrides, out, overwrite, quiet, verbose).
+        subdir: the default output directory's subdirectory of results/<case name>.
+        files: the names the command writes (see outdir.prepare).
+        check: called with the validated Case; raises CaseError to refuse it.
+        petsc_cli: PETSc options given on the command line.
+
+    Returns:
+        (comm, raw case dict, Case, output directory), or (comm, None, None, None) after
+        the error line was printed (exit code 2: bad input).
+    """
+    from mpi4py import MPI
+
+    from app.io.case import load_raw, validate
+
+    comm = MPI.COMM_WORLD
+    setup_logging(comm, args.quiet, getattr(args, "verbose", False))
+    try:
+        raw = load_raw(args.case, args.overrides)
+        case = validate(raw, args.case)
+        if petsc_cli:
+            from app.io.petscopts import check_petsc_options
+            check_petsc_options(petsc_cli, "command line", where="-", base=case.petsc)
+        if check:
+            check(case)
+        outdir = Path(args.out) if args.out else \
+            Path("results") / case.name / subdir if subdir else Path("results") / case.name
+        outdirs.prepare(comm, outdir, args.overwrite, files)
+    except CaseError as exc:
+        error(str(exc), EXIT_BAD_INPUT)
+        return comm, None, None, None
+    return comm, raw, case, outdir
+
+
+# ----------------------------------------------------------------------------- run
+def _restart_check(args, loaded: dict):
+    """The check of --restart (a ``start`` check): the checkpoint exists, is not in the
+    output directory and belongs to the case; it is put into ``loaded["checkpoint"]``."""
+    from app.io.checkpoint import Checkpoint, latest
+
+    def check(case):
+        if not args.restart:
+            return
+        path = Path(args.restart)
+        if path.is_dir():
+            path = latest(path)
+            if path is None:
+                raise CaseError(f"--restart {args.restart}: no checkpoint_*.npz in that "
+                                "directory (set output.checkpoint_every)")
+        elif not path.is_file():
+            raise CaseError(f"--restart {args.restart}: no such checkpoint file or directory")
+        out = Path(args.out) if args.out else Path("results") / case.name
+        if out.resolve() == path.parent.resolve():
+            raise CaseError(f"--restart {args.restart}: --out {out} is the directory of the "
+                            "checkpoint; give another --out (the new run would replace the "
+                            "files it continues from)")
+        loaded["checkpoint"] = Checkpoint(path)   # CheckpointError (a CaseError) if damaged
+        why = loaded["checkpoint"].check(case)
+        if why:
+            raise CaseError(f"--restart: {why}")
+
+    return check
+
+
+def cmd_run(args, petsc_cli: dict) -> int:
+    """``vpcontact run``: a Simulation with the command line's observers (solution.xdmf,
+    checkpoints, progress bar, per-step log, contact.csv and summary.json), then the figures.
+
+    Args:
+        args: the parsed command line.
+        petsc_cli: PETSc options given on the command line.
+
+    Returns:
+        The exit code (see report_run; 2: bad input).
+    """
+    loaded = {}
+    comm, _, case, outdir = start(args, None, check=_restart_check(args, loaded),
+                                  petsc_cli=petsc_cli)
+    if case is None:
+        return EXIT_BAD_INPUT
+
+    from app.cli.progress import ProgressBar
+    from app.observers import Checkpointer, FieldOutput, RunFiles, StepLog
+    from app.simulation import run
+
+    if args.verbose:
+        petsc_cli = {"snes_monitor": None, "snes_converged_reason": None, **petsc_cli}
+    case = dataclasses.replace(case, petsc={**case.petsc, **petsc_cli})
+    log.info("vpcontact %s: case %s -> %s (%d MPI rank%s)", __version__, args.case, outdir,
+             comm.size, "s" if comm.size > 1 else "")
+    progress = [ProgressBar()] if not args.quiet and not args.verbose else []
+    observers = [FieldOutput(), Checkpointer(), *progress, StepLog(), RunFiles()]
+    result = run(case, comm, observers, outdir=outdir, restart=loaded.get("checkpoint"))
+    s = result.summary
+    if result.status == "completed" and not args.no_plots and comm.rank == 0 and s["steps"]:
+        if plots(outdir) == "interrupted":
+            return EXIT_INTERRUPTED
+    return report_run(comm, s, outdir, args.no_plots)
+
+
+def report_run(comm, s: dict, outdir: Path, no_plots: bool) -> int:
+    """The closing lines of a run and its exit code.
+
+    Args:
+        comm: the MPI communicator.
+        s: the run's summary (summary.json's content).
+        outdir: the output directory.
+        no_plots: --no-plots was given.
+
+    Returns:
+        0 completed, 1 failed or diverged, 3 interrupted.
+    """
+    status = s["status"]
+    if status == "completed":
+        log.info("done: %d steps, %d Newton iterations, wall %.2f s (set-up %.2f s, steps %.2f s)",
+                 len(s["steps"]), s["newton_iterations_total"], s["wall_s"], s["setup_s"],
+                 s["loop_s"])
+        if "contact_states" in s:
+            log.info("Gamma3 nodes at T: %s", s["contact_states"])
+        log.info("outputs: %s/{solution.xdmf, summary.json, contact.csv%s}", outdir,
+                 "" if no_plots else ", *.png")
+        return 0
+    f = s["failure"]
+    if comm.rank != 0:
+        return EXIT_INTERRUPTED if status == "interrupted" else EXIT_FAILED
+    if status == "interrupted":
+        return interrupted(f"{f['reason']} after step {f['step']} (t = {f['t']:g}); outputs up "
+                           f"to that step are in {outdir}; {f['hint']}")
+    what = "the run diverged" if status == "diverged" else "the run failed"
+    return error(f"{what} at step {f['step']} (t = {f['t']:g}): {f['reason']}; outputs up to "
+                 f"step {s['last_good_step']} are in {outdir}. Hint: {f['hint']}", EXIT_FAILED,
+                 rank=comm.rank)
+
+
+def plots(outdir: Path) -> str:
+    """Draw the figures of a run (call on rank 0).
+
+    Args:
+        outdir: the run's output directory.
+
+    Returns:
+        "drawn", "failed" (a plotting problem is a warning, not a failure of the run) or
+        "interrupted" (Ctrl-C stops the drawing only: the run's files are complete and its
+        summary stays as written).
+    """
+    from app.post.plot import plot_all
+    t0 = time.perf_counter()
+    try:
+        files = plot_all(outdir, log=log.info)
+    except KeyboardInterrupt:
+        interrupted(f"interrupted while drawing the figures; the run itself is complete "
+                    f"(see {outdir}/summary.json); ./vpcontact plot {outdir} draws them")
+        return "interrupted"
+    except Exception as exc:       # noqa: BLE001 (the run itself succeeded)
+        log.warning("figures not drawn: %s: %s (./vpcontact plot %s retries)",
+                    type(exc).__name__, exc, outdir)
+        return "failed"
+    log.info("figures (%.1f s): %s", time.perf_counter() - t0,
+             ", ".join(f.name for f in files))
+    return "drawn"
+
+
+# ----------------------------------------------------------------------------- studies
+def cmd_convergence(args, petsc_cli: dict) -> int:
+    """``vpcontact convergence``: the convergence study (convergence.csv, .md, .png).
+
+    Args:
+        args: the parsed command line.
+        petsc_cli: PETSc options given on the command line.
+
+    Returns:
+        The exit code: 0 done, 1 a run failed, 2 bad input.
+    """
+    from mpi4py import MPI
+
+    from app.studies import convergence as cv
+    from app.studies.runcache import default_cache_dir
+
+    cache_dir = None if args.no_cache else Path(args.cache_dir or default_cache_dir())
+
+    def check(c):                     # every option, before anything is computed
+        cv.plan_runs(args.levels, args.reference, args.vary, c, args.deltas)
+        cv.check_cache_dir(cache_dir, MPI.COMM_WORLD)
+
+    comm, raw, case, outdir = start(args, "convergence", CONVERGENCE_FILES, check=check,
+                                    petsc_cli=petsc_cli)
+    if case is None:
+        return EXIT_BAD_INPUT
+    log.info("vpcontact %s: convergence study of %s -> %s (cache: %s, %d MPI rank%s)",
+             __version__, args.case, outdir, cache_dir or "off", comm.size,
+             "s" if comm.size > 1 else "")
+    try:
+        res = cv.study(raw, args.case, args.levels, args.reference, args.vary, args.deltas,
+                       comm, cache_dir, petsc_cli)
+    except CaseError as exc:
+        return error(str(exc), EXIT_BAD_INPUT)
+    except RuntimeError as exc:
+        return error(str(exc), EXIT_FAILED)
+    if comm.rank == 0:
+        cv.write_csv(outdir / "convergence.csv", res)
+        cv.write_markdown(outdir / "convergence.md", res, case.name)
+        cv.write_plot(outdir / "convergence.png", res)
+        for r in res["rows"]:
+            log.info("delta %-8g h %-9.5g k %-9.5g Error %.6g  rate %s  wall %.3f s%s",
+                     r["delta"], r["h"], r["k"], r["error"],
+                     "-" if r["rate"] is None else f"{r['rate']:.3f}", r["solve_s"],
+                     " (cached)" if r["cached"] else "")
+        log.info("done in %.1f s: %s/{%s}", res["total_s"], outdir, ", ".join(CONVERGENCE_FILES))
+    comm.barrier()
+    return 0
+
+
+def cmd_stability(args, petsc_cli: dict) -> int:
+    """``vpcontact stability``: the sweep of stiff and extreme variants of a 2D case
+    (stability.csv, stability.md).
+
+    Args:
+        args: the parsed command line.
+        petsc_cli: PETSc options given on the command line.
+
+    Returns:
+        The exit code: 0 done, 2 bad input.
+    """
+    from app.studies import stability as st
+
+    def check(c):
+        if c.dim != 2:
+            raise CaseError(f"{c.source}: mesh.dim: the stability sweep is for 2D cases")
+        st.base_case(c.raw, args.n, args.steps, args.case)
+
+    comm, raw, case, outdir = start(args, "stability", STABILITY_FILES, check,
+                                    petsc_cli=petsc_cli)
+    if case is None:
+        return EXIT_BAD_INPUT
+    log.info("vpcontact %s: stability sweep of %s -> %s", __version__, args.case, outdir)
+    t0 = time.perf_counter()
+    outcomes = st.sweep(raw, comm, petsc_cli, args.n, args.steps, source=args.case)
+    if comm.rank == 0:
+        st.write_csv(outdir / "stability.csv", outcomes)
+        st.write_markdown(outdir / "stability.md", outcomes, case.name, args.n, args.steps)
+    log.info("done in %.1f s: %s/{%s}", time.perf_counter() - t0, outdir,
+             ", ".join(STABILITY_FILES))
+    comm.barrier()
+    return 0
+
+
+def cmd_bench(args) -> int:
+    """``vpcontact bench``: whole-process timings of each step solver (bench.json, bench.md).
+
+    Args:
+        args: the parsed command line.
+
+    Returns:
+        The exit code: 0 done, 1 a configuration failed, 2 bad input.
+    """
+    from app.io.cachedirs import unusable
+    from app.studies import bench as bm
+
+    extra = list(args.extra)          # (n, N) pairs, parsed by cells_and_steps
+    outdir = Path(args.out)
+    try:                              # every argument and the case, before anything runs
+        bm.check_arguments(args.case, args.levels, extra, args.ranks, args.repeat,
+                           args.memory_steps or [])
+        why = unusable(outdir)
+        if why:
+            raise CaseError(f"--out {outdir}: not a writable directory ({why})")
+    except CaseError as exc:
+        return error(str(exc), EXIT_BAD_INPUT)
+    print(f"vpcontact bench: {args.case}, levels {args.levels}, extra {extra}, ranks {args.ranks}")
+    t0 = time.perf_counter()
+    try:
+        rows = bm.bench(args.case, outdir, args.levels, nprocs=args.ranks, extra=extra,
+                        repeat=args.repeat)
+        memory = bm.memory_rows(outdir, steps=args.memory_steps) if args.memory_steps else []
+    except RuntimeError as exc:
+        return error(str(exc), EXIT_FAILED)
+    bm.write(outdir, rows, memory)
+    failed = bm.failures(rows, memory)
+    if failed:
+        return error(f"{len(failed)} bench configuration(s) failed: {'; '.join(failed)} "
+                     f"(reasons in {outdir}/bench.md)", EXIT_FAILED)
+    print(f"done in {time.perf_counter() - t0:.0f} s: {outdir}/bench.json, {outdir}/bench.md")
+    return 0
+
+
+# ----------------------------------------------------------------------------- plot, check, info
+def cmd_plot(args) -> int:
+    """``vpcontact plot``: draw the figures of a results directory.
+
+    Args:
+        args: the parsed command line.
+
+    Returns:
+        The exit code: 0 drawn, 1 drawing failed, 2 not a results directory, 3 interrupted.
+    """
+    from mpi4py import MPI
+    setup_logging(MPI.COMM_WORLD, False)
+    outdir = Path(args.results)
+    missing = [f for f in ("summary.json", "solution.xdmf", "solution.h5")
+               if not (outdir / f).is_file()]
+    if missing:
+        return error(f"{outdir}: not a results directory (missing {', '.join(missing)})",
+                     EXIT_BAD_INPUT)
+    if MPI.COMM_WORLD.rank == 0:
+        return {"drawn": 0, "failed": EXIT_FAILED, "interrupted": EXIT_INTERRUPTED}[plots(outdir)]
+    return 0
+
+
+def cmd_check(args) -> int:
+    """``vpcontact check``: the dry run: validate, build the mesh and spaces, report; no
+    solve, no output.
+
+    Args:
+        args: the parsed command line.
+
+    Returns:
+        The exit code: 0 valid, 2 bad input.
+    """
+    from mpi4py import MPI
+
+    from app.cli.checkrun import report
+    from app.io.case import load_raw, validate
+    comm = MPI.COMM_WORLD
+    setup_logging(comm, False)
+    try:
+        case = validate(load_raw(args.case, args.overrides), args.case)
+    except CaseError as exc:
+        return error(str(exc), EXIT_BAD_INPUT)
+    for line in report(case, comm):
+        if comm.rank == 0:
+            print(line)
+    return 0
+
+
+def cmd_info(args) -> int:
+    """``vpcontact info``: versions of the numerical stack and where the caches are.
+
+    Args:
+        args: the parsed command line (no options).
+
+    Returns:
+        0.
+    """
+    from app.cli.checkrun import info
+    for line in info():
+        print(line)
+    return 0

@@ -1,0 +1,113 @@
+"""Output directories: which files belong to vpcontact, the lock that keeps two processes
+out of one directory, and the preparation before a command writes (collective)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from app.io.errors import CaseError
+
+# the files of each command besides a run's (app/io/output.py OUTPUT_FILES)
+CONVERGENCE_FILES = ("convergence.csv", "convergence.md", "convergence.png")
+STABILITY_FILES = ("stability.csv", "stability.md")
+BENCH_FILES = ("bench.json", "bench.md")
+# besides the files of each command: a run's directory holds its convergence/ and
+# stability/ studies; checkpoints, figures, the lock and temporary files of atomic writes
+OUR_DIRECTORIES = ("convergence", "stability", "bench")
+OUR_PATTERNS = ("checkpoint_*.npz", "*.png", ".vpcontact.lock", ".solution.work.*", ".*.tmp*")
+
+_LOCKS = []      # the output directories' lock files, held open until the process ends
+
+
+def foreign_files(outdir: Path) -> list[str]:
+    """The files in an output directory that no vpcontact command writes.
+
+    Args:
+        outdir: an existing directory.
+
+    Returns:
+        Their names, sorted.
+    """
+    from app.io.output import OUTPUT_FILES
+    ours = {*OUTPUT_FILES, *CONVERGENCE_FILES, *STABILITY_FILES, *BENCH_FILES,
+            *OUR_DIRECTORIES}
+    return sorted(p.name for p in outdir.iterdir() if p.name not in ours
+                  and not any(p.match(pattern) for pattern in OUR_PATTERNS))
+
+
+def lock(outdir: Path) -> str | None:
+    """Create ``outdir`` and take its lock (call on rank 0).
+
+    The lock (flock on outdir/.vpcontact.lock) is released by the kernel when the process
+    ends, however it ends, so it never goes stale.
+
+    Args:
+        outdir: the output directory.
+
+    Returns:
+        None if the directory is ours now; else why not (a file of that name, files that are
+        not vpcontact outputs, not writable, locked by another process).
+    """
+    import fcntl
+    if outdir.exists() and not outdir.is_dir():
+        return f"--out {outdir}: exists and is not a directory (give a directory)"
+    if outdir.is_dir():
+        foreign = foreign_files(outdir)
+        if foreign:
+            shown = ", ".join(foreign[:5]) + (", ..." if len(foreign) > 5 else "")
+            return (f"--out {outdir}: holds files that are not vpcontact outputs ({shown}); "
+                    "give a new or empty directory, or one of an earlier run")
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+        fh = open(outdir / ".vpcontact.lock", "a+")
+    except OSError as exc:
+        return f"--out {outdir}: cannot write there: {exc.strerror}"
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        fh.close()
+        return (f"--out {outdir}: another vpcontact process is writing into this directory; "
+                "wait for it to end or choose another --out")
+    _LOCKS.append(fh)
+    return None
+
+
+def _earlier_outputs(outdir: Path, files) -> list[str]:
+    """The outputs of an earlier command in ``outdir`` (a run's: its checkpoints and
+    figures as well)."""
+    from app.io.output import OUTPUT_FILES
+
+    existing = [f for f in (files or OUTPUT_FILES) if (outdir / f).exists()]
+    if files is None:
+        from app.post.plot import FIGURES
+        existing += sorted(p.name for p in outdir.glob("checkpoint_*.npz"))
+        existing += [f for f in FIGURES if (outdir / f).exists()]
+    return existing
+
+
+def prepare(comm, outdir: Path, overwrite: bool, files=None) -> None:
+    """Create and lock the output directory and remove the outputs of an earlier command,
+    if allowed (collective).
+
+    Args:
+        comm: the MPI communicator.
+        outdir: the output directory.
+        overwrite: --overwrite: the outputs of an earlier command may be replaced.
+        files: the names the command writes (None: a run's, with its checkpoints and figures).
+
+    Raises:
+        CaseError: on every rank, if the directory cannot be used or holds earlier outputs
+            and ``overwrite`` is False.
+    """
+    why = lock(outdir) if comm.rank == 0 else None
+    why = comm.bcast(why, root=0)
+    if why:
+        raise CaseError(why)
+    existing = _earlier_outputs(outdir, files)
+    if existing and not overwrite:
+        raise CaseError(f"{outdir}: holds the outputs of an earlier run ({', '.join(existing)}); "
+                        "pass --overwrite to replace them or --out DIR for another directory")
+    comm.barrier()
+    if comm.rank == 0:
+        for f in existing:
+            (outdir / f).unlink()
+    comm.barrier()

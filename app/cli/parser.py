@@ -1,0 +1,275 @@
+"""The command line's grammar: ``build_parser`` (argparse, one helper per command), the
+argument types that refuse bad numbers and paths in one line, and ``split_petsc_args``, which
+takes the PETSc options (one leading dash) out of the command line first."""
+from __future__ import annotations
+
+import argparse
+import math
+import re
+
+from app import __version__
+from app.io.cachedirs import CACHE_SEARCH
+from app.io.messages import EXIT_BAD_INPUT, error_line
+
+_PETSC_OPT = re.compile(r"^-[A-Za-z][A-Za-z0-9_]*$")
+_NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
+def split_petsc_args(argv: list[str]) -> tuple[list[str], dict]:
+    """Separate PETSc options (single dash, e.g. -snes_monitor, -snes_rtol 1e-12) from ours.
+
+    A PETSc option takes the next token as its value unless that token is itself an option
+    (a negative number counts as a value).
+
+    Args:
+        argv: the command line, without the program name.
+
+    Returns:
+        (our arguments in their order, {PETSc option without its dash: value or None}).
+    """
+    ours, petsc = [], {}
+    i = 0
+    while i < len(argv):
+        tok = argv[i]
+        if _PETSC_OPT.match(tok) and tok not in ("-h",):
+            value = None
+            if i + 1 < len(argv) and (not argv[i + 1].startswith("-")
+                                      or _NUMBER.match(argv[i + 1])):
+                value = argv[i + 1]
+                i += 1
+            petsc[tok[1:]] = value
+        else:
+            ours.append(tok)
+        i += 1
+    return ours, petsc
+
+
+# ----------------------------------------------------------------------------- argument types
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1.
+
+    Args:
+        text: the argument.
+
+    Returns:
+        Its value.
+
+    Raises:
+        argparse.ArgumentTypeError: if it is not an integer >= 1.
+    """
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer (allowed: 1 or more)") \
+            from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} (allowed: 1 or more)")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0.
+
+    Args:
+        text: the argument.
+
+    Returns:
+        Its value.
+
+    Raises:
+        argparse.ArgumentTypeError: if it is not a finite number > 0.
+    """
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number (allowed: > 0)") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text} (allowed: a finite number > 0)")
+    return value
+
+
+def cells_and_steps(text: str) -> tuple[int, int]:
+    """argparse type of bench --extra: 'n:N' with positive integers.
+
+    Args:
+        text: the argument, e.g. "256:32".
+
+    Returns:
+        (cells per side, time steps).
+
+    Raises:
+        argparse.ArgumentTypeError: if it is not two positive integers joined by ':'.
+    """
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"{text!r} (allowed: n:N, cells per side and time "
+                                         "steps, e.g. 256:32)")
+    try:
+        return positive_int(parts[0]), positive_int(parts[1])
+    except argparse.ArgumentTypeError as exc:
+        raise argparse.ArgumentTypeError(f"{text!r}: {exc} (allowed: n:N, e.g. 256:32)") \
+            from None
+
+
+def path_arg(text: str) -> str:
+    """argparse type of a file or directory argument: not empty.
+
+    Args:
+        text: the argument.
+
+    Returns:
+        ``text`` unchanged.
+
+    Raises:
+        argparse.ArgumentTypeError: if it is empty or blank.
+    """
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path (allowed: a file or directory name)")
+    return text
+
+
+# ----------------------------------------------------------------------------- the parser
+class _Parser(argparse.ArgumentParser):
+    """argparse with errors on one line (exit 2), like every other bad-input error."""
+
+    def error(self, message):
+        self.exit(EXIT_BAD_INPUT,
+                  error_line(f"{message} (see {self.prog} --help)", prog=self.prog) + "\n")
+
+
+def _case_options(parser, what: str, default_out: str) -> None:
+    """Options shared by the commands that read a case and write an output directory."""
+    parser.add_argument("--out", metavar="DIR", type=path_arg,
+                        help=f"output directory (default: {default_out})")
+    parser.add_argument("--set", dest="overrides", action="append", default=[],
+                        metavar="KEY=VALUE",
+                        help="override a case key, e.g. --set mesh.n=32 --set time.N=32 "
+                             "(repeatable)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help=f"replace the outputs of an earlier {what} in the output directory")
+    parser.add_argument("--quiet", action="store_true",
+                        help="only warnings and errors (no progress bar)")
+    parser.add_argument("--verbose", action="store_true",
+                        help="one log line per step (norms, iterations, wall time) and the "
+                             "PETSc monitors (-snes_monitor, -snes_converged_reason)")
+
+
+def _add_run(sub) -> None:
+    run = sub.add_parser("run", help="run a case file",
+                         description="Run a case: solve every time step, write "
+                                     "solution.xdmf, summary.json and contact.csv.")
+    run.add_argument("case", help="YAML case file (see cases/)")
+    _case_options(run, "run", "results/<case name>")
+    run.add_argument("--restart", metavar="DIR", type=path_arg,
+                     help="continue from the newest DIR/checkpoint_*.npz (or a given "
+                          "checkpoint file), written with output.checkpoint_every or when a "
+                          "run is interrupted; the case must be the same (solver and output "
+                          "settings may differ)")
+    run.add_argument("--no-plots", action="store_true",
+                     help="do not draw the figures at the end (see the plot command)")
+
+
+def _add_plot_check_info(sub) -> None:
+    plot = sub.add_parser("plot", help="draw the figures of a results directory",
+                          description="Draw fig3_deformed_contact.png, fig4_tangential.png, "
+                                      "fig5_vm_kappa.png, fig2_laws.png and history.png "
+                                      "(the paper's Figs. 2-5 and the run history) from "
+                                      "the files of a run, headless (matplotlib, Agg).")
+    plot.add_argument("results", metavar="RESULTS_DIR", help="output directory of a run")
+
+    check = sub.add_parser("check", help="validate a case without solving (dry run)",
+                           description="Validate a case and report what a run would do: "
+                                       "mesh size, dofs, time steps, active and omitted "
+                                       "terms, step solver, stability indicator and "
+                                       "well-posedness margin. Nothing is solved or written.")
+    check.add_argument("case", help="YAML case file")
+    check.add_argument("--set", dest="overrides", action="append", default=[],
+                       metavar="KEY=VALUE", help="override a case key (repeatable)")
+
+    sub.add_parser("info", help="versions of dolfinx, PETSc, MPI, gmsh; JIT cache",
+                   description="Print the versions of the numerical stack, PETSc's external "
+                               "packages, the MPI library and where the JIT caches are.")
+
+
+def _add_convergence(sub) -> None:
+    conv = sub.add_parser(
+        "convergence", help="convergence study: Error against h, k and wall time",
+        description="Run a case at several resolutions and a reference, and report "
+                    "Error = max_n (||sigma_n - sigma_n^ref||_Q + ||u_n - u_n^ref||_V + "
+                    "||kappa_n - kappa_n^ref||_Y) per level with observed rates and wall times "
+                    "(convergence.csv, convergence.md, convergence.png). Runs are cached.")
+    conv.add_argument("case", help="YAML case file with a structured mesh")
+    conv.add_argument("--levels", type=positive_int, nargs="+", default=[8, 16, 32, 64],
+                      metavar="L", help="levels: 1/h and/or 1/k of each run (default: 8 16 32 64)")
+    conv.add_argument("--reference", type=positive_int, default=128, metavar="R",
+                      help="the reference run has n = N = R (default: 128)")
+    conv.add_argument("--vary", choices=["both", "h", "k"], default="both",
+                      help="refine h and k together, or one with the other at the reference")
+    conv.add_argument("--deltas", type=positive_float, nargs="+", metavar="D",
+                      help="friction regularisation widths to study (default: the case's); "
+                           "the reference uses the smallest of these and the case's")
+    _case_options(conv, "study", "results/<case name>/convergence")
+    conv.add_argument("--cache-dir", metavar="DIR", type=path_arg,
+                      help=f"run cache (default: {CACHE_SEARCH})")
+    conv.add_argument("--no-cache", action="store_true", help="recompute every run")
+
+
+def _add_stability(sub) -> None:
+    stab = sub.add_parser(
+        "stability", help="sweep stiff and extreme variants of a case",
+        description="Run stiff and extreme variants of a case (viscosity, near-Signorini "
+                    "contact, friction, loads, material, time steps) with the explicit and "
+                    "implicit history schemes on a coarse mesh, and report convergence, "
+                    "growth, stability indicator and well-posedness margin "
+                    "(stability.csv, stability.md).")
+    stab.add_argument("case", help="YAML case file (2D)")
+    _case_options(stab, "sweep", "results/<case name>/stability")
+    stab.add_argument("--n", type=positive_int, default=8,
+                      help="cells per side of the coarse mesh")
+    stab.add_argument("--steps", type=positive_int, default=8,
+                      help="time steps of the base variant")
+
+
+def _add_bench(sub) -> None:
+    b = sub.add_parser("bench", help="time the step solvers on the paper case",
+                       description="Whole-process timings of a case with each step solver, "
+                                   "serial and under mpirun -n 2 (bench.json, bench.md).")
+    b.add_argument("case", nargs="?", default="cases/wang_cheng_2021.yaml")
+    b.add_argument("--levels", type=positive_int, nargs="+", default=[16, 32, 64, 128],
+                   help="h = k = 1/L levels (default 16 32 64 128)")
+    b.add_argument("--extra", type=cells_and_steps, nargs="*", default=[(256, 32)],
+                   metavar="n:N", help="extra (cells per side : steps) runs (default 256:32)")
+    b.add_argument("--memory-steps", type=positive_int, nargs="*", default=[64, 256, 1024, 4096],
+                   metavar="N", help="step counts of the memory-term cost runs "
+                                     "(recursion vs direct sum; none: skip)")
+    b.add_argument("--ranks", type=positive_int, nargs="+", default=[1, 2])
+    b.add_argument("--repeat", type=positive_int, default=3, metavar="R",
+                   help="measured runs per configuration, every solver alike; the fastest "
+                        "is reported, all are kept (default 3; the --extra levels run once)")
+    b.add_argument("--out", default="results/bench", type=path_arg, help="output directory")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser of ``vpcontact``'s own arguments (the PETSc options are taken out first,
+    see ``split_petsc_args``).
+
+    Returns:
+        The parser: ``--version`` and the commands run, plot, check, info, convergence,
+        stability and bench (``args.command``); a bad argument exits 2 with one line.
+    """
+    p = _Parser(
+        prog="vpcontact",
+        description="Quasistatic contact of a viscoplastic body with a foundation: normal "
+                    "compliance, unilateral constraint u_nu <= g, nonmonotone friction "
+                    "(Wang & Cheng 2021, scheme (3.2)-(3.4)), solved with dolfinx + PETSc.",
+        epilog="PETSc options (e.g. -snes_monitor, -snes_rtol 1e-12, -pc_factor_mat_solver_type "
+               "superlu_dist) may be added anywhere; they reach PETSc with the prefix "
+               "vpcontact_. Run in parallel with: mpirun -n 2 ./vpcontact run CASE.yaml")
+    p.add_argument("--version", action="version", version=f"vpcontact {__version__}")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_run(sub)
+    _add_plot_check_info(sub)
+    _add_convergence(sub)
+    _add_stability(sub)
+    _add_bench(sub)
+    return p
