@@ -5,6 +5,8 @@ SHELL := /bin/bash
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.vpcontact-installed
+# the linter's version is pinned: a newer ruff may add findings to the same rule set
+RUFF_VERSION := 0.17.6
 CASE   ?= cases/wang_cheng_2021.yaml
 
 # Debian bookworm packages (the platform is fixed: dolfinx 0.5.2 from Debian).
@@ -46,8 +48,8 @@ setup:
 	  echo "setup: installing Debian packages:" $$missing; \
 	  apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y $$missing; \
 	fi
-	@# the stamp is redone when pyproject.toml changed or ruff went missing
-	@$(PY) -m ruff --version >/dev/null 2>&1 || rm -f $(STAMP)
+	@# the stamp is redone when pyproject.toml changed or ruff $(RUFF_VERSION) is missing
+	@$(PY) -m ruff --version 2>/dev/null | grep -qx 'ruff $(RUFF_VERSION)' || rm -f $(STAMP)
 	@$(MAKE) --no-print-directory $(STAMP)
 	@# byte-compile our modules (the editable install does not, and with PYTHONDONTWRITEBYTECODE
 	@# set, as on these machines, every run would compile them again: 0.08 s, measured)
@@ -58,7 +60,7 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet --no-build-isolation --no-deps -e .
 	@# ruff (make lint) is not a Debian bookworm package: from PyPI.  Without network access
 	@# the rest still works; the next make setup tries again.
-	$(PY) -m pip install --quiet ruff || echo "setup: warning: ruff not installed (make lint needs it)"
+	$(PY) -m pip install --quiet ruff==$(RUFF_VERSION) || echo "setup: warning: ruff not installed (make lint needs it)"
 	@$(PY) -c "import dolfinx, petsc4py, gmsh, yaml, jsonschema, app; print('setup: dolfinx', dolfinx.__version__, 'ok')"
 	@touch $(STAMP)
 
