@@ -8,7 +8,7 @@ definite where the step energy is strictly convex ((2.6)), so it is factorised b
 
 The compiled version (kernels/dense.c with cffi, LAPACK's dpotrf/dpotrs) gathers the free
 block straight from S and the nodal blocks, so only the nf x nf block is built and
-factorised; at h = 1/128 (m = 258, about 180 free dofs) that is a third of the flops of
+factorised; at h = 1/128 (m = 256, about 180 free dofs) that is a third of the flops of
 factorising the whole m x m matrix with the binding rows replaced by the identity, and no
 copy of S per iteration.
 Without a C compiler or LAPACK the same direction is computed with numpy
