@@ -52,11 +52,11 @@ from mpi4py import MPI as _MPI  # MPI_Init reads the settings now
 for _var in _added:              # not inherited by child processes (mpirun -n 2 from here)
     del _os.environ[_var]
 
-from app.cli.startup import install_pkg_resources_stand_in as _stand_in
 from app.io.cachedirs import start as _start_caches
+from app.startup import install_pkg_resources_stand_in as _stand_in
 
 # Every cache writable, or replaced by a temporary one: before dolfinx reads its JIT cache
 # directory (when it is imported) and before anything is computed.
 _start_caches(_MPI.COMM_WORLD.rank)
 
-_stand_in()                      # before ufl/ffcx: see app/cli/startup.py
+_stand_in()                      # before ufl/ffcx: see app/startup.py

@@ -10,8 +10,10 @@ the case file's ``petsc`` section.  Exit codes: 0 done, 1 solver failure, 2 bad 
 - ``parser``: the argparse grammar and the PETSc-option split;
 - ``commands``: one ``cmd_<name>`` per command;
 - ``outdir``: output directories (which files are ours, the lock, preparation);
-- ``errors``: the one printer of error, warning and interruption lines, and the exit codes;
 - ``logs``: the run log on stdout;
 - ``checkrun``: the reports of ``check`` and ``info``; ``progress``: the progress bar;
-  ``streams``: standard streams that never stop a run; ``startup``: start-up and exit costs.
+  ``streams``: standard streams that never stop a run.
+
+The one printer of error, warning and interruption lines and the exit codes are
+app/io/messages.py; the process's start-up and exit costs app/startup.py.
 """

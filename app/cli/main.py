@@ -118,8 +118,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def console() -> None:
     """The ``vpcontact`` console script: as ``python -m app`` (app/__main__.py)."""
-    from app.cli.startup import quick_exit
     from app.cli.streams import repair_std_streams
+    from app.startup import quick_exit
     repair_std_streams()
     quick_exit(main())
 

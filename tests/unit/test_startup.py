@@ -25,7 +25,7 @@ def test_user_settings_win():
 
 def test_pkg_resources_stand_in():
     """ufl/ffcx get their versions without the real pkg_resources; any other use of it
-    loads the real module (app/cli/startup.py)."""
+    loads the real module (app/startup.py)."""
     code = ("import sys, app, ufl, ffcx; from importlib.metadata import version; "
             "s = sys.modules['pkg_resources']; "
             "print(ufl.__version__ == version('fenics-ufl'), "
@@ -45,7 +45,7 @@ def test_quick_exit_flushes_and_finalises(tmp_path):
     code = ("import atexit, sys, app, petsc4py; petsc4py.init(['x', '-log_view']); "
             "from petsc4py import PETSc; "
             "atexit.register(lambda: print('atexit ran')); print('buffered', end=''); "
-            "from app.cli.startup import quick_exit; quick_exit(3)")
+            "from app.startup import quick_exit; quick_exit(3)")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert p.returncode == 3, p.stderr
     assert p.stdout.startswith("buffered") and "atexit ran" in p.stdout
