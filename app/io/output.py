@@ -17,6 +17,25 @@ from dolfinx import io as dio
 OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv")
 
 
+def csv_text(columns, rows) -> str:
+    """A CSV table (header and one line per row; floats at full precision, None empty).
+
+    Args:
+        columns: the column names, in order.
+        rows: mappings from column name to value (missing names are empty).
+
+    Returns:
+        The CSV text, lines ending in a newline.
+    """
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, columns, lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: "" if r.get(k) is None else repr(float(r[k]))
+                    if isinstance(r[k], float) else r[k] for k in columns})
+    return buf.getvalue()
+
+
 def atomic_write(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file and a rename.
 

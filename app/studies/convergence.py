@@ -14,8 +14,6 @@ set-up).  A cached run reports the times measured when it was computed.
 from __future__ import annotations
 
 import copy
-import csv
-import io
 import logging
 import math
 import time
@@ -25,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from app.io.case import CaseError, validate
-from app.io.output import atomic_write
+from app.io.output import atomic_write, csv_text
 from app.observers import Observer
 from app.studies import runcache
 from app.studies.grid import Grid, GridSampler, cell_l2_norm, prolong_dg0, prolong_p1, strain_norm
@@ -429,13 +427,7 @@ def write_csv(path: Path, res: dict) -> None:
         path: the CSV file.
         res: the result of ``study``.
     """
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, COLUMNS, lineterminator="\n")
-    w.writeheader()
-    for r in res["rows"]:
-        w.writerow({k: ("" if r[k] is None else repr(r[k]) if isinstance(r[k], float) else r[k])
-                    for k in COLUMNS})
-    atomic_write(path, buf.getvalue())
+    atomic_write(path, csv_text(COLUMNS, res["rows"]))
 
 
 def paper_sentence(rows: list[dict]) -> str:

@@ -11,8 +11,6 @@ sigma and kappa scaled).
 from __future__ import annotations
 
 import copy
-import csv
-import io
 import logging
 import math
 import time
@@ -21,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from app.io.case import CaseError, validate
-from app.io.output import atomic_write
+from app.io.output import atomic_write, csv_text
 
 log = logging.getLogger("vpcontact")
 BLOWUP = 1e3
@@ -333,12 +331,7 @@ def write_csv(path, outcomes) -> None:
         path: the CSV file.
         outcomes: the Outcomes of ``sweep``.
     """
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, COLUMNS, lineterminator="\n")
-    w.writeheader()
-    for o in outcomes:
-        w.writerow({k: ("" if v is None else v) for k, v in _row(o).items()})
-    atomic_write(path, buf.getvalue())
+    atomic_write(path, csv_text(COLUMNS, [_row(o) for o in outcomes]))
 
 
 def _g(v, d=3):
