@@ -186,8 +186,7 @@ class RunFiles(Observer):
                     sim.comm, outdir / "contact.csv", sim.problem.contact_table(),
                     sim.case.contact.g)
         except OutputError as exc:
-            summary.fail(StepFailure(summary.last_good_step, steps[-1]["t"],
-                                     f"cannot write the outputs: {exc}", hint=HINT_OUTPUT))
+            summary.fail(StepFailure.output(summary.last_good_step, steps[-1]["t"], exc))
         try:
             write_json(sim.comm, outdir / "summary.json", summary.as_dict())
         except OutputError as exc:

@@ -43,6 +43,20 @@ class StepFailure:
     def __post_init__(self):
         self.reason = "; ".join(x.strip() for x in str(self.reason).splitlines() if x.strip())
 
+    @classmethod
+    def output(cls, step: int, t: float, exc: Exception) -> StepFailure:
+        """The failure of an output that cannot be written (the earlier files stay intact).
+
+        Args:
+            step: the step the run stops at.
+            t: its time.
+            exc: the OutputError.
+
+        Returns:
+            The StepFailure with HINT_OUTPUT.
+        """
+        return cls(step, t, f"cannot write the outputs: {exc}", hint=HINT_OUTPUT)
+
     def as_dict(self) -> dict:
         """Returns: {"step", "t", "reason", "snes_reason", "hint"} (summary.json)."""
         return dataclasses.asdict(self)

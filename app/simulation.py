@@ -33,7 +33,7 @@ from app.model.problem import ContactProblem
 from app.model.stepping import StepTooSmall, make_stepper
 from app.observers import Observer, StopRun
 from app.post.diagnostics import diagnose
-from app.records import HINT_OUTPUT, HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
+from app.records import HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
 from app.solvers import select_solver
 from app.solvers.snesvi import StepSolveError, describe_petsc_error
 from meshes import build_box, build_rectangle
@@ -400,8 +400,7 @@ class Simulation:
             for obs in self.observers:
                 obs.step(self, record)
         except OutputError as exc:
-            failure = StepFailure(self.n, self.t, f"cannot write the outputs: {exc}",
-                                  hint=HINT_OUTPUT)
+            failure = StepFailure.output(self.n, self.t, exc)
             log.error("step %d (t = %g): %s; stopping", self.n, self.t, failure.reason)
             raise StopRun("failed", failure) from None
         if self.interrupted:
@@ -431,9 +430,7 @@ class Simulation:
             for obs in self.observers:
                 obs.start(self)
         except OutputError as exc:
-            raise StopRun("failed", StepFailure(self.n, self.t,
-                                                f"cannot write the outputs: {exc}",
-                                                hint=HINT_OUTPUT)) from None
+            raise StopRun("failed", StepFailure.output(self.n, self.t, exc)) from None
         finally:
             self._clock["loop_start"] = time.perf_counter()
 

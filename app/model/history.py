@@ -57,7 +57,7 @@ class ViscoplasticHistory(_CommittedHistory):
         self.law = Perzyna(problem.elasticity, lambda1, lambda2)
         self.H = problem.H
         self.kappa = fem.Function(problem.Y, name="kappa")
-        # the same update compiled (kernels.py), unless no C compiler is available
+        # the same update compiled (kernels/perzyna.c), unless no C compiler is available
         module = kernels.load()
         self.kernel = None if module is None else kernels.PerzynaKernel(
             problem.elasticity, VonMisesProjection(problem.elasticity), lambda1, lambda2, module)

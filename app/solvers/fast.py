@@ -92,7 +92,7 @@ class FastStepSolver:
     def _factorise(self, G_rows: np.ndarray) -> np.ndarray | None:
         """Factorise K once; returns Z_GG = E_G^T K^-1 E_G (None without Gamma3 dofs).
 
-        Serial, with the compiled sweeps (kernels.py): one factorisation with the Gamma3
+        Serial, with the compiled sweeps (kernels/ldl_blocks.c): one factorisation with the Gamma3
         dofs last (CHOLMOD L D L^T, else SuperLU L U) gives Z_GG (its trailing blocks) and
         every step's solve, one forward and one backward sweep with the Gamma3 problem in
         between (kernels.GLastSolve).  Otherwise (mpirun, no C compiler, or PETSc options
