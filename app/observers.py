@@ -184,7 +184,7 @@ class RunFiles(Observer):
             if sim.problem.gamma3 is not None and steps:
                 summary.contact_states = write_contact_csv(
                     sim.comm, outdir / "contact.csv", sim.problem.contact_table(),
-                    sim.case.contact.g)
+                    sim.case.contact.g, compliance=sim.case.contact.c_nu is not None)
         except OutputError as exc:
             summary.fail(StepFailure.output(summary.last_good_step, steps[-1]["t"], exc))
         try:

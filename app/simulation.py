@@ -25,7 +25,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from app.io.case import Case
+from app.io.case import Case, CaseError, rescale_for_length
 from app.io.output import OutputError
 from app.model.gamma3 import Gamma3History, Kernel
 from app.model.history import ImplicitViscoplasticHistory, ViscoplasticHistory
@@ -37,25 +37,34 @@ from app.records import HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailur
 from app.solvers import select_solver
 from app.solvers.snesvi import StepSolveError, describe_petsc_error
 from meshes import build_box, build_rectangle
+from meshes.gmshfile import MeshFileError, load_mesh_file
 
 log = logging.getLogger("vpcontact")
 
 
 def build_mesh(case: Case, comm):
-    """The body's mesh with its boundary tags (meshes/).
+    """The body's mesh with its named boundary groups (meshes/).
 
     Args:
         case: the validated Case (mesh section).
         comm: the MPI communicator.
 
     Returns:
-        A meshes.RectangleMesh (2D) or meshes.BoxMesh (3D).
+        A meshes.FileMesh (mesh.file), else a meshes.RectangleMesh (2D) or BoxMesh (3D).
+
+    Raises:
+        CaseError: if the mesh file cannot be used (naming mesh.file and why).
     """
     m = case.mesh
+    if m.file is not None:
+        try:
+            return load_mesh_file(comm, m.file, m.dim, m.size)
+        except MeshFileError as exc:
+            raise CaseError(f"{case.source}: mesh.file: {exc}") from None
     size = {"n": m.n} if m.kind == "structured" else {"h": m.h}
     if m.dim == 3:
-        return build_box(comm, m.L1, m.L2, m.L3, **size)
-    return build_rectangle(comm, m.L1, m.L2, diagonal=m.diagonal, **size)
+        return build_box(comm, m.L1, m.L2, m.L3, engine=m.engine, **size)
+    return build_rectangle(comm, m.L1, m.L2, diagonal=m.diagonal, engine=m.engine, **size)
 
 
 def build_history(case: Case, problem):
@@ -179,6 +188,9 @@ class Simulation:
         self._clock["start"] = time.perf_counter()
         case = self.case
         self.domain = build_mesh(case, self.comm)
+        if case.mesh.file is not None:          # the tolerances' scale: the body's size
+            lo, hi = self.domain.bbox
+            self.case = case = rescale_for_length(case, float(np.max(hi - lo)))
         self.problem = problem = ContactProblem(case, self.domain)
         self.history = build_history(case, problem)
         problem.set_initial_values(self.history.kappa if self.history else None)
@@ -284,7 +296,7 @@ class Simulation:
             if g3:
                 g3.advance(self.t, t_new)           # xi_n, s_n from u_{n-1}
             t_g3 = time.perf_counter() - t_g3
-            p.time_data.set_time(t_new)             # f_n
+            p.set_time(t_new)                       # f_n, prescribed displacements
             its = self.solver.solve()               # u_n in U^h, (3.4)
             # sigma_n (explicit: E eps(u_n) + H_n, (3.2))
             norms = history.after_solve(p) if history else p.update_sigma()
@@ -371,6 +383,10 @@ class Simulation:
             "wall_s": wall,
             "k": k,
         }
+        forces = p.forces()                         # on the body: supports, foundation
+        record["reactions"] = forces["reactions"]
+        if forces["contact_force"] is not None:
+            record["contact_force"] = forces["contact_force"]
         if self.gamma3_history:
             record["gamma3_history_s"] = t_g3       # memory term / slip update of this step
         if self.solver.fallback:

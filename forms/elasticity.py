@@ -23,6 +23,21 @@ def eps(u):
     return ufl.sym(ufl.grad(u))
 
 
+def plane_strain_moduli(E: float, nu: float) -> tuple[float, float]:
+    """The plane stress moduli that give plane strain: with E' = E / (1 - s^2) and
+    s' = s / (1 - s) the plane stress law above is E tau = lambda tr(tau) I + 2 mu tau with
+    the 3D Lame constants of (E, s) (the out-of-plane strain is zero).
+
+    Args:
+        E: Young's modulus.
+        nu: Poisson's ratio s (< 1/2).
+
+    Returns:
+        (E', s').
+    """
+    return E / (1.0 - nu * nu), nu / (1.0 - nu)
+
+
 def lame_constants(E, nu, dim: int = 2):
     """The constants of E tau = lmbda tr(tau) I + two_mu tau.
 

@@ -85,7 +85,8 @@ class ContactData:
 
     Attributes:
         ds_c: the Gamma3 measure (forms.contact.gamma3_measure).
-        normal: the outward unit normal nu (tuple).
+        normal: the unit normal nu of Gamma3: a UFL vector (constant where Gamma3 is flat or
+            the approach direction is fixed) or the P1 Function of the nodal normals.
         c_nu: normal compliance stiffness, or None.
         friction: dict(b, c1, c2, u1) of law (4.2), or None.
         theta: P1 Function theta(s_n) of the slip-dependent friction, or None.
@@ -94,7 +95,7 @@ class ContactData:
     """
 
     ds_c: object
-    normal: tuple
+    normal: object
     c_nu: object = None
     friction: dict | None = None
     theta: object = None
@@ -156,7 +157,8 @@ def _boundary_energy(u, gamma3: ContactData | None):
                           and gamma3.xi is None):
         return None, terms
     ds_c, delta = gamma3.ds_c, gamma3.delta
-    nu_vec = ufl.as_vector(gamma3.normal)
+    nu_vec = gamma3.normal if isinstance(gamma3.normal, ufl.core.expr.Expr) \
+        else ufl.as_vector(gamma3.normal)
     u_nu = ufl.dot(u, nu_vec)
     if gamma3.c_nu is not None:
         parts.append(contact.normal_compliance_energy(u_nu, gamma3.c_nu) * ds_c)

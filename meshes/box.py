@@ -2,14 +2,26 @@
 
 Faces are tagged per side (``BOUNDARY_TAGS``): Gamma1 = left {x = 0} (clamped), Gamma3 =
 bottom {z = 0} (contact, nu = (0, 0, -1)), Gamma2 = right {x = L1}, top {z = L3}, front
-{y = 0}, back {y = L2}.  Structured meshes are transfinite n x n x n blocks cut into
-tetrahedra; unstructured ones have target size h.
+{y = 0}, back {y = L2}; ``groups`` maps these names to their tags.  Structured meshes are
+n x n x n blocks cut into six tetrahedra each: by gmsh's transfinite volume (the default) or,
+with ``engine="dolfinx"``, by dolfinx's ``create_box``.  Both have the same vertices, blocks
+and face tags, but not the same tetrahedra: the two cut the blocks differently (so results on
+them differ by the discretisation error, not by round-off).  Unstructured meshes have target
+size h and come from gmsh.
 """
 from __future__ import annotations
 
 from mpi4py import MPI
 
-from .rectangle import BOUNDARY_TAGS, DOMAIN_TAG, RectangleMesh, gmsh_mesh
+from .extent import mesh_extent
+from .rectangle import (
+    BOUNDARY_TAGS,
+    DOMAIN_TAG,
+    RectangleMesh,
+    dolfinx_structured,
+    gmsh_mesh,
+    snap_to_grid,
+)
 
 _FACES = {"left": (0, 0.0), "right": (0, 1.0), "front": (1, 0.0), "back": (1, 1.0),
           "bottom": (2, 0.0), "top": (2, 1.0)}
@@ -49,7 +61,7 @@ def _gmsh_model(L, n, h):
 
 
 def build_box(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, L3: float = 1.0, *,
-              n: int | None = None, h: float | None = None) -> BoxMesh:
+              n: int | None = None, h: float | None = None, engine: str = "gmsh") -> BoxMesh:
     """Build the box mesh; collective on ``comm``.
 
     Args:
@@ -57,18 +69,28 @@ def build_box(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, L3: float = 1.0,
         L1, L2, L3: the box's sides (x, y, z).
         n: cells per side of a structured mesh (n x n x n blocks of tetrahedra), or None.
         h: target cell size of an unstructured mesh, or None.
+        engine: "gmsh" (default) or "dolfinx", which builds a structured mesh (the same
+            vertices and face tags; the blocks are cut into other tetrahedra).
 
     Returns:
         The BoxMesh.
 
     Raises:
-        ValueError: unless exactly one of n and h is given.
+        ValueError: unless exactly one of n and h is given, or for an unknown engine.
     """
     if (n is None) == (h is None):
         raise ValueError("give exactly one of n (structured) or h (unstructured)")
+    if engine not in ("dolfinx", "gmsh"):
+        raise ValueError(f"engine must be 'dolfinx' or 'gmsh', got {engine!r}")
     L = (float(L1), float(L2), float(L3))
-    s = max(L)      # gmsh sees the box scaled to unit size (its tolerances are absolute)
-    msh, ct, ft = gmsh_mesh(comm, 3, lambda: _gmsh_model(tuple(x / s for x in L), n,
-                                                         None if h is None else h / s), s)
+    if n is not None and engine == "dolfinx":
+        msh, ct, ft = dolfinx_structured(comm, L, n)
+    else:
+        s = max(L)      # gmsh sees the box scaled to unit size (its tolerances are absolute)
+        msh, ct, ft = gmsh_mesh(comm, 3, lambda: _gmsh_model(tuple(x / s for x in L), n,
+                                                             None if h is None else h / s), s)
+        if n is not None:
+            snap_to_grid(msh, L, n)
+    h_min, _, bbox = mesh_extent(msh)
     return BoxMesh(msh, ct, ft, L[0], L[1], n is not None, n,
-                   h if n is None else max(L) / n, None)
+                   h if n is None else max(L) / n, None, L[2], h_min, bbox)

@@ -1,16 +1,19 @@
 """The paper's rectangle Omega = (0, L1) x (0, L2) (Section 4, Fig. 1), built with gmsh.
 
-Facets are tagged per side (``BOUNDARY_TAGS``); the case file maps sides to the boundary
-parts: Gamma1 = left (clamped), Gamma2 = right and top (tractions), Gamma3 = bottom (contact,
-outward normal nu = (0, -1), tangent tau = (1, 0)).
+Facets are tagged per side (``BOUNDARY_TAGS``; ``groups`` maps the side names left, bottom,
+right, top to their tags, as a gmsh file's named physical groups do); the case file maps sides
+to the boundary parts: Gamma1 = left (clamped), Gamma2 = right and top (tractions), Gamma3 =
+bottom (contact, outward normal nu = (0, -1), tangent tau = (1, 0)).
 
 Structured meshes are n x n squares with every square cut along the same diagonal, so a
 mesh with 2n cells per side is a refinement of the one with n (each coarse triangle is a union
-of fine ones): the convergence study relies on this.  They are built by dolfinx's
-``create_rectangle`` by default (importing gmsh alone costs 0.6 s, a third of a whole
-benchmark run's set-up) or, with ``engine="gmsh"``, as the identical transfinite gmsh mesh
-(tests/unit/test_mesh.py checks both).  Unstructured meshes always come from gmsh, which runs on
-one rank only; dolfinx's ``gmshio.model_to_mesh`` distributes the mesh.
+of fine ones): the convergence study relies on this.  They are built by gmsh as a transfinite
+mesh by default (its vertices then put exactly on the grid (L / n) i) or, with
+``engine="dolfinx"``, by dolfinx's ``create_rectangle``: the same triangles and bitwise the
+same coordinates (tests/unit/test_mesh.py checks both), without the cost of importing gmsh
+(about 0.4 s) and of its meshing.
+Unstructured meshes always come from gmsh, which runs on one rank only; dolfinx's
+``gmshio.model_to_mesh`` distributes the mesh.
 """
 from __future__ import annotations
 
@@ -18,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
+
+from .extent import mesh_extent
 
 BOUNDARY_TAGS = {"left": 1, "bottom": 2, "right": 3, "top": 4, "front": 5, "back": 6}
 # 2D uses left/bottom/right/top; the 3D box (meshes/box.py) adds front {y = 0}, back {y = L2}.
@@ -42,8 +47,13 @@ class RectangleMesh:
         L1, L2: the sides in x and y.
         structured: built as n x n squares (or blocks).
         n: cells per side of a structured mesh, else None.
-        h: the cell size (L / n when structured).
+        h: the cell size (L / n when structured, else the target size).
         diagonal: the diagonal of a structured rectangle, else None.
+        L3: the side in z (0 for the rectangle).
+        h_min: the smallest cell diameter (longest edge of a cell).
+        bbox: (lo, hi), the corners of the bounding box of all vertices, each (dim,).
+        groups: side name -> facet tag (left bottom right top, and front back in 3D).
+        tags: the facet tags of the sides, sorted.
     """
 
     mesh: object
@@ -55,6 +65,9 @@ class RectangleMesh:
     n: int | None
     h: float | None
     diagonal: str | None
+    L3: float = 0.0
+    h_min: float | None = None
+    bbox: tuple[np.ndarray, np.ndarray] | None = None
 
     # Gamma3 is the bottom side; its outward unit normal and unit tangent(s).
     normal = (0.0, -1.0)
@@ -64,6 +77,16 @@ class RectangleMesh:
     def dim(self) -> int:
         """The space dimension (2 for the rectangle, 3 for the box)."""
         return len(self.normal)
+
+    @property
+    def groups(self) -> dict[str, int]:
+        """Side name -> facet tag, like a gmsh file's named boundary groups."""
+        return {name: BOUNDARY_TAGS[name] for name in SIDES[self.dim]}
+
+    @property
+    def tags(self) -> tuple[int, ...]:
+        """The facet tags of the sides, sorted."""
+        return tuple(sorted(self.groups.values()))
 
 
 def _gmsh_model(L1: float, L2: float, n: int | None, h: float | None, diagonal: str | None):
@@ -92,21 +115,38 @@ def _gmsh_model(L1: float, L2: float, n: int | None, h: float | None, diagonal: 
     gmsh.model.mesh.generate(2)
 
 
-def _dolfinx_structured(comm, L1: float, L2: float, n: int, diagonal: str):
-    """The structured n x n mesh by dolfinx, with the same cell and facet tags as gmsh's."""
+def dolfinx_structured(comm: MPI.Comm, L, n: int, diagonal: str | None = None):
+    """The structured rectangle or box by dolfinx, tagged like the gmsh meshes; collective.
+
+    Args:
+        comm: the communicator the mesh is distributed over.
+        L: the sides (L1, L2) or (L1, L2, L3).
+        n: squares (cubes) per side.
+        diagonal: "right" or "left" in 2D (each square's cut); unused in 3D.
+
+    Returns:
+        (mesh, cell tags, facet tags): DOMAIN_TAG on the cells, BOUNDARY_TAGS on the sides.
+    """
     from dolfinx import mesh as dmesh
 
-    msh = dmesh.create_rectangle(comm, [np.zeros(2), np.array([L1, L2])], [n, n],
-                                 dmesh.CellType.triangle,
-                                 diagonal=getattr(dmesh.DiagonalType, diagonal))
+    d = len(L)
+    corners = [np.zeros(d), np.array(L, dtype=float)]
+    if d == 2:
+        msh = dmesh.create_rectangle(comm, corners, [n, n], dmesh.CellType.triangle,
+                                     diagonal=getattr(dmesh.DiagonalType, diagonal))
+    else:
+        msh = dmesh.create_box(comm, corners, [n, n, n], dmesh.CellType.tetrahedron)
     tdim = msh.topology.dim
-    # vertex coordinates along an axis carry round-off relative to that axis' length
-    tx, ty = 1e-8 * L1, 1e-8 * L2
-    sides = {"left": lambda x: np.abs(x[0]) <= tx, "bottom": lambda x: np.abs(x[1]) <= ty,
-             "right": lambda x: np.abs(x[0] - L1) <= tx, "top": lambda x: np.abs(x[1] - L2) <= ty}
+    # the axis and the end of each side; vertex coordinates along an axis carry round-off
+    # relative to that axis' length
+    where = {"left": (0, 0), "right": (0, 1), "bottom": (d - 1, 0), "top": (d - 1, 1),
+             "front": (1, 0), "back": (1, 1)}
     facets, values = [], []
-    for name, where in sides.items():
-        f = dmesh.locate_entities_boundary(msh, tdim - 1, where)
+    for name in SIDES[d]:
+        axis, end = where[name]
+        value, tol = end * L[axis], 1e-8 * L[axis]
+        f = dmesh.locate_entities_boundary(
+            msh, tdim - 1, lambda x, a=axis, v=value, t=tol: np.abs(x[a] - v) <= t)
         facets.append(f)
         values.append(np.full(len(f), BOUNDARY_TAGS[name], dtype=np.int32))
     facets, values = np.concatenate(facets), np.concatenate(values)
@@ -119,7 +159,7 @@ def _dolfinx_structured(comm, L1: float, L2: float, n: int, diagonal: str):
 
 def build_rectangle(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, *, n: int | None = None,
                     h: float | None = None, diagonal: str = "right",
-                    engine: str = "dolfinx") -> RectangleMesh:
+                    engine: str = "gmsh") -> RectangleMesh:
     """Build the rectangle mesh; collective on ``comm``.
 
     Args:
@@ -128,7 +168,8 @@ def build_rectangle(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, *, n: int 
         n: squares per side of a structured mesh, or None.
         h: target cell size of an unstructured (gmsh) mesh, or None.
         diagonal: "right" or "left", the cut of every square of a structured mesh.
-        engine: "dolfinx" or "gmsh", which builds a structured mesh.
+        engine: "gmsh" (default) or "dolfinx", which builds a structured mesh (the same
+            triangles).
 
     Returns:
         The RectangleMesh.
@@ -144,16 +185,36 @@ def build_rectangle(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, *, n: int 
     if engine not in ("dolfinx", "gmsh"):
         raise ValueError(f"engine must be 'dolfinx' or 'gmsh', got {engine!r}")
     if n is not None and engine == "dolfinx":
-        msh, ct, ft = _dolfinx_structured(comm, L1, L2, n, diagonal)
-        return RectangleMesh(msh, ct, ft, float(L1), float(L2), True, n, max(L1, L2) / n,
-                             diagonal)
-    # gmsh sees the rectangle scaled to unit size (its tolerances are absolute)
-    s = max(L1, L2)
-    msh, ct, ft = gmsh_mesh(comm, 2, lambda: _gmsh_model(L1 / s, L2 / s, n,
-                                                         None if h is None else h / s,
-                                                         diagonal), s)
+        msh, ct, ft = dolfinx_structured(comm, (L1, L2), n, diagonal)
+    else:
+        # gmsh sees the rectangle scaled to unit size (its tolerances are absolute)
+        s = max(L1, L2)
+        msh, ct, ft = gmsh_mesh(comm, 2, lambda: _gmsh_model(L1 / s, L2 / s, n,
+                                                             None if h is None else h / s,
+                                                             diagonal), s)
+        if n is not None:
+            snap_to_grid(msh, (L1, L2), n)
+    h_min, _, bbox = mesh_extent(msh)
     return RectangleMesh(msh, ct, ft, float(L1), float(L2), n is not None, n,
-                         h if n is None else max(L1, L2) / n, diagonal if n is not None else None)
+                         h if n is None else max(L1, L2) / n,
+                         diagonal if n is not None else None, 0.0, h_min, bbox)
+
+
+def snap_to_grid(msh, L, n: int) -> None:
+    """Put a structured mesh's vertices exactly on the grid x_a = (L_a / n) i.
+
+    Gmsh places transfinite nodes to about 1e-12 L; dolfinx's create_rectangle/create_box
+    compute (L_a / n) i, so after this both engines give bitwise the same coordinates.
+
+    Args:
+        msh: the dolfinx mesh (its geometry is changed in place).
+        L: the sides (L1, L2) or (L1, L2, L3).
+        n: cells per side.
+    """
+    x = msh.geometry.x
+    for a, length in enumerate(L):
+        step = length / n
+        x[:, a] = step * np.rint(x[:, a] / step)
 
 
 def gmsh_mesh(comm: MPI.Comm, gdim: int, build, scale: float):

@@ -9,6 +9,7 @@ import copy
 import dataclasses
 import difflib
 import math
+import os
 import re
 import stat
 from dataclasses import dataclass, field
@@ -135,6 +136,10 @@ def _explain(err: jsonschema.ValidationError) -> str:
     if err.validator == "enum":
         return f"{path}: {err.instance!r} is not allowed (allowed: " \
                f"{', '.join(map(str, err.validator_value))})"
+    if err.validator == "oneOf":      # the reason of the one alternative of the right type
+        typed = [e for e in err.context if e.validator != "type" and not e.relative_path]
+        if len(typed) == 1:
+            return f"{path}: {typed[0].message}"
     return f"{path}: {err.message}"
 
 
@@ -145,7 +150,11 @@ def _set_path(data: dict, dotted: str, value) -> None:
         if not isinstance(node.get(key, {}), dict):
             raise CaseError(f"--set {dotted}: '{key}' is not a section")
         node = node.setdefault(key, {})
-    node[keys[-1]] = value
+    last = keys[-1]
+    if keys[:-1] in (["loads", kind] for kind in GROUP_MAPS) and \
+            re.fullmatch(rf"[0-9]{{1,{MAX_INT_DIGITS}}}", last):
+        last = int(last)                  # a physical tag, as YAML reads the key 3:
+    node[last] = value
 
 
 def parse_override(text: str) -> tuple[str, object]:
@@ -215,7 +224,7 @@ def key_lines(text: str) -> dict[str, int]:
     return out
 
 
-_PATH = re.compile(r"[A-Za-z_]\w*(?:\.[A-Za-z_]\w*|\[\d+\])*")
+_PATH = re.compile(r"[A-Za-z_]\w*(?:\.\w+|\[\d+\])*")
 
 
 def with_lines(message: str, lines: dict) -> str:
@@ -232,7 +241,7 @@ def with_lines(message: str, lines: dict) -> str:
         return message
 
     def parent(path: str) -> str:
-        return re.sub(r"(\.[A-Za-z_]\w*|\[\d+\])$", "", path)
+        return re.sub(r"(\.\w+|\[\d+\])$", "", path)
 
     def add(m):
         path = m.group(0)
@@ -267,6 +276,17 @@ MAX_STEPS = 1_000_000       # time steps (as time.N allows)
 MIN_LENGTH, MAX_LENGTH = 1e-30, 1e30   # a side length outside this range is degenerate [m]
 MAX_ASPECT = 1e6            # largest ratio of two side lengths
 REFERENCE_FORCE = 8.0       # the paper's nodal force scale (N/m, 2D), where snes_atol holds
+# the maps of loads keyed by boundary group: a name, or (YAML's integer keys) a physical tag
+GROUP_MAPS = ("traction", "pressure", "displacement")
+MESH_SUFFIXES = (".msh", ".geo")
+# the built-in mesh's keys, not used with mesh.file
+BUILTIN_MESH_KEYS = ("L1", "L2", "L3", "kind", "n", "h", "diagonal", "engine")
+DEFAULT_BOUNDARIES = {"clamped": ["left"], "contact": ["bottom"]}     # built-in meshes
+
+
+def _is_tag(key) -> bool:
+    """A physical group's tag: an integer >= 0 (not a bool)."""
+    return isinstance(key, int) and not isinstance(key, bool) and key >= 0
 
 
 def _check_data(data, path: str, source, budget: list) -> None:
@@ -285,8 +305,12 @@ def _check_data(data, path: str, source, budget: list) -> None:
         raise CaseError(f"{source}: {path}: {shown} is out of range (allowed: 0 or "
                         f"magnitudes from {MIN_MAGNITUDE:g} to {MAX_MAGNITUDE:g})")
     if isinstance(data, dict):
+        groups = path in tuple(f"loads.{m}" for m in GROUP_MAPS)
         for key, value in data.items():
-            if not isinstance(key, str):
+            if groups and not isinstance(key, str) and not _is_tag(key):
+                raise CaseError(f"{source}: {path}: the key {key!r} is not a group (a name, or "
+                                "a physical tag: an integer >= 0)")
+            if not isinstance(key, str) and not groups:
                 raise CaseError(f"{source}: {path or '(top level)'}: the key {key!r} is not a "
                                 "name (keys are strings such as 'mesh' or 'E')")
             _check_data(value, f"{path}.{key}" if path else str(key), source, budget)
@@ -369,16 +393,38 @@ def load_raw(path: str | Path, overrides: list[str] = ()) -> dict:
 # ----------------------------------------------------------------------------- the case
 @dataclass(frozen=True)
 class MeshSpec:
-    """The ``mesh`` section: dimension, sides, structured (n) or unstructured (h)."""
+    """The ``mesh`` section: dimension; the built-in rectangle / box (sides, structured n or
+    unstructured h, its builder ``engine``) or a gmsh file.
+
+    For a ``file`` (an absolute path of a .msh or .geo), kind is "file" and L1, L2, L3, n,
+    h, diagonal are None; ``size`` scales a .geo's characteristic lengths.
+    """
 
     dim: int
-    L1: float
-    L2: float
-    L3: float
+    L1: float | None
+    L2: float | None
+    L3: float | None
     kind: str
     n: int | None
     h: float | None
-    diagonal: str
+    diagonal: str | None
+    file: str | None = None
+    size: float = 1.0
+    engine: str = "gmsh"
+
+    @property
+    def builtin(self) -> bool:
+        """The built-in rectangle / box (not a mesh.file)."""
+        return self.file is None
+
+
+@dataclass(frozen=True)
+class Boundaries:
+    """The ``boundaries`` section: the groups (names, or physical tags of a mesh.file) of
+    Gamma1 (``clamped``, u = 0) and Gamma3 (``contact``)."""
+
+    clamped: tuple
+    contact: tuple
 
 
 @dataclass(frozen=True)
@@ -392,11 +438,13 @@ class Viscoplastic:
 
 @dataclass(frozen=True)
 class Material:
-    """The ``material`` section: E, nu, and the viscoplastic law or None (elastic)."""
+    """The ``material`` section: E, nu, the viscoplastic law or None (elastic), and the 2D
+    model: "stress" (plane stress) or "strain" (plane strain); None in 3D."""
 
     E: float
     nu: float
     viscoplastic: Viscoplastic | None
+    plane: str | None = "stress"
 
 
 @dataclass(frozen=True)
@@ -433,12 +481,15 @@ class Memory:
 
 @dataclass(frozen=True)
 class Contact:
-    """The ``contact`` section: gap g, normal compliance c_nu (4.1), friction, memory."""
+    """The ``contact`` section: gap g (a number, an expression in x, y, z, or None),
+    normal compliance c_nu (4.1), friction, memory, and the fixed unit approach direction
+    (None: the outward normal of Gamma3)."""
 
-    g: float | None
+    g: float | str | None
     c_nu: float | None
     friction: Friction | None
     memory: Memory | None = None
+    direction: tuple | None = None
 
     @property
     def active(self) -> bool:
@@ -448,10 +499,13 @@ class Contact:
 
 @dataclass(frozen=True)
 class Loads:
-    """The ``loads`` section: body force f0 and tractions per side of Gamma2."""
+    """The ``loads`` section: body force f0; per group (a name or physical tag): tractions,
+    normal pressures and prescribed displacements (components, None where free)."""
 
     f0: tuple | None
     traction: dict
+    pressure: dict = field(default_factory=dict)
+    displacement: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -517,6 +571,10 @@ class Case:
     output: OutputSpec
     raw: dict = field(repr=False)
     data_stress: float = 0.0     # the stress scale of loads and initial data (validation)
+    boundaries: Boundaries = Boundaries(("left",), ("bottom",))
+    # the PETSc defaults (DEFAULT_PETSC scaled to the case) under petsc: rescale_for_length
+    # replaces those of them that were not given
+    petsc_defaults: dict = field(default_factory=dict, repr=False)
 
     @property
     def dim(self) -> int:
@@ -529,7 +587,8 @@ class Case:
         Returns:
             Their names.
         """
-        terms = ["plane-stress elasticity" if self.dim == 2 else "isotropic elasticity (3D)"]
+        terms = [f"plane-{self.material.plane} elasticity" if self.dim == 2
+                 else "isotropic elasticity (3D)"]
         if self.material.viscoplastic:
             terms.append("Perzyna viscoplastic history H_n, kappa_n"
                          + (" (implicit, right end point)" if self.time.scheme == "implicit"
@@ -569,28 +628,38 @@ class Case:
 
 
 def _check_components(items, path: str, dim: int, source: str, in_time: bool = True,
-                      space_dim: int | None = None):
+                      space_dim: int | None = None, free: bool = False):
     """Length = dim; expressions parse with the allowed names (t if ``in_time``, the
-    coordinates of a body of dimension ``space_dim``, default dim); tables increase in t."""
-    from app.io import expressions
-
+    coordinates of a body of dimension ``space_dim``, default dim); tables increase in t;
+    with ``free``, None (a free component) is allowed but not everywhere."""
     names = ("t",) * in_time + ("x", "y", "z")[:space_dim or dim]
     if len(items) != dim:
         raise CaseError(f"{source}: {path}: expected {dim} components (the mesh dimension), "
                         f"got {len(items)}")
+    if free and all(c is None for c in items):
+        raise CaseError(f"{source}: {path}: every component is null (free); prescribe at "
+                        "least one (a number, an expression or a table), or leave the group "
+                        "out")
     for i, c in enumerate(items):
-        if isinstance(c, str):
-            try:
-                expressions.parse(c, names)
-            except expressions.ExpressionError as exc:
-                raise CaseError(f"{source}: {path}[{i}]: {exc}") from None
-        elif isinstance(c, dict) and "t" not in names:
-            raise CaseError(f"{source}: {path}[{i}]: a table in time is not an initial value "
-                            f"(allowed: a number or an expression in {', '.join(names)})")
-        elif isinstance(c, dict):
-            ts = [row[0] for row in c["table"]]
-            if any(b <= a for a, b in zip(ts, ts[1:])):
-                raise CaseError(f"{source}: {path}[{i}].table: times must increase strictly")
+        _check_component(c, f"{path}[{i}]", names, source)
+
+
+def _check_component(c, path: str, names: tuple, source: str) -> None:
+    """An expression parses with ``names``; a table (only if t is a name) increases in t."""
+    from app.io import expressions
+
+    if isinstance(c, str):
+        try:
+            expressions.parse(c, names)
+        except expressions.ExpressionError as exc:
+            raise CaseError(f"{source}: {path}: {exc}") from None
+    elif isinstance(c, dict) and "t" not in names:
+        raise CaseError(f"{source}: {path}: a table in time is not an initial value "
+                        f"(allowed: a number or an expression in {', '.join(names)})")
+    elif isinstance(c, dict):
+        ts = [row[0] for row in c["table"]]
+        if any(b <= a for a, b in zip(ts, ts[1:])):
+            raise CaseError(f"{source}: {path}.table: times must increase strictly")
 
 
 def _time_grid(t: dict, source: str) -> TimeGrid:
@@ -684,13 +753,17 @@ def _validate(data: dict, source: str) -> Case:
     _check_data(data, "", source, [MAX_CASE_SIZE])      # dicts built in code, not by load_raw
     data = copy.deepcopy(dict(data))
     validator = jsonschema.Draft7Validator(SCHEMA)
-    errors = sorted(validator.iter_errors(data), key=lambda e: list(e.absolute_path))
+    errors = sorted(validator.iter_errors(_schema_view(data, source)),
+                    key=lambda e: list(e.absolute_path))
     if errors:       # one line: the first error, then the others
         msgs = [_explain(e) for e in errors]
         more = f" (also: {'; '.join(msgs[1:])})" if len(msgs) > 1 else ""
         raise CaseError(f"{source}: {msgs[0]}{more}")
+    mesh_file = _check_given(data, source)
     _fill_defaults(SCHEMA, data)
-    _check_mesh(data["mesh"], source)
+    _settle_defaults(data, mesh_file)
+    if mesh_file is None:
+        _check_mesh(data["mesh"], source)
     _check_structure(data, source)
     time_grid = dataclasses.replace(_time_grid(data["time"], source),
                                     scheme=data["time"]["scheme"],
@@ -701,12 +774,99 @@ def _validate(data: dict, source: str) -> Case:
     limits = petsc_limits(data, stress)
     check_petsc_options(data.get("petsc", {}), source, base=defaults, limits=limits)
     petsc = PetscOptions({**defaults, **data.get("petsc", {})}, limits)
-    case = dataclasses.replace(_build(data, source, time_grid, petsc), data_stress=stress)
+    case = dataclasses.replace(_build(data, source, time_grid, petsc), data_stress=stress,
+                               petsc_defaults=defaults)
     ok, why = fast_eligible(case)
     if case.numerics.method == "fast" and not ok:
         raise CaseError(f"{source}: solver.method: 'fast' is not possible here: {why} "
                         "(allowed: snes_vi, auto)")
     return case
+
+
+def _schema_view(data: dict, source: str) -> dict:
+    """The case with the keys of the group maps of loads as strings, for jsonschema (which
+    names object keys by strings; YAML reads a physical tag as an integer key)."""
+    loads = data.get("loads")
+    if not isinstance(loads, dict):
+        return data
+    view = {**data, "loads": dict(loads)}
+    for kind in GROUP_MAPS:
+        groups = loads.get(kind)
+        if not isinstance(groups, dict) or all(isinstance(k, str) for k in groups):
+            continue
+        both = [k for k in groups if not isinstance(k, str) and str(k) in groups]
+        if both:
+            raise CaseError(f"{source}: loads.{kind}.{both[0]}: given twice, as the tag "
+                            f"{both[0]} and as the name '{both[0]}' (give one)")
+        view["loads"][kind] = {str(k): v for k, v in groups.items()}
+    return view
+
+
+def _check_given(data: dict, source: str) -> Path | None:
+    """The keys the user gave (before defaults are filled) that do not apply: the built-in
+    mesh's keys with mesh.file, mesh.size without a .geo, material.plane in 3D.
+
+    Returns:
+        The mesh file's absolute path, or None for the built-in mesh.
+    """
+    mesh = data["mesh"]
+    if mesh.get("dim", 2) == 3 and "plane" in data["material"]:
+        raise CaseError(f"{source}: material.plane: not used in 3D (plane stress and plane "
+                        "strain are the 2D models; a 3D body is a solid)")
+    if "file" not in mesh:
+        if "size" in mesh:
+            raise CaseError(f"{source}: mesh.size: only with a .geo mesh.file (the built-in "
+                            "mesh's cells are set by mesh.n or mesh.h)")
+        return None
+    given = [k for k in BUILTIN_MESH_KEYS if k in mesh]
+    if given:
+        raise CaseError(f"{source}: mesh.{given[0]}: not used with mesh.file (the built-in "
+                        f"mesh's keys {', '.join(BUILTIN_MESH_KEYS)} are not used with a "
+                        "gmsh file)")
+    path = _mesh_path(mesh["file"], source)
+    if "size" in mesh and path.suffix.lower() != ".geo":
+        raise CaseError(f"{source}: mesh.size: only with a .geo mesh.file (a .msh is meshed "
+                        "already)")
+    return path
+
+
+def _mesh_path(file: str, source: str) -> Path:
+    """mesh.file relative to the case file's directory: a .msh or .geo regular file."""
+    if Path(file).suffix.lower() not in MESH_SUFFIXES:
+        raise CaseError(f"{source}: mesh.file: {file!r} is not a gmsh mesh or geometry file "
+                        f"(allowed: a file ending in {' or '.join(MESH_SUFFIXES)})")
+    path = Path(os.path.abspath(Path(source).parent / file))   # an absolute file stays
+    try:
+        found = path.is_file() and os.access(path, os.R_OK)
+        exists = found or path.exists()
+    except (OSError, ValueError):        # e.g. a NUL character or a name too long
+        found = exists = False
+    if not found:
+        why = "not a readable regular file" if exists else "no such file"
+        raise CaseError(f"{source}: mesh.file: {file!r}: {why} (looked for {path}; a relative "
+                        "path is relative to the case file's directory)")
+    return path
+
+
+def _settle_defaults(data: dict, mesh_file: Path | None) -> None:
+    """After _fill_defaults: drop the defaults that do not apply (the built-in mesh's keys
+    and mesh.engine with mesh.file, mesh.size without a .geo, material.plane in 3D), make
+    mesh.file absolute, fill boundaries (built-in mesh: clamped [left], contact [bottom];
+    mesh.file: []) and write physical tags as integers.  The result validates to the same
+    case again (the studies validate case.raw with changed keys)."""
+    mesh = data["mesh"]
+    if mesh_file is not None:
+        for key in BUILTIN_MESH_KEYS:
+            mesh.pop(key, None)
+        mesh["file"] = str(mesh_file)
+    if mesh_file is None or mesh_file.suffix.lower() != ".geo":
+        mesh.pop("size", None)
+    if mesh["dim"] == 3:
+        data["material"].pop("plane", None)
+    bounds = data.setdefault("boundaries", {})
+    for role, default in DEFAULT_BOUNDARIES.items():
+        refs = bounds.get(role, default if mesh_file is None else [])
+        bounds[role] = [r if isinstance(r, str) else int(r) for r in refs]
 
 
 def _check_mesh(mesh: dict, source: str) -> None:
@@ -733,20 +893,13 @@ def _check_mesh(mesh: dict, source: str) -> None:
 
 
 def _check_structure(data: dict, source: str) -> None:
-    """Cross-key rules: vector lengths, sides, expressions parse, contact and memory."""
+    """Cross-key rules: boundary groups, vector lengths, expressions parse, contact and
+    memory."""
     dim = data["mesh"]["dim"]
     contact = data.get("contact", {})
     loads = data["loads"]
-    traction = loads.get("traction", {})
-    if contact and "bottom" in traction:
-        raise CaseError(f"{source}: loads.traction.bottom: the bottom side is Gamma3 (contact); "
-                        "a traction there is only allowed in a case without a contact section")
-    sides = SIDES[dim]
-    for side in traction:
-        if side not in sides:
-            raise CaseError(f"{source}: loads.traction.{side}: no such side in {dim}D "
-                            f"(allowed: {', '.join(s for s in sides if s != 'left')})")
-        _check_components(traction[side], f"loads.traction.{side}", dim, source)
+    _check_boundaries(data, source)
+    _check_loads(data, source)
     if "f0" in loads:
         _check_components(loads["f0"], "loads.f0", dim, source)
     if contact and not any(k in contact for k in ("g", "normal_compliance", "friction", "memory")):
@@ -756,13 +909,7 @@ def _check_structure(data: dict, source: str) -> None:
     if vp and isinstance(vp["kappa0"], str):
         _check_components([vp["kappa0"]], "material.viscoplastic.kappa0", 1, source,
                           in_time=False, space_dim=dim)
-    fr = contact.get("friction")
-    if fr and fr["b"] - fr["c1"] * fr["u1"] < 0:
-        raise CaseError(f"{source}: contact.friction: b - c1 u1 must be >= 0 (the friction "
-                        f"force of law (4.2) may not change sign), got "
-                        f"{fr['b'] - fr['c1'] * fr['u1']:g}")
-    if contact.get("memory"):
-        _check_memory(contact["memory"], source)
+    _check_contact(contact, dim, source)
     init = data.get("initial", {})
     if "u0" in init:
         _check_components(init["u0"], "initial.u0", dim, source, in_time=False)
@@ -772,6 +919,107 @@ def _check_structure(data: dict, source: str) -> None:
             raise CaseError(f"{source}: initial.sigma0: expected a {dim} x {dim} matrix")
         for i, r in enumerate(rows):
             _check_components(r, f"initial.sigma0[{i}]", dim, source, in_time=False)
+
+
+def _check_group(ref, path: str, builtin: bool, dim: int, source: str, named: bool) -> None:
+    """A group of the built-in mesh is one of its sides (SIDES[dim]), given by name; a group
+    of a mesh.file (a name or a tag) is checked against the file when it is loaded.
+    ``named``: the path does not show the group (a list entry), so the message does."""
+    if not builtin:
+        return
+    if not isinstance(ref, str):
+        raise CaseError(f"{source}: {path}: the physical tag {ref} is for a mesh.file; the "
+                        f"built-in mesh's groups are its sides, given by name (allowed: "
+                        f"{', '.join(SIDES[dim])})")
+    shown = f" ({ref!r})" if named else ""
+    if ref not in SIDES[dim]:
+        raise CaseError(f"{source}: {path}: no such side in {dim}D{shown} "
+                        f"(allowed: {', '.join(SIDES[dim])})")
+
+
+def _group_name(ref, builtin: bool) -> str:
+    if builtin:
+        return f"the {ref} side"
+    return f"the group {ref!r}" if isinstance(ref, str) else f"the physical group {ref}"
+
+
+def _check_boundaries(data: dict, source: str) -> None:
+    """boundaries.clamped and .contact: known groups (built-in mesh), no repeats, disjoint;
+    a case with a contact section has a contact boundary."""
+    builtin, dim = "file" not in data["mesh"], data["mesh"]["dim"]
+    bounds = data["boundaries"]
+    for role in ("clamped", "contact"):
+        seen = []
+        for i, ref in enumerate(bounds[role]):
+            _check_group(ref, f"boundaries.{role}[{i}]", builtin, dim, source, named=True)
+            if ref in seen:
+                raise CaseError(f"{source}: boundaries.{role}[{i}]: {ref!r} is listed twice")
+            seen.append(ref)
+    both = [ref for ref in bounds["contact"] if ref in bounds["clamped"]]
+    if both:
+        raise CaseError(f"{source}: boundaries.contact: {_group_name(both[0], builtin)} is also "
+                        "in boundaries.clamped (a group is either clamped, Gamma1, or in "
+                        "contact, Gamma3)")
+    if data.get("contact") and not bounds["contact"]:
+        need = "required with mesh.file" if not builtin else "empty"
+        raise CaseError(f"{source}: boundaries.contact: {need} in a case with a contact "
+                        "section (name the groups of Gamma3, the contact boundary)")
+
+
+def _check_loads(data: dict, source: str) -> None:
+    """loads.traction, .pressure and .displacement: known groups (built-in mesh), neither
+    clamped nor (in a case with a contact section) in contact; their components."""
+    builtin, dim = "file" not in data["mesh"], data["mesh"]["dim"]
+    bounds, loads = data["boundaries"], data["loads"]
+    has_contact = bool(data.get("contact"))
+    names = ("t", "x", "y", "z")[:dim + 1]
+    for kind in GROUP_MAPS:
+        for ref, value in loads.get(kind, {}).items():
+            path = f"loads.{kind}.{ref}"
+            _check_group(ref, path, builtin, dim, source, named=False)
+            if ref in bounds["clamped"]:
+                raise CaseError(f"{source}: {path}: {_group_name(ref, builtin)} is clamped "
+                                f"(boundaries.clamped: u = 0 there); a {kind} there is not "
+                                "allowed")
+            if has_contact and ref in bounds["contact"]:
+                raise CaseError(f"{source}: {path}: {_group_name(ref, builtin)} is Gamma3 "
+                                f"(contact); a {kind} there is only allowed in a case without "
+                                "a contact section")
+            if kind == "pressure":
+                _check_component(value, path, names, source)
+            else:
+                _check_components(value, path, dim, source, free=kind == "displacement")
+
+
+def _check_contact(contact: dict, dim: int, source: str) -> None:
+    """The gap's expression (x, y, z only), the approach direction (dim components, not
+    zero), the friction law's sign and the memory kernel."""
+    from app.io import expressions
+
+    g = contact.get("g")
+    if isinstance(g, str):
+        try:
+            used = expressions.names(expressions.parse(g))
+        except expressions.ExpressionError:
+            used = set()
+        if "t" in used:
+            raise CaseError(f"{source}: contact.g: the initial gap does not depend on time "
+                            f"(allowed: an expression in {', '.join('xyz'[:dim])}, without t)")
+        _check_component(g, "contact.g", tuple("xyz"[:dim]), source)
+    d = contact.get("direction")
+    if d is not None and len(d) != dim:
+        raise CaseError(f"{source}: contact.direction: expected {dim} components (the mesh "
+                        f"dimension), got {len(d)}")
+    if d is not None and not math.hypot(*d) > 0:
+        raise CaseError(f"{source}: contact.direction: the zero vector is no direction "
+                        "(allowed: a vector of length > 0)")
+    fr = contact.get("friction")
+    if fr and fr["b"] - fr["c1"] * fr["u1"] < 0:
+        raise CaseError(f"{source}: contact.friction: b - c1 u1 must be >= 0 (the friction "
+                        f"force of law (4.2) may not change sign), got "
+                        f"{fr['b'] - fr['c1'] * fr['u1']:g}")
+    if contact.get("memory"):
+        _check_memory(contact["memory"], source)
 
 
 def _check_memory(mem: dict, source: str) -> None:
@@ -791,29 +1039,67 @@ def _check_memory(mem: dict, source: str) -> None:
                             "increase strictly; values must be >= 0")
 
 
-def _check_values(data: dict, time_grid: TimeGrid, source: str) -> float:
+def _check_values(data: dict, time_grid: TimeGrid, source: str,
+                  length: float | None = None) -> float:
     """The data values at sample points of the body and times (app/io/datacheck.py): finite,
     initial values in the model's set.  Returns the stress scale of the data (loads,
-    sigma0 and the stress E |u0| / L of the initial displacement)."""
+    sigma0 and the stress E |u| / L of the initial and prescribed displacements).
+
+    The body of a mesh.file is unknown here: only what does not depend on the position is
+    sampled (the mesh's nodes are checked when it is loaded), and L is 1.  The geometric
+    checks of u0 (zero on Gamma1, u_nu <= g on Gamma3) need the built-in mesh with the
+    default boundaries; g >= 0 is sampled on the built-in mesh's contact sides.  ``length``:
+    the body's size L (default: body_length(data))."""
     from app.io import datacheck
 
-    mesh = data["mesh"]
-    lengths = [mesh["L1"], mesh["L2"], mesh["L3"]][:mesh["dim"]]
-    cells = [mesh["n"] if mesh["kind"] == "structured" else math.ceil(L / mesh["h"])
-             for L in lengths]
-    samples = datacheck.Samples(lengths, cells, time_grid.times, time_grid.adaptive is not None)
+    mesh, bounds = data["mesh"], data["boundaries"]
+    adaptive = time_grid.adaptive is not None
+    if "file" in mesh:
+        samples = datacheck.Samples.unknown(mesh["dim"], time_grid.times, adaptive)
+    else:
+        lengths = [mesh["L1"], mesh["L2"], mesh["L3"]][:mesh["dim"]]
+        cells = [mesh["n"] if mesh["kind"] == "structured" else math.ceil(L / mesh["h"])
+                 for L in lengths]
+        samples = datacheck.Samples(lengths, cells, time_grid.times, adaptive)
+    geometric = "file" not in mesh and bounds == DEFAULT_BOUNDARIES
     vp = data["material"].get("viscoplastic")
-    init = data.get("initial", {})
+    contact = data.get("contact", {})
     try:
         loads = datacheck.check_loads(data["loads"], samples)
-        u0, sigma0 = datacheck.check_initial(init, vp["kappa0"] if vp else None,
-                                             data.get("contact", {}).get("g"), samples)
+        moved = datacheck.check_displacement(data["loads"].get("displacement", {}), samples)
+        if contact:
+            datacheck.check_gap(contact.get("g"), bounds["contact"], samples)
+        u0, sigma0 = datacheck.check_initial(data.get("initial", {}),
+                                             vp["kappa0"] if vp else None, contact.get("g"),
+                                             samples, contact.get("direction"), geometric)
     except datacheck.DataError as exc:
         raise CaseError(f"{source}: {exc}") from None
-    return max(loads, sigma0, data["material"]["E"] * u0 / max(lengths))
+    length = body_length(data) if length is None else length
+    return max(loads, sigma0, data["material"]["E"] * max(u0, moved) / length)
 
 
-def scaled_petsc_defaults(data: dict, stress: float) -> dict:
+def body_length(data: dict) -> float:
+    """The body's length scale known before the mesh is built.
+
+    Args:
+        data: the default-filled case mapping.
+
+    Returns:
+        The longest side of the built-in mesh; 1 for a mesh.file (see rescale_for_length).
+    """
+    mesh = data["mesh"]
+    if "file" in mesh:
+        return 1.0
+    return max([mesh["L1"], mesh["L2"], mesh["L3"]][:mesh["dim"]])
+
+
+def _gap_number(data: dict) -> float | None:
+    """contact.g if it is a number (an expression's scale is unknown: the length serves)."""
+    g = data.get("contact", {}).get("g")
+    return None if isinstance(g, str) else g
+
+
+def scaled_petsc_defaults(data: dict, stress: float, length: float | None = None) -> dict:
     """DEFAULT_PETSC's absolute tolerances scaled to the case, so that a body of any size
     or stiffness converges alike (their values hold for the paper's scales: the unit square
     under a stress of 8 N/m^2):
@@ -821,52 +1107,89 @@ def scaled_petsc_defaults(data: dict, stress: float) -> dict:
       or initial data (u = 0 exactly) the default value serves;
     - snes_vi_zero_tolerance, how close to its bound (in m) SNES VI takes a dof as active:
       relative to the body's size L, and at most 1e-4 of the gap g (a tenth of the limit
-      in petsc_limits, so that a small gap keeps a valid default).
+      in petsc_limits, so that a small gap keeps a valid default); a gap given by an
+      expression: relative to L only.
 
     Args:
         data: the default-filled case mapping.
         stress: the stress scale of the case's loads and initial data.
+        length: the body's size L (default: body_length(data)).
 
     Returns:
         PETSc option name -> default value.
     """
-    mesh = data["mesh"]
-    length = max([mesh["L1"], mesh["L2"], mesh["L3"]][:mesh["dim"]])
-    force = stress * length ** (mesh["dim"] - 1)
+    length = body_length(data) if length is None else length
+    force = stress * length ** (data["mesh"]["dim"] - 1)
     atol = DEFAULT_PETSC["snes_atol"]
     zero = DEFAULT_PETSC["snes_vi_zero_tolerance"] * length
-    g = data.get("contact", {}).get("g")
+    g = _gap_number(data)
     return {"snes_atol": atol * force / REFERENCE_FORCE if force > 0 else atol,
             "snes_vi_zero_tolerance": min(zero, 1e-4 * g) if g else zero}
 
 
-def petsc_limits(data: dict, stress: float) -> dict:
+def petsc_limits(data: dict, stress: float, length: float | None = None) -> dict:
     """The largest absolute tolerances that still solve a step of this case, with the
     reason (for petscopts.check_petsc_options): a residual tolerance of 1e-3 of the nodal
     force scale stress L^(d-1) (none without loads or initial data: u = 0 exactly), an
-    active-set tolerance of 1e-3 of the gap g and of the body's size L.
+    active-set tolerance of 1e-3 of the gap g (a number) and of the body's size L.
 
     Args:
         data: the default-filled case mapping.
         stress: the stress scale of the case's loads and initial data.
+        length: the body's size L (default: body_length(data)).
 
     Returns:
         PETSc option name -> (largest value, reason).
     """
-    mesh = data["mesh"]
-    length = max([mesh["L1"], mesh["L2"], mesh["L3"]][:mesh["dim"]])
-    force = stress * length ** (mesh["dim"] - 1)
+    length = body_length(data) if length is None else length
+    force = stress * length ** (data["mesh"]["dim"] - 1)
     limits = {}
     if force > 0:
         limits["snes_atol"] = (1e-3 * force, f"Newton would stop before solving, the "
                                f"residual's nodal forces are of order {force:.3g} "
                                "(stress x L^(d-1))")
-    g = data.get("contact", {}).get("g")
+    g = _gap_number(data)
     scale, what = (g, "the gap g") if g is not None and 0 < g < length else (length, "L")
     limits["snes_vi_zero_tolerance"] = (1e-3 * scale, f"SNES VI would take dofs "
                                         f"{1e-3 * scale:.3g} m (1e-3 {what}) or farther "
                                         "from their bound as active")
     return limits
+
+
+def rescale_for_length(case: Case, length: float, stress: float | None = None) -> Case:
+    """The case with its PETSc defaults scaled to the body's size ``length`` (known once a
+    mesh.file is loaded; validation takes 1): the scaled absolute tolerances that were not
+    given (in the case file or on the command line) are recomputed, and every given option
+    is checked again against the new limits.
+
+    Args:
+        case: the validated case.
+        length: the body's size L [m] (e.g. the largest side of the mesh's bounding box).
+        stress: the stress scale of the loads and initial data, if measured on the mesh
+            (default: as validation finds it, with E |u| / length for the initial and
+            prescribed displacements).
+
+    Returns:
+        The case with the new petsc options, petsc_defaults and data_stress.
+
+    Raises:
+        CaseError: if a given absolute tolerance is too large for the new scales, or the
+            length is not a positive finite number.
+    """
+    if not MIN_LENGTH <= length <= MAX_LENGTH:
+        raise CaseError(f"{case.source}: mesh.file: the body's size {length:g} m is degenerate "
+                        f"(allowed: {MIN_LENGTH:g} to {MAX_LENGTH:g})")
+    stress = _check_values(case.raw, case.time, case.source, length) if stress is None \
+        else float(stress)
+    defaults = {**DEFAULT_PETSC, **scaled_petsc_defaults(case.raw, stress, length)}
+    limits = petsc_limits(case.raw, stress, length)
+    in_file = case.raw.get("petsc", {})
+    missing = object()
+    given = {k: v for k, v in case.petsc.items()
+             if k in in_file or case.petsc_defaults.get(k, missing) != v}
+    check_petsc_options(given, case.source, base=defaults, limits=limits)
+    petsc = PetscOptions({**defaults, **given}, limits)
+    return dataclasses.replace(case, petsc=petsc, data_stress=stress, petsc_defaults=defaults)
 
 
 def _build(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Case:
@@ -880,19 +1203,18 @@ def _build(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Case:
         raise CaseError(f"{source}: name: the file name gives the case name {name!r}, which "
                         "cannot name an output directory; set name (allowed: letters, digits, "
                         "'_', '.' and '-', starting with a letter or digit)")
+    g, d = contact.get("g"), contact.get("direction")
     return Case(
         name=name,
         source=source,
-        mesh=MeshSpec(mesh["dim"], float(mesh["L1"]), float(mesh["L2"]), float(mesh["L3"]),
-                      mesh["kind"], int(mesh["n"]) if mesh["kind"] == "structured" else None,
-                      float(mesh["h"]) if mesh["kind"] == "unstructured" else None,
-                      mesh["diagonal"]),
+        mesh=_mesh_spec(mesh),
         material=Material(float(data["material"]["E"]), float(data["material"]["nu"]),
                           Viscoplastic(float(vp["lambda1"]), float(vp["lambda2"]),
                                        vp["kappa0"] if isinstance(vp["kappa0"], str)
-                                       else float(vp["kappa0"])) if vp else None),
+                                       else float(vp["kappa0"])) if vp else None,
+                          data["material"].get("plane")),
         contact=Contact(
-            float(contact["g"]) if "g" in contact else None,
+            g if isinstance(g, str) else float(g) if g is not None else None,
             float(contact["normal_compliance"]["c_nu"]) if "normal_compliance" in contact
             else None,
             Friction(*(float(fr[k]) for k in ("b", "c1", "c2", "u1")),
@@ -900,9 +1222,14 @@ def _build(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Case:
             if fr else None,
             Memory(float(mem["b0"]), float(mem["beta"]), mem["kernel"], mem.get("alpha"),
                    mem.get("tau"), tuple(map(tuple, mem["table"])) if "table" in mem else None,
-                   mem["sum"]) if mem else None),
+                   mem["sum"]) if mem else None,
+            tuple(float(x) / math.hypot(*d) for x in d) if d is not None else None),
         loads=Loads(tuple(loads["f0"]) if "f0" in loads else None,
-                    {k: tuple(v) for k, v in loads.get("traction", {}).items()}),
+                    {k: tuple(v) for k, v in loads.get("traction", {}).items()},
+                    dict(loads.get("pressure", {})),
+                    {k: tuple(v) for k, v in loads.get("displacement", {}).items()}),
+        boundaries=Boundaries(tuple(data["boundaries"]["clamped"]),
+                              tuple(data["boundaries"]["contact"])),
         initial=Initial(tuple(init["u0"]) if "u0" in init else None,
                         tuple(map(tuple, init["sigma0"])) if "sigma0" in init else None),
         time=time_grid,
@@ -911,6 +1238,17 @@ def _build(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Case:
         output=OutputSpec(**data["output"]),
         raw=data,
     )
+
+
+def _mesh_spec(mesh: dict) -> MeshSpec:
+    """The MeshSpec of the default-filled (and settled) mesh section."""
+    if "file" in mesh:
+        return MeshSpec(mesh["dim"], None, None, None, "file", None, None, None,
+                        file=mesh["file"], size=float(mesh.get("size", 1.0)))
+    return MeshSpec(mesh["dim"], float(mesh["L1"]), float(mesh["L2"]), float(mesh["L3"]),
+                    mesh["kind"], int(mesh["n"]) if mesh["kind"] == "structured" else None,
+                    float(mesh["h"]) if mesh["kind"] == "unstructured" else None,
+                    mesh["diagonal"], engine=mesh["engine"])
 
 
 def fast_eligible(case: Case) -> tuple[bool, str]:

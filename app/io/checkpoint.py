@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.io.canonical import stable_json
 from app.io.errors import CaseError
 from app.io.output import on_rank0
 
@@ -64,12 +65,14 @@ def case_fingerprint(case) -> str:
         A SHA-256 hex digest of those sections.
     """
     raw = case.raw
-    keys = ("mesh", "material", "contact", "loads", "initial")
+    keys = ("mesh", "material", "contact", "loads", "initial", "boundaries")
     data = {k: raw.get(k) for k in keys}
     data["times"] = list(case.time.times)
     data["scheme"] = case.time.scheme
     data["adaptive"] = case.time.adaptive
-    return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
+    if case.mesh.file is not None:           # the scene is the file's content, not its name
+        data["mesh_file"] = hashlib.sha256(Path(case.mesh.file).read_bytes()).hexdigest()
+    return hashlib.sha256(stable_json(data).encode()).hexdigest()
 
 
 def _owned_rows(function):

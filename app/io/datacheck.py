@@ -1,16 +1,19 @@
 """Checks of a case's data values before anything is built or compiled.
 
-Every expression-valued input (loads.f0, loads.traction.<side>, initial.u0, initial.sigma0,
-material.viscoplastic.kappa0) is evaluated with numpy at sample points covering the closed
-body (or the side it acts on) and at the times of the time grid (a dense sample of [0, T]
-with adaptive steps).  A value that is not a finite real number is refused, naming the key
-and the point (x, t); so are initial data outside the model's set: u0 must vanish on Gamma1
-{x = 0} and satisfy u_nu <= g on Gamma3 (the bottom side), kappa0 >= 0, sigma0 symmetric.
+Every expression-valued input (loads.f0, loads.traction / pressure / displacement of a
+group, initial.u0, initial.sigma0, material.viscoplastic.kappa0, contact.g) is evaluated with
+numpy at sample points covering the closed body (or the side it acts on) and at the times of
+the time grid (a dense sample of [0, T] with adaptive steps).  A value that is not a finite
+real number is refused, naming the key and the point (x, t); so are data outside the model's
+set: g >= 0 on Gamma3, kappa0 >= 0, sigma0 symmetric, and (for the built-in mesh with its
+default boundaries) u0 vanishing on Gamma1 {x = 0} and u_nu <= g on Gamma3 (the bottom side).
 
 The sample points are a tensor grid with the vertices and the midpoints of a structured
-grid of m cells per side: the mesh's own cells (m = mesh.n, or L / h for unstructured
-meshes) up to MAX_CELLS[dim] per side.  The same checks on the mesh nodes are repeated in
-app/model/problem.py, where u0 and kappa0 are set.
+grid of m cells per side of the built-in rectangle / box: the mesh's own cells (m = mesh.n,
+or L / h for unstructured meshes) up to MAX_CELLS[dim] per side.  The body of a mesh.file is
+not known before it is loaded (``Samples.unknown``): only the values that do not depend on
+the position are sampled then.  The same checks on the mesh nodes are repeated where the
+data are set on the mesh (app/model).
 """
 from __future__ import annotations
 
@@ -47,6 +50,7 @@ class Samples:
     """
 
     def __init__(self, lengths, cells, times, adaptive: bool):
+        self.known = True            # the body's geometry is known (see ``unknown``)
         self.dim = len(lengths)
         self.lengths = [float(L) for L in lengths]
         self.axes = [np.linspace(0.0, L, 2 * int(min(max(m, 1), MAX_CELLS[self.dim])) + 1)
@@ -56,15 +60,36 @@ class Samples:
             t = np.union1d(t, np.linspace(0.0, t[-1], ADAPTIVE_TIMES))
         self.times = t
 
-    def points(self, side: str | None = None) -> np.ndarray:
+    @classmethod
+    def unknown(cls, dim: int, times, adaptive: bool) -> Samples:
+        """Samples of a body whose geometry is not known yet (a mesh.file): the sample times,
+        and one placeholder point for the values that do not depend on the position.
+
+        Args:
+            dim: the space dimension.
+            times: the time grid t_0..t_N.
+            adaptive: the steps are adaptive.
+
+        Returns:
+            The Samples (``known`` False).
+        """
+        self = cls([1.0] * dim, [1] * dim, times, adaptive)
+        self.known = False
+        self.axes = [np.zeros(1)] * dim
+        return self
+
+    def points(self, side=None) -> np.ndarray:
         """The sample points.
 
         Args:
-            side: a side's name, or None for the whole closed body.
+            side: a side's name, or None for the whole closed body (ignored for an unknown
+                geometry: one placeholder point).
 
         Returns:
             (P, dim) points.
         """
+        if not self.known:
+            return np.zeros((1, self.dim))
         axes = list(self.axes)
         if side is not None:
             axis, end = SIDE_AXIS[self.dim][side]
@@ -112,6 +137,33 @@ def evaluate(component, points: np.ndarray, times: np.ndarray) -> tuple[np.ndarr
     return np.broadcast_to(values, (len(times), len(points))), times
 
 
+def _check_u0_on_the_boundary(u0, g, direction, scale: float, samples: Samples) -> None:
+    """u0 = 0 on Gamma1 (the left side) and u_nu <= g on Gamma3 (the bottom side)."""
+    d = samples.dim
+    for i, c in enumerate(u0):
+        v = finite_values(c, f"initial.u0[{i}]", samples, "left", with_t=False)
+        if np.abs(v).max(initial=0.0) > 1e-12 * scale:
+            raise DataError(f"initial.u0: must vanish on Gamma1 (x = 0), got u0[{i}] = "
+                            f"{v.flat[np.argmax(np.abs(v))]:.6g}")
+    if g is None:
+        return
+    if direction is None:                       # u_nu = -u_d on the bottom side
+        direction = [0.0] * (d - 1) + [-1.0]
+    norm = math.hypot(*direction)
+    v = sum(float(di) / norm * finite_values(c, f"initial.u0[{i}]", samples, "bottom",
+                                              with_t=False)
+            for i, (di, c) in enumerate(zip(direction, u0)) if di != 0)
+    gv = finite_values(g, "contact.g", samples, "bottom", with_t=False) \
+        if isinstance(g, str) else np.asarray(float(g))
+    v, gv = np.broadcast_arrays(np.asarray(v, dtype=float), gv)
+    excess = v - gv * (1 + 1e-12)
+    if excess.max(initial=-math.inf) > 0:
+        k = np.unravel_index(np.argmax(excess), excess.shape)
+        shown = f"{g:g}" if not isinstance(g, str) else f"{gv[k]:.6g}"
+        raise DataError(f"initial.u0: violates u_nu <= g on Gamma3 ({AXES[d - 1]} = 0): "
+                        f"u_nu = {v[k]:.6g} > g = {shown}")
+
+
 def _where(points, times, index, dim: int, with_t: bool) -> str:
     m, p = index
     parts = [f"{a} = {points[p, i]:.6g}" for i, a in enumerate(AXES[:dim])]
@@ -132,13 +184,17 @@ def finite_values(component, path: str, samples: Samples, side: str | None = Non
         with_t: the component depends on time (loads; initial values do not).
 
     Returns:
-        The values (M, P).
+        The values (M, P); none (P = 0) for a component that depends on the position of a
+        body not known yet.
 
     Raises:
         DataError: if a value is not a finite number of at most MAX_MAGNITUDE.
     """
     points = samples.points(side)
     try:
+        if not samples.known and isinstance(component, str) and \
+                expressions.names(expressions.parse(component)) & set(AXES):
+            return np.zeros((1, 0))             # depends on the position: not known yet
         values, times = evaluate(component, points, samples.times)
     except expressions.ExpressionError as exc:
         raise DataError(f"{path}: {exc}") from None
@@ -158,14 +214,15 @@ def finite_values(component, path: str, samples: Samples, side: str | None = Non
 
 
 def check_loads(loads: dict, samples: Samples) -> float:
-    """Loads finite on the body (f0) and on their sides (tractions).
+    """Loads finite on the body (f0) and on their groups (tractions, pressures; a group of
+    a known body is one of its sides).
 
     Args:
         loads: the case's ``loads`` section.
         samples: the sample points and times.
 
     Returns:
-        The largest stress they apply: max |f2| and max |f0| L.
+        The largest stress they apply: max |f2|, max |p| and max |f0| L.
 
     Raises:
         DataError: for a value that is not finite or out of range.
@@ -175,21 +232,76 @@ def check_loads(loads: dict, samples: Samples) -> float:
         for i, c in enumerate(comps):
             values = finite_values(c, f"loads.traction.{side}[{i}]", samples, side)
             scale = max(scale, float(np.abs(values).max(initial=0.0)))
+    for side, c in loads.get("pressure", {}).items():
+        values = finite_values(c, f"loads.pressure.{side}", samples, side)
+        scale = max(scale, float(np.abs(values).max(initial=0.0)))
     for i, c in enumerate(loads.get("f0", ())):
         values = finite_values(c, f"loads.f0[{i}]", samples)
         scale = max(scale, float(np.abs(values).max(initial=0.0)) * max(samples.lengths))
     return scale
 
 
-def check_initial(initial: dict, kappa0, g: float | None,
-                  samples: Samples) -> tuple[float, float]:
+def check_displacement(displacement: dict, samples: Samples) -> float:
+    """Prescribed displacements finite on their groups at every time.
+
+    Args:
+        displacement: the case's ``loads.displacement`` (group -> components, None where
+            free).
+        samples: the sample points and times.
+
+    Returns:
+        Their largest magnitude max |u_D| (0 without any).
+
+    Raises:
+        DataError: for a value that is not finite or out of range.
+    """
+    scale = 0.0
+    for side, comps in displacement.items():
+        for i, c in enumerate(comps):
+            if c is not None:
+                values = finite_values(c, f"loads.displacement.{side}[{i}]", samples, side)
+                scale = max(scale, float(np.abs(values).max(initial=0.0)))
+    return scale
+
+
+def check_gap(g, sides, samples: Samples) -> None:
+    """The gap g (an expression) finite and >= 0 on Gamma3 (the contact sides of a known
+    body; for a mesh.file only an expression without x, y, z is sampled here).
+
+    Args:
+        g: contact.g: a number, an expression in x, y, z, or None.
+        sides: boundaries.contact (side names of the built-in mesh).
+        samples: the sample points.
+
+    Raises:
+        DataError: for a value that is not finite, or negative.
+    """
+    if not isinstance(g, str):
+        return                                  # a number >= 0 (schema) or no bound
+    for side in sides if samples.known else [None]:
+        v = finite_values(g, "contact.g", samples, side, with_t=False)
+        if v.size and v.min() < 0:
+            points = samples.points(side)
+            where = _where(points if v.shape[1] == len(points) else points[:1], samples.times,
+                           (0, int(np.argmin(v[0]))), samples.dim, False)
+            raise DataError(f"contact.g: must be >= 0 on Gamma3 (the gap to the foundation), "
+                            f"got {v.min():.6g} at {where}")
+
+
+def check_initial(initial: dict, kappa0, g, samples: Samples, direction=None,
+                  geometric: bool = True) -> tuple[float, float]:
     """u0, sigma0 and kappa0 finite and in the model's set.
 
     Args:
         initial: the case's ``initial`` section.
         kappa0: material.viscoplastic.kappa0 (a number or expression), or None.
-        g: the gap, or None.
+        g: the gap (a number or an expression in x, y, z), or None.
         samples: the sample points.
+        direction: contact.direction (u_nu = u . d), or None: the bottom side's outward
+            normal.
+        geometric: Gamma1 is the left side and Gamma3 the bottom side of a known body:
+            check u0 = 0 on Gamma1 and u_nu <= g on Gamma3 (else the mesh's nodes are
+            checked when it is loaded).
 
     Returns:
         (max |u0|, max |sigma0|).
@@ -198,31 +310,21 @@ def check_initial(initial: dict, kappa0, g: float | None,
         DataError: for a value that is not finite, u0 not 0 on Gamma1 or beyond g on
             Gamma3, sigma0 not symmetric, or kappa0 < 0.
     """
-    d = samples.dim
     scale = 0.0
     if "u0" in initial:
         u0 = initial["u0"]
         body = [finite_values(c, f"initial.u0[{i}]", samples, with_t=False)
                 for i, c in enumerate(u0)]
         scale = max(float(np.abs(v).max(initial=0.0)) for v in body)
-        for i, c in enumerate(u0):              # u0 = 0 on Gamma1
-            v = finite_values(c, f"initial.u0[{i}]", samples, "left", with_t=False)
-            if np.abs(v).max(initial=0.0) > 1e-12 * scale:
-                raise DataError(f"initial.u0: must vanish on Gamma1 (x = 0), got u0[{i}] = "
-                                f"{v.flat[np.argmax(np.abs(v))]:.6g}")
-        if g is not None:                       # u_nu = -u_d on the bottom side
-            v = -finite_values(u0[d - 1], f"initial.u0[{d - 1}]", samples, "bottom",
-                               with_t=False)
-            if v.max(initial=-math.inf) > g * (1 + 1e-12):
-                raise DataError(f"initial.u0: violates u_nu <= g on Gamma3 "
-                                f"({AXES[d - 1]} = 0): u_nu = {v.max():.6g} > g = {g:g}")
+        if geometric and samples.known:
+            _check_u0_on_the_boundary(u0, g, direction, scale, samples)
     stress = 0.0
     if "sigma0" in initial:
         rows = initial["sigma0"]
         s = [[finite_values(c, f"initial.sigma0[{i}][{j}]", samples, with_t=False)
               for j, c in enumerate(r)] for i, r in enumerate(rows)]
         stress = max(float(np.abs(v).max(initial=0.0)) for r in s for v in r)
-        for i in range(d):
+        for i in range(samples.dim):
             for j in range(i):
                 if np.abs(s[i][j] - s[j][i]).max(initial=0.0) > 1e-12 * stress:
                     raise DataError(f"initial.sigma0: must be symmetric ([{i}][{j}] != "

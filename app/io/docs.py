@@ -22,6 +22,9 @@ def _type(sub: dict) -> str:
     t = sub.get("type", "")
     if t == "array":
         return "list"
+    values = sub.get("additionalProperties")
+    if t == "object" and isinstance(values, dict) and "propertyNames" not in sub:
+        return f"map: group -> {_type(values)}"      # loads keyed by boundary group
     bounds = []
     if "minimum" in sub:
         bounds.append(f">= {sub['minimum']}")

@@ -222,9 +222,9 @@ class FieldWriter:
         self.comm.barrier()
 
 
-def classify(data: dict, g: float | None) -> np.ndarray:
+def classify(data: dict, g: float | None, compliance: bool = True) -> np.ndarray:
     """Node state from the columns of the contact table: 'bound' (u_nu = g), 'compliance'
-    (0 < u_nu < g), 'separated' (u_nu <= 0).
+    (0 < u_nu < g), 'separated' (u_nu <= 0), 'prescribed' (the Dirichlet data fix u_nu).
 
     The tolerances come from the solution, not from g: u_nu counts as positive beyond the
     round-off of the displacement (1e-9 of its largest component on Gamma3), or when the
@@ -235,7 +235,10 @@ def classify(data: dict, g: float | None) -> np.ndarray:
 
     Args:
         data: the columns of the contact table (u_nu, the u_* and neg_sigma* columns).
-        g: the bound of the unilateral constraint (None: no bound).
+        g: the bound of the unilateral constraint (None: no bound; an expression: the
+            table's column g).
+        compliance: the foundation has a normal compliance (else a node below its bound is
+            'separated': the unilateral bound alone, Signorini contact).
 
     Returns:
         The state of each node (an object array of strings).
@@ -247,24 +250,33 @@ def classify(data: dict, g: float | None) -> np.ndarray:
     f_scale = max((float(np.abs(v).max(initial=0.0)) for v in f_cols), default=0.0)
     pressure = data.get("neg_sigma_nu", np.zeros_like(u_nu))
     touching = (u_nu > 1e-9 * u_scale) | ((u_nu > 0) & (pressure > 1e-6 * f_scale))
-    state = np.where(touching, "compliance", "separated").astype(object)
-    if g is not None:
+    state = np.where(touching & compliance, "compliance", "separated").astype(object)
+    if "g" in data:                   # a gap that varies along Gamma3 (may be 0 somewhere)
+        gap = data["g"]
+        state[u_nu >= gap - 1e-9 * np.maximum(gap, u_scale)] = "bound"
+    elif g is not None:
         state[u_nu >= g * (1 - 1e-9)] = "bound"
+    if "_prescribed" in data:          # u_nu is Dirichlet data: the force is a reaction
+        state[np.asarray(data["_prescribed"], dtype=bool)] = "prescribed"
     return state
 
 
-def write_contact_csv(comm, path: Path, table: dict, g: float | None) -> dict:
+def write_contact_csv(comm, path: Path, table: dict, g: float | None,
+                      compliance: bool = True) -> dict:
     """Gather the per-node contact table on rank 0, sort by coordinates and write it (columns
     in the table's order, then ``state``).  In 2D the columns are x, y, u_x, u_y, u_nu,
-    u_tau, neg_sigma_nu, neg_sigma_tau; in 3D z, u_z and two tangential components
-    (u_tau1, u_tau2, neg_sigma_tau1, neg_sigma_tau2) appear, and xi (memory) / theta (slip
-    dependence) when the case has them.  Collective.
+    u_tau (along the nodal tangent), neg_sigma_nu (the contact pressure, the bound's reaction
+    included), neg_sigma_tau; in 3D z, u_z, the components in the nodal frame (u_tau1,
+    u_tau2, neg_sigma_tau1, neg_sigma_tau2) and the slip magnitude u_tau appear, and xi
+    (memory) / theta (slip dependence) / g (a gap expression) when the case has them.
+    Collective.
 
     Args:
         comm: the MPI communicator.
         path: the CSV file.
         table: this rank's columns (problem.contact_table()).
         g: the bound of the unilateral constraint (None: no bound).
+        compliance: the foundation has a normal compliance (see classify).
 
     Returns:
         The counts of node states (bound, compliance, separated, nodes) on every rank.
@@ -282,8 +294,8 @@ def write_contact_csv(comm, path: Path, table: dict, g: float | None) -> dict:
         keys = [np.round(data[k] / max(scale, 1e-300), 9) for k in ("z", "y", "x") if k in data]
         order = np.lexsort(tuple(keys))
         data = {k: v[order] for k, v in data.items()}
-        data["state"] = classify(data, g)
-        columns = list(local) + ["state"]
+        data["state"] = classify(data, g, compliance)
+        columns = [k for k in local if not k.startswith("_")] + ["state"]
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
         writer.writerow(columns)
@@ -291,6 +303,8 @@ def write_contact_csv(comm, path: Path, table: dict, g: float | None) -> dict:
             writer.writerow([repr(float(data[c][i])) if c != "state" else data[c][i]
                              for c in columns])
         counts = {s: int(np.sum(data["state"] == s)) for s in ("bound", "compliance", "separated")}
+        if "_prescribed" in data and np.any(data["_prescribed"]):
+            counts["prescribed"] = int(np.sum(data["state"] == "prescribed"))
         counts["nodes"] = int(len(data["x"]))
     on_rank0(comm, lambda: atomic_write(path, buf.getvalue()))    # OutputError on every rank
     return comm.bcast(counts, root=0)

@@ -1,9 +1,11 @@
 """JSON schema of a case file (validated with jsonschema; defaults are filled from it).
 
-Sections: physical data (mesh geometry, material, contact, loads, initial values, time) are
-separate from numerical settings (solver), PETSc options (petsc, passed through with our
-prefix) and output.  Every key has a description and, where sensible, a default; units SI.
-Cross-key rules (dimension of vectors, time-grid combinations, ...) are checked in case.py.
+Sections: physical data (mesh geometry, boundary parts, material, contact, loads, initial
+values, time) are separate from numerical settings (solver), PETSc options (petsc, passed
+through with our prefix) and output.  Every key has a description and, where sensible, a
+default; units SI.  Cross-key rules (dimension of vectors, time-grid combinations, boundary
+groups, keys that do not apply with mesh.file, ...) are checked in case.py, which also fills
+the defaults that depend on other keys (boundaries).
 """
 from __future__ import annotations
 
@@ -19,6 +21,16 @@ _component = {"oneOf": [_num, _expr, {"type": "object", "additionalProperties": 
 _vector = {"type": "array", "items": _component, "minItems": 2, "maxItems": 3,
            "description": "2 or 3 components (the mesh dimension): number, expression string "
                           "in t, x, y, z, or {table: [[t, value], ...]} (piecewise linear in t)"}
+# a prescribed displacement component: a load component or null (that component is free)
+_free_component = {"oneOf": [_num, _expr, {"type": "object", "additionalProperties": False,
+                                           "required": ["table"],
+                                           "properties": {"table": _table}},
+                             {"type": "null"}]}
+# a boundary part: a physical group's name (mesh.file) or tag (an integer >= 0), or a side of
+# the built-in rectangle / box (left right bottom top, and front back in 3D)
+_group = {"oneOf": [{"type": "string", "minLength": 1, "maxLength": 200},
+                    {"type": "integer", "minimum": 0}]}
+_groups = {"type": "array", "items": _group, "maxItems": 1000}
 
 
 # a case name is one path component below results/: letters, digits, _ . -, not "." or ".."
@@ -42,11 +54,21 @@ SCHEMA = _obj({
                             "names the default output directory results/<name>"},
     "description": {"type": "string", "description": "free text"},
     "mesh": _obj({
+        "file": {"type": "string", "minLength": 1, "maxLength": 4096,
+                 "description": "a gmsh .msh (format 4.1) or .geo file, relative to the case "
+                                "file's directory; its physical groups name the boundary parts "
+                                "(boundaries, loads); a .geo is meshed by gmsh at load time "
+                                "(absent: the built-in rectangle / box of L1, L2, L3; the keys "
+                                "L1 L2 L3 kind n h diagonal engine are not used with mesh.file)"},
         "dim": {"enum": [2, 3], "default": 2,
-                "description": "2: rectangle, plane stress (the paper); 3: box, isotropic Hooke"},
-        "L1": {**_pos, "default": 1.0, "description": "length in x [m]"},
-        "L2": {**_pos, "default": 1.0, "description": "length in y [m]"},
-        "L3": {**_pos, "default": 1.0, "description": "length in z [m] (3D)"},
+                "description": "2: plane body (material.plane), z = 0 for mesh.file; 3: solid "
+                               "(a box, or a tetrahedral mesh.file), isotropic Hooke"},
+        "size": {**_pos, "default": 1.0,
+                 "description": "factor on the characteristic lengths of a .geo mesh.file "
+                                "(< 1: finer; only with a .geo)"},
+        "L1": {**_pos, "default": 1.0, "description": "length in x [m] (built-in mesh)"},
+        "L2": {**_pos, "default": 1.0, "description": "length in y [m] (built-in mesh)"},
+        "L3": {**_pos, "default": 1.0, "description": "length in z [m] (built-in 3D mesh)"},
         "kind": {"enum": ["structured", "unstructured"], "default": "structured",
                  "description": "structured: transfinite n per side (2D: nested under "
                                 "refinement); unstructured: gmsh Delaunay with target size h"},
@@ -56,8 +78,25 @@ SCHEMA = _obj({
         "diagonal": {"enum": ["right", "left"], "default": "right",
                      "description": "2D structured: right = each square cut from (x0,y0) to "
                                     "(x1,y1), left = from (x0,y1) to (x1,y0)"},
-    }, description="geometry: Gamma1 = {x = 0} (clamped), Gamma3 = bottom {y = 0} in 2D, "
-                   "{z = 0} in 3D (contact), Gamma2 = the other sides (tractions)"),
+        "engine": {"enum": ["gmsh", "dolfinx"], "default": "gmsh",
+                   "description": "builder of the built-in structured rectangle / box (the "
+                                  "same cells either way; unstructured meshes come from gmsh)"},
+    }, description="the body: a gmsh mesh.file, or the built-in rectangle (0, L1) x (0, L2) / "
+                   "box (0, L1) x (0, L2) x (0, L3) whose sides are the groups left {x = 0}, "
+                   "right {x = L1}, bottom {y = 0} (3D: {z = 0}), top {y = L2} (3D: "
+                   "{z = L3}) and in 3D front {y = 0}, back {y = L2}"),
+    "boundaries": _obj({
+        "clamped": {**_groups, "description": "the groups of Gamma1, where u = 0 (default: "
+                                              "[left] for the built-in mesh, [] for mesh.file; "
+                                              "[] is allowed when loads.displacement fixes "
+                                              "the rigid motions)"},
+        "contact": {**_groups, "description": "the groups of Gamma3, the contact boundary "
+                                              "(default: [bottom] for the built-in mesh; "
+                                              "required with mesh.file and a contact section)"},
+    }, description="boundary parts: lists of group names (the built-in mesh's sides or "
+                   "mesh.file's physical groups) or physical tags (integers >= 0, mesh.file "
+                   "only); Gamma2 is the rest of the boundary.  Built-in meshes default to "
+                   "clamped [left], contact [bottom]"),
     "material": _obj({
         "E": {**_pos, "description": "Young's modulus [N/m^2]"},
         "nu": {"type": "number", "minimum": 0, "exclusiveMaximum": 0.5,
@@ -70,10 +109,21 @@ SCHEMA = _obj({
                                       "number or an expression in x, y, z"},
         }, required=["lambda1", "lambda2"],
             description="Perzyna law (absent: elastic body, no history update)"),
+        "plane": {"enum": ["stress", "strain"], "default": "stress",
+                  "description": "2D: plane stress (the paper's, a thin plate) or plane strain "
+                                 "(a long body); not used in 3D"},
     }, required=["E", "nu"], description="material"),
     "contact": _obj({
-        "g": {**_pos, "description": "penetration bound: u_nu <= g on Gamma3 [m] "
-                                     "(absent: no unilateral constraint)"},
+        "g": {"oneOf": [_nonneg, _expr],
+              "description": "the initial gap to the rigid foundation, the bound u_nu <= g on "
+                             "Gamma3 [m]: a number >= 0 or an expression in x, y, z (not t), "
+                             ">= 0 on Gamma3 (absent: no unilateral constraint)"},
+        "direction": {"type": "array", "items": _num, "minItems": 2, "maxItems": 3,
+                      "description": "[dx, dy(, dz)]: a fixed approach direction of a flat "
+                                     "rigid foundation (normalised): u_nu = u . d, the "
+                                     "tangential parts orthogonal to d (absent: the outward "
+                                     "unit normal of Gamma3 at each node; (0, -1) / (0, 0, -1) "
+                                     "on the built-in bottom side)"},
         "normal_compliance": _obj({
             "c_nu": {**_nonneg, "description": "stiffness of p(r) = c_nu r^+ [N/m^3]"},
         }, required=["c_nu"], description="normal compliance (4.1)"),
@@ -106,18 +156,36 @@ SCHEMA = _obj({
                             "(1 - theta_inf) exp(-s/s0), s = int_0^t |u_tau| (absent: none)"),
         }, required=["b", "c1", "c2", "u1"],
             description="nonmonotone friction law (4.2) (absent: frictionless)"),
-    }, description="contact on Gamma3 (absent: Gamma3 is traction free)"),
+    }, description="contact on Gamma3 = boundaries.contact (built-in meshes: the bottom "
+                   "side by default) with a rigid foundation (absent: Gamma3 is traction "
+                   "free)"),
     "loads": _obj({
         "f0": {**_vector, "description": "body force density [N/m^3]; " + _vector["description"]},
-        "traction": _obj({
-            side: {**_vector, "description": f"f2 on the {side} side [N/m^2]"}
-            for side in ("right", "top", "bottom", "front", "back")
-        }, description="tractions f2 per side: right {x = L1}, top {y = L2} (2D) / {z = L3} "
-                       "(3D), front {y = 0} and back {y = L2} (3D), bottom only without contact"),
+        "traction": {"type": "object", "additionalProperties": _vector,
+                     "description": "{group: [tx, ty(, tz)]}: traction f2 [N/m^2] on each "
+                                    "group of Gamma2 (a name or a physical tag; the built-in "
+                                    "mesh's sides left right bottom top, front back in 3D); "
+                                    "not on a clamped group, nor on a contact group of a case "
+                                    "with a contact section; components: number, expression "
+                                    "in t, x, y, z, or {table: [[t, value], ...]}"},
+        "pressure": {"type": "object", "additionalProperties": _component,
+                     "description": "{group: p}: normal pressure [N/m^2] on each group of "
+                                    "Gamma2, the traction -p n with the outward unit normal n "
+                                    "of the reference configuration; p a number, expression "
+                                    "in t, x, y, z, or {table: ...}"},
+        "displacement": {"type": "object",
+                         "additionalProperties": {"type": "array", "items": _free_component,
+                                                  "minItems": 2, "maxItems": 3},
+                         "description": "{group: [ux, uy(, uz)]}: prescribed displacement "
+                                        "[m] on each group, a component being a number, "
+                                        "expression in t, x, y, z, {table: ...} or null "
+                                        "(free), at least one not null (e.g. a symmetry "
+                                        "roller [0, null]); not on a clamped group, nor on a "
+                                        "contact group of a case with a contact section"},
     }, description="loads"),
     "initial": _obj({
-        "u0": {**_vector, "description": "initial displacement (must satisfy u_nu <= g and "
-                                         "vanish on Gamma1)"},
+        "u0": {**_vector, "description": "initial displacement (must satisfy u_nu <= g on "
+                                         "Gamma3 and vanish on Gamma1)"},
         "sigma0": {"type": "array", "minItems": 2, "maxItems": 3,
                    "items": {"type": "array", "minItems": 2, "maxItems": 3, "items": _component},
                    "description": "initial stress, a symmetric d x d matrix of components"},

@@ -227,8 +227,8 @@ class Gamma3History:
     def __init__(self, problem, memory=None, slip=None):
         self.u = problem.u
         self.nodes = problem.gamma3_local_nodes
-        self.normal = problem.normal
-        self.dim = len(self.normal)
+        self.normal = problem.frames.normal          # (m, d): nu_i at the nodes
+        self.dim = problem.dim
         m = len(self.nodes)
         self.memory = self.slip = None
         if memory is not None:
@@ -270,10 +270,10 @@ class Gamma3History:
             t_n: t_n.
         """
         u = self.u.x.array.reshape(-1, self.dim)[self.nodes]
-        u_nu = u @ self.normal
+        u_nu = np.einsum("ij,ij->i", u, self.normal)
         if self.memory is not None:
             self.xi.set(self.memory.advance(np.maximum(u_nu, 0.0), t_prev, t_n))
         if self.slip is not None:
-            u_tau = u - np.outer(u_nu, self.normal)
+            u_tau = u - u_nu[:, None] * self.normal
             self.slip.advance(np.linalg.norm(u_tau, axis=1), t_n - t_prev)
             self.theta.set(self.slip.theta())

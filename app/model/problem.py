@@ -14,21 +14,21 @@ from functools import cached_property
 import numpy as np
 import ufl
 from dolfinx import fem
+from dolfinx import mesh as dmesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from app.io import expressions
 from app.io.case import Case, CaseError
+from app.model.dirichlet import build_dirichlet, check_rigid_motions
+from app.model.frames import ContactFrames, build_frames, facet_normals, gap_values
 from app.model.gamma3 import NodalField
 from app.model.loads import TimeData
 from app.model.material import Elasticity
 from app.model.strain import StrainOperator
 from forms.contact import gamma3_measure
-from forms.elasticity import elasticity_operator, eps
+from forms.elasticity import elasticity_operator, eps, plane_strain_moduli
 from forms.step import BulkData, ContactData, build_step_forms
-from meshes import BOUNDARY_TAGS
-
-GAMMA1, GAMMA3 = "left", "bottom"
 
 
 @dataclass
@@ -57,7 +57,8 @@ class ContactProblem:
 
     Args:
         case: the validated case.
-        rect: the mesh with its facet tags (meshes.RectangleMesh or BoxMesh).
+        body: the mesh with its facet tags and named boundary groups (meshes.RectangleMesh,
+            BoxMesh or FileMesh).
 
     Attributes:
         elasticity: the Elasticity E of the case (app/model/material.py).
@@ -66,16 +67,20 @@ class ContactProblem:
         H: the pre-stress H_n of (3.2), or None without history and initial values.
         xi, theta: the Gamma3 nodal fields xi_n (memory) and theta(s_n) (slip), or None.
         forms: the StepForms of J_n (forms/step.py).
-        bcs: the Dirichlet condition u = 0 on Gamma1.
+        dirichlet: the Dirichlet data (Gamma1 and loads.displacement); ``bcs`` its conditions.
         gamma3: the owned Gamma3 nodes and their weights, or None without contact.
+        frames: the nodal normals, frames and gaps of Gamma3 (owned and ghost nodes), or None.
     """
 
-    def __init__(self, case: Case, rect):
-        self.case, self.rect = case, rect
-        msh = self.mesh = rect.mesh
+    def __init__(self, case: Case, body):
+        self.case, self.body = case, body
+        msh = self.mesh = body.mesh
         self.comm = msh.comm
-        d = self.dim = rect.dim
-        self.elasticity = Elasticity(case.material.E, case.material.nu, d)
+        d = self.dim = msh.topology.dim
+        self.E, self.nu = (plane_strain_moduli(case.material.E, case.material.nu)
+                           if d == 2 and case.material.plane == "strain"
+                           else (case.material.E, case.material.nu))
+        self.elasticity = Elasticity(self.E, self.nu, d)
         self.V = fem.VectorFunctionSpace(msh, ("CG", 1))
         self.Q = fem.TensorFunctionSpace(msh, ("DG", 0))
         self.Y = fem.FunctionSpace(msh, ("DG", 0))
@@ -96,22 +101,15 @@ class ContactProblem:
             m = self.elasticity.m
             self.C_alg = fem.Function(fem.TensorFunctionSpace(msh, ("DG", 0), shape=(m, m)),
                                       name="C_alg")
-        self.normal = np.array(rect.normal)
-        self.tangents = np.array(rect.tangent)
         self.time_data = TimeData(msh)
-
-        fdim = msh.topology.dim - 1
-        ft = rect.facet_tags
-        self._facets = {name: ft.indices[ft.values == tag] for name, tag in BOUNDARY_TAGS.items()}
-        clamped = fem.locate_dofs_topological(self.V, fdim, self._facets[GAMMA1])
-        self.bcs = [fem.dirichletbc(np.zeros(d, dtype=PETSc.ScalarType), clamped, self.V)]
-        self._clamped_nodes = clamped
+        self._setup_boundaries()
 
         c = case.contact
-        self.gamma3 = None
+        self.gamma3 = self.frames = None
         self.xi = self.theta = None
         if c.active:
             self.gamma3 = self._gamma3_nodes()
+            self.frames = self._frames()
             if c.memory is not None:
                 self.xi = NodalField(self.V, self.gamma3_local_nodes, "xi")
             if c.friction is not None and c.friction.slip is not None:
@@ -124,39 +122,127 @@ class ContactProblem:
         # sigma_n = E eps(u_n) + H_n per cell (exact: eps(u) is constant on cells),
         # app/model/strain.py
         self._C = elasticity_operator(self.constants["E"], self.constants["nu"], d)
-        self.strain_operator = StrainOperator(self.V, self.Q, case.material.E, case.material.nu)
+        self.strain_operator = StrainOperator(self.V, self.Q, self.E, self.nu)
+
+    # ------------------------------------------------------------------ boundary groups
+    def group_tag(self, ref, key: str) -> int:
+        """The facet tag of a boundary group.
+
+        Args:
+            ref: a group name or a physical tag number.
+            key: the case key naming it, for the message.
+
+        Returns:
+            The tag.
+
+        Raises:
+            CaseError: for a group the mesh does not have.
+        """
+        groups, tags = self.body.groups, self.body.tags
+        if isinstance(ref, str) and ref in groups:
+            return groups[ref]
+        if isinstance(ref, int) and not isinstance(ref, bool) and ref in tags:
+            return ref
+        other = getattr(self.body, "other_groups", {})
+        if ref in other:
+            raise CaseError(f"{self.case.source}: {key}: {ref!r} is a group of dimension "
+                            f"{other[ref]}; boundary groups have dimension {self.dim - 1}")
+        names = ", ".join(sorted(groups)) or "none"
+        numbers = ", ".join(str(t) for t in tags) or "none"
+        raise CaseError(f"{self.case.source}: {key}: no boundary group {ref!r} in the mesh "
+                        f"(names: {names}; numbers: {numbers})")
+
+    def _setup_boundaries(self) -> None:
+        """Facets of the named groups, the Dirichlet data and the rigid-motion check."""
+        case, ft = self.case, self.body.facet_tags
+        b, loads = case.boundaries, case.loads
+        keys = [(r, "boundaries.clamped") for r in b.clamped] + \
+            [(r, "boundaries.contact") for r in b.contact] + \
+            [(r, f"loads.traction.{r}") for r in loads.traction] + \
+            [(r, f"loads.pressure.{r}") for r in loads.pressure] + \
+            [(r, f"loads.displacement.{r}") for r in loads.displacement]
+        self.tags = {ref: self.group_tag(ref, key) for ref, key in keys}
+        self._facets = {ref: ft.indices[ft.values == tag] for ref, tag in self.tags.items()}
+        self.dirichlet = build_dirichlet(self.V, self._facets, list(b.clamped),
+                                         dict(loads.displacement), self.time_data)
+        self.bcs = self.dirichlet.bcs
+        check_rigid_motions(self.V, self.dirichlet.fixed, case.source)
+        fdim = self.dim - 1
+        clamped = [fem.locate_dofs_topological(self.V, fdim, self._facets[r])
+                   for r in b.clamped]
+        self._clamped_nodes = np.unique(np.concatenate(clamped)) if clamped \
+            else np.zeros(0, dtype=np.int32)
+
+    @property
+    def gamma3_tags(self) -> tuple:
+        """The facet tags of Gamma3 (the contact groups)."""
+        return tuple(sorted({self.tags[r] for r in self.case.boundaries.contact}))
+
+    def set_time(self, t: float) -> None:
+        """The data of time t_n: loads f_n and the prescribed displacements.
+
+        Args:
+            t: the time.
+        """
+        self.time_data.set_time(t)
+        self.dirichlet.set_time()
 
     def _step_forms(self):
         """J_n's data (loads, laws (4.1)-(4.2), history fields) and forms/step.py's forms."""
-        case, msh, ft, d = self.case, self.mesh, self.rect.facet_tags, self.dim
+        case, msh, ft, d = self.case, self.mesh, self.body.facet_tags, self.dim
         c = case.contact
         ds = ufl.Measure("ds", domain=msh, subdomain_data=ft)
-        self.ds_c = gamma3_measure(msh, ft, BOUNDARY_TAGS[GAMMA3], case.numerics.quadrature,
-                                   case.numerics.gauss_degree)
+        self.ds_c = gamma3_measure(msh, ft, self.gamma3_tags, case.numerics.quadrature,
+                                   case.numerics.gauss_degree) if c.active else None
         # Parameters enter the forms as Constants: one compiled form serves every value.
         const = self.constants = _Constants(msh)
-        E, nu = const("E", case.material.E), const("nu", case.material.nu)
+        E, nu = const("E", self.E), const("nu", self.nu)
         f0 = self.time_data.vector(case.loads.f0) if case.loads.f0 else None
         tractions = []
         for name, comps in case.loads.traction.items():
             vec = self.time_data.vector(comps)
             if vec is not None:
-                tractions.append((vec, BOUNDARY_TAGS[name]))
+                tractions.append((vec, self.tags[name]))
+        n_facet = ufl.FacetNormal(msh)
+        for name, p in case.loads.pressure.items():
+            tractions.append((-self.time_data.scalar(p) * n_facet, self.tags[name]))
+        bulk = BulkData(E, nu, d, H=None if self.implicit else self.H, f0=f0,
+                        tractions=tractions, ds=ds,
+                        stress=self.sigma if self.implicit else None, tangent=self.C_alg)
+        return build_step_forms(self.u, bulk, self._contact_data() if c.active else None)
+
+    def _contact_data(self) -> ContactData:
+        """The Gamma3 part of J_n: the normal field and the laws' parameters."""
+        c, const = self.case.contact, self.constants
         friction = None
         if c.friction is not None:
             friction = {k: const(k, getattr(c.friction, k)) for k in ("b", "c1", "c2", "u1")}
         needs_delta = c.friction is not None or c.memory is not None
-        bulk = BulkData(E, nu, d, H=None if self.implicit else self.H, f0=f0,
-                        tractions=tractions, ds=ds,
-                        stress=self.sigma if self.implicit else None, tangent=self.C_alg)
-        gamma3 = ContactData(
-            self.ds_c, tuple(self.normal),
+        return ContactData(
+            self.ds_c, self._normal_ufl(),
             c_nu=const("c_nu", c.c_nu) if c.c_nu is not None else None,
             friction=friction,
             theta=self.theta.function if self.theta else None,
             xi=self.xi.function if self.xi else None,
-            delta=const("delta", case.numerics.delta) if needs_delta else None)
-        return build_step_forms(self.u, bulk, gamma3)
+            delta=const("delta", self.case.numerics.delta) if needs_delta else None)
+
+    def _normal_ufl(self):
+        """nu in the forms: a constant vector where every Gamma3 node has the same normal
+        (a flat Gamma3 or a fixed direction), else the P1 field of the nodal normals (exact
+        at the nodes, where the nodal rule evaluates the Gamma3 terms)."""
+        nu = self.frames.normal
+        first = nu[0] if len(nu) else None
+        firsts = [f for f in self.comm.allgather(first) if f is not None]
+        ref = firsts[0] if firsts else np.zeros(self.dim)
+        same = np.abs(nu - ref).max(initial=0.0) <= 1e-12 and all(
+            np.abs(f - ref).max() <= 1e-12 for f in firsts)
+        if self.comm.allreduce(bool(same), op=MPI.LAND):
+            return ufl.as_vector([float(v) for v in ref])
+        field = self.nu_h = fem.Function(self.V, name="nu")
+        arr = field.x.array.reshape(-1, self.dim)
+        arr[:] = facet_normals(self.V, self.gamma3_exact_measure())
+        arr[self.frames.nodes] = nu
+        return field
 
     # The step residual and Jacobian (SNES VI) and the strain interpolation (the numpy
     # stress path) are compiled when first used: the fast solver with the compiled kernels
@@ -181,9 +267,24 @@ class ContactProblem:
 
     @property
     def length_scale(self) -> float:
-        """The largest side of the body (L1, L2, L3)."""
-        m = self.case.mesh
-        return max(m.L1, m.L2, m.L3 if self.dim == 3 else 0.0)
+        """The largest side of the body's bounding box."""
+        if not hasattr(self, "_length"):
+            x = self.mesh.geometry.x[:, :self.dim]
+            lo, hi = np.empty(self.dim), np.empty(self.dim)
+            self.comm.Allreduce(x.min(axis=0) if len(x) else np.full(self.dim, np.inf), lo,
+                                op=MPI.MIN)
+            self.comm.Allreduce(x.max(axis=0) if len(x) else np.full(self.dim, -np.inf), hi,
+                                op=MPI.MAX)
+            self._length = float(np.max(hi - lo))
+        return self._length
+
+    @property
+    def gap_scale(self) -> float | None:
+        """The largest gap g on Gamma3 (collective), or None without the bound."""
+        fr = self.frames
+        if fr is None or fr.g is None:
+            return None
+        return float(self._reduce(float(np.max(fr.g, initial=0.0)), "MAX"))
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -264,23 +365,33 @@ class ContactProblem:
                      "not a finite number at a node of the mesh")
         scale = self._reduce(float(np.abs(uu).max(initial=0.0)), "MAX")
         self._refuse(np.abs(uu[self._clamped_nodes]).max(initial=0.0) > 1e-12 * scale,
-                     "initial.u0", "must vanish on Gamma1 (x = 0)")
-        g = self.case.contact.g
-        if g is not None and self.gamma3 is not None:
-            self._refuse((uu[self.gamma3_local_nodes] @ self.normal > g * (1 + 1e-12)).any(),
+                     "initial.u0", "must vanish on Gamma1 (boundaries.clamped)")
+        fr = self.frames
+        if fr is not None and fr.g is not None:
+            u_nu = np.einsum("ij,ij->i", uu[fr.nodes], fr.normal)
+            self._refuse((fr.bounded & (u_nu > fr.g + 1e-12 * np.maximum(fr.g, scale))).any(),
                          "initial.u0", "violates u_nu <= g on Gamma3")
 
     # ------------------------------------------------------------------ Gamma3 and bounds
+    def gamma3_exact_measure(self):
+        """Gamma3 with a Gauss rule exact for P1 functions (weights, facet normals).
+
+        Returns:
+            The UFL measure ds on the contact groups.
+        """
+        return gamma3_measure(self.mesh, self.body.facet_tags, self.gamma3_tags, "gauss", 2)
+
     def _gamma3_nodes(self) -> Gamma3Nodes:
         fdim = self.mesh.topology.dim - 1
-        nodes = fem.locate_dofs_topological(self.V, fdim, self._facets[GAMMA3])
-        nodes = np.setdiff1d(nodes, self._clamped_nodes)
+        facets = np.concatenate([self._facets[r] for r in self.case.boundaries.contact])
+        nodes = fem.locate_dofs_topological(self.V, fdim, np.unique(facets))
+        fixed = self.dirichlet.fixed[nodes].all(axis=1)
+        nodes = np.sort(nodes[~fixed])                # fully prescribed nodes take no contact
         self.gamma3_local_nodes = nodes  # owned and ghost
         owned = nodes[nodes < self.V.dofmap.index_map.size_local]
         # weights w_i = int_Gamma3 phi_i ds, exact (phi_i is linear on each facet)
         v = ufl.TestFunction(self.V)
-        ds3 = gamma3_measure(self.mesh, self.rect.facet_tags, BOUNDARY_TAGS[GAMMA3], "gauss", 2)
-        wvec = fem.petsc.assemble_vector(fem.form(v[0] * ds3))
+        wvec = fem.petsc.assemble_vector(fem.form(v[0] * self.gamma3_exact_measure()))
         wvec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         weight = wvec.array_r[self.dim * owned]
         wvec.destroy()
@@ -288,8 +399,21 @@ class ContactProblem:
         order = np.lexsort(tuple(x[:, i] for i in reversed(range(self.dim))))
         return Gamma3Nodes(owned[order], x[order], weight[order])
 
+    def _frames(self) -> ContactFrames:
+        """Normals, frames and gaps at the Gamma3 nodes (app/model/frames.py)."""
+        c, nodes = self.case.contact, self.gamma3_local_nodes
+        raw = None if c.direction is not None else \
+            facet_normals(self.V, self.gamma3_exact_measure())[nodes]
+        frames = build_frames(self.V, nodes, raw, self.dirichlet.fixed[nodes], c.direction,
+                              self.case.source)
+        if c.g is not None:
+            x = self.V.tabulate_dof_coordinates()[nodes, :self.dim]
+            frames.g = gap_values(c.g, x, self.case.source, self.comm)
+        return frames
+
     def bounds(self) -> tuple[PETSc.Vec, PETSc.Vec]:
-        """Box bounds of U^h: u_nu <= g on the normal dofs of Gamma3 nodes, +-inf elsewhere.
+        """Box bounds of U^h: u_nu <= g at the Gamma3 nodes, in the nodal frames (the
+        dof ``slot`` of node i is sign_i u_nu), +-inf elsewhere.
 
         Returns:
             (lower, upper) bound vectors like u (owned and ghost entries set).
@@ -298,15 +422,13 @@ class ContactProblem:
         with lb.localForm() as lo, ub.localForm() as up:
             lo.set(PETSc.NINFINITY)
             up.set(PETSc.INFINITY)
-            g = self.case.contact.g
-            if g is not None:
-                comp = int(np.argmax(np.abs(self.normal)))
-                sign = self.normal[comp]
-                dofs = self.dim * self.gamma3_local_nodes + comp
-                if sign > 0:   # u_nu = +u_comp <= g
-                    up.array[dofs] = g
-                else:          # u_nu = -u_comp <= g  <=>  u_comp >= -g
-                    lo.array[dofs] = -g
+            fr = self.frames
+            if fr is not None and fr.g is not None:
+                on = fr.bounded
+                dofs = self.dim * fr.nodes[on] + fr.slot[on]
+                plus = fr.sign[on] > 0
+                up.array[dofs[plus]] = fr.g[on][plus]       # u_nu = +u_slot <= g
+                lo.array[dofs[~plus]] = -fr.g[on][~plus]    # u_nu = -u_slot <= g
         return lb, ub
 
     # ------------------------------------------------------------------ derived quantities
@@ -402,40 +524,116 @@ class ContactProblem:
             vec.destroy()
         return self._vol
 
-    def contact_table(self) -> dict[str, np.ndarray]:
-        """Per owned Gamma3 node: coordinates, displacement, u_nu, tangential components and
-        the contact force densities -sigma_nu, -sigma_tau (and xi, s when active).
+    @cached_property
+    def _boundary_residual_form(self):
+        """The bulk residual on the cells that touch a vertex of a Dirichlet group or of
+        Gamma3 (exact at those nodes, a thin layer of the mesh: the step records' forces
+        cost a fraction of a full assembly)."""
+        msh, tdim = self.mesh, self.dim
+        refs = [g.name for g in self.dirichlet.groups] + list(self.case.boundaries.contact)
+        facets = np.unique(np.concatenate([self._facets[r] for r in refs] or
+                                          [np.zeros(0, np.int32)])).astype(np.int32)
+        msh.topology.create_connectivity(tdim - 1, 0)
+        msh.topology.create_connectivity(0, tdim)
+        verts = dmesh.compute_incident_entities(msh, facets, tdim - 1, 0)
+        cells = np.unique(dmesh.compute_incident_entities(msh, verts, 0, tdim)).astype(np.int32)
+        tags = dmesh.meshtags(msh, tdim, cells, np.ones(len(cells), dtype=np.int32))
+        layer = []
+        for itg in self.forms.bulk_residual.integrals():
+            if itg.integral_type() == "cell":
+                itg = itg.reconstruct(subdomain_id=1, subdomain_data=tags)
+            layer.append(itg)
+        return fem.form(ufl.Form(layer))
 
-        The force at node i is minus the bulk residual r_i = (sigma_n, eps(phi_i)) - f(phi_i)
+    def bulk_residual(self, layer: bool = False) -> np.ndarray:
+        """The bulk residual r = (sigma_n, eps(phi_i)) - f_n(phi_i) at the owned nodes: the
+        force the boundary (supports, contact) exerts on the body at each node.
+
+        Args:
+            layer: assemble only the cells touching Dirichlet and Gamma3 vertices (exact
+                there, not elsewhere).
+
+        Returns:
+            (owned nodes, d) nodal forces.
+        """
+        r = fem.petsc.assemble_vector(self._boundary_residual_form if layer
+                                      else self._bulk_form)
+        r.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        out = r.array_r.reshape(-1, self.dim).copy()
+        r.destroy()
+        return out
+
+    def contact_table(self, r: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Per owned Gamma3 node: coordinates, displacement, u_nu, tangential components in
+        the nodal frame, and the contact force densities -sigma_nu, -sigma_tau (and xi,
+        theta(s), the gap where it varies).
+
+        The force at node i is the bulk residual r_i = (sigma_n, eps(phi_i)) - f(phi_i)
         divided by the node's weight w_i = int phi_i ds: with the nodal rule this is exactly
         p(u_nu) + memory force + (bound multiplier)/w_i in the normal direction and the
         friction force in the tangential ones.
 
+        Args:
+            r: the bulk residual (bulk_residual()), or None to assemble it.
+
         Returns:
             Column name -> values of the owned Gamma3 nodes (sorted by coordinates).
         """
-        gm, d = self.gamma3, self.dim
-        r = fem.petsc.assemble_vector(self._bulk_form)
-        r.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        rr = r.array_r.reshape(-1, d)[gm.nodes]
-        r.destroy()
+        gm, d, fr = self.gamma3, self.dim, self.frames
+        rr = (self.bulk_residual(layer=True) if r is None else r)[gm.nodes]
         uu = self.u.x.array.reshape(-1, d)[gm.nodes]
+        pos = np.searchsorted(fr.nodes, gm.nodes)
+        nu, tau = fr.normal[pos], fr.tangents[pos]
         axes = "xyz"[:d]
         table = {a: gm.x[:, i] for i, a in enumerate(axes)}
         table.update({f"u_{a}": uu[:, i] for i, a in enumerate(axes)})
-        table["u_nu"] = uu @ self.normal
+        table["u_nu"] = np.einsum("ij,ij->i", uu, nu)
+        u_tau = np.einsum("ij,ikj->ik", uu, tau)
+        f_tau = -np.einsum("ij,ikj->ik", rr, tau) / gm.weight[:, None]
         suffix = [""] if d == 2 else ["1", "2"]
-        for s, t in zip(suffix, self.tangents):
-            table[f"u_tau{s}"] = uu @ t
-        table["neg_sigma_nu"] = -(rr @ self.normal) / gm.weight
-        for s, t in zip(suffix, self.tangents):
-            table[f"neg_sigma_tau{s}"] = -(rr @ t) / gm.weight
-        pos = np.searchsorted(self.gamma3_local_nodes, gm.nodes)
+        for k, sfx in enumerate(suffix):
+            table[f"u_tau{sfx}"] = u_tau[:, k]
+        if d == 3:
+            table["u_tau"] = np.linalg.norm(u_tau, axis=1)
+        table["neg_sigma_nu"] = -np.einsum("ij,ij->i", rr, nu) / gm.weight
+        for k, sfx in enumerate(suffix):
+            table[f"neg_sigma_tau{sfx}"] = f_tau[:, k]
         if self.xi is not None:
             table["xi"] = self.xi.function.x.array[self.xi.dofs[pos]]
         if self.theta is not None:
             table["theta"] = self.theta.function.x.array[self.theta.dofs[pos]]
+        if isinstance(self.case.contact.g, str):
+            table["g"] = fr.g[pos]
+        # hidden (not a CSV column): the Dirichlet data prescribe u_nu here, so the force is
+        # a support's reaction, not a contact pressure
+        table["_prescribed"] = ~fr.bounded[pos]
         return table
+
+    def forces(self, r: np.ndarray | None = None) -> dict:
+        """The reaction force resultant on each Dirichlet group and the total contact
+        force, both exerted on the body (collective).  With the loads they sum to zero
+        (equilibrium, up to the solver's tolerance).
+
+        Args:
+            r: the bulk residual (bulk_residual()), or None to assemble it.
+
+        Returns:
+            {"reactions": {group: [F_x, F_y(, F_z)]}, "contact_force": [...] (Gamma3 dofs
+            that no Dirichlet condition prescribes) or None without contact}.
+        """
+        r = (self.bulk_residual(layer=True) if r is None else r).ravel()
+        d = self.dim
+        reactions = {}
+        for grp in self.dirichlet.groups:
+            local = np.bincount(grp.dofs % d, weights=r[grp.dofs], minlength=d)
+            reactions[str(grp.name)] = [float(v) for v in self.comm.allreduce(local)]
+        contact = None
+        if self.gamma3 is not None:
+            nodes = self.gamma3.nodes
+            free = ~self.dirichlet.fixed[nodes]
+            local = (r.reshape(-1, d)[nodes] * free).sum(axis=0)
+            contact = [float(v) for v in self.comm.allreduce(local)]
+        return {"reactions": reactions, "contact_force": contact}
 
 
 def _ufl_component(c, symbols):

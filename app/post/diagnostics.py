@@ -21,9 +21,7 @@ from dolfinx import fem
 from petsc4py import PETSc
 
 from app.solvers.snesvi import direct_solver
-from forms.contact import gamma3_measure
 from forms.elasticity import eps
-from meshes import BOUNDARY_TAGS
 
 STABILITY_LIMIT = 2.0
 
@@ -56,9 +54,7 @@ def ellipticity(elasticity) -> float:
 def _gamma3_mass(problem) -> PETSc.Mat:
     """M = (v, w)_{L2(Gamma3)} on V^h (Gauss degree 2: exact for P1)."""
     u, v = ufl.TrialFunction(problem.V), ufl.TestFunction(problem.V)
-    ds3 = gamma3_measure(problem.mesh, problem.rect.facet_tags, BOUNDARY_TAGS["bottom"],
-                         "gauss", 2)
-    M = fem.petsc.assemble_matrix(fem.form(ufl.inner(u, v) * ds3))
+    M = fem.petsc.assemble_matrix(fem.form(ufl.inner(u, v) * problem.gamma3_exact_measure()))
     M.assemble()
     return M
 

@@ -36,19 +36,20 @@ BLOWUP_FACTOR = 100.0
 log = logging.getLogger("vpcontact")
 
 
-def contact_scale(case, E_max: float, length: float) -> float:
+def contact_scale(case, E_max: float, length: float, gap: float | None = None) -> float:
     """Stress levels of the contact laws: c_nu g, b0 T g, the friction constants, E g / L.
 
     Args:
         case: the validated Case.
         E_max: the largest eigenvalue of the elasticity tensor.
         length: the body's length scale L.
+        gap: the largest gap on Gamma3 (default: contact.g, a number).
 
     Returns:
         The largest of these levels.
     """
     c = case.contact
-    g = c.g if c.g is not None else 0.0
+    g = gap if gap is not None else (c.g if c.g is not None else 0.0)
     values = [E_max * g / length]
     if c.c_nu is not None:
         values.append(c.c_nu * (g if c.g is not None else length))
@@ -74,7 +75,8 @@ def stress_scale(case, problem) -> float:
         The scale (0 if the data has no stress at all).
     """
     E_max = float(np.max(np.linalg.eigvals(problem.elasticity.Cmat).real))
-    data = max(case.data_stress, contact_scale(case, E_max, problem.length_scale))
+    data = max(case.data_stress, contact_scale(case, E_max, problem.length_scale,
+                                               problem.gap_scale))
     return max(data if math.isfinite(data) else 0.0, problem.cell_max(problem.sigma_vm))
 
 
@@ -97,8 +99,7 @@ class BlowUpMonitor(Observer):
         """
         vp = case.material.viscoplastic
         self.scale = stress_scale(case, problem)
-        m = case.mesh
-        h = m.h if m.h else problem.length_scale / (m.n or 1)
+        h = problem.body.h
         self.bound = BLOWUP_FACTOR * (problem.length_scale / h) * self.scale
         self.kappa_bound = kappa0_max + (2.0 * case.time.T / (3.0 * vp.lambda2) * self.bound
                                          if vp else 0.0)

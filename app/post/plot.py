@@ -8,8 +8,9 @@ directory: solution.xdmf/.h5 (mesh and fields), contact.csv (Gamma3 table) and s
 - fig4_tangential.png: u_tau and -sigma_tau along Gamma3 with u1 marked (Fig. 4);
 - fig5_vm_kappa.png: ||sigma||_VM and kappa at T with colour bars (Fig. 5);
 - fig2_laws.png: the normal and tangential contact laws of the case (Fig. 2);
-- history.png: norms, max von Mises, max kappa and iterations against time.
-In 3D the field views show the bottom face Gamma3 and the volume clipped at y = L2/2.
+- history.png: norms, max von Mises, max kappa and iterations against time;
+- forces.png: the contact force and the supports' reactions against time.
+In 3D the field views show Gamma3 (seen along z) and the volume clipped at mid y.
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ import numpy as np
 from app.model import contact_laws
 
 FIGURES = ("fig3_deformed_contact.png", "fig4_tangential.png", "fig5_vm_kappa.png",
-           "fig2_laws.png", "history.png")
+           "fig2_laws.png", "history.png", "forces.png")
 DPI = 110
 
 
@@ -139,10 +140,20 @@ def _faces_3d(cells: np.ndarray) -> np.ndarray:
 
 
 def _bottom_faces(res: Results):
-    """Triangles of the bottom face z = 0 and the cell each belongs to (3D)."""
+    """Triangles of Gamma3 and the cell each belongs to (3D): the boundary faces whose
+    vertices are all contact.csv nodes, else (no contact) the bottom face z = 0, else the
+    whole boundary."""
     faces, owner = _faces_3d(res.cells)
-    z = res.x[:, 2]
-    on = np.all(np.abs(z[faces]) <= 1e-9 * max(1.0, float(np.ptp(z))), axis=1)
+    scale = max(1.0, float(np.ptp(res.x)))
+    if res.contact is not None:
+        keys = {tuple(p) for p in np.round(np.column_stack(
+            [res.contact[a] for a in "xyz"]) / scale, 8)}
+        at = np.array([tuple(p) in keys for p in np.round(res.x / scale, 8)])
+        on = at[faces].sum(axis=1) >= 2          # the faces next to clamped nodes too
+    else:
+        on = np.all(np.abs(res.x[faces, 2]) <= 1e-9 * scale, axis=1)
+    if not on.any():
+        on[:] = True
     return faces[on], owner[on]
 
 
@@ -251,7 +262,7 @@ def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None)
         ax.set_ylim(min(yb.min() - scale * max(force.max(), 0) - 0.05, -0.3), None)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]" if res.dim == 2 else "y [m] (bottom face z = 0)")
+    ax.set_ylabel("y [m]" if res.dim == 2 else "y [m] (Gamma3 seen along z)")
     ax.set_title(f"Deformed configuration at t = {res.t:g} (displacement x {factor:g}); "
                  "contact forces on Gamma3", fontsize=10)
     _save(plt, fig, path)
@@ -358,10 +369,13 @@ def fig2_laws(res: Results, path: Path) -> None:
     contact = res.case.get("contact") or {}
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
     g = contact.get("g")
+    if isinstance(g, str):          # a gap field: the law at its largest value on Gamma3
+        c = res.contact
+        g = float(c["g"].max()) if c is not None and "g" in c else None
     c_nu = (contact.get("normal_compliance") or {}).get("c_nu")
     ax = axes[0]
     if g is not None or c_nu is not None:
-        top = g if g is not None else 0.02
+        top = g if g else 0.02
         r = np.linspace(-0.5 * top, top, 200)
         ax.plot(r, normal_law(c_nu, g, r), color="tab:blue", label="p(u_nu) = c_nu u_nu^+")
         if g is not None:
@@ -431,6 +445,39 @@ def history(res: Results, path: Path) -> None:
                           f"({res.summary.get('status')})")
 
 
+def forces(res: Results, path: Path) -> None:
+    """The force resultants on the body against time: the foundation's (contact_force) and
+    each Dirichlet group's reaction, per component (a held indentation shows the contact
+    force relaxing).
+
+    Args:
+        res: the run's data.
+        path: the PNG file to write.
+    """
+    plt = _mpl()
+    steps = [s for s in res.summary.get("steps", []) if "reactions" in s]
+    dim = res.dim
+    fig, axes = plt.subplots(1, dim, figsize=(5 * dim, 4.2), sharex=True)
+    t = np.array([s["t"] for s in steps])
+    series = {}
+    if any("contact_force" in s for s in steps):
+        series["contact (foundation)"] = [s.get("contact_force", [0.0] * dim) for s in steps]
+    for name in (steps[-1]["reactions"] if steps else {}):
+        series[f"reaction on {name}"] = [s["reactions"][name] for s in steps]
+    for i, ax in enumerate(axes):
+        for label, values in series.items():
+            ax.plot(t, np.asarray(values)[:, i], "o-", ms=2, label=label)
+        ax.axhline(0.0, color="0.7", lw=0.8)
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel(f"F_{'xyz'[i]} [N{'/m' if dim == 2 else ''}]")
+    if series:
+        axes[0].legend(fontsize=8)
+    else:
+        axes[0].text(0.5, 0.5, "no supports or contact", ha="center",
+                     transform=axes[0].transAxes)
+    _save(plt, fig, path, f"Forces on the body, run {res.summary.get('case')}")
+
+
 def plot_all(outdir: Path, log=None) -> list[Path]:
     """Write every figure into ``outdir`` (atomically: temporary file, then rename).
 
@@ -447,7 +494,8 @@ def plot_all(outdir: Path, log=None) -> list[Path]:
     for name, fn in (("fig3_deformed_contact.png", fig3_deformed_contact),
                      ("fig4_tangential.png", fig4_tangential),
                      ("fig5_vm_kappa.png", fig5_vm_kappa),
-                     ("fig2_laws.png", fig2_laws), ("history.png", history)):
+                     ("fig2_laws.png", fig2_laws), ("history.png", history),
+                     ("forces.png", forces)):
         path = Path(outdir) / name
         tmp = path.with_name(f".{name}.tmp.png")
         out = fn(res, tmp)

@@ -71,7 +71,8 @@ class FastStepSolver:
         C = elasticity_operator(problem.constants["E"], problem.constants["nu"], d)
         du, v = ufl.TrialFunction(V), ufl.TestFunction(V)
         serial = self.comm.size == 1
-        a = fem.form(ufl.inner(C(eps(du)), eps(v)) * ufl.dx)
+        a = self.a = fem.form(ufl.inner(C(eps(du)), eps(v)) * ufl.dx)
+        self._lift = None if problem.dirichlet.homogeneous else problem.u.vector.duplicate()
         # serial: d x d blocks (BAIJ), the fastest PETSc back-substitution
         K = fem.petsc.create_matrix(a, "baij" if serial else None)
         fem.petsc.assemble_matrix(K, a, bcs=problem.bcs)
@@ -151,20 +152,73 @@ class FastStepSolver:
         self.Z = Z
         self.S = np.linalg.inv(Z)
         self.S = 0.5 * (self.S + self.S.T)
-        self._direction = dense.NewtonDirection(self.S, d, dense.load())
+        normal = self._setup_frames()
+        self._direction = dense.NewtonDirection(self.S_w, d, dense.load())
         c = p.case.contact
         fr = c.friction
-        self.contact = NodalContact(self.w, p.normal, c.c_nu,
+        self.contact = NodalContact(self.w, normal, c.c_nu,
                                     None if fr is None else (fr.b, fr.c1, fr.c2, fr.u1),
                                     p.case.numerics.delta, kernels.load())
-        comp = int(np.argmax(np.abs(p.normal)))
-        self.lb = np.full((len(self.g_nodes), d), -np.inf)
-        self.ub = np.full((len(self.g_nodes), d), np.inf)
-        if c.g is not None:
-            if p.normal[comp] > 0:
-                self.ub[:, comp] = c.g
-            else:
-                self.lb[:, comp] = -c.g
+
+    def _setup_frames(self) -> np.ndarray:
+        """The coordinates of the Gamma3 problem: the global ones where every node has the
+        same axis-aligned normal and no rotated frame (the paper's flat bottom), else the
+        nodal frames with the normal first (T_i, so y = T y_w).  Sets S_w = T^T S T, the
+        bounds u_nu <= g_i and the prescribed components (fixed, set per step).
+
+        Returns:
+            The normal in those coordinates (NodalContact's nu)."""
+        p, d = self.problem, self.d
+        fr, n = p.frames, len(self.g_nodes)
+        pos = np.searchsorted(fr.nodes, p.gamma3.nodes)
+        Q, slot, sign = fr.Q[pos], fr.slot[pos], fr.sign[pos]
+        T = np.empty_like(Q)
+        for i in range(len(pos)):         # normal first: T_i = (sign nu-column, the others)
+            order = [slot[i]] + [a for a in range(d) if a != slot[i]]
+            T[i] = Q[i][:, order]
+            T[i][:, 0] *= sign[i]
+        axis = np.abs(Q).max(axis=1) == 1.0            # (nodes, d): column is +-e_a
+        col_axis = np.argmax(np.abs(Q), axis=1)
+        fixed_nodes = p.dirichlet.fixed[p.gamma3.nodes]
+        fixedQ = axis & np.take_along_axis(fixed_nodes, col_axis, axis=1)
+        if (fixedQ.sum(axis=1) != fixed_nodes.sum(axis=1)).any():
+            raise ValueError("a Gamma3 node's prescribed components are not axes of its frame")
+        fixedT = np.stack([fixedQ[i][[slot[i]] + [a for a in range(d) if a != slot[i]]]
+                           for i in range(len(pos))]) if len(pos) else fixedQ
+        g = fr.g[pos] if fr.g is not None else np.full(len(pos), np.inf)
+        g = np.where(fr.bounded[pos], g, np.inf)
+        place = self.local_owned_g
+        T = self._place_on_all(place, T, (n, d, d))
+        g = self._place_on_all(place, g, n)
+        nu0 = self._place_on_all(place, sign[:, None] * np.eye(d)[slot], (n, d))
+        uniform = not fr.rotated and (len(nu0) == 0 or (nu0 == nu0[0]).all())
+        self.T = None if uniform else T
+        self.S_w = self.S if uniform else np.einsum(
+            "ica,icjb,jbe->iaje", T, self.S.reshape(n, d, n, d), T).reshape(n * d, n * d)
+        self.fixed = self._place_on_all(place, fixedQ if uniform else fixedT, (n, d),
+                                        dtype=bool).ravel()
+        self.lb = np.full((n, d), -np.inf)
+        self.ub = np.full((n, d), np.inf)
+        if uniform:
+            normal = nu0[0] if n else np.eye(d)[0]
+            comp = int(np.argmax(np.abs(normal)))
+            (self.ub[:, comp], self.lb[:, comp]) = (g, -np.inf) if normal[comp] > 0 \
+                else (np.inf, -g)
+            return normal
+        self.ub[:, 0] = g
+        return np.eye(d)[0]
+
+    def _to_work(self, y: np.ndarray) -> np.ndarray:
+        """Gamma3 values in the problem's coordinates: y_w = T^T y."""
+        if self.T is None:
+            return y
+        return np.einsum("iab,ia->ib", self.T, y.reshape(-1, self.d)).ravel()
+
+    def _from_work(self, y_w: np.ndarray) -> np.ndarray:
+        """Back to the global coordinates: y = T y_w."""
+        if self.T is None:
+            return y_w
+        return np.einsum("iab,ib->ia", self.T, y_w.reshape(-1, self.d)).ravel()
 
     def _place_on_all(self, positions, values, shape, dtype=float) -> np.ndarray:
         """The array of ``shape`` whose entries at every rank's ``positions`` are that rank's
@@ -219,12 +273,30 @@ class FastStepSolver:
             self.b.array[:] = self._loads.array_r
         if p.H is not None:
             p.strain_operator.pre_stress_load(p.H, self.b)        # b -= B^T H_n
-        fem.petsc.set_bc(self.b, p.bcs, scale=0.0)
+        if p.dirichlet.homogeneous:
+            fem.petsc.set_bc(self.b, p.bcs, scale=0.0)
+            return
+        # prescribed displacements u_D: b -= K_{:,D} u_D (lifting), b_D = u_D
+        lift = self._lift
+        with lift.localForm() as loc:
+            loc.set(0.0)
+        fem.petsc.apply_lifting(lift, [self.a], [p.bcs])
+        lift.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        self.b.array[:] += lift.array_r
+        fem.petsc.set_bc(self.b, p.bcs)
 
-    def _small_problem(self, y0: np.ndarray) -> tuple[np.ndarray, int]:
+    def _small_problem(self, y0_global: np.ndarray) -> tuple[np.ndarray, int]:
+        """The Gamma3 problem in its coordinates (_setup_frames); returns (y, iterations)
+        with y in the global coordinates."""
+        y0 = self._to_work(y0_global)
+        lb, ub = self.lb.ravel().copy(), self.ub.ravel().copy()
+        lb[self.fixed] = ub[self.fixed] = y0[self.fixed]      # prescribed components
+        y, its = self._projected_newton(y0, lb, ub)
+        return self._from_work(y), its
+
+    def _projected_newton(self, y0, lb, ub) -> tuple[np.ndarray, int]:
         """Projected Newton for min 1/2 (y-y0)^T S (y-y0) + sum w phi(y_i), lb <= y <= ub."""
-        S, d = self.S, self.d
-        lb, ub = self.lb.ravel(), self.ub.ravel()
+        S, d = self.S_w, self.d
         y = np.clip(self._start(y0), lb, ub)
         scale = max(np.abs(S @ y0).max(), np.abs(self.w).max(), 1e-300)
 
@@ -299,7 +371,7 @@ class FastStepSolver:
     def warm_start(self) -> None:
         """Start the next Gamma3 problem from the current u (after a restart)."""
         if self.gamma3:
-            self._y_prev = [(None, self._gather_G(self.u.vector))]
+            self._y_prev = [(None, self._to_work(self._gather_G(self.u.vector)))]
 
     def solve(self) -> int:
         """Solve step (3.4) from u_{n-1}; on success u holds u_n.  If the Gamma3 problem
@@ -370,7 +442,7 @@ class FastStepSolver:
 
     def destroy(self) -> None:
         """Free the PETSc objects (and those of the SNES VI fallback, if it was created)."""
-        for obj in (self.K, self.ksp, self.b, self.x, self._loads):
+        for obj in (self.K, self.ksp, self.b, self.x, self._loads, self._lift):
             if obj is not None:
                 obj.destroy()
         if self._snes is not None:

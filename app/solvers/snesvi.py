@@ -1,7 +1,8 @@
 """Step solver: PETSc SNES vinewtonrsls for the discrete inequality (3.4) on U^h.
 
-Bounds only on the normal dofs of Gamma3 nodes; Dirichlet dofs of Gamma1 are imposed in the
-residual and Jacobian (set_bc / diagonal 1).  Direct LU (MUMPS) by default.  Options are read
+Bounds only on the normal dofs of Gamma3 nodes (in the nodal frames where Gamma3 is curved:
+app/solvers/rotation.py); Dirichlet dofs are imposed in the residual and Jacobian (set_bc /
+diagonal 1).  Direct LU (MUMPS) by default.  Options are read
 from the PETSc options database under our prefix, so every PETSc option works.
 """
 from __future__ import annotations
@@ -11,6 +12,8 @@ import logging
 import numpy as np
 from dolfinx import fem
 from petsc4py import PETSc
+
+from app.solvers.rotation import FrameMap
 
 PREFIX = "vpcontact_"
 log = logging.getLogger("vpcontact")
@@ -164,6 +167,15 @@ class SNESVISolver:
         self.A = fem.petsc.create_matrix(problem.J_form)
         self._setup_jacobian_reuse(problem)
         self.x = self.u.vector.copy()
+        # curved Gamma3: SNES solves for x = R^T u in the nodal frames (app/solvers/rotation.py)
+        self.frames = None
+        if problem.frames is not None and problem.frames.rotated:
+            self.frames = FrameMap(problem, self.u.vector)
+            self.b_frames = self.b.duplicate()
+            if self.K is None:                   # the pattern of J for the first PtAP
+                fem.petsc.assemble_matrix(self.A, problem.J_form, problem.bcs)
+                self.A.assemble()
+            self.A_frames = self.A.PtAP(self.frames.R)
         self.options, self.prefix = options, prefix
         self.snes = self._create(options)
         self._robust = None
@@ -174,8 +186,12 @@ class SNESVISolver:
     def _create(self, options: dict):
         snes = PETSc.SNES().create(self.problem.comm)
         snes.setOptionsPrefix(self.prefix)
-        snes.setFunction(self._F, self.b)
-        snes.setJacobian(self._J, self.A, self.A)
+        if self.frames is None:
+            snes.setFunction(self._F, self.b)
+            snes.setJacobian(self._J, self.A, self.A)
+        else:
+            snes.setFunction(self._F_frames, self.b_frames)
+            snes.setJacobian(self._J_frames, self.A_frames, self.A_frames)
         # Options pass through unchanged under our prefix; removed again once read so that
         # they cannot leak into another solver created in the same process.
         set_petsc_options(options, self.prefix)
@@ -221,6 +237,18 @@ class SNESVISolver:
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         fem.petsc.set_bc(b, self.problem.bcs, x, -1.0)
 
+    def _F_frames(self, snes, x, b):
+        """The residual in the nodal frames: R^T F(R x)."""
+        fm = self.frames
+        fm.from_frames(x, fm.u_work)
+        self._F(snes, fm.u_work, fm.F_work)
+        fm.R.multTranspose(fm.F_work, b)
+
+    def _J_frames(self, snes, x, A, P):
+        """The Jacobian in the nodal frames: R^T J R (J at u = R x, set by the residual)."""
+        self._J(snes, None, self.A, self.A)
+        self.A.PtAP(self.frames.R, result=A)
+
     def _setup_jacobian_reuse(self, problem) -> None:
         """Explicit scheme: the bulk Jacobian (E eps(du), eps(v)) is the same in every Newton
         iteration of every step.  Assemble it once (K) and per iteration only the Gamma3
@@ -259,14 +287,20 @@ class SNESVISolver:
             A.axpy(1.0, self.B, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
 
     def _solve_once(self, snes) -> int:
-        self.u.vector.copy(self.x)
+        if self.frames is None:
+            self.u.vector.copy(self.x)
+        else:
+            self.frames.to_frames(self.u.vector, self.x)
         snes.solve(None, self.x)
         reason = snes.getConvergedReason()
         its = snes.getIterationNumber()
         if reason <= 0:
             raise StepSolveError(f"SNES did not converge: {reason_name(reason)} ({reason}) "
                                  f"after {its} Newton iterations", reason)
-        self.x.copy(self.u.vector)
+        if self.frames is None:
+            self.x.copy(self.u.vector)
+        else:
+            self.frames.from_frames(self.x, self.u.vector)
         self.u.x.scatter_forward()
         return its
 
@@ -332,4 +366,7 @@ class SNESVISolver:
         """Free the PETSc objects (SNES, matrices, vectors)."""
         for obj in (self.snes, self._robust, self.A, self.b, self.x, self.K, self.B):
             if obj is not None:
+                obj.destroy()
+        if self.frames is not None:
+            for obj in (self.frames, self.b_frames, self.A_frames):
                 obj.destroy()

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from app.io.canonical import stable_json
+
 FORMAT_VERSION = 1
 IGNORED = ("name", "description", "output")
 
@@ -40,7 +42,9 @@ def cache_key(case) -> str:
     """
     content = {k: v for k, v in case.raw.items() if k not in IGNORED}
     content["petsc"] = case.petsc
-    text = json.dumps({"version": FORMAT_VERSION, "case": content}, sort_keys=True, default=str)
+    if case.mesh.file is not None:           # the scene is the file's content, not its name
+        content["mesh_file"] = hashlib.sha256(Path(case.mesh.file).read_bytes()).hexdigest()
+    text = stable_json({"version": FORMAT_VERSION, "case": content})
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 

@@ -78,7 +78,7 @@ def test_box_serial_equals_two_ranks(tmp_path):
         for key in ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa"):
             assert b[key] == pytest.approx(a[key], rel=1e-8), key
     assert list(c1[0]) == ["x", "y", "z", "u_x", "u_y", "u_z", "u_nu", "u_tau1", "u_tau2",
-                           "neg_sigma_nu", "neg_sigma_tau1", "neg_sigma_tau2", "state"]
+                           "u_tau", "neg_sigma_nu", "neg_sigma_tau1", "neg_sigma_tau2", "state"]
     for col in ("u_x", "u_y", "u_z", "neg_sigma_nu", "neg_sigma_tau1", "neg_sigma_tau2"):
         v1 = np.array([float(r[col]) for r in c1])
         v2 = np.array([float(r[col]) for r in c2])

@@ -7,7 +7,7 @@ import pytest
 from conftest import PAPER_CASE, ROOT, run_cli
 
 FIGURES = ("fig3_deformed_contact.png", "fig4_tangential.png", "fig5_vm_kappa.png",
-           "fig2_laws.png", "history.png")
+           "fig2_laws.png", "history.png", "forces.png")
 
 
 def _png(path):

@@ -278,3 +278,23 @@ def test_a_small_gap_keeps_a_valid_default_active_set_tolerance():
     case = make_case(contact={"g": 1e-6})
     assert case.petsc["snes_vi_zero_tolerance"] <= 1e-4 * 1e-6 * (1 + 1e-12)
     assert make_case().petsc["snes_vi_zero_tolerance"] == 1e-8      # the paper's value
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "directory", "nul", "long"])
+def test_a_mesh_file_that_is_not_a_regular_file_is_refused_without_reading(kind, tmp_path):
+    """mesh.file names a FIFO (opening it would block), a device, a directory, a name with
+    a NUL character or too long for the file system: one line naming mesh.file."""
+    name = {"nul": "a\0b.msh", "long": "x" * 300 + ".msh"}.get(kind, "m.msh")
+    if kind == "fifo":
+        os.mkfifo(tmp_path / name)
+    elif kind == "device":
+        os.symlink("/dev/zero", tmp_path / name)
+    elif kind == "directory":
+        (tmp_path / name).mkdir()
+    raw = {"mesh": {"file": name}, "material": {"E": 1.0, "nu": 0.3}, "loads": {},
+           "time": {"T": 1.0, "N": 1}}
+    from app.io.case import validate
+    with pytest.raises(CaseError) as info:
+        validate(raw, str(tmp_path / "case.yaml"))
+    assert "\n" not in str(info.value) and re.search(
+        r"mesh\.file: .*(no such file|not a readable regular file)", str(info.value))

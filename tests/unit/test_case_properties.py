@@ -15,7 +15,12 @@ from app.io.schema import SCHEMA  # noqa: E402
 from conftest import paper_raw  # noqa: E402
 
 KEYS = sorted(SCHEMA["properties"]) + ["mesh.n", "material.E", "material.nu", "time.N",
-                                       "time.T", "contact.g", "loads.f0", "solver.method"]
+                                       "time.T", "contact.g", "loads.f0", "solver.method",
+                                       "mesh.file", "mesh.size", "mesh.engine",
+                                       "material.plane", "contact.direction",
+                                       "boundaries.clamped", "boundaries.contact",
+                                       "loads.traction", "loads.pressure",
+                                       "loads.displacement"]
 scalars = st.one_of(st.none(), st.booleans(), st.integers(-10**12, 10**12),
                     st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=20))
 values = st.recursive(scalars, lambda inner: st.one_of(
@@ -67,3 +72,35 @@ def test_random_yaml_text_never_crashes_the_loader(text):
         return
     if isinstance(data, dict):
         _validate(data)
+
+
+groups = st.one_of(st.sampled_from(["left", "right", "top", "bottom", "front", "x"]),
+                   st.integers(-3, 12), st.booleans(), st.none(), st.floats(-1, 5),
+                   st.text(max_size=6))
+components = st.one_of(st.none(), st.floats(allow_nan=True), st.sampled_from(
+    ["t", "x*y", "1/x", "-0.01*t", "z", "sqrt(x - 0.5)", ""]), st.integers(-5, 5))
+
+
+@settings(max_examples=200)
+@given(st.dictionaries(st.sampled_from(["traction", "pressure", "displacement"]),
+                       st.dictionaries(groups, st.one_of(components,
+                                                         st.lists(components, max_size=4)),
+                                       max_size=3), max_size=3),
+       st.dictionaries(st.sampled_from(["clamped", "contact", "other"]),
+                       st.one_of(st.lists(groups, max_size=3), groups), max_size=2),
+       st.booleans())
+@example({"pressure": {3: 1.0, "3": 2.0}}, {}, True)
+@example({"displacement": {"top": [None, None]}}, {"clamped": []}, False)
+def test_random_scene_groups(loads, boundaries, with_contact):
+    """Loads keyed by any group (names, YAML's integer tags, junk keys) and any boundaries
+    on the paper case: a Case whose groups are the given ones, or a CaseError."""
+    data = copy.deepcopy(dict(paper_raw()))
+    data["loads"] = loads
+    data["boundaries"] = boundaries
+    if not with_contact:
+        del data["contact"]
+    case = _validate(data)
+    if case is not None:
+        assert set(case.loads.traction) | set(case.loads.pressure) | \
+            set(case.loads.displacement) <= {"left", "right", "top", "bottom"}
+        assert not set(case.boundaries.clamped) & set(case.boundaries.contact)

@@ -1,6 +1,11 @@
-"""The gmsh rectangle: boundary tags, diagonal direction, nesting, unstructured meshes."""
+"""The built-in rectangle and box: boundary tags and named groups, diagonal direction, both
+engines, nesting, unstructured meshes."""
+import inspect
+
 import numpy as np
 import pytest
+import ufl
+from dolfinx import fem
 from mpi4py import MPI
 
 from meshes import BOUNDARY_TAGS, SIDES, build_box, build_rectangle
@@ -55,6 +60,59 @@ def test_engines_build_the_same_triangulation(diagonal):
     assert key(a) == key(b)
 
 
+def test_gmsh_is_the_default_engine_and_its_vertices_are_exact():
+    """gmsh builds by default; its transfinite vertices are put on the grid (L / n) i, so both
+    engines give bitwise the same coordinates."""
+    for build in (build_rectangle, build_box):
+        assert inspect.signature(build).parameters["engine"].default == "gmsh"
+    a = build_rectangle(MPI.COMM_SELF, 2.0, 0.7, n=6, engine="dolfinx").mesh.geometry.x
+    b = build_rectangle(MPI.COMM_SELF, 2.0, 0.7, n=6).mesh.geometry.x
+    assert len(a) == len(b) == 49
+    np.testing.assert_array_equal(np.unique(a, axis=0), np.unique(b, axis=0))
+
+
+def _measure(m, tag=None):
+    one = fem.Constant(m.mesh, 1.0)
+    if tag is None:
+        return fem.assemble_scalar(fem.form(one * ufl.dx))
+    ds = ufl.Measure("ds", domain=m.mesh, subdomain_data=m.facet_tags)
+    return fem.assemble_scalar(fem.form(one * ds(tag)))
+
+
+def test_box_engines():
+    """dolfinx's create_box and gmsh's transfinite box: the same vertices (bitwise), cell
+    count, volume and face areas per tag (the tetrahedra themselves may differ)."""
+    L = (2.0, 1.0, 0.5)
+    a = build_box(MPI.COMM_SELF, *L, n=3, engine="dolfinx")
+    b = build_box(MPI.COMM_SELF, *L, n=3, engine="gmsh")
+    xa, xb = a.mesh.geometry.x, b.mesh.geometry.x
+    np.testing.assert_array_equal(np.unique(xa, axis=0), np.unique(xb, axis=0))
+    for m in (a, b):
+        assert m.mesh.topology.index_map(3).size_local == 6 * 27
+        assert _measure(m) == pytest.approx(1.0, rel=1e-13)
+    areas = {"left": 0.5, "right": 0.5, "front": 1.0, "back": 1.0, "bottom": 2.0, "top": 2.0}
+    for name, area in areas.items():
+        for m in (a, b):
+            assert _measure(m, m.groups[name]) == pytest.approx(area, rel=1e-13), name
+    with pytest.raises(ValueError, match="engine"):
+        build_box(MPI.COMM_SELF, n=2, engine="cgal")
+
+
+def test_groups_sizes_and_bounding_box():
+    rect = build_rectangle(MPI.COMM_SELF, 2.0, 1.0, n=4)
+    assert rect.groups == {"left": 1, "bottom": 2, "right": 3, "top": 4}
+    assert rect.tags == (1, 2, 3, 4) and rect.L3 == 0.0
+    assert rect.h == 0.5 and rect.h_min == pytest.approx(np.hypot(0.5, 0.25))
+    np.testing.assert_array_equal(rect.bbox[0], [0.0, 0.0])
+    np.testing.assert_array_equal(rect.bbox[1], [2.0, 1.0])
+    box = build_box(MPI.COMM_SELF, 2.0, 1.0, 0.5, h=0.3)
+    assert box.groups == {"left": 1, "bottom": 2, "right": 3, "top": 4, "front": 5, "back": 6}
+    assert box.tags == (1, 2, 3, 4, 5, 6) and (box.L1, box.L2, box.L3) == (2.0, 1.0, 0.5)
+    assert 0 < box.h_min < 0.3
+    np.testing.assert_allclose(box.bbox[0], [0.0, 0.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(box.bbox[1], [2.0, 1.0, 0.5], rtol=1e-15)
+
+
 def test_refined_structured_mesh_is_nested():
     """Every fine cell lies inside one coarse cell (barycentric coordinates in [0, 1])."""
     coarse = _cells(build_rectangle(MPI.COMM_SELF, 1.0, 1.0, n=4))
@@ -85,9 +143,11 @@ def test_bad_arguments():
         build_rectangle(MPI.COMM_SELF, 1.0, 1.0)
     with pytest.raises(ValueError, match="diagonal"):
         build_rectangle(MPI.COMM_SELF, 1.0, 1.0, n=2, diagonal="up")
+    with pytest.raises(ValueError, match="engine"):
+        build_rectangle(MPI.COMM_SELF, 1.0, 1.0, n=2, engine="cgal")
 
 
-@pytest.mark.parametrize("size", [{"n": 3}, {"h": 0.4}])
+@pytest.mark.parametrize("size", [{"n": 3}, {"h": 0.4}, {"n": 3, "engine": "dolfinx"}])
 def test_box_faces(size):
     box = build_box(MPI.COMM_SELF, 2.0, 1.0, 0.5, **size)
     assert box.dim == 3 and box.normal == (0.0, 0.0, -1.0)

@@ -1,0 +1,286 @@
+"""The user's own mesh: a gmsh ``.msh`` file or a ``.geo`` script meshed at load time.
+
+Gmsh runs on rank 0 only: it merges the ``.msh`` (format 4.1; 2.2 is read too) or opens the
+``.geo`` and meshes it in ``dim`` dimensions with its characteristic lengths multiplied by
+``size`` (``Mesh.MeshSizeFactor``, on top of any factor the script sets itself; transfinite
+lines keep their node counts).  dolfinx's ``gmshio.model_to_mesh`` then distributes the mesh.
+It reads only the elements of physical groups: the cells are those of the physical groups of
+dimension ``dim`` (the body: a ``Physical Surface`` in 2D, a ``Physical Volume`` in 3D), the
+facet tags those of the groups of dimension ``dim - 1`` (the boundary parts, named by the
+group's name or referred to by its number).
+
+Every check runs on rank 0 before dolfinx is called and its verdict is broadcast, so a bad
+file raises ``MeshFileError`` on every rank (no rank is left waiting in a collective call).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from .extent import mesh_extent
+
+SUFFIXES = (".msh", ".geo")
+# the linear simplex gmsh element type of each dimension (gmsh's MSH numbering)
+_LINEAR = {1: 1, 2: 2, 3: 4}
+_SIMPLEX = {1: "lines", 2: "triangles", 3: "tetrahedra"}
+_PHYSICAL = {0: "Physical Point", 1: "Physical Curve", 2: "Physical Surface",
+             3: "Physical Volume"}
+_ENTITY = {0: "point", 1: "curve", 2: "surface", 3: "volume"}
+
+
+class MeshFileError(ValueError):
+    """A mesh file that cannot be used; the one-line message says what is wrong and the fix."""
+
+
+@dataclass
+class FileMesh:
+    """A distributed dolfinx mesh read from a gmsh file, with its tags and geometry data.
+
+    Attributes:
+        mesh: the dolfinx mesh (linear triangles in 2D, linear tetrahedra in 3D).
+        cell_tags: the cells' physical tags (the groups of dimension dim).
+        facet_tags: the boundary facets' physical tags (the groups of dimension dim - 1).
+        groups: physical name -> physical tag of the named groups of dimension dim - 1.
+        tags: every physical tag of dimension dim - 1 (named or not), sorted.
+        dim: the space dimension, 2 or 3.
+        path: the file read.
+        h: the largest cell diameter.
+        h_min: the smallest cell diameter.
+        bbox: (lo, hi), the corners of the bounding box of all vertices, each (dim,).
+        L1, L2, L3: the bounding box's extents in x, y, z (L3 = 0 in 2D).
+    """
+
+    mesh: object
+    cell_tags: object
+    facet_tags: object
+    groups: dict[str, int]
+    tags: tuple[int, ...]
+    dim: int
+    path: str
+    h: float
+    h_min: float
+    bbox: tuple[np.ndarray, np.ndarray]
+    L1: float
+    L2: float
+    L3: float
+
+    # what the built-in meshes also say about themselves: an unstructured mesh, no grid, and
+    # no single contact normal (the boundary's normals come from its facets)
+    structured = False
+    n = None
+    diagonal = None
+    normal = None
+    tangent = None
+
+
+def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0) -> FileMesh:
+    """Read a gmsh ``.msh`` or mesh a ``.geo`` and distribute it; collective on ``comm``.
+
+    Args:
+        comm: the communicator the mesh is distributed over.
+        path: the ``.msh`` or ``.geo`` file.
+        dim: the space dimension, 2 (triangles in the plane z = 0) or 3 (tetrahedra).
+        size: the factor on a ``.geo``'s characteristic lengths (ignored for a ``.msh``).
+
+    Returns:
+        The FileMesh.
+
+    Raises:
+        MeshFileError: on every rank, for a missing or unreadable file, a suffix other than
+            .msh/.geo, a file gmsh cannot read or mesh, no elements, no physical group for the
+            body, a mesh of the other dimension or not in the plane z = 0, elements other
+            than linear triangles/tetrahedra, groups sharing elements or names.
+        ValueError: for dim not 2 or 3, or size not > 0.
+    """
+    import gmsh
+    from dolfinx.io import gmshio
+
+    path = str(path)
+    if dim not in (2, 3):
+        raise ValueError(f"dim must be 2 or 3, got {dim!r}")
+    if not size > 0:
+        raise ValueError(f"size must be > 0, got {size!r}")
+    verdict = found = None
+    if comm.rank == 0:
+        gmsh.initialize(readConfigFiles=False)
+        gmsh.option.setNumber("General.Terminal", 0)
+        try:
+            found = _read(gmsh, path, dim, size)
+        except MeshFileError as err:
+            verdict = str(err)
+        except Exception as err:   # never leave the other ranks waiting for rank 0
+            verdict = f"cannot load {path}: {type(err).__name__}: {err}"
+        if verdict is not None:
+            gmsh.finalize()
+        if verdict is not None:
+            verdict = " ".join(verdict.splitlines())    # gmsh's messages may span lines
+    verdict, found = comm.bcast((verdict, found), root=0)
+    if verdict is not None:
+        raise MeshFileError(verdict)
+    try:
+        msh, ct, ft = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0,
+                                           gdim=dim)
+    finally:
+        if comm.rank == 0:
+            gmsh.finalize()
+    groups, tags = found
+    h_min, h_max, (lo, hi) = mesh_extent(msh)
+    ext = hi - lo
+    return FileMesh(msh, ct, ft, groups, tags, dim, path, h_max, h_min, (lo, hi),
+                    float(ext[0]), float(ext[1]), float(ext[2]) if dim == 3 else 0.0)
+
+
+def _read(gmsh, path: str, dim: int, size: float):
+    """Rank 0: load the file into gmsh's current model, check it; (groups, tags)."""
+    p = Path(path)
+    if not p.exists():
+        raise MeshFileError(f"{path}: no such file; give a gmsh .msh or .geo file (a path "
+                            "relative to the case file)")
+    if not p.is_file():
+        raise MeshFileError(f"{path} is not a file; give a gmsh .msh or .geo file")
+    try:
+        with open(p, "rb"):
+            pass
+    except OSError as err:
+        raise MeshFileError(f"cannot read {path}: {err.strerror}; check its permissions") \
+            from None
+    suffix = p.suffix.lower()
+    if suffix not in SUFFIXES:
+        raise MeshFileError(f"{path}: unknown suffix {p.suffix!r}; give a gmsh mesh (.msh, "
+                            "format 4.1) or a gmsh geometry script (.geo)")
+    if suffix == ".geo":
+        _check_last_line(p, path)
+    try:
+        (gmsh.open if suffix == ".geo" else gmsh.merge)(str(p))
+    except Exception as err:
+        raise MeshFileError(f"gmsh cannot read {path}: {err}") from None
+    if suffix == ".geo":
+        _mesh_geo(gmsh, path, dim, size)
+    _check_elements(gmsh, path, dim)
+    _check_groups(gmsh, path, dim)
+    if dim == 2:
+        _check_planar(gmsh, path)
+    nodes = gmsh.model.mesh.getNodes()[0]
+    if not np.array_equal(np.sort(nodes), np.arange(1, len(nodes) + 1)):
+        gmsh.model.mesh.renumberNodes()     # model_to_mesh needs node tags 1..N
+    return _boundary_groups(gmsh, path, dim)
+
+
+def _check_last_line(p: Path, path: str) -> None:
+    """Rank 0: gmsh 4.8 skips every statement but the first of an unterminated last line."""
+    last = p.read_bytes().rsplit(b"\n", 1)[-1].split(b"//", 1)[0]
+    if last.count(b";") > 1:
+        raise MeshFileError(f"{path}: its last line has no line break, so gmsh would skip all "
+                            "but its first statement; end the file with a line break")
+
+
+def _mesh_geo(gmsh, path: str, dim: int, size: float) -> None:
+    """Rank 0: mesh the opened ``.geo`` in ``dim`` dimensions, lengths scaled by ``size``."""
+    top = gmsh.model.getDimension()
+    if top > dim:
+        raise MeshFileError(f"{path}: the geometry is {top}D (it has "
+                            f"{_ENTITY[top]}s) but mesh.dim is {dim}; set mesh.dim: {top}")
+    factor = gmsh.option.getNumber("Mesh.MeshSizeFactor")
+    gmsh.option.setNumber("Mesh.MeshSizeFactor", factor * size)
+    try:
+        gmsh.model.mesh.generate(dim)
+    except Exception as err:
+        raise MeshFileError(f"gmsh cannot mesh {path}: {err}") from None
+
+
+def _type_names(gmsh, types) -> str:
+    return ", ".join(sorted({gmsh.model.mesh.getElementProperties(t)[0] for t in types}))
+
+
+def _check_elements(gmsh, path: str, dim: int) -> None:
+    """Rank 0: there are elements, of dimension ``dim`` at most and at least."""
+    types, tags, _ = gmsh.model.mesh.getElements()
+    if sum(len(t) for t in tags) == 0:
+        raise MeshFileError(f"{path}: no mesh elements (save a .msh after meshing it; a .geo "
+                            f"must define the {_ENTITY[dim]}s to mesh)")
+    dims = {t: gmsh.model.mesh.getElementProperties(t)[1] for t in types}
+    top = max(dims.values())
+    if top > dim:
+        names = _type_names(gmsh, [t for t, d in dims.items() if d == top])
+        raise MeshFileError(f"{path} holds a {top}D mesh ({names}) but mesh.dim is {dim}; "
+                            f"set mesh.dim: {top}")
+    if top < dim and gmsh.model.getDimension() >= dim:
+        raise MeshFileError(f"{path}: its {_ENTITY[dim]}s have no elements (only a {top}D "
+                            f"mesh); mesh them in {dim}D (Mesh {dim}) before saving")
+    if top < dim:
+        hint = "set mesh.dim: 2" if top == 2 else f"give it {_ENTITY[dim]}s to mesh"
+        raise MeshFileError(f"{path} holds no {dim}D elements (it is a {top}D mesh) but "
+                            f"mesh.dim is {dim}; {hint}")
+
+
+def _label(gmsh, d: int, tag: int) -> str:
+    name = gmsh.model.getPhysicalName(d, tag)
+    return f"{_PHYSICAL[d]} {tag} ({name!r})" if name else f"{_PHYSICAL[d]} {tag}"
+
+
+def _check_groups(gmsh, path: str, dim: int) -> None:
+    """Rank 0: a body group; every group's entities meshed with one linear simplex type; no
+    element in two groups of dimension dim or dim - 1."""
+    if not gmsh.model.getPhysicalGroups(dim):
+        raise MeshFileError(f"{path}: no physical group of dimension {dim}, so gmsh saves no "
+                            f"cells; add a {_PHYSICAL[dim]} for the body (e.g. "
+                            f"{_PHYSICAL[dim]}(\"body\") = {{...}};)")
+    members = {dim: ([], []), dim - 1: ([], [])}
+    # the body's groups first: their element types say most about the file
+    for d, tag in sorted(gmsh.model.getPhysicalGroups(), key=lambda g: (-g[0], g[1])):
+        for entity in gmsh.model.getEntitiesForPhysicalGroup(d, tag):
+            types, elements, _ = gmsh.model.mesh.getElements(d, entity)
+            if len(types) == 0:
+                raise MeshFileError(f"{path}: {_label(gmsh, d, tag)} holds {_ENTITY[d]} "
+                                    f"{entity}, which has no elements; mesh it or remove it "
+                                    "from the group")
+            if len(types) > 1 or (d in members and types[0] != _LINEAR[d]):
+                raise MeshFileError(
+                    f"{path}: {_label(gmsh, d, tag)} has {_type_names(gmsh, types)} "
+                    f"elements; vpcontact needs linear {_SIMPLEX[dim]} (no Recombine, "
+                    "Mesh.ElementOrder = 1)")
+            if d in members:
+                members[d][0].append(elements[0])
+                members[d][1].append(np.full(len(elements[0]), tag))
+    for d, (elements, owners) in members.items():
+        if not elements:
+            continue
+        elements, owners = np.concatenate(elements), np.concatenate(owners)
+        order = np.argsort(elements, kind="stable")
+        elements, owners = elements[order], owners[order]
+        twice = np.flatnonzero(elements[1:] == elements[:-1])
+        if twice.size:
+            a, b = owners[twice[0]], owners[twice[0] + 1]
+            kind = "cell" if d == dim else "facet"
+            raise MeshFileError(f"{path}: {_label(gmsh, d, a)} and {_label(gmsh, d, b)} share "
+                                f"elements; a {kind} may belong to one physical group only")
+
+
+def _check_planar(gmsh, path: str) -> None:
+    """Rank 0: the body's nodes lie in the plane z = 0."""
+    xyz = [gmsh.model.mesh.getNodesForPhysicalGroup(2, tag)[1].reshape(-1, 3)
+           for _, tag in gmsh.model.getPhysicalGroups(2)]
+    xyz = np.concatenate(xyz)
+    extent = max(float(np.ptp(xyz[:, 0])), float(np.ptp(xyz[:, 1])))
+    z = xyz[:, 2]
+    if np.abs(z).max() > 1e-12 * max(extent, np.finfo(float).tiny):
+        raise MeshFileError(f"{path}: the 2D mesh is not planar (z from {z.min():g} to "
+                            f"{z.max():g}); a 2D mesh must lie in the plane z = 0")
+
+
+def _boundary_groups(gmsh, path: str, dim: int):
+    """Rank 0: (name -> tag of the named groups of dimension dim - 1, all their tags)."""
+    groups = {}
+    tags = sorted(tag for _, tag in gmsh.model.getPhysicalGroups(dim - 1))
+    for tag in tags:
+        name = gmsh.model.getPhysicalName(dim - 1, tag)
+        if not name:
+            continue
+        if name in groups:
+            raise MeshFileError(f"{path}: two {_PHYSICAL[dim - 1]}s are named {name!r} "
+                                f"(tags {groups[name]} and {tag}); rename one")
+        groups[name] = int(tag)
+    return groups, tuple(int(t) for t in tags)

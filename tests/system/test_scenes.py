@@ -1,0 +1,231 @@
+"""General scenes: the user's gmsh meshes, named boundary groups, curved contact, gap
+fields, prescribed displacements and plane strain, checked against closed forms (Hertz, a
+uniform strain), symmetry (rotation invariance), the two step solvers against each other and
+the KKT conditions of the bound."""
+import json
+
+import numpy as np
+import pytest
+import yaml
+from mpi4py import MPI
+
+from conftest import PAPER_CASE, ROOT, run_cli
+from meshtools import rotation_2d, write_rotated_square
+
+HERTZ = ROOT / "cases" / "hertz_cylinder.yaml"
+NORMS = ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa")
+
+
+def _run(path, overrides=()):
+    from app.io.case import load_case
+    from app.simulation import run
+    result = run(load_case(path, list(overrides)), MPI.COMM_WORLD)
+    assert result.status == "completed"
+    return result
+
+
+def _write(tmp_path, raw: dict, name="case.yaml"):
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(raw))
+    return path
+
+
+def _hertz_raw(tmp_path, **contact) -> dict:
+    raw = yaml.safe_load(HERTZ.read_text())
+    raw["mesh"]["file"] = str(ROOT / "cases" / "hertz_cylinder.geo")
+    raw["contact"].update(contact)
+    raw["contact"] = {k: v for k, v in raw["contact"].items() if v is not None}
+    return raw
+
+
+# ----------------------------------------------------------------------------- Hertz 2D
+def _hertz_fit(x, p):
+    """p0 and a of p = p0 sqrt(1 - x^2 / a^2), fitted by least squares of p^2 against x^2
+    on the nodes inside the contact (the edge node, with its partial load, left out)."""
+    inside = p > 1e-6 * p.max()
+    edge = x[inside].max()
+    use = inside & (x < edge)
+    B, A = np.polyfit(x[use] ** 2, p[use] ** 2, 1)
+    return np.sqrt(A), np.sqrt(-A / B), edge
+
+
+def test_hertz_cylinder_half_width_and_pressure():
+    result = _run(HERTZ)
+    tab = result.problem.contact_table()
+    step = result.summary["steps"][-1]
+    P = 2.0 * step["contact_force"][1]                 # the whole cylinder: two quarters
+    E, nu, R = 1000.0, 0.3, 1.0
+    E_star = E / (1.0 - nu ** 2)
+    a = np.sqrt(4.0 * P * R / (np.pi * E_star))
+    p0 = 2.0 * P / (np.pi * a)
+    x, p = tab["x"], tab["neg_sigma_nu"]
+    p0_fit, a_fit, edge = _hertz_fit(x, p)
+    assert p0_fit == pytest.approx(p0, rel=0.02)
+    assert a_fit == pytest.approx(a, rel=0.02)
+    h = np.diff(np.sort(x)).max(initial=0.0)
+    inner = x < a - 2 * 0.003                          # the profile, off the edge singularity
+    hertz = p0 * np.sqrt(np.clip(1 - (x / a) ** 2, 0, None))
+    assert np.abs(p[inner] - hertz[inner]).max() <= 0.03 * p0
+    off = (x > a + 0.01) & (tab["y"] < 0.5)             # not the top's corner (prescribed)
+    assert np.all(p[off] == pytest.approx(0.0, abs=1e-9 * p0)) and h > 0
+    # equilibrium: the push on the top balances the foundation's force
+    assert step["reactions"]["top"][1] == pytest.approx(-step["contact_force"][1], rel=1e-9)
+
+
+@pytest.mark.parametrize("direction", [[0.0, -1.0], None], ids=["direction", "nodal-normals"])
+def test_hertz_fast_equals_snes_vi_and_kkt(tmp_path, direction):
+    """Both step solvers (the fast one in nodal frames, SNES VI in rotated coordinates on a
+    curved Gamma3) solve the same discrete problem; the bound's KKT conditions hold."""
+    path = _write(tmp_path, _hertz_raw(tmp_path, direction=direction))
+    tabs = {}
+    for method in ("fast", "snes_vi"):
+        res = _run(path, [f"solver.method={method}"])
+        tabs[method] = res.problem.contact_table()
+        pb = res.problem
+        pos = np.searchsorted(pb.frames.nodes, pb.gamma3.nodes)
+        # the nodes with no prescribed component (the roller's and the top's are reactions)
+        free = ~pb.dirichlet.fixed[pb.gamma3.nodes].any(axis=1)
+        g = pb.frames.g[pos][free]
+    for col in ("u_x", "u_y", "u_nu", "neg_sigma_nu"):
+        a, b = tabs["fast"][col], tabs["snes_vi"][col]
+        assert np.abs(a - b).max() <= 1e-8 * np.abs(b).max(), col
+    tab = {k: v[free] for k, v in tabs["snes_vi"].items()}
+    assert free.sum() >= len(free) - 2
+    u_nu, p = tab["u_nu"], tab["neg_sigma_nu"]
+    scale_u, scale_p = 0.015, np.abs(p).max()
+    assert np.all(u_nu <= g + 1e-10 * scale_u)                     # the bound
+    assert np.all(p >= -1e-8 * scale_p)                            # compression only
+    assert np.abs(p * (g - u_nu)).max() <= 1e-8 * scale_p * scale_u  # complementarity
+    assert np.abs(tab["neg_sigma_tau"]).max() <= 1e-8 * scale_p    # frictionless
+
+
+# ----------------------------------------------------------------------------- rotation
+def _paper_rotated(tmp_path, angle, steps):
+    raw = yaml.safe_load(PAPER_CASE.read_text())
+    R = rotation_2d(angle)
+    msh = write_rotated_square(tmp_path / "square.msh", raw["mesh"]["n"], angle,
+                               raw["mesh"]["diagonal"])
+    raw["mesh"] = {"file": str(msh), "dim": 2}
+    raw["boundaries"] = {"clamped": ["left"], "contact": ["bottom"]}
+    raw["loads"]["traction"] = {k: [float(c) for c in R @ np.array(v, float)]
+                                for k, v in raw["loads"]["traction"].items()}
+    raw["time"]["N"] = steps
+    return _write(tmp_path, raw, "rotated.yaml"), R
+
+
+@pytest.mark.parametrize("method", ["fast", "snes_vi"])
+def test_paper_case_rotated_by_30_degrees(tmp_path, method):
+    """The paper's scene on the unit square rotated by 30 degrees (the same triangles, read
+    from a .msh, tractions rotated) gives the unrotated run's norms and Gamma3 profile in
+    local coordinates to 1e-8."""
+    path, R = _paper_rotated(tmp_path, 30.0, 4)
+    over = [f"solver.method={method}", "time.N=4"]
+    ref, rot = _run(PAPER_CASE, over), _run(path, [f"solver.method={method}"])
+    for a, b in zip(ref.summary["steps"], rot.summary["steps"], strict=True):
+        for key in NORMS:
+            assert b[key] == pytest.approx(a[key], rel=1e-8, abs=1e-14), key
+    t_ref, t_rot = ref.problem.contact_table(), rot.problem.contact_table()
+    back = np.column_stack([t_rot["x"], t_rot["y"]]) @ R        # R^T x, row-wise
+    order = np.lexsort((np.round(back[:, 1], 9), np.round(back[:, 0], 9)))
+    np.testing.assert_allclose(back[order, 0], t_ref["x"], atol=1e-12)
+    for col in ("u_nu", "u_tau", "neg_sigma_nu", "neg_sigma_tau"):
+        scale = np.abs(t_ref[col]).max()
+        np.testing.assert_allclose(t_rot[col][order], t_ref[col], rtol=0, atol=1e-8 * scale,
+                                   err_msg=col)
+
+
+# ----------------------------------------------------------------------------- Dirichlet
+def _patch_raw(displacement, clamped=()):
+    return {"mesh": {"n": 4, "diagonal": "left"},
+            "material": {"E": 1000.0, "nu": 0.3},
+            "boundaries": {"clamped": list(clamped), "contact": []},
+            "loads": {"displacement": displacement},
+            "time": {"T": 1.0, "N": 2}}
+
+
+@pytest.mark.parametrize("method", ["fast", "snes_vi"])
+def test_displacement_patch_test(tmp_path, method):
+    """u = A x (t) prescribed on the whole boundary: P1 reproduces the uniform strain
+    exactly, at every node and step, and sigma = E eps(u) in every cell."""
+    ux, uy = "t*(0.001*x + 0.0005*y)", "t*(0.0005*x - 0.002*y)"
+    raw = _patch_raw({s: [ux, uy] for s in ("left", "right", "bottom", "top")})
+    raw["solver"] = {"method": method}
+    res = _run(_write(tmp_path, raw))
+    p = res.problem
+    x = p.V.tabulate_dof_coordinates()[:, :2]
+    exact = np.column_stack([0.001 * x[:, 0] + 0.0005 * x[:, 1],
+                             0.0005 * x[:, 0] - 0.002 * x[:, 1]])
+    np.testing.assert_allclose(p.u.x.array.reshape(-1, 2), exact, rtol=0, atol=1e-15)
+    E, nu = 1000.0, 0.3
+    e = np.array([[0.001, 0.0005], [0.0005, -0.002]])
+    sigma = E / (1 - nu ** 2) * nu * np.trace(e) * np.eye(2) + E / (1 + nu) * e
+    cells = p.sigma.x.array.reshape(-1, 2, 2)
+    np.testing.assert_allclose(cells, np.broadcast_to(sigma, cells.shape), atol=1e-12)
+
+
+@pytest.mark.parametrize("plane", ["stress", "strain"])
+def test_uniaxial_rollers_and_reactions(tmp_path, plane):
+    """Rollers on x = 0 and y = 0, u_x = 0.001 t on x = 1: uniaxial stress, u_x = 0.001 t x,
+    u_y = -nu' 0.001 t y (nu' = nu, plane stress; nu / (1 - nu), plane strain), and the
+    reaction on the right side is E' 0.001 t (E' = E or E / (1 - nu^2))."""
+    raw = _patch_raw({"left": [0.0, None], "bottom": [None, 0.0],
+                      "right": ["0.001*t", None]})
+    raw["material"]["plane"] = plane
+    res = _run(_write(tmp_path, raw))
+    E, nu = 1000.0, 0.3
+    E_eff, nu_eff = (E, nu) if plane == "stress" else (E / (1 - nu ** 2), nu / (1 - nu))
+    p = res.problem
+    x = p.V.tabulate_dof_coordinates()[:, :2]
+    exact = np.column_stack([0.001 * x[:, 0], -nu_eff * 0.001 * x[:, 1]])
+    np.testing.assert_allclose(p.u.x.array.reshape(-1, 2), exact, rtol=0, atol=1e-15)
+    for step in res.summary["steps"]:
+        force = E_eff * 0.001 * step["t"]
+        assert step["reactions"]["right"][0] == pytest.approx(force, rel=1e-10)
+        assert step["reactions"]["left"][0] == pytest.approx(-force, rel=1e-10)
+        assert abs(step["reactions"]["bottom"][1]) <= 1e-10 * force
+
+
+def test_paper_case_equilibrium():
+    """Reactions on Gamma1, the foundation's force and the tractions balance."""
+    res = _run(PAPER_CASE, ["time.N=4"])
+    loads = np.array([-3.2, -8.0])          # right [-3.2, 0] + top [0, -8] on unit sides
+    for step in res.summary["steps"]:
+        total = np.array(step["reactions"]["left"]) + np.array(step["contact_force"]) + loads
+        assert np.abs(total).max() <= 1e-9 * 8.0
+
+
+# ----------------------------------------------------------------------------- refusals
+@pytest.mark.parametrize("change, key", [
+    ({"loads": {"displacement": {"sym": [0.0, None]}}}, "boundaries.clamped / loads.displacement"),
+    ({"boundaries": {"clamped": [], "contact": ["nope"]}}, "boundaries.contact"),
+    ({"contact": {"g": "y - 0.1", "direction": [0.0, -1.0]}}, "contact.g"),
+], ids=["rigid-motion", "unknown-group", "negative-gap"])
+def test_scene_refusals(tmp_path, change, key):
+    raw = _hertz_raw(tmp_path)
+    for section, value in change.items():
+        raw[section] = value
+    if "displacement" in change.get("loads", {}):
+        raw["boundaries"] = {"clamped": [], "contact": ["arc"]}
+    proc = run_cli(["run", _write(tmp_path, raw), "--out", tmp_path / "out", "--quiet"])
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    err = proc.stderr.strip().splitlines()
+    assert len(err) == 1 and key in err[0], proc.stderr
+    assert not (tmp_path / "out" / "summary.json").exists()
+
+
+@pytest.mark.mpi
+def test_curved_case_two_ranks_equal_serial(tmp_path):
+    path = _write(tmp_path, _hertz_raw(tmp_path, direction=None))
+    out = {}
+    for n in (1, 2):
+        proc = run_cli(["run", path, "--out", tmp_path / f"np{n}", "--quiet"], nprocs=n)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        out[n] = json.loads((tmp_path / f"np{n}" / "summary.json").read_text())
+        out[n]["rows"] = (tmp_path / f"np{n}" / "contact.csv").read_text().splitlines()
+    for a, b in zip(out[1]["steps"], out[2]["steps"], strict=True):
+        for key in NORMS:
+            assert b[key] == pytest.approx(a[key], rel=1e-8, abs=1e-14), key
+        assert np.allclose(b["contact_force"], a["contact_force"], rtol=1e-8)
+    r1 = np.array([[float(v) for v in r.split(",")[:-1]] for r in out[1]["rows"][1:]])
+    r2 = np.array([[float(v) for v in r.split(",")[:-1]] for r in out[2]["rows"][1:]])
+    np.testing.assert_allclose(r2, r1, rtol=0, atol=1e-8 * np.abs(r1).max())
