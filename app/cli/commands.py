@@ -282,6 +282,7 @@ def cmd_bench(args) -> int:
     """
     from app.io.cachedirs import unusable
     from app.studies import bench as bm
+    from app.studies.scenebench import scene_rows
 
     extra = list(args.extra)          # (n, N) pairs, parsed by cells_and_steps
     outdir = Path(args.out)
@@ -299,10 +300,12 @@ def cmd_bench(args) -> int:
         rows = bm.bench(args.case, outdir, args.levels, nprocs=args.ranks, extra=extra,
                         repeat=args.repeat)
         memory = bm.memory_rows(outdir, steps=args.memory_steps) if args.memory_steps else []
+        scene = scene_rows(Path(args.case), outdir, args.scene_n, 64, bm.run_overrides,
+                           args.repeat) if args.scene_n else []
     except RuntimeError as exc:
         return error(str(exc), EXIT_FAILED)
-    bm.write(outdir, rows, memory)
-    failed = bm.failures(rows, memory)
+    bm.write(outdir, rows, memory, scene)
+    failed = bm.failures(rows, memory, scene)
     if failed:
         return error(f"{len(failed)} bench configuration(s) failed: {'; '.join(failed)} "
                      f"(reasons in {outdir}/bench.md)", EXIT_FAILED)

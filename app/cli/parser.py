@@ -242,6 +242,10 @@ def _add_bench(sub) -> None:
     b.add_argument("--memory-steps", type=positive_int, nargs="*", default=[64, 256, 1024, 4096],
                    metavar="N", help="step counts of the memory-term cost runs "
                                      "(recursion vs direct sum; none: skip)")
+    b.add_argument("--scene-n", type=int, default=121, metavar="n",
+                   help="cells per side of the user-scene comparison (the case's square "
+                        "rotated and read from a .geo, against the built-in rectangle, 64 "
+                        "steps; default 121: 29768 dofs; 0: skip)")
     b.add_argument("--ranks", type=positive_int, nargs="+", default=[1, 2])
     b.add_argument("--repeat", type=positive_int, default=3, metavar="R",
                    help="measured runs per configuration, every solver alike; the fastest "

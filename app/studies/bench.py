@@ -37,9 +37,27 @@ def _overrides(n: int, N: int, method: str, steps: int | None = None) -> list[st
 
 
 def _run(case, out, n, N, method, nprocs, steps=None, log=print):
+    return run_overrides(case, out, _overrides(n, N, method, steps), nprocs)
+
+
+def run_overrides(case, out, overrides: list[str], nprocs: int = 1):
+    """One whole-process run of a case, timed from outside.
+
+    Args:
+        case: the case file.
+        out: the output directory (overwritten).
+        overrides: --set items.
+        nprocs: MPI ranks (mpirun above 1).
+
+    Returns:
+        (wall time [s], the run's summary.json).
+
+    Raises:
+        RuntimeError: if the run fails (with its command and error output).
+    """
     cmd = [sys.executable, "-m", "app", "run", str(case), "--out", str(out), "--overwrite",
            "--no-plots", "--quiet"]
-    for item in _overrides(n, N, method, steps):
+    for item in overrides:
         cmd += ["--set", item]
     if nprocs > 1:
         cmd = ["mpirun", "-n", str(nprocs), *cmd]
@@ -188,19 +206,21 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "fast"), nprocs=(1, 2)
     return rows
 
 
-def failures(rows: list[dict], memory: list[dict]) -> list[str]:
+def failures(rows: list[dict], memory: list[dict], scene: list[dict] = ()) -> list[str]:
     """The configurations of a bench that failed.
 
     Args:
         rows: the solver rows (``bench``).
         memory: the memory-term rows (``memory_rows``).
+        scene: the user-scene rows (app/studies/scenebench.py).
 
     Returns:
         One short name per failed configuration.
     """
     out = [f"h = 1/{r['n']}, N = {r['N']}, {r['method']}, {r['nprocs']} rank(s)"
            for r in rows if "failed" in r]
-    return out + [f"memory term {r['sum']}, N = {r['N']}" for r in memory if "failed" in r]
+    return out + [f"memory term {r['sum']}, N = {r['N']}" for r in memory if "failed" in r] \
+        + [f"scene {r['kind']}, n = {r['n']}" for r in scene if "failed" in r]
 
 
 MEMORY_CASE = Path(__file__).resolve().parents[2] / "cases" / "memory.yaml"
@@ -261,16 +281,19 @@ def memory_rows(outdir: Path, steps=(64, 256, 1024), n: int = 16, log=print) -> 
     return rows
 
 
-def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None) -> None:
+def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None,
+          scene: list[dict] | None = None) -> None:
     """Write bench.json and bench.md (atomically).
 
     Args:
         outdir: the bench directory.
         rows: the solver rows.
         memory: the memory-term rows, or None.
+        scene: the user-scene rows (app/studies/scenebench.py), or None.
     """
-    atomic_write(outdir / "bench.json", json.dumps({"solvers": rows, "memory_term": memory or []},
-                                                   indent=2) + "\n")
+    from app.studies import scenebench
+    atomic_write(outdir / "bench.json", json.dumps({"solvers": rows, "memory_term": memory or [],
+                                                    "scene": scene or []}, indent=2) + "\n")
     lines = ["# Benchmark: paper case (Wang & Cheng 2021, Section 4)", "",
              "Whole-process wall time (start-up, imports, mesh, set-up, steps, output at T), "
              "measured from outside after a warm-up run that fills the JIT cache: the fastest "
@@ -316,4 +339,6 @@ def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None) -> N
                          f"{r['memory_last_tenth_s'] / r['memory_first_tenth_s']:.1f}x | "
                          f"{r['memory_total_s']:.3f} | {r['last_tenth_step_s']:.4f} | "
                          f"{r.get('recursion_vs_direct_rel_diff', float('nan')):.1e} |")
+    if scene:
+        lines += scenebench.markdown(scene)
     atomic_write(outdir / "bench.md", "\n".join(lines) + "\n")

@@ -8,7 +8,8 @@ from conftest import run_cli
 def test_bench_command(tmp_path):
     out = tmp_path / "bench"
     proc = run_cli(["bench", "--levels", "4", "8", "--extra", "--ranks", "1", "2",
-                    "--memory-steps", "8", "--repeat", "2", "--out", out], timeout=900)
+                    "--memory-steps", "8", "--repeat", "2", "--scene-n", "8", "--out", out],
+                   timeout=900)
     assert proc.returncode == 0, proc.stderr
     data = json.loads((out / "bench.json").read_text())
     rows = data["solvers"]
@@ -23,5 +24,11 @@ def test_bench_command(tmp_path):
     mem = data["memory_term"]
     assert {r["sum"] for r in mem} == {"recursion", "direct"}
     assert all(r["recursion_vs_direct_rel_diff"] < 1e-10 for r in mem)
+    builtin, scene = data["scene"]
+    assert (builtin["kind"], scene["kind"]) == ("builtin", "scene")
+    assert builtin["dofs"] == scene["dofs"] == 2 * 9 ** 2
+    # the rotated scene solves the same problem: the same solution to the solver's tolerance
+    assert scene["norm_u_V_rel_diff"] < 1e-9
+    assert scene["ratio_scene_vs_builtin"] == scene["wall_s"] / builtin["wall_s"]
     md = (out / "bench.md").read_text()
-    assert "| 1/8 |" in md and "Memory term" in md
+    assert "| 1/8 |" in md and "Memory term" in md and "user's scene" in md

@@ -10,7 +10,7 @@ import yaml
 from mpi4py import MPI
 
 from conftest import PAPER_CASE, ROOT, run_cli
-from meshtools import rotation_2d, write_rotated_square
+from meshtools import rotation_2d, rotation_3d, write_rotated_box, write_rotated_square
 
 HERTZ = ROOT / "cases" / "hertz_cylinder.yaml"
 NORMS = ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa")
@@ -132,6 +132,64 @@ def test_paper_case_rotated_by_30_degrees(tmp_path, method):
         scale = np.abs(t_ref[col]).max()
         np.testing.assert_allclose(t_rot[col][order], t_ref[col], rtol=0, atol=1e-8 * scale,
                                    err_msg=col)
+
+
+@pytest.mark.parametrize("method", ["fast", "snes_vi"])
+def test_box_rotated_3d(tmp_path, method):
+    """The 3D box case (n = 4) rotated by 30 degrees about z and 20 about x, from a .msh with
+    the same tetrahedra and rotated tractions: the unrotated run's norms and Gamma3 profile
+    (u_nu, |u_tau|, the pressure, |sigma_tau|: the tangent frames differ) to 1e-8."""
+    raw = yaml.safe_load((ROOT / "cases" / "box3d.yaml").read_text())
+    R = rotation_3d((30.0, 20.0))
+    msh = write_rotated_box(tmp_path / "box.msh", 4, (30.0, 20.0))
+    raw["mesh"] = {"file": str(msh), "dim": 3}
+    raw["boundaries"] = {"clamped": ["left"], "contact": ["bottom"]}
+    raw["loads"]["traction"] = {k: [float(c) for c in R @ np.array(v, float)]
+                                for k, v in raw["loads"]["traction"].items()}
+    raw["time"]["N"] = 2
+    over = ["mesh.n=4", "time.N=2", f"solver.method={method}"]
+    ref, rot = _run(ROOT / "cases" / "box3d.yaml", over), \
+        _run(_write(tmp_path, raw, "rotated.yaml"), [f"solver.method={method}"])
+    for a, b in zip(ref.summary["steps"], rot.summary["steps"], strict=True):
+        for key in NORMS:
+            assert b[key] == pytest.approx(a[key], rel=1e-8, abs=1e-14), key
+    t_ref, t_rot = ref.problem.contact_table(), rot.problem.contact_table()
+    back = np.column_stack([t_rot[a] for a in "xyz"]) @ R
+    order = np.lexsort(tuple(np.round(back[:, i], 9) for i in (2, 1, 0)))
+    np.testing.assert_allclose(back[order], np.column_stack([t_ref[a] for a in "xyz"]),
+                               atol=1e-12)
+
+    def columns(t):
+        return {"u_nu": t["u_nu"], "u_tau": t["u_tau"], "p": t["neg_sigma_nu"],
+                "f_tau": np.hypot(t["neg_sigma_tau1"], t["neg_sigma_tau2"])}
+    c_ref, c_rot = columns(t_ref), columns(t_rot)
+    for col, v in c_ref.items():
+        np.testing.assert_allclose(c_rot[col][order], v, rtol=0,
+                                   atol=1e-8 * np.abs(v).max(), err_msg=col)
+
+
+def test_hertz_sphere_3d(tmp_path):
+    """An eighth of a sphere (R = 1, E = 1000, nu = 0.3, frictionless, g = z) pushed 0.02
+    onto a plane: a and p0 fitted from the pressure within 5% of Hertz's a = (3PR/(4E*))^(1/3),
+    p0 = 3P/(2 pi a^2), P = 4 x the eighth's contact force."""
+    raw = {"mesh": {"file": str(ROOT / "cases" / "sphere3d.geo"), "dim": 3},
+           "material": {"E": 1000.0, "nu": 0.3},
+           "boundaries": {"clamped": [], "contact": ["surface"]},
+           "contact": {"g": "z", "direction": [0.0, 0.0, -1.0]},
+           "loads": {"displacement": {"symx": [0.0, None, None], "symy": [None, 0.0, None],
+                                      "top": [None, None, -0.02]}},
+           "time": {"T": 1.0, "N": 1}}
+    res = _run(_write(tmp_path, raw))
+    tab = res.problem.contact_table()
+    P = 4.0 * res.summary["steps"][-1]["contact_force"][2]
+    E_star = 1000.0 / (1 - 0.3 ** 2)
+    a = (3 * P / (4 * E_star)) ** (1 / 3)
+    p0 = 3 * P / (2 * np.pi * a ** 2)
+    free = ~tab["_prescribed"]
+    r, p = np.hypot(tab["x"], tab["y"])[free], tab["neg_sigma_nu"][free]
+    p0_fit, a_fit, _ = _hertz_fit(r, p)
+    assert p0_fit == pytest.approx(p0, rel=0.05)
+    assert a_fit == pytest.approx(a, rel=0.05)
 
 
 # ----------------------------------------------------------------------------- Dirichlet
