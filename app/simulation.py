@@ -222,6 +222,14 @@ class Simulation:
         if case.time.adaptive is not None:
             log.info("adaptive time steps: starting from k = %g to T = %g", ks[0], case.time.T)
         log.info("active terms: %s", ", ".join(case.active_terms()))
+        if p.frames is not None:
+            d = case.contact.direction
+            log.info("Gamma3 (%s): %d nodes, normal %s%s",
+                     ", ".join(map(str, case.boundaries.contact)), p.num_gamma3_nodes,
+                     f"the fixed direction {tuple(round(x, 6) for x in d)}" if d is not None
+                     else "nodal (the mesh's outward normals)",
+                     "; SNES VI and the fast solver in rotated nodal frames"
+                     if p.frames.rotated else "")
 
     # ------------------------------------------------------------------ the loop
     @property

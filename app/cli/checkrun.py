@@ -23,18 +23,29 @@ def report(case, comm) -> list[str]:
     from app.simulation import build_mesh
     from app.solvers import choose_method, gamma3_dofs
 
-    problem = ContactProblem(case, build_mesh(case, comm))
+    body = build_mesh(case, comm)
+    problem = ContactProblem(case, body)
     ks = np.diff(case.time.times)
     n_dofs = gamma3_dofs(problem)
     n_g = n_dofs // problem.dim
     ok, why = fast_eligible(case)
     method = choose_method(case, n_dofs)
     m = case.mesh
-    mesh = (f"structured {m.n} x {m.n}" + (f" x {m.n}" if m.dim == 3 else "")
-            if m.kind == "structured" else f"unstructured, h = {m.h:g}")
+    if m.file is not None:
+        mesh = f"{m.file}, h = {body.h_min:.3g}..{body.h:.3g}"
+    else:
+        mesh = (f"structured {m.n} x {m.n}" + (f" x {m.n}" if m.dim == 3 else "")
+                if m.kind == "structured" else f"unstructured, h = {m.h:g}")
+    groups = ", ".join(f"{name} ({tag})" for name, tag in sorted(body.groups.items(),
+                                                                 key=lambda kv: kv[1]))
+    b = case.boundaries
     lines = [
         f"case {case.name} ({case.source}): valid",
         f"mesh: {m.dim}D, {mesh}, {problem.num_cells} cells, {problem.num_vertices} vertices",
+        f"boundary groups: {groups or 'none'}; clamped: {', '.join(map(str, b.clamped)) or '-'}"
+        f"; contact: {', '.join(map(str, b.contact)) or '-'}"
+        + (f"; displacement: {', '.join(map(str, case.loads.displacement))}"
+           if case.loads.displacement else ""),
         f"dofs: {problem.num_dofs} (P1 displacement), Gamma3 nodes: {n_g}",
         f"time: T = {case.time.T:g}, {case.time.N} steps, k = "
         + (f"{ks[0]:g}" if case.time.uniform else f"{ks.min():g}..{ks.max():g}")

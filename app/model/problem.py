@@ -303,6 +303,12 @@ class ContactProblem:
         return self.V.dofmap.index_map.size_global * self.V.dofmap.index_map_bs
 
     @property
+    def num_gamma3_nodes(self) -> int:
+        """Gamma3 nodes carrying contact (all ranks; 0 without contact)."""
+        n = len(self.gamma3.nodes) if self.gamma3 is not None else 0
+        return int(self.comm.allreduce(n))
+
+    @property
     def num_owned_cells(self) -> int:
         """Cells owned by this rank."""
         return self.mesh.topology.index_map(self.dim).size_local

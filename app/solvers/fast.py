@@ -34,6 +34,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from app.io.errors import CaseError
 from app.solvers import dense, kernels
 from app.solvers.nodal import NodalContact
 from app.solvers.schur import GLastLDL, flexibility, g_last_factor, gamma3_flexibility, gather_csr
@@ -182,7 +183,9 @@ class FastStepSolver:
         fixed_nodes = p.dirichlet.fixed[p.gamma3.nodes]
         fixedQ = axis & np.take_along_axis(fixed_nodes, col_axis, axis=1)
         if (fixedQ.sum(axis=1) != fixed_nodes.sum(axis=1)).any():
-            raise ValueError("a Gamma3 node's prescribed components are not axes of its frame")
+            raise CaseError(f"{p.case.source}: solver.method: the fast solver cannot hold the "
+                            "prescribed components of a Gamma3 node whose normal lies in them "
+                            "and is not an axis (allowed here: snes_vi)")
         fixedT = np.stack([fixedQ[i][[slot[i]] + [a for a in range(d) if a != slot[i]]]
                            for i in range(len(pos))]) if len(pos) else fixedQ
         g = fr.g[pos] if fr.g is not None else np.full(len(pos), np.inf)
