@@ -14,7 +14,7 @@ file raises ``MeshFileError`` on every rank (no rank is left waiting in a collec
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +51,8 @@ class FileMesh:
         h_min: the smallest cell diameter.
         bbox: (lo, hi), the corners of the bounding box of all vertices, each (dim,).
         L1, L2, L3: the bounding box's extents in x, y, z (L3 = 0 in 2D).
+        other_groups: physical name -> dimension of the named groups of other dimensions
+            (the body, edges, points), so that a case naming one gets a clear error.
     """
 
     mesh: object
@@ -66,6 +68,7 @@ class FileMesh:
     L1: float
     L2: float
     L3: float
+    other_groups: dict = field(default_factory=dict)
 
     # what the built-in meshes also say about themselves: an unstructured mesh, no grid, and
     # no single contact normal (the boundary's normals come from its facets)
@@ -108,7 +111,7 @@ def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0) -> FileMes
         gmsh.initialize(readConfigFiles=False)
         gmsh.option.setNumber("General.Terminal", 0)
         try:
-            found = _read(gmsh, path, dim, size)
+            found = (*_read(gmsh, path, dim, size), _other_groups(gmsh, dim))
         except MeshFileError as err:
             verdict = str(err)
         except Exception as err:   # never leave the other ranks waiting for rank 0
@@ -126,11 +129,18 @@ def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0) -> FileMes
     finally:
         if comm.rank == 0:
             gmsh.finalize()
-    groups, tags = found
+    groups, tags, other = found
     h_min, h_max, (lo, hi) = mesh_extent(msh)
     ext = hi - lo
     return FileMesh(msh, ct, ft, groups, tags, dim, path, h_max, h_min, (lo, hi),
-                    float(ext[0]), float(ext[1]), float(ext[2]) if dim == 3 else 0.0)
+                    float(ext[0]), float(ext[1]), float(ext[2]) if dim == 3 else 0.0, other)
+
+
+def _other_groups(gmsh, dim: int) -> dict:
+    """Rank 0: name -> dimension of the named physical groups not of dimension dim - 1."""
+    return {gmsh.model.getPhysicalName(d, tag): int(d)
+            for d, tag in gmsh.model.getPhysicalGroups()
+            if d != dim - 1 and gmsh.model.getPhysicalName(d, tag)}
 
 
 def _read(gmsh, path: str, dim: int, size: float):

@@ -204,10 +204,13 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
     from app.studies.runcache import default_cache_dir
 
     cache_dir = None if args.no_cache else Path(args.cache_dir or default_cache_dir())
+    chosen = {}
 
     def check(c):                     # every option, before anything is computed
-        cv.plan_runs(args.levels, args.reference, args.vary, c, args.deltas)
+        levels, reference = cv.resolve_levels(c, args.levels, args.reference)
+        cv.plan_runs(levels, reference, args.vary, c, args.deltas)
         cv.check_cache_dir(cache_dir, MPI.COMM_WORLD)
+        chosen.update(levels=levels, reference=reference)
 
     comm, raw, case, outdir = start(args, "convergence", CONVERGENCE_FILES, check=check,
                                     petsc_cli=petsc_cli)
@@ -217,8 +220,8 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
              __version__, args.case, outdir, cache_dir or "off", comm.size,
              "s" if comm.size > 1 else "")
     try:
-        res = cv.study(raw, args.case, args.levels, args.reference, args.vary, args.deltas,
-                       comm, cache_dir, petsc_cli)
+        res = cv.study(raw, args.case, chosen["levels"], chosen["reference"], args.vary,
+                       args.deltas, comm, cache_dir, petsc_cli)
     except CaseError as exc:
         return error(str(exc), EXIT_BAD_INPUT)
     except RuntimeError as exc:
@@ -238,8 +241,8 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
 
 
 def cmd_stability(args, petsc_cli: dict) -> int:
-    """``vpcontact stability``: the sweep of stiff and extreme variants of a 2D case
-    (stability.csv, stability.md).
+    """``vpcontact stability``: the sweep of stiff and extreme variants of a case on a coarse
+    built-in mesh or its own mesh.file (stability.csv, stability.md).
 
     Args:
         args: the parsed command line.
@@ -251,9 +254,7 @@ def cmd_stability(args, petsc_cli: dict) -> int:
     from app.studies import stability as st
 
     def check(c):
-        if c.dim != 2:
-            raise CaseError(f"{c.source}: mesh.dim: the stability sweep is for 2D cases")
-        st.base_case(c.raw, args.n, args.steps, args.case)
+        st.base_case(c.raw, args.n, args.steps, args.case, args.refine)
 
     comm, raw, case, outdir = start(args, "stability", STABILITY_FILES, check,
                                     petsc_cli=petsc_cli)
@@ -261,10 +262,17 @@ def cmd_stability(args, petsc_cli: dict) -> int:
         return EXIT_BAD_INPUT
     log.info("vpcontact %s: stability sweep of %s -> %s", __version__, args.case, outdir)
     t0 = time.perf_counter()
-    outcomes = st.sweep(raw, comm, petsc_cli, args.n, args.steps, source=args.case)
+    try:
+        outcomes = st.sweep(raw, comm, petsc_cli, args.n, args.steps, source=args.case,
+                            refine=args.refine)
+    except CaseError as exc:
+        return error(str(exc), EXIT_BAD_INPUT)
     if comm.rank == 0:
         st.write_csv(outdir / "stability.csv", outcomes)
-        st.write_markdown(outdir / "stability.md", outcomes, case.name, args.n, args.steps)
+        file = case.mesh.file is not None
+        st.write_markdown(outdir / "stability.md", outcomes, case.name,
+                          None if file else args.n or 8, args.steps, args.refine,
+                          st.not_applicable(raw))
     log.info("done in %.1f s: %s/{%s}", time.perf_counter() - t0, outdir,
              ", ".join(STABILITY_FILES))
     comm.barrier()

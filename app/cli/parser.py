@@ -67,6 +67,28 @@ def positive_int(text: str) -> int:
     return value
 
 
+def nonnegative_int(text: str) -> int:
+    """argparse type: an integer >= 0.
+
+    Args:
+        text: the argument.
+
+    Returns:
+        Its value.
+
+    Raises:
+        argparse.ArgumentTypeError: if it is not an integer >= 0.
+    """
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer (allowed: 0 or more)") \
+            from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value} (allowed: 0 or more)")
+    return value
+
+
 def positive_float(text: str) -> float:
     """argparse type: a finite number > 0.
 
@@ -197,12 +219,21 @@ def _add_convergence(sub) -> None:
         description="Run a case at several resolutions and a reference, and report "
                     "Error = max_n (||sigma_n - sigma_n^ref||_Q + ||u_n - u_n^ref||_V + "
                     "||kappa_n - kappa_n^ref||_Y) per level with observed rates and wall times "
-                    "(convergence.csv, convergence.md, convergence.png). Runs are cached.")
-    conv.add_argument("case", help="YAML case file with a structured mesh")
-    conv.add_argument("--levels", type=positive_int, nargs="+", default=[8, 16, 32, 64],
-                      metavar="L", help="levels: 1/h and/or 1/k of each run (default: 8 16 32 64)")
-    conv.add_argument("--reference", type=positive_int, default=128, metavar="R",
-                      help="the reference run has n = N = R (default: 128)")
+                    "(convergence.csv, convergence.md, convergence.png). Runs are cached. "
+                    "Built-in structured mesh: level L is the L x L mesh with L steps. "
+                    "mesh.file: level r is the case's mesh refined r times (each triangle into "
+                    "4, each tetrahedron into 8: nested meshes; a .geo is meshed once at its "
+                    "mesh.size, then refined) with time.N 2^r steps; the reference is the mesh "
+                    "refined R times. Example: --levels 0 1 2 --reference 3.")
+    conv.add_argument("case", help="YAML case file with a structured mesh or a mesh.file")
+    conv.add_argument("--levels", type=nonnegative_int, nargs="+", metavar="L",
+                      help="levels: built-in mesh: 1/h and/or 1/k of each run (default: 8 16 32 "
+                           "64); mesh.file: refinements of its mesh (default: 0 1 2, or 0 .. "
+                           "R-1 with --reference R)")
+    conv.add_argument("--reference", type=positive_int, metavar="R",
+                      help="the reference run: built-in mesh n = N = R (default: 128); "
+                           "mesh.file: its mesh refined R times (default: the largest level "
+                           "+ 1)")
     conv.add_argument("--vary", choices=["both", "h", "k"], default="both",
                       help="refine h and k together, or one with the other at the reference")
     conv.add_argument("--deltas", type=positive_float, nargs="+", metavar="D",
@@ -222,10 +253,14 @@ def _add_stability(sub) -> None:
                     "implicit history schemes on a coarse mesh, and report convergence, "
                     "growth, stability indicator and well-posedness margin "
                     "(stability.csv, stability.md).")
-    stab.add_argument("case", help="YAML case file (2D)")
+    stab.add_argument("case", help="YAML case file (a built-in mesh or a mesh.file)")
     _case_options(stab, "sweep", "results/<case name>/stability")
-    stab.add_argument("--n", type=positive_int, default=8,
-                      help="cells per side of the coarse mesh")
+    stab.add_argument("--n", type=positive_int,
+                      help="cells per side of the coarse built-in mesh (default: 8; not with "
+                           "mesh.file)")
+    stab.add_argument("--refine", type=nonnegative_int, metavar="R",
+                      help="mesh.file: refine the case's mesh R times for the base (default: "
+                           "0, the mesh as read; the variant 'h/2' refines once more)")
     stab.add_argument("--steps", type=positive_int, default=8,
                       help="time steps of the base variant")
 

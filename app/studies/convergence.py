@@ -2,9 +2,15 @@
 
 Error = max_n ( ||sigma_n - sigma_n^ref||_Q + ||u_n - u_n^ref||_V + ||kappa_n - kappa_n^ref||_Y )
 over the time points t_n of the coarse run (all of them are reference time points), with the
-coarse fields prolonged exactly to the reference mesh (app/studies/grid.py) and the norms integrated
-there (the paper's Table 1).  ``vary``: "both" refines h = L/n and k = T/N together (n = N =
-level), "h" keeps k at the reference, "k" keeps h at the reference.
+coarse fields prolonged exactly to the reference mesh and the norms integrated there (the
+paper's Table 1).  ``vary``: "both" refines h and k together, "h" keeps k at the reference,
+"k" keeps h at the reference.
+
+Levels of a built-in structured rectangle: level L is the L x L mesh with N = L steps (h =
+L1/L, k = T/L; app/studies/grid.py).  Levels of a case with ``mesh.file``: level r is the
+user's mesh refined r times (each triangle into 4, each tetrahedron into 8: nested meshes,
+meshes/refine.py; a .geo is meshed once at its mesh.size) with N = time.N * 2^r steps, so h
+and k halve from level to level (app/studies/nested.py); the reference is the finest.
 
 Wall time of a run = the sum of its steps' times (history update, SNES solve, stress update),
 measured with time.perf_counter around each step; mesh generation, JIT compilation, form and
@@ -13,9 +19,12 @@ set-up).  A cached run reports the times measured when it was computed.
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import logging
 import math
+import shutil
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +36,7 @@ from app.io.output import atomic_write, csv_text
 from app.observers import Observer
 from app.studies import runcache
 from app.studies.grid import Grid, GridSampler, cell_l2_norm, prolong_dg0, prolong_p1, strain_norm
+from app.studies.nested import LevelSampler, NestedLevel
 
 log = logging.getLogger("vpcontact")
 
@@ -44,23 +54,27 @@ class RunRecord:
     """One run of the study.
 
     Args:
-        n: cells per side of the mesh (h = L1 / n).
+        n: cells per side of the mesh (h = L1 / n), or the refinements r of a mesh.file.
         N: time steps (k = T / N).
         delta: the regularisation width of the run.
-        grid: the structured grid of its mesh.
+        grid: the structured grid of its mesh, or its NestedLevel (mesh.file).
         dofs: the number of displacement dofs.
         times: t_0, ..., t_N, shape (N + 1,).
         solve_s: wall time of the steps [s].
         setup_s: wall time of the set-up [s].
         newton: Newton iterations of all steps.
         cached: whether it came from the run cache.
-        snaps: the grid fields (u, sigma, kappa) per time point; only on rank 0.
+        snaps: the fields (u, sigma, kappa) per time point; only on rank 0.
+        contact: the Gamma3 table at T (problem.contact_table of all ranks) on rank 0, for a
+            computed run; None for a cached one.
+        last_step: the record of the run's last step (summary.json's, e.g. contact_force and
+            reactions) for a computed run; None for a cached one.
     """
 
     n: int
     N: int
     delta: float
-    grid: Grid
+    grid: Grid | NestedLevel
     dofs: int
     times: np.ndarray
     solve_s: float
@@ -68,55 +82,85 @@ class RunRecord:
     newton: int
     cached: bool
     snaps: list = field(default_factory=list, repr=False)
+    contact: dict | None = field(default=None, repr=False)
+    last_step: dict | None = field(default=None, repr=False)
+
+    @property
+    def h(self) -> float:
+        """The mesh size: L1 / n, or the level's nominal h_0 / 2^r."""
+        return self.grid.h if isinstance(self.grid, NestedLevel) else self.grid.L1 / self.n
+
+
+DEFAULT_LEVELS, DEFAULT_REFERENCE = [8, 16, 32, 64], 128   # built-in meshes: n = N = level
+DEFAULT_REFINEMENTS = [0, 1, 2]                              # mesh.file: refinements
+
+
+def resolve_levels(case, levels: list[int] | None, reference: int | None) -> tuple[
+        list[int], int]:
+    """The study's levels and reference, with the defaults of the case's kind of mesh.
+
+    Args:
+        case: the validated Case.
+        levels: --levels, or None.
+        reference: --reference, or None.
+
+    Returns:
+        (levels, reference): built-in meshes default to 8 16 32 64 against 128 (n = N =
+        level); a mesh.file to the refinements 0 1 2 (0 .. R - 1 given the reference R)
+        against the largest level + 1.
+    """
+    if case.mesh.file is None:
+        return (list(levels) if levels is not None else list(DEFAULT_LEVELS),
+                reference if reference is not None else DEFAULT_REFERENCE)
+    if levels is None:
+        levels = list(DEFAULT_REFINEMENTS) if reference is None else list(range(reference))
+    return list(levels), reference if reference is not None else max(levels, default=0) + 1
 
 
 def plan_runs(levels: list[int], reference: int, vary: str, case=None,
               deltas: list[float] | None = None) -> list[tuple[int, int]]:
     """The resolutions of the study's levels, checking that meshes and time grids nest in the
-    reference (and, given the case, that its mesh is structured and that the case is valid at
-    every level and the reference with every delta).
+    reference (and, given the case, that its mesh is structured or a mesh.file and that the
+    case is valid at every level and the reference with every delta).
 
     Args:
-        levels: the levels (n = N = level for vary "both"), strictly increasing, each a
-            divisor of ``reference``.
-        reference: the reference level (h = k = 1/128 for Table 1).
+        levels: the levels, strictly increasing: for a built-in mesh n (= N for vary
+            "both"), each a divisor of ``reference``; for a mesh.file the refinements r >= 0,
+            each below ``reference``.
+        reference: the reference level (h = k = 1/128 for Table 1; the finest refinement
+            for a mesh.file).
         vary: "both" (h and k together), "h" (k at the reference) or "k" (h at the
             reference).
-        case: the validated Case, or None to check the numbers only.
+        case: the validated Case, or None to check the numbers only (built-in meshes).
         deltas: the regularisation widths to run (None: the case's).
 
     Returns:
-        (n, N) of each level: cells per side and time steps.
+        (n, N) of each level: cells per side (or refinements) and time steps.
 
     Raises:
         CaseError: naming the option and the allowed values.
     """
+    if case is not None and case.mesh.file is not None:
+        return _plan_refinements(levels, reference, vary, case, deltas)
     if case is not None and case.mesh.kind != "structured":
         raise CaseError(f"{case.source}: mesh.kind: the convergence study needs nested meshes "
-                        "(structured); got 'unstructured'")
+                        "(structured, or a mesh.file refined uniformly); got 'unstructured'")
     if case is not None and case.dim != 2:
-        raise CaseError(f"{case.source}: mesh.dim: the convergence study is for 2D cases "
-                        "(nested structured rectangles)")
-    if case is not None and ("times" in case.raw["time"] or "grading" in case.raw["time"]):
-        raise CaseError(f"{case.source}: time: the convergence study refines uniform steps; "
-                        "give time.T and time.N")
+        raise CaseError(f"{case.source}: mesh.dim: the convergence study of a built-in mesh is "
+                        "for 2D cases (nested structured rectangles); a 3D mesh.file is refined")
+    _check_uniform_time(case)
     if vary not in ("both", "h", "k"):
         raise CaseError(f"--vary: {vary!r} is not allowed (allowed: both, h, k)")
     if not levels or any(L < 1 for L in levels) or reference < 1:
-        raise CaseError("--levels and --reference must be positive integers")
+        raise CaseError("--levels and --reference must be positive integers (allowed: 1 or "
+                        "more, cells per side of the built-in mesh)")
     if sorted(set(levels)) != list(levels):
         raise CaseError(f"--levels must increase strictly, got {levels}")
     bad = [L for L in levels if reference % L or L >= reference]
     if bad:
         raise CaseError(f"--levels {bad}: every level must divide the reference {reference} and "
                         "be smaller (nested meshes and common time points)")
-    if deltas is not None and (not deltas or not all(
-            isinstance(d, (int, float)) and math.isfinite(d) and d > 0 for d in deltas)):
-        raise CaseError(f"--deltas {deltas}: not allowed (allowed: one or more finite "
-                        "numbers > 0)")
-    if deltas and len(set(deltas)) != len(deltas):
-        raise CaseError(f"--deltas {deltas}: a delta is repeated (allowed: distinct finite "
-                        "numbers > 0)")
+    _check_deltas(deltas)
     plan = [(L, L) if vary == "both" else (L, reference) if vary == "h" else (reference, L)
             for L in levels]
     if case is not None:
@@ -126,6 +170,61 @@ def plan_runs(levels: list[int], reference: int, vary: str, case=None,
         for n, N in plan:
             for delta in ds:
                 _case_at(case.raw, n, N, delta, case.source)
+    return plan
+
+
+def _check_uniform_time(case) -> None:
+    if case is not None and ("times" in case.raw["time"] or "grading" in case.raw["time"]):
+        raise CaseError(f"{case.source}: time: the convergence study refines uniform steps; "
+                        "give time.T and time.N")
+
+
+def _check_deltas(deltas) -> None:
+    if deltas is not None and (not deltas or not all(
+            isinstance(d, (int, float)) and math.isfinite(d) and d > 0 for d in deltas)):
+        raise CaseError(f"--deltas {deltas}: not allowed (allowed: one or more finite "
+                        "numbers > 0)")
+    if deltas and len(set(deltas)) != len(deltas):
+        raise CaseError(f"--deltas {deltas}: a delta is repeated (allowed: distinct finite "
+                        "numbers > 0)")
+
+
+def base_steps(case) -> int:
+    """The time steps of level 0 of a mesh.file study: the case's time.N.
+
+    Args:
+        case: the validated Case.
+
+    Returns:
+        The number of steps of the case's time grid.
+    """
+    return len(case.time.times) - 1
+
+
+def _plan_refinements(levels, reference, vary, case, deltas) -> list[tuple[int, int]]:
+    """plan_runs for a mesh.file: level r = r refinements with N = time.N 2^r steps."""
+    _check_uniform_time(case)
+    if vary not in ("both", "h", "k"):
+        raise CaseError(f"--vary: {vary!r} is not allowed (allowed: both, h, k)")
+    if not levels or any(r < 0 for r in levels) or reference < 1:
+        raise CaseError("--levels and --reference of a mesh.file case count uniform "
+                        "refinements of its mesh: integers >= 0 (the reference >= 1)")
+    if sorted(set(levels)) != list(levels):
+        raise CaseError(f"--levels must increase strictly, got {levels}")
+    bad = [r for r in levels if r >= reference]
+    if bad:
+        raise CaseError(f"--levels {bad}: every level must be below the reference {reference} "
+                        "(the reference is the mesh refined the most)")
+    _check_deltas(deltas)
+    N0 = base_steps(case)
+    plan = [(r, N0 * 2 ** r) if vary == "both" else (r, N0 * 2 ** reference) if vary == "h"
+            else (reference, N0 * 2 ** r) for r in levels]
+    ds = list(deltas) if deltas else [case.numerics.delta]
+    ref_delta = min([case.numerics.delta, *ds])
+    _case_at_level(case.raw, case.mesh.file, N0 * 2 ** reference, ref_delta, case.source)
+    for _, N in plan:
+        for delta in ds:
+            _case_at_level(case.raw, case.mesh.file, N, delta, case.source)
     return plan
 
 
@@ -156,12 +255,22 @@ def _case_at(raw: dict, n: int, N: int, delta: float, source: str):
     return validate(raw, source)
 
 
+def _case_at_level(raw: dict, path, N: int, delta: float, source: str):
+    """The case on a level's .msh (absolute path) with N uniform steps and delta."""
+    raw = copy.deepcopy(raw)
+    raw["mesh"] = {"file": str(path), "dim": raw["mesh"].get("dim", 2)}
+    raw["time"]["N"] = N
+    raw["time"].pop("k", None)
+    raw.setdefault("solver", {})["delta"] = delta
+    return validate(raw, source)
+
+
 class GridSamples(Observer):
-    """Samples u_n, sigma_n, kappa_n on the study's grid at t_0 and after every step (an
-    observer of the run); ``snaps`` (one dict per time point) on rank 0 only.
+    """Samples u_n, sigma_n, kappa_n on the study's grid (or refined level) at t_0 and after
+    every step (an observer of the run); ``snaps`` (one dict per time point) on rank 0 only.
 
     Args:
-        grid: the structured grid of the run's mesh.
+        grid: the structured grid of the run's mesh, or its NestedLevel.
     """
 
     def __init__(self, grid: Grid):
@@ -186,7 +295,8 @@ class GridSamples(Observer):
 
     def _sample(self, sim) -> None:
         if self.sampler is None:
-            self.sampler = GridSampler(sim.problem, self.grid)
+            kind = LevelSampler if isinstance(self.grid, NestedLevel) else GridSampler
+            self.sampler = kind(sim.problem, self.grid)
         snap = self.sampler.sample(sim.problem, sim.history)     # collective
         if sim.comm.rank == 0:
             self.snaps.append(snap)
@@ -197,8 +307,11 @@ def _from_cache(path: Path | None, case, grid: Grid):
     that is damaged or does not fit the run (a warning; the run is computed again)."""
     if path is None or not path.exists():
         return None
-    n = grid.n
-    shapes = {"u": (n + 1, n + 1, 2), "sigma": (n, n, 2, 2, 2), "kappa": (n, n, 2)}
+    if isinstance(grid, NestedLevel):
+        shapes = grid.shapes()
+    else:
+        n = grid.n
+        shapes = {"u": (n + 1, n + 1, 2), "sigma": (n, n, 2, 2, 2), "kappa": (n, n, 2)}
     try:
         return runcache.load(path, case.time.times, shapes)
     except runcache.Unreadable as exc:
@@ -207,22 +320,23 @@ def _from_cache(path: Path | None, case, grid: Grid):
 
 
 def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: dict, comm,
-               cache_dir: Path | None) -> RunRecord:
+               cache_dir: Path | None, level: NestedLevel | None = None) -> RunRecord:
     """Run (or load from the cache) the case at resolution (n, N) with regularisation delta
     (collective); a computed run is added to the cache.
 
     Args:
         raw: the case as read (a dict).
-        n: cells per side.
+        n: cells per side (built-in mesh), or the refinements of ``level``.
         N: time steps.
         delta: the regularisation width.
         source: the case file, for messages.
         petsc_cli: PETSc options from the command line (over the case's).
         comm: the MPI communicator.
         cache_dir: the run cache directory, or None.
+        level: the refined mesh.file level to run on, or None (the built-in mesh).
 
     Returns:
-        The RunRecord (with its grid samples on rank 0).
+        The RunRecord (with its samples and, if computed, its final contact table on rank 0).
 
     Raises:
         RuntimeError: the run did not complete.
@@ -231,38 +345,43 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
 
     from app.simulation import run
 
-    case = _case_at(raw, n, N, delta, source)
+    if level is None:
+        case = _case_at(raw, n, N, delta, source)
+        grid, what = Grid(n, case.mesh.L1, case.mesh.L2, case.mesh.diagonal), f"n = {n:4d}"
+    else:
+        case, grid, what = _case_at_level(raw, level.path, N, delta, source), level, f"r = {n}"
     case = dataclasses.replace(case, petsc={**case.petsc, **petsc_cli})
-    grid = Grid(n, case.mesh.L1, case.mesh.L2, case.mesh.diagonal)
     path = cache_dir / f"run-{runcache.cache_key(case)}.h5" if cache_dir else None
     cached = _from_cache(path, case, grid) if comm.rank == 0 else None
     if comm.bcast(cached is not None, root=0):
         times, snaps, meta = cached if comm.rank == 0 else (None, [], None)
         meta = comm.bcast(meta, root=0)
         times = comm.bcast(times, root=0)
-        log.info("  n = %4d, N = %4d, delta = %g: from the cache (%s)", n, N, delta, path.name)
+        log.info("  %s, N = %4d, delta = %g: from the cache (%s)", what, N, delta, path.name)
         return RunRecord(n, N, delta, grid, meta["dofs"], np.asarray(times), meta["solve_s"],
                          meta["setup_s"], meta["newton"], True, snaps)
 
     sampler = GridSamples(grid)
-    level = log.level
-    log.setLevel(max(level, logging.WARNING))   # one line per run, not per step
+    loglevel = log.level
+    log.setLevel(max(loglevel, logging.WARNING))   # one line per run, not per step
     try:
         result = run(case, comm, [sampler])
     finally:
-        log.setLevel(level)
-    snaps = sampler.snaps
+        log.setLevel(loglevel)
     s = result.summary
     if result.status != "completed":
-        raise RuntimeError(f"run n = {n}, N = {N}, delta = {delta:g} failed: "
+        raise RuntimeError(f"run {' '.join(what.split())}, N = {N}, delta = {delta:g} failed: "
                            f"{s['failure']['reason']} at step {s['failure']['step']}")
     rec = RunRecord(n, N, delta, grid, s["mesh"]["dofs"], np.array(case.time.times),
-                    s["solve_s"], s["setup_s"], s["newton_iterations_total"], False, snaps)
-    log.info("  n = %4d, N = %4d, delta = %g: %d dofs, %.2f s (+ set-up %.2f s), "
-             "%d Newton iterations", n, N, delta, rec.dofs, rec.solve_s, rec.setup_s, rec.newton)
+                    s["solve_s"], s["setup_s"], s["newton_iterations_total"], False,
+                    sampler.snaps, _gather_table(result.problem.contact_table(), comm),
+                    s["steps"][-1] if s["steps"] else None)
+    log.info("  %s, N = %4d, delta = %g: %d dofs, %.2f s (+ set-up %.2f s), "
+             "%d Newton iterations", what, N, delta, rec.dofs, rec.solve_s, rec.setup_s,
+             rec.newton)
     if path and comm.rank == 0:
         try:
-            runcache.save(path, case.time.times, snaps,
+            runcache.save(path, case.time.times, rec.snaps,
                           {"dofs": rec.dofs, "solve_s": rec.solve_s, "setup_s": rec.setup_s,
                            "newton": rec.newton, "n": n, "N": N, "delta": delta})
         except OSError as exc:        # e.g. a full disk: the study goes on without the entry
@@ -270,11 +389,30 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
     return rec
 
 
+def _gather_table(table: dict, comm) -> dict | None:
+    """The ranks' contact tables joined on rank 0 (None elsewhere)."""
+    parts = comm.gather(table, root=0)
+    if comm.rank != 0:
+        return None
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def _norm_ops(level: RunRecord, ref: RunRecord):
+    """(prolong P1, prolong DG0, ||.||_V, cell L2 norm) of a level against the reference."""
+    if isinstance(ref.grid, NestedLevel):
+        lg, rg = level.grid, ref.grid
+        return (lambda a: lg.prolong_p1(a, rg), lambda a: lg.prolong_dg0(a, rg),
+                rg.strain_norm, rg.cell_l2_norm)
+    return (lambda a: prolong_p1(a, level.grid, ref.grid),
+            lambda a: prolong_dg0(a, level.grid, ref.grid),
+            lambda d: strain_norm(d, ref.grid), lambda f: cell_l2_norm(f, ref.grid))
+
+
 def run_error(level: RunRecord, ref: RunRecord) -> dict:
     """The Error of the paper's Table 1 of a level against the reference (on rank 0):
     max over the level's time points t_n of
     ||sigma_n - sigma_n^ref||_Q + ||u_n - u_n^ref||_V + ||kappa_n - kappa_n^ref||_Y,
-    the level's fields prolonged exactly to the reference grid.
+    the level's fields prolonged exactly to the reference mesh.
 
     Args:
         level: the level's run (with snaps).
@@ -287,15 +425,16 @@ def run_error(level: RunRecord, ref: RunRecord) -> dict:
     Raises:
         ValueError: a time point of the level is not a reference time point.
     """
+    p1, dg0, v_norm, cell_norm = _norm_ops(level, ref)
     best = None
     for i, t in enumerate(level.times):
         m = int(np.argmin(np.abs(ref.times - t)))
         if abs(ref.times[m] - t) > 1e-12 * max(1.0, abs(t)):
             raise ValueError(f"time {t} of the level is not a reference time point")
         a, b = level.snaps[i], ref.snaps[m]
-        e_u = strain_norm(prolong_p1(a["u"], level.grid, ref.grid) - b["u"], ref.grid)
-        e_s = cell_l2_norm(prolong_dg0(a["sigma"], level.grid, ref.grid) - b["sigma"], ref.grid)
-        e_k = cell_l2_norm(prolong_dg0(a["kappa"], level.grid, ref.grid) - b["kappa"], ref.grid)
+        e_u = v_norm(p1(a["u"]) - b["u"])
+        e_s = cell_norm(dg0(a["sigma"]) - b["sigma"])
+        e_k = cell_norm(dg0(a["kappa"]) - b["kappa"])
         total = e_s + e_u + e_k
         if best is None or total > best["error"]:
             best = {"error": total, "e_sigma": e_s, "e_u": e_u, "e_kappa": e_k, "n_max": i,
@@ -354,7 +493,8 @@ def study(raw: dict, source: str, levels: list[int], reference: int, vary: str,
     Args:
         raw: the case as read (a dict).
         source: the case file, for messages.
-        levels: the levels, strictly increasing, each dividing ``reference``.
+        levels: the levels, strictly increasing (see plan_runs; refinements for a
+            mesh.file).
         reference: the reference level.
         vary: "both", "h" or "k" (see plan_runs).
         deltas: the regularisation widths (empty: the case's).
@@ -364,49 +504,103 @@ def study(raw: dict, source: str, levels: list[int], reference: int, vary: str,
 
     Returns:
         {"rows": one dict per (delta, level) with the COLUMNS, "reference": its RunRecord,
-        "ref_norms": the reference's max_n norms, "vary", "levels", "reference_level",
-        "deltas", "ref_delta", "paper": whether Table 1 applies, "total_s"}, on every rank.
+        "records": {(delta, level): RunRecord}, "ref_norms": the reference's max_n norms,
+        "vary", "levels", "reference_level", "deltas", "ref_delta", "file": whether the
+        levels refine a mesh.file, "paper": whether Table 1 applies, "total_s"}, on every
+        rank.
 
     Raises:
-        CaseError: the study's options or the case do not fit (see plan_runs).
+        CaseError: the study's options or the case do not fit (see plan_runs), or the
+            mesh.file cannot be refined.
     """
     base = validate(raw, source)
     plan = plan_runs(levels, reference, vary, base, deltas)
     check_cache_dir(cache_dir, comm)
     deltas = list(deltas) if deltas else [base.numerics.delta]
     ref_delta = min([base.numerics.delta, *deltas])
-    T, L1 = base.time.T, base.mesh.L1
+    file = base.mesh.file is not None
+    ref_N = base_steps(base) * 2 ** reference if file else reference
     t0 = time.perf_counter()
-    log.info("reference run n = N = %d (delta = %g)", reference, ref_delta)
-    ref = obtain_run(raw, reference, reference, ref_delta, source, petsc_cli, comm, cache_dir)
-    rows = []
-    for delta in deltas:
-        log.info("levels %s (vary %s, delta = %g)", levels, vary, delta)
-        recs = [obtain_run(raw, n, N, delta, source, petsc_cli, comm, cache_dir) for n, N in plan]
-        errs = [run_error(r, ref) if comm.rank == 0 else None for r in recs]
-        errs = comm.bcast(errs, root=0)
-        xs = [L1 / r.n if vary != "k" else T / r.N for r in recs]
-        printed = [float(f"{e['error']:.10g}") for e in errs]
-        rates = observed_rates(xs, printed)
-        for L, r, e, p, rate in zip(levels, recs, errs, printed, rates):
-            rows.append({"delta": delta, "level": L, "h": L1 / r.n, "k": T / r.N, "n": r.n,
-                         "N": r.N, "dofs": r.dofs, "steps": r.N, "error": p,
-                         "e_sigma": e["e_sigma"], "e_u": e["e_u"], "e_kappa": e["e_kappa"],
-                         "n_max": e["n_max"], "t_max": e["t_max"], "rate": rate,
-                         "solve_s": r.solve_s, "setup_s": r.setup_s, "newton_total": r.newton,
-                         "cached": r.cached})
+    with level_meshes(base, reference, comm) as nested:
+        def obtain(n, N, delta):
+            return obtain_run(raw, n, N, delta, source, petsc_cli, comm, cache_dir,
+                              level=nested[n] if nested else None)
+
+        log.info("reference run %s (delta = %g)", f"r = {reference}, N = {ref_N}" if file
+                 else f"n = N = {reference}", ref_delta)
+        ref = obtain(reference, ref_N, ref_delta)
+        rows, records = [], {}
+        for delta in deltas:
+            log.info("levels %s (vary %s, delta = %g)", levels, vary, delta)
+            recs = [obtain(n, N, delta) for n, N in plan]
+            records.update({(delta, L): r for L, r in zip(levels, recs)})
+            rows += _level_rows(levels, recs, ref, vary, base.time.T, delta, comm)
     ref_norms = None
     if comm.rank == 0:
-        ref_norms = {
-            "sigma_Q": max(cell_l2_norm(sn["sigma"], ref.grid) for sn in ref.snaps),
-            "u_V": max(strain_norm(sn["u"], ref.grid) for sn in ref.snaps),
-            "kappa_Y": max(cell_l2_norm(sn["kappa"], ref.grid) for sn in ref.snaps)}
+        *_, v_norm, cell_norm = _norm_ops(ref, ref)
+        ref_norms = {"sigma_Q": max(cell_norm(sn["sigma"]) for sn in ref.snaps),
+                     "u_V": max(v_norm(sn["u"]) for sn in ref.snaps),
+                     "kappa_Y": max(cell_norm(sn["kappa"]) for sn in ref.snaps)}
     ref_norms = comm.bcast(ref_norms, root=0)
-    return {"rows": rows, "reference": ref, "ref_norms": ref_norms, "vary": vary,
-            "levels": levels,
-            "reference_level": reference, "deltas": deltas, "ref_delta": ref_delta,
+    return {"rows": rows, "reference": ref, "records": records, "ref_norms": ref_norms,
+            "vary": vary, "levels": levels, "reference_level": reference, "deltas": deltas,
+            "ref_delta": ref_delta, "file": file,
             "paper": matches_paper(raw) and vary == "both" and reference == 128,
             "total_s": time.perf_counter() - t0}
+
+
+def _level_rows(levels, recs, ref, vary, T, delta, comm) -> list[dict]:
+    """The rows of one delta: Error (on rank 0, broadcast), rates, times."""
+    errs = [run_error(r, ref) if comm.rank == 0 else None for r in recs]
+    errs = comm.bcast(errs, root=0)
+    xs = [r.h if vary != "k" else T / r.N for r in recs]
+    printed = [float(f"{e['error']:.10g}") for e in errs]
+    rates = observed_rates(xs, printed)
+    return [{"delta": delta, "level": L, "h": r.h, "k": T / r.N,
+             "n": None if isinstance(r.grid, NestedLevel) else r.n, "N": r.N, "dofs": r.dofs,
+             "steps": r.N, "error": p, "e_sigma": e["e_sigma"], "e_u": e["e_u"],
+             "e_kappa": e["e_kappa"], "n_max": e["n_max"], "t_max": e["t_max"], "rate": rate,
+             "solve_s": r.solve_s, "setup_s": r.setup_s, "newton_total": r.newton,
+             "cached": r.cached}
+            for L, r, e, p, rate in zip(levels, recs, errs, printed, rates)]
+
+
+@contextlib.contextmanager
+def level_meshes(case, reference: int, comm):
+    """The refined levels 0..reference of a mesh.file case, as .msh files in a temporary
+    directory (removed at the end); collective.
+
+    Args:
+        case: the validated Case.
+        reference: the number of refinements of the finest level.
+        comm: the MPI communicator.
+
+    Yields:
+        {r: NestedLevel}, or None for a built-in mesh.
+
+    Raises:
+        CaseError: naming mesh.file, if it cannot be read or refined that often.
+    """
+    if case.mesh.file is None:
+        yield None
+        return
+    from app.io.case import MAX_VERTICES
+    from meshes import MeshFileError
+    from meshes.refine import refine_file
+
+    tmp = comm.bcast(tempfile.mkdtemp(prefix="vpcontact-levels-") if comm.rank == 0 else None,
+                     root=0)
+    try:
+        try:
+            paths, hierarchy = refine_file(comm, case.mesh.file, case.dim, case.mesh.size,
+                                           reference, tmp, max_vertices=MAX_VERTICES)
+        except MeshFileError as exc:
+            raise CaseError(f"{case.source}: mesh.file: {exc}") from None
+        h0 = comm.bcast(hierarchy[0].diameter() if comm.rank == 0 else None, root=0)
+        yield {r: NestedLevel(r, p, h0 / 2 ** r, hierarchy) for r, p in enumerate(paths)}
+    finally:
+        if comm.rank == 0:
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 # ----------------------------------------------------------------------------- reports
@@ -465,31 +659,40 @@ def write_markdown(path: Path, res: dict, case_name: str) -> None:
     """
     ref = res["reference"]
     var = "h = k" if res["vary"] == "both" else res["vary"]
+    what = (f"the mesh refined {res['reference_level']} times" if res.get("file") else
+            f"n = N = {res['reference_level']}")
     lines = [f"# Convergence study: {case_name}", "",
-             f"Refined: {var} (`--vary {res['vary']}`); reference n = N = "
-             f"{res['reference_level']} ({ref.dofs} dofs, {ref.N} steps, delta = "
-             f"{res['ref_delta']:g}, solve time {ref.solve_s:.2f} s"
-             f"{', cached' if ref.cached else ''}).", "",
-             "Error = max_n (||sigma_n - sigma_n^ref||_Q + ||u_n - u_n^ref||_V + "
-             "||kappa_n - kappa_n^ref||_Y) over the level's time points; the level's fields "
-             "are prolonged exactly to the reference mesh and the norms integrated there "
-             "(||v||_V = ||eps(v)||_L2, Frobenius). Parts are given at the maximising step "
-             "n_max.", "",
-             "Wall time = sum over the steps of the time spent in the history update, the SNES "
-             "solve and the stress update (time.perf_counter); mesh generation, JIT "
-             "compilation, set-up, outputs and sampling are excluded (set-up column). Cached "
-             "runs show the times measured when they were computed.", ""]
+             f"Refined: {var} (`--vary {res['vary']}`); reference {what} ({ref.dofs} dofs, "
+             f"{ref.N} steps, delta = {res['ref_delta']:g}, solve time {ref.solve_s:.2f} s"
+             f"{', cached' if ref.cached else ''}).", ""]
+    if res.get("file"):
+        lines += ["Level r (column r) is the case's mesh.file refined r times: each triangle "
+                  "split into 4 (each tetrahedron into 8) by its edges' midpoints, so the "
+                  "meshes are nested (a curved boundary keeps the polygon of the mesh read) "
+                  "and h = h_0 / 2^r, h_0 the largest cell diameter of the mesh read; a level "
+                  "has N = time.N 2^r steps when k is refined.", ""]
+    lines += ["Error = max_n (||sigma_n - sigma_n^ref||_Q + ||u_n - u_n^ref||_V + "
+              "||kappa_n - kappa_n^ref||_Y) over the level's time points; the level's fields "
+              "are prolonged exactly to the reference mesh and the norms integrated there "
+              "(||v||_V = ||eps(v)||_L2, Frobenius). Parts are given at the maximising step "
+              "n_max.", "",
+              "Wall time = sum over the steps of the time spent in the history update, the "
+              "SNES solve and the stress update (time.perf_counter); mesh generation, JIT "
+              "compilation, set-up, outputs and sampling are excluded (set-up column). Cached "
+              "runs show the times measured when they were computed.", ""]
     for delta in res["deltas"]:
         rows = [r for r in res["rows"] if r["delta"] == delta]
         paper = res["paper"]
-        head = ["h", "k", "dofs", "steps", "Error", "sigma part", "u part", "kappa part",
-                "n_max", "rate", "wall s", "set-up s", "Newton"]
+        head = ["r"] * bool(res.get("file")) + [
+            "h", "k", "dofs", "steps", "Error", "sigma part", "u part", "kappa part", "n_max",
+            "rate", "wall s", "set-up s", "Newton"]
         if paper:
             head += ["paper Error", "paper rate"]
         lines += [f"## delta = {delta:g}", "", "| " + " | ".join(head) + " |",
                   "|" + "---|" * len(head)]
         for r in rows:
-            cells = [f"1/{round(1 / r['h'])}" if abs(1 / r["h"] - round(1 / r["h"])) < 1e-9
+            cells = [r["level"]] * bool(res.get("file")) + [
+                     f"1/{round(1 / r['h'])}" if abs(1 / r["h"] - round(1 / r["h"])) < 1e-9
                      else _fmt(r["h"]),
                      f"1/{round(1 / r['k'])}" if abs(1 / r["k"] - round(1 / r["k"])) < 1e-9
                      else _fmt(r["k"]),
@@ -530,7 +733,7 @@ def explain(res: dict) -> list[str]:
            f"- Size of the reference solution: max_n ||sigma_n||_Q = {nr['sigma_Q']:.4g}, "
            f"max_n ||u_n||_V = {nr['u_V']:.4g}, max_n ||kappa_n||_Y = {nr['kappa_Y']:.4g}.",
            "- The observed rate at the finest level is measured against a reference only "
-           f"{res['reference_level'] // rows[-1]['level']}x finer; the reference's own error is "
+           f"{_finer(res, rows[-1]['level'])}x finer; the reference's own error is "
            "then not negligible and this last rate is biased (for an error C h^p it "
            "overestimates p)."]
     if res["paper"]:
@@ -541,6 +744,12 @@ def explain(res: dict) -> list[str]:
                    "(or their scaling) must differ from the Error defined above; the paper does "
                    "not say how they were computed. Compare the rates, not the magnitudes.")
     return out + [""]
+
+
+def _finer(res: dict, level: int) -> int:
+    """How many times finer the reference is than a level."""
+    R = res["reference_level"]
+    return 2 ** (R - level) if res.get("file") else R // level
 
 
 def write_plot(path: Path, res: dict) -> None:
@@ -578,7 +787,9 @@ def write_plot(path: Path, res: dict) -> None:
     ax1.minorticks_off()
     ax1.set_xlabel(xkey if res["vary"] != "both" else "h = k")
     ax1.set_ylabel("Error")
-    ax1.set_title(f"Error against {xkey} (reference 1/{res['reference_level']})")
+    ax1.set_title(f"Error against {xkey} (reference "
+                  + (f"refined {res['reference_level']} times)" if res.get("file") else
+                     f"1/{res['reference_level']})"))
     ax2.set_xlabel("wall time of the run [s] (steps only, no JIT)")
     ax2.set_ylabel("Error")
     ax2.set_title("work-precision")

@@ -1,9 +1,12 @@
-"""Cache of run histories (u, sigma, kappa on the structured grid at every step) in HDF5.
+"""Cache of run histories (u, sigma, kappa on the structured grid, or on a refined level of a
+mesh.file, at every step) in HDF5.
 
 The key is a hash of everything that determines the discrete solution: the validated case
 (physics, mesh, time grid, solver settings, PETSc options) and a format version; the case's
-name, description and output settings do not count.  Files are written atomically; an entry
-that does not load (or does not fit its run) is recomputed and written again.
+name, description and output settings do not count, nor does the name of a mesh.file (its
+content does: a study's refined levels live in temporary files).  Files are written
+atomically; an entry that does not load (or does not fit its run) is recomputed and written
+again.
 """
 from __future__ import annotations
 
@@ -37,12 +40,13 @@ def cache_key(case) -> str:
         case: the validated case.
 
     Returns:
-        24 hexadecimal digits of the SHA-256 of the case (without IGNORED) and
-        FORMAT_VERSION.
+        24 hexadecimal digits of the SHA-256 of the case (without IGNORED; a mesh.file by
+        its content) and FORMAT_VERSION.
     """
     content = {k: v for k, v in case.raw.items() if k not in IGNORED}
     content["petsc"] = case.petsc
     if case.mesh.file is not None:           # the scene is the file's content, not its name
+        content["mesh"] = {k: v for k, v in content["mesh"].items() if k != "file"}
         content["mesh_file"] = hashlib.sha256(Path(case.mesh.file).read_bytes()).hexdigest()
     text = stable_json({"version": FORMAT_VERSION, "case": content})
     return hashlib.sha256(text.encode()).hexdigest()[:24]
@@ -54,7 +58,7 @@ def save(path: Path, times: list, snaps: list[dict], meta: dict) -> None:
     Args:
         path: the HDF5 file.
         times: the time points.
-        snaps: per time point, dict(u, sigma, kappa) of grid arrays.
+        snaps: per time point, dict(u, sigma, kappa) of grid (or level) arrays.
         meta: the run's data (META_KEYS and more), stored as JSON.
     """
     import h5py

@@ -1,16 +1,26 @@
 """`./vpcontact stability CASE.yaml`: a sweep of stiff and extreme variants of a case,
 each on a coarse mesh, reported in stability.csv and stability.md.
 
+The base is the case on a structured n x n mesh (built-in mesh, --n) or on its mesh.file
+refined R times (--refine; the variant "h/2" runs on the next refinement, as the built-in
+one doubles n), with N uniform steps.  Only the variants whose data the case has are run
+(no stiff viscosity without a Perzyna law, no friction variants without friction, ...);
+gap variants scale a gap expression, load variants scale every load (tractions, pressures,
+body force, prescribed displacements), and a case with contact.direction also runs with
+the nodal normals of its contact boundary.
+
 Per variant: the parameters changed, the history scheme, whether it converged (and why not),
 the largest Newton count, the growth of ||sigma||_Q and ||u||_V over time (max over the run /
-value at the first step; "blow-up" when it exceeds 1e3 or is not finite), the explicit
-stability indicator, the well-posedness margin of (2.6) and the wall time.  Material scaling
-variants also report how far the solution is from the exactly scaled baseline (u unchanged,
-sigma and kappa scaled).
+value at the first time point at or after the base's first step T/N, so that finer steps of a
+load ramp are not measured against a tiny first step; "blow-up" when it exceeds 1e3 or is not
+finite), the explicit stability indicator, the well-posedness margin of (2.6) and the wall
+time.  Material scaling variants also report how far the solution is from the exactly scaled
+baseline (u unchanged, sigma and kappa scaled).
 """
 from __future__ import annotations
 
 import copy
+import dataclasses
 import logging
 import math
 import time
@@ -58,8 +68,9 @@ class Outcome:
         reason: why it did not complete ("" if it did).
         steps: steps done.
         max_newton: the largest Newton count of a step.
-        growth_sigma: max_n ||sigma_n||_Q / ||sigma_1||_Q (NaN if undefined).
-        growth_u: max_n ||u_n||_V / ||u_1||_V (NaN if undefined).
+        growth_sigma: max_n ||sigma_n||_Q / ||sigma_m||_Q, t_m the first time point at or
+            after the base's first step T/N_base (NaN if undefined).
+        growth_u: the same for ||u||_V.
         finite: whether every norm was finite.
         indicator: the explicit stability indicator k_max r_max.
         margin: the well-posedness margin of (2.6).
@@ -67,6 +78,7 @@ class Outcome:
             baseline (u unchanged, sigma scaled), else None.
         wall_s: wall time [s].
         norms: the last step's u, sigma and kappa norms.
+        dofs: the displacement dofs of the variant's mesh (0 if it did not start).
     """
 
     variant: Variant
@@ -83,6 +95,7 @@ class Outcome:
     scaling_error: float | None = None
     wall_s: float = 0.0
     norms: dict = field(default_factory=dict, repr=False)
+    dofs: int = 0
 
     @property
     def bounded(self) -> bool:
@@ -91,50 +104,126 @@ class Outcome:
                 and self.growth_u < BLOWUP)
 
 
-def _scaled(factor: float) -> dict:
-    """E, loads, c_nu, b, c1, c2, lambda1 times factor: u is unchanged, stresses scale."""
-    return {"material.E": ("scale", factor), "material.viscoplastic.lambda1": ("scale", factor),
-            "contact.normal_compliance.c_nu": ("scale", factor),
-            "contact.friction.b": ("scale", factor), "contact.friction.c1": ("scale", factor),
-            "contact.friction.c2": ("scale", factor), "loads.traction": ("scale", factor)}
+def _scaled(raw: dict, factor: float) -> dict:
+    """Every stress-like datum times factor (E, lambda1, kappa0, c_nu, b, c1, c2, the
+    memory's b0, the tractions, pressures, body force and initial stress): u is unchanged
+    (prescribed displacements and gaps too), stresses and kappa scale."""
+    keys = ["material.E", "material.viscoplastic.lambda1", "material.viscoplastic.kappa0",
+            "contact.normal_compliance.c_nu", "contact.friction.b", "contact.friction.c1",
+            "contact.friction.c2", "contact.memory.b0", "loads.traction", "loads.pressure",
+            "loads.f0", "initial.sigma0"]
+    return {k: ("scale", factor) for k in keys if _has(raw, k)}
 
 
-def default_variants(raw: dict) -> list[Variant]:
-    """The standard sweep: stiff viscosity (lambda1 with two steps), near-Signorini contact
-    (large c_nu of (4.1), small and large gaps g), friction (4.2) (all stick, frictionless,
-    violating (2.6)), tiny, large and pulling loads, extreme Poisson ratios, material
-    scaling, and very large and small time steps.
+def _has(raw: dict, key: str) -> bool:
+    node = raw
+    for part in key.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return False
+        node = node[part]
+    return True
+
+
+def _loads_scaled(raw: dict, factor: float) -> dict:
+    """Every load (tractions, pressures, body force, prescribed displacements) times factor."""
+    return {f"loads.{k}": ("scale", factor)
+            for k in ("traction", "pressure", "f0", "displacement") if _has(raw, f"loads.{k}")}
+
+
+def not_applicable(raw: dict) -> list[str]:
+    """The groups of the standard sweep that a case leaves out (their data are absent).
 
     Args:
-        raw: the base case (unused: the variants are the same for every case).
+        raw: the sweep's base case.
+
+    Returns:
+        One "group: why" line per group left out.
+    """
+    out = []
+    for key, group in (("material.viscoplastic", "stiff viscosity"),
+                       ("contact.normal_compliance", "near-Signorini c_nu"),
+                       ("contact.g", "near-Signorini g"), ("contact.friction", "friction")):
+        if not _has(raw, key):
+            out.append(f"{group}: the case has no {key}")
+    return out
+
+
+def default_variants(raw: dict, finer: dict | None = None) -> list[Variant]:
+    """The standard sweep, of the variants that apply to the case: stiff viscosity
+    (lambda1 with two steps), near-Signorini contact (large c_nu of (4.1), small and large
+    gaps g: given values for a number, factors on an expression), friction (4.2) (all
+    stick, frictionless, violating (2.6)), tiny, large and reversed loads, extreme Poisson
+    ratios, material scaling, a finer mesh, nodal normals instead of contact.direction, and
+    very large and small time steps.
+
+    Args:
+        raw: the base case (a dict; see base_case).
+        finer: the changes that halve h (mesh.n doubled, or the next refinement of a
+            mesh.file), or None to leave that variant out.
 
     Returns:
         The Variants, the baseline first.
     """
     V = Variant
     out = [V("baseline", "baseline", {})]
-    for lam in (100.0, 1.0, 0.01):
-        for N in (16, 128):
-            out.append(V("stiff viscosity", f"lambda1={lam:g}, k=1/{N}",
-                         {"material.viscoplastic.lambda1": lam, "time.N": N}))
-    for c in (1e4, 1e6):
-        out.append(V("near-Signorini", f"c_nu={c:g}", {"contact.normal_compliance.c_nu": c}))
-    for g in (1e-6, 1e-3, 1.0):
-        out.append(V("near-Signorini", f"g={g:g}", {"contact.g": g}))
-    out += [V("friction", "b=30 (all stick)", {"contact.friction.b": 30.0}),
-            V("friction", "frictionless", {"contact.friction": None}),
-            V("friction", "c1=300, b=3 (violates (2.6))",
-              {"contact.friction.c1": 300.0, "contact.friction.b": 3.0}),
-            V("loads", "tiny (x1e-6)", {"loads.traction": ("scale", 1e-6)}),
-            V("loads", "large (x100)", {"loads.traction": ("scale", 100.0)}),
-            V("loads", "pulling away (top +8)", {"loads.traction.top": [0.0, 8.0]}),
+    if _has(raw, "material.viscoplastic"):
+        for lam in (100.0, 1.0, 0.01):
+            for N in (16, 128):
+                out.append(V("stiff viscosity", f"lambda1={lam:g}, k={_k(raw, N)}",
+                             {"material.viscoplastic.lambda1": lam, "time.N": N}))
+    if _has(raw, "contact.normal_compliance"):
+        for c in (1e4, 1e6):
+            out.append(V("near-Signorini", f"c_nu={c:g}", {"contact.normal_compliance.c_nu": c}))
+    if _has(raw, "contact.g"):
+        out += _gap_variants(raw["contact"]["g"])
+    if _has(raw, "contact.friction"):
+        out += [V("friction", "b=30 (all stick)", {"contact.friction.b": 30.0}),
+                V("friction", "frictionless", {"contact.friction": None}),
+                V("friction", "c1=300, b=3 (violates (2.6))",
+                  {"contact.friction.c1": 300.0, "contact.friction.b": 3.0})]
+    out += [V("loads", "tiny (x1e-6)", _loads_scaled(raw, 1e-6)),
+            V("loads", "large (x100)", _loads_scaled(raw, 100.0)),
+            _pulling(raw),
             V("material", "nu=0", {"material.nu": 0.0}),
             V("material", "nu=0.499", {"material.nu": 0.499}),
-            V("material", "E scaled x1e-5 (E = 1e-2)", _scaled(1e-5), scale=1e-5),
-            V("material", "E scaled x1e6 (E = 1e9)", _scaled(1e6), scale=1e6)]
+            V("material", f"E scaled x1e-5 (E = {_short(raw['material']['E'] * 1e-5)})",
+              _scaled(raw, 1e-5), scale=1e-5),
+            V("material", f"E scaled x1e6 (E = {_short(raw['material']['E'] * 1e6)})",
+              _scaled(raw, 1e6), scale=1e6)]
+    if finer:
+        out.append(V("mesh", "h/2", dict(finer)))
+    if _has(raw, "contact.direction"):
+        out.append(V("contact normal", "nodal normals (no contact.direction)",
+                     {"contact.direction": None}))
     for N in (2, 1024):
-        out.append(V("time step", f"k=1/{N}", {"time.N": N}))
+        out.append(V("time step", f"k={_k(raw, N)}", {"time.N": N}))
     return out
+
+
+def _short(v: float) -> str:
+    return f"{v:g}".replace("e+0", "e").replace("e-0", "e-").replace("e+", "e")
+
+
+def _k(raw: dict, N: int) -> str:
+    T = raw.get("time", {}).get("T", 1.0)
+    return f"1/{N}" if T == 1.0 else f"T/{N}"
+
+
+def _gap_variants(g) -> list[Variant]:
+    """Small and large gaps: the values 1e-6, 1e-3, 1 for a number; an expression of x,
+    y, z times 1e-3, 0.1, 10 (its shape kept)."""
+    if isinstance(g, str):
+        return [Variant("near-Signorini", f"g x{f:g}", {"contact.g": ("scale", f)})
+                for f in (1e-3, 0.1, 10.0)]
+    return [Variant("near-Signorini", f"g={v:g}", {"contact.g": v}) for v in (1e-6, 1e-3, 1.0)]
+
+
+def _pulling(raw: dict) -> Variant:
+    """The loads pulling the body away from the foundation: the paper's top traction turned
+    upwards on a 2D built-in mesh, every load reversed otherwise."""
+    if "file" not in raw["mesh"] and raw["mesh"].get("dim", 2) == 2:
+        return Variant("loads", "pulling away (top +8)", {"loads.traction.top": [0.0, 8.0]})
+    return Variant("loads", "pulling away (loads x-1)", _loads_scaled(raw, -1.0))
 
 
 def apply_changes(raw: dict, changes: dict) -> dict:
@@ -142,23 +231,28 @@ def apply_changes(raw: dict, changes: dict) -> dict:
 
     Args:
         raw: the case as read (not modified).
-        changes: dotted key -> value, None (delete) or ("scale", f) (see Variant).
+        changes: dotted key -> value, None (delete) or ("scale", f) (see Variant); a scale
+            of an absent key changes nothing.
 
     Returns:
         The changed copy (missing sections are created).
 
     Raises:
-        CaseError: ("scale", f) met something other than numbers.
+        CaseError: ("scale", f) met something other than numbers, expressions, tables and
+            null components.
     """
     raw = copy.deepcopy(raw)
     for key, value in changes.items():
         *path, last = key.split(".")
+        scale = isinstance(value, tuple) and value[0] == "scale"
+        if scale and not _has(raw, key):
+            continue
         node = raw
         for p in path:
             node = node.setdefault(p, {})
         if value is None:
             node.pop(last, None)
-        elif isinstance(value, tuple) and value[0] == "scale":
+        elif scale:
             node[last] = _scale(node.get(last), value[1])
         else:
             node[last] = value
@@ -166,13 +260,19 @@ def apply_changes(raw: dict, changes: dict) -> dict:
 
 
 def _scale(v, f):
+    if v is None:                     # a free displacement component stays free
+        return None
+    if isinstance(v, dict) and set(v) == {"table"} and isinstance(v["table"], list):
+        return {"table": [[row[0], _scale(row[1], f)] for row in v["table"]]}
     if isinstance(v, dict):
         return {k: _scale(x, f) for k, x in v.items()}
     if isinstance(v, list):
         return [_scale(x, f) for x in v]
     if isinstance(v, (int, float)) and not isinstance(v, bool):
         return v * f
-    raise CaseError(f"cannot scale {v!r} (only numbers)")
+    if isinstance(v, str):            # an expression: its value times f
+        return f"({v})*({f!r})"
+    raise CaseError(f"cannot scale {v!r} (only numbers, expressions and tables)")
 
 
 def run_variant(raw: dict, variant: Variant, scheme: str, comm, petsc_cli: dict) -> Outcome:
@@ -189,8 +289,6 @@ def run_variant(raw: dict, variant: Variant, scheme: str, comm, petsc_cli: dict)
     Returns:
         The Outcome (status, Newton counts, growth of the norms, diagnostics, wall time).
     """
-    import dataclasses
-
     from app.simulation import run
 
     r = apply_changes(raw, variant.changes)
@@ -216,15 +314,16 @@ def run_variant(raw: dict, variant: Variant, scheme: str, comm, petsc_cli: dict)
     steps = s["steps"]
     out = Outcome(variant, scheme, s["status"], s.get("failure", {}).get("reason", ""),
                   len(steps), max((st["newton_iterations"] for st in steps), default=0),
-                  wall_s=time.perf_counter() - t0)
+                  wall_s=time.perf_counter() - t0, dofs=s.get("mesh", {}).get("dofs", 0))
     d = s["diagnostics"]
     out.indicator, out.margin = d["stability_indicator"], d["wellposedness_margin"]
     if steps:
         sig = np.array([st["norm_sigma_Q"] for st in steps])
         uu = np.array([st["norm_u_V"] for st in steps])
         out.finite = bool(np.all(np.isfinite(sig)) and np.all(np.isfinite(uu)))
-        out.growth_sigma = float(sig.max() / sig[0]) if sig[0] > 0 else math.nan
-        out.growth_u = float(uu.max() / uu[0]) if uu[0] > 0 else math.nan
+        i = _reference_step(raw, steps)
+        out.growth_sigma = float(sig.max() / sig[i]) if sig[i] > 0 else math.nan
+        out.growth_u = float(uu.max() / uu[i]) if uu[i] > 0 else math.nan
         out.norms = {"u": float(uu[-1]), "sigma": float(sig[-1]),
                      "kappa": float(steps[-1]["norm_kappa_Y"])}
     if out.status != "completed" and not out.finite:
@@ -232,35 +331,63 @@ def run_variant(raw: dict, variant: Variant, scheme: str, comm, petsc_cli: dict)
     return out
 
 
-def base_case(raw: dict, n: int, N: int, source: str = "case") -> dict:
-    """The sweep's base: the case on a structured n x n mesh with N uniform steps.
+def _reference_step(base: dict, steps: list[dict]) -> int:
+    """The step the growth is measured against: the first at or after the base's first
+    time point T/N (a variant with finer steps is not measured against a tiny first step of
+    a load ramp); the first step if the run stopped before."""
+    t_ref = base["time"]["T"] / base["time"]["N"]
+    reached = [i for i, st in enumerate(steps) if st["t"] >= t_ref * (1 - 1e-9)]
+    return reached[0] if reached else 0
+
+
+def base_case(raw: dict, n: int | None, N: int, source: str = "case",
+              refine: int | None = None) -> dict:
+    """The sweep's base: the case on a structured n x n mesh (built-in mesh) or on its
+    mesh.file (refined ``refine`` times by ``sweep``) with N uniform steps.
 
     Args:
         raw: the case as read (not modified).
-        n: cells per side (--n).
+        n: cells per side (--n; None: 8); not with a mesh.file.
         N: time steps (--steps).
         source: the case file, for messages.
+        refine: refinements of a mesh.file (--refine; None: 0); not with a built-in mesh.
 
     Returns:
-        The base case as a dict.
+        The base case as a dict (a mesh.file as an absolute path).
 
     Raises:
-        CaseError: naming --n or --steps and the allowed values, or if the base is not a
-            valid case with either history scheme.
+        CaseError: naming --n, --refine or --steps and the allowed values, or if the base
+            is not a valid case with either history scheme.
     """
-    for option, v in (("--n", n), ("--steps", N)):
-        if not isinstance(v, int) or isinstance(v, bool) or v < 1:
-            raise CaseError(f"{option}: {v!r} is not allowed (allowed: positive integers)")
+    file = "file" in raw.get("mesh", {})
+    if file and n is not None:
+        raise CaseError("--n: not used with mesh.file (allowed: --refine R, the base is the "
+                        "case's mesh refined R times)")
+    if not file and refine is not None:
+        raise CaseError("--refine: only with mesh.file (allowed: --n for the built-in mesh)")
+    n = 8 if n is None and not file else n
+    for option, v, least in (("--n", n, 1), ("--steps", N, 1), ("--refine", refine, 0)):
+        if v is not None and (not isinstance(v, int) or isinstance(v, bool) or v < least):
+            raise CaseError(f"{option}: {v!r} is not allowed (allowed: "
+                            f"{'positive integers' if least else 'integers >= 0'})")
     base = copy.deepcopy(raw)
-    base["mesh"]["n"], base["time"] = n, {"T": base["time"].get("T", 1.0), "N": N}
-    base["mesh"].pop("h", None)
-    base["mesh"]["kind"] = "structured"
+    if file:
+        case = validate(raw, source)
+        base["mesh"] = {"file": case.mesh.file, "dim": case.dim}
+        if case.mesh.file.lower().endswith(".geo"):
+            base["mesh"]["size"] = case.mesh.size
+        base["time"] = {"T": case.time.T, "N": N}
+    else:
+        base["mesh"]["n"], base["time"] = n, {"T": base["time"].get("T", 1.0), "N": N}
+        base["mesh"].pop("h", None)
+        base["mesh"]["kind"] = "structured"
     errors = []
     for scheme in ("explicit", "implicit"):
         r = copy.deepcopy(base)
         r["time"]["scheme"] = scheme
+        where = f"--refine {refine or 0}" if file else f"--n {n}"
         try:
-            validate(r, f"{source} (stability base: --n {n}, --steps {N}, {scheme} scheme)")
+            validate(r, f"{source} (stability base: {where}, --steps {N}, {scheme} scheme)")
         except CaseError as exc:
             errors.append(exc)
     if len(errors) == 2:
@@ -268,8 +395,9 @@ def base_case(raw: dict, n: int, N: int, source: str = "case") -> dict:
     return base
 
 
-def sweep(raw: dict, comm, petsc_cli: dict, n: int = 8, N: int = 8,
-          variants: list[Variant] | None = None, source: str = "case") -> list[Outcome]:
+def sweep(raw: dict, comm, petsc_cli: dict, n: int | None = None, N: int = 8,
+          variants: list[Variant] | None = None, source: str = "case",
+          refine: int | None = None, select=None) -> list[Outcome]:
     """Run every variant with each of its schemes (collective), then compare the scaling
     variants with the baseline.
 
@@ -277,21 +405,47 @@ def sweep(raw: dict, comm, petsc_cli: dict, n: int = 8, N: int = 8,
         raw: the case as read.
         comm: the MPI communicator.
         petsc_cli: PETSc options from the command line.
-        n: cells per side of the base mesh.
+        n: cells per side of the base mesh (built-in mesh; None: 8).
         N: time steps of the base.
         variants: the variants (None: default_variants).
         source: the case file, for messages.
+        refine: refinements of a mesh.file for the base (None: 0); the variant "h/2" runs
+            on the next refinement.
+        select: Variant -> True (run it), False (leave it out) or a tuple of the schemes
+            to run it with (None: every variant with its schemes).
 
     Returns:
         One Outcome per (variant, scheme), in order.
 
     Raises:
-        CaseError: before anything runs if the base case is not valid, and after the sweep
-            if no variant was valid input.
+        CaseError: before anything runs if the base case is not valid (or its mesh.file
+            cannot be refined), and after the sweep if no variant was valid input.
     """
-    base = base_case(raw, n, N, source)
+    base = base_case(raw, n, N, source, refine)
+
+    def chosen(base, finer):
+        out = []
+        for v in variants or default_variants(base, finer):
+            pick = True if select is None else select(v)
+            if pick:
+                out.append(v if pick is True else dataclasses.replace(v, schemes=tuple(pick)))
+        return out
+
+    if "file" not in base["mesh"]:
+        return _sweep(base, comm, petsc_cli, chosen(base, {"mesh.n": 2 * base["mesh"]["n"]}))
+    from app.studies.convergence import level_meshes
+
+    r = refine or 0
+    with level_meshes(validate(base, source), r + 1, comm) as levels:
+        base["mesh"] = {"file": str(levels[r].path), "dim": base["mesh"]["dim"]}
+        return _sweep(base, comm, petsc_cli,
+                      chosen(base, {"mesh.file": str(levels[r + 1].path)}))
+
+
+def _sweep(base: dict, comm, petsc_cli: dict, variants: list[Variant]) -> list[Outcome]:
+    """sweep on its base case."""
     outcomes = []
-    for v in variants or default_variants(base):
+    for v in variants:
         for scheme in v.schemes:
             o = run_variant(base, v, scheme, comm, petsc_cli)
             outcomes.append(o)
@@ -338,7 +492,8 @@ def _g(v, d=3):
     return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.{d}g}"
 
 
-def write_markdown(path, outcomes, case_name: str, n: int, N: int) -> None:
+def write_markdown(path, outcomes, case_name: str, n: int | None, N: int,
+                   refine: int | None = None, left_out: list[str] | None = None) -> None:
     """Write stability.md: a table of the Outcomes and a summary (runs completed, explicit
     blow-ups where the implicit scheme stays bounded), atomically.
 
@@ -346,13 +501,18 @@ def write_markdown(path, outcomes, case_name: str, n: int, N: int) -> None:
         path: the Markdown file.
         outcomes: the Outcomes of ``sweep``.
         case_name: the case's name, for the title.
-        n: cells per side of the base mesh.
+        n: cells per side of the base mesh, or None for a mesh.file.
         N: time steps of the base.
+        refine: the refinements of a mesh.file's base (with n None).
+        left_out: the groups the case leaves out (not_applicable), listed in the summary.
     """
+    mesh = (f"a structured {n} x {n} mesh" if n is not None else
+            f"the case's mesh.file refined {refine or 0} times")
     lines = [f"# Stability report: {case_name}", "",
-             f"Each variant runs on a structured {n} x {n} mesh with k = T/{N} unless it sets "
+             f"Each variant runs on {mesh} with k = T/{N} unless it sets "
              "k itself, with the explicit (paper) and the implicit (right-end-point) history "
-             "scheme. growth = max over the run / value at the first step; bounded = finite "
+             "scheme. growth = max over the run / value at the first time point at or after "
+             f"T/{N} (the base's first step); bounded = finite "
              f"and growth < {BLOWUP:g}. Indicator = k_max r_max (explicit limit 2); margin = "
              "the well-posedness margin of (2.6) (> 0: unique solution guaranteed).", "",
              "| group | variant | scheme | status | steps | max Newton | growth sigma | "
@@ -377,4 +537,6 @@ def write_markdown(path, outcomes, case_name: str, n: int, N: int) -> None:
                                else "none stopped."),
               "- Explicit scheme unbounded where the implicit one stays bounded: "
               + (", ".join(blow) if blow else "none") + "."]
+    if left_out:
+        lines.append("- Left out (not applicable): " + "; ".join(left_out) + ".")
     atomic_write(path, "\n".join(lines) + "\n")

@@ -275,7 +275,8 @@ def test_paper_case_equilibrium():
     ({"loads": {"displacement": {"sym": [0.0, None]}}}, "boundaries.clamped / loads.displacement"),
     ({"boundaries": {"clamped": [], "contact": ["nope"]}}, "boundaries.contact"),
     ({"contact": {"g": "y - 0.1", "direction": [0.0, -1.0]}}, "contact.g"),
-], ids=["rigid-motion", "unknown-group", "negative-gap"])
+    ({"boundaries": {"clamped": [], "contact": ["body"]}}, "boundaries.contact"),
+], ids=["rigid-motion", "unknown-group", "negative-gap", "wrong-dimension"])
 def test_scene_refusals(tmp_path, change, key):
     raw = _hertz_raw(tmp_path)
     for section, value in change.items():
@@ -286,6 +287,8 @@ def test_scene_refusals(tmp_path, change, key):
     assert proc.returncode == 2, proc.stdout + proc.stderr
     err = proc.stderr.strip().splitlines()
     assert len(err) == 1 and key in err[0], proc.stderr
+    if "body" in str(change):
+        assert "'body' is a group of dimension 2; boundary groups have dimension 1" in err[0]
     assert not (tmp_path / "out" / "summary.json").exists()
 
 
