@@ -261,6 +261,23 @@ def test_uniaxial_rollers_and_reactions(tmp_path, plane):
         assert abs(step["reactions"]["bottom"][1]) <= 1e-10 * force
 
 
+@pytest.mark.parametrize("method", ["fast", "snes_vi"])
+def test_pressure_on_a_group(tmp_path, method):
+    """loads.pressure p = 2 t on the right side with rollers on x = 0 and y = 0: uniaxial
+    compression, u_x = -p x / E, u_y = nu p y / E (plane stress), the left roller's reaction
+    +p."""
+    raw = _patch_raw({"left": [0.0, None], "bottom": [None, 0.0]})
+    raw["loads"]["pressure"] = {"right": "2.0*t"}
+    raw["solver"] = {"method": method}
+    res = _run(_write(tmp_path, raw))
+    p = res.problem
+    x = p.V.tabulate_dof_coordinates()[:, :2]
+    exact = np.column_stack([-2.0 * x[:, 0] / 1000.0, 0.3 * 2.0 * x[:, 1] / 1000.0])
+    np.testing.assert_allclose(p.u.x.array.reshape(-1, 2), exact, rtol=0, atol=1e-15)
+    for step in res.summary["steps"]:
+        assert step["reactions"]["left"][0] == pytest.approx(2.0 * step["t"], rel=1e-10)
+
+
 def test_paper_case_equilibrium():
     """Reactions on Gamma1, the foundation's force and the tractions balance."""
     res = _run(PAPER_CASE, ["time.N=4"])
