@@ -45,6 +45,18 @@ def split_petsc_args(argv: list[str]) -> tuple[list[str], dict]:
 
 
 # ----------------------------------------------------------------------------- argument types
+def _int_at_least(text: str, low: int) -> int:
+    """An integer argument >= low, or argparse's error naming what is allowed."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer (allowed: {low} or "
+                                         "more)") from None
+    if value < low:
+        raise argparse.ArgumentTypeError(f"{value} (allowed: {low} or more)")
+    return value
+
+
 def positive_int(text: str) -> int:
     """argparse type: an integer >= 1.
 
@@ -57,14 +69,7 @@ def positive_int(text: str) -> int:
     Raises:
         argparse.ArgumentTypeError: if it is not an integer >= 1.
     """
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer (allowed: 1 or more)") \
-            from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} (allowed: 1 or more)")
-    return value
+    return _int_at_least(text, 1)
 
 
 def nonnegative_int(text: str) -> int:
@@ -79,14 +84,7 @@ def nonnegative_int(text: str) -> int:
     Raises:
         argparse.ArgumentTypeError: if it is not an integer >= 0.
     """
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer (allowed: 0 or more)") \
-            from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{value} (allowed: 0 or more)")
-    return value
+    return _int_at_least(text, 0)
 
 
 def positive_float(text: str) -> float:

@@ -148,14 +148,9 @@ def plan_runs(levels: list[int], reference: int, vary: str, case=None,
     if case is not None and case.dim != 2:
         raise CaseError(f"{case.source}: mesh.dim: the convergence study of a built-in mesh is "
                         "for 2D cases (nested structured rectangles); a 3D mesh.file is refined")
-    _check_uniform_time(case)
-    if vary not in ("both", "h", "k"):
-        raise CaseError(f"--vary: {vary!r} is not allowed (allowed: both, h, k)")
-    if not levels or any(L < 1 for L in levels) or reference < 1:
-        raise CaseError("--levels and --reference must be positive integers (allowed: 1 or "
-                        "more, cells per side of the built-in mesh)")
-    if sorted(set(levels)) != list(levels):
-        raise CaseError(f"--levels must increase strictly, got {levels}")
+    _check_plan(case, vary, levels, not levels or any(L < 1 for L in levels) or reference < 1,
+                "--levels and --reference must be positive integers (allowed: 1 or more, "
+                "cells per side of the built-in mesh)")
     bad = [L for L in levels if reference % L or L >= reference]
     if bad:
         raise CaseError(f"--levels {bad}: every level must divide the reference {reference} and "
@@ -171,6 +166,17 @@ def plan_runs(levels: list[int], reference: int, vary: str, case=None,
             for delta in ds:
                 _case_at(case.raw, n, N, delta, case.source)
     return plan
+
+
+def _check_plan(case, vary: str, levels, bad_levels: bool, why: str) -> None:
+    """The checks every study plan makes: uniform time steps, --vary, levels increasing."""
+    _check_uniform_time(case)
+    if vary not in ("both", "h", "k"):
+        raise CaseError(f"--vary: {vary!r} is not allowed (allowed: both, h, k)")
+    if bad_levels:
+        raise CaseError(why)
+    if sorted(set(levels)) != list(levels):
+        raise CaseError(f"--levels must increase strictly, got {levels}")
 
 
 def _check_uniform_time(case) -> None:
@@ -203,14 +209,9 @@ def base_steps(case) -> int:
 
 def _plan_refinements(levels, reference, vary, case, deltas) -> list[tuple[int, int]]:
     """plan_runs for a mesh.file: level r = r refinements with N = time.N 2^r steps."""
-    _check_uniform_time(case)
-    if vary not in ("both", "h", "k"):
-        raise CaseError(f"--vary: {vary!r} is not allowed (allowed: both, h, k)")
-    if not levels or any(r < 0 for r in levels) or reference < 1:
-        raise CaseError("--levels and --reference of a mesh.file case count uniform "
-                        "refinements of its mesh: integers >= 0 (the reference >= 1)")
-    if sorted(set(levels)) != list(levels):
-        raise CaseError(f"--levels must increase strictly, got {levels}")
+    _check_plan(case, vary, levels, not levels or any(r < 0 for r in levels) or reference < 1,
+                "--levels and --reference of a mesh.file case count uniform refinements of "
+                "its mesh: integers >= 0 (the reference >= 1)")
     bad = [r for r in levels if r >= reference]
     if bad:
         raise CaseError(f"--levels {bad}: every level must be below the reference {reference} "
