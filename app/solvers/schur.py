@@ -7,7 +7,8 @@ If the rows and columns of K are ordered so that the Gamma3 dofs G come last and
 so the Schur complement costs one factorisation and a product of two m x m triangles instead
 of m back-substitutions (at h = 1/128, m = 256: 0.55 s with SuperLU against 1.4 s with
 PETSc's LU and 44 s with MUMPS column by column under mpirun -n 2; measured).  The interior
-is ordered by PETSc's nested dissection (of the node graph, so a node's dofs stay together),
+is ordered by CHOLMOD's fill-reducing order (AMD or METIS; PETSc's nested dissection where
+CHOLMOD is missing) of the node graph, so a node's dofs stay together,
 the factorisation is CHOLMOD's L D L^T (app/solvers/ldl.py) or, without it, SuperLU's L U (scipy),
 on rank 0 with the matrix gathered there (the fast path is for problems whose Gamma3 is
 small; the matrix itself is a few MB at the sizes it is chosen for).  The CHOLMOD path needs
@@ -42,6 +43,19 @@ class CSR:
     def n(self) -> int:
         """The number of rows (and columns)."""
         return len(self.indptr) - 1
+
+    def without_zeros(self) -> CSR:
+        """The same matrix without its stored zeros (the couplings dolfinx zeroes in the
+        Dirichlet rows and columns).
+
+        Returns:
+            A new CSR (the arrays are copies).
+        """
+        keep = self.data != 0
+        rows = np.repeat(np.arange(self.n), np.diff(self.indptr))[keep]
+        indptr = np.zeros(self.n + 1, dtype=self.indptr.dtype)
+        np.cumsum(np.bincount(rows, minlength=self.n), out=indptr[1:])
+        return CSR(indptr, self.indices[keep], self.data[keep])
 
     def scipy(self):
         """The same matrix for scipy (imports scipy).
@@ -100,9 +114,40 @@ def _interior_graph(A: CSR, I: np.ndarray, bs: int) -> tuple[np.ndarray, np.ndar
     return indptr, cols.astype(PETSc.IntType)
 
 
+def _metis_order(indptr: np.ndarray, indices: np.ndarray) -> np.ndarray | None:
+    """CHOLMOD's fill-reducing order of a symmetric graph (AMD or METIS, postordered:
+    kernels/cholmod_ldl.c), or None where CHOLMOD is not available or fails.  Vertices with
+    no neighbour (the Dirichlet dofs, whose couplings are stored zeros) come first: they
+    cause no fill.  On box3d's matrix at n = 24 this order (nodal graph) costs 3.1e10 flops,
+    CHOLMOD's own on the dof matrix 3.2e10, PETSc's nested dissection 1.6e11 (measured)."""
+    from app.solvers import ldl
+    module = ldl.load()
+    if module is None:
+        return None
+    n = len(indptr) - 1
+    rows = np.repeat(np.arange(n), np.diff(indptr))
+    linked = np.zeros(n, dtype=bool)
+    linked[rows[rows != indices]] = True
+    keep = np.flatnonzero(linked)
+    pos = np.full(n, -1, dtype=np.int64)
+    pos[keep] = np.arange(len(keep))
+    sel = linked[rows]
+    sub_rows, sub_cols = pos[rows[sel]], pos[indices[sel]]
+    ptr = np.zeros(len(keep) + 1, dtype=np.intc)
+    np.cumsum(np.bincount(sub_rows, minlength=len(keep)), out=ptr[1:])
+    ind = np.ascontiguousarray(sub_cols, dtype=np.intc)
+    perm = np.empty(len(keep), dtype=np.intc)
+    ffi = module.ffi
+    if module.lib.metis_order(len(keep), ffi.from_buffer("int[]", ptr),
+                              ffi.from_buffer("int[]", ind), ffi.from_buffer("int[]", perm)):
+        return None
+    return np.concatenate([np.flatnonzero(~linked), keep[perm]]).astype(PETSc.IntType)
+
+
 def interior_last_ordering(A: CSR, G: np.ndarray, bs: int = 1) -> np.ndarray:
-    """A fill-reducing order of the dofs with G (in the given order) last: nested dissection
-    (PETSc) of the interior block K_II, then G.  With bs > 1 and an interior made of whole
+    """A fill-reducing order of the dofs with G (in the given order) last: CHOLMOD's order
+    (AMD or METIS, postordered; PETSc's nested dissection without CHOLMOD) of the interior
+    block K_II, then G.  With bs > 1 and an interior made of whole
     nodes (dofs bs i .. bs i + bs - 1), the dissection is of the node graph and a node's dofs
     stay consecutive (the blocks of kernels.GLastSolve).
 
@@ -121,20 +166,22 @@ def interior_last_ordering(A: CSR, G: np.ndarray, bs: int = 1) -> np.ndarray:
     nodal = bs > 1 and n % bs == 0 and len(I) % bs == 0 and np.array_equal(
         I.reshape(-1, bs), I[::bs, None] + np.arange(bs))
     indptr, indices = _interior_graph(A, I, bs if nodal else 1)
-    M = PETSc.Mat().createAIJ((len(indptr) - 1,) * 2,
-                              csr=(indptr, indices, np.ones(len(indices))),
-                              comm=PETSc.COMM_SELF)
-    rperm, cperm = M.getOrdering("nd")
-    order = rperm.getIndices()
-    for obj in (M, rperm, cperm):
-        obj.destroy()
+    order = _metis_order(indptr, indices)
+    if order is None:
+        M = PETSc.Mat().createAIJ((len(indptr) - 1,) * 2,
+                                  csr=(indptr, indices, np.ones(len(indices))),
+                                  comm=PETSc.COMM_SELF)
+        rperm, cperm = M.getOrdering("nd")
+        order = rperm.getIndices()
+        for obj in (M, rperm, cperm):
+            obj.destroy()
     if nodal:
         order = (order[:, None] * bs + np.arange(bs)).ravel()
     return np.concatenate([I[order], np.asarray(G)])
 
 
 class GLastLU:
-    """K = L U with the dofs ordered interior first (nested dissection), G last (serial,
+    """K = L U with the dofs ordered interior first (fill-reducing), G last (serial,
     SuperLU on the CSR arrays).  ``perm[i]`` is the dof at position i; ``L``, ``U`` are scipy
     CSC matrices; ``Lp``, ``Li``, ``Lx`` the arrays of L and ``D`` = diag(U).
 
@@ -151,7 +198,7 @@ class GLastLU:
         import scipy.sparse.linalg as sla
         self.n, self.m = A.n, len(G)
         self.perm = interior_last_ordering(A, G, bs)
-        Ap = A.scipy()[self.perm][:, self.perm].tocsc()
+        Ap = A.without_zeros().scipy()[self.perm][:, self.perm].tocsc()
         # diag_pivot_thresh = 0: the diagonal pivots of the symmetric positive definite K in
         # the given order (no row interchanges, so the trailing blocks are those of G)
         lu = sla.splu(Ap, permc_spec="NATURAL", diag_pivot_thresh=0.0,
@@ -195,6 +242,9 @@ class GLastLDL:
         from app.solvers.ldl import Factor
         self.n, self.m = A.n, len(G)
         self.perm = interior_last_ordering(A, G, bs)
+        # the factor's pattern is the ordering's graph: no stored zeros (with them, the
+        # Dirichlet dofs' couplings fill: 3-5x the flops at box3d n = 24; measured)
+        A = A.without_zeros()
         self._factor = Factor(module, A.indptr, A.indices, A.data, self.perm, self.m, bs,
                               blocks=blocks)
         self.D, self.blocks = self._factor.D, self._factor.blocks

@@ -171,3 +171,30 @@ int ldl_blocks_super(void *handle, int bs, int nbc, int m, int *Bp, int *Bi, dou
     free(sn_of); free(tv); free(tr);
     return 0;
 }
+
+/* A fill-reducing order of a symmetric graph (CSR = CSC, full pattern, sorted; only the
+   lower triangle is read): CHOLMOD's own choice (AMD, or METIS nested dissection where AMD
+   fills more), postordered along the elimination tree, as cholmod_analyze makes it (perm:
+   position j <- vertex perm[j]).  Returns 0, or -1 if CHOLMOD fails (the caller falls back
+   to another ordering). */
+int metis_order(int n, const int *Ap, const int *Ai, int *perm)
+{
+    cholmod_common c;
+    cholmod_start(&c);
+    c.print = 0;
+    c.error_handler = NULL;
+    cholmod_sparse A;
+    memset(&A, 0, sizeof A);
+    A.nrow = A.ncol = n;
+    A.nzmax = Ap[n];
+    A.p = (void *)Ap; A.i = (void *)Ai; A.x = NULL;
+    A.stype = -1;
+    A.itype = CHOLMOD_INT; A.xtype = CHOLMOD_PATTERN; A.dtype = CHOLMOD_DOUBLE;
+    A.sorted = 1; A.packed = 1;
+    cholmod_factor *L = cholmod_analyze(&A, &c);
+    int bad = !L || c.status < CHOLMOD_OK;
+    if (!bad) memcpy(perm, L->Perm, (size_t)n * sizeof(int));
+    if (L) cholmod_free_factor(&L, &c);
+    cholmod_finish(&c);
+    return bad ? -1 : 0;
+}

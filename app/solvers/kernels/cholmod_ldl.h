@@ -21,4 +21,8 @@ double *ldl_values(void *handle);
 /* Frees the factor and CHOLMOD's workspace (NULL: nothing). */
 void ldl_free(void *handle);
 
+/* A fill-reducing order of a symmetric graph given as CSR with the full pattern: CHOLMOD's
+   own choice (AMD or METIS), postordered; 0 ok, -1 failed. */
+int metis_order(int n, const int *Ap, const int *Ai, int *perm);
+
 #endif
