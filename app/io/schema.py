@@ -225,7 +225,7 @@ SCHEMA = _obj({
                                   "on the normal dofs of Gamma3, general), fast (one "
                                   "factorisation per run, Gamma3 condensation; explicit scheme "
                                   "and vertex quadrature), auto (fast where it applies and "
-                                  "Gamma3 has at most 3000 dofs)"},
+                                  "Gamma3 has at most 6000 dofs)"},
         "delta": {**_pos, "default": 1.0e-7,
                   "description": "regularisation width of |u_tau| (friction) and u_nu^+ "
                                  "(memory term) [m]"},

@@ -125,11 +125,25 @@ def trace_constant_bound(problem, solver) -> float | None:
     M.destroy()
     MG = solver.gather_GG(local)
     MG = 0.5 * (MG + MG.T)
-    # the generalised eigenproblem by Cholesky, S = L L^T: lam(L^-1 M_G L^-T) (numpy only)
-    L = np.linalg.cholesky(solver.S)
-    C = np.linalg.solve(L, np.linalg.solve(L, MG).T)
-    lam_K = float(np.linalg.eigvalsh(0.5 * (C + C.T))[-1])
+    lam_K = _largest_generalised_eigenvalue(MG, solver.S, solver.Z)
     return float(np.max(np.linalg.eigvals(problem.elasticity.Cmat).real)) * lam_K
+
+
+def _largest_generalised_eigenvalue(A: np.ndarray, S: np.ndarray, Z: np.ndarray) -> float:
+    """lam_max of A x = lam S x (A symmetric positive semidefinite, S symmetric positive
+    definite with the inverse Z at hand): Lanczos (ARPACK) with O(m^2) products, or the
+    dense Cholesky reduction if ARPACK does not converge.  (The dense reduction alone cost
+    7.9 s of a 31 s run at box3d n = 32, m = 3267; measured.)"""
+    from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigsh
+    m = len(S)
+    try:
+        Zop = LinearOperator((m, m), matvec=lambda x: Z @ x, dtype=float)
+        return float(eigsh(A, k=1, M=S, Minv=Zop, which="LA", tol=1e-12,
+                           return_eigenvectors=False)[0])
+    except (ArpackNoConvergence, ValueError):
+        L = np.linalg.cholesky(S)
+        C = np.linalg.solve(L, np.linalg.solve(L, A).T)
+        return float(np.linalg.eigvalsh(0.5 * (C + C.T))[-1])
 
 
 def _adot(A, y):
