@@ -44,12 +44,14 @@ class DirichletData:
             prescribed.
         groups: one DirichletGroup per clamped or displaced group, in the case's order.
         homogeneous: every prescribed value is 0 at all times (clamping only).
+        clamped_nodes: the local (owned and ghost) nodes of the clamped groups.
     """
 
     bcs: list
     fixed: np.ndarray
     groups: list = field(default_factory=list)
     homogeneous: bool = True
+    clamped_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int32))
     _updates: list = field(default_factory=list, repr=False)
 
     def set_time(self) -> None:
@@ -97,10 +99,12 @@ def build_dirichlet(V, facets: dict, clamped: list, displacement: dict, time_dat
             bcs.append(fem.dirichletbc(value, dofs, V.sub(i)))
             dofs_all.append(dofs[0])
         named.append((name, np.concatenate(dofs_all) if dofs_all else np.zeros(0, np.int32)))
+    clamped_nodes = [np.zeros(0, dtype=np.int32)]
     for name in clamped:
         nodes = fem.locate_dofs_topological(V, fdim, facets[name])
         bcs.append(fem.dirichletbc(np.zeros(d, dtype=PETSc.ScalarType), nodes, V))
         named.append((name, (nodes[:, None] * d + np.arange(d)).ravel()))
+        clamped_nodes.append(nodes)
     # clamped groups are listed last in bcs but their reactions come first in the case's
     # order: clamped, then displacement
     named = named[len(displacement):] + named[:len(displacement)]
@@ -111,7 +115,8 @@ def build_dirichlet(V, facets: dict, clamped: list, displacement: dict, time_dat
         mine = np.unique(dofs[(dofs < owned) & ~taken[dofs]])
         taken[mine] = True
         groups.append(DirichletGroup(name, mine))
-    data = DirichletData(bcs, fixed, groups, homogeneous, updates)
+    data = DirichletData(bcs, fixed, groups, homogeneous,
+                         np.unique(np.concatenate(clamped_nodes)), updates)
     data.set_time()
     return data
 
@@ -137,7 +142,7 @@ def rigid_modes(x: np.ndarray) -> np.ndarray:
     return np.stack(modes, axis=2)
 
 
-def check_rigid_motions(V, fixed: np.ndarray, source: str) -> None:
+def check_rigid_motions(V, fixed: np.ndarray, bbox, source: str) -> None:
     """Refuse Dirichlet data that leave a rigid motion free (collective).
 
     A rigid motion r is blocked when it does not vanish on the prescribed components:
@@ -148,6 +153,7 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str) -> None:
     Args:
         V: the P1 vector space.
         fixed: bool (local nodes, d): prescribed components.
+        bbox: (lo, hi), the body's bounding box over all ranks (the mesh's ``bbox``).
         source: the case file, for the message.
 
     Raises:
@@ -157,9 +163,7 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str) -> None:
     d = V.dofmap.index_map_bs
     owned = V.dofmap.index_map.size_local
     x = V.tabulate_dof_coordinates()[:owned, :d]
-    lo, hi = np.empty(d), np.empty(d)
-    comm.Allreduce(x.min(axis=0) if owned else np.full(d, np.inf), lo, op=MPI.MIN)
-    comm.Allreduce(x.max(axis=0) if owned else np.full(d, -np.inf), hi, op=MPI.MAX)
+    lo, hi = (np.asarray(b, dtype=float)[:d] for b in bbox)
     scale = max(float(np.max(hi - lo)), 1e-300)
     modes = rigid_modes((x - 0.5 * (lo + hi)) / scale)          # (n, d, r)
     mask = fixed[:owned]

@@ -166,12 +166,8 @@ class ContactProblem:
         self.dirichlet = build_dirichlet(self.V, self._facets, list(b.clamped),
                                          dict(loads.displacement), self.time_data)
         self.bcs = self.dirichlet.bcs
-        check_rigid_motions(self.V, self.dirichlet.fixed, case.source)
-        fdim = self.dim - 1
-        clamped = [fem.locate_dofs_topological(self.V, fdim, self._facets[r])
-                   for r in b.clamped]
-        self._clamped_nodes = np.unique(np.concatenate(clamped)) if clamped \
-            else np.zeros(0, dtype=np.int32)
+        check_rigid_motions(self.V, self.dirichlet.fixed, self.body.bbox, case.source)
+        self._clamped_nodes = self.dirichlet.clamped_nodes
 
     @property
     def gamma3_tags(self) -> tuple:
@@ -240,9 +236,14 @@ class ContactProblem:
             return ufl.as_vector([float(v) for v in ref])
         field = self.nu_h = fem.Function(self.V, name="nu")
         arr = field.x.array.reshape(-1, self.dim)
-        arr[:] = facet_normals(self.V, self.gamma3_exact_measure())
+        arr[:] = self._facet_normals
         arr[self.frames.nodes] = nu
         return field
+
+    @cached_property
+    def _facet_normals(self) -> np.ndarray:
+        """The area-weighted outward unit normals of Gamma3 at all local nodes."""
+        return facet_normals(self.V, self.gamma3_exact_measure())
 
     # The step residual and Jacobian (SNES VI) and the strain interpolation (the numpy
     # stress path) are compiled when first used: the fast solver with the compiled kernels
@@ -267,16 +268,9 @@ class ContactProblem:
 
     @property
     def length_scale(self) -> float:
-        """The largest side of the body's bounding box."""
-        if not hasattr(self, "_length"):
-            x = self.mesh.geometry.x[:, :self.dim]
-            lo, hi = np.empty(self.dim), np.empty(self.dim)
-            self.comm.Allreduce(x.min(axis=0) if len(x) else np.full(self.dim, np.inf), lo,
-                                op=MPI.MIN)
-            self.comm.Allreduce(x.max(axis=0) if len(x) else np.full(self.dim, -np.inf), hi,
-                                op=MPI.MAX)
-            self._length = float(np.max(hi - lo))
-        return self._length
+        """The largest side of the body's bounding box (the mesh's ``bbox``)."""
+        lo, hi = self.body.bbox
+        return float(np.max(hi - lo))
 
     @property
     def gap_scale(self) -> float | None:
@@ -408,8 +402,7 @@ class ContactProblem:
     def _frames(self) -> ContactFrames:
         """Normals, frames and gaps at the Gamma3 nodes (app/model/frames.py)."""
         c, nodes = self.case.contact, self.gamma3_local_nodes
-        raw = None if c.direction is not None else \
-            facet_normals(self.V, self.gamma3_exact_measure())[nodes]
+        raw = None if c.direction is not None else self._facet_normals[nodes]
         frames = build_frames(self.V, nodes, raw, self.dirichlet.fixed[nodes], c.direction,
                               self.case.source)
         if c.g is not None:

@@ -182,11 +182,10 @@ class FastStepSolver:
         fr, n = p.frames, len(self.g_nodes)
         pos = np.searchsorted(fr.nodes, p.gamma3.nodes)
         Q, slot, sign = fr.Q[pos], fr.slot[pos], fr.sign[pos]
-        T = np.empty_like(Q)
-        for i in range(len(pos)):         # normal first: T_i = (sign nu-column, the others)
-            order = [slot[i]] + [a for a in range(d) if a != slot[i]]
-            T[i] = Q[i][:, order]
-            T[i][:, 0] *= sign[i]
+        # normal first: the columns of Q in the order (slot, the others ascending)
+        order = np.argsort(np.arange(d)[None, :] != slot[:, None], axis=1, kind="stable")
+        T = np.take_along_axis(Q, order[:, None, :], axis=2)
+        T[:, :, 0] *= sign[:, None]                   # T_i = (nu_i, the tangents)
         axis = np.abs(Q).max(axis=1) == 1.0            # (nodes, d): column is +-e_a
         col_axis = np.argmax(np.abs(Q), axis=1)
         fixed_nodes = p.dirichlet.fixed[p.gamma3.nodes]
@@ -195,8 +194,7 @@ class FastStepSolver:
             raise CaseError(f"{p.case.source}: solver.method: the fast solver cannot hold the "
                             "prescribed components of a Gamma3 node whose normal lies in them "
                             "and is not an axis (allowed here: snes_vi)")
-        fixedT = np.stack([fixedQ[i][[slot[i]] + [a for a in range(d) if a != slot[i]]]
-                           for i in range(len(pos))]) if len(pos) else fixedQ
+        fixedT = np.take_along_axis(fixedQ, order, axis=1)
         g = fr.g[pos] if fr.g is not None else np.full(len(pos), np.inf)
         g = np.where(fr.bounded[pos], g, np.inf)
         place = self.local_owned_g
