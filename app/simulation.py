@@ -34,7 +34,7 @@ from app.model.stepping import StepTooSmall, make_stepper
 from app.observers import Observer, StopRun
 from app.post.diagnostics import diagnose
 from app.records import HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
-from app.solvers import select_solver
+from app.solvers import select_solver, threads
 from app.solvers.snesvi import StepSolveError, describe_petsc_error
 from meshes import build_box, build_rectangle
 from meshes.gmshfile import MeshFileError, load_mesh_file
@@ -195,6 +195,7 @@ class Simulation:
         self.history = build_history(case, problem)
         problem.set_initial_values(self.history.kappa if self.history else None)
         self.gamma3_history = build_gamma3_history(case, problem)
+        threads.configure(self.comm.size)
         self.solver = select_solver(case, problem)
         self._clock["setup"] = time.perf_counter() - self._clock["start"]
         self._log_case()
@@ -487,6 +488,7 @@ class Simulation:
             diagnostics=self.diagnostics.as_dict(),
             solver={"method": case.numerics.method, "used": self.solver.name,
                     "factorisations": self.solver.factorisations,
+                    "gamma3": getattr(self.solver, "gamma3_stats", lambda: None)(),
                     "delta": case.numerics.delta, "quadrature": case.numerics.quadrature,
                     "petsc_options": dict(case.petsc)},
             steps=self.steps, setup_s=self._clock["setup"],

@@ -142,6 +142,11 @@ def report_run(comm, s: dict, outdir: Path, no_plots: bool) -> int:
         log.info("done: %d steps, %d Newton iterations, wall %.2f s (set-up %.2f s, steps %.2f s)",
                  len(s["steps"]), s["newton_iterations_total"], s["wall_s"], s["setup_s"],
                  s["loop_s"])
+        g3 = s["solver"].get("gamma3")
+        if g3:
+            log.info("Gamma3 problem (%d dofs): %d dense factorisations, %d CG iterations with "
+                     "a kept factor; BLAS threads for factorisations of >= 1000 dofs: %d",
+                     g3["dofs"], g3["factorisations"], g3["cg_iterations"], g3["threads"])
         if "contact_states" in s:
             log.info("Gamma3 nodes at T: %s", s["contact_states"])
         log.info("outputs: %s/{solution.xdmf, summary.json, contact.csv%s}", outdir,
@@ -310,15 +315,31 @@ def cmd_bench(args) -> int:
         memory = bm.memory_rows(outdir, steps=args.memory_steps) if args.memory_steps else []
         scene = scene_rows(Path(args.case), outdir, args.scene_n, 64, bm.run_overrides,
                            args.repeat) if args.scene_n else []
+        box3d = _box3d_rows(outdir, args.box3d_levels)
     except RuntimeError as exc:
         return error(str(exc), EXIT_FAILED)
-    bm.write(outdir, rows, memory, scene)
-    failed = bm.failures(rows, memory, scene)
+    bm.write(outdir, rows, memory, scene, box3d)
+    failed = bm.failures(rows, memory, scene) + [r["label"] for r in box3d if "failed" in r]
     if failed:
         return error(f"{len(failed)} bench configuration(s) failed: {'; '.join(failed)} "
                      f"(reasons in {outdir}/bench.md)", EXIT_FAILED)
     print(f"done in {time.perf_counter() - t0:.0f} s: {outdir}/bench.json, {outdir}/bench.md")
     return 0
+
+
+def _box3d_rows(outdir: Path, levels: list[int]) -> list[dict]:
+    """The bench's 3D rows (app/studies/bench3d.py) and their plot bench3d.png; none if no
+    levels are asked for."""
+    from app.studies import bench3d
+    if not levels:
+        return []
+    print(f"3D rows: box3d at n = {' '.join(map(str, levels))}")
+    small = [n for n in levels if n <= 16]            # SNES VI with a direct LU: small only
+    rows = bench3d.box3d_rows(outdir, levels, snes_levels=small,
+                              target=(32, 32) if 32 in levels else None,
+                              mpi_level=32 if 32 in levels else max(levels))
+    bench3d.plot(rows, outdir / "bench3d.png")
+    return rows
 
 
 # ----------------------------------------------------------------------------- plot, check, info

@@ -9,7 +9,7 @@ from app.io.errors import CaseError
 # the files of each command besides a run's (app/io/output.py OUTPUT_FILES)
 CONVERGENCE_FILES = ("convergence.csv", "convergence.md", "convergence.png")
 STABILITY_FILES = ("stability.csv", "stability.md")
-BENCH_FILES = ("bench.json", "bench.md")
+BENCH_FILES = ("bench.json", "bench.md", "bench3d.png")
 # besides the files of each command: a run's directory holds its convergence/ and
 # stability/ studies; checkpoints, figures, the lock and temporary files of atomic writes
 OUR_DIRECTORIES = ("convergence", "stability", "bench")

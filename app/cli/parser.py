@@ -279,6 +279,12 @@ def _add_bench(sub) -> None:
                    help="cells per side of the user-scene comparison (the case's square "
                         "rotated and read from a .geo, against the built-in rectangle, 64 "
                         "steps; default 121: 29768 dofs; 0: skip)")
+    b.add_argument("--box3d-levels", type=positive_int, nargs="*", default=[8, 16, 24, 32, 64],
+                   metavar="n", help="cells per edge of the 3D rows (cases/box3d.yaml, 8 steps, "
+                                     "default solver; with a 32-step n = 32 run, SNES VI at "
+                                     "n <= 16, mpirun -n 2 at 32 (else the largest n), the 2D "
+                                     "reference at 1/128 and a log-log plot; default 8 16 24 "
+                                     "32 64: 824k dofs at 64; none: skip)")
     b.add_argument("--ranks", type=positive_int, nargs="+", default=[1, 2])
     b.add_argument("--repeat", type=positive_int, default=3, metavar="R",
                    help="measured runs per configuration, every solver alike; the fastest "

@@ -35,9 +35,9 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from app.io.errors import CaseError
-from app.solvers import dense, kernels
+from app.solvers import dense, kernels, threads
 from app.solvers.nodal import NodalContact
-from app.solvers.schur import GLastLDL, flexibility, g_last_factor, gamma3_flexibility, gather_csr
+from app.solvers.schur import GLastLDL, g_last_factor, gamma3_schur_pair, gather_csr, schur_pair
 from app.solvers.snesvi import StepSolveError
 from forms.elasticity import elasticity_operator, eps
 
@@ -45,6 +45,7 @@ log = logging.getLogger("vpcontact")
 
 
 _EPS = np.finfo(float).eps
+THREADED_FACTOR_MIN = 50_000    # dofs from which the G-last factorisation uses BLAS threads
 
 
 def _projected(y, g, lo, hi) -> float:
@@ -100,26 +101,29 @@ class FastStepSolver:
         if not self.gamma3:
             self._factorise(np.zeros(0, dtype=np.int32))
 
-    def _factorise(self, G_rows: np.ndarray) -> np.ndarray | None:
-        """Factorise K once; returns Z_GG = E_G^T K^-1 E_G (None without Gamma3 dofs).
+    def _factorise(self, G_rows: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Factorise K once; returns the Schur complement S and Z_GG = E_G^T K^-1 E_G = S^-1
+        (None without Gamma3 dofs).
 
         Serial, with the compiled sweeps (kernels/ldl_blocks.c): one factorisation with the Gamma3
-        dofs last (CHOLMOD L D L^T, else SuperLU L U) gives Z_GG (its trailing blocks) and
+        dofs last (CHOLMOD L D L^T, else SuperLU L U) gives S and Z_GG (its trailing blocks) and
         every step's solve, one forward and one backward sweep with the Gamma3 problem in
         between (kernels.GLastSolve).  Otherwise (mpirun, no C compiler, or PETSc options
         for the fast solver given): PETSc's direct solver for the steps (MUMPS in parallel:
-        the interior solves are distributed) and Z_GG from a G-last factorisation of the
+        the interior solves are distributed) and S, Z_GG from a G-last factorisation of the
         gathered matrix on rank 0 -- two factorisations per run, counted as such."""
         from app.solvers.snesvi import PREFIX, clear_petsc_options, direct_solver, set_petsc_options
         petsc_options = any(str(k).startswith("fast_") for k in self.options)
         module = kernels.load() if self.comm.size == 1 and not petsc_options else None
         if module is not None:
-            factor = g_last_factor(gather_csr(self.K, self.comm), G_rows, self.d)
+            A = gather_csr(self.K, self.comm)
+            with threads.blas_threads(large=A.n >= THREADED_FACTOR_MIN):
+                factor = g_last_factor(A, G_rows, self.d)
             self._split = kernels.GLastSolve(factor, module, self.d)
             self.factorisations = 1
             log.info("  fast solver: one %s factorisation (Gamma3 last), compiled sweeps",
                      "CHOLMOD L D L^T" if isinstance(factor, GLastLDL) else "SuperLU L U")
-            return flexibility(factor) if len(G_rows) else None
+            return schur_pair(factor) if len(G_rows) else None
         self.ksp = direct_solver(self.K, self.comm, PREFIX + "fast_")
         set_petsc_options(self.options, PREFIX)      # user options, e.g. -fast_ksp_view
         try:
@@ -134,7 +138,7 @@ class FastStepSolver:
         if not len(G_rows):
             return None
         self.factorisations += 1
-        return gamma3_flexibility(self.K, G_rows, self.comm)
+        return gamma3_schur_pair(self.K, G_rows, self.comm)
 
     # ------------------------------------------------------------------ Gamma3 condensation
     def _setup_gamma3(self):
@@ -158,10 +162,7 @@ class FastStepSolver:
         # Z_GG = E_G^T K^-1 E_G (m x m) from the trailing blocks of one G-last LU (schur.py)
         start = self.K.getOwnershipRange()[0]
         self._owned_rows = start + self.owned_dofs_local          # global rows of owned G dofs
-        Z = self._factorise(self.global_G_dofs())
-        self.Z = Z
-        self.S = np.linalg.inv(Z)
-        self.S = 0.5 * (self.S + self.S.T)
+        self.S, self.Z = self._factorise(self.global_G_dofs())
         normal = self._setup_frames()
         self._direction = dense.NewtonDirection(self.S_w, d, dense.load())
         c = p.case.contact
@@ -324,7 +325,7 @@ class FastStepSolver:
             if np.abs(pg).max() <= self.rtol * scale:
                 self._remember(y)
                 return y, it - 1
-            p = self._direction(Hn, g, binding)
+            p = self._direction(Hn, g, binding, rtol=self._forcing(np.abs(pg).max(), scale))
             if p is None:                 # not positive definite here: LU, else -pg
                 H = self._direction.matrix(Hn)
                 f = np.flatnonzero(~binding)
@@ -357,6 +358,13 @@ class FastStepSolver:
             return y, it
         raise StepSolveError("fast solver: the Gamma3 problem did not converge in 200 iterations")
 
+    def _forcing(self, pg_max: float, scale: float) -> float:
+        """The relative residual an inexact Newton direction needs: |pg| / scale (quadratic
+        convergence), but no smaller than what brings the projected gradient below the
+        tolerance in one more iteration (|r|_2 <= 0.1 rtol scale / sqrt(m)), at most 1e-2."""
+        final = 0.1 * self.rtol * scale / (pg_max * np.sqrt(max(self.m, 1)))
+        return min(1e-2, max(pg_max / scale, final))
+
     def _start(self, y0: np.ndarray) -> np.ndarray:
         """The Gamma3 iteration's start: the linear extrapolation in time of the last two
         steps' solutions (the step problems change smoothly: 276 Newton iterations against
@@ -383,6 +391,19 @@ class FastStepSolver:
         """
         return (f"fast (one factorisation, {self.m} Gamma3 dofs condensed)" if self.gamma3
                 else "fast (one factorisation)")
+
+    def gamma3_stats(self) -> dict | None:
+        """The Gamma3 problem's linear algebra so far (summary.json: solver.gamma3).
+
+        Returns:
+            {"dofs": m, "factorisations": dense Cholesky factorisations of the Newton
+            matrix, "cg_iterations": CG iterations with a kept factor, "threads": BLAS
+            threads of the large factorisations}, or None without Gamma3.
+        """
+        if not self.gamma3:
+            return None
+        return {"dofs": self.m, "factorisations": self._direction.factorisations,
+                "cg_iterations": self._direction.cg_iterations, "threads": threads.cores()}
 
     def warm_start(self) -> None:
         """Start the next Gamma3 problem from the current u (after a restart)."""

@@ -282,7 +282,7 @@ def memory_rows(outdir: Path, steps=(64, 256, 1024), n: int = 16, log=print) -> 
 
 
 def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None,
-          scene: list[dict] | None = None) -> None:
+          scene: list[dict] | None = None, box3d: list[dict] | None = None) -> None:
     """Write bench.json and bench.md (atomically).
 
     Args:
@@ -290,10 +290,12 @@ def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None,
         rows: the solver rows.
         memory: the memory-term rows, or None.
         scene: the user-scene rows (app/studies/scenebench.py), or None.
+        box3d: the 3D rows (app/studies/bench3d.py), or None.
     """
-    from app.studies import scenebench
-    atomic_write(outdir / "bench.json", json.dumps({"solvers": rows, "memory_term": memory or [],
-                                                    "scene": scene or []}, indent=2) + "\n")
+    from app.studies import bench3d, scenebench
+    atomic_write(outdir / "bench.json", json.dumps(
+        {"solvers": rows, "memory_term": memory or [], "scene": scene or [],
+         "box3d": box3d or [], "box3d_scaling": bench3d.scaling(box3d or [])}, indent=2) + "\n")
     lines = ["# Benchmark: paper case (Wang & Cheng 2021, Section 4)", "",
              "Whole-process wall time (start-up, imports, mesh, set-up, steps, output at T), "
              "measured from outside after a warm-up run that fills the JIT cache: the fastest "
@@ -341,4 +343,6 @@ def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None,
                          f"{r.get('recursion_vs_direct_rel_diff', float('nan')):.1e} |")
     if scene:
         lines += scenebench.markdown(scene)
+    if box3d:
+        lines += bench3d.markdown(box3d)
     atomic_write(outdir / "bench.md", "\n".join(lines) + "\n")

@@ -71,3 +71,45 @@ def test_start_extrapolates_the_last_two_steps():
     FastStepSolver._remember(solver, np.array([4.0, 1.0]))
     clock.value = 0.5
     assert np.array_equal(FastStepSolver._start(solver, y0), [4.0, 1.0])
+
+
+def _system(rng, m, d):
+    A = rng.normal(size=(m, m))
+    S = A @ A.T + m * np.eye(m)
+    B = rng.normal(size=(m // d, d, d))
+    return S, np.einsum("nij,nkj->nik", B, B)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_kept_factor_with_cg_solves_changed_systems(monkeypatch, d):
+    """Above PCG_MIN the factor is kept: the next Newton matrix (other nodal blocks W, some
+    dofs binding or released) is solved by CG preconditioned with it, to the asked relative
+    residual, without a new factorisation; too many changed dofs factorise afresh."""
+    monkeypatch.setattr(dense, "PCG_MIN", 0)
+    monkeypatch.setattr(dense, "PCG_MAX_CHANGED", 6)
+    rng = np.random.default_rng(10 + d)
+    m = 30 * d
+    S, W = _system(rng, m, d)
+    binding = np.zeros(m, dtype=bool)
+    binding[::7] = True
+    for direction in _directions(S, d):
+        direction(W, rng.normal(size=m), binding, rtol=1e-10)       # factorises, keeps L
+        assert (direction.factorisations, direction.cg_iterations) == (1, 0)
+        W2 = W * (1 + 0.05 * rng.random(W.shape[0]))[:, None, None]
+        b2 = binding.copy()
+        b2[[1, 2]], b2[[0, 7]] = True, False                         # 4 dofs changed
+        g = rng.normal(size=m)
+        H = direction.matrix(W2)
+        f = np.flatnonzero(~b2)
+        ref = np.linalg.solve(H[np.ix_(f, f)], -g[f])
+        p = direction(W2, g, b2, rtol=1e-12)
+        assert direction.factorisations == 1 and 0 < direction.cg_iterations <= 15
+        assert np.array_equal(p[b2], np.zeros(b2.sum()))
+        assert np.linalg.norm(H[np.ix_(f, f)] @ p[f] + g[f]) <= 1e-12 * np.linalg.norm(g[f])
+        assert np.abs(p[f] - ref).max() <= 1e-9 * np.abs(ref).max()
+        b3 = b2.copy()
+        b3[10:20] = True                                             # > PCG_MAX_CHANGED
+        direction(W2, g, b3, rtol=1e-12)
+        assert direction.factorisations == 2
+        direction(W2, g, b3)                                         # rtol = 0: exact
+        assert direction.factorisations == 3

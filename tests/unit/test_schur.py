@@ -6,7 +6,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from app.solvers import ldl
-from app.solvers.schur import CSR, GLastLDL, GLastLU, gamma3_flexibility
+from app.solvers.schur import CSR, GLastLDL, GLastLU, gamma3_schur_pair
 
 
 def _spd(n=60, seed=0):
@@ -27,9 +27,30 @@ def test_flexibility_equals_dense_inverse():
     K = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType),
                                             A.indices.astype(PETSc.IntType), A.data),
                               comm=MPI.COMM_SELF)
-    Z = gamma3_flexibility(K, G, MPI.COMM_SELF)
+    S, Z = gamma3_schur_pair(K, G, MPI.COMM_SELF)
     Zd = np.linalg.inv(A.toarray())[np.ix_(G, G)]
     assert np.abs(Z - Zd).max() <= 1e-12 * np.abs(Zd).max()
+    Sd = np.linalg.inv(Zd)
+    assert np.abs(S - Sd).max() <= 1e-12 * np.abs(Sd).max()
+
+
+@pytest.mark.parametrize("lapack", [False, True])
+def test_schur_pair_by_triangular_products(monkeypatch, lapack):
+    """S = K_GG - K_GI K_II^-1 K_IG and Z = S^-1 from CHOLMOD's trailing blocks, by the
+    general products and by LAPACK's dlauum/dpotri (chosen above LAPACK_MIN dofs)."""
+    from app.solvers import schur
+    monkeypatch.setattr(schur, "LAPACK_MIN", 0 if lapack else 10**9)
+    A = _spd(80, seed=4)
+    G = np.array([3, 9, 40, 41, 42, 43, 100, 159, 12])
+    f = _factor("cholmod", A, G, 1)
+    S, Z = schur.schur_pair(f)
+    Ad = A.toarray()
+    interior = np.setdiff1d(np.arange(A.shape[0]), G)
+    Sd = Ad[np.ix_(G, G)] - Ad[np.ix_(G, interior)] @ np.linalg.solve(
+        Ad[np.ix_(interior, interior)], Ad[np.ix_(interior, G)])
+    assert np.abs(S - Sd).max() <= 1e-13 * np.abs(Sd).max()
+    assert np.array_equal(S, S.T) and np.array_equal(Z, Z.T)
+    assert np.abs(Z @ Sd - np.eye(len(G))).max() <= 1e-12
 
 
 def test_g_last_factors_reproduce_the_matrix():
@@ -102,7 +123,7 @@ def test_split_solve_with_given_gamma3_values(bs, kind):
     equations exactly, and u_G = y0 is the unconstrained solution K^-1 b; with scalar and
     2 x 2 block storage of L (G is two whole nodes, so the nodal ordering applies)."""
     from app.solvers import kernels
-    from app.solvers.schur import flexibility
+    from app.solvers.schur import schur_pair
     module = kernels.load()
     if module is None:
         pytest.skip("no C compiler")
@@ -118,7 +139,7 @@ def test_split_solve_with_given_gamma3_values(bs, kind):
     b = rng.normal(size=A.shape[0])
     Ad = A.toarray()
     r = split.forward(b).copy()
-    y0 = flexibility(f) @ r
+    y0 = schur_pair(f)[1] @ r
     u = np.empty_like(b)
     split.backward(y0, u)
     assert np.abs(u - np.linalg.solve(Ad, b)).max() <= 1e-12 * np.abs(u).max()
