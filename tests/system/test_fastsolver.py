@@ -58,17 +58,26 @@ def test_fast_equals_snes_vi_in_3d():
     assert du < 1e-9 and dn < 1e-10
 
 
-def test_box3d_n12_iterations_bounded_and_solvers_agree():
+@pytest.mark.parametrize("kept_factor", [False, True])
+def test_box3d_n12_iterations_bounded_and_solvers_agree(monkeypatch, kept_factor):
     """box3d at n = 12 (8 steps): every step of both solvers within 20 iterations (the
     Gamma3 problem's line search once stalled for 160-200 iterations at the energy's round-off
-    in 3D), and the two agree to 1e-8."""
+    in 3D), and the two agree to 1e-8; also with the Gamma3 Newton systems solved by CG with
+    a kept factor (the large-m path, here forced at m = 468)."""
     from app.io.case import load_raw
+    from app.solvers import dense
+    if kept_factor:
+        monkeypatch.setattr(dense, "PCG_MIN", 0)
     raw = load_raw(ROOT / "cases" / "box3d.yaml")
     raw["mesh"]["n"] = 12
     a, b = _pair(raw)
     for run in (a, b):
         its = [st["newton_iterations"] for st in run.summary["steps"]]
         assert len(its) == 8 and max(its) <= 20, its
+    g3 = b.summary["solver"]["gamma3"]
+    assert g3["dofs"] == 468
+    assert (g3["cg_iterations"] > 0) == kept_factor
+    assert g3["factorisations"] < (20 if kept_factor else 100)
     du, dn = _diff(a, b)
     assert du < 1e-8 and dn < 1e-8
 
