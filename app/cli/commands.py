@@ -109,6 +109,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
     from app.cli.progress import ProgressBar
     from app.observers import Checkpointer, FieldOutput, RunFiles, StepLog
     from app.simulation import run
+    from app.solvers import threads
 
     if args.verbose:
         petsc_cli = {"snes_monitor": None, "snes_converged_reason": None, **petsc_cli}
@@ -117,6 +118,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
              comm.size, "s" if comm.size > 1 else "")
     progress = [ProgressBar()] if not args.quiet and not args.verbose else []
     observers = [FieldOutput(), Checkpointer(), *progress, StepLog(), RunFiles()]
+    threads.request(args.threads)
     result = run(case, comm, observers, outdir=outdir, restart=loaded.get("checkpoint"))
     s = result.summary
     if result.status == "completed" and not args.no_plots and comm.rank == 0 and s["steps"]:

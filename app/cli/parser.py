@@ -187,6 +187,10 @@ def _add_run(sub) -> None:
                           "settings may differ)")
     run.add_argument("--no-plots", action="store_true",
                      help="do not draw the figures at the end (see the plot command)")
+    run.add_argument("--threads", type=positive_int, metavar="N",
+                     help="BLAS threads of the large factorisations of a serial run (the "
+                          "fast solver's 3D set-up and Gamma3 problem; default: the cores "
+                          "this process may use; under mpirun always 1 per rank)")
 
 
 def _add_plot_check_info(sub) -> None:

@@ -19,6 +19,7 @@ except ImportError:                                   # pragma: no cover - optio
 
 # set by the run (app/simulation.py): the cores one serial process may use, 1 under mpirun
 _cores = 1
+_requested: int | None = None          # `vpcontact run --threads N`
 
 
 def available_cores() -> int:
@@ -33,17 +34,28 @@ def available_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def request(threads: int | None) -> None:
+    """Ask for a number of threads for the next runs of this process (``run --threads``).
+
+    Args:
+        threads: the threads (None: the available cores).
+    """
+    global _requested
+    _requested = threads
+
+
 def configure(comm_size: int, threads: int | None = None) -> int:
     """Set the threads of the large factorisations for this run.
 
     Args:
         comm_size: the number of MPI ranks (> 1: one thread per rank).
-        threads: the threads asked for (None: the available cores).
+        threads: the threads asked for (None: ``request``'s, else the available cores).
 
     Returns:
         The threads the large factorisations will use.
     """
     global _cores
+    threads = threads if threads is not None else _requested
     if comm_size > 1 or threadpool_limits is None:
         _cores = 1
     else:
