@@ -14,7 +14,7 @@ DEB_PACKAGES := python3-dolfinx-real python3-petsc4py-real python3-mpi4py python
                 python3-yaml python3-jsonschema python3-numpy python3-pytest python3-venv \
                 python3-pip python3-setuptools python3-wheel python3-dev openmpi-bin \
                 python3-h5py python3-matplotlib python3-hypothesis libopenblas0-pthread \
-                libsuitesparse-dev python3-threadpoolctl
+                libsuitesparse-dev python3-threadpoolctl libmumps-dev
 
 # libopenblas0-pthread replaces the reference BLAS (Debian alternatives): MUMPS factorisation
 # 2.7x faster at 33k dofs (measured); one thread, as small dense solves slow down with more.

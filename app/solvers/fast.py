@@ -18,11 +18,14 @@ Serial runs factorise K once, the Gamma3 dofs ordered last: K = L D L^T by CHOLM
 S = L_GG D_G L_GG^T, and a step is one forward sweep (which yields y0), the Gamma3 problem,
 and one backward sweep with u_G = y (kernels.GLastSolve: L in d x d node blocks, compiled):
 at h = 1/128 about 6 ms per step against 9.4-12 ms for the two PETSc back-substitutions
-u_free = K^-1 F_n, u = K^-1 (F_n + E_G lambda) of the general path.  That general path
-serves mpirun (MUMPS, distributed interior solves; Z_GG from a G-last factorisation of the
-matrix gathered on rank 0: two factorisations, counted), runs without a C compiler,
-and runs when PETSc options for the fast solver are given
-(-vpcontact_fast_pc_factor_mat_solver_type ...).
+u_free = K^-1 F_n, u = K^-1 (F_n + E_G lambda) of the general path.  Under mpirun the same
+split is one distributed MUMPS factorisation with the Gamma3 dofs as Schur variables
+(app/solvers/mumps.py): S comes from MUMPS once, and a step is a condensation (r on rank 0,
+broadcast), the Gamma3 problem and an expansion with u_G = y, the right-hand side and the
+solution distributed.  The general path (two PETSc solves per step; under mpirun Z_GG from a
+G-last factorisation of the matrix gathered on rank 0: two factorisations, counted) serves
+runs without a C compiler or the MUMPS wrapper, and runs where PETSc options for the fast
+solver are given (-vpcontact_fast_pc_factor_mat_solver_type ...).
 """
 from __future__ import annotations
 
@@ -89,7 +92,7 @@ class FastStepSolver:
         fem.petsc.assemble_matrix(K, a, bcs=problem.bcs)
         K.assemble()
         self.K = K
-        self.ksp, self._split = None, None
+        self.ksp, self._split, self._mumps = None, None, None
         # the step's right-hand side F_n = f_n - B^T H_n (the bulk residual at u = 0): the
         # loads by assembly, the pre-stress by B^T = the transposed cell-strain operator
         self.loads_form = fem.form(problem.forms.loads) if problem.forms.loads is not None \
@@ -108,9 +111,10 @@ class FastStepSolver:
         Serial, with the compiled sweeps (kernels/ldl_blocks.c): one factorisation with the Gamma3
         dofs last (CHOLMOD L D L^T, else SuperLU L U) gives S and Z_GG (its trailing blocks) and
         every step's solve, one forward and one backward sweep with the Gamma3 problem in
-        between (kernels.GLastSolve).  Otherwise (mpirun, no C compiler, or PETSc options
-        for the fast solver given): PETSc's direct solver for the steps (MUMPS in parallel:
-        the interior solves are distributed) and S, Z_GG from a G-last factorisation of the
+        between (kernels.GLastSolve).  Under mpirun: one distributed MUMPS factorisation with
+        the Gamma3 dofs as Schur variables (``_factorise_mumps``).  Otherwise (no C compiler
+        or MUMPS wrapper, or PETSc options for the fast solver given): PETSc's direct solver
+        for the steps (MUMPS in parallel) and S, Z_GG from a G-last factorisation of the
         gathered matrix on rank 0 -- two factorisations per run, counted as such."""
         from app.solvers.snesvi import PREFIX, clear_petsc_options, direct_solver, set_petsc_options
         petsc_options = any(str(k).startswith("fast_") for k in self.options)
@@ -124,6 +128,10 @@ class FastStepSolver:
             log.info("  fast solver: one %s factorisation (Gamma3 last), compiled sweeps",
                      "CHOLMOD L D L^T" if isinstance(factor, GLastLDL) else "SuperLU L U")
             return schur_pair(factor) if len(G_rows) else None
+        if self.comm.size > 1 and not petsc_options and len(G_rows):
+            pair = self._factorise_mumps(G_rows)
+            if pair is not None:
+                return pair
         self.ksp = direct_solver(self.K, self.comm, PREFIX + "fast_")
         set_petsc_options(self.options, PREFIX)      # user options, e.g. -fast_ksp_view
         try:
@@ -139,6 +147,24 @@ class FastStepSolver:
             return None
         self.factorisations += 1
         return gamma3_schur_pair(self.K, G_rows, self.comm)
+
+    def _factorise_mumps(self, G_rows: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Under mpirun: one distributed MUMPS factorisation with the Gamma3 dofs as Schur
+        variables (app/solvers/mumps.py); None (today's two factorisations then) where the
+        wrapper cannot be built on every rank or MUMPS fails."""
+        from app.solvers import mumps
+        module = mumps.load()
+        if not self.comm.allreduce(module is not None, op=MPI.LAND):
+            return None
+        try:
+            self._mumps = mumps.SchurMumps(module, self.K, G_rows, self.d, self.comm)
+        except mumps.MumpsError as exc:
+            log.warning("  fast solver: %s; factorising twice instead", exc)
+            return None
+        self.factorisations = 1
+        log.info("  fast solver: one distributed MUMPS factorisation, Gamma3 as Schur "
+                 "variables")
+        return self._mumps.S, self._mumps.Z
 
     # ------------------------------------------------------------------ Gamma3 condensation
     def _setup_gamma3(self):
@@ -461,9 +487,22 @@ class FastStepSolver:
         self.u.vector.array[:self.x.getLocalSize()] = self.x.array_r
         self.u.x.scatter_forward()
 
+    def _solve_mumps(self) -> int:
+        """mpirun step with the Schur-variable MUMPS factor: condensation (r on every
+        rank), the Gamma3 problem, expansion with u_G = y."""
+        self._assemble_rhs()
+        r = self._mumps.forward(self.b.array_r)      # r = F_G - K_GI K_II^-1 F_I
+        self._gamma3_inputs()
+        y, its = self._small_problem(self.Z @ r)
+        self._mumps.backward(y, self.x)
+        self._set_u()
+        return its
+
     def _solve_fast(self) -> int:
         if self._split is not None:
             return self._solve_split()
+        if self._mumps is not None:
+            return self._solve_mumps()
         self._assemble_rhs()
         self.ksp.solve(self.b, self.x)               # u_free = K^-1 F_n
         its = 0
@@ -479,7 +518,7 @@ class FastStepSolver:
 
     def destroy(self) -> None:
         """Free the PETSc objects (and those of the SNES VI fallback, if it was created)."""
-        for obj in (self.K, self.ksp, self.b, self.x, self._loads, self._lift):
+        for obj in (self.K, self.ksp, self.b, self.x, self._loads, self._lift, self._mumps):
             if obj is not None:
                 obj.destroy()
         if self._snes is not None:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from app.model.material import Elasticity, VonMisesProjection, from_voigt, to_voigt
-from app.solvers import dense, kernels, ldl
+from app.solvers import dense, kernels, ldl, mumps
 from app.solvers.kernels import build
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -215,6 +215,7 @@ LIBRARIES = {
                                      "app/model/strain.py"]),
     "dense": (dense.DENSE, ["app/solvers/dense.py"]),
     "cholmod": (ldl.CHOLMOD, ["app/solvers/ldl.py"]),
+    "mumps": (mumps.MUMPS, ["app/solvers/mumps.py"]),
 }
 
 

@@ -190,3 +190,33 @@ def test_cholmod_blocks_in_place_equal_a_copy(bs):
     for a, b in zip(f1.blocks, f2.blocks):
         assert np.array_equal(a, b)
     assert np.array_equal(f1.D, f2.D) and np.array_equal(f1.L_GG, f2.L_GG)
+
+
+def test_mumps_schur_variables_give_the_pair_and_the_split_solve():
+    """MUMPS with G as Schur variables (app/solvers/mumps.py, one rank here; the fast solver's
+    mpirun tests run it on two): S and Z = S^-1 as the dense reference, and the condensation /
+    expansion cycle r = b_G - K_GI K_II^-1 b_I, u = K^-1 (b + E_G lambda) with u_G = y."""
+    from app.solvers import mumps
+    module = mumps.load()
+    if module is None:
+        pytest.skip("the MUMPS wrapper cannot be built here")
+    A = _spd(60, seed=5)
+    G = np.array([7, 3, 50, 51, 119, 0])
+    K = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType),
+                                            A.indices.astype(PETSc.IntType), A.data),
+                              comm=MPI.COMM_SELF)
+    M = mumps.SchurMumps(module, K, G, 1, MPI.COMM_SELF)
+    Ad = A.toarray()
+    Zd = np.linalg.inv(Ad)[np.ix_(G, G)]
+    assert np.abs(M.Z - Zd).max() <= 1e-12 * np.abs(Zd).max()
+    assert np.abs(M.S @ Zd - np.eye(len(G))).max() <= 1e-12
+    b = np.random.default_rng(2).standard_normal(A.shape[0])
+    r = M.forward(b)
+    assert np.abs(M.Z @ r - np.linalg.solve(Ad, b)[G]).max() <= 1e-12 * np.abs(r).max()
+    y = M.Z @ r + 0.1
+    x = K.createVecRight()
+    M.backward(y, x)
+    lam = np.zeros(A.shape[0])
+    lam[G] = M.S @ (y - M.Z @ r)
+    assert np.abs(x.array - np.linalg.solve(Ad, b + lam)).max() <= 1e-11 * np.abs(x.array).max()
+    M.destroy()

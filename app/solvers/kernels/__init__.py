@@ -7,10 +7,11 @@ The C sources and their headers live beside the Python wrappers, one pair per jo
     cells.c/.h        the cell-strain operator                      cells.py
     dense.c/.h        the Gamma3 problem's Newton direction         app/solvers/dense.py
     cholmod_ldl.c/.h  CHOLMOD's L D L^T                              app/solvers/ldl.py
+    mumps_schur.c/.h  MUMPS with Gamma3 Schur variables (mpirun)    app/solvers/mumps.py
 Each wrapper module has the numpy reference of its kernel beside it; the tests compare them,
 and the numpy (or PETSc, SuperLU) path is the fallback where no C compiler is available.
-The first four are one library (``load``); dense and CHOLMOD link LAPACK and libcholmod and
-are built by their modules.
+The first four are one library (``load``); dense, CHOLMOD and MUMPS link LAPACK, libcholmod
+and libdmumps and are built by their modules.
 """
 from __future__ import annotations
 
