@@ -389,6 +389,7 @@ class Simulation:
             "max_vm": p.cell_max(p.sigma_vm),
             "max_kappa": p.cell_max(kappa) if kappa is not None else 0.0,
             "newton_iterations": its,
+            "linear_iterations": getattr(self.solver, "linear_iterations", None),
             "wall_s": wall,
             "k": k,
         }
@@ -489,8 +490,9 @@ class Simulation:
             solver={"method": case.numerics.method, "used": self.solver.name,
                     "factorisations": self.solver.factorisations,
                     "gamma3": getattr(self.solver, "gamma3_stats", lambda: None)(),
+                    "linear": getattr(self.solver, "linear", None),
                     "delta": case.numerics.delta, "quadrature": case.numerics.quadrature,
-                    "petsc_options": dict(case.petsc)},
+                    "petsc_options": dict(getattr(self.solver, "options", case.petsc))},
             steps=self.steps, setup_s=self._clock["setup"],
             loop_s=self._clock.get("loop", 0.0),
             wall_s=time.perf_counter() - self._clock["start"],

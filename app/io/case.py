@@ -538,12 +538,14 @@ class TimeGrid:
 
 @dataclass(frozen=True)
 class Numerics:
-    """The ``solver`` section: step solver, delta, Gamma3 quadrature."""
+    """The ``solver`` section: step solver, delta, Gamma3 quadrature, SNES VI's linear
+    solver."""
 
     method: str
     delta: float
     quadrature: str
     gauss_degree: int
+    linear: str = "auto"
 
 
 @dataclass(frozen=True)

@@ -226,6 +226,10 @@ SCHEMA = _obj({
                                   "factorisation per run, Gamma3 condensation; explicit scheme "
                                   "and vertex quadrature), auto (fast where it applies and "
                                   "Gamma3 has at most 6000 dofs)"},
+        "linear": {"enum": ["direct", "amg", "auto"], "default": "auto",
+                   "description": "Newton systems of snes_vi: direct (LU), amg (CG with "
+                                  "algebraic multigrid, GAMG, knowing the rigid body modes; "
+                                  "for large 3D meshes), auto (amg in 3D above 20000 dofs)"},
         "delta": {**_pos, "default": 1.0e-7,
                   "description": "regularisation width of |u_tau| (friction) and u_nu^+ "
                                  "(memory term) [m]"},

@@ -16,6 +16,11 @@ from typing import Protocol
 # box3d n = 32 (m = 3267), 8 steps: fast 25.9 s whole process, 2.4 GB; SNES VI (fresh LU every
 # Newton iteration) 622 s (measured); m = 6000 keeps the dense matrices near 1.5 GB.
 AUTO_FAST_MAX_GAMMA3_DOFS = 6000
+# auto: SNES VI's Newton systems by CG + GAMG (app/solvers/amg.py) in 3D above this many dofs
+# (LU's fill grows like dofs^(4/3) in 3D).  box3d, 8 steps, whole process: n = 16 (14,739
+# dofs) LU 15.3 s, CG + GAMG 7.2 s; n = 24 (46,875) 130 s against 40 s (docs/performance.md).
+# Below, LU costs seconds and takes indefinite Jacobians (beyond (2.6)) as they come.
+AUTO_AMG_MIN_DOFS = 20_000
 
 
 class StepSolver(Protocol):
@@ -78,6 +83,43 @@ def choose_method(case, n_gamma3_dofs: int) -> str:
     return "fast" if ok and n_gamma3_dofs <= AUTO_FAST_MAX_GAMMA3_DOFS else "snes_vi"
 
 
+def choose_linear(case, n_dofs: int) -> str:
+    """The linear solver of SNES VI's Newton systems: ``solver.linear``, and for ``auto``
+    algebraic multigrid in 3D with more than AUTO_AMG_MIN_DOFS dofs, else LU.
+
+    Args:
+        case: the validated Case.
+        n_dofs: the global number of dofs of u.
+
+    Returns:
+        "direct" or "amg".
+    """
+    linear = case.numerics.linear
+    if linear != "auto":
+        return linear
+    return "amg" if case.dim == 3 and n_dofs > AUTO_AMG_MIN_DOFS else "direct"
+
+
+def snes_vi_options(case, linear: str) -> dict:
+    """SNES VI's PETSc options: the case's, and for ``amg`` the iterative defaults
+    (app/solvers/amg.AMG_PETSC) in place of the direct solver's defaults.
+
+    Args:
+        case: the validated Case (petsc, petsc_defaults).
+        linear: "direct" or "amg".
+
+    Returns:
+        Option name (without '-') -> value.
+    """
+    if linear != "amg":
+        return dict(case.petsc)
+    from app.solvers.amg import AMG_PETSC, DIRECT_KEYS
+
+    given = {k: v for k, v in case.petsc.items()
+             if not (k in DIRECT_KEYS and case.petsc_defaults.get(k) == v)}
+    return {**AMG_PETSC, **given}
+
+
 def gamma3_dofs(problem) -> int:
     """The global number of Gamma3 dofs of ``problem`` (collective).
 
@@ -105,4 +147,5 @@ def select_solver(case, problem) -> StepSolver:
         from app.solvers.fast import FastStepSolver
         return FastStepSolver(problem, case.petsc)
     from app.solvers.snesvi import SNESVISolver
-    return SNESVISolver(problem, case.petsc)
+    linear = choose_linear(case, problem.V.dofmap.index_map.size_global * problem.dim)
+    return SNESVISolver(problem, snes_vi_options(case, linear), linear=linear)

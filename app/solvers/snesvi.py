@@ -13,12 +13,18 @@ import numpy as np
 from dolfinx import fem
 from petsc4py import PETSc
 
+from app.solvers.amg import InactiveSetAMG, rigid_body_modes
 from app.solvers.rotation import FrameMap
 
 PREFIX = "vpcontact_"
 log = logging.getLogger("vpcontact")
 
 _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
+_KSP_REASONS = {v: k for k, v in vars(PETSc.KSP.ConvergedReason).items() if isinstance(v, int)}
+# CG's stops on negative curvature, and the Krylov method that replaces it then
+INDEFINITE = (PETSc.KSP.ConvergedReason.DIVERGED_INDEFINITE_PC,
+              PETSc.KSP.ConvergedReason.DIVERGED_INDEFINITE_MAT)
+INDEFINITE_KSP = {"ksp_type": "gmres", "ksp_gmres_restart": 100}
 
 
 class StepSolveError(RuntimeError):
@@ -150,18 +156,25 @@ class SNESVISolver:
     the first fails: full Newton steps can cycle between two iterates when a node crosses a
     nearly nonsmooth point (u_nu = 0 with a memory force, |u_tau| = 0 with friction).
 
+    The Newton systems are solved by ``options`` (default: LU) or, with ``linear="amg"``, by
+    the KSP the options give (CG) preconditioned by GAMG with the rigid body modes restricted
+    to the inactive set (app/solvers/amg.py).
+
     Args:
         problem: the ContactProblem (forms F, J, bounds, Dirichlet conditions).
         options: PETSc options (name without '-' -> value), set under ``prefix``.
         prefix: the PETSc options prefix of the SNES.
+        linear: "direct" (the options' KSP and PC) or "amg" (InactiveSetAMG as the PC).
     """
 
     ROBUST = {"snes_linesearch_type": "bt"}
     name = "snes_vi"
     factorisations = None          # SNES VI refactorises in every Newton iteration
 
-    def __init__(self, problem, options: dict, prefix: str = PREFIX):
+    def __init__(self, problem, options: dict, prefix: str = PREFIX, linear: str = "direct"):
         self.problem = problem
+        self.linear = linear
+        self.linear_iterations = 0
         self.u = problem.u
         self.b = fem.petsc.create_vector(problem.F_form)
         self.A = fem.petsc.create_matrix(problem.J_form)
@@ -202,7 +215,27 @@ class SNESVISolver:
         if snes.getType().startswith("vi"):
             lb, ub = self.problem.bounds()
             snes.setVariableBounds(lb, ub)
+        if self.linear == "amg":
+            pc = snes.getKSP().getPC()
+            pc.setType("python")
+            pc.setPythonContext(InactiveSetAMG(snes, self._rigid_body_modes(), self.prefix))
         return snes
+
+    def _rigid_body_modes(self) -> np.ndarray:
+        """The rigid body modes in the dofs SNES solves for: Z, or R^T Z in the nodal frames.
+
+        Returns:
+            (owned dofs, modes) array.
+        """
+        Z = rigid_body_modes(self.problem.V)
+        if self.frames is None:
+            return Z
+        z, zr = self.A_frames.createVecs()
+        for j in range(Z.shape[1]):
+            z.array[:] = Z[:, j]
+            self.frames.R.multTranspose(z, zr)
+            Z[:, j] = zr.array
+        return Z
 
     def describe(self) -> str:
         """The solver as the run's log line names it.
@@ -210,7 +243,8 @@ class SNESVISolver:
         Returns:
             'SNES <type>', e.g. 'SNES vinewtonrsls'.
         """
-        return f"SNES {self.snes.getType()}"
+        linear = ", CG + GAMG with the rigid body modes" if self.linear == "amg" else ""
+        return f"SNES {self.snes.getType()}{linear}"
 
     def warm_start(self) -> None:
         """Nothing to do: every solve starts from the current u (after a restart: u_n)."""
@@ -286,14 +320,54 @@ class SNESVISolver:
             self.B.assemble()
             A.axpy(1.0, self.B, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
 
-    def _solve_once(self, snes) -> int:
+    def _snes_solve(self, snes) -> None:
+        """SNES from the current u, with our options in the database while it runs (PCs
+        set up their parts, e.g. multigrid levels, from it when the inactive set changes)."""
         if self.frames is None:
             self.u.vector.copy(self.x)
         else:
             self.frames.to_frames(self.u.vector, self.x)
-        snes.solve(None, self.x)
+        options = self.options if snes is self.snes else {**self.options, **self.ROBUST}
+        set_petsc_options(options, self.prefix)
+        try:
+            snes.solve(None, self.x)
+        finally:
+            clear_petsc_options(options, self.prefix)
+
+    def _met_negative_curvature(self, snes) -> bool:
+        """Whether CG stopped on a direction of negative curvature: the Jacobian was
+        indefinite (nonmonotone friction beyond the well-posedness bound (2.6)); then
+        GMRES (INDEFINITE_KSP) replaces CG in this solver's SNESes from now on.
+
+        Args:
+            snes: the SNES that just ran.
+
+        Returns:
+            True if CG was replaced (the solve should be repeated).
+        """
+        ksp = snes.getKSP()
+        if snes.getConvergedReason() != PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE \
+                or ksp.getType() != "cg" or ksp.getConvergedReason() not in INDEFINITE:
+            return False
+        log.warning("SNES VI: the Newton system is indefinite (CG: %s); GMRES from now on",
+                    _KSP_REASONS.get(ksp.getConvergedReason()))
+        self.options = {**self.options, **INDEFINITE_KSP}
+        for other in (self.snes, self._robust):
+            if other is not None:
+                other.getKSP().setType("gmres")
+                other.getKSP().setGMRESRestart(INDEFINITE_KSP["ksp_gmres_restart"])
+        return True
+
+    def _solve_once(self, snes) -> int:
+        self._snes_solve(snes)
+        wasted = 0
+        if self._met_negative_curvature(snes):
+            wasted = snes.getIterationNumber()
+            self.linear_iterations += snes.getLinearSolveIterations()
+            self._snes_solve(snes)
         reason = snes.getConvergedReason()
-        its = snes.getIterationNumber()
+        its = snes.getIterationNumber() + wasted
+        self.linear_iterations += snes.getLinearSolveIterations()
         if reason <= 0:
             raise StepSolveError(f"SNES did not converge: {reason_name(reason)} ({reason}) "
                                  f"after {its} Newton iterations", reason)
@@ -322,6 +396,7 @@ class SNESVISolver:
         """
         start = self.u.x.array.copy()
         self.continuation_stages, self.fallback = 0, None
+        self.linear_iterations = 0
         its = 0
         if not self.sticky_robust:
             try:

@@ -89,3 +89,23 @@ def test_convergence_refuses_3d(tmp_path):
     proc = run_cli(["convergence", BOX, "--levels", "2", "--reference", "4", "--out",
                     tmp_path / "o", "--no-cache"])
     assert proc.returncode == 2 and "mesh.dim" in proc.stderr
+
+
+def test_box_amg_equals_lu():
+    """SNES VI with CG + GAMG (rigid body modes on the inactive set) and with LU: the same
+    Newton iterations and the same u_n to 1e-8 on the 3D box."""
+    from app.io.case import load_raw
+    runs = {}
+    for linear in ("direct", "amg"):
+        raw = load_raw(BOX)
+        raw["mesh"]["n"] = 6
+        raw["time"]["N"] = 3
+        raw["solver"] = {"method": "snes_vi", "linear": linear}
+        res = run_case(validate_raw(raw))
+        steps = res.summary["steps"]
+        assert res.summary["solver"]["linear"] == linear
+        runs[linear] = (res.problem.u.x.array.copy(), steps)
+    (u_lu, lu), (u_amg, amg) = runs["direct"], runs["amg"]
+    assert [s["newton_iterations"] for s in amg] == [s["newton_iterations"] for s in lu]
+    assert np.linalg.norm(u_amg - u_lu) <= 1e-8 * np.linalg.norm(u_lu)
+    assert all(s["linear_iterations"] > s["newton_iterations"] for s in amg)

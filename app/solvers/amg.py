@@ -1,0 +1,201 @@
+"""Iterative Newton systems for SNES VI: Krylov (CG) preconditioned by algebraic multigrid
+(PETSc GAMG) that knows the rigid body motions of the body.
+
+SNES vinewtonrsls solves, in every Newton iteration, the system on the inactive dofs only: it
+extracts the submatrix J_II of the Jacobian (MatCreateSubMatrix) and hands it to the KSP.  The
+submatrix carries neither the block size nor the near-nullspace of J, so GAMG would see one
+scalar unknown per dof and only the constant vector.  ``InactiveSetAMG`` is a PETSc python PC
+around a GAMG PC: when the KSP sets it up, it takes the inactive set from SNES, restricts the
+rigid body modes Z (in the dofs SNES solves for: R^T Z in the nodal frames on a curved Gamma3)
+to it, orthonormalises them and puts them on J_II as its near-nullspace; then it sets up GAMG.
+The options of the inner PC have the prefix ``<prefix>amg_`` (e.g. -vpcontact_amg_pc_type
+hypre).
+"""
+from __future__ import annotations
+
+import numpy as np
+from petsc4py import PETSc
+
+AMG_PREFIX = "amg_"
+
+# The iterative path's PETSc options (under the solver's prefix); the case's petsc section
+# overrides them.  The KSP tolerance is relative to the true residual of the Newton system
+# (Newton then contracts at least by ksp_rtol per iteration near the solution).  Unsmoothed
+# aggregation (agg_nsmooths 0): the set-up, repeated whenever the inactive set changes,
+# costs a third of the smoothed one; CG needs more iterations, box3d n = 24 costs 30% less.
+AMG_PETSC = {
+    "ksp_type": "cg",
+    "ksp_norm_type": "unpreconditioned",
+    "ksp_rtol": 1.0e-8,
+    "ksp_atol": 0.0,
+    "ksp_max_it": 2000,
+    "amg_pc_type": "gamg",
+    "amg_pc_gamg_type": "agg",
+    "amg_pc_gamg_agg_nsmooths": 0,
+    "amg_pc_gamg_threshold": 0.01,
+    "amg_pc_gamg_square_graph": 1,
+    "amg_mg_levels_ksp_type": "chebyshev",
+    "amg_mg_levels_pc_type": "jacobi",
+    "amg_mg_levels_ksp_max_it": 2,
+}
+
+# Options of the direct default (app/io/schema.DEFAULT_PETSC) that the iterative path drops
+# unless the case gives them with other values.
+DIRECT_KEYS = ("ksp_type", "pc_type", "pc_factor_mat_solver_type")
+
+
+def rigid_body_modes(V) -> np.ndarray:
+    """The rigid body motions of the P1 vector space V at its owned dofs.
+
+    Args:
+        V: the P1 vector FunctionSpace (block size d = 2 or 3).
+
+    Returns:
+        (owned dofs, 3 or 6) array: translations, then rotations about the centroid
+        (2D: one, 3D: three).
+    """
+    d = V.dofmap.index_map_bs
+    n = V.dofmap.index_map.size_local
+    x = V.tabulate_dof_coordinates()[:n, :d]
+    x = x - V.mesh.comm.allreduce(x.sum(axis=0)) / max(V.mesh.comm.allreduce(n), 1)
+    rotations = [(0, 1)] if d == 2 else [(0, 1), (1, 2), (2, 0)]
+    Z = np.zeros((n, d, d + len(rotations)))
+    for i in range(d):
+        Z[:, i, i] = 1.0
+    for k, (i, j) in enumerate(rotations):
+        Z[:, i, d + k] = -x[:, j]
+        Z[:, j, d + k] = x[:, i]
+    return Z.reshape(n * d, -1)
+
+
+def orthonormal_columns(Z: np.ndarray, comm) -> np.ndarray:
+    """Orthonormalise the columns of a row-distributed matrix (Cholesky of the Gram matrix).
+
+    Args:
+        Z: this rank's rows.
+        comm: the communicator the rows are distributed over.
+
+    Returns:
+        Z L^-T with L L^T = Z^T Z (summed over ranks); columns that are (nearly) dependent
+        on the earlier ones are dropped.
+    """
+    G = comm.allreduce(Z.T @ Z)
+    w, Q = np.linalg.eigh(G)
+    keep = w > 1e-12 * w.max()
+    return Z @ (Q[:, keep] / np.sqrt(w[keep]))
+
+
+class InactiveSetAMG:
+    """A PETSc python PC: GAMG on the Newton system of SNES VI with the rigid body modes
+    restricted to the inactive set as near-nullspace.
+
+    When the inactive set is the one of the previous set-up, GAMG is kept (built on an
+    earlier Jacobian: they differ by the Gamma3 terms only) while the Krylov iterations of
+    the last solve stay within REUSE_GROWTH times those of the first solve with it (the
+    Gamma3 terms can change much: contact and friction forces appear), unless the option
+    ``<prefix>amg_reuse`` is false.
+
+    Args:
+        snes: the SNES whose KSP uses this PC (its inactive set is read in setUp).
+        Z: (owned dofs, modes) array: the rigid body modes in the dofs SNES solves for.
+        prefix: the SNES's options prefix; the inner PC reads ``<prefix>amg_``.
+    """
+
+    REUSE_GROWTH = 1.5
+
+    def __init__(self, snes: PETSc.SNES, Z: np.ndarray, prefix: str):
+        self.snes, self.Z, self.prefix = snes, Z, prefix
+        self.inner = None
+        self.rows = None
+        self.setups = self.reuses = 0
+        self.fresh_its = None           # Krylov iterations of the first solve with GAMG
+
+    def _rows(self, P: PETSc.Mat) -> np.ndarray | None:
+        """P's rows as local dofs of SNES's unknowns: the inactive set, None for all."""
+        x = self.snes.getSolution()
+        if P.getSize()[0] == x.getSize():
+            return None
+        return self.snes.getVIInactiveSet().getIndices() - x.getOwnershipRange()[0]
+
+    def _modes(self, P: PETSc.Mat, rows) -> PETSc.NullSpace:
+        """The near-nullspace of the operator P: Z on its rows, orthonormalised."""
+        Z = orthonormal_columns(self.Z if rows is None else self.Z[rows],
+                                P.getComm().tompi4py())
+        vectors = []
+        for j in range(Z.shape[1]):
+            v = P.createVecLeft()
+            v.array[:] = Z[:, j]
+            vectors.append(v)
+        return PETSc.NullSpace().create(vectors=vectors, comm=P.getComm())
+
+    def _same_rows(self, rows, comm) -> bool:
+        """Whether the rows are those of the previous set-up on every rank."""
+        same = self.inner is not None and (
+            (rows is None and self.rows is None)
+            or (rows is not None and self.rows is not None and np.array_equal(rows, self.rows)))
+        return comm.tompi4py().allreduce(same, op=_land())
+
+    def setUp(self, pc: PETSc.PC) -> None:
+        """Put the restricted modes on the operator and set up the inner GAMG PC (or keep
+        it for the same inactive set).
+
+        Args:
+            pc: the python PC (its operators: J_II of this Newton iteration).
+        """
+        A, P = pc.getOperators()
+        rows = self._rows(P)
+        last_its = self.snes.getKSP().getIterationNumber()
+        if self.fresh_its is None:
+            self.fresh_its = last_its
+        reuse = PETSc.Options(self.prefix + AMG_PREFIX).getBool("reuse", True) \
+            and last_its <= self.REUSE_GROWTH * self.fresh_its
+        if reuse and self._same_rows(rows, pc.getComm()):
+            self.reuses += 1
+            return
+        self.fresh_its = None
+        self.destroy(pc)                         # GAMG's levels start anew
+        P.setNearNullSpace(self._modes(P, rows))
+        self.inner = PETSc.PC().create(pc.getComm())
+        self.inner.setOptionsPrefix(self.prefix + AMG_PREFIX)
+        self.inner.setType("gamg")
+        self.inner.setFromOptions()
+        self.inner.setOperators(A, P)
+        self.inner.setUp()
+        self.rows = rows
+        self.setups += 1
+
+    def apply(self, pc: PETSc.PC, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        """One multigrid cycle.
+
+        Args:
+            pc: the python PC.
+            x: the residual (inactive dofs).
+            y: output, the preconditioned residual.
+        """
+        self.inner.apply(x, y)
+
+    def view(self, pc: PETSc.PC, viewer: PETSc.Viewer) -> None:
+        """Show the inner PC (-ksp_view).
+
+        Args:
+            pc: the python PC.
+            viewer: where to show it.
+        """
+        if self.inner is not None:
+            self.inner.view(viewer)
+
+    def destroy(self, pc: PETSc.PC) -> None:
+        """Free the inner PC.
+
+        Args:
+            pc: the python PC (unused).
+        """
+        if self.inner is not None:
+            self.inner.destroy()
+            self.inner = None
+
+
+def _land():
+    """MPI's logical and (mpi4py imported when first needed)."""
+    from mpi4py import MPI
+    return MPI.LAND
