@@ -40,8 +40,45 @@ def _run(case, out, n, N, method, nprocs, steps=None, log=print):
     return run_overrides(case, out, _overrides(n, N, method, steps), nprocs)
 
 
+def measured_run(case: Path, out: Path, overrides: list[str], nprocs: int = 1):
+    """One whole-process run, timed from outside, with its peak resident memory.
+
+    Args:
+        case: the case file.
+        out: the output directory (overwritten).
+        overrides: --set items.
+        nprocs: MPI ranks (mpirun above 1).
+
+    Returns:
+        (wall s, peak resident set in bytes of the largest process, summary.json as a dict).
+
+    Raises:
+        RuntimeError: the run failed (its command and the end of its error output).
+    """
+    cmd = [sys.executable, "-m", "app", "run", str(case), "--out", str(out), "--overwrite",
+           "--no-plots", "--quiet"]
+    for item in overrides:
+        cmd += ["--set", item]
+    if nprocs > 1:
+        cmd = ["mpirun", "-n", str(nprocs), *cmd]
+    err = out.parent / f"{out.name}.stderr"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    with open(err, "w") as stderr:
+        proc = subprocess.Popen(cmd, env={**os.environ, **ENV}, stdout=subprocess.DEVNULL,
+                                stderr=stderr)
+        _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode != 0:
+        raise RuntimeError(f"bench run failed ({' '.join(cmd)}):\n{err.read_text()[-2000:]}")
+    peak = usage.ru_maxrss * 1024                      # kilobytes on Linux
+    return wall, peak, json.loads((out / "summary.json").read_text())
+
+
 def run_overrides(case, out, overrides: list[str], nprocs: int = 1):
-    """One whole-process run of a case, timed from outside.
+    """One whole-process run of a case, timed from outside (``measured_run`` without the
+    memory).
 
     Args:
         case: the case file.
@@ -51,22 +88,9 @@ def run_overrides(case, out, overrides: list[str], nprocs: int = 1):
 
     Returns:
         (wall time [s], the run's summary.json).
-
-    Raises:
-        RuntimeError: if the run fails (with its command and error output).
     """
-    cmd = [sys.executable, "-m", "app", "run", str(case), "--out", str(out), "--overwrite",
-           "--no-plots", "--quiet"]
-    for item in overrides:
-        cmd += ["--set", item]
-    if nprocs > 1:
-        cmd = ["mpirun", "-n", str(nprocs), *cmd]
-    t0 = time.perf_counter()
-    proc = subprocess.run(cmd, env={**os.environ, **ENV}, capture_output=True, text=True)
-    wall = time.perf_counter() - t0
-    if proc.returncode != 0:
-        raise RuntimeError(f"bench run failed ({' '.join(cmd)}):\n{proc.stderr[-2000:]}")
-    return wall, json.loads((Path(out) / "summary.json").read_text())
+    wall, _, summary = measured_run(case, out, overrides, nprocs)
+    return wall, summary
 
 
 def _positive_ints(option: str, values, allowed: str = "positive integers") -> None:

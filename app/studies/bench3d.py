@@ -16,57 +16,16 @@ exponent per quantity.
 from __future__ import annotations
 
 import csv
-import json
-import os
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
+
+from app.studies.bench import measured_run
 
 CASES = Path(__file__).resolve().parents[2] / "cases"
 BOX3D = CASES / "box3d.yaml"
 REFERENCE_2D = CASES / "wang_cheng_2021.yaml"
 LEVELS = (8, 16, 24, 32, 64)
-ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-       "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
-
-
-def measured_run(case: Path, out: Path, overrides: list[str], nprocs: int = 1):
-    """One whole-process run, timed from outside, with its peak resident memory.
-
-    Args:
-        case: the case file.
-        out: the output directory (overwritten).
-        overrides: --set items.
-        nprocs: MPI ranks (mpirun above 1).
-
-    Returns:
-        (wall s, peak resident set in bytes of the largest process, summary.json as a dict).
-
-    Raises:
-        RuntimeError: the run failed (its command and the end of its error output).
-    """
-    cmd = [sys.executable, "-m", "app", "run", str(case), "--out", str(out), "--overwrite",
-           "--no-plots", "--quiet"]
-    for item in overrides:
-        cmd += ["--set", item]
-    if nprocs > 1:
-        cmd = ["mpirun", "-n", str(nprocs), *cmd]
-    err = out.parent / f"{out.name}.stderr"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    with open(err, "w") as stderr:
-        proc = subprocess.Popen(cmd, env={**os.environ, **ENV}, stdout=subprocess.DEVNULL,
-                                stderr=stderr)
-        _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    if proc.returncode != 0:
-        raise RuntimeError(f"bench run failed ({' '.join(cmd)}):\n{err.read_text()[-2000:]}")
-    peak = usage.ru_maxrss * 1024                      # kilobytes on Linux
-    return wall, peak, json.loads((out / "summary.json").read_text())
 
 
 def _u_gamma3(out: Path) -> np.ndarray:
