@@ -105,7 +105,7 @@ def snes_vi_options(case, linear: str) -> dict:
     (app/solvers/amg.AMG_PETSC) in place of the direct solver's defaults.
 
     Args:
-        case: the validated Case (petsc, petsc_defaults).
+        case: the validated Case (its petsc options).
         linear: "direct" or "amg".
 
     Returns:
@@ -113,10 +113,11 @@ def snes_vi_options(case, linear: str) -> dict:
     """
     if linear != "amg":
         return dict(case.petsc)
+    from app.io.schema import DEFAULT_PETSC
     from app.solvers.amg import AMG_PETSC, DIRECT_KEYS
 
     given = {k: v for k, v in case.petsc.items()
-             if not (k in DIRECT_KEYS and case.petsc_defaults.get(k) == v)}
+             if not (k in DIRECT_KEYS and DEFAULT_PETSC.get(k) == v)}
     return {**AMG_PETSC, **given}
 
 

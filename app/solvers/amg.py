@@ -8,8 +8,9 @@ scalar unknown per dof and only the constant vector.  ``InactiveSetAMG`` is a PE
 around a GAMG PC: when the KSP sets it up, it takes the inactive set from SNES, restricts the
 rigid body modes Z (in the dofs SNES solves for: R^T Z in the nodal frames on a curved Gamma3)
 to it, orthonormalises them and puts them on J_II as its near-nullspace; then it sets up GAMG.
-The options of the inner PC have the prefix ``<prefix>amg_`` (e.g. -vpcontact_amg_pc_type
-hypre).
+The options of the inner PC have the prefix ``<prefix>amg_`` (e.g.
+-vpcontact_amg_pc_gamg_threshold 0.02; -vpcontact_amg_pc_type hypre works too, but BoomerAMG
+sees no modes: box3d n = 16 took 99 s of steps against 4 s with GAMG).
 """
 from __future__ import annotations
 
@@ -69,15 +70,17 @@ def rigid_body_modes(V) -> np.ndarray:
 
 
 def orthonormal_columns(Z: np.ndarray, comm) -> np.ndarray:
-    """Orthonormalise the columns of a row-distributed matrix (Cholesky of the Gram matrix).
+    """Orthonormalise the columns of a row-distributed matrix (by the eigenvectors of the
+    Gram matrix).
 
     Args:
         Z: this rank's rows.
         comm: the communicator the rows are distributed over.
 
     Returns:
-        Z L^-T with L L^T = Z^T Z (summed over ranks); columns that are (nearly) dependent
-        on the earlier ones are dropped.
+        Z Q W^-1/2 with Z^T Z = Q W Q^T (summed over ranks); directions whose eigenvalue is
+        below 1e-12 times the largest (columns dependent on the row restriction) are
+        dropped.
     """
     G = comm.allreduce(Z.T @ Z)
     w, Q = np.linalg.eigh(G)

@@ -285,8 +285,8 @@ def test_bench_with_failed_configurations_exits_1(tmp_path, monkeypatch, capsys)
     monkeypatch.setattr(bench, "bench", lambda *a, **k: [
         {"n": 4, "h": 0.25, "N": 4, "method": "fast", "nprocs": 1, "failed": "boom"}])
     args = build_parser().parse_args(["bench", "--levels", "4", "--extra", "--ranks", "1",
-                                      "--repeat", "1", "--memory-steps", "--out",
-                                      str(tmp_path / "b")])
+                                      "--repeat", "1", "--memory-steps", "--scene-n", "0",
+                                      "--box3d-levels", "--out", str(tmp_path / "b")])
     assert cmd_bench(args) == 1
     err = capsys.readouterr().err
     assert "1 bench configuration(s) failed: h = 1/4, N = 4, fast, 1 rank(s)" in err
