@@ -20,7 +20,7 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
-from app.solvers.amg import AMG_PETSC, AMG_PREFIX, orthonormal_columns, rigid_body_modes
+from app.solvers.amg import AMG_PETSC, AMG_PREFIX, near_nullspace, rigid_body_modes
 from app.solvers.snesvi import PREFIX, clear_petsc_options, direct_solver, set_petsc_options
 from forms.elasticity import eps
 
@@ -77,12 +77,7 @@ def _stiffness_solver(K: PETSc.Mat, problem, linear: str) -> PETSc.KSP:
     """
     if linear != "amg":
         return direct_solver(K, problem.comm)
-    Z = orthonormal_columns(rigid_body_modes(problem.V), problem.comm)
-    vectors = []
-    for j in range(Z.shape[1]):
-        vectors.append(K.createVecLeft())
-        vectors[-1].array[:] = Z[:, j]
-    K.setNearNullSpace(PETSc.NullSpace().create(vectors=vectors, comm=problem.comm))
+    K.setNearNullSpace(near_nullspace(rigid_body_modes(problem.V), K))
     ksp = PETSc.KSP().create(problem.comm)
     ksp.setOptionsPrefix(TRACE_PREFIX)
     ksp.setOperators(K)

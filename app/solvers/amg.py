@@ -88,6 +88,24 @@ def orthonormal_columns(Z: np.ndarray, comm) -> np.ndarray:
     return Z @ (Q[:, keep] / np.sqrt(w[keep]))
 
 
+def near_nullspace(Z: np.ndarray, P: PETSc.Mat) -> PETSc.NullSpace:
+    """The columns of Z (P's owned rows), orthonormalised, as a PETSc near-nullspace of P.
+
+    Args:
+        Z: (owned rows of P, modes) array, e.g. ``rigid_body_modes``.
+        P: the operator (its layout and communicator).
+
+    Returns:
+        The NullSpace (to set with P.setNearNullSpace).
+    """
+    Z = orthonormal_columns(Z, P.getComm().tompi4py())
+    vectors = []
+    for j in range(Z.shape[1]):
+        vectors.append(P.createVecLeft())
+        vectors[-1].array[:] = Z[:, j]
+    return PETSc.NullSpace().create(vectors=vectors, comm=P.getComm())
+
+
 class InactiveSetAMG:
     """A PETSc python PC: GAMG on the Newton system of SNES VI with the rigid body modes
     restricted to the inactive set as near-nullspace.
@@ -122,14 +140,7 @@ class InactiveSetAMG:
 
     def _modes(self, P: PETSc.Mat, rows) -> PETSc.NullSpace:
         """The near-nullspace of the operator P: Z on its rows, orthonormalised."""
-        Z = orthonormal_columns(self.Z if rows is None else self.Z[rows],
-                                P.getComm().tompi4py())
-        vectors = []
-        for j in range(Z.shape[1]):
-            v = P.createVecLeft()
-            v.array[:] = Z[:, j]
-            vectors.append(v)
-        return PETSc.NullSpace().create(vectors=vectors, comm=P.getComm())
+        return near_nullspace(self.Z if rows is None else self.Z[rows], P)
 
     def _same_rows(self, rows, comm) -> bool:
         """Whether the rows are those of the previous set-up on every rank."""

@@ -162,6 +162,7 @@ class FastStepSolver:
             log.warning("  fast solver: %s; factorising twice instead", exc)
             return None
         self.factorisations = 1
+        self._split = self._mumps                     # the same forward / backward sweeps
         log.info("  fast solver: one distributed MUMPS factorisation, Gamma3 as Schur "
                  "variables")
         return self._mumps.S, self._mumps.Z
@@ -469,7 +470,8 @@ class FastStepSolver:
             self.contact.theta = self._gather_nodal(p.theta)
 
     def _solve_split(self) -> int:
-        """Serial step with the compiled sweeps: u = K^-1 (F_n + E_G lambda) in one solve."""
+        """A step with the split solve (serial: the compiled sweeps; mpirun: MUMPS's
+        condensation and expansion): u = K^-1 (F_n + E_G lambda) in one solve."""
         self._assemble_rhs()
         r = self._split.forward(self.b.array_r)       # r = F_G - K_GI K_II^-1 F_I
         its, y = 0, np.zeros(0)
@@ -487,22 +489,9 @@ class FastStepSolver:
         self.u.vector.array[:self.x.getLocalSize()] = self.x.array_r
         self.u.x.scatter_forward()
 
-    def _solve_mumps(self) -> int:
-        """mpirun step with the Schur-variable MUMPS factor: condensation (r on every
-        rank), the Gamma3 problem, expansion with u_G = y."""
-        self._assemble_rhs()
-        r = self._mumps.forward(self.b.array_r)      # r = F_G - K_GI K_II^-1 F_I
-        self._gamma3_inputs()
-        y, its = self._small_problem(self.Z @ r)
-        self._mumps.backward(y, self.x)
-        self._set_u()
-        return its
-
     def _solve_fast(self) -> int:
         if self._split is not None:
             return self._solve_split()
-        if self._mumps is not None:
-            return self._solve_mumps()
         self._assemble_rhs()
         self.ksp.solve(self.b, self.x)               # u_free = K^-1 F_n
         its = 0

@@ -19,7 +19,12 @@ import numpy as np
 from petsc4py import PETSc
 
 from app.solvers import kernels
-from app.solvers.schur import _symmetric_from_triangle, gather_csr, interior_last_ordering
+from app.solvers.schur import (
+    _symmetric_from_triangle,
+    gather_csr,
+    interior_last_ordering,
+    spd_inverse,
+)
 
 MUMPS = kernels.Library("_vpcontact_mumps", ("mumps_schur",),
                         "MUMPS with Gamma3 Schur variables (factorising twice under mpirun)",
@@ -67,29 +72,6 @@ def schur_from_buffer(buffer: np.ndarray) -> np.ndarray:
         S, dense (m, m), symmetric.
     """
     return _symmetric_from_triangle(np.tril(buffer))
-
-
-def inverse_spd(S: np.ndarray) -> np.ndarray:
-    """Z = S^-1 by LAPACK's Cholesky factorisation and inverse (m^3/3 flops each).
-
-    Args:
-        S: symmetric positive definite, dense (m, m).
-
-    Returns:
-        Z, dense (m, m), symmetric.
-
-    Raises:
-        MumpsError: S is not positive definite.
-    """
-    from scipy.linalg.lapack import dpotrf, dpotri
-
-    from app.solvers.threads import blas_threads
-    with blas_threads(large=True):
-        C, info = dpotrf(S, lower=1, clean=1)
-        Z, info2 = (dpotri(C, lower=1, overwrite_c=1) if info == 0 else (None, info))
-    if info != 0 or info2 != 0:
-        raise MumpsError(f"the Schur complement is not positive definite ({info}, {info2})")
-    return _symmetric_from_triangle(np.tril(Z))
 
 
 class SchurMumps:
@@ -141,7 +123,9 @@ class SchurMumps:
         self._check(self.lib.ms_factor(h, buf(S)), "factorisation")
         S = schur_from_buffer(S) if comm.rank == 0 else None
         self.S = comm.bcast(S, root=0)                 # once: m^2 values
-        self.Z = inverse_spd(self.S)
+        self.Z = spd_inverse(self.S)
+        if self.Z is None:
+            raise MumpsError("the Schur complement from MUMPS is not positive definite")
 
     def _buf(self, a: np.ndarray | None):
         return kernels.buf(self.ffi, a)
@@ -176,6 +160,7 @@ class SchurMumps:
         self.lib.ms_set_solve(self._h, hi - lo, buf(self._irhs), buf(self.rhs),
                               buf(self.redrhs), lsol, buf(self.sol), buf(self._isol))
         self._lsol, self._scatter = lsol, None
+        self._x = K.createVecRight()                   # the scatter's target
 
     def forward(self, b: np.ndarray) -> np.ndarray:
         """The condensation: r = b_G - K_GI K_II^-1 b_I (collective).
@@ -190,13 +175,13 @@ class SchurMumps:
         self._check(self.lib.ms_solve(self._h, 1), "condensation")
         return self.comm.bcast(self.redrhs.copy() if self.comm.rank == 0 else None, root=0)
 
-    def backward(self, y: np.ndarray, x: PETSc.Vec) -> None:
+    def backward(self, y: np.ndarray, x: np.ndarray) -> None:
         """The expansion: x = K^-1 (b + E_G lambda) with x_G = y, for the b of the last
-        ``forward`` (collective).
+        ``forward`` (collective; as kernels.GLastSolve.backward).
 
         Args:
             y: the Gamma3 values, shape (m,) (read on rank 0).
-            x: the solution vector (K's layout), overwritten.
+            x: this rank's owned entries of the solution, overwritten.
         """
         if self.comm.rank == 0:
             self.redrhs[:] = y
@@ -205,10 +190,11 @@ class SchurMumps:
             self._src = PETSc.Vec().createWithArray(self.sol[:self._lsol], comm=PETSc.COMM_SELF)
             index = PETSc.IS().createGeneral((self._isol[:self._lsol] - 1).astype(PETSc.IntType),
                                              comm=PETSc.COMM_SELF)
-            self._scatter = PETSc.Scatter().create(self._src, None, x, index)
+            self._scatter = PETSc.Scatter().create(self._src, None, self._x, index)
             index.destroy()
-        self._scatter.scatter(self._src, x, addv=PETSc.InsertMode.INSERT,
+        self._scatter.scatter(self._src, self._x, addv=PETSc.InsertMode.INSERT,
                               mode=PETSc.ScatterMode.FORWARD)
+        x[:] = self._x.array_r
 
     def destroy(self) -> None:
         """Free MUMPS's data (JOB = -2) and the scatter (collective)."""
@@ -219,3 +205,6 @@ class SchurMumps:
             self._scatter.destroy()
             self._src.destroy()
             self._scatter = None
+        if getattr(self, "_x", None) is not None:
+            self._x.destroy()
+            self._x = None

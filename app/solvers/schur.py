@@ -317,7 +317,7 @@ def _schur_pair_cholesky(factor: GLastLDL) -> tuple[np.ndarray, np.ndarray] | No
     Returns:
         (S, Z), or None if a pivot of D_G is not positive (K not positive definite there).
     """
-    from scipy.linalg.lapack import dlauum, dpotri
+    from scipy.linalg.lapack import dlauum
 
     from app.solvers.threads import blas_threads
     D_G = factor.D[factor.n - factor.m:]
@@ -328,10 +328,43 @@ def _schur_pair_cholesky(factor: GLastLDL) -> tuple[np.ndarray, np.ndarray] | No
         # C C^T = J (U U^T) J with U = J C J upper triangular, J the reversal; LAPACK
         # writes one triangle and leaves the other as given (zero here)
         U, info = dlauum(np.asfortranarray(C[::-1, ::-1]), lower=0, overwrite_c=1)
-        Z, info2 = dpotri(C, lower=1, overwrite_c=1)
-    if info != 0 or info2 != 0:
+        Z = inverse_from_cholesky(C)
+    if info != 0 or Z is None:
         return None
-    return _symmetric_from_triangle(U[::-1, ::-1]), _symmetric_from_triangle(Z)
+    return _symmetric_from_triangle(U[::-1, ::-1]), Z
+
+
+def inverse_from_cholesky(C: np.ndarray) -> np.ndarray | None:
+    """Z = C^-T C^-1 from a lower triangular Cholesky factor C, by LAPACK's dpotri (which
+    overwrites C; zero above the diagonal).
+
+    Args:
+        C: lower triangular (m, m), Fortran order.
+
+    Returns:
+        Z, dense (m, m), symmetric; None if C is singular.
+    """
+    from scipy.linalg.lapack import dpotri
+    Z, info = dpotri(C, lower=1, overwrite_c=1)
+    return _symmetric_from_triangle(Z) if info == 0 else None
+
+
+def spd_inverse(S: np.ndarray) -> np.ndarray | None:
+    """S^-1 of a symmetric positive definite S by LAPACK's Cholesky factorisation and
+    inverse (dpotrf, dpotri: m^3/3 flops each, against m^3 for a general inverse).
+
+    Args:
+        S: dense (m, m), symmetric.
+
+    Returns:
+        S^-1, symmetric; None if S is not positive definite.
+    """
+    from scipy.linalg.lapack import dpotrf
+
+    from app.solvers.threads import blas_threads
+    with blas_threads(large=True):
+        C, info = dpotrf(S, lower=1, clean=1)
+        return inverse_from_cholesky(C) if info == 0 else None
 
 
 def _symmetric_from_triangle(T: np.ndarray) -> np.ndarray:
