@@ -14,7 +14,11 @@ DEB_PACKAGES := python3-dolfinx-real python3-petsc4py-real python3-mpi4py python
                 python3-yaml python3-jsonschema python3-numpy python3-pytest python3-venv \
                 python3-pip python3-setuptools python3-wheel python3-dev openmpi-bin \
                 python3-h5py python3-matplotlib python3-hypothesis libopenblas0-pthread \
-                libsuitesparse-dev python3-threadpoolctl libmumps-dev
+                libsuitesparse-dev python3-threadpoolctl libmumps-dev \
+                libegl1 libegl-mesa0 libgl1 libglx-mesa0
+# pyvista (off-screen pictures through EGL, no display needed) and its VTK are not Debian
+# bookworm packages (python3-vtk9 is VTK 9.1, older than pyvista needs): from PyPI, pinned.
+PYVISTA := pyvista==0.49.1 vtk==9.7.2
 
 # libopenblas0-pthread replaces the reference BLAS (Debian alternatives): MUMPS factorisation
 # 2.7x faster at 33k dofs (measured); one thread, as small dense solves slow down with more.
@@ -27,7 +31,7 @@ export OMP_NUM_THREADS := 1
 .PHONY: help setup demo test lint convergence stability bench docs clean
 
 help:
-	@echo "make setup        install Debian packages, create $(VENV), pip install -e . and ruff"
+	@echo "make setup        install Debian packages, create $(VENV), pip install -e ., pyvista and ruff"
 	@echo "                  (idempotent)"
 	@echo "make demo         run $(CASE) (the paper's Section 4 example) into results/"
 	@echo "make test         run the test suite (serial and mpirun -n 2)"
@@ -48,8 +52,9 @@ setup:
 	  echo "setup: installing Debian packages:" $$missing; \
 	  apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y $$missing; \
 	fi
-	@# the stamp is redone when pyproject.toml changed or ruff $(RUFF_VERSION) is missing
+	@# the stamp is redone when pyproject.toml changed, ruff $(RUFF_VERSION) or pyvista is missing
 	@$(PY) -m ruff --version 2>/dev/null | grep -qx 'ruff $(RUFF_VERSION)' || rm -f $(STAMP)
+	@$(PY) -c "import pyvista" 2>/dev/null || rm -f $(STAMP)
 	@$(MAKE) --no-print-directory $(STAMP)
 	@# byte-compile our modules (the editable install does not, and with PYTHONDONTWRITEBYTECODE
 	@# set, as on these machines, every run would compile them again: 0.08 s, measured)
@@ -61,7 +66,8 @@ $(STAMP): pyproject.toml
 	@# ruff (make lint) is not a Debian bookworm package: from PyPI.  Without network access
 	@# the rest still works; the next make setup tries again.
 	$(PY) -m pip install --quiet ruff==$(RUFF_VERSION) || echo "setup: warning: ruff not installed (make lint needs it)"
-	@$(PY) -c "import dolfinx, petsc4py, gmsh, yaml, jsonschema, app; print('setup: dolfinx', dolfinx.__version__, 'ok')"
+	$(PY) -m pip install --quiet $(PYVISTA) || { echo "setup: error: pyvista (PyPI) could not be installed: the pictures and their tests need it"; exit 1; }
+	@$(PY) -c "import dolfinx, petsc4py, gmsh, yaml, jsonschema, pyvista, app; print('setup: dolfinx', dolfinx.__version__, 'pyvista', pyvista.__version__, 'ok')"
 	@touch $(STAMP)
 
 # ./vpcontact runs .venv/bin/python -m app (the README's commands use it too)

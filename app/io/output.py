@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 from dolfinx import io as dio
 
+from app.io.xdmf import one_dataset
+
 OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv")
 
 
@@ -148,13 +150,15 @@ def write_json(comm, path: Path, data: dict) -> None:
 
 
 class FieldWriter:
-    """solution.xdmf: u (P1 vector), sigma (DG0 tensor), sigma_vm, kappa (DG0) per time.
+    """solution.xdmf: u (P1 vector), sigma (DG0 tensor), sigma_vm, kappa (DG0) per time, as
+    one dataset (app/io/xdmf.py: one temporal collection, every field in the Grid of its time).
 
     Crash safety: dolfinx rewrites its XML file when it closes it, so a run killed
     during a write would leave a truncated XDMF.  dolfinx therefore writes to a work file
     ``.solution.work.xdmf`` whose HDF5 name ``.solution.work.h5`` is a symlink to
     solution.h5; after every output step the file is closed (HDF5 flushed) and its XML is
-    published as solution.xdmf by an atomic rename, pointing at solution.h5.  solution.xdmf
+    published as solution.xdmf by an atomic rename, in the one-dataset form and pointing at
+    solution.h5.  solution.xdmf
     is thus always a complete description of the steps written so far.
 
     Args:
@@ -189,7 +193,8 @@ class FieldWriter:
 
     def _publish(self) -> None:
         def publish():
-            text = self.work.read_text().replace(f"{self.work_h5.name}:", f"{self.h5.name}:")
+            text = one_dataset(self.work.read_text(), self.path.stem, self.work_h5.name,
+                               self.h5.name)
             atomic_write(self.path, text)
         on_rank0(self.comm, publish)
 

@@ -27,12 +27,14 @@ def demo_out(tmp_path_factory):
 def test_demo_writes_the_three_outputs(demo_out):
     assert (demo_out / "solution.xdmf").is_file() and (demo_out / "solution.h5").is_file()
     root = ET.parse(demo_out / "solution.xdmf").getroot()
-    names = {g.get("Name") for g in root.iter("Grid") if g.get("GridType") == "Collection"}
-    assert names == {"u", "sigma", "sigma_vm", "kappa"}
-    collection = next(g for g in root.iter("Grid")
-                      if g.get("Name") == "u" and g.get("GridType") == "Collection")
-    times = [float(g.find("Time").get("Value")) for g in collection.findall("Grid")]
+    collections = [g for g in root.iter("Grid") if g.get("GridType") == "Collection"]
+    assert [g.get("Name") for g in collections] == ["solution"]     # one dataset
+    grids = collections[0].findall("Grid")
+    times = [float(g.find("Time").get("Value")) for g in grids]
     assert times == pytest.approx([n / 16 for n in range(17)])
+    for g in grids:
+        assert [a.get("Name") for a in g.findall("Attribute")] == ["u", "sigma", "sigma_vm",
+                                                                   "kappa"]
 
     s = json.loads((demo_out / "summary.json").read_text())
     assert s["case"] == "wang_cheng_2021" and s["status"] == "completed"

@@ -144,8 +144,9 @@ def test_xdmf_is_readable_after_the_process_is_killed(delay, tmp_path):
     proc.kill()
     proc.communicate(timeout=60)
     root = ET.fromstring((out / "solution.xdmf").read_text())
-    steps = root.findall(".//Grid[@Name='u'][@GridType='Uniform']")
+    steps = root.findall(".//Grid[@Name='solution'][@GridType='Uniform']")
     assert len(steps) >= 2
+    assert all(len(g.findall("Attribute")) == 4 for g in steps)   # u, sigma, sigma_vm, kappa
     with h5py.File(out / "solution.h5", "r") as f:
         for ref in root.iter("DataItem"):
             if ref.get("Format") == "HDF":
