@@ -11,7 +11,8 @@ A Simulation calls, in the order the observers were added (``sim.add``):
 
 An observer stops a run by raising StopRun (status and StepFailure); an OutputError raised
 by ``start`` or ``step`` ends the run as "failed" (the files written before stay intact).
-The command line registers FieldOutput, Checkpointer, StepLog, RunFiles and its progress bar
+The command line registers FieldOutput, ContactOutput, HistoryOutput, Checkpointer, StepLog,
+RunFiles and its progress bar
 (ProgressBar, app/cli/progress.py) in app/cli/commands.py; every run has the blow-up monitor
 (app/post/divergence.py); the convergence study adds its sampler (app/studies/convergence.py).
 """
@@ -21,7 +22,16 @@ import logging
 from pathlib import Path
 
 from app.io import checkpoint
-from app.io.output import FieldWriter, OutputError, write_contact_csv, write_json
+from app.io.contact_xdmf import ContactWriter
+from app.io.history import HistoryWriter, history_columns
+from app.io.output import (
+    FieldWriter,
+    OutputError,
+    gather_contact_table,
+    state_counts,
+    write_contact_csv,
+    write_json,
+)
 from app.records import HINT_OUTPUT, StepFailure
 
 log = logging.getLogger("vpcontact")
@@ -75,6 +85,20 @@ class Observer:
         """
 
 
+def is_output_step(sim) -> bool:
+    """Whether the fields of step n are written.
+
+    Args:
+        sim: the Simulation after step n was accepted.
+
+    Returns:
+        True for every output.every-th step, the last one, and the one a signal stopped
+        the run at.
+    """
+    return (sim.n % sim.case.output.every == 0 or sim.stepper.finished(sim.t)
+            or sim.interrupted)
+
+
 class FieldOutput(Observer):
     """solution.xdmf in ``sim.outdir``: u, sigma, sigma_vm (and kappa) at the start, every
     output.every-th step, the last step and the step a signal stopped at."""
@@ -107,8 +131,7 @@ class FieldOutput(Observer):
         Raises:
             OutputError: the write failed.
         """
-        if (sim.n % sim.case.output.every == 0 or sim.stepper.finished(sim.t)
-                or sim.interrupted):
+        if is_output_step(sim):
             self.writer.write(sim.t)
 
     def end(self, sim, summary) -> None:
@@ -120,6 +143,91 @@ class FieldOutput(Observer):
         """
         if self.writer is not None:
             self.writer.close()
+
+
+class ContactOutput(Observer):
+    """contact.xdmf in ``sim.outdir`` (app/io/contact_xdmf.py): the Gamma3 facet mesh with
+    the contact table at the output times of solution.xdmf; and the Gamma3 node counts of
+    every step in its record (``contact_states``: history.csv, summary.json).  Nothing
+    without Gamma3."""
+
+    def __init__(self):
+        self.writer = None
+
+    def _table(self, sim) -> dict | None:
+        c = sim.case.contact
+        table = sim.problem.contact_table(sim.boundary_residual)   # None: assembled
+        return gather_contact_table(sim.comm, table, c.g,
+                                    compliance=c.c_nu is not None)
+
+    def start(self, sim) -> None:
+        """Write the facet mesh and the table at the start time.
+
+        Args:
+            sim: the Simulation, set up.
+
+        Raises:
+            OutputError: contact.xdmf cannot be written.
+        """
+        p = sim.problem
+        if p.gamma3 is None:
+            return
+        self.writer = ContactWriter(sim.comm, Path(sim.outdir) / "contact.xdmf",
+                                    p.gamma3_facet_coordinates(), p.dim)
+        self.writer.write(sim.t, self._table(sim))
+
+    def step(self, sim, record: dict) -> None:
+        """Count the node states of step n; write the table if n is an output step.
+
+        Args:
+            sim: the Simulation after step n was accepted.
+            record: the step's record; gets ``contact_states``.
+
+        Raises:
+            OutputError: the write failed.
+        """
+        if self.writer is None:
+            return
+        data = self._table(sim)
+        record["contact_states"] = sim.comm.bcast(
+            state_counts(data) if sim.comm.rank == 0 else None, root=0)
+        if is_output_step(sim):
+            self.writer.write(sim.t, data)
+
+
+class HistoryOutput(Observer):
+    """history.csv in ``sim.outdir`` (app/io/history.py): a row per accepted step, appended
+    as the run goes (after ContactOutput, whose node counts it shows)."""
+
+    def __init__(self):
+        self.writer = None
+
+    def start(self, sim) -> None:
+        """Write the header and the rows of restored steps.
+
+        Args:
+            sim: the Simulation, set up.
+
+        Raises:
+            OutputError: history.csv cannot be written.
+        """
+        p = sim.problem
+        groups = [str(g.name) for g in p.dirichlet.groups]
+        columns = history_columns(p.dim, groups, p.gamma3 is not None)
+        self.writer = HistoryWriter(sim.comm, Path(sim.outdir) / "history.csv", columns,
+                                    p.dim, sim.steps)
+
+    def step(self, sim, record: dict) -> None:
+        """Append the row of step n.
+
+        Args:
+            sim: the Simulation after step n was accepted.
+            record: the step's record.
+
+        Raises:
+            OutputError: the write failed.
+        """
+        self.writer.append(record)
 
 
 class Checkpointer(Observer):

@@ -166,6 +166,7 @@ class Simulation:
         self.n, self.t, self.steps = 0, 0.0, []
         self.status, self.failure = "completed", None
         self.interrupted, self.last_checkpoint = False, None
+        self.boundary_residual = None      # the last step's nodal boundary forces (forces())
         self._signals = None
         self._clock = {}
 
@@ -393,7 +394,8 @@ class Simulation:
             "wall_s": wall,
             "k": k,
         }
-        forces = p.forces()                         # on the body: supports, foundation
+        self.boundary_residual = p.bulk_residual(layer=True)      # forces, contact table
+        forces = p.forces(self.boundary_residual)   # on the body: supports, foundation
         record["reactions"] = forces["reactions"]
         if forces["contact_force"] is not None:
             record["contact_force"] = forces["contact_force"]

@@ -107,7 +107,14 @@ def cmd_run(args, petsc_cli: dict) -> int:
         return EXIT_BAD_INPUT
 
     from app.cli.progress import ProgressBar
-    from app.observers import Checkpointer, FieldOutput, RunFiles, StepLog
+    from app.observers import (
+        Checkpointer,
+        ContactOutput,
+        FieldOutput,
+        HistoryOutput,
+        RunFiles,
+        StepLog,
+    )
     from app.simulation import run
     from app.solvers import threads
 
@@ -117,7 +124,8 @@ def cmd_run(args, petsc_cli: dict) -> int:
     log.info("vpcontact %s: case %s -> %s (%d MPI rank%s)", __version__, args.case, outdir,
              comm.size, "s" if comm.size > 1 else "")
     progress = [ProgressBar()] if not args.quiet and not args.verbose else []
-    observers = [FieldOutput(), Checkpointer(), *progress, StepLog(), RunFiles()]
+    observers = [FieldOutput(), ContactOutput(), HistoryOutput(), Checkpointer(), *progress,
+                 StepLog(), RunFiles()]
     threads.request(args.threads)
     result = run(case, comm, observers, outdir=outdir, restart=loaded.get("checkpoint"))
     s = result.summary

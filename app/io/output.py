@@ -1,4 +1,5 @@
-"""Outputs of a run: solution.xdmf (+ .h5), summary.json, contact.csv.
+"""Outputs of a run: solution.xdmf (+ .h5), summary.json, contact.csv (contact.xdmf:
+app/io/contact_xdmf.py, history.csv: app/io/history.py).
 
 JSON and CSV are written atomically (temporary file + rename) by rank 0; the XDMF file is
 written collectively, its mesh once and the fields at every output time.
@@ -14,9 +15,10 @@ from pathlib import Path
 import numpy as np
 from dolfinx import io as dio
 
-from app.io.xdmf import one_dataset
+from app.io.xdmf import TemporalXml, dolfinx_layout, dolfinx_time_key
 
-OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv")
+OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv", "contact.xdmf",
+                "contact.h5", "history.csv")
 
 
 def csv_text(columns, rows) -> str:
@@ -151,15 +153,15 @@ def write_json(comm, path: Path, data: dict) -> None:
 
 class FieldWriter:
     """solution.xdmf: u (P1 vector), sigma (DG0 tensor), sigma_vm, kappa (DG0) per time, as
-    one dataset (app/io/xdmf.py: one temporal collection, every field in the Grid of its time).
+    one dataset (app/io/xdmf.py: one temporal collection, every field in the Grid of its
+    time) over the HDF5 datasets dolfinx writes (in parallel) into solution.h5.
 
     Crash safety: dolfinx rewrites its XML file when it closes it, so a run killed
     during a write would leave a truncated XDMF.  dolfinx therefore writes to a work file
     ``.solution.work.xdmf`` whose HDF5 name ``.solution.work.h5`` is a symlink to
-    solution.h5; after every output step the file is closed (HDF5 flushed) and its XML is
-    published as solution.xdmf by an atomic rename, in the one-dataset form and pointing at
-    solution.h5.  solution.xdmf
-    is thus always a complete description of the steps written so far.
+    solution.h5; after every output step the file is closed (HDF5 flushed), and rank 0
+    adds the new datasets to solution.xdmf's XML and publishes it by an atomic rename.
+    solution.xdmf is thus always a complete description of the steps written so far.
 
     Args:
         comm: the MPI communicator.
@@ -183,7 +185,8 @@ class FieldWriter:
                 f.write_mesh(mesh)
         except RuntimeError as exc:             # dolfinx's HDF5 layer
             raise OutputError(f"{self.h5}: cannot write the mesh ({exc})") from None
-        self._publish()
+        self.xml, self._layout, self._known = None, None, {}
+        on_rank0(comm, self._start_xml)
 
     def _fresh_files(self) -> None:
         for p in (self.work, self.work_h5, self.h5):
@@ -191,12 +194,33 @@ class FieldWriter:
                 p.unlink()
         self.work_h5.symlink_to(self.h5.name)
 
-    def _publish(self) -> None:
-        def publish():
-            text = one_dataset(self.work.read_text(), self.path.stem, self.work_h5.name,
-                               self.h5.name)
-            atomic_write(self.path, text)
-        on_rank0(self.comm, publish)
+    def _start_xml(self) -> None:
+        """The mesh's items from dolfinx's XML; solution.xdmf with the mesh alone."""
+        topology, geometry, _ = dolfinx_layout(self.work.read_text(), self.h5.name)
+        self.xml = TemporalXml(self.path.stem, topology, geometry)
+        atomic_write(self.path, self.xml.text())
+
+    def _add_time(self, t: float) -> None:
+        """Append the Grid of time t: each field's dataset is the one dolfinx added to its
+        HDF5 group (the fields' types and centres from dolfinx's XML, read once)."""
+        import h5py
+        if self._layout is None:
+            self._layout = dolfinx_layout(self.work.read_text(), self.h5.name)[2]
+        attributes = []
+        with h5py.File(self.h5, "r") as f:
+            for field in self._layout:
+                group, known = f["Function"][field.name], self._known.setdefault(field.name, set())
+                key = dolfinx_time_key(t)
+                new = [key] if key in group and key not in known else \
+                    [k for k in group if k not in known]
+                if len(new) != 1:
+                    raise OutputError(f"{self.h5}: {len(new)} new datasets of {field.name} at "
+                                      f"t = {t:g} (expected 1)")
+                known.add(new[0])
+                attributes.append(field.attribute(self.h5.name, f"/Function/{field.name}/{new[0]}",
+                                                  group[new[0]].shape))
+        self.xml.add(t, attributes)
+        atomic_write(self.path, self.xml.text())
 
     def write(self, t: float) -> None:
         """Append the fields at time t and republish solution.xdmf (collective).
@@ -215,7 +239,7 @@ class FieldWriter:
         except RuntimeError as exc:             # dolfinx's HDF5 layer: disk full, read-only
             raise OutputError(f"{self.h5}: cannot write the fields at t = {t:g} ({exc})") \
                 from None
-        self._publish()
+        on_rank0(self.comm, self._add_time, t)
 
     def close(self) -> None:
         """Remove the work file and its link (solution.xdmf and solution.h5 stay)."""
@@ -266,10 +290,54 @@ def classify(data: dict, g: float | None, compliance: bool = True) -> np.ndarray
     return state
 
 
+def gather_contact_table(comm, table: dict, g: float | None,
+                         compliance: bool = True) -> dict | None:
+    """The contact table of all ranks on rank 0, sorted by coordinates, with the node
+    states (collective; O(Gamma3 nodes) data).
+
+    Args:
+        comm: the MPI communicator.
+        table: this rank's columns (problem.contact_table()).
+        g: the bound of the unilateral constraint (None: no bound).
+        compliance: the foundation has a normal compliance (see classify).
+
+    Returns:
+        On rank 0: column -> values, the table's columns then ``state``; None elsewhere.
+    """
+    local = {k: np.asarray(v) for k, v in table.items()}
+    parts = comm.gather(local, root=0)
+    if comm.rank != 0:
+        return None
+    data = {k: np.concatenate([p[k] for p in parts]) for k in local}
+    # sort on rounded coordinates: dof coordinates carry rank-dependent round-off
+    scale = max(np.abs(data[k]).max(initial=0.0) for k in ("x", "y", "z") if k in data)
+    keys = [np.round(data[k] / max(scale, 1e-300), 9) for k in ("z", "y", "x") if k in data]
+    order = np.lexsort(tuple(keys))
+    data = {k: v[order] for k, v in data.items()}
+    data["state"] = classify(data, g, compliance)
+    return data
+
+
+def state_counts(data: dict) -> dict:
+    """The node counts of a gathered contact table (gather_contact_table).
+
+    Args:
+        data: the table with its ``state`` column.
+
+    Returns:
+        {"bound", "compliance", "separated"(, "prescribed" where some are), "nodes"}.
+    """
+    counts = {s: int(np.sum(data["state"] == s)) for s in ("bound", "compliance", "separated")}
+    if "_prescribed" in data and np.any(data["_prescribed"]):
+        counts["prescribed"] = int(np.sum(data["state"] == "prescribed"))
+    counts["nodes"] = int(len(data["state"]))
+    return counts
+
+
 def write_contact_csv(comm, path: Path, table: dict, g: float | None,
                       compliance: bool = True) -> dict:
-    """Gather the per-node contact table on rank 0, sort by coordinates and write it (columns
-    in the table's order, then ``state``).  In 2D the columns are x, y, u_x, u_y, u_nu,
+    """Gather the per-node contact table on rank 0, sorted by coordinates, and write it
+    (columns in the table's order, then ``state``).  In 2D the columns are x, y, u_x, u_y, u_nu,
     u_tau (along the nodal tangent), neg_sigma_nu (the contact pressure, the bound's reaction
     included), neg_sigma_tau; in 3D z, u_z, the components in the nodal frame (u_tau1,
     u_tau2, neg_sigma_tau1, neg_sigma_tau2) and the slip magnitude u_tau appear, and xi
@@ -284,32 +352,21 @@ def write_contact_csv(comm, path: Path, table: dict, g: float | None,
         compliance: the foundation has a normal compliance (see classify).
 
     Returns:
-        The counts of node states (bound, compliance, separated, nodes) on every rank.
+        The counts of node states (state_counts) on every rank.
 
     Raises:
         OutputError: on every rank, if the file could not be written.
     """
-    local = {k: np.asarray(v) for k, v in table.items()}
-    parts = comm.gather(local, root=0)
-    counts = None
+    data = gather_contact_table(comm, table, g, compliance)
+    counts = text = None
     if comm.rank == 0:
-        data = {k: np.concatenate([p[k] for p in parts]) for k in local}
-        # sort on rounded coordinates: dof coordinates carry rank-dependent round-off
-        scale = max(np.abs(data[k]).max(initial=0.0) for k in ("x", "y", "z") if k in data)
-        keys = [np.round(data[k] / max(scale, 1e-300), 9) for k in ("z", "y", "x") if k in data]
-        order = np.lexsort(tuple(keys))
-        data = {k: v[order] for k, v in data.items()}
-        data["state"] = classify(data, g, compliance)
-        columns = [k for k in local if not k.startswith("_")] + ["state"]
+        columns = [k for k in table if not k.startswith("_")] + ["state"]
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
         writer.writerow(columns)
-        for i in range(len(data["x"])):
+        for i in range(len(data["state"])):
             writer.writerow([repr(float(data[c][i])) if c != "state" else data[c][i]
                              for c in columns])
-        counts = {s: int(np.sum(data["state"] == s)) for s in ("bound", "compliance", "separated")}
-        if "_prescribed" in data and np.any(data["_prescribed"]):
-            counts["prescribed"] = int(np.sum(data["state"] == "prescribed"))
-        counts["nodes"] = int(len(data["x"]))
-    on_rank0(comm, lambda: atomic_write(path, buf.getvalue()))    # OutputError on every rank
+        counts, text = state_counts(data), buf.getvalue()
+    on_rank0(comm, lambda: atomic_write(path, text))    # OutputError on every rank
     return comm.bcast(counts, root=0)

@@ -1,76 +1,162 @@
-"""One XDMF dataset from dolfinx's XDMF file: the XML that ParaView and VTK open as one mesh
-with every field at every time.
+"""XDMF files that ParaView and VTK open as one dataset: one temporal collection whose Grid
+at each time carries the mesh's Topology and Geometry and every field of that time.
 
 dolfinx (XDMFFile.write_function) writes the mesh as one Grid and each function as its own
 temporal collection, so readers show one block per function (ParaView's Xdmf3 readers,
-pyvista.read: a MultiBlock of 5).  ``one_dataset`` rewrites that XML, not the heavy data:
-one temporal collection whose Grid at each time carries the mesh's Topology and Geometry
-and every function written at that time as an Attribute; the DataItems still point at the
-datasets dolfinx wrote (in parallel) into the HDF5 file.
+pyvista.read: a MultiBlock of 5).  solution.xdmf is therefore our own XML over dolfinx's
+HDF5 datasets, and contact.xdmf over ours (app/io/contact_xdmf.py).  The XML is built as
+the run goes, one Grid's text per time, so writing step n costs O(n) string joining and
+never re-parses the file.
+
+Every DataItem states Precision="8": dolfinx writes float64 and int64 but leaves XDMF's
+default (4), with which VTK's XDMF reader reads float32.
 """
 from __future__ import annotations
 
-import copy
 import xml.etree.ElementTree as ET
-
-XINCLUDE = "http://www.w3.org/2001/XInclude"
-ET.register_namespace("xi", XINCLUDE)
+from dataclasses import dataclass
 
 
 class XdmfLayoutError(ValueError):
-    """The XML is not the layout dolfinx writes (mesh Grid, then temporal collections)."""
+    """The XML is not the layout dolfinx writes (a mesh Grid, temporal collections)."""
 
 
-def one_dataset(text: str, name: str = "solution", h5_from: str | None = None,
-                h5_to: str | None = None) -> str:
-    """The one-dataset form of a dolfinx XDMF file's XML.
+def data_item(h5: str, path: str, shape, number: str = "Float") -> ET.Element:
+    """A DataItem pointing at an HDF5 dataset.
 
     Args:
-        text: the XML dolfinx wrote (a Uniform mesh Grid, then one temporal collection per
-            function, each Grid with a Time and Attributes).
-        name: the name of the collection and of its Grids (the dataset's name in ParaView).
-        h5_from, h5_to: the HDF5 file name in the DataItems, and its replacement (the work
-            file's name and the published one); None: unchanged.
+        h5: the HDF5 file's name (relative to the XDMF file).
+        path: the dataset's path in it.
+        shape: its shape.
+        number: "Float" (float64) or "Int" (int64).
 
     Returns:
-        The XML: one temporal collection; per time (in the order first written) one Uniform
-        Grid with the mesh's Topology and Geometry and the Attributes of that time, in the
-        order of the functions.  Every DataItem states Precision="8": dolfinx writes float64
-        and int64 but leaves XDMF's default (4), so VTK's XDMF reader read float32.
+        The element.
+    """
+    item = ET.Element("DataItem", Dimensions=" ".join(map(str, shape)), NumberType=number,
+                      Precision="8", Format="HDF")
+    item.text = f"{h5}:{path}"
+    return item
+
+
+@dataclass(frozen=True)
+class Field:
+    """A field of the dataset: its name, XDMF AttributeType (Scalar, Vector, Tensor) and
+    Center (Node, Cell)."""
+
+    name: str
+    kind: str
+    center: str
+
+    def attribute(self, h5: str, path: str, shape) -> ET.Element:
+        """The Attribute of this field at one time.
+
+        Args:
+            h5: the HDF5 file's name.
+            path: the dataset of this time.
+            shape: its shape.
+
+        Returns:
+            The element.
+        """
+        att = ET.Element("Attribute", Name=self.name, AttributeType=self.kind,
+                         Center=self.center)
+        att.append(data_item(h5, path, shape))
+        return att
+
+
+class TemporalXml:
+    """The XML text of one temporal collection over one mesh, built a time at a time.
+
+    Args:
+        name: the collection's and its Grids' name (the dataset's name in ParaView).
+        topology, geometry: the mesh's Topology and Geometry elements.
+    """
+
+    def __init__(self, name: str, topology: ET.Element, geometry: ET.Element):
+        self.name = name
+        self._mesh = _text(topology, 4) + _text(geometry, 4)
+        self._grids: list[str] = []
+
+    def add(self, t: float, attributes: list[ET.Element]) -> None:
+        """Append the Grid of time t.
+
+        Args:
+            t: the time.
+            attributes: its Attribute elements.
+        """
+        body = "".join(_text(a, 4) for a in attributes)
+        self._grids.append(f'      <Grid Name="{self.name}" GridType="Uniform">\n{self._mesh}'
+                           f'        <Time Value="{float(t)!r}" />\n{body}      </Grid>\n')
+
+    @property
+    def times(self) -> int:
+        """The number of times added."""
+        return len(self._grids)
+
+    def text(self) -> str:
+        """The whole XML file.
+
+        Returns:
+            The text (the mesh alone in one Grid while no time was added).
+        """
+        grids = self._grids or [f'      <Grid Name="{self.name}" GridType="Uniform">\n'
+                                f"{self._mesh}      </Grid>\n"]
+        return ('<?xml version="1.0"?>\n<Xdmf Version="3.0">\n  <Domain>\n'
+                f'    <Grid Name="{self.name}" GridType="Collection" '
+                f'CollectionType="Temporal">\n{"".join(grids)}    </Grid>\n'
+                "  </Domain>\n</Xdmf>\n")
+
+
+def dolfinx_time_key(t: float) -> str:
+    """The name dolfinx 0.5 gives a function's dataset at time t (FieldWriter checks that
+    it exists, and otherwise looks for the one new dataset).
+
+    Args:
+        t: the time.
+
+    Returns:
+        boost::lexical_cast of t (17 significant digits, %.17g) with '.' replaced by '_'.
+    """
+    return f"{t:.17g}".replace(".", "_")
+
+
+def _text(element: ET.Element, level: int) -> str:
+    """An element's XML indented at ``level`` (two spaces each), ending in a newline."""
+    ET.indent(element, "  ", level)
+    return "  " * level + ET.tostring(element, encoding="unicode").rstrip() + "\n"
+
+
+def dolfinx_layout(text: str, h5: str) -> tuple[ET.Element, ET.Element, list[Field]]:
+    """The mesh and the fields of the XML dolfinx wrote (read once, at the first time).
+
+    Args:
+        text: dolfinx's XML (a Uniform mesh Grid, then one temporal collection per function).
+        h5: the HDF5 name the mesh's DataItems get (the published file's).
+
+    Returns:
+        (Topology, Geometry, the fields in the order of their collections).
 
     Raises:
-        XdmfLayoutError: no mesh Grid, or a function's Grid without Time.
+        XdmfLayoutError: no mesh Grid with Topology and Geometry.
     """
-    root = ET.fromstring(text)
-    domain = root.find("Domain")
-    grids = [] if domain is None else list(domain.findall("Grid"))
-    meshes = [g for g in grids if g.get("GridType") == "Uniform"]
-    if not meshes or meshes[0].find("Topology") is None or meshes[0].find("Geometry") is None:
+    domain = ET.fromstring(text).find("Domain")
+    grids = [] if domain is None else domain.findall("Grid")
+    mesh = next((g for g in grids if g.get("GridType") == "Uniform"), None)
+    if mesh is None or mesh.find("Topology") is None or mesh.find("Geometry") is None:
         raise XdmfLayoutError("no mesh Grid with Topology and Geometry")
-    mesh = meshes[0]
-    times: dict[str, list[ET.Element]] = {}
+    parts = []
+    for tag in ("Topology", "Geometry"):
+        element = mesh.find(tag)
+        old = element.find("DataItem")
+        path = old.text.strip().split(":", 1)[1]
+        element.remove(old)
+        element.append(data_item(h5, path, old.get("Dimensions").split(),
+                                 old.get("NumberType", "Float")))
+        parts.append(element)
+    fields = []
     for coll in (g for g in grids if g.get("CollectionType") == "Temporal"):
-        for g in coll.findall("Grid"):
-            t = g.find("Time")
-            if t is None:
-                raise XdmfLayoutError(f"a Grid of {coll.get('Name')!r} has no Time")
-            times.setdefault(t.get("Value"), []).extend(g.findall("Attribute"))
-    out_root = ET.Element("Xdmf", root.attrib)
-    out_domain = ET.SubElement(out_root, "Domain")
-    collection = ET.SubElement(out_domain, "Grid", Name=name, GridType="Collection",
-                               CollectionType="Temporal")
-    for value, attributes in times.items():
-        grid = ET.SubElement(collection, "Grid", Name=name, GridType="Uniform")
-        grid.append(copy.deepcopy(mesh.find("Topology")))
-        grid.append(copy.deepcopy(mesh.find("Geometry")))
-        ET.SubElement(grid, "Time", Value=value)
-        grid.extend(copy.deepcopy(a) for a in attributes)
-    if not times:                                   # the mesh alone (nothing written yet)
-        grid = ET.SubElement(collection, "Grid", Name=name, GridType="Uniform")
-        grid.extend([copy.deepcopy(mesh.find("Topology")), copy.deepcopy(mesh.find("Geometry"))])
-    for item in out_root.iter("DataItem"):
-        item.set("Precision", "8")          # dolfinx's datasets: float64 and int64
-        if h5_from is not None and item.text and item.text.strip().startswith(f"{h5_from}:"):
-            item.text = h5_to + item.text.strip()[len(h5_from):]
-    ET.indent(out_root, "  ")
-    return '<?xml version="1.0"?>\n' + ET.tostring(out_root, encoding="unicode") + "\n"
+        att = coll.find("Grid/Attribute")
+        if att is not None:
+            fields.append(Field(att.get("Name"), att.get("AttributeType"), att.get("Center")))
+    return parts[0], parts[1], fields

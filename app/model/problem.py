@@ -13,6 +13,7 @@ from functools import cached_property
 
 import numpy as np
 import ufl
+from dolfinx import cpp as dcpp
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
@@ -373,6 +374,22 @@ class ContactProblem:
                          "initial.u0", "violates u_nu <= g on Gamma3")
 
     # ------------------------------------------------------------------ Gamma3 and bounds
+    def gamma3_facet_coordinates(self) -> np.ndarray:
+        """The vertex coordinates of this rank's Gamma3 facets (contact.xdmf's facet mesh).
+
+        Returns:
+            Shape (facets, vertices per facet, 3).
+        """
+        msh, fdim = self.mesh, self.dim - 1
+        facets = np.unique(np.concatenate([self._facets[r] for r in self.case.boundaries.contact]
+                                          or [np.zeros(0, dtype=np.int32)]))
+        msh.topology.create_connectivity(fdim, self.dim)
+        cpp_mesh = getattr(msh, "_mesh", msh)          # the C++ mesh behind dolfinx's wrapper
+        idx = dcpp.mesh.entities_to_geometry(cpp_mesh, fdim, facets.astype(np.int32), False)
+        facet_type = dcpp.mesh.cell_entity_type(msh.topology.cell_type, fdim, 0)
+        nv = dcpp.mesh.cell_num_vertices(facet_type)
+        return msh.geometry.x[idx.reshape(len(facets), nv)]
+
     def gamma3_exact_measure(self):
         """Gamma3 with a Gauss rule exact for P1 functions (weights, facet normals).
 

@@ -72,6 +72,17 @@ def test_restart_equals_uninterrupted_serial(name, tmp_path):
     b, nb = _final(re_)
     assert len(nb) == 8 and b["steps"][3]["n"] == 4
     np.testing.assert_allclose(nb, na, rtol=1e-12, atol=1e-15)
+    # history.csv: the restored steps' rows, then the new ones, each once
+    ha, hb = _history(full), _history(re_)
+    assert [r["n"] for r in hb] == [r["n"] for r in ha] == [str(i) for i in range(1, 9)]
+    for col in ("nodes_bound", "nodes_compliance", "nodes_separated"):
+        assert [r[col] for r in hb] == [r[col] for r in ha], col
+
+
+def _history(out):
+    import csv
+    with open(out / "history.csv") as fh:
+        return list(csv.DictReader(fh))
 
 
 @pytest.mark.parametrize("ranks", [(2, 2), (1, 2), (2, 1)])
@@ -135,8 +146,9 @@ def test_forced_snes_failure_keeps_valid_outputs(tmp_path):
 @pytest.mark.parametrize("delay", [1.3, 2.1, 2.9])
 def test_xdmf_is_readable_after_the_process_is_killed(delay, tmp_path):
     """SIGKILL (no clean-up at all) at an arbitrary moment while every step is written
-    (output.every: 1, so the kill often lands inside a write): solution.xdmf still parses and
-    every HDF5 dataset it names exists and reads."""
+    (output.every: 1, so the kill often lands inside a write): solution.xdmf and contact.xdmf
+    still parse and every HDF5 dataset they name exists and reads; history.csv has whole
+    rows."""
     import xml.etree.ElementTree as ET
     out = tmp_path / "o"
     proc = _start_long_run(out)
@@ -147,12 +159,16 @@ def test_xdmf_is_readable_after_the_process_is_killed(delay, tmp_path):
     steps = root.findall(".//Grid[@Name='solution'][@GridType='Uniform']")
     assert len(steps) >= 2
     assert all(len(g.findall("Attribute")) == 4 for g in steps)   # u, sigma, sigma_vm, kappa
-    with h5py.File(out / "solution.h5", "r") as f:
-        for ref in root.iter("DataItem"):
-            if ref.get("Format") == "HDF":
-                name, path = ref.text.strip().split(":", 1)
-                assert name == "solution.h5"
-                assert f[path][...].size > 0, path
+    for stem in ("solution", "contact"):
+        root = ET.fromstring((out / f"{stem}.xdmf").read_text())
+        with h5py.File(out / f"{stem}.h5", "r") as f:
+            for ref in root.iter("DataItem"):
+                if ref.get("Format") == "HDF":
+                    name, path = ref.text.strip().split(":", 1)
+                    assert name == f"{stem}.h5"
+                    assert f[path][...].size > 0, path
+    lines = (out / "history.csv").read_text().splitlines()
+    assert all(line.count(",") == lines[0].count(",") for line in lines)     # whole rows
 
 
 @pytest.mark.parametrize("extra", [["--set", "time.adaptive={}"],

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import pyvista as pv
 
-from app.io.xdmf import XdmfLayoutError, one_dataset
+from app.io.xdmf import Field, TemporalXml, XdmfLayoutError, dolfinx_layout
 from conftest import PAPER_CASE, ROOT, run_cli
 
 RUNS = {"2d": (PAPER_CASE, ["mesh.n=8"]), "3d": (ROOT / "cases" / "box3d.yaml", ["mesh.n=4"])}
@@ -70,13 +70,14 @@ def test_pyvista_read_gives_one_grid(tmp_path):
 
 def _dolfinx_xml() -> str:
     """What dolfinx 0.5.2 writes: the mesh Grid, then a temporal collection per function."""
-    def item(dims, path):
-        return f'<DataItem Dimensions="{dims}" Format="HDF">w.h5:{path}</DataItem>'
+    def item(dims, path, extra=""):      # extra: the topology's NumberType
+        return f'<DataItem Dimensions="{dims}"{extra} Format="HDF">w.h5:{path}</DataItem>'
 
-    def collection(name, center, dims):
+    def collection(name, kind, center, dims):
         grids = "".join(
             f'<Grid Name="{name}" GridType="Uniform"><xi:include xpointer="x" />'
-            f'<Time Value="{t}" /><Attribute Name="{name}" Center="{center}">'
+            f'<Time Value="{t}" /><Attribute Name="{name}" AttributeType="{kind}" '
+            f'Center="{center}">'
             f'{item(dims, f"/Function/{name}/{key}")}</Attribute></Grid>'
             for t, key in (("0", "0"), ("0.5", "0_5")))
         return f'<Grid Name="{name}" GridType="Collection" CollectionType="Temporal">{grids}</Grid>'
@@ -84,27 +85,88 @@ def _dolfinx_xml() -> str:
     return ('<?xml version="1.0"?>\n<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">'
             '<Domain><Grid Name="mesh" GridType="Uniform">'
             '<Topology TopologyType="Triangle" NumberOfElements="2" NodesPerElement="3">'
-            f'{item("2 3", "/Mesh/mesh/topology")}</Topology>'
+            + item("2 3", "/Mesh/mesh/topology", ' NumberType="Int"') + "</Topology>"
             f'<Geometry GeometryType="XY">{item("4 2", "/Mesh/mesh/geometry")}</Geometry></Grid>'
-            f'{collection("u", "Node", "4 3")}{collection("k", "Cell", "2 1")}</Domain></Xdmf>')
+            f'{collection("u", "Vector", "Node", "4 3")}{collection("k", "Scalar", "Cell", "2 1")}'
+            "</Domain></Xdmf>")
 
 
-def test_one_dataset_groups_the_functions_by_time_and_renames_the_h5_file():
+def test_dolfinx_layout_and_one_collection_over_the_mesh():
+    """The mesh items (renamed HDF5 file, Precision 8) and the fields from dolfinx's XML;
+    TemporalXml: one temporal collection, every field in the Grid of its time."""
     import xml.etree.ElementTree as ET
-    root = ET.fromstring(one_dataset(_dolfinx_xml(), "solution", "w.h5", "s.h5"))
+    topology, geometry, fields = dolfinx_layout(_dolfinx_xml(), "s.h5")
+    assert fields == [Field("u", "Vector", "Node"), Field("k", "Scalar", "Cell")]
+    xml = TemporalXml("solution", topology, geometry)
+    for t, key in ((0.0, "0"), (0.5, "0_5")):
+        xml.add(t, [f.attribute("s.h5", f"/Function/{f.name}/{key}", (4, 3)) for f in fields])
+    root = ET.fromstring(xml.text())
     top = root.find("Domain").findall("Grid")
     assert [(g.get("Name"), g.get("CollectionType")) for g in top] == [("solution", "Temporal")]
     grids = top[0].findall("Grid")
-    assert [g.find("Time").get("Value") for g in grids] == ["0", "0.5"]
-    for g, t in zip(grids, ["0", "0_5"]):
-        assert g.find("Topology") is not None and g.find("Geometry") is not None
+    assert [float(g.find("Time").get("Value")) for g in grids] == [0.0, 0.5]
+    for g, key in zip(grids, ["0", "0_5"]):
+        assert g.find("Topology").get("TopologyType") == "Triangle"
         items = [a.find("DataItem").text for a in g.findall("Attribute")]
-        assert items == [f"s.h5:/Function/u/{t}", f"s.h5:/Function/k/{t}"]
-    assert root.find(".//Geometry/DataItem").text == "s.h5:/Mesh/mesh/geometry"
-    assert "include" not in ET.tostring(root, encoding="unicode")
+        assert items == [f"s.h5:/Function/u/{key}", f"s.h5:/Function/k/{key}"]
+        assert g.find("Geometry/DataItem").text == "s.h5:/Mesh/mesh/geometry"
     assert {i.get("Precision") for i in root.iter("DataItem")} == {"8"}   # float64, int64
+    assert root.find(".//Topology/DataItem").get("NumberType") == "Int"
 
 
-def test_one_dataset_refuses_another_layout():
+def test_dolfinx_layout_refuses_another_layout():
     with pytest.raises(XdmfLayoutError, match="mesh Grid"):
-        one_dataset('<Xdmf Version="3.0"><Domain></Domain></Xdmf>')
+        dolfinx_layout('<Xdmf Version="3.0"><Domain></Domain></Xdmf>', "s.h5")
+
+
+FACETS = {"2d": 8, "3d": 2 * 4 * 4}          # Gamma3: the bottom edge / face at n = 8 / 4
+
+
+@pytest.mark.parametrize("nprocs", [1, 2])
+@pytest.mark.parametrize("dim", ["2d", "3d"])
+def test_contact_xdmf_has_the_gamma3_facets_and_the_table_at_every_time(tmp_path, dim, nprocs):
+    out, s = _run(tmp_path, dim, nprocs)
+    reader = pv.get_reader(str(out / "contact.xdmf"))
+    assert reader.time_values == pytest.approx([0.0, 0.5, 1.0])
+    for t in reader.time_values:
+        reader.set_active_time_value(t)
+        grid = reader.read()
+        assert isinstance(grid, pv.UnstructuredGrid)
+        assert grid.n_cells == FACETS[dim]
+        assert {"u", "u_nu", "neg_sigma_nu", "state"} <= set(grid.point_data)
+        assert grid.point_data["u"].shape == (grid.n_points, 3)
+    # the last time against contact.csv, by coordinates; fully clamped nodes: NaN, prescribed
+    d = 2 if dim == "2d" else 3
+    rows = _contact_rows(out)
+    x = np.array([[float(r[a]) for a in "xyz"[:d]] for r in rows])
+    pts = np.asarray(grid.points)
+    nearest = np.argmin(np.linalg.norm(pts[None, :, :d] - x[:, None, :], axis=2), axis=1)
+    assert np.allclose(pts[nearest, :d], x, atol=1e-12)
+    for col in ("u_nu", "neg_sigma_nu"):
+        csv_values = np.array([float(r[col]) for r in rows])
+        assert np.array_equal(grid.point_data[col][nearest], csv_values), col
+    codes = {"separated": 0, "compliance": 1, "bound": 2, "prescribed": 3}
+    assert list(grid.point_data["state"][nearest]) == [codes[r["state"]] for r in rows]
+    others = np.setdiff1d(np.arange(grid.n_points), nearest)
+    assert np.all(np.isnan(grid.point_data["u_nu"][others]))
+    assert np.all(grid.point_data["state"][others] == 3)
+
+
+@pytest.mark.parametrize("nprocs", [1, 2])
+def test_history_csv_has_a_row_per_step(tmp_path, nprocs):
+    out, s = _run(tmp_path, "2d", nprocs, ["--set", "time.N=4"])
+    with open(out / "history.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    steps = s["steps"]
+    assert [int(r["n"]) for r in rows] == [st["n"] for st in steps] == [1, 2, 3, 4]
+    for r, st in zip(rows, steps):
+        assert float(r["t"]) == st["t"] and float(r["norm_u_V"]) == st["norm_u_V"]
+        assert int(r["newton_iterations"]) == st["newton_iterations"]
+        assert [float(r["contact_force_x"]), float(r["contact_force_y"])] == st["contact_force"]
+        for group, force in st["reactions"].items():
+            assert [float(r[f"reaction_{group}_x"]), float(r[f"reaction_{group}_y"])] == force
+    states = [r["state"] for r in _contact_rows(out)]     # the final counts, as contact.csv
+    last = rows[-1]
+    for state in ("bound", "compliance", "separated", "prescribed"):
+        assert int(last[f"nodes_{state}"]) == states.count(state), state
+    assert s["steps"][-1]["contact_states"]["nodes"] == len(states)

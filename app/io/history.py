@@ -1,0 +1,101 @@
+"""history.csv: one row per accepted step (time, norms, force resultants, contact node
+counts, iterations, step wall time), for spreadsheets, pandas and ParaView's CSV reader.
+
+Rank 0 writes the header and the rows of the steps a restart restored at the start (by an
+atomic rename), then appends one complete line per step with a single write, so the file
+holds whole rows whenever a run stops.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from app.io.output import atomic_write, csv_text, on_rank0
+
+STATES = ("bound", "compliance", "separated", "prescribed")
+
+
+def history_columns(dim: int, groups: list[str], contact: bool) -> list[str]:
+    """The columns of history.csv.
+
+    Args:
+        dim: the body's dimension.
+        groups: the Dirichlet groups' names (their reaction resultants).
+        contact: the case has Gamma3 (contact force and node counts).
+
+    Returns:
+        n, t, k, the norms of u_n, sigma_n, kappa_n, max von Mises and kappa, the contact
+        force on the body (contact_force_x, ...), the reaction on each group
+        (reaction_<group>_x, ...), the Gamma3 node counts (nodes_bound, ...), Newton and
+        linear iterations, the step's wall time.
+    """
+    axes = "xyz"[:dim]
+    cols = ["n", "t", "k", "norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa"]
+    if contact:
+        cols += [f"contact_force_{a}" for a in axes]
+    cols += [f"reaction_{g}_{a}" for g in groups for a in axes]
+    if contact:
+        cols += [f"nodes_{s}" for s in STATES]
+    return cols + ["newton_iterations", "linear_iterations", "wall_s"]
+
+
+def history_row(record: dict, dim: int) -> dict:
+    """A step record (app/records.py) as a row of history.csv.
+
+    Args:
+        record: the step's record.
+        dim: the body's dimension.
+
+    Returns:
+        Column name -> value (missing columns stay empty).
+    """
+    axes = "xyz"[:dim]
+    row = {k: v for k, v in record.items() if not isinstance(v, (dict, list))}
+    for i, a in enumerate(axes):
+        if record.get("contact_force") is not None:
+            row[f"contact_force_{a}"] = record["contact_force"][i]
+        for g, force in record.get("reactions", {}).items():
+            row[f"reaction_{g}_{a}"] = force[i]
+    states = record.get("contact_states")
+    if states is not None:
+        row.update({f"nodes_{s}": states.get(s, 0) for s in STATES})
+    return row
+
+
+class HistoryWriter:
+    """history.csv in an output directory (collective methods).
+
+    Args:
+        comm: the MPI communicator.
+        path: the CSV file.
+        columns: history_columns(...).
+        dim: the body's dimension.
+        records: the step records so far (a restart's restored steps; else empty).
+
+    Raises:
+        OutputError: on every rank, if the file cannot be written.
+    """
+
+    def __init__(self, comm, path: Path, columns: list[str], dim: int, records=()):
+        self.comm, self.path, self.columns, self.dim = comm, Path(path), columns, dim
+        text = csv_text(columns, [history_row(r, dim) for r in records])
+        on_rank0(comm, atomic_write, self.path, text)
+
+    def append(self, record: dict) -> None:
+        """Append the row of an accepted step (one write of a whole line).
+
+        Args:
+            record: the step's record.
+
+        Raises:
+            OutputError: on every rank, if the line cannot be written.
+        """
+        line = csv_text(self.columns, [history_row(record, self.dim)]).split("\n", 1)[1]
+        on_rank0(self.comm, self._append, line.encode())
+
+    def _append(self, data: bytes) -> None:
+        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+        try:
+            os.write(fd, data)
+        finally:
+            os.close(fd)
