@@ -174,21 +174,27 @@ def report_run(comm, s: dict, outdir: Path, no_plots: bool) -> int:
                  rank=comm.rank)
 
 
-def plots(outdir: Path) -> str:
+def plots(outdir: Path, animate: bool = False) -> str:
     """Draw the figures of a run (call on rank 0).
 
     Args:
         outdir: the run's output directory.
+        animate: also write animation.gif.
 
     Returns:
         "drawn", "failed" (a plotting problem is a warning, not a failure of the run) or
         "interrupted" (Ctrl-C stops the drawing only: the run's files are complete and its
         summary stays as written).
     """
-    from app.post.plot import plot_all
+    from app.post.plot import PicturesError, plot_all
     t0 = time.perf_counter()
     try:
-        files = plot_all(outdir, log=log.info)
+        files = plot_all(outdir, log=log.info, animate=animate)
+    except PicturesError as exc:
+        log.warning("pictures (pyvista) not drawn: %s; the line figures are (%s); "
+                    "./vpcontact plot %s retries", exc, ", ".join(f.name for f in exc.written),
+                    outdir)
+        return "failed"
     except KeyboardInterrupt:
         interrupted(f"interrupted while drawing the figures; the run itself is complete "
                     f"(see {outdir}/summary.json); ./vpcontact plot {outdir} draws them")
@@ -371,7 +377,8 @@ def cmd_plot(args) -> int:
         return error(f"{outdir}: not a results directory (missing {', '.join(missing)})",
                      EXIT_BAD_INPUT)
     if MPI.COMM_WORLD.rank == 0:
-        return {"drawn": 0, "failed": EXIT_FAILED, "interrupted": EXIT_INTERRUPTED}[plots(outdir)]
+        status = plots(outdir, animate=args.animate)
+        return {"drawn": 0, "failed": EXIT_FAILED, "interrupted": EXIT_INTERRUPTED}[status]
     return 0
 
 

@@ -195,11 +195,17 @@ def _add_run(sub) -> None:
 
 def _add_plot_check_info(sub) -> None:
     plot = sub.add_parser("plot", help="draw the figures of a results directory",
-                          description="Draw fig3_deformed_contact.png, fig4_tangential.png, "
-                                      "fig5_vm_kappa.png, fig2_laws.png and history.png "
-                                      "(the paper's Figs. 2-5 and the run history) from "
-                                      "the files of a run, headless (matplotlib, Agg).")
+                          description="Draw the figures of a run from its files, headless: "
+                                      "fig3_deformed_contact.png, fig4_tangential.png, "
+                                      "fig2_laws.png, history.png and forces.png (the "
+                                      "paper's Figs. 2-4 and the run history, matplotlib), "
+                                      "body.png (the deformed body coloured by von Mises "
+                                      "stress, Gamma3 marked), fig5_vm_kappa.png (Fig. 5) "
+                                      "and in 3D contact_pressure.png (pyvista, off-screen).")
     plot.add_argument("results", metavar="RESULTS_DIR", help="output directory of a run")
+    plot.add_argument("--animate", action="store_true",
+                      help="also write animation.gif: the deformed body coloured by von "
+                           "Mises stress, one frame per time in solution.xdmf")
 
     check = sub.add_parser("check", help="validate a case without solving (dry run)",
                            description="Validate a case and report what a run would do: "

@@ -1,16 +1,16 @@
 """Figures of a run, drawn headless with matplotlib (Agg) from the files of a results
 directory: solution.xdmf/.h5 (mesh and fields), contact.csv (Gamma3 table) and summary.json
-(case data and step history).
+(case data and step history); the pictures of the body (body.png, fig5_vm_kappa.png,
+contact_pressure.png, animation.gif) are pyvista's (app/post/pictures.py).
 
 - fig3_deformed_contact.png: deformed mesh at T (displacement magnified, factor printed) with
   the interface forces -sigma_nu along Gamma3 as in the paper's Fig. 3; at nodes with
   u_nu = g the bar shows c_nu g (the paper plots the normal compliance part there);
 - fig4_tangential.png: u_tau and -sigma_tau along Gamma3 with u1 marked (Fig. 4);
-- fig5_vm_kappa.png: ||sigma||_VM and kappa at T with colour bars (Fig. 5);
 - fig2_laws.png: the normal and tangential contact laws of the case (Fig. 2);
 - history.png: norms, max von Mises, max kappa and iterations against time;
 - forces.png: the contact force and the supports' reactions against time.
-In 3D the field views show Gamma3 (seen along z) and the volume clipped at mid y.
+In 3D fig3 shows Gamma3 seen along z.
 """
 from __future__ import annotations
 
@@ -21,9 +21,11 @@ from pathlib import Path
 import numpy as np
 
 from app.model import contact_laws
+from app.post.pictures import ANIMATION, PICTURES
 
-FIGURES = ("fig3_deformed_contact.png", "fig4_tangential.png", "fig5_vm_kappa.png",
-           "fig2_laws.png", "history.png", "forces.png")
+LINE_FIGURES = ("fig3_deformed_contact.png", "fig4_tangential.png", "fig2_laws.png",
+                "history.png", "forces.png")
+FIGURES = LINE_FIGURES + PICTURES + (ANIMATION,)       # what plot (--animate) may write
 DPI = 110
 
 
@@ -157,56 +159,12 @@ def _bottom_faces(res: Results):
     return faces[on], owner[on]
 
 
-def _draw_cells(ax, fig, res: Results, values, title, label, factor=0.0, cmap="viridis"):
-    """A cell field on the (deformed) 2D mesh, or on the bottom face and clipped volume (3D)."""
-    X = res.x + factor * res.u
-    if res.dim == 2:
-        tpc = ax.tripcolor(X[:, 0], X[:, 1], res.cells, facecolors=values, cmap=cmap,
-                           shading="flat")
-        ax.set_aspect("equal")
-        ax.set_xlabel("x [m]")
-        ax.set_ylabel("y [m]")
-    else:
-        faces, owner = _bottom_faces(res)
-        tpc = ax.tripcolor(X[:, 0], X[:, 1], faces, facecolors=values[owner], cmap=cmap,
-                           shading="flat")
-        ax.set_aspect("equal")
-        ax.set_xlabel("x [m]")
-        ax.set_ylabel("y [m]")
-        title += " (bottom face z = 0)"
-    ax.set_title(title, fontsize=10)
-    fig.colorbar(tpc, ax=ax, label=label, shrink=0.85)
-    return tpc
-
-
-def _clipped_volume(fig, pos, res: Results, values, title, label):
-    """3D: boundary faces of the cells with centroid y <= L2/2, coloured by the cell value."""
-    import matplotlib as mpl
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
-    ax = fig.add_subplot(pos, projection="3d")
-    centroid_y = res.x[res.cells][:, :, 1].mean(axis=1)
-    keep = centroid_y <= 0.5 * (res.x[:, 1].min() + res.x[:, 1].max())
-    faces, owner = _faces_3d(res.cells[keep])
-    vals = values[keep][owner]
-    norm = mpl.colors.Normalize(vals.min(), vals.max() if vals.max() > vals.min() else
-                                vals.min() + 1)
-    cmap = mpl.cm.viridis
-    poly = Poly3DCollection(res.x[faces], facecolors=cmap(norm(vals)), edgecolor="none")
-    ax.add_collection3d(poly)
-    lo, hi = res.x.min(axis=0), res.x.max(axis=0)
-    ax.set_xlim(lo[0], hi[0])
-    ax.set_ylim(lo[1], hi[1])
-    ax.set_zlim(lo[2], hi[2])
-    ax.set_title(title + " (clipped at y = L2/2)", fontsize=10)
-    fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, label=label, shrink=0.6)
-
-
 def _save(plt, fig, path: Path, title: str | None = None) -> None:
     """Title, tight layout, write the PNG, free the figure."""
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
+    fig.savefig(path, dpi=DPI, pil_kwargs={"compress_level": 1})    # 3x faster than 6
     plt.close(fig)
 
 
@@ -227,10 +185,8 @@ def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None)
     fig, ax = plt.subplots(figsize=(7.5, 6.5))
     X = res.x + factor * res.u
     if res.dim == 2 and len(res.cells) > MAX_DRAWN_CELLS:
-        # a fine mesh would be a solid block of lines: the outlines, the body shaded
+        # a fine mesh would be a solid block of lines: the outlines (body.png shows the body)
         edges = _boundary_edges(res.cells)
-        ax.tripcolor(X[:, 0], X[:, 1], res.cells, facecolors=np.zeros(len(res.cells)),
-                     cmap="Blues", vmin=-1, vmax=3, shading="flat")
         for P, colour in ((res.x, "0.6"), (X, "tab:blue")):
             ax.plot(P[edges].transpose(1, 0, 2)[..., 0], P[edges].transpose(1, 0, 2)[..., 1],
                     color=colour, lw=0.8)
@@ -303,32 +259,6 @@ def fig4_tangential(res: Results, path: Path) -> None:
     axes[1].set_xlabel("x on Gamma3 [m]")
     _save(plt, fig, path,
           f"Tangential displacement and friction stress along Gamma3 at t = {res.t:g}")
-
-
-def fig5_vm_kappa(res: Results, path: Path) -> None:
-    """||sigma||_VM and kappa at T (the paper's Fig. 5); 3D: bottom face and clipped volume.
-
-    Args:
-        res: the run's data.
-        path: the PNG file to write.
-    """
-    plt = _mpl()
-    vm, kappa = res.cell_field("sigma_vm"), res.cell_field("kappa")
-    panels = [(vm, "||sigma||_VM", "von Mises stress [N/m^2]")]
-    if kappa is not None:
-        panels.append((kappa, "kappa", "kappa [N/m^2]"))
-    if res.dim == 2:
-        fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 5))
-        for ax, (v, title, label) in zip(np.atleast_1d(axes), panels):
-            _draw_cells(ax, fig, res, v, f"{title} at t = {res.t:g}", label)
-    else:
-        fig = plt.figure(figsize=(6 * len(panels), 10))
-        for i, (v, title, label) in enumerate(panels):
-            ax = fig.add_subplot(2, len(panels), i + 1)
-            _draw_cells(ax, fig, res, v, f"{title} at t = {res.t:g}", label)
-            _clipped_volume(fig, int(f"2{len(panels)}{len(panels) + i + 1}"), res, v, title,
-                            label)
-    _save(plt, fig, path)
 
 
 def normal_law(c_nu, g, r):
@@ -478,29 +408,81 @@ def forces(res: Results, path: Path) -> None:
     _save(plt, fig, path, f"Forces on the body, run {res.summary.get('case')}")
 
 
-def plot_all(outdir: Path, log=None) -> list[Path]:
-    """Write every figure into ``outdir`` (atomically: temporary file, then rename).
+class PicturesError(RuntimeError):
+    """The pyvista pictures could not be drawn; ``written``: the line figures that were."""
+
+    def __init__(self, reason: str, written: list[Path]):
+        super().__init__(reason)
+        self.written = written
+
+
+def plot_all(outdir: Path, log=None, animate: bool = False) -> list[Path]:
+    """Write every figure into ``outdir`` (atomically: temporary file, then rename): the
+    line figures (matplotlib, here) while the pictures (app/post/pictures.py, pyvista, and
+    the animation if asked for) are drawn by their own process, at the same time.
 
     Args:
         outdir: the results directory.
         log: called with a line naming fig3's displacement factor, or None.
+        animate: also write animation.gif (a frame per output time).
 
     Returns:
-        The files written (FIGURES).
+        The files written (of FIGURES).
+
+    Raises:
+        PicturesError: the pictures' process failed (the line figures are written).
     """
     import os
+    outdir = Path(outdir)
     res = Results(outdir)
-    written = []
-    for name, fn in (("fig3_deformed_contact.png", fig3_deformed_contact),
-                     ("fig4_tangential.png", fig4_tangential),
-                     ("fig5_vm_kappa.png", fig5_vm_kappa),
-                     ("fig2_laws.png", fig2_laws), ("history.png", history),
-                     ("forces.png", forces)):
-        path = Path(outdir) / name
-        tmp = path.with_name(f".{name}.tmp.png")
-        out = fn(res, tmp)
-        os.replace(tmp, path)
-        written.append(path)
-        if log and name.startswith("fig3"):
-            log(f"{name}: displacement magnified x {out:g}")
-    return written
+    factor = res.magnification()
+    painter = start_pictures(outdir, factor, res.dim, animate)
+    try:
+        written = []
+        for name, fn in (("fig3_deformed_contact.png", fig3_deformed_contact),
+                         ("fig4_tangential.png", fig4_tangential),
+                         ("fig2_laws.png", fig2_laws), ("history.png", history),
+                         ("forces.png", forces)):
+            path = outdir / name
+            tmp = path.with_name(f".{name}.tmp.png")
+            fn(res, tmp, factor) if name.startswith("fig3") else fn(res, tmp)
+            os.replace(tmp, path)
+            written.append(path)
+        if log:
+            log(f"fig3_deformed_contact.png, body.png: displacement magnified x {factor:g}")
+        out, err = painter.communicate()
+    finally:
+        if painter.poll() is None:
+            painter.kill()
+    if painter.returncode != 0:
+        lines = [x for x in err.splitlines() if x.strip()]
+        raise PicturesError(lines[-1] if lines else f"exit {painter.returncode}", written)
+    result = json.loads(out.strip().splitlines()[-1])
+    if log and result["frames"] is not None:
+        log(f"{ANIMATION}: {result['frames']} frames")
+    return written + [Path(f) for f in result["files"]]
+
+
+def start_pictures(outdir: Path, factor: float, dim: int, animate: bool):
+    """Start the pictures' process (app/post/pictures.py as a script, without MPI's
+    variables: it is no rank of a job).
+
+    Args:
+        outdir: the results directory.
+        factor: the displacement magnification.
+        dim: the body's dimension.
+        animate: also the animation.
+
+    Returns:
+        The subprocess.Popen (stdout, stderr: pipes of text).
+    """
+    import os
+    import subprocess
+    import sys
+
+    from app.post import pictures
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_", "PMI_"))}
+    cmd = [sys.executable, "-P", pictures.__file__, str(outdir), "--factor", repr(factor),
+           "--dim", str(dim)] + (["--animate"] if animate else [])
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env)

@@ -7,7 +7,7 @@ import pytest
 from conftest import PAPER_CASE, ROOT, run_cli
 
 FIGURES = ("fig3_deformed_contact.png", "fig4_tangential.png", "fig5_vm_kappa.png",
-           "fig2_laws.png", "history.png", "forces.png")
+           "fig2_laws.png", "history.png", "forces.png", "body.png")
 
 
 def _png(path):
@@ -72,9 +72,47 @@ def test_3d_figures(tmp_path):
     proc = run_cli(["run", ROOT / "cases" / "box3d.yaml", "--out", out, "--set", "mesh.n=3",
                     "--set", "time.N=2"], plots=True)
     assert proc.returncode == 0, proc.stderr
-    for name in FIGURES:
+    for name in FIGURES + ("contact_pressure.png",):
         w, h, px = _png(out / name)
         assert px[..., :3].std() > 0.05, name
+    assert _colours(out / "contact_pressure.png") >= 64       # a pressure field, not a fill
+
+
+def _colours(path):
+    """The number of distinct RGB colours of a PNG."""
+    px = (_png(path)[2][..., :3] * 255).round().astype(np.uint32)
+    return len(np.unique(px[..., 0] << 16 | px[..., 1] << 8 | px[..., 2]))
+
+
+def test_body_picture_is_the_paraview_recipe(paper_out, tmp_path):
+    """body.png is what the README's ParaView recipe shows (Warp By Vector u, colour by
+    sigma_vm, one dataset): a stress picture of many colours on the deformed body (not a
+    uniform grey square), and the undeformed body (factor 0) differs from it."""
+    import subprocess
+    import sys
+
+    from app.post import pictures
+    assert _colours(paper_out / "body.png") >= 200
+    out = tmp_path / "still"
+    out.mkdir()
+    for f in ("solution.xdmf", "solution.h5", "contact.xdmf", "contact.h5"):
+        (out / f).write_bytes((paper_out / f).read_bytes())
+    proc = subprocess.run([sys.executable, "-P", pictures.__file__, str(out), "--factor", "0",
+                           "--dim", "2"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    a, b = _png(out / "body.png")[2], _png(paper_out / "body.png")[2]
+    assert a.shape == b.shape and np.abs(a - b).mean() > 1e-3
+
+
+def test_plot_animate_writes_a_frame_per_output_time(paper_out):
+    from PIL import Image, ImageSequence
+    proc = run_cli(["plot", paper_out, "--animate"])
+    assert proc.returncode == 0, proc.stderr
+    assert "animation.gif: 17 frames" in proc.stdout
+    gif = Image.open(paper_out / "animation.gif")
+    frames = [np.asarray(f.convert("RGB"), dtype=float) for f in ImageSequence.Iterator(gif)]
+    assert len(frames) == 17                           # t_0 .. t_16, none merged as equal
+    assert np.abs(frames[0] - frames[-1]).mean() > 1.0
 
 
 def test_check_reports_without_writing(tmp_path):
@@ -124,3 +162,16 @@ def test_overwrite_removes_the_old_figures(tmp_path):
     assert run_cli(["run", PAPER_CASE, "--out", out, "--set", "time.N=2",
                     "--overwrite"]).returncode == 0
     assert not any((out / f).exists() for f in FIGURES)
+
+
+def test_failed_pictures_are_a_warning_and_the_line_figures_stay(paper_out, tmp_path):
+    out = tmp_path / "broken"
+    out.mkdir()
+    for f in ("summary.json", "solution.h5", "contact.csv", "contact.xdmf", "contact.h5"):
+        (out / f).write_bytes((paper_out / f).read_bytes())
+    (out / "solution.xdmf").write_text("<Xdmf><Domain></Domain></Xdmf>\n")   # no dataset
+    proc = run_cli(["plot", out])
+    assert proc.returncode == 1
+    said = proc.stdout + proc.stderr
+    assert "pictures (pyvista) not drawn" in said and "history.png" in said
+    assert (out / "history.png").is_file() and not (out / "body.png").exists()

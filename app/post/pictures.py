@@ -1,0 +1,346 @@
+"""Pictures of the body with pyvista (VTK), off-screen, from the files of a results
+directory: solution.xdmf (one dataset: the mesh with u, sigma_vm, ... at every output time)
+and contact.xdmf (the Gamma3 facets with the contact table), for any geometry, 2D or 3D.
+
+- body.png: the deformed body at the last time (displacement magnified as in fig3),
+  coloured by the von Mises stress, with the contact boundary Gamma3 drawn in black;
+- fig5_vm_kappa.png: the von Mises stress and kappa at the last time on the body (the
+  paper's Fig. 5; in 3D the body clipped at mid y, its inside shown);
+- contact_pressure.png (3D): the contact pressure -sigma_nu on Gamma3, seen from the
+  foundation;
+- animation.gif (``plot --animate``): the deformed, coloured body at every output time.
+
+No display is needed: VTK renders through EGL (libEGL, Mesa) where no X display is set.
+
+The pictures are drawn in a process of their own (``python app/post/pictures.py RESULTS``,
+started by app/post/plot.py): VTK's wheel is built with the old C++ string ABI, and in a
+process that has loaded dolfinx its std::regex code binds to dolfinx's instantiations and
+aborts (std::bad_alloc as soon as a scalar bar is drawn; measured).  So this file imports
+nothing of the application (importing ``app`` would initialise MPI) and runs as a script.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+PICTURES = ("body.png", "fig5_vm_kappa.png", "contact_pressure.png")
+ANIMATION = "animation.gif"
+WINDOW = (1000, 700)             # the pictures' pixels
+FRAME = (800, 560)               # the animation's (render and GIF palette cost per pixel)
+
+
+def _pyvista():
+    """pyvista, set up for off-screen rendering (EGL when no X display)."""
+    if not os.environ.get("DISPLAY"):
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    import pyvista as pv
+    pv.OFF_SCREEN = True
+    return pv
+
+
+class Dataset:
+    """A one-dataset XDMF file (solution.xdmf, contact.xdmf) read with VTK.
+
+    Args:
+        path: the XDMF file.
+    """
+
+    def __init__(self, path: Path):
+        self.reader = _pyvista().get_reader(str(path))
+        self.times = list(self.reader.time_values)
+
+    def at(self, t: float | None = None):
+        """The dataset at time t (default: the last).
+
+        Args:
+            t: one of ``times``, or None.
+
+        Returns:
+            The pyvista UnstructuredGrid.
+        """
+        if self.times:
+            self.reader.set_active_time_value(self.times[-1] if t is None else t)
+        return self.reader.read()
+
+
+def deformed(grid, factor: float):
+    """The grid moved by factor * u (a copy; ``grid`` must carry the point array u).
+
+    Args:
+        grid: a pyvista grid with point data u.
+        factor: the magnification.
+
+    Returns:
+        The warped grid.
+    """
+    out = grid.copy()
+    u = np.nan_to_num(np.asarray(grid.point_data["u"]))
+    out.points = np.asarray(grid.points) + factor * u
+    return out
+
+
+BAR = {"color": "black", "vertical": False, "position_x": 0.25, "position_y": 0.02,
+       "width": 0.5, "height": 0.06}
+
+
+def _view(plotter, dim: int, body=None, gamma3=None) -> None:
+    """The camera: from +z, parallel projection in 2D; in 3D an oblique view from the side
+    of Gamma3 (from below for a body on a foundation below it), else isometric."""
+    if dim == 2:
+        plotter.view_xy()
+        plotter.enable_parallel_projection()
+    elif body is not None and gamma3 is not None and gamma3.n_cells:
+        n = _mean_normal(gamma3)
+        n = n if n @ (np.asarray(gamma3.center) - np.asarray(body.center)) >= 0 else -n
+        side = np.array([1.0, 1.0, 1.0]) - (np.array([1.0, 1.0, 1.0]) @ n) * n
+        direction = 0.6 * n + side / max(np.linalg.norm(side), 1e-300)
+        direction /= np.linalg.norm(direction)
+        up = -n - (-n @ direction) * direction        # Gamma3 at the bottom of the image
+        plotter.camera_position = [tuple(np.asarray(body.center) + 3 * body.length * direction),
+                                   body.center, tuple(up / np.linalg.norm(up))]
+    else:
+        plotter.view_isometric()
+    plotter.reset_camera()
+
+
+def _body_plotter(body, gamma3, dim: int, clim, title: str, window=WINDOW):
+    """A plotter with the body coloured by sigma_vm and Gamma3 in black (not rendered)."""
+    pv = _pyvista()
+    p = pv.Plotter(off_screen=True, window_size=window)
+    p.set_background("white")
+    p.add_mesh(body, scalars="sigma_vm", preference="cell", cmap="viridis", clim=clim,
+               show_edges=False, scalar_bar_args={"title": "von Mises stress", **BAR})
+    if gamma3 is not None:
+        p.add_mesh(gamma3.extract_all_edges() if dim == 3 else gamma3, color="black",
+                   line_width=4 if dim == 2 else 2, label="contact boundary Gamma3")
+    p.add_text(title, font_size=10, color="black")
+    _view(p, dim, body, gamma3)
+    return p
+
+
+def draw_all(outdir: Path, factor: float, dim: int) -> list[Path]:
+    """Every picture of a results directory (PICTURES; contact_pressure.png in 3D with
+    contact), each written to a temporary file and renamed.
+
+    Args:
+        outdir: the results directory.
+        factor: the displacement magnification (fig3's).
+        dim: the body's dimension.
+
+    Returns:
+        The files written.
+    """
+    solution = Dataset(outdir / "solution.xdmf")
+    grid, t = solution.at(), (solution.times[-1] if solution.times else 0.0)
+    jobs = [("body.png", lambda f: body_picture(outdir, grid, t, factor, dim, f)),
+            ("fig5_vm_kappa.png", lambda f: fields_picture(grid, t, dim, f))]
+    if dim == 3 and (outdir / "contact.xdmf").exists():
+        jobs.append(("contact_pressure.png", lambda f: pressure_picture(outdir, f)))
+    written = []
+    for name, draw in jobs:
+        path = outdir / name
+        tmp = path.with_name(f".{name}.tmp.png")
+        draw(tmp)
+        os.replace(tmp, path)
+        written.append(path)
+    return written
+
+
+def body_picture(outdir: Path, grid, t: float, factor: float, dim: int, path: Path) -> None:
+    """body.png: the deformed body at time t coloured by von Mises stress, Gamma3 marked.
+
+    Args:
+        outdir: the results directory (contact.xdmf).
+        grid: solution.xdmf's dataset at t.
+        t: the time.
+        factor: the displacement magnification.
+        dim: the body's dimension.
+        path: the PNG file.
+    """
+    body = deformed(grid, factor)
+    gamma3 = _contact_at(outdir, None, factor)
+    title = f"t = {t:g}: von Mises stress, displacement x {factor:g}, Gamma3 in black"
+    p = _body_plotter(body, gamma3, dim, color_range(body.cell_data["sigma_vm"]), title)
+    p.screenshot(str(path))
+    p.close()
+
+
+def color_range(values) -> tuple[float, float]:
+    """A colour range that a stress singularity (a corner, a clamped edge) cannot wash out:
+    from the smallest value to the 99.5th percentile (larger values take the top colour).
+
+    Args:
+        values: the field's values.
+
+    Returns:
+        (low, high), high > low.
+    """
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return 0.0, 1.0
+    lo, hi = float(v.min()), float(np.percentile(v, 99.5))
+    return lo, hi if hi > lo else lo + max(abs(lo), 1.0)
+
+
+def fields_picture(grid, t: float, dim: int, path: Path) -> None:
+    """fig5_vm_kappa.png: von Mises stress and kappa at time t on the undeformed body, side
+    by side (kappa only where the run has it); in 3D the body clipped at mid y.
+
+    Args:
+        grid: solution.xdmf's dataset at t.
+        t: the time.
+        dim: the body's dimension.
+        path: the PNG file.
+    """
+    pv = _pyvista()
+    names = [n for n in ("sigma_vm", "kappa") if n in grid.cell_data]
+    body = grid.clip(normal="y", origin=grid.center, invert=True) if dim == 3 else grid
+    p = pv.Plotter(off_screen=True, window_size=(WINDOW[0], WINDOW[1] * 3 // 4),
+                   shape=(1, len(names)))
+    titles = {"sigma_vm": "von Mises stress", "kappa": "kappa"}
+    for i, name in enumerate(names):
+        p.subplot(0, i)
+        p.set_background("white")
+        p.add_mesh(body, scalars=name, preference="cell", cmap="viridis",
+                   clim=color_range(body.cell_data[name]), copy_mesh=True,
+                   scalar_bar_args={"title": titles[name], **BAR})
+        p.add_text(f"{titles[name]} at t = {t:g}" + (" (clipped at mid y)" if dim == 3 else ""),
+                   font_size=9, color="black")
+        _view(p, dim)
+    p.screenshot(str(path))
+    p.close()
+
+
+def _contact_at(outdir: Path, t: float | None, factor: float):
+    """Gamma3 (contact.xdmf) at time t, deformed; None without contact.xdmf."""
+    path = outdir / "contact.xdmf"
+    if not path.exists():
+        return None
+    contact = Dataset(path)
+    return deformed(contact.at(t), factor)
+
+
+def pressure_picture(outdir: Path, path: Path) -> None:
+    """contact_pressure.png (3D): -sigma_nu on Gamma3 (contact.xdmf) at the last time, seen
+    from the foundation's side.
+
+    Args:
+        outdir: the results directory.
+        path: the PNG file.
+    """
+    pv = _pyvista()
+    contact = Dataset(outdir / "contact.xdmf")
+    gamma3 = contact.at()
+    p = pv.Plotter(off_screen=True, window_size=WINDOW)
+    p.set_background("white")
+    p.add_mesh(gamma3, scalars="neg_sigma_nu", cmap="inferno", nan_color="lightgray",
+               show_edges=True, edge_color="gray",
+               scalar_bar_args={"title": "contact pressure -sigma_nu", **BAR})
+    t = contact.times[-1] if contact.times else 0.0
+    p.add_text(f"t = {t:g}: contact pressure on Gamma3 (grey: fixed by Dirichlet data)",
+               font_size=10, color="black")
+    normal = _mean_normal(gamma3)
+    p.camera_position = [tuple(gamma3.center - 3 * gamma3.length * normal), gamma3.center,
+                         _up(normal)]
+    p.enable_parallel_projection()
+    p.reset_camera()
+    p.screenshot(str(path))
+    p.close()
+
+
+def _mean_normal(surface) -> np.ndarray:
+    """The area-weighted mean unit normal of a triangulated surface (its outward side when
+    the facets are oriented as the body's boundary; else the sign of the first facet)."""
+    tri = surface.triangulate()
+    faces = np.asarray(tri.cells).reshape(-1, 4)[:, 1:]
+    x = np.asarray(tri.points)
+    n = np.cross(x[faces[:, 1]] - x[faces[:, 0]], x[faces[:, 2]] - x[faces[:, 0]])
+    n *= np.sign(n @ n[0])[:, None]
+    mean = n.sum(axis=0)
+    return mean / max(np.linalg.norm(mean), 1e-300)
+
+
+def _up(normal: np.ndarray) -> tuple:
+    """A view-up vector orthogonal to the viewing direction."""
+    axis = np.eye(3)[int(np.argmin(np.abs(normal)))]
+    up = axis - (axis @ normal) * normal
+    return tuple(up / np.linalg.norm(up))
+
+
+def animate(outdir: Path, factor: float, dim: int, path: Path, duration_ms: int = 150) -> int:
+    """animation.gif: the deformed body coloured by von Mises stress at every output time,
+    Gamma3 marked (one frame each; one colour range and the last time's camera for all;
+    one render window whose meshes are updated in place).
+
+    Args:
+        outdir: the results directory.
+        factor: the displacement magnification.
+        dim: the body's dimension.
+        path: the GIF file.
+        duration_ms: the time a frame is shown.
+
+    Returns:
+        The number of frames.
+    """
+    from PIL import Image
+    solution = Dataset(outdir / "solution.xdmf")
+    contact = Dataset(outdir / "contact.xdmf") if (outdir / "contact.xdmf").exists() else None
+    times = solution.times or [0.0]
+    grids = [solution.at(t).copy() for t in times]
+    vm = np.concatenate([np.asarray(g.cell_data["sigma_vm"]) for g in grids])
+    body = deformed(grids[-1], factor)
+    gamma3 = deformed(contact.at(times[-1]), factor) if contact is not None else None
+    p = _body_plotter(body, gamma3, dim, color_range(vm), "", FRAME)
+    caption = p.add_text(" ", position=(10, 10), font_size=10, color="black")  # a vtkTextActor
+    frames = []
+    for t, grid in zip(times, grids):
+        body.points = deformed(grid, factor).points
+        body.cell_data["sigma_vm"] = grid.cell_data["sigma_vm"]
+        if gamma3 is not None:
+            gamma3.points = deformed(contact.at(t), factor).points
+        caption.SetInput(f"t = {t:g}: von Mises stress, displacement x {factor:g}")
+        p.render()
+        image = p.screenshot(return_img=True)
+        frames.append(Image.fromarray(image).quantize(method=Image.Quantize.FASTOCTREE))
+    p.close()
+    frames[0].save(path, save_all=True, append_images=frames[1:], duration=duration_ms,
+                   loop=0)
+    return len(frames)
+
+
+def main(argv=None) -> int:
+    """The script: draw the pictures (and the animation) of a results directory.
+
+    Args:
+        argv: the arguments (default sys.argv[1:]): RESULTS_DIR --factor F --dim D
+            [--animate].
+
+    Returns:
+        0; the files written and the animation's frames are printed as one JSON line.
+    """
+    ap = argparse.ArgumentParser(description="pyvista pictures of a vpcontact run")
+    ap.add_argument("results", type=Path)
+    ap.add_argument("--factor", type=float, required=True)
+    ap.add_argument("--dim", type=int, required=True)
+    ap.add_argument("--animate", action="store_true")
+    args = ap.parse_args(argv)
+    files = draw_all(args.results, args.factor, args.dim)
+    frames = None
+    if args.animate:
+        path = args.results / ANIMATION
+        tmp = path.with_name(f".{ANIMATION}.tmp.gif")
+        frames = animate(args.results, args.factor, args.dim, tmp)
+        os.replace(tmp, path)
+        files.append(path)
+    print(json.dumps({"files": [str(f) for f in files], "frames": frames}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
