@@ -127,12 +127,31 @@ def cmd_run(args, petsc_cli: dict) -> int:
     observers = [FieldOutput(), ContactOutput(), HistoryOutput(), Checkpointer(), *progress,
                  StepLog(), RunFiles()]
     threads.request(args.threads)
-    result = run(case, comm, observers, outdir=outdir, restart=loaded.get("checkpoint"))
-    s = result.summary
-    if result.status == "completed" and not args.no_plots and comm.rank == 0 and s["steps"]:
-        if plots(outdir) == "interrupted":
-            return EXIT_INTERRUPTED
+    painter = _early_painter(comm, args.no_plots)
+    try:
+        result = run(case, comm, observers, outdir=outdir, restart=loaded.get("checkpoint"))
+        s = result.summary
+        if result.status == "completed" and not args.no_plots and comm.rank == 0 and s["steps"]:
+            if plots(outdir, painter=painter) == "interrupted":
+                return EXIT_INTERRUPTED
+    finally:
+        if painter is not None:
+            painter.cancel()
     return report_run(comm, s, outdir, args.no_plots)
+
+
+def _early_painter(comm, no_plots: bool):
+    """The pictures' process of a serial run, started before the run so that its start-up
+    (pyvista, OpenGL: about 0.8 s) overlaps the computation; None under mpirun (every core
+    has a rank) or without figures."""
+    if no_plots or comm.size > 1:
+        return None
+    from app.post.plot import Painter
+    try:
+        return Painter()
+    except OSError as exc:             # cannot start a process: the figures start their own
+        log.debug("no early pictures process: %s", exc)
+        return None
 
 
 def report_run(comm, s: dict, outdir: Path, no_plots: bool) -> int:
@@ -174,12 +193,13 @@ def report_run(comm, s: dict, outdir: Path, no_plots: bool) -> int:
                  rank=comm.rank)
 
 
-def plots(outdir: Path, animate: bool = False) -> str:
+def plots(outdir: Path, animate: bool = False, painter=None) -> str:
     """Draw the figures of a run (call on rank 0).
 
     Args:
         outdir: the run's output directory.
         animate: also write animation.gif.
+        painter: the pictures' process started ahead (app/post/plot.Painter), or None.
 
     Returns:
         "drawn", "failed" (a plotting problem is a warning, not a failure of the run) or
@@ -189,7 +209,7 @@ def plots(outdir: Path, animate: bool = False) -> str:
     from app.post.plot import PicturesError, plot_all
     t0 = time.perf_counter()
     try:
-        files = plot_all(outdir, log=log.info, animate=animate)
+        files = plot_all(outdir, log=log.info, animate=animate, painter=painter)
     except PicturesError as exc:
         log.warning("pictures (pyvista) not drawn: %s; the line figures are (%s); "
                     "./vpcontact plot %s retries", exc, ", ".join(f.name for f in exc.written),

@@ -12,11 +12,11 @@ and contact.xdmf (the Gamma3 facets with the contact table), for any geometry, 2
 
 No display is needed: VTK renders through EGL (libEGL, Mesa) where no X display is set.
 
-The pictures are drawn in a process of their own (``python app/post/pictures.py RESULTS``,
-started by app/post/plot.py): VTK's wheel is built with the old C++ string ABI, and in a
-process that has loaded dolfinx its std::regex code binds to dolfinx's instantiations and
-aborts (std::bad_alloc as soon as a scalar bar is drawn; measured).  So this file imports
-nothing of the application (importing ``app`` would initialise MPI) and runs as a script.
+The pictures are drawn in a process of their own (``python -m app.post.pictures``, started by
+app/post/plot.py, which also hands it some of the line figures): VTK's wheel is built with
+the old C++ string ABI, and in a process that has loaded dolfinx its std::regex code binds to
+dolfinx's instantiations and aborts (std::bad_alloc as soon as a scalar bar is drawn;
+measured).  This module and app/post/plot.py import no dolfinx.
 """
 from __future__ import annotations
 
@@ -314,23 +314,57 @@ def animate(outdir: Path, factor: float, dim: int, path: Path, duration_ms: int 
     return len(frames)
 
 
+def warm_up() -> None:
+    """Load pyvista's plotting modules, matplotlib and the figures' module, and start VTK's
+    OpenGL (EGL) once: 0.8-1 s that a process started ahead of time spends while the run
+    computes (measured)."""
+    from app.post.plot import _mpl
+    plt = _mpl()                               # matplotlib's first figure costs 0.1-0.2 s
+    fig = plt.figure(figsize=(1, 1))
+    fig.text(0.5, 0.5, "x")
+    fig.savefig(os.devnull, format="png")
+    plt.close(fig)
+    pv = _pyvista()
+    p = pv.Plotter(off_screen=True, window_size=(64, 48))
+    p.add_mesh(pv.Sphere(), scalars=np.arange(pv.Sphere().n_points, dtype=float),
+               scalar_bar_args=BAR)
+    p.screenshot(return_img=True)
+    p.close()
+
+
 def main(argv=None) -> int:
-    """The script: draw the pictures (and the animation) of a results directory.
+    """The process: draw the pictures (and the animation, and the line figures it is given)
+    of a results directory.  With --wait it warms up first and then reads the job as one
+    JSON line from standard input ({"results", "factor", "dim", "animate", "line"}); at end
+    of input it exits with nothing drawn.
 
     Args:
         argv: the arguments (default sys.argv[1:]): RESULTS_DIR --factor F --dim D
-            [--animate].
+            [--animate] [--line NAME ...], or --wait.
 
     Returns:
         0; the files written and the animation's frames are printed as one JSON line.
     """
     ap = argparse.ArgumentParser(description="pyvista pictures of a vpcontact run")
-    ap.add_argument("results", type=Path)
-    ap.add_argument("--factor", type=float, required=True)
-    ap.add_argument("--dim", type=int, required=True)
+    ap.add_argument("results", type=Path, nargs="?")
+    ap.add_argument("--factor", type=float, default=1.0)
+    ap.add_argument("--dim", type=int, default=2)
     ap.add_argument("--animate", action="store_true")
+    ap.add_argument("--line", nargs="*", default=[], help="line figures (app/post/plot.py)")
+    ap.add_argument("--wait", action="store_true")
     args = ap.parse_args(argv)
+    if args.wait:
+        warm_up()
+        line = sys.stdin.readline()
+        if not line.strip():
+            return 0
+        job = json.loads(line)
+        args.results, args.factor = Path(job["results"]), job["factor"]
+        args.dim, args.animate, args.line = job["dim"], job["animate"], job["line"]
     files = draw_all(args.results, args.factor, args.dim)
+    if args.line:
+        from app.post.plot import draw_line_figures
+        files += draw_line_figures(args.results, args.line, args.factor)
     frames = None
     if args.animate:
         path = args.results / ANIMATION

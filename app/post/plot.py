@@ -187,9 +187,10 @@ def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None)
     if res.dim == 2 and len(res.cells) > MAX_DRAWN_CELLS:
         # a fine mesh would be a solid block of lines: the outlines (body.png shows the body)
         edges = _boundary_edges(res.cells)
-        for P, colour in ((res.x, "0.6"), (X, "tab:blue")):
-            ax.plot(P[edges].transpose(1, 0, 2)[..., 0], P[edges].transpose(1, 0, 2)[..., 1],
-                    color=colour, lw=0.8)
+        from matplotlib.collections import LineCollection
+        for P, colour in ((res.x, "0.6"), (X, "tab:blue")):     # one artist, not one a line
+            ax.add_collection(LineCollection(P[edges], colors=colour, lw=0.8))
+        ax.autoscale_view()
     elif res.dim == 2:
         ax.triplot(res.x[:, 0], res.x[:, 1], res.cells, color="0.85", lw=0.4)
         ax.triplot(X[:, 0], X[:, 1], res.cells, color="tab:blue", lw=0.5)
@@ -366,8 +367,8 @@ def history(res: Results, path: Path) -> None:
         axes[0, 1].set_title("max ||sigma||_VM", fontsize=10)
         axes[1, 0].plot(t, col("max_kappa"), "o-", ms=2, color="tab:green")
         axes[1, 0].set_title("max kappa", fontsize=10)
-        axes[1, 1].bar(t, col("newton_iterations"), width=0.8 * (t[1] - t[0]) if len(t) > 1
-                       else 0.1, color="tab:purple")
+        axes[1, 1].vlines(t, 0, col("newton_iterations"), color="tab:purple",
+                          lw=max(0.5, min(4.0, 300 / len(t))))      # one artist per panel
         axes[1, 1].set_title("Newton / Gamma3 iterations per step", fontsize=10)
     for ax in axes[1]:
         ax.set_xlabel("t [s]")
@@ -416,73 +417,133 @@ class PicturesError(RuntimeError):
         self.written = written
 
 
-def plot_all(outdir: Path, log=None, animate: bool = False) -> list[Path]:
-    """Write every figure into ``outdir`` (atomically: temporary file, then rename): the
-    line figures (matplotlib, here) while the pictures (app/post/pictures.py, pyvista, and
-    the animation if asked for) are drawn by their own process, at the same time.
+LINE_FIGURE_FUNCTIONS = {}        # name -> function(res, path), filled below the figures
+PAINTER_LINE_FIGURES = ("forces.png",)    # drawn by the pictures' process (balances the two)
+
+
+def draw_line_figures(outdir: Path, names, factor: float, res=None) -> list[Path]:
+    """Draw line figures (each to a temporary file, then renamed).
+
+    Args:
+        outdir: the results directory.
+        names: which (of LINE_FIGURES).
+        factor: fig3's displacement magnification.
+        res: the run's Results (None: read).
+
+    Returns:
+        The files written.
+    """
+    import os
+    res = Results(outdir) if res is None else res
+    written = []
+    for name in names:
+        path = Path(outdir) / name
+        tmp = path.with_name(f".{name}.tmp.png")
+        fn = LINE_FIGURE_FUNCTIONS[name]
+        fn(res, tmp, factor) if name.startswith("fig3") else fn(res, tmp)
+        os.replace(tmp, path)
+        written.append(path)
+    return written
+
+
+def plot_all(outdir: Path, log=None, animate: bool = False, painter=None) -> list[Path]:
+    """Write every figure into ``outdir`` (atomically: temporary file, then rename), in two
+    processes at once: this one draws fig3, fig4 and fig2 (matplotlib); the pictures'
+    process (app/post/pictures.py: pyvista, started ahead of a serial run) draws the
+    pictures, history.png and forces.png, and the animation if asked for.
 
     Args:
         outdir: the results directory.
         log: called with a line naming fig3's displacement factor, or None.
         animate: also write animation.gif (a frame per output time).
+        painter: a Painter started ahead of time (None: one is started now).
 
     Returns:
         The files written (of FIGURES).
 
     Raises:
-        PicturesError: the pictures' process failed (the line figures are written).
+        PicturesError: the pictures' process failed (this process's figures are written).
     """
-    import os
     outdir = Path(outdir)
     res = Results(outdir)
     factor = res.magnification()
-    painter = start_pictures(outdir, factor, res.dim, animate)
+    painter = painter or Painter()
     try:
-        written = []
-        for name, fn in (("fig3_deformed_contact.png", fig3_deformed_contact),
-                         ("fig4_tangential.png", fig4_tangential),
-                         ("fig2_laws.png", fig2_laws), ("history.png", history),
-                         ("forces.png", forces)):
-            path = outdir / name
-            tmp = path.with_name(f".{name}.tmp.png")
-            fn(res, tmp, factor) if name.startswith("fig3") else fn(res, tmp)
-            os.replace(tmp, path)
-            written.append(path)
+        painter.draw(outdir, factor, res.dim, animate, PAINTER_LINE_FIGURES)
+        mine = [n for n in LINE_FIGURES if n not in PAINTER_LINE_FIGURES]
+        written = draw_line_figures(outdir, mine, factor, res)
         if log:
             log(f"fig3_deformed_contact.png, body.png: displacement magnified x {factor:g}")
-        out, err = painter.communicate()
+        result = painter.finish(written)
     finally:
-        if painter.poll() is None:
-            painter.kill()
-    if painter.returncode != 0:
-        lines = [x for x in err.splitlines() if x.strip()]
-        raise PicturesError(lines[-1] if lines else f"exit {painter.returncode}", written)
-    result = json.loads(out.strip().splitlines()[-1])
+        painter.cancel()
     if log and result["frames"] is not None:
         log(f"{ANIMATION}: {result['frames']} frames")
     return written + [Path(f) for f in result["files"]]
 
 
-def start_pictures(outdir: Path, factor: float, dim: int, animate: bool):
-    """Start the pictures' process (app/post/pictures.py as a script, without MPI's
-    variables: it is no rank of a job).
+class Painter:
+    """The pictures' process: app/post/pictures.py run as a script (``--wait``: it loads
+    pyvista and starts OpenGL at once, then waits for its job), without MPI's variables (it
+    is no rank of a job).  Started ahead of a run, its start-up overlaps the run."""
 
-    Args:
-        outdir: the results directory.
-        factor: the displacement magnification.
-        dim: the body's dimension.
-        animate: also the animation.
+    def __init__(self):
+        import os
+        import subprocess
+        import sys
 
-    Returns:
-        The subprocess.Popen (stdout, stderr: pipes of text).
-    """
-    import os
-    import subprocess
-    import sys
+        from app.post import pictures
+        env = {k: v for k, v in os.environ.items()
+               if not k.startswith(("OMPI_", "PMIX_", "PMI_"))}
+        self.proc = subprocess.Popen([sys.executable, "-P", "-m", pictures.__name__, "--wait"],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE, text=True, env=env)
 
-    from app.post import pictures
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_", "PMI_"))}
-    cmd = [sys.executable, "-P", pictures.__file__, str(outdir), "--factor", repr(factor),
-           "--dim", str(dim)] + (["--animate"] if animate else [])
-    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=env)
+    def draw(self, outdir: Path, factor: float, dim: int, animate: bool, line=()) -> None:
+        """Give the job (the process draws while the caller goes on).
+
+        Args:
+            outdir: the results directory.
+            factor: the displacement magnification.
+            dim: the body's dimension.
+            animate: also the animation.
+            line: line figures it draws too (names of LINE_FIGURES).
+        """
+        try:
+            self.proc.stdin.write(json.dumps({"results": str(outdir), "factor": factor,
+                                              "dim": dim, "animate": animate,
+                                              "line": list(line)}) + "\n")
+            self.proc.stdin.flush()            # communicate() closes it
+        except OSError:            # it died while starting: finish() reports its error
+            pass
+
+    def finish(self, written: list[Path]) -> dict:
+        """Wait for the pictures.
+
+        Args:
+            written: the line figures already drawn (for the error).
+
+        Returns:
+            {"files": [...], "frames": the animation's, or None}.
+
+        Raises:
+            PicturesError: the process failed (its last error line).
+        """
+        out, err = self.proc.communicate()
+        if self.proc.returncode != 0 or not out.strip():
+            lines = [x for x in err.splitlines() if x.strip()]
+            raise PicturesError(lines[-1] if lines else f"exit {self.proc.returncode}",
+                                written)
+        return json.loads(out.strip().splitlines()[-1])
+
+    def cancel(self) -> None:
+        """Stop the process if it still runs (a run that ends without figures)."""
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.communicate()
+
+
+LINE_FIGURE_FUNCTIONS.update({"fig3_deformed_contact.png": fig3_deformed_contact,
+                              "fig4_tangential.png": fig4_tangential,
+                              "fig2_laws.png": fig2_laws, "history.png": history,
+                              "forces.png": forces})

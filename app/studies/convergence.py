@@ -753,13 +753,14 @@ def _finer(res: dict, level: int) -> int:
     return 2 ** (R - level) if res.get("file") else R // level
 
 
-def write_plot(path: Path, res: dict) -> None:
-    """Plot Error against h (or k) and against wall time (work-precision), with the
-    paper's Table 1 when it applies, to a PNG (atomically).
+def convergence_figure(res: dict):
+    """The figure of ``write_plot``: Error against h (or k), and against wall time.
 
     Args:
-        path: the PNG file.
         res: the result of ``study``.
+
+    Returns:
+        The matplotlib Figure (laid out, not saved).
     """
     import matplotlib
     matplotlib.use("Agg")
@@ -781,11 +782,13 @@ def write_plot(path: Path, res: dict) -> None:
     if res["paper"]:
         ax1.loglog([1 / L for L in PAPER_TABLE1], list(PAPER_TABLE1.values()), "x:",
                    color="grey", label="paper Table 1")
+    for axis in (ax1.yaxis, ax2.xaxis, ax2.yaxis):
+        _log_ticks(axis)
     ticks = sorted({r[xkey] for r in res["rows"]})
     ax1.set_xticks(ticks)
     ax1.set_xticklabels([f"1/{round(1 / x)}" if abs(1 / x - round(1 / x)) < 1e-9 else f"{x:g}"
                          for x in ticks])
-    ax1.minorticks_off()
+    ax1.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())   # the levels only
     ax1.set_xlabel(xkey if res["vary"] != "both" else "h = k")
     ax1.set_ylabel("Error")
     ax1.set_title(f"Error against {xkey} (reference "
@@ -798,6 +801,31 @@ def write_plot(path: Path, res: dict) -> None:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
     fig.tight_layout()
+    return fig
+
+
+def _log_ticks(axis) -> None:
+    """Labelled ticks on a log axis whatever its span: at 1, 2, 5 x 10^k (every integer
+    multiple below a decade), plain numbers, no unlabelled minor ticks.  (matplotlib's
+    default labels only powers of 10: a panel spanning less than a decade had none.)"""
+    import matplotlib.ticker as mticker
+    lo, hi = sorted(axis.get_view_interval())
+    subs = (1.0, 2.0, 5.0) if hi > 10 * lo else tuple(range(1, 10))
+    axis.set_major_locator(mticker.LogLocator(base=10, subs=subs))
+    axis.set_major_formatter(mticker.FuncFormatter(lambda v, _: f"{v:.3g}"))
+    axis.set_minor_locator(mticker.NullLocator())
+
+
+def write_plot(path: Path, res: dict) -> None:
+    """Plot Error against h (or k) and against wall time (work-precision), with the
+    paper's Table 1 when it applies, to a PNG (atomically).
+
+    Args:
+        path: the PNG file.
+        res: the result of ``study``.
+    """
+    import matplotlib.pyplot as plt
+    fig = convergence_figure(res)
     tmp = path.with_name(f".{path.name}.tmp.png")
     fig.savefig(tmp, dpi=120)
     plt.close(fig)

@@ -92,3 +92,20 @@ def test_bad_study_input_exits_2(tmp_path, args, pattern):
     proc = run_cli(["convergence", PAPER_CASE, *args, "--out", tmp_path / "o", "--no-cache"])
     assert proc.returncode == 2 and pattern in proc.stderr, proc.stderr
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("errors", [(3.8, 5.5), (1e-4, 2e-2)], ids=["within-a-decade", "decades"])
+def test_convergence_figure_labels_both_log_axes(errors):
+    """convergence.png: the Error axes carry tick labels (the left panel had none when the
+    errors spanned less than a decade), and no labelled minor ticks crowd the time axis."""
+    from app.studies.convergence import convergence_figure
+    rows = [{"delta": 1e-7, "h": h, "k": h, "error": e, "solve_s": s}
+            for h, e, s in ((0.5, errors[0], 0.021), (1.0, errors[1], 0.014))]
+    fig = convergence_figure({"vary": "h", "deltas": [1e-7], "rows": rows, "paper": False,
+                              "reference_level": 4})
+    fig.canvas.draw()
+    for ax, axis in ((fig.axes[0], "y"), (fig.axes[1], "y"), (fig.axes[1], "x")):
+        lo, hi = sorted(getattr(ax, f"get_{axis}lim")())
+        ticks = getattr(ax, f"get_{axis}ticks")()
+        shown = [t for t in ticks if lo <= t <= hi]
+        assert 2 <= len(shown) <= 12, (axis, shown)

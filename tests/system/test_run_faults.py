@@ -256,7 +256,7 @@ def test_closed_stdout_does_not_kill_the_run(tmp_path):
 def test_ctrl_c_while_drawing_keeps_a_true_summary(tmp_path, monkeypatch, capsys):
     import app.post.plot as plot
 
-    def interrupted(outdir, log=None):
+    def interrupted(outdir, log=None, **options):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(plot, "plot_all", interrupted)
