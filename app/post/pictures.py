@@ -250,6 +250,7 @@ def pressure_picture(outdir: Path, path: Path) -> None:
                          _up(normal)]
     p.enable_parallel_projection()
     p.reset_camera()
+    p.camera.zoom(0.85)                          # room for the colour bar below
     p.screenshot(str(path))
     p.close()
 
