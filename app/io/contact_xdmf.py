@@ -133,7 +133,7 @@ class ContactWriter:
         self.xml.add(t, [Field(name, "Vector" if name == "u" else "Scalar", "Node")
                          .attribute(self.h5.name, f"/Step/{k}/{name}", values.shape)
                          for name, values in columns.items()])
-        atomic_write(self.path, self.xml.text())
+        atomic_write(self.path, self.xml.text(), sync=False)
 
     def _columns(self, data: dict, idx: np.ndarray, n: int) -> dict[str, np.ndarray]:
         """The point arrays of one time: u (a 3-vector), the table's scalar columns, state."""

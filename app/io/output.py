@@ -40,12 +40,15 @@ def csv_text(columns, rows) -> str:
     return buf.getvalue()
 
 
-def atomic_write(path: Path, text: str) -> None:
+def atomic_write(path: Path, text: str, sync: bool = True) -> None:
     """Write ``text`` to ``path`` through a temporary file and a rename.
 
     Args:
         path: the file.
         text: its new content.
+        sync: fsync the file before the rename (the XML republished at every output step
+            skips it: a killed process leaves the page cache intact, and the HDF5 data it
+            points at is not synced either).
 
     Raises:
         OSError: the write failed (the old file, if any, is unchanged).
@@ -55,7 +58,8 @@ def atomic_write(path: Path, text: str) -> None:
         with open(tmp, "w") as fh:
             fh.write(text)
             fh.flush()
-            os.fsync(fh.fileno())
+            if sync:
+                os.fsync(fh.fileno())
         os.replace(tmp, path)
     except OSError as exc:          # disk full, read-only: the old file stays as it was
         if exc.filename is None:
@@ -185,7 +189,7 @@ class FieldWriter:
                 f.write_mesh(mesh)
         except RuntimeError as exc:             # dolfinx's HDF5 layer
             raise OutputError(f"{self.h5}: cannot write the mesh ({exc})") from None
-        self.xml, self._layout, self._known = None, None, {}
+        self.xml, self._layout = None, None
         on_rank0(comm, self._start_xml)
 
     def _fresh_files(self) -> None:
@@ -201,26 +205,27 @@ class FieldWriter:
         atomic_write(self.path, self.xml.text())
 
     def _add_time(self, t: float) -> None:
-        """Append the Grid of time t: each field's dataset is the one dolfinx added to its
-        HDF5 group (the fields' types and centres from dolfinx's XML, read once)."""
-        import h5py
+        """Append the Grid of time t (its datasets: dolfinx's names, dolfinx_time_key)."""
         if self._layout is None:
-            self._layout = dolfinx_layout(self.work.read_text(), self.h5.name)[2]
-        attributes = []
+            self._layout = self._first_layout(t)
+        key = dolfinx_time_key(t)
+        self.xml.add(t, [field.attribute(self.h5.name, f"/Function/{field.name}/{key}", shape)
+                         for field, shape in self._layout])
+        atomic_write(self.path, self.xml.text(), sync=False)
+
+    def _first_layout(self, t: float) -> list:
+        """The fields (types and centres from dolfinx's XML) with their datasets' shapes,
+        read from solution.h5 once: this checks that dolfinx named the datasets of time t
+        dolfinx_time_key(t); later times use that name without opening the file."""
+        import h5py
+        fields = dolfinx_layout(self.work.read_text(), self.h5.name)[2]
+        key = dolfinx_time_key(t)
         with h5py.File(self.h5, "r") as f:
-            for field in self._layout:
-                group, known = f["Function"][field.name], self._known.setdefault(field.name, set())
-                key = dolfinx_time_key(t)
-                new = [key] if key in group and key not in known else \
-                    [k for k in group if k not in known]
-                if len(new) != 1:
-                    raise OutputError(f"{self.h5}: {len(new)} new datasets of {field.name} at "
-                                      f"t = {t:g} (expected 1)")
-                known.add(new[0])
-                attributes.append(field.attribute(self.h5.name, f"/Function/{field.name}/{new[0]}",
-                                                  group[new[0]].shape))
-        self.xml.add(t, attributes)
-        atomic_write(self.path, self.xml.text())
+            missing = [field.name for field in fields if key not in f["Function"][field.name]]
+            if missing:
+                raise OutputError(f"{self.h5}: no dataset {key!r} of {', '.join(missing)} "
+                                  "(not the naming of dolfinx 0.5)")
+            return [(field, f["Function"][field.name][key].shape) for field in fields]
 
     def write(self, t: float) -> None:
         """Append the fields at time t and republish solution.xdmf (collective).

@@ -109,8 +109,8 @@ class TemporalXml:
 
 
 def dolfinx_time_key(t: float) -> str:
-    """The name dolfinx 0.5 gives a function's dataset at time t (FieldWriter checks that
-    it exists, and otherwise looks for the one new dataset).
+    """The name dolfinx 0.5 gives a function's dataset at time t (FieldWriter checks it at
+    the first time written).
 
     Args:
         t: the time.

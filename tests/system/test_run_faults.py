@@ -166,10 +166,10 @@ def test_summary_write_failure_is_reported(tmp_path, monkeypatch, capsys):
     import app.io.output as output
     real = output.atomic_write
 
-    def refuse(path, text):
+    def refuse(path, text, **options):
         if path.name == "summary.json":
             raise OSError(28, "No space left on device", str(path))
-        return real(path, text)
+        return real(path, text, **options)
 
     monkeypatch.setattr(output, "atomic_write", refuse)
     out = tmp_path / "nosummary"
