@@ -30,10 +30,25 @@ def _contact_rows(out):
         return list(csv.DictReader(fh))
 
 
-@pytest.mark.parametrize("nprocs", [1, 2])
-@pytest.mark.parametrize("dim", ["2d", "3d"])
-def test_solution_xdmf_is_one_dataset_with_every_field(tmp_path, dim, nprocs):
-    out, s = _run(tmp_path, dim, nprocs)
+def _at_contact_nodes(points, rows, d):
+    """The indices of contact.csv's nodes among ``points`` (by coordinates; checked)."""
+    x = np.array([[float(r[a]) for a in "xyz"[:d]] for r in rows])
+    pts = np.asarray(points)[:, :d]
+    nearest = np.argmin(np.linalg.norm(pts[None, :, :] - x[:, None, :], axis=2), axis=1)
+    assert np.allclose(pts[nearest], x, atol=1e-12)
+    return nearest
+
+
+@pytest.fixture(scope="module", params=[("2d", 1), ("2d", 2), ("3d", 1), ("3d", 2)],
+                ids=["2d-serial", "2d-np2", "3d-serial", "3d-np2"])
+def run_out(request, tmp_path_factory):
+    """(dimension, out, summary) of a two-step run, serial and under mpirun -n 2."""
+    dim, nprocs = request.param
+    return (dim, *_run(tmp_path_factory.mktemp(f"{dim}-{nprocs}"), dim, nprocs))
+
+
+def test_solution_xdmf_is_one_dataset_with_every_field(run_out):
+    dim, out, s = run_out
     reader = pv.get_reader(str(out / "solution.xdmf"))
     assert reader.time_values == pytest.approx([0.0, 0.5, 1.0])
     nv, nc = s["mesh"]["vertices"], s["mesh"]["cells"]
@@ -50,12 +65,8 @@ def test_solution_xdmf_is_one_dataset_with_every_field(tmp_path, dim, nprocs):
     # the last Grid is the final state: u at the Gamma3 nodes equals contact.csv's
     d = 2 if dim == "2d" else 3
     rows = _contact_rows(out)
-    axes = "xyz"[:d]
-    x = np.array([[float(r[a]) for a in axes] for r in rows])
-    u = np.array([[float(r[f"u_{a}"]) for a in axes] for r in rows])
-    pts = np.asarray(grid.points)[:, :d]
-    nearest = np.argmin(np.linalg.norm(pts[None, :, :] - x[:, None, :], axis=2), axis=1)
-    assert np.allclose(pts[nearest], x, atol=1e-12)
+    u = np.array([[float(r[f"u_{a}"]) for a in "xyz"[:d]] for r in rows])
+    nearest = _at_contact_nodes(grid.points, rows, d)
     assert np.abs(grid.point_data["u"][nearest, :d] - u).max() <= 1e-12 * np.abs(u).max()
     assert np.abs(u).max() > 0
 
@@ -122,10 +133,8 @@ def test_dolfinx_layout_refuses_another_layout():
 FACETS = {"2d": 8, "3d": 2 * 4 * 4}          # Gamma3: the bottom edge / face at n = 8 / 4
 
 
-@pytest.mark.parametrize("nprocs", [1, 2])
-@pytest.mark.parametrize("dim", ["2d", "3d"])
-def test_contact_xdmf_has_the_gamma3_facets_and_the_table_at_every_time(tmp_path, dim, nprocs):
-    out, s = _run(tmp_path, dim, nprocs)
+def test_contact_xdmf_has_the_gamma3_facets_and_the_table_at_every_time(run_out):
+    dim, out, _ = run_out
     reader = pv.get_reader(str(out / "contact.xdmf"))
     assert reader.time_values == pytest.approx([0.0, 0.5, 1.0])
     for t in reader.time_values:
@@ -136,12 +145,8 @@ def test_contact_xdmf_has_the_gamma3_facets_and_the_table_at_every_time(tmp_path
         assert {"u", "u_nu", "neg_sigma_nu", "state"} <= set(grid.point_data)
         assert grid.point_data["u"].shape == (grid.n_points, 3)
     # the last time against contact.csv, by coordinates; fully clamped nodes: NaN, prescribed
-    d = 2 if dim == "2d" else 3
     rows = _contact_rows(out)
-    x = np.array([[float(r[a]) for a in "xyz"[:d]] for r in rows])
-    pts = np.asarray(grid.points)
-    nearest = np.argmin(np.linalg.norm(pts[None, :, :d] - x[:, None, :], axis=2), axis=1)
-    assert np.allclose(pts[nearest, :d], x, atol=1e-12)
+    nearest = _at_contact_nodes(grid.points, rows, 2 if dim == "2d" else 3)
     for col in ("u_nu", "neg_sigma_nu"):
         csv_values = np.array([float(r[col]) for r in rows])
         assert np.array_equal(grid.point_data[col][nearest], csv_values), col
