@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from dolfinx import io as dio
 
-from app.io.xdmf import TemporalXml, dolfinx_layout, dolfinx_time_key
+from app.io.xdmf import TemporalXml, XdmfLayoutError, dolfinx_layout, dolfinx_time_key
 
 OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv", "contact.xdmf",
                 "contact.h5", "history.csv")
@@ -200,7 +200,10 @@ class FieldWriter:
 
     def _start_xml(self) -> None:
         """The mesh's items from dolfinx's XML; solution.xdmf with the mesh alone."""
-        topology, geometry, _ = dolfinx_layout(self.work.read_text(), self.h5.name)
+        try:
+            topology, geometry, _ = dolfinx_layout(self.work.read_text(), self.h5.name)
+        except XdmfLayoutError as exc:           # an OSError: every rank raises it (on_rank0)
+            raise OutputError(f"{self.work}: {exc}") from None
         self.xml = TemporalXml(self.path.stem, topology, geometry)
         atomic_write(self.path, self.xml.text())
 

@@ -483,9 +483,9 @@ def plot_all(outdir: Path, log=None, animate: bool = False, painter=None) -> lis
 
 
 class Painter:
-    """The pictures' process: app/post/pictures.py run as a script (``--wait``: it loads
-    pyvista and starts OpenGL at once, then waits for its job), without MPI's variables (it
-    is no rank of a job).  Started ahead of a run, its start-up overlaps the run."""
+    """The pictures' process: ``python -m app.post.pictures --wait`` (it loads pyvista and
+    matplotlib and starts OpenGL at once, then waits for its job), without MPI's variables
+    (it is no rank of a job).  Started ahead of a run, its start-up overlaps the run."""
 
     def __init__(self):
         import os
