@@ -68,6 +68,19 @@ class Dataset:
         return self.reader.read()
 
 
+def moved_points(grid, factor: float) -> np.ndarray:
+    """The points of a grid moved by factor * u (NaN displacements count as 0).
+
+    Args:
+        grid: a pyvista grid with point data u.
+        factor: the magnification.
+
+    Returns:
+        Shape (points, 3).
+    """
+    return np.asarray(grid.points) + factor * np.nan_to_num(np.asarray(grid.point_data["u"]))
+
+
 def deformed(grid, factor: float):
     """The grid moved by factor * u (a copy; ``grid`` must carry the point array u).
 
@@ -79,9 +92,25 @@ def deformed(grid, factor: float):
         The warped grid.
     """
     out = grid.copy()
-    u = np.nan_to_num(np.asarray(grid.point_data["u"]))
-    out.points = np.asarray(grid.points) + factor * u
+    out.points = moved_points(grid, factor)
     return out
+
+
+def write_replacing(path: Path, draw):
+    """Write a file through a hidden temporary file beside it and a rename, so that a
+    reader never sees half a picture.
+
+    Args:
+        path: the file.
+        draw: called with the temporary file's path (same suffix) to write it.
+
+    Returns:
+        What ``draw`` returned.
+    """
+    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    result = draw(tmp)
+    os.replace(tmp, path)
+    return result
 
 
 BAR = {"color": "black", "vertical": False, "position_x": 0.25, "position_y": 0.02,
@@ -147,14 +176,9 @@ def draw_all(outdir: Path, factor: float, dim: int) -> list[Path]:
             ("fig5_vm_kappa.png", lambda f: fields_picture(grid, t, dim, f))]
     if dim == 3 and (outdir / "contact.xdmf").exists():
         jobs.append(("contact_pressure.png", lambda f: pressure_picture(outdir, f)))
-    written = []
     for name, draw in jobs:
-        path = outdir / name
-        tmp = path.with_name(f".{name}.tmp.png")
-        draw(tmp)
-        os.replace(tmp, path)
-        written.append(path)
-    return written
+        write_replacing(outdir / name, draw)
+    return [outdir / name for name, _ in jobs]
 
 
 def body_picture(outdir: Path, grid, t: float, factor: float, dim: int, path: Path) -> None:
@@ -307,10 +331,10 @@ def animate(outdir: Path, factor: float, dim: int, path: Path, duration_ms: int 
     caption = p.add_text(" ", position=(10, 10), font_size=10, color="black")  # a vtkTextActor
     frames = []
     for t, grid in zip(times, grids):
-        body.points = deformed(grid, factor).points
+        body.points = moved_points(grid, factor)
         body.cell_data["sigma_vm"] = grid.cell_data["sigma_vm"]
         if gamma3 is not None:
-            gamma3.points = deformed(contact.at(t), factor).points
+            gamma3.points = moved_points(contact.at(t), factor)
         caption.SetInput(f"t = {t:g}: von Mises stress, displacement x {factor:g}")
         p.render()
         image = p.screenshot(return_img=True)
@@ -374,11 +398,9 @@ def main(argv=None) -> int:
         files += draw_line_figures(args.results, args.line, args.factor)
     frames = None
     if args.animate:
-        path = args.results / ANIMATION
-        tmp = path.with_name(f".{ANIMATION}.tmp.gif")
-        frames = animate(args.results, args.factor, args.dim, tmp)
-        os.replace(tmp, path)
-        files.append(path)
+        frames = write_replacing(args.results / ANIMATION,
+                                 lambda tmp: animate(args.results, args.factor, args.dim, tmp))
+        files.append(args.results / ANIMATION)
     print(json.dumps({"files": [str(f) for f in files], "frames": frames}))
     return 0
 

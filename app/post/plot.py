@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from app.model import contact_laws
-from app.post.pictures import ANIMATION, PICTURES
+from app.post.pictures import ANIMATION, PICTURES, write_replacing
 
 LINE_FIGURES = ("fig3_deformed_contact.png", "fig4_tangential.png", "fig2_laws.png",
                 "history.png", "forces.png")
@@ -89,18 +89,6 @@ class Results:
     def u(self) -> np.ndarray:
         """The displacement at the vertices, (vertices, d)."""
         return self.fields["u"][:, :self.dim]
-
-    def cell_field(self, name: str) -> np.ndarray | None:
-        """A DG0 scalar field's cell values.
-
-        Args:
-            name: the field's name (e.g. sigma_vm, kappa).
-
-        Returns:
-            One value per cell, or None if the run did not write the field.
-        """
-        v = self.fields.get(name)
-        return None if v is None else v.reshape(len(self.cells), -1)[:, 0]
 
     def magnification(self) -> float:
         """The factor of the deformed views.
@@ -417,7 +405,6 @@ class PicturesError(RuntimeError):
         self.written = written
 
 
-LINE_FIGURE_FUNCTIONS = {}        # name -> function(res, path), filled below the figures
 PAINTER_LINE_FIGURES = ("forces.png",)    # drawn by the pictures' process (balances the two)
 
 
@@ -433,24 +420,22 @@ def draw_line_figures(outdir: Path, names, factor: float, res=None) -> list[Path
     Returns:
         The files written.
     """
-    import os
+    from functools import partial
     res = Results(outdir) if res is None else res
     written = []
     for name in names:
+        options = {"factor": factor} if name.startswith("fig3") else {}
         path = Path(outdir) / name
-        tmp = path.with_name(f".{name}.tmp.png")
-        fn = LINE_FIGURE_FUNCTIONS[name]
-        fn(res, tmp, factor) if name.startswith("fig3") else fn(res, tmp)
-        os.replace(tmp, path)
+        write_replacing(path, partial(LINE_FIGURE_FUNCTIONS[name], res, **options))
         written.append(path)
     return written
 
 
 def plot_all(outdir: Path, log=None, animate: bool = False, painter=None) -> list[Path]:
     """Write every figure into ``outdir`` (atomically: temporary file, then rename), in two
-    processes at once: this one draws fig3, fig4 and fig2 (matplotlib); the pictures'
-    process (app/post/pictures.py: pyvista, started ahead of a serial run) draws the
-    pictures, history.png and forces.png, and the animation if asked for.
+    processes at once: this one draws the line figures (matplotlib) but
+    PAINTER_LINE_FIGURES; the pictures' process (app/post/pictures.py: pyvista, started ahead
+    of a serial run) draws the pictures, PAINTER_LINE_FIGURES and the animation if asked for.
 
     Args:
         outdir: the results directory.
@@ -543,7 +528,7 @@ class Painter:
             self.proc.communicate()
 
 
-LINE_FIGURE_FUNCTIONS.update({"fig3_deformed_contact.png": fig3_deformed_contact,
-                              "fig4_tangential.png": fig4_tangential,
-                              "fig2_laws.png": fig2_laws, "history.png": history,
-                              "forces.png": forces})
+# LINE_FIGURES' drawing functions, (res, path) (fig3 also takes the factor)
+LINE_FIGURE_FUNCTIONS = {"fig3_deformed_contact.png": fig3_deformed_contact,
+                         "fig4_tangential.png": fig4_tangential, "fig2_laws.png": fig2_laws,
+                         "history.png": history, "forces.png": forces}
