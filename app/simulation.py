@@ -196,7 +196,7 @@ class Simulation:
         self.history = build_history(case, problem)
         problem.set_initial_values(self.history.kappa if self.history else None)
         self.gamma3_history = build_gamma3_history(case, problem)
-        threads.configure(self.comm.size)
+        threads.configure(self.comm)
         self.solver = select_solver(case, problem)
         self._clock["setup"] = time.perf_counter() - self._clock["start"]
         self._log_case()

@@ -188,9 +188,10 @@ def _add_run(sub) -> None:
     run.add_argument("--no-plots", action="store_true",
                      help="do not draw the figures at the end (see the plot command)")
     run.add_argument("--threads", type=positive_int, metavar="N",
-                     help="BLAS threads of the large factorisations of a serial run (the "
-                          "fast solver's 3D set-up and Gamma3 problem; default: the cores "
-                          "this process may use; under mpirun always 1 per rank)")
+                     help="BLAS threads of the large dense operations (the fast solver's "
+                          "3D set-up and Gamma3 problem; default: the cores this process may "
+                          "use; under mpirun: of rank 0, which solves the Gamma3 problem, "
+                          "at most the cores of the ranks on its node, the others 1)")
 
 
 def _add_plot_check_info(sub) -> None:

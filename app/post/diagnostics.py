@@ -20,6 +20,7 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
+from app.solvers import dense, threads
 from app.solvers.amg import AMG_PETSC, AMG_PREFIX, near_nullspace, rigid_body_modes
 from app.solvers.snesvi import PREFIX, clear_petsc_options, direct_solver, set_petsc_options
 from forms.elasticity import eps
@@ -213,27 +214,35 @@ def trace_constant_bound(problem, solver) -> float | None:
     rows, cols = solver._owned_rows.astype(np.int32), solver.global_G_dofs()  # collective
     local = M.getValues(rows, cols) if len(rows) else np.zeros((0, solver.m))
     M.destroy()
-    MG = solver.gather_GG(local)
-    MG = 0.5 * (MG + MG.T)
-    lam_K = _largest_generalised_eigenvalue(MG, solver.S, solver.Z)
+    MG = solver.gather_GG(local)                     # on the rank that holds S
+    lam_K = None
+    if MG is not None:
+        with threads.blas_threads(large=solver.m >= dense.PCG_MIN):
+            lam_K = _largest_generalised_eigenvalue(0.5 * (MG + MG.T), solver.C)
+    lam_K = threads.idle_bcast(problem.comm, lam_K)
     return float(np.max(np.linalg.eigvals(problem.elasticity.Cmat).real)) * lam_K
 
 
-def _largest_generalised_eigenvalue(A: np.ndarray, S: np.ndarray, Z: np.ndarray) -> float:
-    """lam_max of A x = lam S x (A symmetric positive semidefinite, S symmetric positive
-    definite with the inverse Z at hand): Lanczos (ARPACK) with O(m^2) products, or the
-    dense Cholesky reduction if ARPACK does not converge.  (The dense reduction alone cost
-    7.9 s of a 31 s run at box3d n = 32, m = 3267; measured.)"""
+def _largest_generalised_eigenvalue(A: np.ndarray, C: np.ndarray) -> float:
+    """lam_max of A x = lam S x (A symmetric positive semidefinite, S = C C^T symmetric
+    positive definite with its Cholesky factor C at hand), as lam_max of C^-1 A C^-T: Lanczos
+    (ARPACK) with O(m^2) products and triangular solves, or the dense reduction if ARPACK
+    does not converge.  (The dense reduction alone cost 7.9 s of a 31 s run at box3d n = 32,
+    m = 3267; measured.)"""
+    from scipy.linalg.lapack import dtrtrs
     from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigsh
-    m = len(S)
+    m = len(C)
+
+    def reduced(x):                                  # C^-1 A C^-T x
+        z = dtrtrs(C, x, lower=1, trans=1)[0]
+        return dtrtrs(C, A @ z, lower=1)[0]
     try:
-        Zop = LinearOperator((m, m), matvec=lambda x: Z @ x, dtype=float)
-        return float(eigsh(A, k=1, M=S, Minv=Zop, which="LA", tol=1e-12,
-                           return_eigenvectors=False)[0])
+        op = LinearOperator((m, m), matvec=reduced, dtype=float)
+        return float(eigsh(op, k=1, which="LA", tol=1e-12, return_eigenvectors=False)[0])
     except (ArpackNoConvergence, ValueError):
-        L = np.linalg.cholesky(S)
-        C = np.linalg.solve(L, np.linalg.solve(L, A).T)
-        return float(np.linalg.eigvalsh(0.5 * (C + C.T))[-1])
+        W = dtrtrs(C, A, lower=1)[0]                 # C^-1 A
+        B = dtrtrs(C, np.asfortranarray(W.T), lower=1)[0]
+        return float(np.linalg.eigvalsh(0.5 * (B + B.T))[-1])
 
 
 def _adot(A, y):

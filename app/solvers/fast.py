@@ -6,12 +6,15 @@ step problem (3.4) reads: find u minimising 1/2 u^T K u - F_n^T u + sum_i w_i ph
 u_nu,i <= g, where K is the (constant) elasticity matrix, F_n = f_n - B^T H_n the step's
 right-hand side and phi_i the nodal contact energy (normal compliance, memory, friction with
 the same regularisation delta as the SNES path).  Condensing onto the Gamma3 dofs G
-(Z = K^-1 E_G once, S = (Z_GG)^-1 the Schur complement) leaves per step
+(S = K_GG - K_GI K_II^-1 K_IG the Schur complement, once) leaves per step
     min_y  1/2 (y - y0)^T S (y - y0) + sum_i w_i phi_i(y_i),  y0 = (K^-1 F_n)_G,  y_nu <= g,
-which is solved redundantly on every rank by a projected Newton method with an Armijo line
-search on this (convex under (2.6)) energy, started from the previous step's Gamma3 values;
-then u = K^-1 (F_n + E_G lambda) with the Gamma3 forces lambda = S (y - y0).  Both paths solve
-the same discrete problem.
+which is solved by a projected Newton method with an Armijo line search on this (convex
+under (2.6)) energy, started from the previous step's Gamma3 values; then
+u = K^-1 (F_n + E_G lambda) with the Gamma3 forces lambda = S (y - y0).  Both paths solve the
+same discrete problem.  Under mpirun the Gamma3 problem (S, its Cholesky factor and the
+Newton iteration: dense, O(m^2) memory) lives on one rank, threads.GAMMA3_ROOT, which uses
+the cores of its node's ranks while they wait asleep (threads.idle_bcast); only the m values
+of r and y, and the iteration's outcome, pass between the ranks.
 
 Serial runs factorise K once, the Gamma3 dofs ordered last: K = L D L^T by CHOLMOD
 (schur.GLastLDL; SuperLU's L U where CHOLMOD is missing).  The trailing blocks give
@@ -20,9 +23,9 @@ and one backward sweep with u_G = y (kernels.GLastSolve: L in d x d node blocks,
 at h = 1/128 about 6 ms per step against 9.4-12 ms for the two PETSc back-substitutions
 u_free = K^-1 F_n, u = K^-1 (F_n + E_G lambda) of the general path.  Under mpirun the same
 split is one distributed MUMPS factorisation with the Gamma3 dofs as Schur variables
-(app/solvers/mumps.py): S comes from MUMPS once, and a step is a condensation (r on rank 0,
-broadcast), the Gamma3 problem and an expansion with u_G = y, the right-hand side and the
-solution distributed.  The general path (two PETSc solves per step; under mpirun Z_GG from a
+(app/solvers/mumps.py): S comes from MUMPS once, on rank 0, and a step is a condensation
+(r on rank 0), the Gamma3 problem and an expansion with u_G = y, the right-hand side and the
+solution distributed.  The general path (two PETSc solves per step; under mpirun S from a
 G-last factorisation of the matrix gathered on rank 0: two factorisations, counted) serves
 runs without a C compiler or the MUMPS wrapper, and runs where PETSc options for the fast
 solver are given (-vpcontact_fast_pc_factor_mat_solver_type ...).
@@ -40,7 +43,14 @@ from petsc4py import PETSc
 from app.io.errors import CaseError
 from app.solvers import dense, kernels, threads
 from app.solvers.nodal import NodalContact
-from app.solvers.schur import GLastLDL, g_last_factor, gamma3_schur_pair, gather_csr, schur_pair
+from app.solvers.schur import (
+    GLastLDL,
+    cholesky_solve,
+    g_last_factor,
+    gamma3_schur_pair,
+    gather_csr,
+    schur_pair,
+)
 from app.solvers.snesvi import StepSolveError
 from forms.elasticity import elasticity_operator, eps
 
@@ -105,16 +115,16 @@ class FastStepSolver:
             self._factorise(np.zeros(0, dtype=np.int32))
 
     def _factorise(self, G_rows: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """Factorise K once; returns the Schur complement S and Z_GG = E_G^T K^-1 E_G = S^-1
-        (None without Gamma3 dofs).
+        """Factorise K once; returns the Schur complement S and its Cholesky factor C on
+        GAMMA3_ROOT (None without Gamma3 dofs, and on the other ranks).
 
         Serial, with the compiled sweeps (kernels/ldl_blocks.c): one factorisation with the Gamma3
-        dofs last (CHOLMOD L D L^T, else SuperLU L U) gives S and Z_GG (its trailing blocks) and
+        dofs last (CHOLMOD L D L^T, else SuperLU L U) gives S and C (its trailing blocks) and
         every step's solve, one forward and one backward sweep with the Gamma3 problem in
         between (kernels.GLastSolve).  Under mpirun: one distributed MUMPS factorisation with
         the Gamma3 dofs as Schur variables (``_factorise_mumps``).  Otherwise (no C compiler
         or MUMPS wrapper, or PETSc options for the fast solver given): PETSc's direct solver
-        for the steps (MUMPS in parallel) and S, Z_GG from a G-last factorisation of the
+        for the steps (MUMPS in parallel) and S, C from a G-last factorisation of the
         gathered matrix on rank 0 -- two factorisations per run, counted as such."""
         from app.solvers.snesvi import PREFIX, clear_petsc_options, direct_solver, set_petsc_options
         petsc_options = any(str(k).startswith("fast_") for k in self.options)
@@ -128,10 +138,9 @@ class FastStepSolver:
             log.info("  fast solver: one %s factorisation (Gamma3 last), compiled sweeps",
                      "CHOLMOD L D L^T" if isinstance(factor, GLastLDL) else "SuperLU L U")
             return schur_pair(factor) if len(G_rows) else None
-        if self.comm.size > 1 and not petsc_options and len(G_rows):
-            pair = self._factorise_mumps(G_rows)
-            if pair is not None:
-                return pair
+        if self.comm.size > 1 and not petsc_options and len(G_rows) and \
+                self._factorise_mumps(G_rows):
+            return (self._mumps.S, self._mumps.C) if self._mumps.S is not None else None
         self.ksp = direct_solver(self.K, self.comm, PREFIX + "fast_")
         set_petsc_options(self.options, PREFIX)      # user options, e.g. -fast_ksp_view
         try:
@@ -142,30 +151,30 @@ class FastStepSolver:
         self.factorisations = 1
         log.info("  fast solver: PETSc %s for the steps%s",
                  self.ksp.getPC().getFactorSolverType() or "LU",
-                 ", a G-last factorisation on rank 0 for Z_GG" if len(G_rows) else "")
+                 ", a G-last factorisation on rank 0 for S" if len(G_rows) else "")
         if not len(G_rows):
             return None
         self.factorisations += 1
         return gamma3_schur_pair(self.K, G_rows, self.comm)
 
-    def _factorise_mumps(self, G_rows: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    def _factorise_mumps(self, G_rows: np.ndarray) -> bool:
         """Under mpirun: one distributed MUMPS factorisation with the Gamma3 dofs as Schur
-        variables (app/solvers/mumps.py); None (today's two factorisations then) where the
-        wrapper cannot be built on every rank or MUMPS fails."""
+        variables (app/solvers/mumps.py); False (two factorisations then) where the
+        wrapper cannot be built on every rank or MUMPS fails (the same on every rank)."""
         from app.solvers import mumps
         module = mumps.load()
         if not self.comm.allreduce(module is not None, op=MPI.LAND):
-            return None
+            return False
         try:
             self._mumps = mumps.SchurMumps(module, self.K, G_rows, self.d, self.comm)
         except mumps.MumpsError as exc:
             log.warning("  fast solver: %s; factorising twice instead", exc)
-            return None
+            return False
         self.factorisations = 1
         self._split = self._mumps                     # the same forward / backward sweeps
         log.info("  fast solver: one distributed MUMPS factorisation, Gamma3 as Schur "
                  "variables")
-        return self._mumps.S, self._mumps.Z
+        return True
 
     # ------------------------------------------------------------------ Gamma3 condensation
     def _setup_gamma3(self):
@@ -186,12 +195,15 @@ class FastStepSolver:
         self.local_owned_g = np.searchsorted(self.g_nodes, glob_nodes)   # positions in G
         self.owned_dofs_local = (owned_nodes[:, None] * d + np.arange(d)).ravel()
         self._owned_positions = (self.local_owned_g[:, None] * d + np.arange(d)).ravel()
-        # Z_GG = E_G^T K^-1 E_G (m x m) from the trailing blocks of one G-last LU (schur.py)
+        # S (m x m) and its Cholesky factor C from one G-last factorisation (schur.py)
         start = self.K.getOwnershipRange()[0]
         self._owned_rows = start + self.owned_dofs_local          # global rows of owned G dofs
-        self.S, self.Z = self._factorise(self.global_G_dofs())
+        self.on_root = self.comm.rank == threads.GAMMA3_ROOT
+        self.S, self.C = self._factorise(self.global_G_dofs()) or (None, None)
         normal = self._setup_frames()
-        self._direction = dense.NewtonDirection(self.S_w, d, dense.load())
+        self._direction = dense.NewtonDirection(self.S_w, d, dense.load()) \
+            if self.on_root else None
+        self._counts = threads.idle_bcast(self.comm, self._local_counts())
         c = p.case.contact
         fr = c.friction
         self.contact = NodalContact(self.w, normal, c.c_nu,
@@ -231,7 +243,7 @@ class FastStepSolver:
         nu0 = self._place_on_all(place, sign[:, None] * np.eye(d)[slot], (n, d))
         uniform = not fr.rotated and (len(nu0) == 0 or (nu0 == nu0[0]).all())
         self.T = None if uniform else T
-        self.S_w = self.S if uniform else np.einsum(
+        self.S_w = self.S if uniform or self.S is None else np.einsum(
             "ica,icjb,jbe->iaje", T, self.S.reshape(n, d, n, d), T).reshape(n * d, n * d)
         self.fixed = self._place_on_all(place, fixedQ if uniform else fixedT, (n, d),
                                         dtype=bool).ravel()
@@ -274,9 +286,15 @@ class FastStepSolver:
                 (number owned, m), columns in G order.
 
         Returns:
-            The whole matrix, shape (m, m), on every rank.
+            The whole matrix, shape (m, m), on GAMMA3_ROOT; None on the other ranks.
         """
-        return self._place_on_all(self._owned_positions, local_rows, (self.m, self.m))
+        parts = self.comm.gather((self._owned_positions, local_rows), root=threads.GAMMA3_ROOT)
+        if parts is None:
+            return None
+        out = np.empty((self.m, self.m))
+        for pos, rows in parts:
+            out[pos] = rows
+        return out
 
     def global_G_dofs(self) -> np.ndarray:
         """The global dof numbers of the Gamma3 dofs (collective).
@@ -334,14 +352,14 @@ class FastStepSolver:
 
     def _projected_newton(self, y0, lb, ub) -> tuple[np.ndarray, int]:
         """Projected Newton for min 1/2 (y-y0)^T S (y-y0) + sum w phi(y_i), lb <= y <= ub."""
-        S, d = self.S_w, self.d
+        S, d = self._direction.product, self.d
         y = np.clip(self._start(y0), lb, ub)
-        scale = max(np.abs(S @ y0).max(), np.abs(self.w).max(), 1e-300)
+        scale = max(np.abs(S(y0)).max(), np.abs(self.w).max(), 1e-300)
 
         def energy_grad(yv, hess=True):
             e, g, H = self.contact.evaluate(yv.reshape(-1, d), hess)
             dy = yv - y0
-            Sdy = S @ dy
+            Sdy = S(dy)
             return 0.5 * dy @ Sdy + e, Sdy + g.ravel(), H
 
         E, g, Hn = energy_grad(y)
@@ -420,22 +438,30 @@ class FastStepSolver:
                 else "fast (one factorisation)")
 
     def gamma3_stats(self) -> dict | None:
-        """The Gamma3 problem's linear algebra so far (summary.json: solver.gamma3).
+        """The Gamma3 problem's linear algebra so far (summary.json: solver.gamma3), the
+        same on every rank.
 
         Returns:
             {"dofs": m, "factorisations": dense Cholesky factorisations of the Newton
             matrix, "cg_iterations": CG iterations with a kept factor, "threads": BLAS
-            threads of the large factorisations}, or None without Gamma3.
+            threads of its large operations}, or None without Gamma3.
         """
         if not self.gamma3:
             return None
-        return {"dofs": self.m, "factorisations": self._direction.factorisations,
+        return {"dofs": self.m, **self._counts}
+
+    def _local_counts(self) -> dict | None:
+        """On GAMMA3_ROOT, the counts of ``gamma3_stats``; None elsewhere."""
+        if self._direction is None:
+            return None
+        return {"factorisations": self._direction.factorisations,
                 "cg_iterations": self._direction.cg_iterations, "threads": threads.cores()}
 
     def warm_start(self) -> None:
         """Start the next Gamma3 problem from the current u (after a restart)."""
         if self.gamma3:
-            self._y_prev = [(None, self._to_work(self._gather_G(self.u.vector)))]
+            y = self._to_work(self._gather_G(self.u.vector))
+            self._y_prev = [(None, y)] if self.on_root else []
 
     def solve(self) -> int:
         """Solve step (3.4) from u_{n-1}; on success u holds u_n.  If the Gamma3 problem
@@ -473,14 +499,40 @@ class FastStepSolver:
         """A step with the split solve (serial: the compiled sweeps; mpirun: MUMPS's
         condensation and expansion): u = K^-1 (F_n + E_G lambda) in one solve."""
         self._assemble_rhs()
-        r = self._split.forward(self.b.array_r)       # r = F_G - K_GI K_II^-1 F_I
+        r = self._split.forward(self.b.array_r)       # r = F_G - K_GI K_II^-1 F_I (root)
         its, y = 0, np.zeros(0)
         if self.gamma3:
             self._gamma3_inputs()
-            y, its = self._small_problem(self.Z @ r)  # y0 = S^-1 r: the Gamma3 values if free
+            # y0 = S^-1 r: the Gamma3 values if free
+            y, its = self._root_problem(lambda: cholesky_solve(self.C, r))
         self._split.backward(y, self.x.array)
         self._set_u()
         return its
+
+    def _root_problem(self, free_values) -> tuple[np.ndarray | None, int]:
+        """The Gamma3 problem on GAMMA3_ROOT, the other ranks waiting asleep
+        (threads.idle_bcast) for its outcome (collective).
+
+        Args:
+            free_values: called on the root only: y0, the Gamma3 values if free.
+
+        Returns:
+            (y, iterations): y on the root (None elsewhere), the iterations on every rank.
+
+        Raises:
+            StepSolveError: on every rank, if the root's iteration failed.
+        """
+        y, its, error = None, 0, None
+        if self.on_root:
+            try:
+                y, its = self._small_problem(free_values())
+            except StepSolveError as exc:
+                error = str(exc)
+        its, error, self._counts = threads.idle_bcast(
+            self.comm, (its, error, self._local_counts()))
+        if error is not None:
+            raise StepSolveError(error)
+        return y, its
 
     def _set_u(self) -> None:
         """u = x, unless x is not finite anywhere (then StepSolveError on every rank)."""
@@ -498,8 +550,9 @@ class FastStepSolver:
         if self.gamma3:
             y0 = self._gather_G(self.x)
             self._gamma3_inputs()
-            y, its = self._small_problem(y0)
-            lam = self.S @ (y - y0)                   # Gamma3 forces
+            y, its = self._root_problem(lambda: y0)
+            lam = self.S @ (y - y0) if self.on_root else None           # Gamma3 forces
+            lam = self.comm.bcast(lam, root=threads.GAMMA3_ROOT)
             self.b.array[self.owned_dofs_local] += lam[self._owned_positions]
             self.ksp.solve(self.b, self.x)           # u = K^-1 (F_n + E_G lambda)
         self._set_u()

@@ -4,14 +4,13 @@ dofs G as Schur variables (kernels/mumps_schur.c, MUMPS's C interface through cf
 K = L D L^T is factorised once, distributed over the ranks (lower triangle without stored
 zeros, each rank its own rows), in the G-last order of the serial path
 (schur.interior_last_ordering, computed on rank 0 from the gathered matrix once); MUMPS
-returns the Schur complement S = K_GG - K_GI K_II^-1 K_IG on rank 0, which is broadcast once,
-and Z = S^-1 comes from LAPACK's Cholesky factorisation and inverse (dpotrf, dpotri).  A step
-is a condensation (the forward sweep: r = F_G - K_GI K_II^-1 F_I on rank 0, from the
-distributed right-hand side), the Gamma3 problem on every rank, and an expansion (the
-backward sweep with u_G = y: the distributed solution), so only r and y (m values) go
-through rank 0.  Where the wrapper cannot be built (no MUMPS headers, no compiler) ``load``
-returns None and the fast solver factorises twice (PETSc's MUMPS and a G-last
-factorisation on rank 0).
+returns the Schur complement S = K_GG - K_GI K_II^-1 K_IG on rank 0, where the Gamma3 problem
+is solved (threads.GAMMA3_ROOT), and its Cholesky factor C comes from LAPACK's dpotrf there.
+A step is a condensation (the forward sweep: r = F_G - K_GI K_II^-1 F_I on rank 0, from the
+distributed right-hand side), the Gamma3 problem on rank 0, and an expansion (the backward
+sweep with u_G = y: the distributed solution), so only r and y (m values) go through rank 0.
+Where the wrapper cannot be built (no MUMPS headers, no compiler) ``load`` returns None and the
+fast solver factorises twice (PETSc's MUMPS and a G-last factorisation on rank 0).
 """
 from __future__ import annotations
 
@@ -23,8 +22,9 @@ from app.solvers.schur import (
     _symmetric_from_triangle,
     gather_csr,
     interior_last_ordering,
-    spd_inverse,
+    spd_cholesky,
 )
+from app.solvers.threads import idle_bcast
 
 MUMPS = kernels.Library("_vpcontact_mumps", ("mumps_schur",),
                         "MUMPS with Gamma3 Schur variables (factorising twice under mpirun)",
@@ -76,7 +76,8 @@ def schur_from_buffer(buffer: np.ndarray) -> np.ndarray:
 
 class SchurMumps:
     """K = L D L^T by MUMPS, distributed, with the Gamma3 dofs last as Schur variables
-    (collective).  ``S``, ``Z``: the Schur complement and its inverse, on every rank;
+    (collective).  ``S``, ``C``: the Schur complement and its Cholesky factor, on rank 0
+    (threads.GAMMA3_ROOT; None on the others);
     ``forward`` and ``backward``: a step's condensation and expansion.  ``destroy`` frees
     MUMPS's data (collective).
 
@@ -108,7 +109,7 @@ class SchurMumps:
         self._setup_solve(K)
 
     def _factorise(self, K, G, bs, status: int) -> None:
-        """Analysis and factorisation; sets S (broadcast once) and Z = S^-1."""
+        """Analysis and factorisation; sets S and C on rank 0."""
         comm, h = self.comm, self._h
         self._check(status, "initialisation")
         self._keep = list(lower_triplets(K))          # arrays MUMPS points to
@@ -121,10 +122,9 @@ class SchurMumps:
                                         self.m, buf(listvar)), "analysis")
         S = np.zeros((self.m, self.m)) if comm.rank == 0 else None
         self._check(self.lib.ms_factor(h, buf(S)), "factorisation")
-        S = schur_from_buffer(S) if comm.rank == 0 else None
-        self.S = comm.bcast(S, root=0)                 # once: m^2 values
-        self.Z = spd_inverse(self.S)
-        if self.Z is None:
+        self.S = schur_from_buffer(S) if comm.rank == 0 else None
+        self.C = spd_cholesky(self.S) if comm.rank == 0 else None
+        if not idle_bcast(comm, self.C is not None):   # rank 0 is threads.GAMMA3_ROOT
             raise MumpsError("the Schur complement from MUMPS is not positive definite")
 
     def _buf(self, a: np.ndarray | None):
@@ -169,11 +169,11 @@ class SchurMumps:
             b: this rank's owned entries of the right-hand side.
 
         Returns:
-            r, shape (m,), on every rank.
+            r, shape (m,), on rank 0; None on the others.
         """
         self.rhs[:] = b
         self._check(self.lib.ms_solve(self._h, 1), "condensation")
-        return self.comm.bcast(self.redrhs.copy() if self.comm.rank == 0 else None, root=0)
+        return self.redrhs.copy() if self.comm.rank == 0 else None
 
     def backward(self, y: np.ndarray, x: np.ndarray) -> None:
         """The expansion: x = K^-1 (b + E_G lambda) with x_G = y, for the b of the last

@@ -1,9 +1,9 @@
-"""The Gamma3 Schur complement S and flexibility matrix Z_GG = E_G^T K^-1 E_G = S^-1 of the
-fast solver, from one sparse factorisation with the Gamma3 dofs ordered last.
+"""The Gamma3 Schur complement S of the fast solver and its Cholesky factor, from one sparse
+factorisation with the Gamma3 dofs ordered last.
 
 If the rows and columns of K are ordered so that the Gamma3 dofs G come last and K = L U
 (no pivoting: K is symmetric positive definite, so U = D L^T), the trailing blocks satisfy
-    S = K_GG - K_GI K_II^-1 K_IG = L_GG U_GG,      Z_GG = S^-1 = U_GG^-1 L_GG^-1,
+    S = K_GG - K_GI K_II^-1 K_IG = L_GG U_GG = C C^T,      C = L_GG D_G^1/2,
 so the Schur complement costs one factorisation and a product of two m x m triangles instead
 of m back-substitutions (at h = 1/128, m = 256: 0.55 s with SuperLU against 1.4 s with
 PETSc's LU and 44 s with MUMPS column by column under mpirun -n 2; measured).  The interior
@@ -290,14 +290,17 @@ LAPACK_MIN = 600    # Gamma3 dofs above which scipy's LAPACK (0.1 s to import) p
 
 
 def schur_pair(factor: GLastLU | GLastLDL) -> tuple[np.ndarray, np.ndarray]:
-    """The Schur complement S = L_GG U_GG and the flexibility Z_GG = S^-1 from a G-last
-    factorisation.
+    """The Schur complement S = L_GG U_GG and its Cholesky factor C (S = C C^T) from a
+    G-last factorisation.
 
     Args:
         factor: a GLastLU or GLastLDL of K.
 
     Returns:
-        (S, Z), dense (m, m), symmetric.
+        (S, C): S dense (m, m), symmetric; C lower triangular, Fortran order.
+
+    Raises:
+        np.linalg.LinAlgError: S is not positive definite.
     """
     if isinstance(factor, GLastLDL) and factor.m > LAPACK_MIN:
         pair = _schur_pair_cholesky(factor)
@@ -305,17 +308,17 @@ def schur_pair(factor: GLastLU | GLastLDL) -> tuple[np.ndarray, np.ndarray]:
             return pair
     L_GG, U_GG = factor.trailing()
     S = L_GG @ U_GG
-    Z = np.linalg.solve(U_GG, np.linalg.solve(L_GG, np.eye(factor.m)))
-    return 0.5 * (S + S.T), 0.5 * (Z + Z.T)
+    S = 0.5 * (S + S.T)
+    return S, np.asfortranarray(np.linalg.cholesky(S))
 
 
 def _schur_pair_cholesky(factor: GLastLDL) -> tuple[np.ndarray, np.ndarray] | None:
-    """S = C C^T and Z = C^-T C^-1 with C = L_GG D_G^1/2, by LAPACK's triangular products
-    (dlauum, dpotri: m^3/3 flops each, against 2 m^3 for a general product or inverse; box3d
-    n = 32, m = 3168: S and Z in about 0.5 s against 3.5 s; measured).
+    """C = L_GG D_G^1/2 is S's Cholesky factor, and S = C C^T by LAPACK's triangular
+    product (dlauum: m^3/3 flops, against 2 m^3 for a general product; box3d n = 32,
+    m = 3168: about 0.3 s; measured).
 
     Returns:
-        (S, Z), or None if a pivot of D_G is not positive (K not positive definite there).
+        (S, C), or None if a pivot of D_G is not positive (K not positive definite there).
     """
     from scipy.linalg.lapack import dlauum
 
@@ -328,43 +331,44 @@ def _schur_pair_cholesky(factor: GLastLDL) -> tuple[np.ndarray, np.ndarray] | No
         # C C^T = J (U U^T) J with U = J C J upper triangular, J the reversal; LAPACK
         # writes one triangle and leaves the other as given (zero here)
         U, info = dlauum(np.asfortranarray(C[::-1, ::-1]), lower=0, overwrite_c=1)
-        Z = inverse_from_cholesky(C)
-    if info != 0 or Z is None:
+    if info != 0:
         return None
-    return _symmetric_from_triangle(U[::-1, ::-1]), Z
+    return _symmetric_from_triangle(U[::-1, ::-1]), C
 
 
-def inverse_from_cholesky(C: np.ndarray) -> np.ndarray | None:
-    """Z = C^-T C^-1 from a lower triangular Cholesky factor C, by LAPACK's dpotri (which
-    overwrites C; zero above the diagonal).
-
-    Args:
-        C: lower triangular (m, m), Fortran order.
-
-    Returns:
-        Z, dense (m, m), symmetric; None if C is singular.
-    """
-    from scipy.linalg.lapack import dpotri
-    Z, info = dpotri(C, lower=1, overwrite_c=1)
-    return _symmetric_from_triangle(Z) if info == 0 else None
-
-
-def spd_inverse(S: np.ndarray) -> np.ndarray | None:
-    """S^-1 of a symmetric positive definite S by LAPACK's Cholesky factorisation and
-    inverse (dpotrf, dpotri: m^3/3 flops each, against m^3 for a general inverse).
+def spd_cholesky(S: np.ndarray) -> np.ndarray | None:
+    """The Cholesky factor C of a symmetric positive definite S (S = C C^T), by LAPACK's
+    dpotrf (with the run's BLAS threads for the large ones).
 
     Args:
         S: dense (m, m), symmetric.
 
     Returns:
-        S^-1, symmetric; None if S is not positive definite.
+        C, lower triangular, Fortran order; None if S is not positive definite.
     """
     from scipy.linalg.lapack import dpotrf
 
     from app.solvers.threads import blas_threads
-    with blas_threads(large=True):
+    with blas_threads(large=len(S) > LAPACK_MIN):
         C, info = dpotrf(S, lower=1, clean=1)
-        return inverse_from_cholesky(C) if info == 0 else None
+    return C if info == 0 else None
+
+
+def cholesky_solve(C: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """S^-1 r from S's Cholesky factor C (two triangular solves, LAPACK's dpotrs).
+
+    Args:
+        C: lower triangular (m, m), Fortran order.
+        r: the right-hand side (m,).
+
+    Returns:
+        S^-1 r (a new array).
+    """
+    from scipy.linalg.lapack import dpotrs
+    x, info = dpotrs(C, r, lower=1)
+    if info != 0:                                    # only for invalid arguments
+        raise ValueError(f"dpotrs: argument {-info} is invalid")
+    return x
 
 
 def _symmetric_from_triangle(T: np.ndarray) -> np.ndarray:
@@ -374,9 +378,9 @@ def _symmetric_from_triangle(T: np.ndarray) -> np.ndarray:
     return A
 
 
-def gamma3_schur_pair(K: PETSc.Mat, G_rows: np.ndarray, comm) -> tuple[np.ndarray, np.ndarray]:
-    """The Gamma3 Schur complement S and flexibility Z_GG = E_G^T K^-1 E_G = S^-1
-    (collective; factorised on rank 0).
+def gamma3_schur_pair(K: PETSc.Mat, G_rows: np.ndarray, comm) -> tuple | None:
+    """The Gamma3 Schur complement S and its Cholesky factor C (collective; factorised on
+    rank 0).
 
     Args:
         K: the assembled stiffness matrix (PETSc, distributed).
@@ -384,10 +388,9 @@ def gamma3_schur_pair(K: PETSc.Mat, G_rows: np.ndarray, comm) -> tuple[np.ndarra
         comm: K's MPI communicator.
 
     Returns:
-        (S, Z_GG), dense (m, m), symmetric, rows/columns in the order of ``G_rows``, on
-        every rank.
+        (S, C) as ``schur_pair``'s, rows/columns in the order of ``G_rows``, on rank 0
+        (None on the others: the Gamma3 problem is solved there).
     """
     A = gather_csr(K, comm)
-    pair = schur_pair(g_last_factor(A, np.asarray(G_rows), blocks=False)) \
+    return schur_pair(g_last_factor(A, np.asarray(G_rows), blocks=False)) \
         if comm.rank == 0 else None
-    return comm.bcast(pair, root=0)

@@ -1,6 +1,7 @@
 """3D: patch test, the box case's nodal contact laws, and serial == mpirun -n 2."""
 import csv
 import json
+import os
 
 import numpy as np
 import pytest
@@ -64,16 +65,28 @@ def test_box_case_nodal_laws():
 
 
 @pytest.mark.mpi
-def test_box_serial_equals_two_ranks(tmp_path):
+@pytest.mark.parametrize("extra", [
+    ["--set", "time.N=4"],
+    # m = 1026 >= PCG_MIN: the kept factor and CG; under mpirun rank 0 borrows rank 1's core
+    ["--set", "time.N=2", "--set", "mesh.n=18"],
+    # PETSc's MUMPS for the steps, S from a G-last factorisation on rank 0
+    ["--set", "time.N=4", "--set", "petsc.fast_pc_factor_mat_solver_type=mumps"],
+], ids=["mumps_schur", "kept_factor", "petsc_path"])
+def test_box_serial_equals_two_ranks(tmp_path, extra):
     out = {}
     for n in (1, 2):
-        proc = run_cli(["run", BOX, "--out", tmp_path / f"np{n}", "--quiet",
-                        "--set", "time.N=4"], nprocs=n)
+        proc = run_cli(["run", BOX, "--out", tmp_path / f"np{n}", "--quiet", *extra], nprocs=n)
         assert proc.returncode == 0, proc.stdout + proc.stderr
         out[n] = (json.loads((tmp_path / f"np{n}" / "summary.json").read_text()),
                   list(csv.DictReader(open(tmp_path / f"np{n}" / "contact.csv"))))
     (s1, c1), (s2, c2) = out[1], out[2]
     assert s2["mpi_ranks"] == 2 and s1["mesh"] == s2["mesh"]
+    g1, g2 = s1["solver"]["gamma3"], s2["solver"]["gamma3"]
+    assert s1["solver"]["used"] == s2["solver"]["used"] == "fast"
+    assert s2["solver"]["factorisations"] == (2 if "petsc" in extra[-1] else 1)
+    if "mesh.n=18" in extra:                 # the Gamma3 problem's threads: both cores
+        assert g1["cg_iterations"] > 0 and g2["cg_iterations"] > 0
+        assert g2["threads"] == min(2, len(os.sched_getaffinity(0)))
     for a, b in zip(s1["steps"], s2["steps"], strict=True):
         for key in ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa"):
             assert b[key] == pytest.approx(a[key], rel=1e-8), key

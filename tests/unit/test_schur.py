@@ -1,4 +1,5 @@
-"""schur.py: Z_GG from the trailing blocks of a G-last LU equals (K^-1)_GG computed densely."""
+"""schur.py: S and its Cholesky factor from the trailing blocks of a G-last factorisation equal
+the dense K_GG - K_GI K_II^-1 K_IG; the split solve; MUMPS with Schur variables."""
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -21,36 +22,43 @@ def _csr(A):
     return CSR(A.indptr, A.indices, A.data)
 
 
-def test_flexibility_equals_dense_inverse():
+def _check_cholesky(C, S):
+    """C is lower triangular and C C^T = S."""
+    assert np.array_equal(C, np.tril(C))
+    assert np.abs(C @ C.T - S).max() <= 1e-13 * np.abs(S).max()
+
+
+def test_schur_complement_equals_the_inverse_of_the_dense_flexibility():
     A = _spd()
     G = np.array([7, 3, 50, 51, 119, 0])          # any order, not sorted
     K = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType),
                                             A.indices.astype(PETSc.IntType), A.data),
                               comm=MPI.COMM_SELF)
-    S, Z = gamma3_schur_pair(K, G, MPI.COMM_SELF)
-    Zd = np.linalg.inv(A.toarray())[np.ix_(G, G)]
-    assert np.abs(Z - Zd).max() <= 1e-12 * np.abs(Zd).max()
-    Sd = np.linalg.inv(Zd)
+    S, C = gamma3_schur_pair(K, G, MPI.COMM_SELF)
+    Sd = np.linalg.inv(np.linalg.inv(A.toarray())[np.ix_(G, G)])
     assert np.abs(S - Sd).max() <= 1e-12 * np.abs(Sd).max()
+    _check_cholesky(C, S)
 
 
 @pytest.mark.parametrize("lapack", [False, True])
 def test_schur_pair_by_triangular_products(monkeypatch, lapack):
-    """S = K_GG - K_GI K_II^-1 K_IG and Z = S^-1 from CHOLMOD's trailing blocks, by the
-    general products and by LAPACK's dlauum/dpotri (chosen above LAPACK_MIN dofs)."""
+    """S = K_GG - K_GI K_II^-1 K_IG and its Cholesky factor from CHOLMOD's trailing blocks,
+    by the general products and by LAPACK's dlauum (chosen above LAPACK_MIN dofs)."""
     from app.solvers import schur
     monkeypatch.setattr(schur, "LAPACK_MIN", 0 if lapack else 10**9)
     A = _spd(80, seed=4)
     G = np.array([3, 9, 40, 41, 42, 43, 100, 159, 12])
     f = _factor("cholmod", A, G, 1)
-    S, Z = schur.schur_pair(f)
+    S, C = schur.schur_pair(f)
     Ad = A.toarray()
     interior = np.setdiff1d(np.arange(A.shape[0]), G)
     Sd = Ad[np.ix_(G, G)] - Ad[np.ix_(G, interior)] @ np.linalg.solve(
         Ad[np.ix_(interior, interior)], Ad[np.ix_(interior, G)])
     assert np.abs(S - Sd).max() <= 1e-13 * np.abs(Sd).max()
-    assert np.array_equal(S, S.T) and np.array_equal(Z, Z.T)
-    assert np.abs(Z @ Sd - np.eye(len(G))).max() <= 1e-12
+    assert np.array_equal(S, S.T)
+    _check_cholesky(C, S)
+    r = np.arange(len(G), dtype=float)
+    assert np.abs(Sd @ schur.cholesky_solve(C, r) - r).max() <= 1e-12 * np.abs(r).max()
 
 
 def test_g_last_factors_reproduce_the_matrix():
@@ -119,11 +127,11 @@ def test_cholmod_refuses_an_indefinite_matrix():
 @pytest.mark.parametrize("kind", ["superlu", "cholmod"])
 @pytest.mark.parametrize("bs", [1, 2])
 def test_split_solve_with_given_gamma3_values(bs, kind):
-    """kernels.GLastSolve: forward, y0 = Z r, backward with u_G = y solves the interior
+    """kernels.GLastSolve: forward, y0 = S^-1 r, backward with u_G = y solves the interior
     equations exactly, and u_G = y0 is the unconstrained solution K^-1 b; with scalar and
     2 x 2 block storage of L (G is two whole nodes, so the nodal ordering applies)."""
     from app.solvers import kernels
-    from app.solvers.schur import schur_pair
+    from app.solvers.schur import cholesky_solve, schur_pair
     module = kernels.load()
     if module is None:
         pytest.skip("no C compiler")
@@ -139,7 +147,7 @@ def test_split_solve_with_given_gamma3_values(bs, kind):
     b = rng.normal(size=A.shape[0])
     Ad = A.toarray()
     r = split.forward(b).copy()
-    y0 = schur_pair(f)[1] @ r
+    y0 = cholesky_solve(schur_pair(f)[1], r)
     u = np.empty_like(b)
     split.backward(y0, u)
     assert np.abs(u - np.linalg.solve(Ad, b)).max() <= 1e-12 * np.abs(u).max()
@@ -194,9 +202,11 @@ def test_cholmod_blocks_in_place_equal_a_copy(bs):
 
 def test_mumps_schur_variables_give_the_pair_and_the_split_solve():
     """MUMPS with G as Schur variables (app/solvers/mumps.py, one rank here; the fast solver's
-    mpirun tests run it on two): S and Z = S^-1 as the dense reference, and the condensation /
-    expansion cycle r = b_G - K_GI K_II^-1 b_I, u = K^-1 (b + E_G lambda) with u_G = y."""
+    mpirun tests run it on two): S and its Cholesky factor as the dense reference, and the
+    condensation / expansion cycle r = b_G - K_GI K_II^-1 b_I, u = K^-1 (b + E_G lambda) with
+    u_G = y."""
     from app.solvers import mumps
+    from app.solvers.schur import cholesky_solve
     module = mumps.load()
     if module is None:
         pytest.skip("the MUMPS wrapper cannot be built here")
@@ -208,15 +218,16 @@ def test_mumps_schur_variables_give_the_pair_and_the_split_solve():
     M = mumps.SchurMumps(module, K, G, 1, MPI.COMM_SELF)
     Ad = A.toarray()
     Zd = np.linalg.inv(Ad)[np.ix_(G, G)]
-    assert np.abs(M.Z - Zd).max() <= 1e-12 * np.abs(Zd).max()
     assert np.abs(M.S @ Zd - np.eye(len(G))).max() <= 1e-12
+    _check_cholesky(M.C, M.S)
     b = np.random.default_rng(2).standard_normal(A.shape[0])
     r = M.forward(b)
-    assert np.abs(M.Z @ r - np.linalg.solve(Ad, b)[G]).max() <= 1e-12 * np.abs(r).max()
-    y = M.Z @ r + 0.1
+    y0 = cholesky_solve(M.C, r)
+    assert np.abs(y0 - np.linalg.solve(Ad, b)[G]).max() <= 1e-12 * np.abs(r).max()
+    y = y0 + 0.1
     x = np.zeros(A.shape[0])                      # the owned entries (all, one rank)
     M.backward(y, x)
     lam = np.zeros(A.shape[0])
-    lam[G] = M.S @ (y - M.Z @ r)
+    lam[G] = M.S @ (y - y0)
     assert np.abs(x - np.linalg.solve(Ad, b + lam)).max() <= 1e-11 * np.abs(x).max()
     M.destroy()
