@@ -215,11 +215,11 @@ def trace_constant_bound(problem, solver) -> float | None:
     local = M.getValues(rows, cols) if len(rows) else np.zeros((0, solver.m))
     M.destroy()
     MG = solver.gather_GG(local)                     # on the rank that holds S
-    lam_K = None
-    if MG is not None:
+
+    def largest():
         with threads.blas_threads(large=solver.m >= dense.PCG_MIN):
-            lam_K = _largest_generalised_eigenvalue(0.5 * (MG + MG.T), solver.C)
-    lam_K = threads.idle_bcast(problem.comm, lam_K)
+            return _largest_generalised_eigenvalue(0.5 * (MG + MG.T), solver.C)
+    lam_K = threads.root_call(problem.comm, largest)
     return float(np.max(np.linalg.eigvals(problem.elasticity.Cmat).real)) * lam_K
 
 

@@ -201,9 +201,12 @@ class FastStepSolver:
         self.on_root = self.comm.rank == threads.GAMMA3_ROOT
         self.S, self.C = self._factorise(self.global_G_dofs()) or (None, None)
         normal = self._setup_frames()
-        self._direction = dense.NewtonDirection(self.S_w, d, dense.load()) \
-            if self.on_root else None
-        self._counts = threads.idle_bcast(self.comm, self._local_counts())
+        self._direction = None
+
+        def direction():                      # the dense Newton matrices, on the root
+            self._direction = dense.NewtonDirection(self._work_matrix(), d, dense.load())
+            return self._local_counts()
+        self._counts = threads.root_call(self.comm, direction)
         c = p.case.contact
         fr = c.friction
         self.contact = NodalContact(self.w, normal, c.c_nu,
@@ -213,8 +216,9 @@ class FastStepSolver:
     def _setup_frames(self) -> np.ndarray:
         """The coordinates of the Gamma3 problem: the global ones where every node has the
         same axis-aligned normal and no rotated frame (the paper's flat bottom), else the
-        nodal frames with the normal first (T_i, so y = T y_w).  Sets S_w = T^T S T, the
-        bounds u_nu <= g_i and the prescribed components (fixed, set per step).
+        nodal frames with the normal first (T_i, so y = T y_w).  Sets T (None in the global
+        coordinates), the bounds u_nu <= g_i and the prescribed components (fixed, set per
+        step).
 
         Returns:
             The normal in those coordinates (NodalContact's nu)."""
@@ -243,8 +247,6 @@ class FastStepSolver:
         nu0 = self._place_on_all(place, sign[:, None] * np.eye(d)[slot], (n, d))
         uniform = not fr.rotated and (len(nu0) == 0 or (nu0 == nu0[0]).all())
         self.T = None if uniform else T
-        self.S_w = self.S if uniform or self.S is None else np.einsum(
-            "ica,icjb,jbe->iaje", T, self.S.reshape(n, d, n, d), T).reshape(n * d, n * d)
         self.fixed = self._place_on_all(place, fixedQ if uniform else fixedT, (n, d),
                                         dtype=bool).ravel()
         self.lb = np.full((n, d), -np.inf)
@@ -257,6 +259,14 @@ class FastStepSolver:
             return normal
         self.ub[:, 0] = g
         return np.eye(d)[0]
+
+    def _work_matrix(self) -> np.ndarray:
+        """S in the Gamma3 problem's coordinates: S_w = T^T S T (S in the global ones)."""
+        if self.T is None:
+            return self.S
+        n, d = len(self.g_nodes), self.d
+        return np.einsum("ica,icjb,jbe->iaje", self.T, self.S.reshape(n, d, n, d),
+                         self.T).reshape(n * d, n * d)
 
     def _to_work(self, y: np.ndarray) -> np.ndarray:
         """Gamma3 values in the problem's coordinates: y_w = T^T y."""
@@ -448,10 +458,11 @@ class FastStepSolver:
         """
         if not self.gamma3:
             return None
-        return {"dofs": self.m, **self._counts}
+        return {"dofs": self.m, **(self._local_counts() or self._counts)}
 
     def _local_counts(self) -> dict | None:
-        """On GAMMA3_ROOT, the counts of ``gamma3_stats``; None elsewhere."""
+        """The counts of ``gamma3_stats`` on GAMMA3_ROOT, as they are; None elsewhere (which
+        keep the root's of the last Gamma3 problem)."""
         if self._direction is None:
             return None
         return {"factorisations": self._direction.factorisations,
@@ -509,29 +520,23 @@ class FastStepSolver:
         self._set_u()
         return its
 
-    def _root_problem(self, free_values) -> tuple[np.ndarray | None, int]:
-        """The Gamma3 problem on GAMMA3_ROOT, the other ranks waiting asleep
-        (threads.idle_bcast) for its outcome (collective).
+    def _root_problem(self, free_values) -> tuple[np.ndarray, int]:
+        """The Gamma3 problem on GAMMA3_ROOT, the other ranks waiting asleep for it
+        (threads.root_call; collective).
 
         Args:
             free_values: called on the root only: y0, the Gamma3 values if free.
 
         Returns:
-            (y, iterations): y on the root (None elsewhere), the iterations on every rank.
+            (y, iterations), on every rank.
 
         Raises:
             StepSolveError: on every rank, if the root's iteration failed.
         """
-        y, its, error = None, 0, None
-        if self.on_root:
-            try:
-                y, its = self._small_problem(free_values())
-            except StepSolveError as exc:
-                error = str(exc)
-        its, error, self._counts = threads.idle_bcast(
-            self.comm, (its, error, self._local_counts()))
-        if error is not None:
-            raise StepSolveError(error)
+        def solve():
+            y, its = self._small_problem(free_values())
+            return y, its, self._local_counts()
+        y, its, self._counts = threads.root_call(self.comm, solve)
         return y, its
 
     def _set_u(self) -> None:

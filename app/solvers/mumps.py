@@ -24,7 +24,7 @@ from app.solvers.schur import (
     interior_last_ordering,
     spd_cholesky,
 )
-from app.solvers.threads import idle_bcast
+from app.solvers.threads import root_call
 
 MUMPS = kernels.Library("_vpcontact_mumps", ("mumps_schur",),
                         "MUMPS with Gamma3 Schur variables (factorising twice under mpirun)",
@@ -123,8 +123,12 @@ class SchurMumps:
         S = np.zeros((self.m, self.m)) if comm.rank == 0 else None
         self._check(self.lib.ms_factor(h, buf(S)), "factorisation")
         self.S = schur_from_buffer(S) if comm.rank == 0 else None
-        self.C = spd_cholesky(self.S) if comm.rank == 0 else None
-        if not idle_bcast(comm, self.C is not None):   # rank 0 is threads.GAMMA3_ROOT
+        self.C = None
+
+        def cholesky():                      # on rank 0, MUMPS's host and threads.GAMMA3_ROOT
+            self.C = spd_cholesky(self.S)
+            return self.C is not None
+        if not root_call(comm, cholesky):
             raise MumpsError("the Schur complement from MUMPS is not positive definite")
 
     def _buf(self, a: np.ndarray | None):

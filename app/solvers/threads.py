@@ -164,3 +164,29 @@ def idle_bcast(comm, obj=None):
     else:
         request.Wait()
     return comm.bcast(obj, root=GAMMA3_ROOT)
+
+
+def root_call(comm, work):
+    """``work()`` on GAMMA3_ROOT while the other ranks wait asleep (``idle_bcast``); its
+    result, or the exception it raised, on every rank (collective).
+
+    Args:
+        comm: the communicator (mpi4py).
+        work: called on the root only; its result must pickle (it is broadcast).
+
+    Returns:
+        ``work()``'s result, on every rank.
+
+    Raises:
+        The exception ``work()`` raised (a copy on the other ranks), on every rank.
+    """
+    result, failure = None, None
+    if comm.rank == GAMMA3_ROOT:
+        try:
+            result = work()
+        except Exception as exc:             # every rank raises it, none waits for ever
+            failure = exc
+    result, failure = idle_bcast(comm, (result, failure))
+    if failure is not None:
+        raise failure
+    return result

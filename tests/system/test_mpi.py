@@ -1,11 +1,14 @@
 """mpirun -n 2 gives the same results as a serial run (summary norms to 1e-8 relative)."""
 import csv
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
-from conftest import PAPER_CASE, run_cli
+from conftest import MPI_ENV, PAPER_CASE, ROOT, run_cli
 
 pytestmark = pytest.mark.mpi
 KEYS = ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa")
@@ -35,3 +38,51 @@ def test_serial_equals_two_ranks(tmp_path, mesh):
         v2 = np.array([float(r[col]) for r in c2])
         np.testing.assert_allclose(v2, v1, rtol=1e-8, atol=1e-12 * np.abs(v1).max())
     assert [r["state"] for r in c1] == [r["state"] for r in c2]
+
+
+ROOT_CALL_SCRIPT = """
+import time
+from mpi4py import MPI
+from app.solvers import threads
+from app.solvers.snesvi import StepSolveError
+comm = MPI.COMM_WORLD
+
+def busy():
+    t = time.perf_counter()
+    while time.perf_counter() - t < 0.5:
+        pass
+    return comm.rank, [1.0, 2.0]
+
+cpu = time.process_time()
+value = threads.root_call(comm, busy)
+cpu = time.process_time() - cpu
+
+def fails():
+    raise StepSolveError("the root's iteration failed")
+
+try:
+    threads.root_call(comm, fails)
+    raised = None
+except StepSolveError as exc:
+    raised = str(exc)
+print(f"rank {comm.rank}: value {value} cpu {cpu:.3f} raised {raised}", flush=True)
+"""
+
+
+def test_root_call_lets_the_other_ranks_sleep_and_raises_everywhere(tmp_path):
+    """threads.root_call: the root's result and its exception reach every rank, and a rank
+    waiting for the root sleeps (its CPU time stays far below the root's 0.5 s of work; a
+    rank waiting inside MPI would spin at 100%)."""
+    script = tmp_path / "root_call.py"
+    script.write_text(ROOT_CALL_SCRIPT)
+    proc = subprocess.run(["mpirun", "-n", "2", sys.executable, str(script)], cwd=ROOT,
+                          env={**os.environ, **MPI_ENV, "PYTHONPATH": str(ROOT)},
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    lines = sorted(line for line in proc.stdout.splitlines() if line.startswith("rank "))
+    assert len(lines) == 2
+    for line in lines:
+        assert "value (0, [1.0, 2.0])" in line
+        assert line.endswith("raised the root's iteration failed")
+    waiting = float(lines[1].split(" cpu ")[1].split()[0])
+    assert waiting < 0.15, lines[1]
