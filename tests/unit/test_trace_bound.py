@@ -1,0 +1,49 @@
+"""The (2.6) diagnostic's upper bound from the fast solver's Schur complement
+(diagnostics.trace_constant_bound): lam_max(A x = lam S x) as lam_max(C^-1 A C^-T) with
+S = C C^T against the dense generalised eigenproblem, by both of its paths, and the bound
+against the trace constant itself on the paper case."""
+import numpy as np
+import pytest
+import scipy.linalg
+from mpi4py import MPI
+
+from app.post import diagnostics
+from conftest import paper_raw, validate_raw
+
+
+def _pair(m=40, seed=0):
+    """A semidefinite A of rank m / 4 (as M_G on part of the dofs) and an SPD S."""
+    rng = np.random.default_rng(seed)
+    B = rng.standard_normal((m, m))
+    V = rng.standard_normal((m, m // 4))
+    return V @ V.T, B @ B.T + m * np.eye(m)
+
+
+@pytest.mark.parametrize("arpack", [True, False], ids=["lanczos", "dense_reduction"])
+def test_reduced_eigenvalue_equals_the_generalised_one(monkeypatch, arpack):
+    import scipy.sparse.linalg as sla
+    A, S = _pair()
+    C = np.asfortranarray(np.linalg.cholesky(S))
+    if not arpack:                                  # ARPACK fails: the dense reduction
+        def refuse(*args, **kwargs):
+            raise sla.ArpackNoConvergence("refused", np.zeros(0), np.zeros((0, 0)))
+        monkeypatch.setattr(sla, "eigsh", refuse)
+    ref = scipy.linalg.eigh(A, S, eigvals_only=True)[-1]
+    assert diagnostics._largest_generalised_eigenvalue(A, C) == pytest.approx(ref, rel=1e-10)
+
+
+def test_bound_brackets_the_trace_constant_on_the_paper_case():
+    """||gamma||^2 <= c_max lam_K <= (c_max / c_min) ||gamma||^2, with c_min, c_max the
+    extreme eigenvalues of E: lam_K = max |v|^2_Gamma3 / (E eps(v), eps(v)) lies between
+    ||gamma||^2 / c_max and ||gamma||^2 / c_min."""
+    from app.model.problem import ContactProblem
+    from app.simulation import build_mesh
+    from app.solvers.fast import FastStepSolver
+    case = validate_raw(paper_raw())
+    problem = ContactProblem(case, build_mesh(case, MPI.COMM_WORLD))
+    solver = FastStepSolver(problem)
+    bound = diagnostics.trace_constant_bound(problem, solver)
+    value, _ = diagnostics.trace_constant(problem, rtol=1e-12, max_iter=5000)
+    c = np.linalg.eigvalsh(problem.elasticity.Cmat)
+    assert value * (1 - 1e-9) <= bound <= value * c[-1] / c[0] * (1 + 1e-9)
+    solver.destroy()
