@@ -142,8 +142,7 @@ class ContactWriter:
             out[idx] = values
             return out
         axes = "xyz"[:self.dim]
-        u = np.zeros((n, 3))
-        u[:] = np.nan
+        u = np.full((n, 3), np.nan)
         for i, a in enumerate(axes):
             u[idx, i] = data[f"u_{a}"]
         u[idx, self.dim:] = 0.0

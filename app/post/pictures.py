@@ -193,7 +193,7 @@ def body_picture(outdir: Path, grid, t: float, factor: float, dim: int, path: Pa
         path: the PNG file.
     """
     body = deformed(grid, factor)
-    gamma3 = _contact_at(outdir, None, factor)
+    gamma3 = _contact_last(outdir, factor)
     title = f"t = {t:g}: von Mises stress, displacement x {factor:g}, Gamma3 in black"
     p = _body_plotter(body, gamma3, dim, color_range(body.cell_data["sigma_vm"]), title)
     _save(p, path)
@@ -247,13 +247,10 @@ def fields_picture(grid, t: float, dim: int, path: Path) -> None:
     p.close()
 
 
-def _contact_at(outdir: Path, t: float | None, factor: float):
-    """Gamma3 (contact.xdmf) at time t, deformed; None without contact.xdmf."""
+def _contact_last(outdir: Path, factor: float):
+    """Gamma3 (contact.xdmf) at the last time, deformed; None without contact.xdmf."""
     path = outdir / "contact.xdmf"
-    if not path.exists():
-        return None
-    contact = Dataset(path)
-    return deformed(contact.at(t), factor)
+    return deformed(Dataset(path).at(), factor) if path.exists() else None
 
 
 def pressure_picture(outdir: Path, path: Path) -> None:

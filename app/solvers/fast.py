@@ -13,7 +13,7 @@ under (2.6)) energy, started from the previous step's Gamma3 values; then
 u = K^-1 (F_n + E_G lambda) with the Gamma3 forces lambda = S (y - y0).  Both paths solve the
 same discrete problem.  Under mpirun the Gamma3 problem (S, its Cholesky factor and the
 Newton iteration: dense, O(m^2) memory) lives on one rank, threads.GAMMA3_ROOT, which uses
-the cores of its node's ranks while they wait asleep (threads.idle_bcast); only the m values
+the cores of its node's ranks while they wait asleep (threads.root_call); only the m values
 of r and y, and the iteration's outcome, pass between the ranks.
 
 Serial runs factorise K once, the Gamma3 dofs ordered last: K = L D L^T by CHOLMOD

@@ -825,8 +825,8 @@ def write_plot(path: Path, res: dict) -> None:
         res: the result of ``study``.
     """
     import matplotlib.pyplot as plt
+
+    from app.post.pictures import write_replacing
     fig = convergence_figure(res)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=120)
+    write_replacing(path, lambda tmp: fig.savefig(tmp, dpi=120))
     plt.close(fig)
-    tmp.replace(path)
