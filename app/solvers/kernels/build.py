@@ -122,12 +122,17 @@ def _import(name: str, target: Path):
 
 def _load_or_build(name: str, target: Path, build, what: str):
     """The cached module; built first (``build(target)``) if missing, rebuilt if it does not
-    load (a truncated or otherwise damaged file)."""
+    load (a truncated or otherwise damaged file; a truncated one is found by its ELF
+    headers before it is loaded: it would load and die with SIGBUS)."""
+    from app.io.cachedirs import elf_damage
     if target.exists():
         try:
-            return _import(name, target)
+            why = elf_damage(target)
+            if why is None:
+                return _import(name, target)
         except Exception as exc:                        # noqa: BLE001 (any damage)
-            log.info("the cached library %s does not load (%s): rebuilding it", target, exc)
+            why = exc
+        log.info("the cached library %s does not load (%s): rebuilding it", target, why)
     else:
         log.info("compiling %s into %s", what, target.parent)
     build(target)
