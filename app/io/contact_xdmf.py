@@ -4,8 +4,9 @@ solution.xdmf is.
 
 Gamma3 has O(n^(d-1)) nodes: its facets are gathered on rank 0 once and the contact table
 at each output time (gather_contact_table, the columns of contact.csv); rank 0 writes the
-HDF5 file with h5py and publishes the XML by an atomic rename after every time, so that
-contact.xdmf always describes complete data.  Nodes that a Dirichlet condition fixes
+HDF5 file with h5py and then appends the time's Grid to contact.xdmf (app/io/xdmf.py
+TemporalXdmf: O(1) per time, the file complete after every time), so that contact.xdmf
+always describes complete data.  Nodes that a Dirichlet condition fixes
 entirely are in the facet mesh but not in the table: their values are NaN and their state
 "prescribed".
 """
@@ -16,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from app.io.output import OutputError, atomic_write, on_rank0
-from app.io.xdmf import Field, TemporalXml, data_item
+from app.io.output import OutputError, on_rank0
+from app.io.xdmf import Field, TemporalXdmf, data_item
 
 STATE_CODES = {"separated": 0, "compliance": 1, "bound": 2, "prescribed": 3}
 TOPOLOGY = {2: "Polyline", 3: "Triangle", 4: "Quadrilateral"}      # by nodes per facet
@@ -97,14 +98,14 @@ class ContactWriter:
         with h5py.File(self.h5, "w") as f:
             f["Mesh/geometry"] = self.points
             f["Mesh/topology"] = self.cells.astype(np.int64)
+            f.create_group("Step", track_order=True)     # O(1) per time (FieldWriter)
         nf, nv = self.cells.shape
         topology = ET.Element("Topology", TopologyType=TOPOLOGY[nv], NumberOfElements=str(nf),
                               NodesPerElement=str(nv))
         topology.append(data_item(self.h5.name, "/Mesh/topology", (nf, nv), "Int"))
         geometry = ET.Element("Geometry", GeometryType="XYZ")
         geometry.append(data_item(self.h5.name, "/Mesh/geometry", self.points.shape))
-        self.xml = TemporalXml(self.path.stem, topology, geometry)
-        atomic_write(self.path, self.xml.text())
+        self.xml = TemporalXdmf(self.path, self.path.stem, topology, geometry)
 
     def write(self, t: float, data: dict | None) -> None:
         """Append the table at time t (collective; the data is read on rank 0).
@@ -133,7 +134,6 @@ class ContactWriter:
         self.xml.add(t, [Field(name, "Vector" if name == "u" else "Scalar", "Node")
                          .attribute(self.h5.name, f"/Step/{k}/{name}", values.shape)
                          for name, values in columns.items()])
-        atomic_write(self.path, self.xml.text(), sync=False)
 
     def _columns(self, data: dict, idx: np.ndarray, n: int) -> dict[str, np.ndarray]:
         """The point arrays of one time: u (a 3-vector), the table's scalar columns, state."""

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from dolfinx import io as dio
 
-from app.io.xdmf import TemporalXml, XdmfLayoutError, dolfinx_layout, dolfinx_time_key
+from app.io.xdmf import TemporalXdmf, XdmfLayoutError, dolfinx_layout, dolfinx_time_key
 
 OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv", "contact.xdmf",
                 "contact.h5", "history.csv")
@@ -40,12 +40,12 @@ def csv_text(columns, rows) -> str:
     return buf.getvalue()
 
 
-def atomic_write(path: Path, text: str, sync: bool = True) -> None:
+def atomic_write(path: Path, text: str | bytes, sync: bool = True) -> None:
     """Write ``text`` to ``path`` through a temporary file and a rename.
 
     Args:
         path: the file.
-        text: its new content.
+        text: its new content (str, or bytes written as they are).
         sync: fsync the file before the rename (the XML republished at every output step
             skips it: a killed process leaves the page cache intact, and the HDF5 data it
             points at is not synced either).
@@ -55,7 +55,7 @@ def atomic_write(path: Path, text: str, sync: bool = True) -> None:
     """
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
-        with open(tmp, "w") as fh:
+        with open(tmp, "wb" if isinstance(text, bytes) else "w") as fh:
             fh.write(text)
             fh.flush()
             if sync:
@@ -155,6 +155,17 @@ def write_json(comm, path: Path, data: dict) -> None:
     on_rank0(comm, atomic_write, path, text)
 
 
+def _overwrite(path: Path, data: bytes) -> None:
+    """Replace a file's content by ``data``, at most as long as it, in place: the blocks are
+    the file's already, so a full disk cannot leave it empty."""
+    fd = os.open(path, os.O_WRONLY)
+    try:
+        os.pwrite(fd, data, 0)
+        os.ftruncate(fd, len(data))
+    finally:
+        os.close(fd)
+
+
 class FieldWriter:
     """solution.xdmf: u (P1 vector), sigma (DG0 tensor), sigma_vm, kappa (DG0) per time, as
     one dataset (app/io/xdmf.py: one temporal collection, every field in the Grid of its
@@ -164,8 +175,14 @@ class FieldWriter:
     during a write would leave a truncated XDMF.  dolfinx therefore writes to a work file
     ``.solution.work.xdmf`` whose HDF5 name ``.solution.work.h5`` is a symlink to
     solution.h5; after every output step the file is closed (HDF5 flushed), and rank 0
-    adds the new datasets to solution.xdmf's XML and publishes it by an atomic rename.
-    solution.xdmf is thus always a complete description of the steps written so far.
+    appends the new datasets' Grid to solution.xdmf (TemporalXdmf: in place, before the
+    closing tags).  solution.xdmf is thus always a complete description of the steps
+    written so far.
+
+    Cost: O(1) per output step.  dolfinx parses its XML file when it opens it and saves it
+    whole after every function written, so rank 0 puts the work file back to the mesh
+    alone after every step (dolfinx's Grids reference the mesh by an XPath, and its
+    datasets are named by the time only): neither XML file is rewritten whole.
 
     Args:
         comm: the MPI communicator.
@@ -189,7 +206,7 @@ class FieldWriter:
                 f.write_mesh(mesh)
         except RuntimeError as exc:             # dolfinx's HDF5 layer
             raise OutputError(f"{self.h5}: cannot write the mesh ({exc})") from None
-        self.xml, self._layout = None, None
+        self.xml, self._layout, self._mesh_xml = None, None, None
         on_rank0(comm, self._start_xml)
 
     def _fresh_files(self) -> None:
@@ -200,12 +217,24 @@ class FieldWriter:
 
     def _start_xml(self) -> None:
         """The mesh's items from dolfinx's XML; solution.xdmf with the mesh alone."""
+        self._mesh_xml = self.work.read_bytes()
         try:
-            topology, geometry, _ = dolfinx_layout(self.work.read_text(), self.h5.name)
+            topology, geometry, _ = dolfinx_layout(self._mesh_xml, self.h5.name)
         except XdmfLayoutError as exc:           # an OSError: every rank raises it (on_rank0)
             raise OutputError(f"{self.work}: {exc}") from None
-        self.xml = TemporalXml(self.path.stem, topology, geometry)
-        atomic_write(self.path, self.xml.text())
+        self.xml = TemporalXdmf(self.path, self.path.stem, topology, geometry)
+        self._function_groups()
+
+    def _function_groups(self) -> None:
+        """Create solution.h5's group of each field (dolfinx adds its datasets, one a time)
+        with new-style link storage (link creation order tracked): an old-style group, as
+        dolfinx creates it, keeps its datasets' names in one local heap that HDF5 reads and
+        writes whole whenever a dataset is added, O(n) bytes at step n; the new-style
+        fractal heap writes one direct block (at most 64 KiB) and its B-tree nodes."""
+        import h5py
+        with h5py.File(self.h5, "a") as f:
+            for field in self.fields:
+                f.create_group(f"Function/{field.name}", track_order=True)
 
     def _add_time(self, t: float) -> None:
         """Append the Grid of time t (its datasets: dolfinx's names, dolfinx_time_key)."""
@@ -214,7 +243,7 @@ class FieldWriter:
         key = dolfinx_time_key(t)
         self.xml.add(t, [field.attribute(self.h5.name, f"/Function/{field.name}/{key}", shape)
                          for field, shape in self._layout])
-        atomic_write(self.path, self.xml.text(), sync=False)
+        _overwrite(self.work, self._mesh_xml)      # dolfinx's XML back to the mesh alone
 
     def _first_layout(self, t: float) -> list:
         """The fields (types and centres from dolfinx's XML) with their datasets' shapes,

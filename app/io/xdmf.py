@@ -4,17 +4,20 @@ at each time carries the mesh's Topology and Geometry and every field of that ti
 dolfinx (XDMFFile.write_function) writes the mesh as one Grid and each function as its own
 temporal collection, so readers show one block per function (ParaView's Xdmf3 readers,
 pyvista.read: a MultiBlock of 5).  solution.xdmf is therefore our own XML over dolfinx's
-HDF5 datasets, and contact.xdmf over ours (app/io/contact_xdmf.py).  The XML is built as
-the run goes, one Grid's text per time, so writing step n costs O(n) string joining and
-never re-parses the file.
+HDF5 datasets, and contact.xdmf over ours (app/io/contact_xdmf.py).  The file grows as
+the run goes (TemporalXdmf): each time's Grid is written once, in place before the closing
+tags, so writing a time costs the same at step 3000 as at step 3.
 
 Every DataItem states Precision="8": dolfinx writes float64 and int64 but leaves XDMF's
 default (4), with which VTK's XDMF reader reads float32.
 """
 from __future__ import annotations
 
+import errno
+import os
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from pathlib import Path
 
 
 class XdmfLayoutError(ValueError):
@@ -65,47 +68,108 @@ class Field:
         return att
 
 
-class TemporalXml:
-    """The XML text of one temporal collection over one mesh, built a time at a time.
+TAIL = b"    </Grid>\n  </Domain>\n</Xdmf>\n"    # closes the collection and the file
+
+
+class TemporalXdmf:
+    """An XDMF file of one temporal collection over one mesh, grown a time at a time.
+
+    The file is complete after every time added, and adding a time costs O(1) whatever the
+    number of times before it: the first time's Grid replaces the mesh-only Grid by an
+    atomic rewrite (temporary file and rename); every later Grid is written, followed by the
+    closing tags, over the old closing tags by one ``pwrite`` at their offset, so the
+    earlier times are never rewritten.  A failed write (disk full) puts the closing tags
+    back: the file then still describes the earlier times.
 
     Args:
+        path: the XDMF file (written at once with the mesh alone).
         name: the collection's and its Grids' name (the dataset's name in ParaView).
         topology, geometry: the mesh's Topology and Geometry elements.
+
+    Raises:
+        OSError: the file cannot be written.
     """
 
-    def __init__(self, name: str, topology: ET.Element, geometry: ET.Element):
-        self.name = name
+    def __init__(self, path, name: str, topology: ET.Element, geometry: ET.Element):
+        self.path, self.name = Path(path), name
         self._mesh = _text(topology, 4) + _text(geometry, 4)
-        self._grids: list[str] = []
+        self.times = 0
+        self._tail_at = None            # the closing tags' byte offset (after a time)
+        grid = (f'      <Grid Name="{self.name}" GridType="Uniform">\n'
+                f"{self._mesh}      </Grid>\n")
+        _publish(self.path, self._head() + grid.encode() + TAIL)
 
-    def add(self, t: float, attributes: list[ET.Element]) -> None:
-        """Append the Grid of time t.
+    def _head(self) -> bytes:
+        return ('<?xml version="1.0"?>\n<Xdmf Version="3.0">\n  <Domain>\n'
+                f'    <Grid Name="{self.name}" GridType="Collection" '
+                'CollectionType="Temporal">\n').encode()
+
+    def grid(self, t: float, attributes: list[ET.Element]) -> bytes:
+        """The Grid of time t (the mesh and the attributes), UTF-8.
 
         Args:
             t: the time.
             attributes: its Attribute elements.
-        """
-        body = "".join(_text(a, 4) for a in attributes)
-        self._grids.append(f'      <Grid Name="{self.name}" GridType="Uniform">\n{self._mesh}'
-                           f'        <Time Value="{float(t)!r}" />\n{body}      </Grid>\n')
-
-    @property
-    def times(self) -> int:
-        """The number of times added."""
-        return len(self._grids)
-
-    def text(self) -> str:
-        """The whole XML file.
 
         Returns:
-            The text (the mesh alone in one Grid while no time was added).
+            The Grid's XML, indented as in the file.
         """
-        grids = self._grids or [f'      <Grid Name="{self.name}" GridType="Uniform">\n'
-                                f"{self._mesh}      </Grid>\n"]
-        return ('<?xml version="1.0"?>\n<Xdmf Version="3.0">\n  <Domain>\n'
-                f'    <Grid Name="{self.name}" GridType="Collection" '
-                f'CollectionType="Temporal">\n{"".join(grids)}    </Grid>\n'
-                "  </Domain>\n</Xdmf>\n")
+        body = "".join(_text(a, 4) for a in attributes)
+        return (f'      <Grid Name="{self.name}" GridType="Uniform">\n{self._mesh}'
+                f'        <Time Value="{float(t)!r}" />\n{body}      </Grid>\n').encode()
+
+    def add(self, t: float, attributes: list[ET.Element]) -> None:
+        """Append the Grid of time t to the file (O(1) bytes written).
+
+        Args:
+            t: the time.
+            attributes: its Attribute elements.
+
+        Raises:
+            OSError: the file cannot be written (it then describes the earlier times).
+        """
+        grid = self.grid(t, attributes)
+        if self._tail_at is None:
+            head = self._head() + grid
+            _publish(self.path, head + TAIL)
+            self._tail_at = len(head)
+        else:
+            self._append(grid)
+        self.times += 1
+
+    def _append(self, grid: bytes) -> None:
+        """Write ``grid`` and the closing tags over the closing tags, in one write."""
+        data = grid + TAIL
+        fd = os.open(self.path, os.O_WRONLY)
+        try:
+            if os.pwrite(fd, data, self._tail_at) != len(data):
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self.path))
+        except OSError as exc:
+            _restore_tail(fd, self._tail_at)
+            if exc.filename is None:
+                exc.filename = str(self.path)
+            raise
+        finally:
+            os.close(fd)
+        self._tail_at += len(grid)
+
+
+def _restore_tail(fd: int, offset: int) -> None:
+    """After a failed append: the file ends with the closing tags at ``offset`` again (the
+    blocks there were the file's before; best effort)."""
+    try:
+        os.ftruncate(fd, offset)
+        os.pwrite(fd, TAIL, offset)
+    except OSError:
+        pass
+
+
+def _publish(path: Path, data: bytes) -> None:
+    """Replace the file by a temporary file and a rename (not synced: a killed process
+    leaves the page cache intact, and the HDF5 data the XML points at is not synced
+    either)."""
+    from app.io.output import atomic_write
+    atomic_write(path, data, sync=False)
 
 
 def dolfinx_time_key(t: float) -> str:

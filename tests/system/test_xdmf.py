@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import pyvista as pv
 
-from app.io.xdmf import Field, TemporalXml, XdmfLayoutError, dolfinx_layout
+from app.io.xdmf import Field, TemporalXdmf, XdmfLayoutError, dolfinx_layout
 from conftest import PAPER_CASE, ROOT, run_cli
 
 RUNS = {"2d": (PAPER_CASE, ["mesh.n=8"]), "3d": (ROOT / "cases" / "box3d.yaml", ["mesh.n=4"])}
@@ -102,16 +102,16 @@ def _dolfinx_xml() -> str:
             "</Domain></Xdmf>")
 
 
-def test_dolfinx_layout_and_one_collection_over_the_mesh():
+def test_dolfinx_layout_and_one_collection_over_the_mesh(tmp_path):
     """The mesh items (renamed HDF5 file, Precision 8) and the fields from dolfinx's XML;
-    TemporalXml: one temporal collection, every field in the Grid of its time."""
+    TemporalXdmf: one temporal collection, every field in the Grid of its time."""
     import xml.etree.ElementTree as ET
     topology, geometry, fields = dolfinx_layout(_dolfinx_xml(), "s.h5")
     assert fields == [Field("u", "Vector", "Node"), Field("k", "Scalar", "Cell")]
-    xml = TemporalXml("solution", topology, geometry)
+    xml = TemporalXdmf(tmp_path / "s.xdmf", "solution", topology, geometry)
     for t, key in ((0.0, "0"), (0.5, "0_5")):
         xml.add(t, [f.attribute("s.h5", f"/Function/{f.name}/{key}", (4, 3)) for f in fields])
-    root = ET.fromstring(xml.text())
+    root = ET.parse(tmp_path / "s.xdmf").getroot()
     top = root.find("Domain").findall("Grid")
     assert [(g.get("Name"), g.get("CollectionType")) for g in top] == [("solution", "Temporal")]
     grids = top[0].findall("Grid")
