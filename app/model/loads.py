@@ -64,7 +64,27 @@ class TimeData:
             c = fem.Constant(self.mesh, PETSc.ScalarType(pts[0, 1]))
             self._tables.append((c, pts[:, 0], pts[:, 1]))
             return c
-        return expressions.to_ufl(expressions.parse(component), self.symbols)
+        return self.on_mesh(expressions.to_ufl(expressions.parse(component), self.symbols))
+
+    def on_mesh(self, value):
+        """The UFL of a value, tied to the mesh.
+
+        UFL folds an expression without x, y, z and t, or one that is identically zero
+        ("0*t", "0*x"), to a number or ``Zero``, which has no domain: dolfinx can neither
+        interpolate it (fem.Expression) nor integrate it (fem.form).  Adding a zero
+        Constant of the mesh gives it the domain (UFL reduces Zero + c to c).
+
+        Args:
+            value: a number or a UFL expression.
+
+        Returns:
+            A UFL expression with the mesh as its domain.
+        """
+        value = ufl.as_ufl(value)
+        if ufl.domain.extract_domains(value):
+            return value
+        zero = fem.Constant(self.mesh, np.zeros(value.ufl_shape, dtype=PETSc.ScalarType))
+        return value + zero
 
     def vector(self, components):
         """UFL vector of a load.

@@ -19,7 +19,6 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from app.io import expressions
 from app.io.case import Case, CaseError
 from app.model.dirichlet import build_dirichlet, check_rigid_motions
 from app.model.frames import ContactFrames, build_frames, facet_normals, gap_values
@@ -319,16 +318,16 @@ class ContactProblem:
             CaseError: if the initial values are not finite, kappa0 < 0 somewhere, or u0
                 violates u = 0 on Gamma1 or u_nu <= g on Gamma3 (on every rank).
         """
-        init, sym = self.case.initial, self.time_data.symbols
+        init, scalar = self.case.initial, self.time_data.scalar
         if init.u0 is not None:
-            vec = ufl.as_vector([_ufl_component(c, sym) for c in init.u0])
+            vec = ufl.as_vector([scalar(c) for c in init.u0])
             self.u.interpolate(fem.Expression(vec, self.V.element.interpolation_points()))
             self.u.x.scatter_forward()
             self._check_initial_u()
         if self.H is not None:
             H0 = -self._C(eps(self.u))
             if init.sigma0 is not None:
-                H0 = H0 + ufl.as_matrix([[_ufl_component(c, sym) for c in row]
+                H0 = H0 + ufl.as_matrix([[scalar(c) for c in row]
                                          for row in init.sigma0])
             self._cell_average(H0, self.H)
             self._refuse(not np.isfinite(self.H.x.array).all(), "initial.sigma0",
@@ -336,7 +335,7 @@ class ContactProblem:
         if kappa is not None:
             k0 = self.case.material.viscoplastic.kappa0
             if isinstance(k0, str):
-                self._cell_average(_ufl_component(k0, sym), kappa)
+                self._cell_average(scalar(k0), kappa)
                 self._refuse(not (kappa.x.array >= 0).all(), "material.viscoplastic.kappa0",
                              "must be a finite number >= 0 everywhere")
             else:
@@ -650,10 +649,3 @@ class ContactProblem:
             local = (r.reshape(-1, d)[nodes] * free).sum(axis=0)
             contact = [float(v) for v in self.comm.allreduce(local)]
         return {"reactions": reactions, "contact_force": contact}
-
-
-def _ufl_component(c, symbols):
-    """UFL for a number or an expression string (initial values: no tables)."""
-    if isinstance(c, (int, float)):
-        return float(c)
-    return expressions.to_ufl(expressions.parse(c), symbols)
