@@ -2,6 +2,8 @@
 out of one directory, and the preparation before a command writes (collective)."""
 from __future__ import annotations
 
+import atexit
+import os
 from pathlib import Path
 
 from app.io.errors import CaseError
@@ -15,7 +17,8 @@ BENCH_FILES = ("bench.json", "bench.md", "bench3d.png")
 OUR_DIRECTORIES = ("convergence", "stability", "bench")
 OUR_PATTERNS = ("checkpoint_*.npz", "*.png", ".vpcontact.lock", ".solution.work.*", ".*.tmp*")
 
-_LOCKS = []      # the output directories' lock files, held open until the process ends
+LOCK_NAME = ".vpcontact.lock"
+_LOCKS = []      # (path, open file) of the output directories this process holds
 
 
 def foreign_files(outdir: Path) -> list[str]:
@@ -37,8 +40,10 @@ def foreign_files(outdir: Path) -> list[str]:
 def lock(outdir: Path) -> str | None:
     """Create ``outdir`` and take its lock (call on rank 0).
 
-    The lock (flock on outdir/.vpcontact.lock) is released by the kernel when the process
-    ends, however it ends, so it never goes stale.
+    The lock is flock on outdir/.vpcontact.lock, held until the process ends: the kernel
+    releases it however the process ends, so it never goes stale, and the file is removed
+    when the process exits (release_locks; only a killed process leaves it, empty and
+    harmless: the next command takes it over).
 
     Args:
         outdir: the output directory.
@@ -47,7 +52,6 @@ def lock(outdir: Path) -> str | None:
         None if the directory is ours now; else why not (a file of that name, files that are
         not vpcontact outputs, not writable, locked by another process).
     """
-    import fcntl
     if outdir.exists() and not outdir.is_dir():
         return f"--out {outdir}: exists and is not a directory (give a directory)"
     if outdir.is_dir():
@@ -56,19 +60,60 @@ def lock(outdir: Path) -> str | None:
             shown = ", ".join(foreign[:5]) + (", ..." if len(foreign) > 5 else "")
             return (f"--out {outdir}: holds files that are not vpcontact outputs ({shown}); "
                     "give a new or empty directory, or one of an earlier run")
+    path = outdir / LOCK_NAME
     try:
         outdir.mkdir(parents=True, exist_ok=True)
-        fh = open(outdir / ".vpcontact.lock", "a+")
+        fh = _take(path)
     except OSError as exc:
         return f"--out {outdir}: cannot write there: {exc.strerror}"
-    try:
-        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        fh.close()
+    if fh is None:
         return (f"--out {outdir}: another vpcontact process is writing into this directory; "
                 "wait for it to end or choose another --out")
-    _LOCKS.append(fh)
+    if not _LOCKS:
+        atexit.register(release_locks)
+    _LOCKS.append((path, fh))
     return None
+
+
+def _take(path: Path):
+    """The lock file, opened and flocked; None if another process holds it.
+
+    A process that ends removes the file while it holds the lock: a process that opened
+    the file just before may then lock a file that is no longer ``path``; the lock counts
+    only if ``path`` is still the file locked (else it is taken again on the new file).
+
+    Raises:
+        OSError: the file cannot be created.
+    """
+    import fcntl
+    while True:
+        fh = open(path, "a+")
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            fh.close()
+            return None
+        held = os.fstat(fh.fileno())
+        try:
+            current = os.stat(path)
+        except FileNotFoundError:
+            current = None
+        if current is not None and (current.st_dev, current.st_ino) == (held.st_dev,
+                                                                         held.st_ino):
+            return fh
+        fh.close()
+
+
+def release_locks() -> None:
+    """Remove the lock files this process holds, then release them (at exit; the lock
+    stays held until the file is gone, see _take)."""
+    while _LOCKS:
+        path, fh = _LOCKS.pop()
+        try:
+            path.unlink()
+        except OSError:
+            pass
+        fh.close()
 
 
 def _earlier_outputs(outdir: Path, files) -> list[str]:
