@@ -25,6 +25,12 @@ _KSP_REASONS = {v: k for k, v in vars(PETSc.KSP.ConvergedReason).items() if isin
 INDEFINITE = (PETSc.KSP.ConvergedReason.DIVERGED_INDEFINITE_PC,
               PETSc.KSP.ConvergedReason.DIVERGED_INDEFINITE_MAT)
 INDEFINITE_KSP = {"ksp_type": "gmres", "ksp_gmres_restart": 100}
+# the residual's round-off floor: ROUNDOFF_FACTOR eps || |J| |x| ||_2 (RoundoffFloor), the
+# componentwise bound of the error of a computed residual.  Measured: the nearly
+# incompressible plane-strain square (nu = 0.4999, h = 1/16) stalls at 3e-11 = 0.11 eps
+# || |J| |u| || (> snes_atol 1e-11); on the paper's case the floor is 5.4e-13, 1/18 of its
+# snes_atol (the same results as without it)
+ROUNDOFF_FACTOR = 1.0
 
 
 class StepSolveError(RuntimeError):
@@ -147,6 +153,51 @@ def continuation_deltas(target: float, length: float) -> list[float]:
     return [target * 10.0 ** k for k in range(n, 0, -1)] + [target] if n > 0 else [target]
 
 
+class RoundoffFloor:
+    """The residual norm that Newton's method cannot go below in floating point: the
+    residual F(x) = J x - f + ... is summed from terms as large as |J| |x| (entrywise
+    absolute values), so its computed value carries errors of order eps |J| |x|.  A problem
+    whose stiffness varies by orders of magnitude (nu -> 1/2: lambda / mu = 5000 at
+    nu = 0.4999) has ||F|| >> eps || |J| |x| || only far from the solution, and a fixed
+    absolute tolerance below the floor is never met (the fast solver's tolerances scale with
+    its Schur complement S y0 the same way, app/solvers/fast.py).
+
+    The floor is ROUNDOFF_FACTOR eps || |J| |x| ||_2 with |J| from the first assembled
+    Jacobian (its magnitude, not its value, matters).
+    """
+
+    def __init__(self):
+        self.abs_J = None
+        self.abs_x = self.y = None
+
+    def __call__(self, J: PETSc.Mat, x: PETSc.Vec) -> float:
+        """The floor at the iterate x.
+
+        Args:
+            J: the Jacobian (AIJ; used once, when first assembled).
+            x: the iterate, in J's dofs.
+
+        Returns:
+            ROUNDOFF_FACTOR eps || |J| |x| ||_2; 0 before J is assembled.
+        """
+        if self.abs_J is None:
+            if not J.assembled:
+                return 0.0
+            ai, aj, av = J.getValuesCSR()
+            self.abs_J = PETSc.Mat().createAIJ(J.getSizes(), csr=(ai, aj, np.abs(av)),
+                                               comm=J.comm)
+            self.abs_x, self.y = self.abs_J.createVecs()
+        self.abs_x.array[:] = np.abs(x.array_r)
+        self.abs_J.mult(self.abs_x, self.y)
+        return ROUNDOFF_FACTOR * np.finfo(float).eps * self.y.norm()
+
+    def destroy(self) -> None:
+        """Free the PETSc objects."""
+        for obj in (self.abs_J, self.abs_x, self.y):
+            if obj is not None:
+                obj.destroy()
+
+
 class SNESVISolver:
     """Solves one step of (3.4): u_n = argmin J_n over U^h (the variational inequality on the
     convex set of the bound u_nu <= g), starting from the current ``problem.u``.  A StepSolver
@@ -165,14 +216,19 @@ class SNESVISolver:
         options: PETSc options (name without '-' -> value), set under ``prefix``.
         prefix: the PETSc options prefix of the SNES.
         linear: "direct" (the options' KSP and PC) or "amg" (InactiveSetAMG as the PC).
+        roundoff_floor: the absolute tolerance is the options' snes_atol or the residual's
+            round-off floor (RoundoffFloor), whichever is larger, at every iteration; False
+            (a snes_atol the user gave): the options' snes_atol alone.
     """
 
     ROBUST = {"snes_linesearch_type": "bt"}
     name = "snes_vi"
     factorisations = None          # SNES VI refactorises in every Newton iteration
 
-    def __init__(self, problem, options: dict, prefix: str = PREFIX, linear: str = "direct"):
+    def __init__(self, problem, options: dict, prefix: str = PREFIX, linear: str = "direct",
+                 roundoff_floor: bool = True):
         self.problem = problem
+        self.floor = RoundoffFloor() if roundoff_floor else None
         self.linear = linear
         self.linear_iterations = 0
         self.u = problem.u
@@ -215,11 +271,20 @@ class SNESVISolver:
         if snes.getType().startswith("vi"):
             lb, ub = self.problem.bounds()
             snes.setVariableBounds(lb, ub)
+        if self.floor is not None:
+            atol = snes.getTolerances()[1]
+            snes.setMonitor(lambda s, its, fnorm: self._raise_atol(s, atol))
         if self.linear == "amg":
             pc = snes.getKSP().getPC()
             pc.setType("python")
             pc.setPythonContext(InactiveSetAMG(snes, self._rigid_body_modes(), self.prefix))
         return snes
+
+    def _raise_atol(self, snes, atol: float) -> None:
+        """Before SNES's convergence test of an iteration (PETSc calls the monitors first):
+        its absolute tolerance becomes max(atol, the round-off floor at the iterate)."""
+        J = snes.getJacobian()[0]
+        snes.setTolerances(atol=max(atol, self.floor(J, snes.getSolution())))
 
     def _rigid_body_modes(self) -> np.ndarray:
         """The rigid body modes in the dofs SNES solves for: Z, or R^T Z in the nodal frames.
@@ -439,7 +504,8 @@ class SNESVISolver:
 
     def destroy(self) -> None:
         """Free the PETSc objects (SNES, matrices, vectors)."""
-        for obj in (self.snes, self._robust, self.A, self.b, self.x, self.K, self.B):
+        for obj in (self.snes, self._robust, self.A, self.b, self.x, self.K, self.B,
+                    self.floor):
             if obj is not None:
                 obj.destroy()
         if self.frames is not None:
