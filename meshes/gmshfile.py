@@ -11,9 +11,21 @@ group's name or referred to by its number).
 
 Every check runs on rank 0 before dolfinx is called and its verdict is broadcast, so a bad
 file raises ``MeshFileError`` on every rank (no rank is left waiting in a collective call).
+
+Before gmsh reads anything, ``meshes.geoscan.mesh_files`` checks every script gmsh would
+parse (the ``.geo``, the files it includes or merges, the ``.opt`` files gmsh merges with
+them; a ``.msh`` that does not start with a mesh header is a script to gmsh): a case's file
+may not run commands, write files or end gmsh.  A ``.geo`` is meshed in a child process
+(``meshes/geomesh.py``): SIGINT/SIGTERM kill it at once (``KeyboardInterrupt`` on every
+rank), its memory is bounded and a mesh of more than ``max_vertices`` nodes is refused, from
+an estimate before meshing when the mesh sizes ask for one.
 """
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,6 +33,7 @@ import numpy as np
 from mpi4py import MPI
 
 from .extent import mesh_extent
+from .geoscan import GeoScanError, mesh_files
 
 SUFFIXES = (".msh", ".geo")
 # the linear simplex gmsh element type of each dimension (gmsh's MSH numbering)
@@ -29,6 +42,8 @@ _SIMPLEX = {1: "lines", 2: "triangles", 3: "tetrahedra"}
 _PHYSICAL = {0: "Physical Point", 1: "Physical Curve", 2: "Physical Surface",
              3: "Physical Volume"}
 _ENTITY = {0: "point", 1: "curve", 2: "surface", 3: "volume"}
+MAX_VERTICES = 1e8            # the most nodes of a mesh gmsh makes from a .geo (by default)
+_INTERRUPTED = "\0interrupted"  # rank 0's verdict when a signal stopped the meshing
 
 
 class MeshFileError(ValueError):
@@ -79,7 +94,27 @@ class FileMesh:
     tangent = None
 
 
-def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0) -> FileMesh:
+def import_gmsh():
+    """The gmsh module, imported without its side effect on SIGINT: gmsh.py sets SIGINT to
+    the default action (the process dies, no exit code 3) when imported and puts back, in
+    ``finalize``, the handler of that moment; both are undone here.
+
+    Returns:
+        The gmsh module.
+    """
+    import signal
+    import threading
+    main = threading.current_thread() is threading.main_thread()
+    handler = signal.getsignal(signal.SIGINT) if main else None
+    import gmsh
+    gmsh.oldsig = None                # finalize() leaves SIGINT alone
+    if main and handler is not None:
+        signal.signal(signal.SIGINT, handler)
+    return gmsh
+
+
+def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0,
+                   max_vertices: float = MAX_VERTICES) -> FileMesh:
     """Read a gmsh ``.msh`` or mesh a ``.geo`` and distribute it; collective on ``comm``.
 
     Args:
@@ -87,6 +122,7 @@ def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0) -> FileMes
         path: the ``.msh`` or ``.geo`` file.
         dim: the space dimension, 2 (triangles in the plane z = 0) or 3 (tetrahedra).
         size: the factor on a ``.geo``'s characteristic lengths (ignored for a ``.msh``).
+        max_vertices: the most nodes gmsh may make from a ``.geo``.
 
     Returns:
         The FileMesh.
@@ -95,10 +131,12 @@ def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0) -> FileMes
         MeshFileError: on every rank, for a missing or unreadable file, a suffix other than
             .msh/.geo, a file gmsh cannot read or mesh, no elements, no physical group for the
             body, a mesh of the other dimension or not in the plane z = 0, elements other
-            than linear triangles/tetrahedra, groups sharing elements or names.
+            than linear triangles/tetrahedra, groups sharing elements or names, a script
+            statement a case may not use, a .geo asking for more than max_vertices nodes.
+        KeyboardInterrupt: on every rank, when SIGINT/SIGTERM stopped gmsh's meshing.
         ValueError: for dim not 2 or 3, or size not > 0.
     """
-    import gmsh
+    gmsh = import_gmsh()
     from dolfinx.io import gmshio
 
     path = str(path)
@@ -111,9 +149,11 @@ def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0) -> FileMes
         gmsh.initialize(readConfigFiles=False)
         gmsh.option.setNumber("General.Terminal", 0)
         try:
-            found = (*_read(gmsh, path, dim, size), _other_groups(gmsh, dim))
+            found = (*_read(gmsh, path, dim, size, max_vertices), _other_groups(gmsh, dim))
         except MeshFileError as err:
             verdict = str(err)
+        except KeyboardInterrupt:
+            verdict = _INTERRUPTED
         except Exception as err:   # never leave the other ranks waiting for rank 0
             verdict = f"cannot load {path}: {type(err).__name__}: {err}"
         if verdict is not None:
@@ -121,6 +161,8 @@ def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0) -> FileMes
         if verdict is not None:
             verdict = " ".join(verdict.splitlines())    # gmsh's messages may span lines
     verdict, found = comm.bcast((verdict, found), root=0)
+    if verdict == _INTERRUPTED:
+        raise KeyboardInterrupt
     if verdict is not None:
         raise MeshFileError(verdict)
     try:
@@ -143,7 +185,7 @@ def _other_groups(gmsh, dim: int) -> dict:
             if d != dim - 1 and gmsh.model.getPhysicalName(d, tag)}
 
 
-def _read(gmsh, path: str, dim: int, size: float):
+def _read(gmsh, path: str, dim: int, size: float, max_vertices: float = MAX_VERTICES):
     """Rank 0: load the file into gmsh's current model, check it; (groups, tags)."""
     p = Path(path)
     if not p.exists():
@@ -161,14 +203,18 @@ def _read(gmsh, path: str, dim: int, size: float):
     if suffix not in SUFFIXES:
         raise MeshFileError(f"{path}: unknown suffix {p.suffix!r}; give a gmsh mesh (.msh, "
                             "format 4.1) or a gmsh geometry script (.geo)")
+    try:
+        mesh_files(p)                       # refuses what a case's file may not do
+    except GeoScanError as err:
+        raise MeshFileError(str(err)) from None
     if suffix == ".geo":
         _check_last_line(p, path)
-    try:
-        (gmsh.open if suffix == ".geo" else gmsh.merge)(str(p))
-    except Exception as err:
-        raise MeshFileError(f"gmsh cannot read {path}: {err}") from None
-    if suffix == ".geo":
-        _mesh_geo(gmsh, path, dim, size)
+        _mesh_geo(gmsh, path, dim, size, max_vertices)
+    else:
+        try:
+            gmsh.merge(str(p))
+        except Exception as err:
+            raise MeshFileError(f"gmsh cannot read {path}: {err}") from None
     _check_elements(gmsh, path, dim)
     _check_groups(gmsh, path, dim)
     if dim == 2:
@@ -187,18 +233,56 @@ def _check_last_line(p: Path, path: str) -> None:
                             "but its first statement; end the file with a line break")
 
 
-def _mesh_geo(gmsh, path: str, dim: int, size: float) -> None:
-    """Rank 0: mesh the opened ``.geo`` in ``dim`` dimensions, lengths scaled by ``size``."""
-    top = gmsh.model.getDimension()
-    if top > dim:
-        raise MeshFileError(f"{path}: the geometry is {top}D (it has "
-                            f"{_ENTITY[top]}s) but mesh.dim is {dim}; set mesh.dim: {top}")
-    factor = gmsh.option.getNumber("Mesh.MeshSizeFactor")
-    gmsh.option.setNumber("Mesh.MeshSizeFactor", factor * size)
+def _memory_budget() -> int:
+    """Bytes of address space the meshing child may add: half the machine's memory."""
     try:
-        gmsh.model.mesh.generate(dim)
-    except Exception as err:
-        raise MeshFileError(f"gmsh cannot mesh {path}: {err}") from None
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
+    except (ValueError, OSError):
+        return 0
+
+
+def _mesh_geo(gmsh, path: str, dim: int, size: float, most: float,
+              memory: int | None = None) -> None:
+    """Rank 0: mesh the ``.geo`` in ``dim`` dimensions, lengths scaled by ``size``, in a
+    child process (meshes/geomesh.py), and merge its mesh into gmsh's model.
+
+    SIGINT/SIGTERM (KeyboardInterrupt here) kill the child and are raised again."""
+    memory = _memory_budget() if memory is None else memory
+    with tempfile.TemporaryDirectory(prefix="vpcontact-geo-") as tmp:
+        out = os.path.join(tmp, "mesh.msh")
+        cmd = [sys.executable, os.path.join(os.path.dirname(__file__), "geomesh.py"), path,
+               out, str(dim), repr(float(size)), repr(float(most)), str(int(memory))]
+        env = {**os.environ, "VPCONTACT_PARENT": str(os.getpid())}
+        child = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                 stderr=subprocess.PIPE, env=env)
+        try:
+            _, err = child.communicate()
+        except BaseException:          # KeyboardInterrupt (SIGINT/SIGTERM): stop gmsh now
+            child.kill()
+            child.wait()
+            raise
+        err = err.decode(errors="replace")
+        if child.returncode != 0 or not os.path.exists(out):
+            raise MeshFileError(_child_failure(path, child.returncode, err, memory))
+        try:
+            gmsh.merge(out)
+        except Exception as exc:
+            raise MeshFileError(f"gmsh cannot read the mesh of {path}: {exc}") from None
+
+
+def _child_failure(path: str, code: int, err: str, memory: int) -> str:
+    """The one-line reason why the meshing child failed."""
+    from .geomesh import REFUSED
+    lines = [line for line in err.splitlines() if line.strip()]
+    said = [line[len(REFUSED):] for line in lines if line.startswith(REFUSED)]
+    if said and "out of memory" not in said[-1]:
+        return said[-1]
+    if said or "bad_alloc" in err or "MemoryError" in err or code in (-6, -9):
+        return (f"gmsh ran out of memory meshing {path} (limit {memory / 2**30:.1f} GB more "
+                "than gmsh itself): its mesh sizes ask for too fine a mesh; use larger "
+                "mesh sizes (Mesh.MeshSizeMax, the points' sizes, mesh.size)")
+    tail = lines[-1] if lines else f"exit status {code}"
+    return f"gmsh failed meshing {path}: {tail}"
 
 
 def _type_names(gmsh, types) -> str:

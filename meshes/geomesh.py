@@ -1,0 +1,172 @@
+"""Mesh a ``.geo`` in a child process: ``python meshes/geomesh.py GEO MSH DIM SIZE MAX MEMORY``.
+
+``meshes.gmshfile`` runs this file as a separate process (gmsh and the standard library only;
+it imports nothing of vpcontact) and merges the ``.msh`` it writes.  A child can be stopped:
+gmsh's meshing is C++ code that Python's signal handlers cannot interrupt, so SIGINT/SIGTERM
+would wait for the whole mesh; the parent kills the child instead and the run ends at once
+(exit 3).  Its address space is bounded (``MEMORY`` bytes more than it has at the start),
+so a mesh too fine for the machine ends with a clear refusal instead of the kernel's
+out-of-memory killer, and it dies with its parent (``PR_SET_PDEATHSIG``).
+
+Before meshing the surfaces and volumes, the number of nodes is estimated twice and refused
+above ``MAX``: from gmsh's upper bound of the mesh size (``Mesh.MeshSizeMax``, the
+bounding box, ``Mesh.MeshSizeFactor`` and ``SIZE``: no size anywhere exceeds it, so the
+curves alone have at least 2 (largest extent) / h nodes), then from the curves' mesh
+(mean segment length h1: about (bounding box measure) / h1^dim nodes).  The mesh made is
+counted too.
+
+Exit status: 0 the mesh is written to MSH; 2 refused, with one line on stderr.
+"""
+from __future__ import annotations
+
+import math
+import os
+import sys
+
+REFUSED = "vpcontact-refused: "
+
+
+def _refuse(message: str):
+    sys.stderr.write(REFUSED + " ".join(str(message).splitlines()) + "\n")
+    sys.stderr.flush()
+    os._exit(2)
+
+
+def _limit_process(memory: int, parent: int) -> None:
+    """Die with the parent; at most ``memory`` more bytes of address space."""
+    import ctypes
+    import resource
+    import signal
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))   # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:
+        os._exit(3)
+    if memory > 0:
+        with open("/proc/self/statm") as f:
+            used = int(f.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+        resource.setrlimit(resource.RLIMIT_AS, (used + memory, used + memory))
+
+
+def size_bound(gmsh) -> float:
+    """gmsh 4.8's largest possible mesh size (BGM_MeshSize): min(Mesh.MeshSizeMax, max(the
+    bounding box diagonal, Mesh.MeshSizeMin)) times Mesh.MeshSizeFactor.
+
+    Args:
+        gmsh: the gmsh module with the geometry loaded.
+
+    Returns:
+        The bound h_max.
+    """
+    lo, hi = _bbox(gmsh)
+    opt = gmsh.option.getNumber
+    return opt("Mesh.MeshSizeFactor") * min(opt("Mesh.MeshSizeMax"),
+                                            max(math.dist(lo, hi), opt("Mesh.MeshSizeMin")))
+
+
+def _bbox(gmsh):
+    b = gmsh.model.getBoundingBox(-1, -1)
+    return b[:3], b[3:]
+
+
+def _curves(gmsh) -> tuple[int, float]:
+    """(number of segments, total length) of the curves' mesh."""
+    import numpy as np
+    tags, xyz, _ = gmsh.model.mesh.getNodes()
+    if len(tags) == 0:
+        return 0, 0.0
+    where = np.zeros(int(np.max(tags)) + 1, dtype=np.int64)
+    where[np.asarray(tags, dtype=np.int64)] = np.arange(len(tags))
+    xyz = np.asarray(xyz).reshape(-1, 3)
+    count, length = 0, 0.0
+    types, _, nodes = gmsh.model.mesh.getElements(1)
+    for t, block in zip(types, nodes):
+        n = gmsh.model.mesh.getElementProperties(t)[3]
+        ends = where[np.asarray(block, dtype=np.int64).reshape(-1, n)[:, :2]]
+        length += float(np.linalg.norm(xyz[ends[:, 0]] - xyz[ends[:, 1]], axis=1).sum())
+        count += len(ends)
+    return count, length
+
+
+def estimate(gmsh, path: str, dim: int, most: float) -> None:
+    """Refuse a mesh of more than ``most`` nodes before meshing surfaces and volumes (the
+    module docstring); meshes the curves.
+
+    Args:
+        gmsh: the gmsh module with the geometry loaded and its size factor set.
+        path: the .geo, for the message.
+        dim: the space dimension.
+        most: the most nodes a mesh may have.
+    """
+    lo, hi = _bbox(gmsh)
+    extent = sorted((b - a for a, b in zip(lo, hi)), reverse=True)
+    h = size_bound(gmsh)
+    advice = ("; use larger mesh sizes (Mesh.MeshSizeMin/Max, the points' sizes, "
+              "Mesh.MeshSizeFactor, mesh.size)")
+    if h > 0 and 2 * extent[0] / h > most:
+        _refuse(f"{path}: its mesh sizes (at most {h:.3g} on a body {extent[0]:.3g} long) "
+                f"ask for more than {2 * extent[0] / h:.3g} nodes (limit {most:.0e})"
+                + advice)
+    gmsh.model.mesh.generate(1)
+    segments, length = _curves(gmsh)
+    if segments == 0 or length == 0:
+        return
+    h1 = length / segments
+    guess = math.prod(max(e, 0.0) for e in extent[:dim]) / h1 ** dim
+    if guess > most:
+        _refuse(f"{path}: its mesh sizes (about {h1:.3g} on the curves) ask for about "
+                f"{guess:.3g} nodes (limit {most:.0e})" + advice)
+
+
+def mesh(gmsh, path: str, out: str, dim: int, size: float, most: float) -> None:
+    """Open the .geo, check its dimension and size, mesh it and write ``out`` (msh 4.1).
+
+    Args:
+        gmsh: the gmsh module (not initialised).
+        path: the .geo file.
+        out: the .msh file to write.
+        dim: the space dimension.
+        size: the factor on the characteristic lengths.
+        most: the most nodes the mesh may have.
+    """
+    gmsh.initialize(readConfigFiles=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        gmsh.open(path)
+    except Exception as err:
+        _refuse(f"gmsh cannot read {path}: {err}")
+    top = gmsh.model.getDimension()
+    if top > dim:
+        what = {1: "curve", 2: "surface", 3: "volume"}[top]
+        _refuse(f"{path}: the geometry is {top}D (it has {what}s) but mesh.dim is {dim}; "
+                f"set mesh.dim: {top}")
+    try:
+        factor = gmsh.option.getNumber("Mesh.MeshSizeFactor")
+        gmsh.option.setNumber("Mesh.MeshSizeFactor", factor * size)
+        estimate(gmsh, path, dim, most)
+        gmsh.model.mesh.generate(dim)
+    except Exception as err:
+        _refuse(f"gmsh cannot mesh {path}: {err}")
+    nodes = gmsh.option.getNumber("Mesh.NbNodes")
+    if nodes > most:
+        _refuse(f"{path}: gmsh made {nodes:.0f} nodes (limit {most:.0e}); use larger mesh "
+                "sizes")
+    for name, value in (("Mesh.MshFileVersion", 4.1), ("Mesh.Binary", 1), ("Mesh.SaveAll", 1),
+                        ("Mesh.ScalingFactor", 1), ("Mesh.SaveParametric", 0),
+                        ("Mesh.PartitionSplitMeshFiles", 0)):
+        gmsh.option.setNumber(name, value)
+    gmsh.write(out)
+    gmsh.finalize()
+
+
+if __name__ == "__main__":
+    _geo, _out, _dim, _size, _most, _memory = sys.argv[1:7]
+    import gmsh as _gmsh  # the libraries first: their mappings count in the limit
+    import numpy  # noqa: F401
+    _limit_process(int(_memory), int(os.environ.get("VPCONTACT_PARENT", os.getppid())))
+    try:
+        mesh(_gmsh, _geo, _out, int(_dim), float(_size), float(_most))
+    except MemoryError:
+        _refuse("out of memory")
+    os._exit(0)
