@@ -70,9 +70,22 @@ def case_fingerprint(case) -> str:
     data["times"] = list(case.time.times)
     data["scheme"] = case.time.scheme
     data["adaptive"] = case.time.adaptive
-    if case.mesh.file is not None:           # the scene is the file's content, not its name
-        data["mesh_file"] = hashlib.sha256(Path(case.mesh.file).read_bytes()).hexdigest()
+    if case.mesh.file is not None:           # the scene is the files' content, not their names
+        data["mesh_file"] = _mesh_files_digest(case)
     return hashlib.sha256(stable_json(data).encode()).hexdigest()
+
+
+def _mesh_files_digest(case) -> str | list[str]:
+    """SHA-256 of each file the mesh is made of: the .msh or .geo and every file a .geo
+    includes or merges (meshes.geoscan.mesh_files), in the order gmsh reads them (one file:
+    its digest alone, as checkpoints written before included files counted have it)."""
+    from meshes.geoscan import GeoScanError, mesh_files
+    try:
+        files = mesh_files(case.mesh.file)
+    except GeoScanError as exc:
+        raise CaseError(f"{case.source}: mesh.file: {exc}") from None
+    digests = [hashlib.sha256(f.read_bytes()).hexdigest() for f in files]
+    return digests[0] if len(digests) == 1 else digests
 
 
 def _owned_rows(function):
