@@ -273,10 +273,11 @@ class Simulation:
         """
         if self.finished:
             return None
+        before = self.problem.u.x.array.copy() if self.stepper.adaptive else None
         k, t_new, its, norms, t_g3, t0 = self._solve_step()
         wall = time.perf_counter() - t0
         self.n, self.t = self.n + 1, t_new
-        self.stepper.accept(k, its)
+        self.stepper.accept(k, self._relative_change(before))
         record = self._record(its, wall, norms, k, t_g3)
         self._accept(record)
         return record
@@ -375,6 +376,22 @@ class Simulation:
                 log.error("step %d (t = %g) failed: %s; the last good state is step %d",
                           self.n + 1, t_new, exc, self.n)
                 raise StopRun("failed", failure) from None
+
+    def _relative_change(self, before) -> float:
+        """The step's relative change of the solution, max|u_n - u_{n-1}| / max|u_n| over
+        the owned dofs of all ranks (collective), for the adaptive step control: a property
+        of the converged solution, not of the step solver.  0 without ``before`` (a fixed
+        grid) or for u_n = 0."""
+        if before is None:
+            return 0.0
+        u = self.problem.u
+        owned = u.function_space.dofmap.index_map.size_local * \
+            u.function_space.dofmap.index_map_bs
+        now = u.x.array[:owned]
+        change = self.comm.allreduce(float(np.abs(now - before[:owned]).max(initial=0.0)),
+                                     op=MPI.MAX)
+        scale = self.comm.allreduce(float(np.abs(now).max(initial=0.0)), op=MPI.MAX)
+        return change / scale if scale > 0 else 0.0
 
     def _record(self, its: int, wall: float, norms, k: float, t_g3: float) -> dict:
         """The step's record (app/records.py); ``norms`` = (||u||_V, ||sigma||_Q) if the

@@ -204,16 +204,19 @@ SCHEMA = _obj({
                                              "(default: first step / 1024)"},
             "k_max": {**_pos, "description": "largest step [s] (default: T)"},
             "grow": {"type": "number", "minimum": 1, "default": 1.5,
-                     "description": "factor by which the step grows after a fast step"},
-            "fast_newton": {"type": "integer", "minimum": 1, "default": 4,
-                            "description": "a step with at most this many Newton iterations "
-                                           "is fast"},
+                     "description": "factor by which the step grows after a step that "
+                                    "changed the solution by at most max_change"},
+            "max_change": {"type": "number", "exclusiveMinimum": 0, "default": 0.2,
+                           "description": "the step grows after one with max|u_n - u_{n-1}| "
+                                          "<= max_change max|u_n| (a property of the "
+                                          "solution: every step solver takes the same grid)"},
             "max_indicator": {**_pos, "default": 1.0,
                               "description": "explicit scheme: halve the step while k r_max "
                                              "exceeds this (1: no overshoot, 2: limit)"},
         }, description="adaptive steps from the first step of the grid to T: a step is "
-                       "rejected and halved when SNES fails or the stability indicator is "
-                       "exceeded, and grows after fast Newton convergence (absent: fixed grid)"),
+                       "rejected and halved when the step solver fails or the stability "
+                       "indicator is exceeded, and grows after a step that changed the "
+                       "solution little (absent: fixed grid)"),
         "scheme": {"enum": ["explicit", "implicit"], "default": "explicit",
                    "description": "history terms at the left end point (explicit, the paper's "
                                   "(3.2)-(3.3)) or the right end point (implicit, backward "

@@ -3,9 +3,11 @@
 Adaptive: start with the grid's first step; before a step, halve k while the explicit
 scheme's stability indicator k r_max exceeds ``max_indicator``; when the step solve fails,
 the step is rejected (the history terms restored by the caller) and k halved; after a step
-with at most ``fast_newton`` Newton iterations k grows by ``grow`` (up to ``k_max``).  Every
-decision (accepted or rejected step) is kept in ``decisions`` for summary.json
-("step_history").
+whose converged solution changed by at most ``max_change`` (relative, max norm:
+max|u_n - u_{n-1}| <= max_change max|u_n|) k grows by ``grow`` (up to ``k_max``).  The rule
+reads the solution only, never the step solver's iterations: the fast solver and SNES VI,
+which solve the same discrete problem to round-off, take the same time grid.  Every decision
+(accepted or rejected step) is kept in ``decisions`` for summary.json ("step_history").
 """
 from __future__ import annotations
 
@@ -69,12 +71,12 @@ class FixedSteps:
         """
         return self.times[self.n + 1]
 
-    def accept(self, k: float, its: int) -> None:
+    def accept(self, k: float, change: float) -> None:
         """The step was accepted: move to the next grid point.
 
         Args:
             k: the accepted step (unused).
-            its: its Newton iterations (unused).
+            change: the solution's relative change over the step (unused).
         """
         self.n += 1
 
@@ -114,19 +116,20 @@ class AdaptiveSteps:
         scheme: "explicit" or "implicit" (only the explicit scheme has the limit).
         k_min: the smallest step (default k0 / 1024).
         k_max: the largest step (default T).
-        grow: the factor k grows by after a fast step.
-        fast_newton: at most this many Newton iterations make a step fast.
+        grow: the factor k grows by after a step that changed the solution little.
+        max_change: the largest relative change max|u_n - u_{n-1}| / max|u_n| of a step
+            after which k grows.
         max_indicator: the largest stability indicator k r_max allowed.
     """
 
     adaptive = True
 
     def __init__(self, T: float, k0: float, rate: float | None, scheme: str, k_min=None,
-                 k_max=None, grow=1.5, fast_newton=4, max_indicator=1.0):
+                 k_max=None, grow=1.5, max_change=0.2, max_indicator=1.0):
         self.T, self.k = T, k0
         self.k_min = k_min if k_min is not None else k0 / 1024
         self.k_max = k_max if k_max is not None else T
-        self.grow, self.fast = grow, fast_newton
+        self.grow, self.max_change = grow, max_change
         self.limit = max_indicator / rate if (rate and scheme == "explicit") else None
         self.decisions: list[dict] = []
         self.total = None
@@ -187,16 +190,19 @@ class AdaptiveSteps:
         """
         return self.T if abs(t + k - self.T) <= 1e-12 * self.T else t + k
 
-    def accept(self, k: float, its: int) -> None:
-        """The step was accepted: record it and grow k if it was fast.
+    def accept(self, k: float, change: float) -> None:
+        """The step was accepted: record it and grow k if the solution changed little.
 
         Args:
             k: the accepted step.
-            its: its Newton iterations; at most ``fast_newton`` makes k grow by ``grow``
-                (up to k_max and the stability limit).
+            change: the converged solution's relative change over the step,
+                max|u_n - u_{n-1}| / max|u_n| (0 for u_n = u_{n-1} = 0); at most
+                ``max_change`` makes k grow by ``grow`` (up to k_max and the stability
+                limit).  A property of the solution of the discrete problem, the same
+                for every step solver.
         """
-        self.decisions.append({"k": k, "accepted": True, "newton": its})
-        if its <= self.fast:   # grow, but not past the stability limit (no reject loop)
+        self.decisions.append({"k": k, "accepted": True, "change": change})
+        if change <= self.max_change:   # grow, not past the stability limit (no reject loop)
             self.k = min(self.k * self.grow, self.k_max,
                          self.limit if self.limit is not None else float("inf"))
 
@@ -243,4 +249,4 @@ def make_stepper(case, rate: float | None) -> FixedSteps | AdaptiveSteps:
         return FixedSteps(case.time.times)
     k0 = case.time.times[1] - case.time.times[0]
     return AdaptiveSteps(case.time.T, k0, rate, case.time.scheme, a.get("k_min"),
-                         a.get("k_max"), a["grow"], a["fast_newton"], a["max_indicator"])
+                         a.get("k_max"), a["grow"], a["max_change"], a["max_indicator"])

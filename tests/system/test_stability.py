@@ -133,10 +133,10 @@ def test_adaptive_rejection_restores_every_history(monkeypatch):
 
 def test_stepper_unit():
     from app.model.stepping import AdaptiveSteps
-    st = AdaptiveSteps(1.0, 0.25, rate=10.0, scheme="explicit", grow=2.0, fast_newton=3,
+    st = AdaptiveSteps(1.0, 0.25, rate=10.0, scheme="explicit", grow=2.0, max_change=0.1,
                        max_indicator=1.0)
     assert st.next_k(0.0) == 0.0625          # halved twice: 0.25 r = 2.5 > 1
-    st.accept(0.0625, 2)
+    st.accept(0.0625, 0.05)
     assert st.k == 0.1                        # grows, capped at the limit 1/r
     assert not st.reject(0.1 / 2**10, "x")    # below k_min: give up
     st = AdaptiveSteps(1.0, 0.4, rate=None, scheme="implicit")

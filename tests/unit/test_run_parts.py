@@ -38,13 +38,13 @@ def test_fixed_steps_state_round_trip():
 
 
 def test_adaptive_steps_state_round_trip():
-    st = AdaptiveSteps(1.0, 0.25, rate=None, scheme="implicit", grow=2.0, fast_newton=3)
-    st.accept(st.next_k(0.0), 2)                    # fast: k grows to 0.5
+    st = AdaptiveSteps(1.0, 0.25, rate=None, scheme="implicit", grow=2.0, max_change=0.1)
+    st.accept(st.next_k(0.0), 0.05)                 # a small change: k grows to 0.5
     st.reject(0.5, "injected")                      # k back to 0.25
     saved = st.state()
     assert saved["adaptive"] and saved["n"] is None and saved["k"] == 0.25
     assert [d["accepted"] for d in saved["decisions"]] == [True, False]
-    st.accept(0.25, 9)
+    st.accept(0.25, 0.9)
     assert len(saved["decisions"]) == 2             # the state is a copy
     other = AdaptiveSteps(1.0, 0.125, rate=None, scheme="implicit")
     other.load_state(saved)
