@@ -27,6 +27,7 @@ from petsc4py import PETSc
 
 from app.io.case import Case, CaseError, rescale_for_length
 from app.io.output import OutputError
+from app.model.datapoints import check_data_on_mesh
 from app.model.gamma3 import Gamma3History, Kernel
 from app.model.history import ImplicitViscoplasticHistory, ViscoplasticHistory
 from app.model.problem import ContactProblem
@@ -191,7 +192,8 @@ class Simulation:
         self.domain = build_mesh(case, self.comm)
         if case.mesh.file is not None:          # the tolerances' scale: the body's size
             lo, hi = self.domain.bbox
-            self.case = case = rescale_for_length(case, float(np.max(hi - lo)))
+            self.case = case = rescale_for_length(case, float(np.max(hi - lo)),
+                                                  check_data_on_mesh(case, self.domain))
         self.problem = problem = ContactProblem(case, self.domain)
         self.history = build_history(case, problem)
         problem.set_initial_values(self.history.kappa if self.history else None)

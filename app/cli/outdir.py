@@ -18,7 +18,7 @@ OUR_DIRECTORIES = ("convergence", "stability", "bench")
 OUR_PATTERNS = ("checkpoint_*.npz", "*.png", ".vpcontact.lock", ".solution.work.*", ".*.tmp*")
 
 LOCK_NAME = ".vpcontact.lock"
-_LOCKS = []      # (path, open file) of the output directories this process holds
+_LOCKS = []      # (path, open file, created by us) of the output directories this process holds
 
 
 def foreign_files(outdir: Path) -> list[str]:
@@ -61,6 +61,7 @@ def lock(outdir: Path) -> str | None:
             return (f"--out {outdir}: holds files that are not vpcontact outputs ({shown}); "
                     "give a new or empty directory, or one of an earlier run")
     path = outdir / LOCK_NAME
+    created = not outdir.exists()
     try:
         outdir.mkdir(parents=True, exist_ok=True)
         fh = _take(path)
@@ -71,7 +72,7 @@ def lock(outdir: Path) -> str | None:
                 "wait for it to end or choose another --out")
     if not _LOCKS:
         atexit.register(release_locks)
-    _LOCKS.append((path, fh))
+    _LOCKS.append((path, fh, created))
     return None
 
 
@@ -106,14 +107,20 @@ def _take(path: Path):
 
 def release_locks() -> None:
     """Remove the lock files this process holds, then release them (at exit; the lock
-    stays held until the file is gone, see _take)."""
+    stays held until the file is gone, see _take); a directory this process created and
+    left empty (a case refused once its mesh was loaded) is removed too."""
     while _LOCKS:
-        path, fh = _LOCKS.pop()
+        path, fh, created = _LOCKS.pop()
         try:
             path.unlink()
         except OSError:
             pass
         fh.close()
+        if created:
+            try:
+                path.parent.rmdir()          # only if empty
+            except OSError:
+                pass
 
 
 def _earlier_outputs(outdir: Path, files) -> list[str]:

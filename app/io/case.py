@@ -1042,7 +1042,7 @@ def _check_memory(mem: dict, source: str) -> None:
 
 
 def _check_values(data: dict, time_grid: TimeGrid, source: str,
-                  length: float | None = None) -> float:
+                  length: float | None = None, samples=None) -> float:
     """The data values at sample points of the body and times (app/io/datacheck.py): finite,
     initial values in the model's set.  Returns the stress scale of the data (loads,
     sigma0 and the stress E |u| / L of the initial and prescribed displacements).
@@ -1051,14 +1051,15 @@ def _check_values(data: dict, time_grid: TimeGrid, source: str,
     sampled (the mesh's nodes are checked when it is loaded), and L is 1.  The geometric
     checks of u0 (zero on Gamma1, u_nu <= g on Gamma3) need the built-in mesh with the
     default boundaries; g >= 0 is sampled on the built-in mesh's contact sides.  ``length``:
-    the body's size L (default: body_length(data))."""
+    the body's size L (default: body_length(data)); ``samples``: the sample points of the
+    loaded mesh (datacheck.PointSamples; default: as above)."""
     from app.io import datacheck
 
     mesh, bounds = data["mesh"], data["boundaries"]
     adaptive = time_grid.adaptive is not None
-    if "file" in mesh:
+    if samples is None and "file" in mesh:
         samples = datacheck.Samples.unknown(mesh["dim"], time_grid.times, adaptive)
-    else:
+    elif samples is None:
         lengths = [mesh["L1"], mesh["L2"], mesh["L3"]][:mesh["dim"]]
         cells = [mesh["n"] if mesh["kind"] == "structured" else math.ceil(L / mesh["h"])
                  for L in lengths]
@@ -1078,6 +1079,24 @@ def _check_values(data: dict, time_grid: TimeGrid, source: str,
         raise CaseError(f"{source}: {exc}") from None
     length = body_length(data) if length is None else length
     return max(loads, sigma0, data["material"]["E"] * max(u0, moved) / length)
+
+
+def check_values_on_mesh(case: Case, samples, length: float) -> float:
+    """The checks of validation (app/io/datacheck.py) on the points of the loaded mesh.
+
+    Args:
+        case: the validated case.
+        samples: the mesh's sample points and the times (datacheck.PointSamples).
+        length: the body's size L [m].
+
+    Returns:
+        The stress scale of the data on these points (as validation's).
+
+    Raises:
+        CaseError: for a value that is not finite, out of range or outside the model's set,
+            naming the key and the point (x, t).
+    """
+    return _check_values(case.raw, case.time, case.source, length, samples)
 
 
 def body_length(data: dict) -> float:

@@ -12,8 +12,9 @@ The sample points are a tensor grid with the vertices and the midpoints of a str
 grid of m cells per side of the built-in rectangle / box: the mesh's own cells (m = mesh.n,
 or L / h for unstructured meshes) up to MAX_CELLS[dim] per side.  The body of a mesh.file is
 not known before it is loaded (``Samples.unknown``): only the values that do not depend on
-the position are sampled then.  The same checks on the mesh nodes are repeated where the
-data are set on the mesh (app/model).
+the position are sampled then; once it is loaded, the same checks run on its own points
+(``PointSamples``: the nodes and cell midpoints of the body, the nodes and facet midpoints of
+each group; app/model/datapoints.py) before anything is computed.
 """
 from __future__ import annotations
 
@@ -48,6 +49,8 @@ class Samples:
         times: the time grid t_0..t_N.
         adaptive: the steps are adaptive: ADAPTIVE_TIMES more times in [0, T].
     """
+
+    side_word = "side"               # what ``points(side)`` samples, for messages
 
     def __init__(self, lengths, cells, times, adaptive: bool):
         self.known = True            # the body's geometry is known (see ``unknown``)
@@ -96,6 +99,40 @@ class Samples:
             axes[axis] = np.array([self.lengths[axis] * end])
         grid = np.meshgrid(*axes, indexing="ij")
         return np.stack([g.ravel() for g in grid], axis=1)
+
+
+class PointSamples(Samples):
+    """Sample points of a body known by its mesh (a mesh.file once loaded): the nodes and cell
+    midpoints of the body, the nodes and facet midpoints of each group, and the sample times.
+
+    Args:
+        body: (P, dim) points of the whole body.
+        groups: group (a name or physical tag, as the case gives it) -> (P_g, dim) points.
+        lengths: the extents of the body's bounding box.
+        times: the time grid t_0..t_N.
+        adaptive: the steps are adaptive: ADAPTIVE_TIMES more times in [0, T].
+    """
+
+    side_word = "group"
+
+    def __init__(self, body: np.ndarray, groups: dict, lengths, times, adaptive: bool):
+        super().__init__(lengths, [1] * len(lengths), times, adaptive)
+        self.body = np.asarray(body, dtype=float).reshape(-1, self.dim)
+        self.groups = {k: np.asarray(v, dtype=float).reshape(-1, self.dim)
+                       for k, v in groups.items()}
+
+    def points(self, side=None) -> np.ndarray:
+        """The sample points.
+
+        Args:
+            side: a group (name or tag), or None for the whole body.
+
+        Returns:
+            (P, dim) points; none for a group the mesh does not have (refused elsewhere).
+        """
+        if side is None:
+            return self.body
+        return self.groups.get(side, np.zeros((0, self.dim)))
 
 
 def evaluate(component, points: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -208,7 +245,7 @@ def finite_values(component, path: str, samples: Samples, side: str | None = Non
             f"{value} is not a finite number"
         raise DataError(f"{path}: {what} at {_where(points, times, index, samples.dim, with_t)}"
                         f" (allowed: finite values up to {MAX_MAGNITUDE:g} in magnitude on the "
-                        f"{'side' if side else 'whole body'}"
+                        f"{samples.side_word if side is not None else 'whole body'}"
                         f"{' at every time in [0, T]' if with_t else ''})")
     return values
 

@@ -1,7 +1,7 @@
-"""Zero-valued and constant data (issue 30, items 6 and 9): UFL folds "0*t", "0*x" or a
-number to a value without a mesh, which dolfinx can neither interpolate nor integrate; every
-such datum must run like its nonzero neighbour (TimeData.on_mesh), on the built-in mesh and
-on a mesh file."""
+"""Zero-valued and constant data: UFL folds "0*t", "0*x" or a number to a value without a
+mesh, which dolfinx can neither interpolate nor integrate; every such datum must run like its
+nonzero neighbour (TimeData.on_mesh).  Run on the built-in mesh: a mesh file's data take the
+same path (ContactProblem)."""
 import numpy as np
 import pytest
 from mpi4py import MPI

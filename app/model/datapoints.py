@@ -1,0 +1,95 @@
+"""The case's data checked on the points of a loaded mesh file, before anything is computed.
+
+Validation cannot sample the data of a mesh.file where they depend on the position (the body
+is not known then, app/io/datacheck.py).  Once the mesh is loaded, the same checks run on its
+own points: the nodes and cell midpoints of the body for the body's data (f0, u0, sigma0,
+kappa0), the nodes and facet midpoints of each group for the data acting on it (tractions,
+pressures, prescribed displacements, the gap g on Gamma3).  Every rank checks its part of the
+mesh; the first error (of the lowest rank that finds one) is raised on every rank.
+"""
+from __future__ import annotations
+
+import numpy as np
+from dolfinx import cpp as dcpp
+from dolfinx import mesh as dmesh
+from mpi4py import MPI
+
+from app.io.case import Case, CaseError, check_values_on_mesh
+from app.io.datacheck import PointSamples
+
+
+def entity_points(msh, dim: int, entities: np.ndarray) -> np.ndarray:
+    """The vertices and midpoints of mesh entities.
+
+    Args:
+        msh: the dolfinx mesh.
+        dim: the entities' dimension (tdim for cells, tdim - 1 for facets).
+        entities: local entity indices.
+
+    Returns:
+        (P, gdim) points: the distinct vertices of the entities, then their midpoints.
+    """
+    gdim = msh.geometry.dim
+    entities = np.asarray(entities, dtype=np.int32)
+    if entities.size == 0:
+        return np.zeros((0, gdim))
+    msh.topology.create_connectivity(dim, msh.topology.dim)
+    cpp_mesh = getattr(msh, "_mesh", msh)          # the C++ mesh behind dolfinx's wrapper
+    nodes = np.unique(dcpp.mesh.entities_to_geometry(cpp_mesh, dim, entities, False))
+    mids = dmesh.compute_midpoints(msh, dim, entities)
+    return np.concatenate([msh.geometry.x[nodes], mids])[:, :gdim]
+
+
+def mesh_samples(case: Case, body) -> PointSamples:
+    """The sample points of a loaded mesh file for the case's data (this rank's part).
+
+    Args:
+        case: the validated case.
+        body: the meshes.FileMesh (mesh, facet_tags, groups, tags, bbox).
+
+    Returns:
+        The PointSamples: the body's points, and the points of every group the case names
+        (by its name or tag; a group the mesh does not have gets none: ContactProblem refuses
+        it).
+    """
+    msh, ft = body.mesh, body.facet_tags
+    tdim = msh.topology.dim
+    cells = np.arange(msh.topology.index_map(tdim).size_local, dtype=np.int32)
+    refs = set(case.boundaries.clamped) | set(case.boundaries.contact)
+    for kind in (case.loads.traction, case.loads.pressure, case.loads.displacement):
+        refs |= set(kind)
+    groups = {}
+    for ref in refs:
+        tag = body.groups.get(ref) if isinstance(ref, str) else ref
+        if tag is not None:
+            groups[ref] = entity_points(msh, tdim - 1, ft.indices[ft.values == tag])
+    lo, hi = (np.asarray(b, dtype=float)[:tdim] for b in body.bbox)
+    return PointSamples(entity_points(msh, tdim, cells), groups, hi - lo, case.time.times,
+                        case.time.adaptive is not None)
+
+
+def check_data_on_mesh(case: Case, body) -> float:
+    """Refuse data that are not finite or not in the model's set on the loaded mesh's points
+    (collective: every rank raises the same error).
+
+    Args:
+        case: the validated case.
+        body: the meshes.FileMesh.
+
+    Returns:
+        The stress scale of the data (the largest over the ranks), for rescale_for_length.
+
+    Raises:
+        CaseError: on every rank, naming the key and the point (x, t).
+    """
+    comm = body.mesh.comm
+    lo, hi = body.bbox
+    error, stress = None, 0.0
+    try:
+        stress = check_values_on_mesh(case, mesh_samples(case, body), float(np.max(hi - lo)))
+    except CaseError as exc:
+        error = str(exc)
+    errors = [e for e in comm.allgather(error) if e is not None]
+    if errors:
+        raise CaseError(errors[0])
+    return comm.allreduce(stress, op=MPI.MAX)
