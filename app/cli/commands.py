@@ -237,7 +237,8 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
         petsc_cli: PETSc options given on the command line.
 
     Returns:
-        The exit code: 0 done, 1 a run failed, 2 bad input.
+        The exit code: 0 done, 1 a run failed, 2 bad input, 3 interrupted (SIGINT, SIGTERM:
+        the runs that finished stay in the run cache).
     """
     from mpi4py import MPI
 
@@ -263,14 +264,17 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
     try:
         res = cv.study(raw, args.case, chosen["levels"], chosen["reference"], args.vary,
                        args.deltas, comm, cache_dir, petsc_cli)
+        if comm.rank == 0:
+            cv.write_csv(outdir / "convergence.csv", res)
+            cv.write_markdown(outdir / "convergence.md", res, case.name)
+            cv.write_plot(outdir / "convergence.png", res)
     except CaseError as exc:
         return error(str(exc), EXIT_BAD_INPUT)
     except RuntimeError as exc:
         return error(str(exc), EXIT_FAILED)
+    except KeyboardInterrupt as exc:
+        return interrupted(_convergence_interrupted(exc, cache_dir, outdir))
     if comm.rank == 0:
-        cv.write_csv(outdir / "convergence.csv", res)
-        cv.write_markdown(outdir / "convergence.md", res, case.name)
-        cv.write_plot(outdir / "convergence.png", res)
         for r in res["rows"]:
             log.info("delta %-8g h %-9.5g k %-9.5g Error %.6g  rate %s  wall %.3f s%s",
                      r["delta"], r["h"], r["k"], r["error"],
@@ -279,6 +283,22 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
         log.info("done in %.1f s: %s/{%s}", res["total_s"], outdir, ", ".join(CONVERGENCE_FILES))
     comm.barrier()
     return 0
+
+
+def _convergence_interrupted(exc: KeyboardInterrupt, cache_dir: Path | None,
+                             outdir: Path) -> str:
+    """The line of a convergence study ended by a signal: where, and what is kept."""
+    from app.studies.interrupts import StudyInterrupted, signal_name
+    if not isinstance(exc, StudyInterrupted):           # while writing the report
+        return (f"convergence study interrupted by {signal_name(exc)} while writing its "
+                f"report to {outdir}; every run is done" + (
+                    f" and in the run cache {cache_dir}: the same command writes the report "
+                    "from it" if cache_dir else ""))
+    kept = (f"the {exc.finished} run(s) that finished are in the run cache {cache_dir} (the "
+            "same command continues from them)" if cache_dir else
+            f"{exc.finished} run(s) had finished (not kept: --no-cache)")
+    return (f"convergence study interrupted by {exc.signal} during {exc.where}; {kept}; "
+            f"no report was written to {outdir}")
 
 
 def cmd_stability(args, petsc_cli: dict) -> int:
@@ -290,7 +310,8 @@ def cmd_stability(args, petsc_cli: dict) -> int:
         petsc_cli: PETSc options given on the command line.
 
     Returns:
-        The exit code: 0 done, 2 bad input.
+        The exit code: 0 done, 2 bad input, 3 interrupted (SIGINT, SIGTERM: the report
+        holds the runs that finished, marked incomplete).
     """
     from app.studies import stability as st
 
@@ -306,18 +327,48 @@ def cmd_stability(args, petsc_cli: dict) -> int:
     try:
         outcomes = st.sweep(raw, comm, petsc_cli, args.n, args.steps, source=args.case,
                             refine=args.refine)
+        _stability_report(comm, args, case, raw, outdir, outcomes)
     except CaseError as exc:
         return error(str(exc), EXIT_BAD_INPUT)
+    except KeyboardInterrupt as exc:
+        return interrupted(_stability_interrupted(comm, args, case, raw, outdir, exc))
+    log.info("done in %.1f s: %s/{%s}", time.perf_counter() - t0, outdir,
+             ", ".join(STABILITY_FILES))
+    comm.barrier()
+    return 0
+
+
+def _stability_report(comm, args, case, raw, outdir: Path, outcomes, interrupted=None):
+    """stability.csv and stability.md (rank 0); ``interrupted`` says by what and where if
+    the outcomes are those of an interrupted sweep."""
+    from app.studies import stability as st
     if comm.rank == 0:
         st.write_csv(outdir / "stability.csv", outcomes)
         file = case.mesh.file is not None
         st.write_markdown(outdir / "stability.md", outcomes, case.name,
                           None if file else args.n or 8, args.steps, args.refine,
-                          st.not_applicable(raw))
-    log.info("done in %.1f s: %s/{%s}", time.perf_counter() - t0, outdir,
-             ", ".join(STABILITY_FILES))
-    comm.barrier()
-    return 0
+                          st.not_applicable(raw), interrupted)
+
+
+def _stability_interrupted(comm, args, case, raw, outdir: Path, exc) -> str:
+    """The line of a sweep ended by a signal, after the report of the runs that finished
+    (the signals held back while it is written)."""
+    from app.studies.interrupts import StudyInterrupted, signal_name, signals_held
+    if not isinstance(exc, StudyInterrupted):           # while writing the report
+        return (f"stability sweep interrupted by {signal_name(exc)} while writing its report "
+                f"to {outdir}; every variant had run")
+    if not exc.results:
+        return (f"stability sweep interrupted by {exc.signal} during {exc.where}; no variant "
+                "had finished, no report written")
+    try:
+        with signals_held():
+            _stability_report(comm, args, case, raw, outdir, exc.results,
+                              f"{exc.signal} during {exc.where}")
+    except KeyboardInterrupt:
+        pass                          # a second signal: the report is written, then we stop
+    return (f"stability sweep interrupted by {exc.signal} during {exc.where}; the "
+            f"{exc.finished} run(s) that finished are in {outdir}/stability.csv and "
+            "stability.md (marked incomplete)")
 
 
 def cmd_bench(args) -> int:

@@ -32,31 +32,21 @@ def take_signals() -> None:
 
     SIGPIPE is ignored (PETSc would turn it into an MPI_Abort of the run; a write to a
     closed pipe then fails and app/cli/streams.py drops the stream); SIGINT and SIGTERM end
-    the start-up with KeyboardInterrupt, caught by main (the time loop installs its own
+    the start-up (and a study, between its runs) with KeyboardInterrupt, whose argument
+    names the signal, caught by main or the study's command (the time loop installs its own
     handler for both).
     """
     import signal
 
     from petsc4py import PETSc  # noqa: F401  (PETSc installs its handlers when initialised)
     signal.signal(signal.SIGPIPE, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, _terminate)
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _interrupt)
+    signal.signal(signal.SIGINT, _interrupt)
 
 
-def _terminate(signum, frame):
-    raise KeyboardInterrupt
-
-
-def _caused_by_interrupt(exc: BaseException) -> bool:
-    """True if a KeyboardInterrupt (Ctrl-C, SIGTERM) is among the exception's causes, as
-    when it arrives while a C extension initialises (ImportError 'initialization failed')."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return False
+def _interrupt(signum, frame):
+    import signal
+    raise KeyboardInterrupt(signal.Signals(signum).name)
 
 
 def dispatch(args, petsc_cli: dict) -> int:
@@ -75,7 +65,8 @@ def dispatch(args, petsc_cli: dict) -> int:
 
 def _unexpected(exc: Exception) -> int:
     """The exit code of an exception no command handled, after its line."""
-    if _caused_by_interrupt(exc):     # a signal inside a C extension's import or call
+    from app.studies.interrupts import caused_by_interrupt
+    if caused_by_interrupt(exc):      # a signal inside a C extension's import or call
         return interrupted(_BEFORE_THE_LOOP, all_ranks=True)
     from petsc4py import PETSc
     if isinstance(exc, PETSc.Error):  # PETSc refused an option or a matrix: not our bug

@@ -36,6 +36,13 @@ from app.io.output import atomic_write, csv_text
 from app.observers import Observer
 from app.studies import runcache
 from app.studies.grid import Grid, GridSampler, cell_l2_norm, prolong_dg0, prolong_p1, strain_norm
+from app.studies.interrupts import (
+    SignalWatch,
+    StudyInterrupted,
+    check_run,
+    signal_name,
+    signals_held,
+)
 from app.studies.nested import LevelSampler, NestedLevel
 
 log = logging.getLogger("vpcontact")
@@ -341,6 +348,7 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
 
     Raises:
         RuntimeError: the run did not complete.
+        StudyInterrupted: a signal stopped the run.
     """
     import dataclasses
 
@@ -362,14 +370,16 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
         return RunRecord(n, N, delta, grid, meta["dofs"], np.asarray(times), meta["solve_s"],
                          meta["setup_s"], meta["newton"], True, snaps)
 
-    sampler = GridSamples(grid)
+    sampler, watch = GridSamples(grid), SignalWatch()
     loglevel = log.level
     log.setLevel(max(loglevel, logging.WARNING))   # one line per run, not per step
     try:
-        result = run(case, comm, [sampler])
+        result = run(case, comm, [sampler, watch])
     finally:
         log.setLevel(loglevel)
     s = result.summary
+    where = f"the run {' '.join(what.split())}, N = {N}, delta = {delta:g}"
+    check_run(s, where)
     if result.status != "completed":
         raise RuntimeError(f"run {' '.join(what.split())}, N = {N}, delta = {delta:g} failed: "
                            f"{s['failure']['reason']} at step {s['failure']['step']}")
@@ -377,17 +387,27 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
                     s["solve_s"], s["setup_s"], s["newton_iterations_total"], False,
                     sampler.snaps, _gather_table(result.problem.contact_table(), comm),
                     s["steps"][-1] if s["steps"] else None)
+    try:
+        with signals_held():          # the finished run is logged and cached whole
+            _keep(rec, what, path, case.time.times, comm)
+    except KeyboardInterrupt as exc:
+        watch.signal = watch.signal or signal_name(exc)
+    watch.stop_if_signalled(where)    # a signal in its last steps: the run is kept, then stop
+    return rec
+
+
+def _keep(rec: RunRecord, what: str, path: Path | None, times, comm) -> None:
+    """The line of a computed run, and its cache entry (rank 0) if there is a cache."""
     log.info("  %s, N = %4d, delta = %g: %d dofs, %.2f s (+ set-up %.2f s), "
-             "%d Newton iterations", what, N, delta, rec.dofs, rec.solve_s, rec.setup_s,
-             rec.newton)
+             "%d Newton iterations", what, rec.N, rec.delta, rec.dofs, rec.solve_s,
+             rec.setup_s, rec.newton)
     if path and comm.rank == 0:
         try:
-            runcache.save(path, case.time.times, rec.snaps,
+            runcache.save(path, times, rec.snaps,
                           {"dofs": rec.dofs, "solve_s": rec.solve_s, "setup_s": rec.setup_s,
-                           "newton": rec.newton, "n": n, "N": N, "delta": delta})
+                           "newton": rec.newton, "n": rec.n, "N": rec.N, "delta": rec.delta})
         except OSError as exc:        # e.g. a full disk: the study goes on without the entry
             log.warning("run not cached (%s: %s)", path, exc.strerror or exc)
-    return rec
 
 
 def _gather_table(table: dict, comm) -> dict | None:
@@ -513,6 +533,8 @@ def study(raw: dict, source: str, levels: list[int], reference: int, vary: str,
     Raises:
         CaseError: the study's options or the case do not fit (see plan_runs), or the
             mesh.file cannot be refined.
+        StudyInterrupted: SIGINT or SIGTERM ended the study (its ``finished`` runs are in
+            the run cache, if there is one).
     """
     base = validate(raw, source)
     plan = plan_runs(levels, reference, vary, base, deltas)
@@ -522,20 +544,29 @@ def study(raw: dict, source: str, levels: list[int], reference: int, vary: str,
     file = base.mesh.file is not None
     ref_N = base_steps(base) * 2 ** reference if file else reference
     t0 = time.perf_counter()
-    with level_meshes(base, reference, comm) as nested:
-        def obtain(n, N, delta):
-            return obtain_run(raw, n, N, delta, source, petsc_cli, comm, cache_dir,
-                              level=nested[n] if nested else None)
+    progress = _Progress(f"the refinement of {base.mesh.file}" if file else "its set-up")
+    try:
+        with level_meshes(base, reference, comm) as nested:
+            def obtain(n, N, delta):
+                progress.doing = f"the run {'r' if file else 'n'} = {n}, N = {N}, " \
+                                 f"delta = {delta:g}"
+                rec = obtain_run(raw, n, N, delta, source, petsc_cli, comm, cache_dir,
+                                 level=nested[n] if nested else None)
+                progress.finished += 1
+                progress.doing = "the errors of the levels"
+                return rec
 
-        log.info("reference run %s (delta = %g)", f"r = {reference}, N = {ref_N}" if file
-                 else f"n = N = {reference}", ref_delta)
-        ref = obtain(reference, ref_N, ref_delta)
-        rows, records = [], {}
-        for delta in deltas:
-            log.info("levels %s (vary %s, delta = %g)", levels, vary, delta)
-            recs = [obtain(n, N, delta) for n, N in plan]
-            records.update({(delta, L): r for L, r in zip(levels, recs)})
-            rows += _level_rows(levels, recs, ref, vary, base.time.T, delta, comm)
+            log.info("reference run %s (delta = %g)", f"r = {reference}, N = {ref_N}" if file
+                     else f"n = N = {reference}", ref_delta)
+            ref = obtain(reference, ref_N, ref_delta)
+            rows, records = [], {}
+            for delta in deltas:
+                log.info("levels %s (vary %s, delta = %g)", levels, vary, delta)
+                recs = [obtain(n, N, delta) for n, N in plan]
+                records.update({(delta, L): r for L, r in zip(levels, recs)})
+                rows += _level_rows(levels, recs, ref, vary, base.time.T, delta, comm)
+    except KeyboardInterrupt as exc:
+        raise progress.interrupted(exc) from None
     ref_norms = None
     if comm.rank == 0:
         *_, v_norm, cell_norm = _norm_ops(ref, ref)
@@ -548,6 +579,32 @@ def study(raw: dict, source: str, levels: list[int], reference: int, vary: str,
             "ref_delta": ref_delta, "file": file,
             "paper": matches_paper(raw) and vary == "both" and reference == 128,
             "total_s": time.perf_counter() - t0}
+
+
+class _Progress:
+    """What a study is doing and how many of its runs have finished, for the line of an
+    interrupt.
+
+    Args:
+        doing: what the study does first.
+    """
+
+    def __init__(self, doing: str):
+        self.doing, self.finished = doing, 0
+
+    def interrupted(self, exc: KeyboardInterrupt) -> StudyInterrupted:
+        """The StudyInterrupted of a signal that arrived now.
+
+        Args:
+            exc: the KeyboardInterrupt (or a run's StudyInterrupted, which says where and
+                whether that run finished).
+
+        Returns:
+            The StudyInterrupted, with ``finished`` (the runs done or loaded from the cache).
+        """
+        if isinstance(exc, StudyInterrupted):     # from a run: where, and if it finished
+            return StudyInterrupted(exc.signal, exc.where, self.finished + exc.finished)
+        return StudyInterrupted(signal_name(exc), self.doing, self.finished)
 
 
 def _level_rows(levels, recs, ref, vary, T, delta, comm) -> list[dict]:

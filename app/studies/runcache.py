@@ -5,8 +5,9 @@ The key is a hash of everything that determines the discrete solution: the valid
 (physics, mesh, time grid, solver settings, PETSc options) and a format version; the case's
 name, description and output settings do not count, nor does the name of a mesh.file (its
 content does: a study's refined levels live in temporary files).  Files are written
-atomically; an entry that does not load (or does not fit its run) is recomputed and written
-again.
+atomically, with the signals held back while they are written (an interrupted study keeps
+every finished run whole); an entry that does not load (or does not fit its run) is
+recomputed and written again.
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from app.io.canonical import stable_json
+from app.studies.interrupts import signals_held
 
 FORMAT_VERSION = 1
 IGNORED = ("name", "description", "output")
@@ -53,7 +55,8 @@ def cache_key(case) -> str:
 
 
 def save(path: Path, times: list, snaps: list[dict], meta: dict) -> None:
-    """Write a run's history atomically (temporary file, then rename).
+    """Write a run's history atomically (temporary file, then rename), with SIGINT and
+    SIGTERM held back until it is written (interrupts.signals_held).
 
     Args:
         path: the HDF5 file.
@@ -65,15 +68,16 @@ def save(path: Path, times: list, snaps: list[dict], meta: dict) -> None:
 
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    try:
-        with h5py.File(tmp, "w") as f:
-            f.attrs["meta"] = json.dumps(meta)
-            f["times"] = np.asarray(times)
-            for name in ("u", "sigma", "kappa"):
-                f.create_dataset(name, data=np.stack([s[name] for s in snaps]))
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    with signals_held():              # a finished run is kept whole, then the signal acts
+        try:
+            with h5py.File(tmp, "w") as f:
+                f.attrs["meta"] = json.dumps(meta)
+                f["times"] = np.asarray(times)
+                for name in ("u", "sigma", "kappa"):
+                    f.create_dataset(name, data=np.stack([s[name] for s in snaps]))
+            os.replace(tmp, path)
+        finally:
+            tmp.unlink(missing_ok=True)
 
 
 class Unreadable(Exception):

@@ -30,6 +30,13 @@ import numpy as np
 
 from app.io.case import CaseError, validate
 from app.io.output import atomic_write, csv_text
+from app.studies.interrupts import (
+    SignalWatch,
+    StudyInterrupted,
+    caused_by_interrupt,
+    check_run,
+    signal_name,
+)
 
 log = logging.getLogger("vpcontact")
 BLOWUP = 1e3
@@ -79,6 +86,7 @@ class Outcome:
         wall_s: wall time [s].
         norms: the last step's u, sigma and kappa norms.
         dofs: the displacement dofs of the variant's mesh (0 if it did not start).
+        watch: the run's SignalWatch (a signal at its end ends the sweep after this row).
     """
 
     variant: Variant
@@ -96,6 +104,7 @@ class Outcome:
     wall_s: float = 0.0
     norms: dict = field(default_factory=dict, repr=False)
     dofs: int = 0
+    watch: SignalWatch | None = field(default=None, repr=False)
 
     @property
     def bounded(self) -> bool:
@@ -288,6 +297,9 @@ def run_variant(raw: dict, variant: Variant, scheme: str, comm, petsc_cli: dict)
 
     Returns:
         The Outcome (status, Newton counts, growth of the norms, diagnostics, wall time).
+
+    Raises:
+        KeyboardInterrupt: SIGINT or SIGTERM (StudyInterrupted if it stopped the run).
     """
     from app.simulation import run
 
@@ -299,18 +311,22 @@ def run_variant(raw: dict, variant: Variant, scheme: str, comm, petsc_cli: dict)
     except CaseError as exc:
         return Outcome(variant, scheme, "invalid", str(exc))
     case = dataclasses.replace(case, petsc={**case.petsc, **petsc_cli})
-    level = log.level
+    level, watch = log.level, SignalWatch()
     log.setLevel(logging.CRITICAL)
     try:
-        res = run(case, comm)
+        res = run(case, comm, [watch])
     except CaseError as exc:   # found while setting up
         return Outcome(variant, scheme, "invalid", str(exc), wall_s=time.perf_counter() - t0)
     except Exception as exc:   # report, do not stop the sweep: every variant gets a row
+        signal = caused_by_interrupt(exc)     # a signal inside a C extension: ends the sweep
+        if signal is not None:
+            raise signal from None
         return Outcome(variant, scheme, "error", f"{type(exc).__name__}: {exc}",
                        wall_s=time.perf_counter() - t0, finite=False)
     finally:
         log.setLevel(level)
     s = res.summary
+    check_run(s, f"the variant '{variant.name}' ({scheme})")   # a signal ends the sweep
     steps = s["steps"]
     out = Outcome(variant, scheme, s["status"], s.get("failure", {}).get("reason", ""),
                   len(steps), max((st["newton_iterations"] for st in steps), default=0),
@@ -328,6 +344,7 @@ def run_variant(raw: dict, variant: Variant, scheme: str, comm, petsc_cli: dict)
                      "kappa": float(steps[-1]["norm_kappa_Y"])}
     if out.status != "completed" and not out.finite:
         out.reason = out.reason or "non-finite solution"
+    out.watch = watch
     return out
 
 
@@ -420,6 +437,8 @@ def sweep(raw: dict, comm, petsc_cli: dict, n: int | None = None, N: int = 8,
     Raises:
         CaseError: before anything runs if the base case is not valid (or its mesh.file
             cannot be refined), and after the sweep if no variant was valid input.
+        StudyInterrupted: SIGINT or SIGTERM ended the sweep (its ``results``: the
+            Outcomes of the runs that finished).
     """
     base = base_case(raw, n, N, source, refine)
 
@@ -436,25 +455,45 @@ def sweep(raw: dict, comm, petsc_cli: dict, n: int | None = None, N: int = 8,
     from app.studies.convergence import level_meshes
 
     r = refine or 0
-    with level_meshes(validate(base, source), r + 1, comm) as levels:
-        base["mesh"] = {"file": str(levels[r].path), "dim": base["mesh"]["dim"]}
-        return _sweep(base, comm, petsc_cli,
-                      chosen(base, {"mesh.file": str(levels[r + 1].path)}))
+    try:
+        with level_meshes(validate(base, source), r + 1, comm) as levels:
+            base["mesh"] = {"file": str(levels[r].path), "dim": base["mesh"]["dim"]}
+            return _sweep(base, comm, petsc_cli,
+                          chosen(base, {"mesh.file": str(levels[r + 1].path)}))
+    except KeyboardInterrupt as exc:
+        if isinstance(exc, StudyInterrupted):
+            raise
+        raise StudyInterrupted(signal_name(exc), f"the refinement of {base['mesh']['file']}") \
+            from None
 
 
 def _sweep(base: dict, comm, petsc_cli: dict, variants: list[Variant]) -> list[Outcome]:
     """sweep on its base case."""
-    outcomes = []
-    for v in variants:
-        for scheme in v.schemes:
-            o = run_variant(base, v, scheme, comm, petsc_cli)
-            outcomes.append(o)
-            log.info("  %-16s %-34s %-8s %-9s steps %4d  max newton %3d  growth sigma %-9.3g "
-                     "%s (%.2f s)", v.group, v.name, scheme, o.status, o.steps, o.max_newton,
-                     o.growth_sigma, "bounded" if o.bounded else "BLOW-UP", o.wall_s)
+    outcomes, where = [], "its start"
+    try:
+        for v in variants:
+            for scheme in v.schemes:
+                where = f"the variant '{v.name}' ({scheme})"
+                o = run_variant(base, v, scheme, comm, petsc_cli)
+                outcomes.append(o)
+                log.info("  %-16s %-34s %-8s %-9s steps %4d  max newton %3d  growth sigma "
+                         "%-9.3g %s (%.2f s)", v.group, v.name, scheme, o.status, o.steps,
+                         o.max_newton, o.growth_sigma, "bounded" if o.bounded else "BLOW-UP",
+                         o.wall_s)
+                if o.watch is not None:
+                    o.watch.stop_if_signalled(where)    # a signal at its end: kept, then stop
+    except KeyboardInterrupt as exc:      # the sweep ends; the finished variants are kept
+        where = exc.where if isinstance(exc, StudyInterrupted) else where
+        raise StudyInterrupted(signal_name(exc), where, len(outcomes),
+                               _compared(outcomes)) from None
     if outcomes and all(o.status == "invalid" for o in outcomes):
         raise CaseError(f"no variant of the stability sweep is a valid case: "
                         f"{outcomes[0].reason}")
+    return _compared(outcomes)
+
+
+def _compared(outcomes: list[Outcome]) -> list[Outcome]:
+    """The outcomes with the scaling variants compared with the baseline."""
     baseline = {o.scheme: o for o in outcomes if o.variant.name == "baseline"}
     for o in outcomes:
         if o.variant.scale and o.norms and o.scheme in baseline and baseline[o.scheme].norms:
@@ -493,7 +532,8 @@ def _g(v, d=3):
 
 
 def write_markdown(path, outcomes, case_name: str, n: int | None, N: int,
-                   refine: int | None = None, left_out: list[str] | None = None) -> None:
+                   refine: int | None = None, left_out: list[str] | None = None,
+                   interrupted: str | None = None) -> None:
     """Write stability.md: a table of the Outcomes and a summary (runs completed, explicit
     blow-ups where the implicit scheme stays bounded), atomically.
 
@@ -505,19 +545,25 @@ def write_markdown(path, outcomes, case_name: str, n: int | None, N: int,
         N: time steps of the base.
         refine: the refinements of a mesh.file's base (with n None).
         left_out: the groups the case leaves out (not_applicable), listed in the summary.
+        interrupted: what interrupted the sweep and where (the report then holds the runs
+            that finished before), or None.
     """
     mesh = (f"a structured {n} x {n} mesh" if n is not None else
             f"the case's mesh.file refined {refine or 0} times")
-    lines = [f"# Stability report: {case_name}", "",
-             f"Each variant runs on {mesh} with k = T/{N} unless it sets "
-             "k itself, with the explicit (paper) and the implicit (right-end-point) history "
-             "scheme. growth = max over the run / value at the first time point at or after "
-             f"T/{N} (the base's first step); bounded = finite "
-             f"and growth < {BLOWUP:g}. Indicator = k_max r_max (explicit limit 2); margin = "
-             "the well-posedness margin of (2.6) (> 0: unique solution guaranteed).", "",
-             "| group | variant | scheme | status | steps | max Newton | growth sigma | "
-             "growth u | bounded | indicator | margin | scaling error | wall s | reason |",
-             "|" + "---|" * 14]
+    lines = [f"# Stability report: {case_name}", ""]
+    if interrupted:
+        lines += [f"**Incomplete: the sweep was interrupted** by {interrupted}; the "
+                  f"{len(outcomes)} runs below finished before it, the other variants were "
+                  "not run.", ""]
+    lines += [f"Each variant runs on {mesh} with k = T/{N} unless it sets "
+              "k itself, with the explicit (paper) and the implicit (right-end-point) history "
+              "scheme. growth = max over the run / value at the first time point at or after "
+              f"T/{N} (the base's first step); bounded = finite "
+              f"and growth < {BLOWUP:g}. Indicator = k_max r_max (explicit limit 2); margin = "
+              "the well-posedness margin of (2.6) (> 0: unique solution guaranteed).", "",
+              "| group | variant | scheme | status | steps | max Newton | growth sigma | "
+              "growth u | bounded | indicator | margin | scaling error | wall s | reason |",
+              "|" + "---|" * 14]
     for o in outcomes:
         lines.append("| " + " | ".join([
             o.variant.group, o.variant.name, o.scheme, o.status, str(o.steps),
