@@ -7,7 +7,8 @@ Gamma3 history terms as their ``state()`` gives them (memory term: xi_n, and for
 sum the stored u_nu^+ history; slip: s_n).  Values are stored with the coordinates of their
 nodes / cell midpoints, gathered on rank 0 into one ``checkpoint.npz`` (written
 atomically), so a run can restart on any number of MPI ranks: each rank matches its own
-nodes and cells by coordinates.  A restart puts the state back through the same
+nodes and cells by coordinates (within 1e-6 of the smallest distance between two of them,
+whatever the body's size: ``match_points``).  A restart puts the state back through the same
 ``load_state`` methods.
 """
 from __future__ import annotations
@@ -26,7 +27,9 @@ from app.io.output import on_rank0
 
 PATTERN = "checkpoint_*.npz"
 KEEP = 2                       # the newest checkpoints kept in an output directory
-_DECIMALS = 10
+# stored and restarted points match within this fraction of the smallest distance between
+# two stored points (match_points)
+MATCH_TOLERANCE = 1e-6
 
 
 def file_name(n: int) -> str:
@@ -97,8 +100,42 @@ def _owned_rows(function):
     return x, function.x.array[:n * bs].reshape(n, bs)
 
 
-def _key(x: np.ndarray) -> list[tuple]:
-    return [tuple(r) for r in np.round(x, _DECIMALS)]
+def match_points(stored: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+    """For each wanted point, the row of ``stored`` at the same place, with a tolerance
+    relative to the mesh: MATCH_TOLERANCE times the smallest distance between two stored
+    points (a node spacing or cell size, scale-free: a body of 1e-9 m matches as one of
+    1 m, whose coordinates an absolute rounding to 1e-10 m would merge), and at least
+    round-off of the coordinates' magnitude.
+
+    Args:
+        stored: (m, dim) coordinates of the checkpoint's nodes or cell midpoints.
+        wanted: (k, dim) coordinates of this rank's nodes or cells.
+
+    Returns:
+        (k,) indices into ``stored``.
+
+    Raises:
+        ValueError: two stored points coincide (relative to the body's size), or a wanted
+            point has no stored point within the tolerance (the message says which).
+    """
+    from scipy.spatial import cKDTree
+    tree = cKDTree(stored)
+    magnitude = float(np.abs(stored).max(initial=0.0))
+    size = float(np.ptp(stored, axis=0).max()) if len(stored) else 0.0
+    spacing = float(tree.query(stored, k=2)[0][:, 1].min()) if len(stored) > 1 else size
+    roundoff = 64 * np.finfo(float).eps * magnitude
+    if len(stored) > 1 and spacing <= max(1e-12 * size, roundoff):
+        raise ValueError(f"two of its points coincide (spacing {spacing:.3g} m, body "
+                         f"{size:.3g} m)")
+    tol = max(MATCH_TOLERANCE * spacing, roundoff)
+    if len(wanted) == 0:
+        return np.zeros(0, dtype=np.int64)
+    dist, index = tree.query(wanted)
+    far = int(np.argmax(dist))
+    if dist[far] > tol:
+        raise ValueError(f"a point of the mesh, {wanted[far].tolist()}, is {dist[far]:.3g} m "
+                         f"from the nearest stored one (tolerance {tol:.3g} m)")
+    return index
 
 
 def _gather(comm, x, v):
@@ -380,12 +417,12 @@ class Checkpoint:
         if x.shape[1] != x_local.shape[1]:
             raise CheckpointError(self.path, f"'{name}_x' has {x.shape[1]} coordinates per "
                                              f"row, not {x_local.shape[1]}")
-        table = dict(zip(_key(x), values))
         try:
-            rows = [table[k] for k in _key(x_local)]
-        except KeyError:
-            raise CheckpointError(self.path, f"the mesh does not match '{name}'") from None
-        return np.array(rows).reshape(len(rows), *values.shape[1:])
+            index = match_points(x, x_local)
+        except ValueError as exc:
+            raise CheckpointError(self.path, f"the mesh does not match '{name}': {exc}") \
+                from None
+        return values[index].reshape(len(index), *values.shape[1:])
 
     def restore(self, sim) -> list:
         """Set the fields and the history terms of a freshly set-up run to the checkpoint's.
