@@ -6,7 +6,8 @@ Each prescribed component of a group is one dolfinx condition on the collapsed c
 space, its values interpolated at every step's t_n (``set_time``).  A vertex shared by a
 clamped and a displaced group is clamped (the clamped conditions come last and win).
 Before any solve, ``check_rigid_motions`` refuses data that leave a rigid motion of the body
-free: the step matrix would be singular.
+free, or of any of its connected parts (``body_parts``: a body in two pieces with one of them
+held would otherwise pass): the step matrix would be singular.
 """
 from __future__ import annotations
 
@@ -142,40 +143,166 @@ def rigid_modes(x: np.ndarray) -> np.ndarray:
     return np.stack(modes, axis=2)
 
 
-def check_rigid_motions(V, fixed: np.ndarray, bbox, source: str) -> None:
-    """Refuse Dirichlet data that leave a rigid motion free (collective).
+@dataclass
+class BodyParts:
+    """The connected components of the body (cells connected through shared vertices), on
+    every rank alike.
 
-    A rigid motion r is blocked when it does not vanish on the prescribed components:
-    the Gram matrix M = sum over prescribed (node, component) of r_a r_b must be positive
-    definite (its smallest eigenvalue above 1e-10 of its largest, coordinates centred and
-    scaled by the body's size).
+    Attributes:
+        label: (local nodes,) the part of each local (owned and ghost) node: an index into
+            the arrays below.
+        cells: (parts,) the number of cells of each part (all ranks).
+        point: (parts, d) a vertex of each part (its lowest global node).
+        lo, hi: (parts, d) the corners of each part's bounding box.
+    """
+
+    label: np.ndarray
+    cells: np.ndarray
+    point: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+
+def _local_components(V) -> tuple[np.ndarray, np.ndarray]:
+    """(the local component of each local node, the cell-node table of the local cells)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    imap = V.dofmap.index_map
+    n = imap.size_local + imap.num_ghosts
+    cells = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)
+    rows = np.repeat(cells[:, :1], cells.shape[1] - 1, axis=1).ravel()
+    cols = cells[:, 1:].ravel()
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    return connected_components(graph, directed=False)[1], cells
+
+
+def body_parts(V) -> BodyParts:
+    """The connected components of the body (collective).
+
+    A part is first found on each rank (scipy's connected_components on the local cells);
+    the parts of different ranks that share a node are merged by giving every node the
+    lowest global node index of its part, exchanged with the ghosts until no label changes.
+
+    Args:
+        V: the P1 vector space.
+
+    Returns:
+        The BodyParts.
+    """
+    comm, imap = V.mesh.comm, V.dofmap.index_map
+    owned, n = imap.size_local, imap.size_local + imap.num_ghosts
+    local, cells = _local_components(V)
+    gid = imap.local_to_global(np.arange(n, dtype=np.int32)).astype(np.int64)
+    label = np.full(local.max(initial=-1) + 1, np.iinfo(np.int64).max)
+    np.minimum.at(label, local, gid)
+    vec = PETSc.Vec().createGhost(imap.ghosts.astype(PETSc.IntType), size=(owned, PETSc.DECIDE),
+                                  comm=comm)
+    while True:      # labels as -gid, so that MAX_VALUES takes the lowest global index
+        with vec.localForm() as lf:
+            lf.array[:] = -label[local].astype(float)
+        vec.ghostUpdate(addv=PETSc.InsertMode.MAX_VALUES, mode=PETSc.ScatterMode.REVERSE)
+        vec.ghostUpdate(addv=PETSc.InsertMode.INSERT_VALUES, mode=PETSc.ScatterMode.FORWARD)
+        with vec.localForm() as lf:
+            seen = (-lf.array).astype(np.int64)
+        new = label.copy()
+        np.minimum.at(new, local, seen)
+        changed = comm.allreduce(bool((new != label).any()), op=MPI.LOR)
+        label = new
+        if not changed:
+            break
+    vec.destroy()
+    return _gather_parts(V, label[local], gid, cells)
+
+
+def _gather_parts(V, node_label: np.ndarray, gid: np.ndarray, cells: np.ndarray) -> BodyParts:
+    """The parts' cell counts, points and boxes over all ranks, from each node's label."""
+    comm, d = V.mesh.comm, V.dofmap.index_map_bs
+    owned = V.dofmap.index_map.size_local
+    names = np.unique(np.concatenate(comm.allgather(np.unique(node_label))))
+    part = np.searchsorted(names, node_label)
+    x = V.tabulate_dof_coordinates()[:, :d]
+    owned_cells = cells[:V.mesh.topology.index_map(V.mesh.topology.dim).size_local]
+    count = np.bincount(part[owned_cells[:, 0]], minlength=len(names)).astype(float)
+    point = np.zeros((len(names), d))
+    first = np.flatnonzero(gid[:owned] == node_label[:owned])
+    point[part[first]] = x[first]
+    lo = np.full((len(names), d), np.inf)
+    hi = np.full((len(names), d), -np.inf)
+    np.minimum.at(lo, part, x)
+    np.maximum.at(hi, part, x)
+    for array, op in ((count, MPI.SUM), (point, MPI.SUM), (lo, MPI.MIN), (hi, MPI.MAX)):
+        comm.Allreduce(MPI.IN_PLACE, array, op=op)
+    return BodyParts(part, count.astype(int), point, lo, hi)
+
+
+def free_motions(V, fixed: np.ndarray, parts: BodyParts) -> list[np.ndarray]:
+    """The rigid motions that the prescribed components leave free, part by part
+    (collective).
+
+    A rigid motion r of a part is blocked when it does not vanish on the part's prescribed
+    components: the Gram matrix M = sum over prescribed (node, component) of r_a r_b must be
+    positive definite (its smallest eigenvalue above 1e-10 of its largest, coordinates
+    centred and scaled by the part's size).
 
     Args:
         V: the P1 vector space.
         fixed: bool (local nodes, d): prescribed components.
-        bbox: (lo, hi), the body's bounding box over all ranks (the mesh's ``bbox``).
-        source: the case file, for the message.
+        parts: the body's connected components.
 
-    Raises:
-        CaseError: naming boundaries.clamped / loads.displacement and the free motions.
+    Returns:
+        For each part, the free motions as columns (r, free) in the basis of rigid_modes.
     """
-    comm = V.mesh.comm
     d = V.dofmap.index_map_bs
     owned = V.dofmap.index_map.size_local
     x = V.tabulate_dof_coordinates()[:owned, :d]
-    lo, hi = (np.asarray(b, dtype=float)[:d] for b in bbox)
-    scale = max(float(np.max(hi - lo)), 1e-300)
-    modes = rigid_modes((x - 0.5 * (lo + hi)) / scale)          # (n, d, r)
-    mask = fixed[:owned]
-    rows = modes[mask]                                           # (prescribed, r)
-    M = comm.allreduce(rows.T @ rows, op=MPI.SUM)
-    w, vecs = np.linalg.eigh(M)
-    free = w <= 1e-10 * max(w[-1], 1e-300)
-    if free.any():
-        names = ["translation x", "translation y", "translation z"][:d] + \
-            (["rotation"] if d == 2 else ["rotation about z", "rotation about x",
-                                           "rotation about y"])
-        what = ", ".join(names[int(np.argmax(np.abs(v)))] for v in vecs[:, free].T)
+    part = parts.label[:owned]
+    centre = 0.5 * (parts.lo + parts.hi)
+    scale = np.maximum(np.max(parts.hi - parts.lo, axis=1), 1e-300)
+    modes = rigid_modes((x - centre[part]) / scale[part, None])          # (n, d, r)
+    node, comp = np.nonzero(fixed[:owned])
+    rows = modes[node, comp, :]                                          # (prescribed, r)
+    M = np.zeros((len(parts.cells), rows.shape[1], rows.shape[1]))
+    np.add.at(M, part[node], rows[:, :, None] * rows[:, None, :])
+    V.mesh.comm.Allreduce(MPI.IN_PLACE, M, op=MPI.SUM)
+    free = []
+    for Mk in M:
+        w, vecs = np.linalg.eigh(Mk)
+        free.append(vecs[:, w <= 1e-10 * max(w[-1], 1e-300)])
+    return free
+
+
+def check_rigid_motions(V, fixed: np.ndarray, source: str) -> None:
+    """Refuse Dirichlet data that leave a rigid motion of the body, or of one of its
+    connected parts, free (collective): the step matrix would be singular.
+
+    Args:
+        V: the P1 vector space.
+        fixed: bool (local nodes, d): prescribed components.
+        source: the case file, for the message.
+
+    Raises:
+        CaseError: naming boundaries.clamped / loads.displacement, the free motions and, for
+            a body in several parts, the part (its number of cells and a point in it).
+    """
+    d = V.dofmap.index_map_bs
+    parts = body_parts(V)
+    free = free_motions(V, fixed, parts)
+    names = ["translation x", "translation y", "translation z"][:d] + \
+        (["rotation"] if d == 2 else ["rotation about z", "rotation about x",
+                                       "rotation about y"])
+    for k, f in enumerate(free):
+        if f.shape[1] == 0:
+            continue
+        what = ", ".join(names[int(np.argmax(np.abs(v)))] for v in f.T)
+        where = "the body"
+        if len(free) > 1:
+            size = np.max(parts.hi[k] - parts.lo[k])
+            point = ", ".join(f"{c:.6g}" if abs(c) > 1e-12 * size else "0"
+                              for c in parts.point[k])
+            where = (f"part {k + 1} of the body's {len(free)} disconnected parts "
+                     f"({parts.cells[k]} cells, through the point ({point}))")
         raise CaseError(f"{source}: boundaries.clamped / loads.displacement: the prescribed "
-                        f"displacements leave {int(free.sum())} rigid motion(s) of the body "
-                        f"free (like {what}); clamp a group or prescribe more components")
+                        f"displacements leave {f.shape[1]} rigid motion(s) of {where} free "
+                        f"(like {what}); clamp a group {'on that part ' if len(free) > 1 else ''}"
+                        "or prescribe more components")

@@ -29,6 +29,7 @@ from app.model.strain import StrainOperator
 from forms.contact import gamma3_measure
 from forms.elasticity import elasticity_operator, eps, plane_strain_moduli
 from forms.step import BulkData, ContactData, build_step_forms
+from meshes.bodycheck import interior_role
 
 
 @dataclass
@@ -162,11 +163,14 @@ class ContactProblem:
             [(r, f"loads.pressure.{r}") for r in loads.pressure] + \
             [(r, f"loads.displacement.{r}") for r in loads.displacement]
         self.tags = {ref: self.group_tag(ref, key) for ref, key in keys}
+        for ref, key in keys:                   # a role on an embedded curve: refused
+            if (why := interior_role(self.body, key, ref, self.tags[ref])) is not None:
+                raise CaseError(f"{case.source}: {why}")
         self._facets = {ref: ft.indices[ft.values == tag] for ref, tag in self.tags.items()}
         self.dirichlet = build_dirichlet(self.V, self._facets, list(b.clamped),
                                          dict(loads.displacement), self.time_data)
         self.bcs = self.dirichlet.bcs
-        check_rigid_motions(self.V, self.dirichlet.fixed, self.body.bbox, case.source)
+        check_rigid_motions(self.V, self.dirichlet.fixed, case.source)
         self._clamped_nodes = self.dirichlet.clamped_nodes
 
     @property
