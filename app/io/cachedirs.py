@@ -311,6 +311,9 @@ _JIT_REPAIRED: set = set()                      # the cache directories warned a
 _ELF_HEADER = struct.Struct("<16sHHIQQQIHHHHHH")    # Elf64_Ehdr (little endian)
 _ELF_PHDR = struct.Struct("<IIQQQQQQ")               # Elf64_Phdr
 _PT_LOAD = 1
+# the platforms whose libraries are 64-bit little-endian ELF files (x86_64, aarch64 Linux)
+_ELF_PLATFORM = sys.platform.startswith("linux") and sys.byteorder == "little" and \
+    struct.calcsize("P") == 8
 
 
 class JitCacheDamaged(CacheUnusable):
@@ -329,8 +332,14 @@ def elf_damage(path: Path) -> str | None:
 
     Returns:
         None for a 64-bit little-endian ELF file whose loadable segments and section table
-        lie inside the file; else the reason (empty, not ELF, truncated, unreadable).
+        lie inside the file; else the reason (empty, not ELF, truncated, unreadable).  On
+        other platforms only an empty or unreadable file is a reason.
     """
+    if not _ELF_PLATFORM:
+        try:
+            return None if os.path.getsize(path) else "an empty file"
+        except OSError as exc:
+            return f"unreadable ({exc.strerror or type(exc).__name__})"
     try:
         with open(path, "rb") as f:
             size = os.fstat(f.fileno()).st_size
@@ -419,11 +428,19 @@ def discard_jit_entry(cache_dir: Path, module_name: str) -> None:
         except FileNotFoundError:
             continue
         except OSError as exc:
-            raise JitCacheDamaged(
+            raise _damaged(
                 f"the FFCx JIT cache entry {module_name} is damaged and cannot be removed "
                 f"({path.name}: {exc.strerror or type(exc).__name__}); delete the directory "
                 f"{cache_dir} (it is rebuilt) or set XDG_CACHE_HOME to another directory") \
                 from None
+
+
+def _damaged(message: str) -> JitCacheDamaged:
+    """The error, remembered for the other ranks (``one_line_jit_errors``): under mpirun
+    dolfinx keeps only its text on rank 0."""
+    global _JIT_DAMAGED
+    _JIT_DAMAGED = JitCacheDamaged(message)
+    return _JIT_DAMAGED
 
 
 def repairing(get_cached_module):
@@ -445,7 +462,7 @@ def repairing(get_cached_module):
             try:
                 return get_cached_module(module_name, object_names, cache_dir, timeout)
             except TimeoutError:                # another compilation may still be running
-                raise JitCacheDamaged(
+                raise _damaged(
                     f"the FFCx JIT cache entry {module_name} was not compiled within "
                     f"{timeout} s (a compilation that stopped, or one still running); delete "
                     f"{cache_dir / module_name}.* or the directory {cache_dir}") from None
@@ -481,9 +498,6 @@ def one_line_jit_errors(ffcx_jit):
         _JIT_DAMAGED = None
         try:
             return ffcx_jit(comm, *args, **kwargs)
-        except JitCacheDamaged as exc:
-            _JIT_DAMAGED = exc
-            raise
         except RuntimeError:
             if comm.size == 1:
                 raise

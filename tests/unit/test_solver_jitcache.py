@@ -171,3 +171,62 @@ def test_a_truncated_kernel_library_is_built_again(tmp_path):
     lib.write_bytes(lib.read_bytes()[:3000])
     assert _value(run()) == 42
     assert cachedirs.elf_damage(lib) is None
+
+
+UNFINISHED = """
+import sys
+from pathlib import Path
+from mpi4py import MPI
+import ufl
+from dolfinx import fem, mesh
+from app.io.cachedirs import JitCacheDamaged
+m = mesh.create_unit_square(MPI.COMM_WORLD, 2, 2)
+V = fem.FunctionSpace(m, ("CG", 1))
+u = fem.Function(V)
+try:
+    fem.form(u * u * 0.123456789 * ufl.dx, jit_params={"timeout": 2})
+    what = "compiled"
+except JitCacheDamaged as exc:
+    what = "JitCacheDamaged: " + str(exc)
+except Exception as exc:
+    what = type(exc).__name__ + ": " + str(exc)
+Path(sys.argv[1], f"rank{MPI.COMM_WORLD.rank}.txt").write_text(what)
+"""
+
+
+@pytest.mark.parametrize("nprocs", [1, 2])
+def test_a_compilation_still_running_is_one_error_on_every_rank(tmp_path, compiled, nprocs):
+    """An unfinished entry younger than JIT_STALE_SECONDS may be another process's
+    compilation: it is not removed; FFCx's wait ends in one line naming the files to
+    delete (JitCacheDamaged, an OSError: the command line prints it, exit 1), on every rank
+    (dolfinx turns rank 0's error into 'Compilation failed on root node.' on the others)."""
+    (tmp_path / "cache").mkdir()
+    cache = _fresh(tmp_path / "cache", compiled)
+    lib = _form_library(cache)
+    stem = lib.name.split(".")[0]
+    lib.unlink()
+    (cache / "fenics" / f"{stem}.c.cached").unlink()
+    cmd = [sys.executable, "-c", UNFINISHED, str(tmp_path)]
+    if nprocs > 1:
+        cmd = ["mpirun", "-n", str(nprocs), *cmd]
+    env = {**os.environ, **MPI_ENV, "XDG_CACHE_HOME": str(cache), "PYTHONPATH": str(ROOT)}
+    out = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    for rank in range(nprocs):
+        text = (tmp_path / f"rank{rank}.txt").read_text()
+        assert text.startswith("JitCacheDamaged: the FFCx JIT cache entry "), text
+        assert f"delete {cache / 'fenics' / stem}.* or the directory" in text
+    assert (cache / "fenics" / f"{stem}.c").exists()       # not removed
+
+
+def test_the_command_line_prints_a_damaged_cache_as_one_line(monkeypatch, capsys):
+    from app.cli import main
+    damaged = cachedirs.JitCacheDamaged("the FFCx JIT cache entry x is damaged and cannot be "
+                                        "removed; delete the directory /c")
+
+    def fail(args, petsc):
+        raise damaged
+    monkeypatch.setattr(main, "dispatch", fail)
+    assert main.main(["info"]) == 1
+    err = capsys.readouterr().err
+    assert err == "vpcontact: error: " + str(damaged) + "\n"
