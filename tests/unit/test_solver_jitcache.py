@@ -230,3 +230,17 @@ def test_the_command_line_prints_a_damaged_cache_as_one_line(monkeypatch, capsys
     assert main.main(["info"]) == 1
     err = capsys.readouterr().err
     assert err == "vpcontact: error: " + str(damaged) + "\n"
+
+
+def test_an_unreadable_library_is_compiled_again(tmp_path, compiled):
+    """A library that cannot be read (here a directory in its place; permissions do not
+    stop root) is removed and compiled again."""
+    cache = _fresh(tmp_path, compiled)
+    lib = _form_library(cache)
+    lib.unlink()
+    (lib / "inside").mkdir(parents=True)
+    assert "unreadable" in cachedirs.elf_damage(lib)
+    out = _run(cache)
+    assert _value(out) == pytest.approx(VALUE, rel=1e-12)
+    assert "unreadable" in out.stderr and out.stderr.count("\n") == 1
+    assert lib.is_file() and cachedirs.elf_damage(lib) is None
