@@ -303,8 +303,10 @@ def _up(normal: np.ndarray) -> tuple:
 
 def animate(outdir: Path, factor: float, dim: int, path: Path, duration_ms: int = 150) -> int:
     """animation.gif: the deformed body coloured by von Mises stress at every output time,
-    Gamma3 marked (one frame each; one colour range and the last time's camera for all;
-    one render window whose meshes are updated in place).
+    Gamma3 marked (one frame each; one colour range (animation_range) and the last time's
+    camera for all; one render window whose meshes are updated in place).  The frames are
+    streamed: each time is read, rendered and written to the file before the next, so the
+    memory does not grow with the number of frames.
 
     Args:
         outdir: the results directory.
@@ -320,26 +322,94 @@ def animate(outdir: Path, factor: float, dim: int, path: Path, duration_ms: int 
     solution = Dataset(outdir / "solution.xdmf")
     contact = Dataset(outdir / "contact.xdmf") if (outdir / "contact.xdmf").exists() else None
     times = solution.times or [0.0]
-    grids = [solution.at(t).copy() for t in times]
-    vm = np.concatenate([np.asarray(g.cell_data["sigma_vm"]) for g in grids])
-    body = deformed(grids[-1], factor)
+    body = deformed(solution.at(times[-1]), factor)
     gamma3 = deformed(contact.at(times[-1]), factor) if contact is not None else None
-    p = _body_plotter(body, gamma3, dim, color_range(vm), "", FRAME)
+    p = _body_plotter(body, gamma3, dim, animation_range(solution, times), "", FRAME)
     caption = p.add_text(" ", position=(10, 10), font_size=10, color="black")  # a vtkTextActor
-    frames = []
-    for t, grid in zip(times, grids):
-        body.points = moved_points(grid, factor)
-        body.cell_data["sigma_vm"] = grid.cell_data["sigma_vm"]
-        if gamma3 is not None:
-            gamma3.points = moved_points(contact.at(t), factor)
-        caption.SetInput(f"t = {t:g}: von Mises stress, displacement x {factor:g}")
-        p.render()
-        image = p.screenshot(return_img=True)
-        frames.append(Image.fromarray(image).quantize(method=Image.Quantize.FASTOCTREE))
-    p.close()
-    frames[0].save(path, save_all=True, append_images=frames[1:], duration=duration_ms,
-                   loop=0)
-    return len(frames)
+    try:
+        with open(path, "wb") as fh:
+            gif = GifStream(fh, duration_ms)
+            for t in times:
+                grid = solution.at(t)
+                body.points = moved_points(grid, factor)
+                body.cell_data["sigma_vm"] = grid.cell_data["sigma_vm"]
+                if gamma3 is not None:
+                    gamma3.points = moved_points(contact.at(t), factor)
+                caption.SetInput(f"t = {t:g}: von Mises stress, displacement x {factor:g}")
+                p.render()
+                image = Image.fromarray(p.screenshot(return_img=True))
+                gif.add(image.quantize(method=Image.Quantize.FASTOCTREE))
+            gif.close()
+    finally:
+        p.close()
+    return gif.frames
+
+
+RANGE_SAMPLE = 2_000_000     # values of sigma_vm kept for the animation's colour range
+
+
+def animation_range(solution: Dataset, times) -> tuple[float, float]:
+    """The animation's colour range (color_range of the von Mises stress of all times),
+    reading one time at a time and keeping at most RANGE_SAMPLE values: every value while
+    all times have no more (the exact range), else every s-th value of each time.
+
+    Args:
+        solution: solution.xdmf.
+        times: the output times.
+
+    Returns:
+        (low, high), high > low.
+    """
+    sample, low, stride = [], np.inf, None
+    for t in times:
+        vm = np.asarray(solution.at(t).cell_data["sigma_vm"], dtype=float)
+        if stride is None:
+            stride = max(1, -(-len(times) * vm.size // RANGE_SAMPLE))
+        finite = vm[np.isfinite(vm)]
+        low = min(low, float(finite.min(initial=np.inf)))
+        sample.append(finite[::stride])
+    lo, hi = color_range(np.concatenate(sample))
+    lo = min(lo, low)
+    return lo, hi if hi > lo else lo + max(abs(lo), 1.0)
+
+
+class GifStream:
+    """A GIF file written a frame at a time (Pillow's ``save_all`` holds every frame until
+    it writes the file: 1.9 GB for 1501 frames).  Each frame after the first is the
+    rectangle where it differs from the one before (drawn over it, as Pillow writes them),
+    with its own colour table.
+
+    Args:
+        fh: the file, open for binary writing.
+        duration_ms: the time each frame is shown.
+    """
+
+    def __init__(self, fh, duration_ms: int):
+        self.fh, self.duration, self.frames, self._previous = fh, duration_ms, 0, None
+
+    def add(self, frame) -> None:
+        """Write one frame.
+
+        Args:
+            frame: a palette ("P") image of the animation's size.
+        """
+        from PIL import GifImagePlugin, ImageChops
+        if self._previous is None:
+            header, _ = GifImagePlugin.getheader(frame, info={"loop": 0,
+                                                              "duration": self.duration})
+            self.fh.write(b"".join(header))
+            box = (0, 0) + frame.size
+        else:
+            box = ImageChops.difference(self._previous.convert("RGB"),
+                                        frame.convert("RGB")).getbbox() or (0, 0, 1, 1)
+        self.fh.write(b"".join(GifImagePlugin.getdata(
+            frame.crop(box), box[:2], duration=self.duration, include_color_table=True)))
+        self._previous = frame
+        self.frames += 1
+
+    def close(self) -> None:
+        """Write the trailer (the file stays open)."""
+        self.fh.write(b";")
 
 
 def warm_up() -> None:
