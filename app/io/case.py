@@ -761,12 +761,18 @@ def _validate(data: dict, source: str) -> Case:
         msgs = [_explain(e) for e in errors]
         more = f" (also: {'; '.join(msgs[1:])})" if len(msgs) > 1 else ""
         raise CaseError(f"{source}: {msgs[0]}{more}")
+    dim_given = "dim" in data["mesh"]
     mesh_file = _check_given(data, source)
     _fill_defaults(SCHEMA, data)
     _settle_defaults(data, mesh_file)
     if mesh_file is None:
         _check_mesh(data["mesh"], source)
-    _check_structure(data, source)
+    try:
+        _check_structure(data, source)
+    except CaseError:       # vectors of the other dimension: is mesh.dim the cause?
+        if mesh_file is not None and dim_given:
+            _check_file_dimension(data["mesh"]["dim"], mesh_file, source)
+        raise
     time_grid = dataclasses.replace(_time_grid(data["time"], source),
                                     scheme=data["time"]["scheme"],
                                     adaptive=data["time"].get("adaptive"))
@@ -806,30 +812,63 @@ def _schema_view(data: dict, source: str) -> dict:
 
 def _check_given(data: dict, source: str) -> Path | None:
     """The keys the user gave (before defaults are filled) that do not apply: the built-in
-    mesh's keys with mesh.file, mesh.size without a .geo, material.plane in 3D.
+    mesh's keys with mesh.file, mesh.size without a .geo, material.plane in 3D; mesh.dim of
+    a mesh.file: taken from the file when not given, else refused if the file contradicts it
+    (a .msh 4 file is read at once; a .geo only when the case's vectors disagree with
+    mesh.dim: meshing it tells the rest).
 
     Returns:
         The mesh file's absolute path, or None for the built-in mesh.
     """
     mesh = data["mesh"]
+    path = None
+    if "file" not in mesh and "size" in mesh:
+        raise CaseError(f"{source}: mesh.size: only with a .geo mesh.file (the built-in "
+                        "mesh's cells are set by mesh.n or mesh.h)")
+    if "file" in mesh:
+        given = [k for k in BUILTIN_MESH_KEYS if k in mesh]
+        if given:
+            raise CaseError(f"{source}: mesh.{given[0]}: not used with mesh.file (the "
+                            f"built-in mesh's keys {', '.join(BUILTIN_MESH_KEYS)} are not "
+                            "used with a gmsh file)")
+        path = _mesh_path(mesh["file"], source)
+        if "size" in mesh and path.suffix.lower() != ".geo":
+            raise CaseError(f"{source}: mesh.size: only with a .geo mesh.file (a .msh is "
+                            "meshed already)")
+        if "dim" in mesh:
+            _check_file_dimension(mesh["dim"], path, source, cheap=True)
+        else:
+            mesh["dim"] = _file_dimension(path, source)
     if mesh.get("dim", 2) == 3 and "plane" in data["material"]:
         raise CaseError(f"{source}: material.plane: not used in 3D (plane stress and plane "
                         "strain are the 2D models; a 3D body is a solid)")
-    if "file" not in mesh:
-        if "size" in mesh:
-            raise CaseError(f"{source}: mesh.size: only with a .geo mesh.file (the built-in "
-                            "mesh's cells are set by mesh.n or mesh.h)")
-        return None
-    given = [k for k in BUILTIN_MESH_KEYS if k in mesh]
-    if given:
-        raise CaseError(f"{source}: mesh.{given[0]}: not used with mesh.file (the built-in "
-                        f"mesh's keys {', '.join(BUILTIN_MESH_KEYS)} are not used with a "
-                        "gmsh file)")
-    path = _mesh_path(mesh["file"], source)
-    if "size" in mesh and path.suffix.lower() != ".geo":
-        raise CaseError(f"{source}: mesh.size: only with a .geo mesh.file (a .msh is meshed "
-                        "already)")
     return path
+
+
+def _file_dimension(path: Path, source: str, cheap: bool = False) -> int | None:
+    """The dimension of the mesh file (meshes/fileinfo.py; None if ``cheap`` and gmsh would
+    be needed)."""
+    from meshes.fileinfo import FileInfoError, file_dimension
+    try:
+        return file_dimension(path, cheap)
+    except FileInfoError as exc:
+        raise CaseError(f"{source}: mesh.file: {exc}") from None
+
+
+def _check_file_dimension(dim: int, path: Path, source: str, cheap: bool = False) -> None:
+    """Refuse a mesh.dim that contradicts the mesh file (``cheap``: only if the file tells
+    its dimension without gmsh); a file whose dimension cannot be told is left to the
+    mesh's loading, which says what is wrong with it."""
+    from meshes.fileinfo import FileInfoError, file_dimension
+    try:
+        found = file_dimension(path, cheap)
+    except FileInfoError:
+        return
+    if found is not None and found != dim:
+        what = "tetrahedra, a solid" if found == 3 else "triangles in a plane"
+        raise CaseError(f"{source}: mesh.dim: {dim} contradicts mesh.file {path.name}, which "
+                        f"is {found}D ({what}); give {found} or leave the key out (the file's "
+                        "dimension is taken)")
 
 
 def _mesh_path(file: str, source: str) -> Path:

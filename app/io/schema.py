@@ -62,7 +62,9 @@ SCHEMA = _obj({
                                 "L1 L2 L3 kind n h diagonal engine are not used with mesh.file)"},
         "dim": {"enum": [2, 3], "default": 2,
                 "description": "2: plane body (material.plane), z = 0 for mesh.file; 3: solid "
-                               "(a box, or a tetrahedral mesh.file), isotropic Hooke"},
+                               "(a box, or a tetrahedral mesh.file), isotropic Hooke; with "
+                               "mesh.file the file's dimension when absent (the default 2 is "
+                               "the built-in mesh's), and refused if it contradicts the file"},
         "size": {**_pos, "default": 1.0,
                  "description": "factor on the characteristic lengths of a .geo mesh.file "
                                 "(< 1: finer; only with a .geo)"},

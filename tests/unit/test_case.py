@@ -8,7 +8,7 @@ import pytest
 
 from app.cli.parser import split_petsc_args
 from app.io.case import CaseError, load_case, parse_override, safe_load, validate
-from conftest import PAPER_CASE, make_case, paper_raw
+from conftest import PAPER_CASE, ROOT, make_case, paper_raw
 
 
 def test_paper_case_values():
@@ -101,10 +101,15 @@ def test_split_petsc_args():
 
 
 # ----------------------------------------------------------------------------- general scenes
+PLATE_GEO = (ROOT / "tests" / "cases_invalid" / "plate.geo").read_text()
+
+
 def _case_file(tmp_path, text: str, mesh: str | None = "plate.geo"):
-    """A case file in tmp_path (with an empty mesh file of that name) and its Case."""
+    """A case file in tmp_path (with a mesh file of that name: a .geo of the unit square,
+    whose dimension validation reads; a .msh that only exists) and its Case."""
     if mesh:
-        (tmp_path / mesh).write_text("// a mesh file; validation only checks that it exists\n")
+        (tmp_path / mesh).write_text(PLATE_GEO if mesh.endswith(".geo") else
+                                     "// a mesh file; validation only checks that it exists\n")
     path = tmp_path / "scene.yaml"
     path.write_text(text)
     return load_case(path)
