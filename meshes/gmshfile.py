@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from .bodycheck import BodyError, check_cells, check_facets
 from .extent import mesh_extent
 from .geoscan import GeoScanError, mesh_files
 
@@ -68,6 +69,8 @@ class FileMesh:
         L1, L2, L3: the bounding box's extents in x, y, z (L3 = 0 in 2D).
         other_groups: physical name -> dimension of the named groups of other dimensions
             (the body, edges, points), so that a case naming one gets a clear error.
+        interior: physical tag -> (facets inside the body, facets) of the groups of
+            dimension dim - 1 with facets shared by two cells (meshes.bodycheck).
     """
 
     mesh: object
@@ -84,6 +87,7 @@ class FileMesh:
     L2: float
     L3: float
     other_groups: dict = field(default_factory=dict)
+    interior: dict = field(default_factory=dict)
 
     # what the built-in meshes also say about themselves: an unstructured mesh, no grid, and
     # no single contact normal (the boundary's normals come from its facets)
@@ -171,11 +175,12 @@ def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0,
     finally:
         if comm.rank == 0:
             gmsh.finalize()
-    groups, tags, other = found
+    groups, tags, interior, other = found
     h_min, h_max, (lo, hi) = mesh_extent(msh)
     ext = hi - lo
     return FileMesh(msh, ct, ft, groups, tags, dim, path, h_max, h_min, (lo, hi),
-                    float(ext[0]), float(ext[1]), float(ext[2]) if dim == 3 else 0.0, other)
+                    float(ext[0]), float(ext[1]), float(ext[2]) if dim == 3 else 0.0, other,
+                    interior)
 
 
 def _other_groups(gmsh, dim: int) -> dict:
@@ -186,7 +191,7 @@ def _other_groups(gmsh, dim: int) -> dict:
 
 
 def _read(gmsh, path: str, dim: int, size: float, max_vertices: float = MAX_VERTICES):
-    """Rank 0: load the file into gmsh's current model, check it; (groups, tags)."""
+    """Rank 0: load the file into gmsh's current model, check it; (groups, tags, interior)."""
     p = Path(path)
     if not p.exists():
         raise MeshFileError(f"{path}: no such file; give a gmsh .msh or .geo file (a path "
@@ -219,10 +224,15 @@ def _read(gmsh, path: str, dim: int, size: float, max_vertices: float = MAX_VERT
     _check_groups(gmsh, path, dim)
     if dim == 2:
         _check_planar(gmsh, path)
+    try:
+        interior = check_facets(gmsh, path, dim)    # model_to_mesh segfaults otherwise
+        check_cells(gmsh, path, dim)
+    except BodyError as err:
+        raise MeshFileError(str(err)) from None
     nodes = gmsh.model.mesh.getNodes()[0]
     if not np.array_equal(np.sort(nodes), np.arange(1, len(nodes) + 1)):
         gmsh.model.mesh.renumberNodes()     # model_to_mesh needs node tags 1..N
-    return _boundary_groups(gmsh, path, dim)
+    return (*_boundary_groups(gmsh, path, dim), interior)
 
 
 def _check_last_line(p: Path, path: str) -> None:
