@@ -17,13 +17,17 @@ def report(case, comm) -> list[str]:
     """
     import numpy as np
 
-    from app.io.case import fast_eligible
+    from app.io.case import fast_eligible, rescale_for_length
+    from app.model.datapoints import check_data_on_mesh
     from app.model.problem import ContactProblem
     from app.post.diagnostics import diagnose
     from app.simulation import build_mesh
     from app.solvers import choose_method, gamma3_dofs
 
     body = build_mesh(case, comm)
+    if case.mesh.file is not None:      # as Simulation.setup: the data on the mesh's points
+        lo, hi = body.bbox
+        case = rescale_for_length(case, float(np.max(hi - lo)), check_data_on_mesh(case, body))
     problem = ContactProblem(case, body)
     ks = np.diff(case.time.times)
     n_dofs = gamma3_dofs(problem)

@@ -129,3 +129,25 @@ def test_two_ranks_refuse_alike(square, tmp_path):
     assert "internal error" not in proc.stdout + proc.stderr
     assert "loads.traction.top[0]: inf is not a finite number at x = " in proc.stderr
     assert not (tmp_path / "out" / "summary.json").exists()
+
+
+def test_check_refuses_alike(square, tmp_path):
+    """`vpcontact check` builds the problem as a run does: the same refusal."""
+    raw = _raw(square, contact={"g": "exp(700*x)"})
+    path = tmp_path / "case.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    proc = run_cli(["check", path], timeout=300)
+    assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr[-2000:]
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "contact.g: " in lines[0] and "is out of range at x = " \
+        in lines[0], proc.stderr
+
+
+@pytest.mark.parametrize("sections", [
+    {"initial": {"u0": [0, 0]}}, {"loads": {"displacement": {"right": ["0*t", None]}}},
+    {"initial": {"sigma0": [["0*x", 0], [0, 0]]}}, {"contact": {"g": "0*x"}}],
+    ids=["u0", "displacement", "sigma0", "gap"])
+def test_zero_data_run_on_the_mesh_file(square, sections):
+    result = run_case(make_case(_raw(square, **sections)))
+    assert result.status == "completed", result.summary
+    assert np.isfinite(result.problem.u.x.array).all()
