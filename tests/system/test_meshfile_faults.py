@@ -1,4 +1,4 @@
-"""User meshes under the command line (issue 30, items 5, 6, 8, 11): a group off the body is
+"""User meshes under the command line: a group off the body is
 one line and exit 2 (it was a segmentation fault), serially and under mpirun -n 2; a
 boundary role on an embedded curve is refused (its traction was silently ignored); SIGINT and
 SIGTERM while gmsh meshes a .geo end the run at once with exit 3 (they waited for the mesh);

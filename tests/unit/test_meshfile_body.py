@@ -1,4 +1,4 @@
-"""The body's cells and groups in a gmsh file (issue 30, item 6): degenerate cells are refused
+"""The body's cells and groups in a gmsh file: degenerate cells are refused
 at load naming their vertices (they were blamed on sigma_0), groups off the body are refused
 (dolfinx died with a segmentation fault), groups inside the body are recorded, and a .geo's
 mesh is bounded in memory."""

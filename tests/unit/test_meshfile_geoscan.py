@@ -1,5 +1,5 @@
-"""A case's gmsh files never make gmsh execute, write or end anything (issue 30, item 5), and
-every file a .geo reads is part of the checkpoint's fingerprint (item 8)."""
+"""A case's gmsh files never make gmsh execute, write or end anything, and
+every file a .geo reads is part of the checkpoint's fingerprint."""
 import os
 from pathlib import Path
 
