@@ -150,6 +150,36 @@ def refine(level: MeshLevel) -> MeshLevel:
                      dict(level.names), edges, level.level + 1)
 
 
+def level_vertices(level: MeshLevel, levels: int) -> list[int]:
+    """The vertex counts of a mesh refined 0, 1, ..., ``levels`` times, without refining:
+    each refinement adds a vertex per edge, and the edges, faces and cells of the next
+    level follow from this level's (V' = V + E; 2D: E' = 2E + 3F, F' = 4F; 3D: E' = 2E + 3F
+    + T (one inner diagonal per tetrahedron), F' = 4F + 8T, T' = 8T).
+
+    Args:
+        level: the mesh read (level 0).
+        levels: the number of refinements.
+
+    Returns:
+        The ``levels + 1`` vertex counts (exact; Python integers, however many levels).
+    """
+    V, E = len(level.x), len(_edges(level.cells, level.dim)[0])
+    out = [V]
+    if level.dim == 2:
+        F = len(level.cells)
+        for _ in range(levels):
+            V, E, F = V + E, 2 * E + 3 * F, 4 * F
+            out.append(V)
+        return out
+    T = len(level.cells)
+    faces = np.sort(level.cells[:, [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]], axis=2)
+    F = len(np.unique(faces.reshape(-1, 3), axis=0))
+    for _ in range(levels):
+        V, E, F, T = V + E, 2 * E + 3 * F + T, 4 * F + 8 * T, 8 * T
+        out.append(V)
+    return out
+
+
 def _refine_facets(facets, tags, edges, nv: int, dim: int):
     """Split the tagged facets like the cells: a segment into 2, a triangle into 4."""
     if len(facets) == 0:
@@ -289,6 +319,89 @@ def write_msh(gmsh, level: MeshLevel, path) -> None:
     gmsh.model.remove()
 
 
+def check_level_sizes(path, vertices: list[int], max_vertices: float) -> None:
+    """Refuse a hierarchy whose finest level would be too large, before refining.
+
+    Args:
+        path: the mesh file, for the message.
+        vertices: the vertex counts of the levels (``level_vertices``).
+        max_vertices: the most vertices a level may have.
+
+    Raises:
+        MeshFileError: naming the first level over the limit and the most refinements
+            allowed.
+    """
+    over = [r for r, v in enumerate(vertices) if v > max_vertices]
+    if over:
+        r = over[0]
+        raise MeshFileError(f"{path} refined {r} times would have {vertices[r]:.3g} vertices "
+                            f"(limit {max_vertices:.0e}); allowed: at most {r - 1} "
+                            "refinements of this mesh, or a coarser mesh")
+
+
+def read_sizes(comm, path, dim: int, size: float, levels: int) -> list[int]:
+    """The vertex counts of the user's gmsh file refined 0..``levels`` times, from the mesh
+    read (or meshed) once, without refining it; collective, gmsh on rank 0.
+
+    Args:
+        comm: the MPI communicator.
+        path: the .msh or .geo file.
+        dim: the space dimension.
+        size: the factor on a .geo's characteristic lengths.
+        levels: the number of refinements.
+
+    Returns:
+        The ``levels + 1`` vertex counts, on every rank.
+
+    Raises:
+        MeshFileError: on every rank, if the file cannot be used.
+    """
+    return _on_root(comm, path, lambda gmsh: level_vertices(read_level(gmsh, path, dim, size),
+                                                            levels))
+
+
+def _on_root(comm, path, work, doing: str = "read", share: bool = True):
+    """``work(gmsh)`` on rank 0 with gmsh initialised; a failure is a MeshFileError on
+    every rank (never leave the other ranks waiting for rank 0).  Returns its result, on
+    every rank if ``share``, else on rank 0 (None elsewhere).
+
+    The process's SIGINT handler is kept: gmsh's module sets SIGINT to its default action
+    when first imported and its ``finalize`` restores the handler of that moment, so a
+    Ctrl-C while gmsh meshed killed the process outright (no line, no clean-up); now a
+    signal is acted on when gmsh's call returns (KeyboardInterrupt, raised through)."""
+    import signal
+    import threading
+    handler = signal.getsignal(signal.SIGINT)
+    import gmsh
+    if threading.current_thread() is not threading.main_thread() or handler is None:
+        return _gmsh_session(gmsh, comm, path, work, doing, share)
+    signal.signal(signal.SIGINT, handler)
+    try:
+        return _gmsh_session(gmsh, comm, path, work, doing, share)
+    finally:
+        signal.signal(signal.SIGINT, handler)
+
+
+def _gmsh_session(gmsh, comm, path, work, doing: str, share: bool):
+    """_on_root's body."""
+    result, verdict = None, None
+    if comm.rank == 0:
+        gmsh.initialize(readConfigFiles=False)
+        gmsh.option.setNumber("General.Terminal", 0)
+        try:
+            result = work(gmsh)
+        except MeshFileError as err:
+            verdict = " ".join(str(err).splitlines())
+        except Exception as err:
+            verdict = f"cannot {doing} {path}: {type(err).__name__}: {err}"
+        finally:
+            gmsh.finalize()
+    verdict = comm.bcast(verdict, root=0)
+    if verdict is not None:
+        raise MeshFileError(verdict)
+    return comm.bcast(result, root=0) if share else result
+
+
 def refine_file(comm, path, dim: int, size: float, levels: int, out_dir,
                 max_vertices: float = float("inf")) -> tuple[list[Path], list[MeshLevel] | None]:
     """Read (or mesh) the user's gmsh file once, refine it ``levels`` times and save every
@@ -308,32 +421,17 @@ def refine_file(comm, path, dim: int, size: float, levels: int, out_dir,
 
     Raises:
         MeshFileError: on every rank, if the file cannot be used or refined, or a level
-            would have more than ``max_vertices`` vertices.
+            would have more than ``max_vertices`` vertices (found before refining).
     """
-    import gmsh
+    def work(gmsh):
+        out = [read_level(gmsh, path, dim, size)]
+        check_level_sizes(path, level_vertices(out[0], levels), max_vertices)
+        for _ in range(levels):
+            out.append(refine(out[-1]))
+        Path(out_dir).mkdir(parents=True, exist_ok=True)
+        for level in out:
+            write_msh(gmsh, level, Path(out_dir) / f"level{level.level}.msh")
+        return out
 
-    out, verdict = None, None
-    if comm.rank == 0:
-        gmsh.initialize(readConfigFiles=False)
-        gmsh.option.setNumber("General.Terminal", 0)
-        try:
-            out = [read_level(gmsh, path, dim, size)]
-            for r in range(1, levels + 1):
-                out.append(refine(out[-1]))
-                if len(out[-1].x) > max_vertices:
-                    raise MeshFileError(f"{path} refined {r} times has {len(out[-1].x)} "
-                                        f"vertices (limit {max_vertices:.0e}); refine it "
-                                        "fewer times or start from a coarser mesh")
-            Path(out_dir).mkdir(parents=True, exist_ok=True)
-            for level in out:
-                write_msh(gmsh, level, Path(out_dir) / f"level{level.level}.msh")
-        except MeshFileError as err:
-            verdict = " ".join(str(err).splitlines())
-        except Exception as err:          # never leave the other ranks waiting for rank 0
-            verdict = f"cannot refine {path}: {type(err).__name__}: {err}"
-        finally:
-            gmsh.finalize()
-    verdict = comm.bcast(verdict, root=0)
-    if verdict is not None:
-        raise MeshFileError(verdict)
+    out = _on_root(comm, path, work, "refine", share=False)
     return [Path(out_dir) / f"level{r}.msh" for r in range(levels + 1)], out

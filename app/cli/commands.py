@@ -250,6 +250,8 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
 
     def check(c):                     # every option, before anything is computed
         levels, reference = cv.resolve_levels(c, args.levels, args.reference)
+        if reference >= 1:            # a mesh.file's finest level within the size limit
+            cv.check_level_sizes(c, MPI.COMM_WORLD, "--reference", reference)
         cv.plan_runs(levels, reference, args.vary, c, args.deltas)
         cv.check_cache_dir(cache_dir, MPI.COMM_WORLD)
         chosen.update(levels=levels, reference=reference)
@@ -313,10 +315,15 @@ def cmd_stability(args, petsc_cli: dict) -> int:
         The exit code: 0 done, 2 bad input, 3 interrupted (SIGINT, SIGTERM: the report
         holds the runs that finished, marked incomplete).
     """
+    from mpi4py import MPI
+
     from app.studies import stability as st
+    from app.studies.convergence import check_level_sizes
 
     def check(c):
         st.base_case(c.raw, args.n, args.steps, args.case, args.refine)
+        # the variant "h/2" runs on the next refinement
+        check_level_sizes(c, MPI.COMM_WORLD, "--refine", args.refine or 0, extra=1)
 
     comm, raw, case, outdir = start(args, "stability", STABILITY_FILES, check,
                                     petsc_cli=petsc_cli)

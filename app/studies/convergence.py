@@ -623,6 +623,43 @@ def _level_rows(levels, recs, ref, vary, T, delta, comm) -> list[dict]:
             for L, r, e, p, rate in zip(levels, recs, errs, printed, rates)]
 
 
+def check_level_sizes(case, comm, option: str, value: int, extra: int = 0) -> None:
+    """Refuse a study whose finest refinement of the case's mesh.file would be larger than
+    the built-in meshes may be (app.io.case.MAX_VERTICES vertices), before anything is
+    refined or run: the vertex counts follow from the mesh read (meshes/refine.py,
+    ``read_sizes``); collective.
+
+    Args:
+        case: the validated Case (nothing to check without a mesh.file).
+        comm: the MPI communicator.
+        option: the command line's option that sets the finest level ("--reference").
+        value: its value.
+        extra: the refinements the study adds to it (1 for the stability sweep's "h/2").
+
+    Raises:
+        CaseError: naming the option, the size and the values allowed, or mesh.file if the
+            file cannot be read.
+    """
+    if case.mesh.file is None:
+        return
+    from app.io.case import MAX_VERTICES
+    from meshes import MeshFileError
+    from meshes.refine import read_sizes
+    finest = value + extra
+    try:
+        sizes = read_sizes(comm, case.mesh.file, case.dim, case.mesh.size, finest)
+    except MeshFileError as exc:
+        raise CaseError(f"{case.source}: mesh.file: {exc}") from None
+    over = [r for r, v in enumerate(sizes) if v > MAX_VERTICES]
+    if over:
+        r = over[0]
+        raise CaseError(f"{case.source}: {option} {value}: the study refines mesh.file "
+                        f"{finest} times; refined {r} times it would have about "
+                        f"{sizes[r]:.3g} vertices (limit {MAX_VERTICES:.0e}, as for the "
+                        f"built-in meshes); allowed: {option} up to {r - 1 - extra} (or a "
+                        "coarser mesh)")
+
+
 @contextlib.contextmanager
 def level_meshes(case, reference: int, comm):
     """The refined levels 0..reference of a mesh.file case, as .msh files in a temporary
