@@ -306,7 +306,7 @@ def start(rank: int) -> None:
 JIT_ENTRY_SUFFIXES = (".c", ".c.cached", ".c.failed", ".o")
 # an entry without its "ready" mark whose files are older than this is a dead compilation
 JIT_STALE_SECONDS = 60.0
-_JIT_DAMAGED: JitCacheDamaged | None = None    # rank 0's, for the other ranks' message
+_JIT_DAMAGED: JitCacheError | None = None    # rank 0's, for the other ranks' message
 _JIT_REPAIRED: set = set()                      # the cache directories warned about
 _ELF_HEADER = struct.Struct("<16sHHIQQQIHHHHHH")    # Elf64_Ehdr (little endian)
 _ELF_PHDR = struct.Struct("<IIQQQQQQ")               # Elf64_Phdr
@@ -316,9 +316,10 @@ _ELF_PLATFORM = sys.platform.startswith("linux") and sys.byteorder == "little" a
     struct.calcsize("P") == 8
 
 
-class JitCacheDamaged(CacheUnusable):
-    """A damaged FFCx JIT cache entry that could not be discarded (one line, the directory
-    to delete)."""
+class JitCacheError(CacheUnusable):
+    """The FFCx JIT cache cannot serve a form: a damaged entry that cannot be removed, a
+    compilation that does not finish, or one that fails for want of space or of a working
+    C compiler (one line, naming the directory)."""
 
 
 def elf_damage(path: Path) -> str | None:
@@ -417,7 +418,7 @@ def discard_jit_entry(cache_dir: Path, module_name: str) -> None:
         module_name: the entry.
 
     Raises:
-        JitCacheDamaged: if a file cannot be removed (the line names the directory).
+        JitCacheError: if a file cannot be removed (the line names the directory).
     """
     for path in _jit_entry(cache_dir, module_name):
         try:
@@ -435,11 +436,11 @@ def discard_jit_entry(cache_dir: Path, module_name: str) -> None:
                 from None
 
 
-def _damaged(message: str) -> JitCacheDamaged:
+def _damaged(message: str) -> JitCacheError:
     """The error, remembered for the other ranks (``one_line_jit_errors``): under mpirun
     dolfinx keeps only its text on rank 0."""
     global _JIT_DAMAGED
-    _JIT_DAMAGED = JitCacheDamaged(message)
+    _JIT_DAMAGED = JitCacheError(message)
     return _JIT_DAMAGED
 
 
@@ -480,10 +481,10 @@ def repairing(get_cached_module):
 
 
 def one_line_jit_errors(ffcx_jit):
-    """dolfinx's ``ffcx_jit`` whose JitCacheDamaged reaches every rank as itself.
+    """dolfinx's ``ffcx_jit`` whose JitCacheError reaches every rank as itself.
 
     Under mpirun dolfinx turns rank 0's exception into a RuntimeError on every rank (with
-    "Compilation failed on root node." on the others); rank 0's JitCacheDamaged is sent to
+    "Compilation failed on root node." on the others); rank 0's JitCacheError is sent to
     all, so that the command line gives its one line.
 
     Args:
@@ -504,18 +505,56 @@ def one_line_jit_errors(ffcx_jit):
             damaged = comm.bcast(str(_JIT_DAMAGED) if _JIT_DAMAGED else None, root=0)
             if damaged is None:
                 raise
-            raise JitCacheDamaged(damaged) from None
+            raise JitCacheError(damaged) from None
     jit.vpcontact_repairing = True
     return jit
 
 
 
+def environmental(compile_objects):
+    """An FFCx ``compile_*`` function whose environmental faults (an OSError: disk full,
+    read-only; cffi's VerificationError: the C compiler failed, e.g. for want of space)
+    are a JitCacheError naming the cache directory.
+
+    Args:
+        compile_objects: e.g. ffcx.codegeneration.jit.compile_forms.
+
+    Returns:
+        The replacement, same signature and results.
+    """
+    @functools.wraps(compile_objects)
+    def compile_(*args, **kwargs):
+        try:
+            return compile_objects(*args, **kwargs)
+        except JitCacheError:
+            raise
+        except Exception as exc:
+            import cffi
+            if not isinstance(exc, (OSError, cffi.VerificationError)):
+                raise
+            why = exc.strerror if isinstance(exc, OSError) and exc.strerror else \
+                " ".join(str(exc).split())
+            raise _damaged(f"compiling a form into the FFCx JIT cache {kwargs.get('cache_dir')} "
+                           f"failed ({why}); free space there, check that the C compiler "
+                           "works, or set XDG_CACHE_HOME to another directory") from exc
+    compile_.vpcontact_repairing = True
+    return compile_
+
+
+JIT_COMPILERS = ("compile_forms", "compile_elements", "compile_expressions",
+                 "compile_coordinate_maps")
+
+
 def _patch_jit(dolfinx_jit) -> None:
-    """Put ``repairing`` and ``one_line_jit_errors`` in place (once) in the modules that
-    dolfinx calls at every compilation."""
+    """Put ``repairing``, ``environmental`` and ``one_line_jit_errors`` in place (once) in
+    the modules that dolfinx calls at every compilation."""
     ffcx_jit_module = sys.modules["ffcx.codegeneration.jit"]
     if not getattr(ffcx_jit_module.get_cached_module, "vpcontact_repairing", False):
         ffcx_jit_module.get_cached_module = repairing(ffcx_jit_module.get_cached_module)
+    for name in JIT_COMPILERS:
+        fn = getattr(ffcx_jit_module, name, None)
+        if fn is not None and not getattr(fn, "vpcontact_repairing", False):
+            setattr(ffcx_jit_module, name, environmental(fn))
     if not getattr(dolfinx_jit.ffcx_jit, "vpcontact_repairing", False):
         dolfinx_jit.ffcx_jit = one_line_jit_errors(dolfinx_jit.ffcx_jit)
 

@@ -130,7 +130,7 @@ def test_an_entry_that_cannot_be_removed_is_one_line_naming_the_directory(tmp_pa
     def refuse(self, missing_ok=False):
         raise PermissionError(13, "Permission denied")
     monkeypatch.setattr(Path, "unlink", refuse)
-    with pytest.raises(cachedirs.JitCacheDamaged) as err:
+    with pytest.raises(cachedirs.JitCacheError) as err:
         cachedirs.discard_jit_entry(tmp_path, "libffcx_forms_x")
     text = str(err.value)
     assert "\n" not in text and f"delete the directory {tmp_path} " in text
@@ -179,15 +179,15 @@ from pathlib import Path
 from mpi4py import MPI
 import ufl
 from dolfinx import fem, mesh
-from app.io.cachedirs import JitCacheDamaged
+from app.io.cachedirs import JitCacheError
 m = mesh.create_unit_square(MPI.COMM_WORLD, 2, 2)
 V = fem.FunctionSpace(m, ("CG", 1))
 u = fem.Function(V)
 try:
     fem.form(u * u * 0.123456789 * ufl.dx, jit_params={"timeout": 2})
     what = "compiled"
-except JitCacheDamaged as exc:
-    what = "JitCacheDamaged: " + str(exc)
+except JitCacheError as exc:
+    what = "JitCacheError: " + str(exc)
 except Exception as exc:
     what = type(exc).__name__ + ": " + str(exc)
 Path(sys.argv[1], f"rank{MPI.COMM_WORLD.rank}.txt").write_text(what)
@@ -198,7 +198,7 @@ Path(sys.argv[1], f"rank{MPI.COMM_WORLD.rank}.txt").write_text(what)
 def test_a_compilation_still_running_is_one_error_on_every_rank(tmp_path, compiled, nprocs):
     """An unfinished entry younger than JIT_STALE_SECONDS may be another process's
     compilation: it is not removed; FFCx's wait ends in one line naming the files to
-    delete (JitCacheDamaged, an OSError: the command line prints it, exit 1), on every rank
+    delete (JitCacheError, an OSError: the command line prints it, exit 1), on every rank
     (dolfinx turns rank 0's error into 'Compilation failed on root node.' on the others)."""
     (tmp_path / "cache").mkdir()
     cache = _fresh(tmp_path / "cache", compiled)
@@ -214,14 +214,14 @@ def test_a_compilation_still_running_is_one_error_on_every_rank(tmp_path, compil
     assert out.returncode == 0, out.stderr[-3000:]
     for rank in range(nprocs):
         text = (tmp_path / f"rank{rank}.txt").read_text()
-        assert text.startswith("JitCacheDamaged: the FFCx JIT cache entry "), text
+        assert text.startswith("JitCacheError: the FFCx JIT cache entry "), text
         assert f"delete {cache / 'fenics' / stem}.* or the directory" in text
     assert (cache / "fenics" / f"{stem}.c").exists()       # not removed
 
 
 def test_the_command_line_prints_a_damaged_cache_as_one_line(monkeypatch, capsys):
     from app.cli import main
-    damaged = cachedirs.JitCacheDamaged("the FFCx JIT cache entry x is damaged and cannot be "
+    damaged = cachedirs.JitCacheError("the FFCx JIT cache entry x is damaged and cannot be "
                                         "removed; delete the directory /c")
 
     def fail(args, petsc):
@@ -244,3 +244,24 @@ def test_an_unreadable_library_is_compiled_again(tmp_path, compiled):
     assert _value(out) == pytest.approx(VALUE, rel=1e-12)
     assert "unreadable" in out.stderr and out.stderr.count("\n") == 1
     assert lib.is_file() and cachedirs.elf_damage(lib) is None
+
+
+@pytest.mark.parametrize("nprocs", [1, 2])
+def test_a_compilation_that_fails_is_one_line_on_every_rank(tmp_path, nprocs):
+    """The C compiler fails (as on a full disk; here CC names no program): one line naming
+    the FFCx cache, exit 1, no internal error (under mpirun dolfinx turned rank 0's error
+    into a RuntimeError on every rank: an internal error and MPI_Abort)."""
+    cmd = [sys.executable, "-m", "app", "run", str(ROOT / "cases" / "wang_cheng_2021.yaml"),
+           "--out", str(tmp_path / "out"), "--no-plots", "--set", "mesh.n=2",
+           "--set", "time.N=1"]
+    if nprocs > 1:
+        cmd = ["mpirun", "-n", str(nprocs), *cmd]
+    env = {**os.environ, **MPI_ENV, "XDG_CACHE_HOME": str(tmp_path / "xdg"),
+           "VPCONTACT_CACHE": str(tmp_path / "vpc"), "CC": str(tmp_path / "no-compiler"),
+           "PYTHONPATH": str(ROOT)}
+    out = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 1, out.stderr[-3000:]
+    ours = [ln for ln in out.stderr.splitlines() if ln.startswith("vpcontact:")]
+    assert ours == [f"vpcontact: error: compiling a form into the FFCx JIT cache "
+                    f"{tmp_path / 'xdg' / 'fenics'} failed " + ours[0].split(" failed ", 1)[1]]
+    assert "internal error" not in out.stderr and "Traceback" not in out.stderr
