@@ -144,12 +144,12 @@ def select_solver(case, problem) -> StepSolver:
     Returns:
         A FastStepSolver or an SNESVISolver.
     """
-    if choose_method(case, gamma3_dofs(problem)) == "fast":
-        from app.solvers.fast import FastStepSolver
-        return FastStepSolver(problem, case.petsc)
-    from app.solvers.snesvi import SNESVISolver
-    linear = choose_linear(case, problem.V.dofmap.index_map.size_global * problem.dim)
     # the default snes_atol is raised to the residual's round-off floor; a given one is kept
     default_atol = case.petsc.get("snes_atol") == case.petsc_defaults.get("snes_atol")
+    if choose_method(case, gamma3_dofs(problem)) == "fast":
+        from app.solvers.fast import FastStepSolver
+        return FastStepSolver(problem, case.petsc, roundoff_floor=default_atol)
+    from app.solvers.snesvi import SNESVISolver
+    linear = choose_linear(case, problem.V.dofmap.index_map.size_global * problem.dim)
     return SNESVISolver(problem, snes_vi_options(case, linear), linear=linear,
                         roundoff_floor=default_atol)

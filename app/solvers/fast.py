@@ -77,17 +77,19 @@ class FastStepSolver:
         options: PETSc options; options named fast_* configure the direct solver of K
             (and select the PETSc path); all are passed to the SNES VI fallback.
         rtol: relative tolerance of the projected gradient of the Gamma3 problem.
+        roundoff_floor: for the SNES VI fallback (SNESVISolver's argument).
     """
 
     name = "fast"
 
-    def __init__(self, problem, options: dict | None = None, rtol: float = 1e-13):
+    def __init__(self, problem, options: dict | None = None, rtol: float = 1e-13,
+                 roundoff_floor: bool = True):
         self.problem = problem
         self.u = problem.u
         self.comm = problem.comm
         self.continuation_stages, self.fallback, self.sticky_robust = 0, None, False
         self.factorisations = 0
-        self.rtol = rtol
+        self.rtol, self.roundoff_floor = rtol, roundoff_floor
         self.options = options or {}
         self._snes = None
         V, d = problem.V, problem.dim
@@ -492,7 +494,8 @@ class FastStepSolver:
         except StepSolveError as exc:
             if self._snes is None:
                 from app.solvers.snesvi import SNESVISolver
-                self._snes = SNESVISolver(self.problem, self.options)
+                self._snes = SNESVISolver(self.problem, self.options,
+                                          roundoff_floor=self.roundoff_floor)
             log.warning("  fast solver: %s; solving this step with SNES VI", exc)
             its = self._snes.solve()
             self.fallback = "snes_vi"
