@@ -20,8 +20,17 @@ from pathlib import Path
 
 from .geoscan import GeoScanError, mesh_files
 
-_CHILD = """import sys
+# the child: gmsh and the standard library only; it dies with its parent and may use at most
+# half the machine's memory more than at its start (a script that meshes while it is opened)
+_CHILD = """import ctypes, os, resource, signal, sys
 import gmsh
+ctypes.CDLL(None).prctl(1, int(signal.SIGKILL))          # PR_SET_PDEATHSIG
+if os.getppid() != int(sys.argv[2]):
+    os._exit(3)
+more = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
+with open("/proc/self/statm") as f:
+    used = int(f.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+resource.setrlimit(resource.RLIMIT_AS, (used + more, used + more))
 gmsh.initialize(readConfigFiles=False)
 gmsh.option.setNumber("General.Terminal", 0)
 gmsh.open(sys.argv[1])
@@ -111,7 +120,8 @@ def _gmsh_dimension(p: Path) -> int:
         mesh_files(p)
     except GeoScanError as err:
         raise FileInfoError(str(err)) from None
-    child = subprocess.Popen([sys.executable, "-c", _CHILD, str(p)], stdin=subprocess.DEVNULL,
+    child = subprocess.Popen([sys.executable, "-c", _CHILD, str(p), str(os.getpid())],
+                             stdin=subprocess.DEVNULL,
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                              env={**os.environ, "PYTHONPATH": ""})
     try:

@@ -3,8 +3,11 @@ without mesh.dim is 3D (it was refused, its loads blamed for 2 components); a me
 contradicts the file is refused naming both; the built-in mesh keeps the default 2; gmsh is
 not imported by validation."""
 import json
+import os
+import signal
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -165,3 +168,44 @@ def test_validation_does_not_import_gmsh(tmp_path, kind):
     assert proc.returncode == 0, proc.stderr
     dim, imported = json.loads(proc.stdout.strip().splitlines()[-1])
     assert dim == (2 if kind == "builtin" else 3) and not imported
+
+
+def _processes_reading(path) -> list[int]:
+    """The processes whose command line names ``path``."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/cmdline", "rb") as f:
+                    if str(path).encode() in f.read():
+                        found.append(int(entry))
+            except OSError:
+                pass
+    return found
+
+
+def test_sigint_while_gmsh_reads_a_slow_geo_exits_3(tmp_path):
+    """A .geo whose script runs long (while its dimension is read, in gmsh's child): SIGINT
+    ends the command at once with exit 3 and the child is gone."""
+    geo = _geo(tmp_path, SQUARE_GEO + "For i In {1:1000000000}\n  x = i;\nEndFor\n", "slow.geo")
+    case = tmp_path / "case.yaml"
+    case.write_text(json.dumps(_raw(geo, top=(0.0, -1.0))))
+    proc = subprocess.Popen([sys.executable, "-m", "app", "check", str(case)], cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": str(ROOT)})
+    try:
+        deadline = time.monotonic() + 60
+        while not [p for p in _processes_reading(geo) if p != proc.pid]:
+            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+            time.sleep(0.1)
+        time.sleep(0.5)
+        start = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 3 and time.monotonic() - start < 10, err
+        assert "Traceback" not in err
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    time.sleep(0.5)
+    assert _processes_reading(geo) == []
