@@ -154,3 +154,30 @@ def test_two_ranks_refuse_the_unsupported_part(two_squares, tmp_path):
     assert "of the body's 2 disconnected parts (14 cells, through the point (3, 0)) free" \
         in proc.stderr
     assert not (tmp_path / "out").exists()
+
+
+TWO_BOXES = """SetFactory("OpenCASCADE");
+Box(1) = {0, 0, 0, 1, 1, 1};
+Box(2) = {2, 0, 0, 1, 1, 1};
+Mesh.MeshSizeMax = 0.6;
+Physical Surface("left") = {1};
+Physical Surface("left2") = {7};
+Physical Volume("body") = {1, 2};
+"""
+
+
+def test_a_3d_body_in_two_parts(tmp_path):
+    geo = tmp_path / "boxes.geo"
+    geo.write_text(TWO_BOXES)
+    raw = _raw(geo, ["left"])
+    raw["loads"] = {"f0": [0.0, 0.0, -1.0]}
+    with pytest.raises(CaseError) as err:
+        _problem(raw)
+    assert "leave 6 rigid motion(s) of part 2 of the body's 2 disconnected parts (" \
+        in str(err.value), err.value
+    raw["boundaries"]["clamped"] = ["left", "left2"]
+    problem = _problem(raw)
+    parts = body_parts(problem.V)
+    assert len(parts.cells) == 2 and parts.cells.sum() == problem.num_cells
+    np.testing.assert_allclose(parts.lo, [[0, 0, 0], [2, 0, 0]], atol=1e-12)
+    np.testing.assert_allclose(parts.hi, [[1, 1, 1], [3, 1, 1]], atol=1e-12)
