@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-_PHYSICAL = {1: "Physical Curve", 2: "Physical Surface", 3: "Physical Volume"}
+_PHYSICAL = {0: "Physical Point", 1: "Physical Curve", 2: "Physical Surface", 3: "Physical Volume"}
 DEGENERATE = 1e-10        # a cell's measure d! |K| / (longest edge)^d below this is refused
 
 
@@ -80,6 +80,35 @@ def check_facets(gmsh, path: str, dim: int) -> dict[int, tuple[int, int]]:
         if np.any(mine >= 2):
             interior[int(tag)] = (int(np.sum(mine >= 2)), len(mine))
     return interior
+
+
+def check_lower_groups(gmsh, path: str, dim: int) -> None:
+    """Every node of a physical group of dimension below dim - 1 (a Physical Point; a
+    Physical Curve in 3D) is a vertex of a body cell: dolfinx's model_to_mesh reads these
+    groups too, and dies with a segmentation fault on a point off the body.
+
+    Args:
+        gmsh: the gmsh module with the mesh loaded.
+        path: the mesh file, for the message.
+        dim: the space dimension.
+
+    Raises:
+        BodyError: naming the first such group off the body.
+    """
+    cells, _ = _elements(gmsh, dim)
+    used = np.unique(cells)
+    for d in range(dim - 1):
+        for _, tag in gmsh.model.getPhysicalGroups(d):
+            nodes = [np.asarray(n[0], dtype=np.int64) for n in
+                     (gmsh.model.mesh.getElements(d, e)[2]
+                      for e in gmsh.model.getEntitiesForPhysicalGroup(d, tag)) if len(n)]
+            nodes = np.unique(np.concatenate(nodes)) if nodes else np.zeros(0, np.int64)
+            off = np.setdiff1d(nodes, used)
+            if off.size:
+                raise BodyError(f"{path}: {_label(gmsh, d, int(tag))} has {off.size} of its "
+                                f"{nodes.size} nodes off the body (not a vertex of any body "
+                                "cell); a group must lie on the body: remove it or those "
+                                "entities from it")
 
 
 def check_cells(gmsh, path: str, dim: int) -> None:

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from .bodycheck import BodyError, check_cells, check_facets
+from .bodycheck import BodyError, check_cells, check_facets, check_lower_groups
 from .extent import mesh_extent
 from .geoscan import GeoScanError, mesh_files
 
@@ -226,6 +226,7 @@ def _read(gmsh, path: str, dim: int, size: float, max_vertices: float = MAX_VERT
         _check_planar(gmsh, path)
     try:
         interior = check_facets(gmsh, path, dim)    # model_to_mesh segfaults otherwise
+        check_lower_groups(gmsh, path, dim)
         check_cells(gmsh, path, dim)
     except BodyError as err:
         raise MeshFileError(str(err)) from None

@@ -88,6 +88,22 @@ def test_a_surface_group_off_the_volume_is_refused(tmp_path):
     assert "Physical Surface 2 ('far') has" in proc.stdout and "outside the body" in proc.stdout
 
 
+@pytest.mark.parametrize("extra, message", [
+    ('Point(9) = {5, 5, 0, 1}; Physical Point("far", 4) = {9};',
+     "Physical Point 4 ('far') has 1 of its 1 nodes off the body"),
+    ('Point(9) = {0.5, 0, 0, 1}; Physical Point(4) = {9};',       # on a curve, not a vertex
+     "Physical Point 4 has 1 of its 1 nodes off the body"),
+])
+def test_a_point_group_off_the_body_is_refused(tmp_path, extra, message):
+    geo = tmp_path / "point.geo"
+    geo.write_text(SQUARE + extra + "\n")
+    proc = _load_in_child(geo, 2)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert message in proc.stdout, proc.stdout
+    geo.write_text(SQUARE + 'Physical Point("corner", 4) = {3};\n')      # on the body
+    assert "LOADED" in _load_in_child(geo, 2).stdout
+
+
 def test_an_embedded_curve_is_a_group_inside_the_body(tmp_path):
     geo = tmp_path / "inner.geo"
     geo.write_text(SQUARE + "Point(5) = {0.3, 0.5, 0, 0.25}; Point(6) = {0.7, 0.5, 0, 0.25}; "
