@@ -4,7 +4,8 @@ Validation cannot sample the data of a mesh.file where they depend on the positi
 is not known then, app/io/datacheck.py).  Once the mesh is loaded, the same checks run on its
 own points: the nodes and cell midpoints of the body for the body's data (f0, u0, sigma0,
 kappa0), the nodes and facet midpoints of each group for the data acting on it (tractions,
-pressures, prescribed displacements, the gap g on Gamma3).  Every rank checks its part of the
+pressures, prescribed displacements, the gap g on Gamma3), each also rounded to 1e-9 of the
+body's size (gmsh's round-off).  Every rank checks its part of the
 mesh; the first error (of the lowest rank that finds one) is raised on every rank.
 """
 from __future__ import annotations
@@ -40,6 +41,31 @@ def entity_points(msh, dim: int, entities: np.ndarray) -> np.ndarray:
     return np.concatenate([msh.geometry.x[nodes], mids])[:, :gdim]
 
 
+def with_rounded(points: np.ndarray, length: float) -> np.ndarray:
+    """The points and, for those that are round-off away from a point of 9 significant
+    digits (relative to the body's size), that point as well.
+
+    gmsh's coordinates carry round-off (a node meant at x = 0.5 is at 0.5000000000021): a
+    datum infinite at x = 0.5 is sampled there too, as on the built-in mesh's grid.  Only
+    points that every coordinate puts within 1e-11 L of such a value are added (a node on a
+    curved boundary stays where it is: moved, it could leave the body).
+
+    Args:
+        points: (P, d) points.
+        length: the body's size L.
+
+    Returns:
+        (P', d) points, P <= P' <= 2 P.
+    """
+    if points.size == 0 or not length > 0:
+        return points
+    digits = 9 - int(np.floor(np.log10(length)))
+    rounded = np.round(points, digits)
+    moved = np.any(rounded != points, axis=1) & \
+        np.all(np.abs(rounded - points) <= 1e-11 * length, axis=1)
+    return np.concatenate([points, rounded[moved]])
+
+
 def mesh_samples(case: Case, body) -> PointSamples:
     """The sample points of a loaded mesh file for the case's data (this rank's part).
 
@@ -58,14 +84,16 @@ def mesh_samples(case: Case, body) -> PointSamples:
     refs = set(case.boundaries.clamped) | set(case.boundaries.contact)
     for kind in (case.loads.traction, case.loads.pressure, case.loads.displacement):
         refs |= set(kind)
+    lo, hi = (np.asarray(b, dtype=float)[:tdim] for b in body.bbox)
+    length = float(np.max(hi - lo))
     groups = {}
     for ref in refs:
         tag = body.groups.get(ref) if isinstance(ref, str) else ref
         if tag is not None:
-            groups[ref] = entity_points(msh, tdim - 1, ft.indices[ft.values == tag])
-    lo, hi = (np.asarray(b, dtype=float)[:tdim] for b in body.bbox)
-    return PointSamples(entity_points(msh, tdim, cells), groups, hi - lo, case.time.times,
-                        case.time.adaptive is not None)
+            groups[ref] = with_rounded(entity_points(msh, tdim - 1, ft.indices[ft.values == tag]),
+                                       length)
+    return PointSamples(with_rounded(entity_points(msh, tdim, cells), length), groups, hi - lo,
+                        case.time.times, case.time.adaptive is not None)
 
 
 def check_data_on_mesh(case: Case, body) -> float:

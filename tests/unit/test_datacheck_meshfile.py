@@ -12,7 +12,7 @@ from mpi4py import MPI
 import app.simulation
 from app.io.case import CaseError
 from app.io.datacheck import PointSamples
-from app.model.datapoints import check_data_on_mesh, mesh_samples
+from app.model.datapoints import check_data_on_mesh, mesh_samples, with_rounded
 from app.simulation import build_mesh
 from conftest import PAPER_CASE, make_case, run_case, run_cli
 from meshtools import write_rotated_square
@@ -151,3 +151,28 @@ def test_zero_data_run_on_the_mesh_file(square, sections):
     result = run_case(make_case(_raw(square, **sections)))
     assert result.status == "completed", result.summary
     assert np.isfinite(result.problem.u.x.array).all()
+
+
+def test_round_off_does_not_hide_a_singular_point(tmp_path, monkeypatch):
+    """The square turned by 1e-10 degrees: the node meant at (0.5, 1) is 2e-12 away, where
+    -5/(x - 0.5) is finite (3e12); the rounded point (0.5, 1) is sampled too."""
+    tilted = write_rotated_square(tmp_path / "tilted.msh", 4, 1e-10)
+    case = make_case(_raw(tilted, loads={"traction": {"top": [0.0, "-5/(x - 0.5)"]}}))
+    monkeypatch.setattr(app.simulation, "ContactProblem", _no_computation)
+    with pytest.raises(CaseError) as err:
+        run_case(case)
+    assert "loads.traction.top[1]: -inf is not a finite number at x = 0.5, y = 1, t = 0" \
+        in str(err.value)
+
+
+def test_rounding_keeps_points_that_are_not_round_off():
+    """Only points within 1e-11 L of a 9-digit point get that point added: not 1/3, not a
+    point of the unit circle."""
+    a = 0.3
+    points = np.array([[0.5 + 2e-12, 1.0], [1 / 3, 0.0], [np.cos(a), np.sin(a)], [0.25, 0.75]])
+    got = with_rounded(points, 1.0)
+    np.testing.assert_array_equal(got[:4], points)
+    np.testing.assert_array_equal(got[4:], [[0.5, 1.0]])
+    big = with_rounded(points * 1000.0, 1000.0)             # relative to the body's size
+    np.testing.assert_array_equal(big[4:], [[500.0, 1000.0]])
+    assert with_rounded(np.zeros((0, 2)), 1.0).shape == (0, 2)
