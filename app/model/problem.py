@@ -163,6 +163,7 @@ class ContactProblem:
             [(r, f"loads.pressure.{r}") for r in loads.pressure] + \
             [(r, f"loads.displacement.{r}") for r in loads.displacement]
         self.tags = {ref: self.group_tag(ref, key) for ref, key in keys}
+        self._check_roles()
         for ref, key in keys:                   # a role on an embedded curve: refused
             if (why := interior_role(self.body, key, ref, self.tags[ref])) is not None:
                 raise CaseError(f"{case.source}: {why}")
@@ -172,6 +173,42 @@ class ContactProblem:
         self.bcs = self.dirichlet.bcs
         check_rigid_motions(self.V, self.dirichlet.fixed, case.source)
         self._clamped_nodes = self.dirichlet.clamped_nodes
+
+    def _check_roles(self) -> None:
+        """The rules validation applies to the groups' spellings (app/io/case.py: no group
+        twice in a role, clamped and contact disjoint, no load on a clamped group nor, in a
+        case with contact, on Gamma3), applied to the groups themselves: a group's name and
+        its physical tag are one group.
+
+        Raises:
+            CaseError: naming both spellings and the tag.
+        """
+        b, loads, source = self.case.boundaries, self.case.loads, self.case.source
+        roles = [("boundaries.clamped", b.clamped), ("boundaries.contact", b.contact)] + \
+            [(f"loads.{kind}", tuple(getattr(loads, kind)))
+             for kind in ("traction", "pressure", "displacement")]
+        for key, refs in roles:
+            seen = {}
+            for ref in refs:
+                if self.tags[ref] in seen:
+                    raise CaseError(f"{source}: {key}: {seen[self.tags[ref]]!r} and {ref!r} "
+                                    f"are the same group (physical tag {self.tags[ref]}); "
+                                    "give it once")
+                seen[self.tags[ref]] = ref
+        clamped = {self.tags[r]: r for r in b.clamped}
+        contact = {self.tags[r]: r for r in b.contact} if self.case.contact.active else {}
+        for key, refs in roles[1:]:
+            for ref in refs:
+                where = key if key.startswith("boundaries") else f"{key}.{ref}"
+                if self.tags[ref] in clamped:
+                    raise CaseError(f"{source}: {where}: {ref!r} is the clamped group "
+                                    f"{clamped[self.tags[ref]]!r} (physical tag "
+                                    f"{self.tags[ref]}; boundaries.clamped: u = 0 there)")
+                if key.startswith("loads") and self.tags[ref] in contact:
+                    raise CaseError(f"{source}: {where}: {ref!r} is the contact group "
+                                    f"{contact[self.tags[ref]]!r} (physical tag "
+                                    f"{self.tags[ref]}, Gamma3); a {key[6:]} there is "
+                                    "only allowed in a case without a contact section")
 
     @property
     def gamma3_tags(self) -> tuple:
@@ -422,9 +459,8 @@ class ContactProblem:
     def _frames(self) -> ContactFrames:
         """Normals, frames and gaps at the Gamma3 nodes (app/model/frames.py)."""
         c, nodes = self.case.contact, self.gamma3_local_nodes
-        raw = None if c.direction is not None else self._facet_normals[nodes]
-        frames = build_frames(self.V, nodes, raw, self.dirichlet.fixed[nodes], c.direction,
-                              self.case.source)
+        frames = build_frames(self.V, nodes, self._facet_normals[nodes],
+                              self.dirichlet.fixed[nodes], c.direction, self.case.source)
         if c.g is not None:
             x = self.V.tabulate_dof_coordinates()[nodes, :self.dim]
             frames.g = gap_values(c.g, x, self.case.source, self.comm)
