@@ -150,8 +150,14 @@ class ContactProblem:
                             f"{other[ref]}; boundary groups have dimension {self.dim - 1}")
         names = ", ".join(sorted(groups)) or "none"
         numbers = ", ".join(str(t) for t in tags) or "none"
+        hint = ""
+        if not isinstance(ref, str) and str(ref) in groups:
+            hint = f"; {ref} unquoted is a physical number: write '{ref}' for the group named so"
+        elif isinstance(ref, str) and ref.strip().isdigit() and int(ref) in tags:
+            hint = (f"; '{ref}' quoted is a name: write {int(ref)} without quotes for the "
+                    "physical group of that number")
         raise CaseError(f"{self.case.source}: {key}: no boundary group {ref!r} in the mesh "
-                        f"(names: {names}; numbers: {numbers})")
+                        f"(names: {names}; numbers: {numbers}){hint}")
 
     def _setup_boundaries(self) -> None:
         """Facets of the named groups, the Dirichlet data and the rigid-motion check."""

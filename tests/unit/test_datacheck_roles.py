@@ -30,7 +30,7 @@ def _raw(square, **sections) -> dict:
     raw["boundaries"] = {"clamped": ["left"], "contact": ["bottom"]}
     raw["time"]["N"] = 2
     raw.update(sections)
-    return raw
+    return {k: v for k, v in raw.items() if v is not None}
 
 
 def _refused(square, **sections) -> str:
@@ -77,3 +77,24 @@ def test_one_group_twice_in_a_role(square, tag, role):
     text = _refused(square, **sections)
     assert f"{key}: '{name}' and {tag[name]} are the same group (physical tag " \
         f"{tag[name]})" in text, text
+
+
+NUMBER_NAMED = """Point(1) = {0, 0, 0, 0.5}; Point(2) = {1, 0, 0, 0.5};
+Point(3) = {1, 1, 0, 0.5}; Point(4) = {0, 1, 0, 0.5};
+Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 1};
+Curve Loop(1) = {1, 2, 3, 4}; Plane Surface(1) = {1};
+Physical Curve("7", 1) = {3}; Physical Curve("left", 4) = {4};
+Physical Surface("body", 10) = {1};
+"""
+
+
+@pytest.mark.parametrize("ref, hint", [
+    (7, "; 7 unquoted is a physical number: write '7' for the group named so"),
+    ("4", "; '4' quoted is a name: write 4 without quotes for the physical group of that "
+          "number")], ids=["number-for-a-name", "name-for-a-number"])
+def test_a_group_named_by_a_number_gets_a_hint(tmp_path, ref, hint):
+    geo = tmp_path / "numbers.geo"
+    geo.write_text(NUMBER_NAMED)
+    text = _refused(geo, boundaries={"clamped": ["left"]}, contact=None,
+                    loads={"traction": {ref: [0.0, -1.0]}})
+    assert text.endswith(hint), text
