@@ -16,6 +16,7 @@ columns, in 2D oriented as tau = (-nu_y, nu_x).
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,7 +28,19 @@ from petsc4py import PETSc
 from app.io import expressions
 from app.io.errors import CaseError
 
+log = logging.getLogger("vpcontact")
+
 AXIS_TOL = 1e-12      # a normal within this of +-e_k is that axis (no rotated frame)
+# contact.direction d against the outward normal n of Gamma3: refused where d.n <= DIRECTION_MIN
+# at some node (d tangent to Gamma3 or pointing into the body: u_nu = u.d is then no normal
+# displacement and the contact laws act on a tangential or inward one).  The nodal normal
+# averages the node's facet normals, so a flat side tangent to d gives d.n = 0 up to the
+# round-off of the coordinates (~1e-16 relative), and the end node of a curved Gamma3 that
+# turns tangent to d (the quarter cylinder of hertz_cylinder at (1, 1)) gives
+# d.n = sin(h / 2R) > 0: 1e-8 (90 - 6e-7 degrees) separates the two.  A direction grazing
+# Gamma3 as a whole (the mean of d.n over its nodes below cos 80 degrees) is only warned of.
+DIRECTION_MIN = 1e-8
+DIRECTION_GRAZING_DEG = 80.0
 
 
 @dataclass
@@ -124,7 +137,8 @@ def build_frames(V, nodes: np.ndarray, raw_normal: np.ndarray, fixed: np.ndarray
         The ContactFrames (g not yet set).
 
     Raises:
-        CaseError: a fixed direction not orthogonal to a prescribed component of a node.
+        CaseError: a fixed direction not orthogonal to a prescribed component of a node,
+            or tangent to Gamma3 or pointing into the body at a node (check_direction).
     """
     m, d = len(nodes), V.dofmap.index_map_bs
     nu = np.broadcast_to(np.asarray(direction, float), (m, d)).copy() if direction is not None \
@@ -138,6 +152,8 @@ def build_frames(V, nodes: np.ndarray, raw_normal: np.ndarray, fixed: np.ndarray
                             "components of loads.displacement at a Gamma3 node; prescribe "
                             "components orthogonal to the direction there")
     bounded = size > 1e-6
+    if direction is not None:
+        check_direction(V, nodes[bounded], raw_normal[bounded], direction, source)
     nu = np.where(bounded[:, None], projected / np.where(bounded, size, 1.0)[:, None], nu)
     Q, slot, sign = np.empty((m, d, d)), np.empty(m, dtype=np.int32), np.empty(m, dtype=np.int32)
     tangents = np.zeros((m, d - 1, d))
@@ -151,6 +167,47 @@ def build_frames(V, nodes: np.ndarray, raw_normal: np.ndarray, fixed: np.ndarray
             sign[i] = 1 if nu[i, slot[i]] > 0 else -1
     rotated = bool(V.mesh.comm.allreduce(bool(np.any(Q != np.eye(d))), op=MPI.LOR))
     return ContactFrames(nodes, nu, tangents, Q, slot, sign, bounded, None, rotated)
+
+
+def check_direction(V, nodes: np.ndarray, normal: np.ndarray, direction, source: str) -> None:
+    """Refuse a contact.direction d tangent to Gamma3 or pointing into the body: d.n <=
+    DIRECTION_MIN at some node (n the outward nodal normal); warn where d grazes Gamma3 as a
+    whole (see DIRECTION_MIN).  Collective: every rank raises.
+
+    Args:
+        V: the P1 vector space.
+        nodes: the local Gamma3 nodes that carry the bound u.d <= g.
+        normal: (nodes, d) their outward unit normals (facet_normals).
+        direction: the case's contact.direction (unit).
+        source: the case file, for messages.
+
+    Raises:
+        CaseError: naming the node of the smallest d.n and its angle, on every rank.
+    """
+    comm, d = V.mesh.comm, V.dofmap.index_map_bs
+    dn = normal @ np.asarray(direction, float)
+    x = V.tabulate_dof_coordinates()[nodes, :d]
+    # the smallest d.n, ties to the lowest coordinates: the same node on any rank count
+    worst = int(np.lexsort((*x.T[::-1], dn))[0]) if len(dn) else None
+    mine = (float(dn[worst]), tuple(float(v) + 0.0 for v in np.round(x[worst], 6))) \
+        if worst is not None else (np.inf, None)
+    value, point = min(comm.allgather(mine), key=lambda item: (item[0], item[1] or ()))
+    show = [float(v) for v in np.round(np.asarray(direction, float), 6)]
+    if value <= DIRECTION_MIN:
+        angle = np.degrees(np.arccos(np.clip(value, -1.0, 1.0)))
+        raise CaseError(f"{source}: contact.direction: {show} makes {angle:.1f} degrees with "
+                        f"the outward normal of Gamma3 at the node {point}: it is tangent to "
+                        "Gamma3 or points into the body there (it must point from the body "
+                        "toward the obstacle, under 90 degrees to the outward normal at every "
+                        "Gamma3 node)")
+    owned = nodes < V.dofmap.index_map.size_local
+    total = comm.allreduce(float(dn[owned].sum()), op=MPI.SUM)
+    count = comm.allreduce(int(owned.sum()), op=MPI.SUM)
+    mean = np.degrees(np.arccos(np.clip(total / max(count, 1), -1.0, 1.0)))
+    if count and mean > DIRECTION_GRAZING_DEG and comm.rank == 0:
+        log.warning("%s: contact.direction: %s makes %.1f degrees on average with the outward "
+                    "normal of Gamma3: u_nu = u.d is nearly tangential there", source, show,
+                    mean)
 
 
 def gap_values(g, x: np.ndarray, source: str, comm) -> np.ndarray:

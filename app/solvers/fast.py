@@ -193,6 +193,13 @@ class FastStepSolver:
         order = np.argsort(gn)
         self.g_nodes, self.w = gn[order], w[order]
         self.m = d * len(self.g_nodes)
+        if self.m == 0:
+            # every Gamma3 node is fully prescribed (problem._gamma3_nodes drops those): a
+            # Gamma3 problem of size 0, nothing to condense -- u = K^-1 F_n, as SNES VI
+            # solves it with no bound left (the same on every rank: g_nodes is gathered)
+            log.info("  fast solver: every Gamma3 node is prescribed, no Gamma3 problem")
+            self.gamma3 = False
+            return
         # positions in G of the owned Gamma3 nodes, and their dofs in the local vector
         self.local_owned_g = np.searchsorted(self.g_nodes, glob_nodes)   # positions in G
         self.owned_dofs_local = (owned_nodes[:, None] * d + np.arange(d)).ravel()
