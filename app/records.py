@@ -5,7 +5,9 @@ A step record (one entry of summary.json's "steps", built by Simulation.step) is
 n, t (t_n), norm_u_V, norm_sigma_Q, norm_kappa_Y (the norms of u_n, sigma_n, kappa_n),
 max_vm, max_kappa, newton_iterations, wall_s (history update, step solve and stress update
 of scheme (3.2)-(3.4)), k (k_n), and where they apply gamma3_history_s (the update of
-xi_n, s_n), fallback and delta_continuation_stages (how the step solver got there).
+xi_n, s_n), fallback and delta_continuation_stages (how the step solver got there); and
+``written: false`` on a step that was computed but whose outputs could not be written (an
+output fault stops the run there: ``last_good_step`` is the step before).
 """
 from __future__ import annotations
 
@@ -109,8 +111,9 @@ class RunSummary:
 
     @property
     def last_good_step(self) -> int:
-        """The last step whose state is valid (0: none beyond the initial state)."""
-        return self.steps[-1]["n"] if self.steps else 0
+        """The last step whose state is valid and whose outputs were written (0: none beyond
+        the initial state): a step marked ``written: false`` is not one."""
+        return next((s["n"] for s in reversed(self.steps) if s.get("written", True)), 0)
 
     def fail(self, failure: StepFailure) -> None:
         """Mark a completed run as failed (an output written after the loop failed); a run

@@ -447,6 +447,8 @@ class Simulation:
             for obs in self.observers:
                 obs.step(self, record)
         except OutputError as exc:
+            # step n was computed but not (fully) written: the last good step is n - 1
+            record["written"] = False
             failure = StepFailure.output(self.n, self.t, exc)
             log.error("step %d (t = %g): %s; stopping", self.n, self.t, failure.reason)
             raise StopRun("failed", failure) from None

@@ -162,6 +162,48 @@ def test_hdf5_failure_mid_run_is_a_failed_run(tmp_path, monkeypatch, capsys):
     assert "Traceback" not in err and "the run failed" in err
 
 
+def _xdmf_file_times(path):
+    root = ET.parse(path).getroot()
+    grid = next(g for g in root.iter("Grid") if g.get("GridType") == "Collection")
+    return [float(g.find("Time").get("Value")) for g in grid.findall("Grid")]
+
+
+def test_disk_full_at_an_output_step_names_the_last_step_written(tmp_path, monkeypatch,
+                                                                   capsys):
+    """The disk fills up while solution.xdmf gets step 3 (injected: its third append raises
+    ENOSPC): step 3 is computed, not written, so summary.json's last_good_step, the steps'
+    ``written`` mark, the message and every per-step file agree on step 2 (they said 3)."""
+    import errno
+
+    from app.io import xdmf
+    real = xdmf.TemporalXdmf._append
+    appends = []
+
+    def full(self, grid):
+        if self.path.name == "solution.xdmf":
+            appends.append(grid)
+            if len(appends) == 3:
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self.path))
+        return real(self, grid)
+
+    monkeypatch.setattr(xdmf.TemporalXdmf, "_append", full)
+    out = tmp_path / "full"
+    assert _in_process_run(out, monkeypatch) == 1
+    s = _summary(out)
+    assert s["status"] == "failed" and s["failure"]["step"] == 3
+    assert "No space left on device" in s["failure"]["reason"]
+    assert s["last_good_step"] == 2
+    assert [st["n"] for st in s["steps"]] == [1, 2, 3]
+    assert s["steps"][-1]["written"] is False
+    assert all("written" not in st for st in s["steps"][:-1])
+    err = capsys.readouterr().err
+    assert "the run failed at step 3 (t = 0.75)" in err and "outputs up to step 2 are in" in err
+    assert _xdmf_times(out) == pytest.approx([0.0, 0.25, 0.5])
+    assert _xdmf_file_times(out / "contact.xdmf") == pytest.approx([0.0, 0.25, 0.5])
+    rows = (out / "history.csv").read_text().splitlines()
+    assert [int(r.split(",")[0]) for r in rows[1:]] == [1, 2]
+
+
 def test_summary_write_failure_is_reported(tmp_path, monkeypatch, capsys):
     import app.io.output as output
     real = output.atomic_write
