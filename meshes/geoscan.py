@@ -46,6 +46,7 @@ _FORBIDDEN = {
     "SendToServer": "sends data to a server",
     "Plugin": "runs a gmsh plugin (plugins can read and write files)",
     "Sleep": "makes gmsh wait",
+    "PartitionMesh": "partitions the mesh (and can write a topology file)",
     "GetValue": "reads the terminal",
     "GetStringValue": "reads the terminal",
     "GetEnv": "reads the environment, which is not part of the case",
@@ -54,10 +55,13 @@ _FORBIDDEN = {
     "StringToName": "builds a name at run time (it could name any command)",
     "S2N": "builds a name at run time (it could name any command)",
 }
-# option categories: a .geo may set Mesh.* and Geometry.* and these General.* only
-_OPTION_CATEGORIES = ("General", "Solver", "PostProcessing", "View", "Print")
+# option categories: a .geo may set Mesh.* and Geometry.* (but not the partitioning, which
+# writes a topology file, nor a command for the GUI) and these General.* only
+_OPTION_CATEGORIES = ("General", "Solver", "PostProcessing", "View", "Print", "Mesh",
+                      "Geometry")
 _ALLOWED_OPTIONS = {("General", "Terminal"), ("General", "Verbosity"),
                     ("General", "NumThreads")}
+_REFUSED_MESH_OPTIONS = re.compile(r"Partition.*|NbPartitions|.*Command")
 # Merge: gmsh reads these suffixes (exact spelling, as in Common/OpenFile.cpp) as CAD data
 _CAD = {".stl", ".STL", ".brep", ".brp", ".BRP", ".rle", ".iges", ".IGES", ".igs", ".IGS",
         ".step", ".STEP", ".stp", ".STP"}
@@ -165,6 +169,8 @@ def _option(toks: list[Token], i: int) -> str | None:
     if k >= len(toks) or toks[k].text not in (".", "["):
         return None
     name = toks[k + 1].text if k + 1 < len(toks) and toks[k].text == "." else "?"
+    if category in ("Mesh", "Geometry"):
+        return f"{category}.{name}" if _REFUSED_MESH_OPTIONS.fullmatch(name) else None
     return None if (category, name) in _ALLOWED_OPTIONS else f"{category}.{name}"
 
 
@@ -181,8 +187,9 @@ def _statements(toks: list[Token], path: Path, name: str) -> list[tuple[str, Pat
                                "may not run commands, write files or end gmsh: remove it")
         if word in _OPTION_CATEGORIES and (option := _option(toks, i)) is not None:
             raise GeoScanError(f"{where}: the option {option} is not allowed in a case's "
-                               "gmsh file (Mesh.*, Geometry.* and General.Terminal/Verbosity/"
-                               "NumThreads are): remove it")
+                               "gmsh file (Mesh.* and Geometry.* but partitioning and GUI "
+                               "commands, and General.Terminal/Verbosity/NumThreads are): "
+                               "remove it")
         if word == "Printf" and _skip_parentheses(toks, i + 1) < len(toks) and \
                 toks[_skip_parentheses(toks, i + 1)].text != ";":
             raise GeoScanError(f"{where}: 'Printf(...) >' writes a file; a case's gmsh file "
