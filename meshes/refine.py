@@ -319,23 +319,70 @@ def write_msh(gmsh, level: MeshLevel, path) -> None:
     gmsh.model.remove()
 
 
-def check_level_sizes(path, vertices: list[int], max_vertices: float) -> None:
+# refine_file's peak memory per vertex of the finest level [bytes], measured (peak RSS):
+# the hierarchy, the edge search and gmsh's copy written as .msh; 610 B in 2D
+# (punch_relaxation.geo refined 4 -> 5 times: 0.57 -> 2.0 GB), 1.6 kB in 3D (sphere3d.geo)
+REFINE_BYTES = {2: 700, 3: 2000}
+
+
+def available_memory() -> float | None:
+    """The memory this machine can still give [bytes] (MemAvailable), or None if unknown.
+
+    Returns:
+        /proc/meminfo's MemAvailable in bytes, or None (no /proc, or no such line).
+    """
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def too_large(vertices: list[int], dim: int, max_vertices: float,
+              memory: float | None) -> tuple[int, str] | None:
+    """The first level of a hierarchy over the vertex limit, or that cannot be refined in
+    the memory there is.
+
+    Args:
+        vertices: the vertex counts of the levels (``level_vertices``).
+        dim: the space dimension.
+        max_vertices: the most vertices a level may have.
+        memory: the memory available [bytes], or None (not checked).
+
+    Returns:
+        (the level, why: "would have ... vertices (limit ...)" or "would need about ... GB
+        of memory to refine (... GB available)"), or None if every level fits.
+    """
+    for r, v in enumerate(vertices):
+        if v > max_vertices:
+            return r, f"would have {v:.3g} vertices (limit {max_vertices:.0e})"
+        need = REFINE_BYTES[dim] * v
+        if memory is not None and need > memory:
+            return r, (f"would need about {need / 1e9:.3g} GB of memory to refine "
+                       f"({memory / 1e9:.3g} GB available)")
+    return None
+
+
+def check_level_sizes(path, vertices: list[int], dim: int, max_vertices: float) -> None:
     """Refuse a hierarchy whose finest level would be too large, before refining.
 
     Args:
         path: the mesh file, for the message.
         vertices: the vertex counts of the levels (``level_vertices``).
+        dim: the space dimension.
         max_vertices: the most vertices a level may have.
 
     Raises:
-        MeshFileError: naming the first level over the limit and the most refinements
-            allowed.
+        MeshFileError: naming the first level over the limits (``too_large``) and the most
+            refinements allowed.
     """
-    over = [r for r, v in enumerate(vertices) if v > max_vertices]
+    over = too_large(vertices, dim, max_vertices, available_memory())
     if over:
-        r = over[0]
-        raise MeshFileError(f"{path} refined {r} times would have {vertices[r]:.3g} vertices "
-                            f"(limit {max_vertices:.0e}); allowed: at most {r - 1} "
+        r, why = over
+        raise MeshFileError(f"{path} refined {r} times {why}; allowed: at most {r - 1} "
                             "refinements of this mesh, or a coarser mesh")
 
 
@@ -425,7 +472,7 @@ def refine_file(comm, path, dim: int, size: float, levels: int, out_dir,
     """
     def work(gmsh):
         out = [read_level(gmsh, path, dim, size)]
-        check_level_sizes(path, level_vertices(out[0], levels), max_vertices)
+        check_level_sizes(path, level_vertices(out[0], levels), dim, max_vertices)
         for _ in range(levels):
             out.append(refine(out[-1]))
         Path(out_dir).mkdir(parents=True, exist_ok=True)

@@ -625,9 +625,9 @@ def _level_rows(levels, recs, ref, vary, T, delta, comm) -> list[dict]:
 
 def check_level_sizes(case, comm, option: str, value: int, extra: int = 0) -> None:
     """Refuse a study whose finest refinement of the case's mesh.file would be larger than
-    the built-in meshes may be (app.io.case.MAX_VERTICES vertices), before anything is
-    refined or run: the vertex counts follow from the mesh read (meshes/refine.py,
-    ``read_sizes``); collective.
+    the built-in meshes may be (app.io.case.MAX_VERTICES vertices) or could not be refined
+    in the memory rank 0 has (meshes/refine.py, ``too_large``), before anything is refined
+    or run: the vertex counts follow from the mesh read (``read_sizes``); collective.
 
     Args:
         case: the validated Case (nothing to check without a mesh.file).
@@ -644,20 +644,19 @@ def check_level_sizes(case, comm, option: str, value: int, extra: int = 0) -> No
         return
     from app.io.case import MAX_VERTICES
     from meshes import MeshFileError
-    from meshes.refine import read_sizes
+    from meshes.refine import available_memory, read_sizes, too_large
     finest = value + extra
     try:
         sizes = read_sizes(comm, case.mesh.file, case.dim, case.mesh.size, finest)
     except MeshFileError as exc:
         raise CaseError(f"{case.source}: mesh.file: {exc}") from None
-    over = [r for r, v in enumerate(sizes) if v > MAX_VERTICES]
+    memory = comm.bcast(available_memory() if comm.rank == 0 else None, root=0)  # refines
+    over = too_large(sizes, case.dim, MAX_VERTICES, memory)
     if over:
-        r = over[0]
+        r, why = over
         raise CaseError(f"{case.source}: {option} {value}: the study refines mesh.file "
-                        f"{finest} times; refined {r} times it would have about "
-                        f"{sizes[r]:.3g} vertices (limit {MAX_VERTICES:.0e}, as for the "
-                        f"built-in meshes); allowed: {option} up to {r - 1 - extra} (or a "
-                        "coarser mesh)")
+                        f"{finest} times; refined {r} times it {why}; allowed: {option} up "
+                        f"to {r - 1 - extra} (or a coarser mesh)")
 
 
 @contextlib.contextmanager
