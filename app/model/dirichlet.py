@@ -261,9 +261,14 @@ def free_motions(V, fixed: np.ndarray, parts: BodyParts) -> list[np.ndarray]:
     scale = np.maximum(np.max(parts.hi - parts.lo, axis=1), 1e-300)
     modes = rigid_modes((x - centre[part]) / scale[part, None])          # (n, d, r)
     node, comp = np.nonzero(fixed[:owned])
-    rows = modes[node, comp, :]                                          # (prescribed, r)
+    order = np.argsort(part[node], kind="stable")
+    node, comp = node[order], comp[order]
+    rows = modes[node, comp, :]                            # (prescribed, r), part by part
     M = np.zeros((len(parts.cells), rows.shape[1], rows.shape[1]))
-    np.add.at(M, part[node], rows[:, :, None] * rows[:, None, :])
+    ends = np.searchsorted(part[node], np.arange(len(parts.cells) + 1))
+    for k in np.flatnonzero(np.diff(ends)):
+        R = rows[ends[k]:ends[k + 1]]
+        M[k] = R.T @ R
     V.mesh.comm.Allreduce(MPI.IN_PLACE, M, op=MPI.SUM)
     free = []
     for Mk in M:
