@@ -207,9 +207,11 @@ def _statements(toks: list[Token], path: Path, name: str) -> list[tuple[str, Pat
     return files
 
 
-def _read(path: Path, name: str) -> bytes:
+def _read(path: Path, name: str, size: int = -1) -> bytes:
+    """The file's first ``size`` bytes (all: -1)."""
     try:
-        return path.read_bytes()
+        with open(path, "rb") as f:
+            return f.read(size)
     except OSError as err:
         raise GeoScanError(f"{name}: cannot read {path}: {err.strerror or err}") from None
 
@@ -221,7 +223,7 @@ def _merged_kind(path: Path, where: str) -> str:
     if path.suffix in _CAD:
         return "data"
     if path.suffix == ".msh":
-        readable = path.is_file() and _read(path, where).startswith(_MESH_HEADERS)
+        readable = path.is_file() and _read(path, where, 64).startswith(_MESH_HEADERS)
         return "data" if readable or not path.is_file() else "script"
     raise GeoScanError(f"{where}: Merge of {path.name!r}: vpcontact lets a .geo merge only "
                        ".geo, .msh and CAD files (.step .stp .iges .igs .brep .stl)")
@@ -243,7 +245,7 @@ def mesh_files(path) -> list[Path]:
     """
     path = Path(path)
     first = "script" if path.suffix.lower() == ".geo" else "data"
-    if first == "data" and path.is_file() and not _read(path, str(path)).startswith(
+    if first == "data" and path.is_file() and not _read(path, str(path), 64).startswith(
             _MESH_HEADERS):
         raise GeoScanError(f"{path} is not a gmsh mesh (it does not start with $MeshFormat), "
                            "and gmsh would run it as a script; give a .msh saved by gmsh")
@@ -266,7 +268,7 @@ def _visit(path: Path, kind: str, where: str, stack: tuple, seen: dict, merged: 
     if not path.is_file():
         raise GeoScanError(f"{where}: {path} is not a readable file (it is named by a gmsh "
                            "file of the case)")
-    data = _read(path, where)
+    data = _read(path, where, -1 if kind == "script" else 1)
     seen[key] = None
     if kind == "script":
         name = str(path)

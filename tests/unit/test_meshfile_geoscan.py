@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 from mpi4py import MPI
 
-from meshes import MeshFileError, load_mesh_file
+from meshes import MeshFileError, geoscan, load_mesh_file
 from meshes.geoscan import GeoScanError, mesh_files, tokens
 
 SQUARE = """Point(1) = {0, 0, 0, 0.5}; Point(2) = {1, 0, 0, 0.5};
@@ -144,13 +144,11 @@ def test_an_unreadable_include_is_refused(tmp_path, monkeypatch):
     part = _write(tmp_path / "part.geo", SQUARE + 'Include "sizes.geo";')
     sizes = _write(tmp_path / "sizes.geo", "h = 0.5;")
 
-    real = Path.read_bytes
-
-    def locked(self):
-        if self == sizes:
+    def locked(path, *args, **kwargs):
+        if Path(path) == sizes:
             raise PermissionError(13, "Permission denied")
-        return real(self)
-    monkeypatch.setattr(Path, "read_bytes", locked)
+        return open(path, *args, **kwargs)
+    monkeypatch.setattr(geoscan, "open", locked, raising=False)   # root reads any file
     with pytest.raises(GeoScanError, match=r"cannot read .*sizes\.geo: Permission denied"):
         mesh_files(part)
 
