@@ -1,6 +1,6 @@
-"""Interrupts of the studies (issue 30, item 11): SIGINT or SIGTERM ends the whole study with
-exit 3 and one line, and keeps what finished (the run cache's entries of the convergence
-study, the stability report of the variants done, marked incomplete).
+"""Interrupts of the studies: SIGINT or SIGTERM ends the whole study with exit 3 and one
+line, and keeps what finished (the run cache's entries of the convergence study, the
+stability report of the variants done, marked incomplete).
 
 The signals are real: sent to a real process, either by the process itself at a chosen step
 of a chosen run (a patched GridSamples.step: deterministic, so the moment is known) or by

@@ -1,7 +1,7 @@
-"""Studies on a user's mesh (issue 30, item 11): the refined levels are refused before any
-refinement or run when the finest would exceed the built-in meshes' vertex limit (one line,
-exit 2, no output directory), and a signal while gmsh meshes the .geo ends the study with
-exit 3 and one line (gmsh's module set SIGINT to its default action: the process died)."""
+"""Studies on a user's mesh: the refined levels are refused before any refinement or run
+when the finest would exceed the built-in meshes' vertex limit or the memory (one line, exit
+2, no output directory), and a signal while gmsh meshes the .geo ends the study with exit 3
+and one line (gmsh's module set SIGINT to its default action: the process died)."""
 import os
 import subprocess
 import sys
