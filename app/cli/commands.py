@@ -454,6 +454,11 @@ def cmd_plot(args) -> int:
     if missing:
         return error(f"{outdir}: not a results directory (missing {', '.join(missing)})",
                      EXIT_BAD_INPUT)
+    from app.post.plot import ResultsError, check_results
+    try:
+        check_results(outdir)                  # a damaged file: one line naming it
+    except ResultsError as exc:
+        return error(str(exc), EXIT_BAD_INPUT)
     if MPI.COMM_WORLD.rank == 0:
         status = plots(outdir, animate=args.animate)
         return {"drawn": 0, "failed": EXIT_FAILED, "interrupted": EXIT_INTERRUPTED}[status]

@@ -13,7 +13,8 @@ and contact.xdmf (the Gamma3 facets with the contact table), for any geometry, 2
 No display is needed: VTK renders through EGL (libEGL, Mesa) where no X display is set.
 
 The pictures are drawn in a process of their own (``python -m app.post.pictures``, started by
-app/post/plot.py, which also hands it some of the line figures): VTK's wheel is built with
+app/post/plot.py, which also hands it some of the line figures; a second such process with
+--no-pictures draws the other line figures meanwhile): VTK's wheel is built with
 the old C++ string ABI, and in a process that has loaded dolfinx its std::regex code binds to
 dolfinx's instantiations and aborts (std::bad_alloc as soon as a scalar bar is drawn;
 measured).  This module and app/post/plot.py import no dolfinx.
@@ -412,16 +413,24 @@ class GifStream:
         self.fh.write(b";")
 
 
-def warm_up() -> None:
-    """Load pyvista's plotting modules, matplotlib and the figures' module, and start VTK's
-    OpenGL (EGL) once: 0.8-1 s that a process started ahead of time spends while the run
-    computes (measured)."""
+def warm_up(pictures: bool = True) -> None:
+    """Load matplotlib, the figures' module (and h5py, which it reads with) and, for the
+    pictures, pyvista's plotting modules, and start VTK's OpenGL (EGL) once: 0.8-1 s that a
+    process started ahead of time spends while the run computes (measured).
+
+    Args:
+        pictures: also pyvista and OpenGL (False: a process for line figures only).
+    """
+    import h5py  # noqa: F401
+
     from app.post.plot import _mpl
     plt = _mpl()                               # matplotlib's first figure costs 0.1-0.2 s
     fig = plt.figure(figsize=(1, 1))
     fig.text(0.5, 0.5, "x")
     fig.savefig(os.devnull, format="png")
     plt.close(fig)
+    if not pictures:
+        return
     pv = _pyvista()
     p = pv.Plotter(off_screen=True, window_size=(64, 48))
     p.add_mesh(pv.Sphere(), scalars=np.arange(pv.Sphere().n_points, dtype=float),
@@ -434,11 +443,12 @@ def main(argv=None) -> int:
     """The process: draw the pictures (and the animation, and the line figures it is given)
     of a results directory.  With --wait it warms up first and then reads the job as one
     JSON line from standard input ({"results", "factor", "dim", "animate", "line"}); at end
-    of input it exits with nothing drawn.
+    of input it exits with nothing drawn.  With --no-pictures it draws the line figures
+    only (and loads no pyvista).
 
     Args:
         argv: the arguments (default sys.argv[1:]): RESULTS_DIR --factor F --dim D
-            [--animate] [--line NAME ...], or --wait.
+            [--animate] [--line NAME ...] [--no-pictures], or --wait [--no-pictures].
 
     Returns:
         0; the files written and the animation's frames are printed as one JSON line.
@@ -450,16 +460,18 @@ def main(argv=None) -> int:
     ap.add_argument("--animate", action="store_true")
     ap.add_argument("--line", nargs="*", default=[], help="line figures (app/post/plot.py)")
     ap.add_argument("--wait", action="store_true")
+    ap.add_argument("--no-pictures", action="store_true",
+                    help="only the line figures given with --line")
     args = ap.parse_args(argv)
     if args.wait:
-        warm_up()
+        warm_up(not args.no_pictures)
         line = sys.stdin.readline()
         if not line.strip():
             return 0
         job = json.loads(line)
         args.results, args.factor = Path(job["results"]), job["factor"]
         args.dim, args.animate, args.line = job["dim"], job["animate"], job["line"]
-    files = draw_all(args.results, args.factor, args.dim)
+    files = [] if args.no_pictures else draw_all(args.results, args.factor, args.dim)
     if args.line:
         from app.post.plot import draw_line_figures
         files += draw_line_figures(args.results, args.line, args.factor)

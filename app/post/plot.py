@@ -37,6 +37,86 @@ def _mpl():
 
 
 # ----------------------------------------------------------------------------- reading
+class ResultsError(ValueError):
+    """A file of a results directory is damaged or incomplete (the message names it)."""
+
+
+def check_results(outdir: Path) -> None:
+    """Check the files the figures read before any figure is drawn: summary.json is a JSON
+    object, solution.xdmf and contact.xdmf are complete XML whose every HDF5 dataset exists
+    in a readable solution.h5 / contact.h5 with the shape the XML states, contact.csv has
+    whole rows of numbers (a damaged file made VTK abort the pictures' process, or ended
+    in a matplotlib error naming no file).
+
+    Args:
+        outdir: the results directory.
+
+    Raises:
+        ResultsError: one line naming the file and what is wrong with it.
+    """
+    outdir = Path(outdir)
+    path = outdir / "summary.json"
+    try:
+        summary = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ResultsError(f"{path}: not valid JSON ({exc}); the run's summary is damaged") \
+            from None
+    if not isinstance(summary, dict):
+        raise ResultsError(f"{path}: not a run summary (a JSON object expected)")
+    for stem in ("solution", "contact"):
+        if stem == "solution" or (outdir / f"{stem}.xdmf").exists():
+            _check_xdmf(outdir / f"{stem}.xdmf")
+    _check_contact_csv(outdir / "contact.csv")
+
+
+def _check_xdmf(path: Path) -> None:
+    """An XDMF file parses and its HDF5 datasets exist with their stated shapes."""
+    import xml.etree.ElementTree as ET
+    try:
+        items = [i for i in ET.parse(path).getroot().iter("DataItem")
+                 if i.get("Format") == "HDF"]
+    except (ET.ParseError, OSError) as exc:
+        raise ResultsError(f"{path}: not a complete XDMF file ({exc})") from None
+    files = {}
+    try:
+        for item in items:
+            name, _, dataset = (item.text or "").strip().partition(":")
+            _check_dataset(files, path, name, dataset, item.get("Dimensions", ""))
+    finally:
+        for f in files.values():
+            f.close()
+
+
+def _check_dataset(files: dict, path: Path, name: str, dataset: str, dims: str) -> None:
+    """The dataset an XDMF DataItem names exists with its shape (files: open HDF5 files)."""
+    import h5py
+    h5 = path.parent / name
+    try:
+        if name not in files:
+            files[name] = h5py.File(h5, "r")
+        shape = tuple(int(n) for n in dims.split())
+        found = files[name][dataset].shape if dataset in files[name] else None
+    except (OSError, ValueError) as exc:
+        raise ResultsError(f"{h5}: cannot be read ({exc})") from None
+    if found != shape:
+        raise ResultsError(f"{h5}: no dataset {dataset} of shape {shape} (named by "
+                           f"{path.name}): the file is incomplete or damaged")
+
+
+def _check_contact_csv(path: Path) -> None:
+    """contact.csv (if there) has whole rows: a number in every column but state."""
+    if not path.exists():
+        return
+    with open(path, newline="") as fh:
+        for line, row in enumerate(csv.DictReader(fh), start=2):
+            try:
+                if None in row or None in row.values():
+                    raise ValueError("a different number of columns than the header")
+                [float(v) for k, v in row.items() if k != "state"]
+            except ValueError as exc:
+                raise ResultsError(f"{path}: line {line}: {exc}") from None
+
+
 class Results:
     """The data of a results directory needed by the figures.
 
@@ -203,7 +283,8 @@ def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None)
             if m.any():
                 ax.vlines(xb[m], yb[m] - scale * force[m], yb[m], colors=colour, lw=2,
                           label=f"-sigma_nu, {state} ({int(m.sum())} nodes)")
-        ax.legend(loc="upper right", fontsize=8)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="upper right", fontsize=8)
         ax.set_ylim(min(yb.min() - scale * max(force.max(), 0) - 0.05, -0.3), None)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
@@ -432,10 +513,11 @@ def draw_line_figures(outdir: Path, names, factor: float, res=None) -> list[Path
 
 
 def plot_all(outdir: Path, log=None, animate: bool = False, painter=None) -> list[Path]:
-    """Write every figure into ``outdir`` (atomically: temporary file, then rename), in two
-    processes at once: this one draws the line figures (matplotlib) but
-    PAINTER_LINE_FIGURES; the pictures' process (app/post/pictures.py: pyvista, started ahead
-    of a serial run) draws the pictures, PAINTER_LINE_FIGURES and the animation if asked for.
+    """Write every figure into ``outdir`` (atomically: temporary file, then rename), in the
+    two figure processes of a Painter at once (started ahead of a serial run, so that
+    loading matplotlib, pyvista and OpenGL overlaps the computation): one draws the
+    pictures (app/post/pictures.py), PAINTER_LINE_FIGURES and the animation if asked for,
+    the other the other line figures.
 
     Args:
         outdir: the results directory.
@@ -447,85 +529,124 @@ def plot_all(outdir: Path, log=None, animate: bool = False, painter=None) -> lis
         The files written (of FIGURES).
 
     Raises:
-        PicturesError: the pictures' process failed (this process's figures are written).
+        PicturesError: the pictures' process failed (the line figures are written).
     """
     outdir = Path(outdir)
     res = Results(outdir)
     factor = res.magnification()
     painter = painter or Painter()
     try:
-        painter.draw(outdir, factor, res.dim, animate, PAINTER_LINE_FIGURES)
-        mine = [n for n in LINE_FIGURES if n not in PAINTER_LINE_FIGURES]
-        written = draw_line_figures(outdir, mine, factor, res)
-        if log:
-            log(f"fig3_deformed_contact.png, body.png: displacement magnified x {factor:g}")
-        result = painter.finish(written)
+        painter.draw(outdir, factor, res.dim, animate)
+        result = painter.finish()
     finally:
         painter.cancel()
-    if log and result["frames"] is not None:
-        log(f"{ANIMATION}: {result['frames']} frames")
-    return written + [Path(f) for f in result["files"]]
+    if log:
+        log(f"fig3_deformed_contact.png, body.png: displacement magnified x {factor:g}")
+        if result["frames"] is not None:
+            log(f"{ANIMATION}: {result['frames']} frames")
+    return [Path(f) for f in result["files"]]
 
 
 class Painter:
-    """The pictures' process: ``python -m app.post.pictures --wait`` (it loads pyvista and
-    matplotlib and starts OpenGL at once, then waits for its job), without MPI's variables
-    (it is no rank of a job).  Started ahead of a run, its start-up overlaps the run."""
+    """The figures' processes: ``python -m app.post.pictures --wait`` (pyvista's pictures,
+    PAINTER_LINE_FIGURES, the animation; it loads pyvista and matplotlib and starts OpenGL
+    at once) and ``... --wait --no-pictures`` (the other line figures; it loads
+    matplotlib), each waiting for its job, without MPI's variables (they are no ranks of a
+    job).  Started ahead of a run, their start-up overlaps the run, and the figures are
+    drawn on two cores while the run's process waits.
+
+    Raises:
+        OSError: a process cannot be started.
+    """
 
     def __init__(self):
-        import os
-        import subprocess
-        import sys
+        self.pictures, self.lines, self._job = _figure_process(), None, None
+        try:
+            self.lines = _figure_process("--no-pictures")
+        except OSError:
+            self.cancel()
+            raise
 
-        from app.post import pictures
-        env = {k: v for k, v in os.environ.items()
-               if not k.startswith(("OMPI_", "PMIX_", "PMI_"))}
-        self.proc = subprocess.Popen([sys.executable, "-P", "-m", pictures.__name__, "--wait"],
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True, env=env)
-
-    def draw(self, outdir: Path, factor: float, dim: int, animate: bool, line=()) -> None:
-        """Give the job (the process draws while the caller goes on).
+    def draw(self, outdir: Path, factor: float, dim: int, animate: bool) -> None:
+        """Give the processes their jobs (they draw while the caller goes on).
 
         Args:
             outdir: the results directory.
             factor: the displacement magnification.
             dim: the body's dimension.
             animate: also the animation.
-            line: line figures it draws too (names of LINE_FIGURES).
         """
-        try:
-            self.proc.stdin.write(json.dumps({"results": str(outdir), "factor": factor,
-                                              "dim": dim, "animate": animate,
-                                              "line": list(line)}) + "\n")
-            self.proc.stdin.flush()            # communicate() closes it
-        except OSError:            # it died while starting: finish() reports its error
-            pass
+        self._job = {"results": str(outdir), "factor": factor, "dim": dim}
+        _give(self.pictures, {**self._job, "animate": animate,
+                              "line": list(PAINTER_LINE_FIGURES)})
+        _give(self.lines, {**self._job, "animate": False, "line": _own_line_figures()})
 
-    def finish(self, written: list[Path]) -> dict:
-        """Wait for the pictures.
-
-        Args:
-            written: the line figures already drawn (for the error).
+    def finish(self) -> dict:
+        """Wait for the figures (if the line figures' process failed, they are drawn here).
 
         Returns:
             {"files": [...], "frames": the animation's, or None}.
 
         Raises:
-            PicturesError: the process failed (its last error line).
+            PicturesError: the pictures' process failed (its last error line; ``written``:
+                the line figures).
         """
-        out, err = self.proc.communicate()
-        if self.proc.returncode != 0 or not out.strip():
-            lines = [x for x in err.splitlines() if x.strip()]
-            raise PicturesError(lines[-1] if lines else f"exit {self.proc.returncode}",
-                                written)
-        return json.loads(out.strip().splitlines()[-1])
+        job = self._job
+        try:
+            lines = _result(self.lines)["files"]
+        except PicturesError:
+            lines = [str(f) for f in draw_line_figures(Path(job["results"]),
+                                                       _own_line_figures(), job["factor"])]
+        try:
+            pictures = _result(self.pictures)
+        except PicturesError as exc:
+            exc.written = [Path(f) for f in lines]
+            raise
+        return {"files": lines + pictures["files"], "frames": pictures["frames"]}
 
     def cancel(self) -> None:
-        """Stop the process if it still runs (a run that ends without figures)."""
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.communicate()
+        """Stop the processes that still run (a run that ends without figures)."""
+        for proc in (self.pictures, self.lines):
+            if proc is not None and proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+
+
+def _own_line_figures() -> list[str]:
+    """The line figures of the line figures' process."""
+    return [n for n in LINE_FIGURES if n not in PAINTER_LINE_FIGURES]
+
+
+def _figure_process(*options):
+    """Start ``python -m app.post.pictures --wait`` (with options), MPI's variables left
+    out."""
+    import os
+    import subprocess
+    import sys
+
+    from app.post import pictures
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_", "PMI_"))}
+    return subprocess.Popen([sys.executable, "-P", "-m", pictures.__name__, "--wait", *options],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
+
+
+def _give(proc, job: dict) -> None:
+    """Send a figure process its job (one JSON line)."""
+    try:
+        proc.stdin.write(json.dumps(job) + "\n")
+        proc.stdin.flush()                     # communicate() closes it
+    except OSError:            # it died while starting: _result reports its error
+        pass
+
+
+def _result(proc) -> dict:
+    """The files (and frames) a figure process wrote; PicturesError if it failed."""
+    out, err = proc.communicate()
+    if proc.returncode != 0 or not out.strip():
+        lines = [x for x in err.splitlines() if x.strip()]
+        raise PicturesError(lines[-1] if lines else f"exit {proc.returncode}", [])
+    return json.loads(out.strip().splitlines()[-1])
 
 
 # LINE_FIGURES' drawing functions, (res, path) (fig3 also takes the factor)

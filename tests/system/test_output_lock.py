@@ -1,4 +1,4 @@
-"""The output directory's lock (issue 30, item 3): no `.vpcontact.lock` is left in the
+"""The output directory's lock: no `.vpcontact.lock` is left in the
 directory after a command, however it ended, serial or under mpirun; two processes are
 still kept out of one directory, also across the moment a process removes the file."""
 import fcntl

@@ -1,0 +1,40 @@
+"""The figures of a run are drawn by the two figure processes: the
+run's process only hands out the jobs, so that a loaded machine does not hold the run's
+process up for the line figures (it drew four of them itself: 1.1 s idle, 2.9 s loaded for
+the 1/128 run)."""
+import pytest
+
+from conftest import PAPER_CASE, run_cli
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    out = tmp_path_factory.mktemp("figures") / "run"
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--set", "mesh.n=4", "--set",
+                    "time.N=2", "--quiet"])
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+def test_the_runs_process_draws_no_figure(results, monkeypatch):
+    from app.post import plot
+
+    def here(*args, **kwargs):
+        raise AssertionError("a line figure drawn in the run's process")
+    monkeypatch.setattr(plot, "draw_line_figures", here)
+    files = plot.plot_all(results)
+    names = {f.name for f in files}
+    assert names == set(plot.LINE_FIGURES) | {"body.png", "fig5_vm_kappa.png"}
+    assert all((results / n).stat().st_size > 10_000 for n in names)
+
+
+def test_a_failed_line_figure_process_leaves_them_to_the_runs_process(results, monkeypatch):
+    """If the line figures' process dies, the line figures are drawn in this process."""
+    from app.post import plot
+    for name in plot.LINE_FIGURES:
+        (results / name).unlink(missing_ok=True)
+    painter = plot.Painter()
+    painter.lines.kill()
+    files = plot.plot_all(results, painter=painter)
+    assert {f.name for f in files} >= set(plot.LINE_FIGURES)
+    assert all((results / n).is_file() for n in plot.LINE_FIGURES)
