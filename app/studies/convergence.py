@@ -168,11 +168,23 @@ def plan_runs(levels: list[int], reference: int, vary: str, case=None,
     if case is not None:
         ds = list(deltas) if deltas else [case.numerics.delta]
         ref_delta = min([case.numerics.delta, *ds])
-        _case_at(case.raw, reference, reference, ref_delta, case.source)
-        for n, N in plan:
+        with _naming("--reference", reference):
+            _case_at(case.raw, reference, reference, ref_delta, case.source)
+        for L, (n, N) in zip(levels, plan):
             for delta in ds:
-                _case_at(case.raw, n, N, delta, case.source)
+                with _naming("--levels", L):
+                    _case_at(case.raw, n, N, delta, case.source)
     return plan
+
+
+@contextlib.contextmanager
+def _naming(option: str, value: int):
+    """A CaseError of a level's case names the study's option that made it (the case's
+    mesh.n or time.N was set from it)."""
+    try:
+        yield
+    except CaseError as exc:
+        raise CaseError(f"{option} {value}: {exc}") from None
 
 
 def _check_plan(case, vary: str, levels, bad_levels: bool, why: str) -> None:
@@ -229,10 +241,12 @@ def _plan_refinements(levels, reference, vary, case, deltas) -> list[tuple[int, 
             else (reference, N0 * 2 ** r) for r in levels]
     ds = list(deltas) if deltas else [case.numerics.delta]
     ref_delta = min([case.numerics.delta, *ds])
-    _case_at_level(case.raw, case.mesh.file, N0 * 2 ** reference, ref_delta, case.source)
-    for _, N in plan:
+    with _naming("--reference", reference):
+        _case_at_level(case.raw, case.mesh.file, N0 * 2 ** reference, ref_delta, case.source)
+    for r, (_, N) in zip(levels, plan):
         for delta in ds:
-            _case_at_level(case.raw, case.mesh.file, N, delta, case.source)
+            with _naming("--levels", r):
+                _case_at_level(case.raw, case.mesh.file, N, delta, case.source)
     return plan
 
 

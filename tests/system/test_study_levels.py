@@ -120,3 +120,18 @@ def test_signal_while_gmsh_meshes_ends_the_study(tmp_path, nth, line):
     lines = proc.stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith(line), proc.stderr
     assert not list(tmp.glob("vpcontact-levels-*"))
+
+
+@pytest.mark.parametrize("args, start", [
+    (["convergence", ROOT / "cases" / "wang_cheng_2021.yaml", "--levels", "4", "--reference",
+      "100000"], "--reference 100000: "),
+    (["convergence", HERTZ, "--levels", "0", "--reference", "2", "--set", "time.N=400000"],
+     "--reference 2: "),
+])
+def test_a_level_the_case_refuses_names_the_study_option(tmp_path, args, start):
+    """A level's case too large for the case's limits (mesh.n <= 4096, time.N <= 1e6) named
+    mesh.n or time.N only, which the command line did not set; now the option first."""
+    proc = run_cli([*args, "--out", tmp_path / "o", "--no-cache"])
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.startswith(f"vpcontact: error: {start}"), proc.stderr
+    assert proc.stderr.count("\n") == 1 and not (tmp_path / "o").exists()
