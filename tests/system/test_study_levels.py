@@ -135,3 +135,20 @@ def test_a_level_the_case_refuses_names_the_study_option(tmp_path, args, start):
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.startswith(f"vpcontact: error: {start}"), proc.stderr
     assert proc.stderr.count("\n") == 1 and not (tmp_path / "o").exists()
+
+
+def test_signal_while_gmsh_meshes_ends_the_stability_sweep(tmp_path):
+    """The sweep's levels of a .geo (the second meshing): exit 3, one line, no report."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    cmd = [sys.executable, "-c", SIGNAL_WHILE_MESHING, "2", "stability", str(HERTZ),
+           "--out", str(tmp_path / "o")]
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300,
+                          env={**os.environ, **MPI_ENV, "PYTHONPATH": str(ROOT),
+                               "TMPDIR": str(tmp)})
+    assert proc.returncode == 3, proc.stderr
+    assert proc.stderr == ("vpcontact: stability sweep interrupted by SIGINT during the "
+                           f"refinement of {ROOT / 'cases' / 'hertz_cylinder.geo'}; no variant "
+                           "had finished, no report written\n")
+    assert not list(tmp.glob("vpcontact-levels-*"))
+    assert not (tmp_path / "o" / "stability.csv").exists()
