@@ -46,9 +46,9 @@ def atomic_write(path: Path, text: str | bytes, sync: bool = True) -> None:
     Args:
         path: the file.
         text: its new content (str, or bytes written as they are).
-        sync: fsync the file before the rename (the XML republished at every output step
-            skips it: a killed process leaves the page cache intact, and the HDF5 data it
-            points at is not synced either).
+        sync: fsync the file before the rename (the XDMF files skip it: a killed process
+            leaves the page cache intact, and the HDF5 data they point at is not synced
+            either).
 
     Raises:
         OSError: the write failed (the old file, if any, is unchanged).
