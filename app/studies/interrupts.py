@@ -134,9 +134,9 @@ def check_run(summary: dict, where: str) -> None:
         StudyInterrupted: the run's status is "interrupted" (every rank agrees on it).
     """
     if summary["status"] == "interrupted":
-        last = summary["failure"]["reason"].split()[-1]      # "interrupted by SIGINT"
-        raise StudyInterrupted(last if last.startswith("SIG") else "a signal",
-                               f"{where} (after its step {summary['failure']['step']})")
+        # "interrupted by SIGINT", or "... by a signal on another rank" (mpirun)
+        by = summary["failure"]["reason"].removeprefix("interrupted by ")
+        raise StudyInterrupted(by, f"{where} (after its step {summary['failure']['step']})")
 
 
 @contextlib.contextmanager

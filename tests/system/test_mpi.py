@@ -89,3 +89,38 @@ def test_root_call_lets_the_other_ranks_sleep_and_raises_everywhere(tmp_path):
         assert r["value"] == [0, [1.0, 2.0]], r
         assert r["raised"] == "the root's iteration failed", r
     assert ranks[1]["cpu"] < 0.15, ranks[1]
+
+
+SIGNAL_ON_RANK_1 = """
+import os, signal, sys
+from mpi4py import MPI
+from app.studies import convergence as cv
+count, real = [0], cv.GridSamples.step
+def step(self, sim, record):
+    real(self, sim, record)
+    count[0] += 1
+    if count[0] == 9 and MPI.COMM_WORLD.rank == 1:
+        os.kill(os.getpid(), signal.SIGINT)
+cv.GridSamples.step = step
+from app.cli.main import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_signal_on_one_rank_ends_the_study_on_both(tmp_path):
+    """SIGINT reaching rank 1 only, in step 1 of the third run of a convergence study: every
+    rank stops that run and the study (exit 3), rank 0 prints the one line, and the two runs
+    that finished are in the cache (before: 'run failed', exit 1)."""
+    cache = tmp_path / "cache"
+    args = ["convergence", ROOT / "cases" / "hertz_cylinder.yaml", "--set", "mesh.size=4",
+            "--levels", "0", "1", "--reference", "2", "--vary", "h", "--out", tmp_path / "o",
+            "--cache-dir", cache]
+    proc = subprocess.run(["mpirun", "-n", "2", sys.executable, "-c", SIGNAL_ON_RANK_1,
+                           *map(str, args)], cwd=ROOT, capture_output=True, text=True,
+                          env={**os.environ, **MPI_ENV, "PYTHONPATH": str(ROOT)}, timeout=300)
+    assert proc.returncode == 3, proc.stderr
+    assert proc.stderr.count("vpcontact:") == 1, proc.stderr
+    assert ("vpcontact: convergence study interrupted by a signal on another rank during the "
+            "run r = 1, N = 4, delta = 1e-07 (after its step 2); the 2 run(s) that finished "
+            f"are in the run cache {cache}") in proc.stderr
+    assert len(list(cache.glob("run-*.h5"))) == 2 and not list(cache.glob(".*"))
