@@ -11,9 +11,9 @@ out-of-memory killer, and it dies with its parent (``PR_SET_PDEATHSIG``).
 Before meshing the surfaces and volumes, the number of nodes is estimated twice and refused
 above ``MAX``: from gmsh's upper bound of the mesh size (``Mesh.MeshSizeMax``, the
 bounding box, ``Mesh.MeshSizeFactor`` and ``SIZE``: no size anywhere exceeds it, so the
-curves alone have at least 2 (largest extent) / h nodes), then from the curves' mesh
-(mean segment length h1: about (bounding box measure) / h1^dim nodes).  The mesh made is
-counted too.
+curves alone have at least 2 (largest extent) / h nodes), then from a mesh of the curves
+with sizes floored at 1e-5 of the bounding box (mean segment length h1: about (bounding box
+measure) / h1^dim nodes; the floor keeps that mesh small).  The mesh made is counted too.
 
 Exit status: 0 the mesh is written to MSH; 2 refused, with one line on stderr.
 """
@@ -24,6 +24,7 @@ import os
 import sys
 
 REFUSED = "vpcontact-refused: "
+FLOOR = 1e-5          # the curves' sizes of the estimate, relative to the bounding box
 
 
 def _refuse(message: str):
@@ -70,28 +71,33 @@ def _bbox(gmsh):
     return b[:3], b[3:]
 
 
-def _curves(gmsh) -> tuple[int, float]:
-    """(number of segments, total length) of the curves' mesh."""
+def _curves(gmsh) -> tuple[int, float, float]:
+    """(number of segments, total length, shortest segment) of the curves' mesh."""
     import numpy as np
     tags, xyz, _ = gmsh.model.mesh.getNodes()
     if len(tags) == 0:
-        return 0, 0.0
+        return 0, 0.0, math.inf
     where = np.zeros(int(np.max(tags)) + 1, dtype=np.int64)
     where[np.asarray(tags, dtype=np.int64)] = np.arange(len(tags))
     xyz = np.asarray(xyz).reshape(-1, 3)
-    count, length = 0, 0.0
+    count, length, shortest = 0, 0.0, math.inf
     types, _, nodes = gmsh.model.mesh.getElements(1)
     for t, block in zip(types, nodes):
         n = gmsh.model.mesh.getElementProperties(t)[3]
         ends = where[np.asarray(block, dtype=np.int64).reshape(-1, n)[:, :2]]
-        length += float(np.linalg.norm(xyz[ends[:, 0]] - xyz[ends[:, 1]], axis=1).sum())
+        seg = np.linalg.norm(xyz[ends[:, 0]] - xyz[ends[:, 1]], axis=1)
+        length += float(seg.sum())
+        shortest = min(shortest, float(seg.min(initial=math.inf)))
         count += len(ends)
-    return count, length
+    return count, length, shortest
 
 
 def estimate(gmsh, path: str, dim: int, most: float) -> None:
     """Refuse a mesh of more than ``most`` nodes before meshing surfaces and volumes (the
-    module docstring); meshes the curves.
+    module docstring).  The curves are meshed with the sizes floored at FLOOR times the
+    bounding box diagonal (so that tiny sizes cannot make this mesh itself huge): a floor
+    only coarsens, so a guess above ``most`` from this mesh is a refusal; the curves' mesh
+    is then cleared and gmsh meshes them again with the true sizes.
 
     Args:
         gmsh: the gmsh module with the geometry loaded and its size factor set.
@@ -108,15 +114,25 @@ def estimate(gmsh, path: str, dim: int, most: float) -> None:
         _refuse(f"{path}: its mesh sizes (at most {h:.3g} on a body {extent[0]:.3g} long) "
                 f"ask for more than {2 * extent[0] / h:.3g} nodes (limit {most:.0e})"
                 + advice)
+    factor, size_min = (gmsh.option.getNumber(f"Mesh.{k}") for k in ("MeshSizeFactor",
+                                                                     "MeshSizeMin"))
+    floor = FLOOR * math.dist(lo, hi)
+    floored = factor > 0 and floor / factor > size_min
+    if floored:
+        gmsh.option.setNumber("Mesh.MeshSizeMin", floor / factor)
     gmsh.model.mesh.generate(1)
-    segments, length = _curves(gmsh)
+    segments, length, shortest = _curves(gmsh)
+    if floored:                             # gmsh meshes the curves again with true sizes
+        gmsh.option.setNumber("Mesh.MeshSizeMin", size_min)
+        gmsh.model.mesh.clear()
     if segments == 0 or length == 0:
         return
     h1 = length / segments
     guess = math.prod(max(e, 0.0) for e in extent[:dim]) / h1 ** dim
     if guess > most:
-        _refuse(f"{path}: its mesh sizes (about {h1:.3g} on the curves) ask for about "
-                f"{guess:.3g} nodes (limit {most:.0e})" + advice)
+        _refuse(f"{path}: its mesh sizes (about {h1:.3g} on the curves"
+                f"{' or less' if shortest < 2 * floor else ''}) ask for about {guess:.3g} "
+                f"nodes (limit {most:.0e})" + advice)
 
 
 def mesh(gmsh, path: str, out: str, dim: int, size: float, most: float) -> None:

@@ -128,3 +128,16 @@ def test_the_meshing_child_is_bounded_in_memory(tmp_path):
             gmshfile._mesh_geo(gmsh, str(geo), 2, 1.0, 1e8, memory=64 * 2**20)
     finally:
         gmsh.finalize()
+
+
+@pytest.mark.parametrize("name, dim", [("hertz_cylinder.geo", 2), ("sphere3d.geo", 3)])
+def test_tiny_point_sizes_are_refused_before_gmsh_meshes(name, dim):
+    """mesh.size 1e-6 on the shipped .geo files: every point size is tiny, the mesh would
+    have ~1e10 nodes (gmsh took all the machine's memory); refused in seconds."""
+    import time
+    start = time.monotonic()
+    with pytest.raises(MeshFileError, match=rf"{name}: its mesh sizes \(about .* on the "
+                                            r"curves or less\) ask for about .* nodes "
+                                            r"\(limit 1e\+08\)"):
+        load_mesh_file(MPI.COMM_SELF, ROOT / "cases" / name, dim, size=1e-6)
+    assert time.monotonic() - start < 30
