@@ -385,7 +385,7 @@ def cmd_bench(args) -> int:
         args: the parsed command line.
 
     Returns:
-        The exit code: 0 done, 1 a configuration failed, 2 bad input.
+        The exit code: 0 done, 1 a configuration failed, 2 bad input, 3 interrupted.
     """
     from app.io.cachedirs import unusable
     from app.studies import bench as bm
@@ -412,6 +412,10 @@ def cmd_bench(args) -> int:
         box3d = _box3d_rows(outdir, args.box3d_levels)
     except RuntimeError as exc:
         return error(str(exc), EXIT_FAILED)
+    except KeyboardInterrupt as exc:     # the run in progress was stopped with the bench
+        from app.studies.interrupts import signal_name
+        return interrupted(f"bench interrupted by {signal_name(exc)}; its run was stopped, "
+                           f"no bench.json or bench.md written to {outdir}")
     bm.write(outdir, rows, memory, scene, box3d)
     failed = bm.failures(rows, memory, scene) + [r["label"] for r in box3d if "failed" in r]
     if failed:

@@ -67,13 +67,28 @@ def measured_run(case: Path, out: Path, overrides: list[str], nprocs: int = 1):
     with open(err, "w") as stderr:
         proc = subprocess.Popen(cmd, env={**os.environ, **ENV}, stdout=subprocess.DEVNULL,
                                 stderr=stderr)
-        _, status, usage = os.wait4(proc.pid, 0)
+        try:
+            _, status, usage = os.wait4(proc.pid, 0)
+        except BaseException:          # SIGINT/SIGTERM to the bench: its run ends with it
+            _stop(proc)
+            raise
     wall = time.perf_counter() - t0
     proc.returncode = os.waitstatus_to_exitcode(status)
     if proc.returncode != 0:
         raise RuntimeError(f"bench run failed ({' '.join(cmd)}):\n{err.read_text()[-2000:]}")
     peak = usage.ru_maxrss * 1024                      # kilobytes on Linux
     return wall, peak, json.loads((out / "summary.json").read_text())
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    """End a bench run whose bench was interrupted: SIGTERM (the run stops after its step),
+    SIGKILL if it has not ended within 10 s; never left running on its own."""
+    proc.terminate()
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
 
 
 def run_overrides(case, out, overrides: list[str], nprocs: int = 1):

@@ -172,3 +172,39 @@ def test_signal_while_a_run_is_cached_keeps_the_entry_whole(tmp_path, monkeypatc
     times, back, meta = runcache.load(path, [0.0, 1.0])
     assert len(back) == 2 and meta["dofs"] == 6
     assert [p.name for p in tmp_path.iterdir()] == ["run-x.h5"]
+
+
+def _children(pid: int) -> list[int]:
+    try:
+        text = open(f"/proc/{pid}/task/{pid}/children").read()
+    except OSError:
+        return []
+    return [int(c) for c in text.split()]
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(") ")[-1][0] != "Z"      # a zombie has ended
+    except OSError:
+        return False
+
+
+def test_sigterm_to_the_bench_stops_its_run(tmp_path):
+    """SIGTERM to `bench` (not to its process group) left its current run going on its own
+    after the bench had exited, with the line 'interrupted before the time loop started';
+    now the run is stopped with the bench: exit 3, one line."""
+    proc = _popen(["bench", PAPER_CASE, "--levels", "128", "--extra", "--ranks", "1",
+                   "--memory-steps", "--out", tmp_path])
+    deadline = time.monotonic() + 120
+    while not _children(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    children = _children(proc.pid)
+    assert children, proc.communicate()[1]
+    proc.send_signal(signal.SIGTERM)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 3, stderr
+    assert _one_line(stdout, stderr) == ("vpcontact: bench interrupted by SIGTERM; its run was "
+                                         f"stopped, no bench.json or bench.md written to "
+                                         f"{tmp_path}")
+    assert not any(_alive(c) for c in children)
