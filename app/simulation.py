@@ -25,7 +25,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from app.io.case import Case, CaseError, rescale_for_length
+from app.io.case import MAX_VERTICES, Case, CaseError, rescale_for_length
 from app.io.output import OutputError
 from app.model.datapoints import check_data_on_mesh
 from app.model.gamma3 import Gamma3History, Kernel
@@ -59,7 +59,7 @@ def build_mesh(case: Case, comm):
     m = case.mesh
     if m.file is not None:
         try:
-            return load_mesh_file(comm, m.file, m.dim, m.size)
+            return load_mesh_file(comm, m.file, m.dim, m.size, max_vertices=MAX_VERTICES)
         except MeshFileError as exc:
             raise CaseError(f"{case.source}: mesh.file: {exc}") from None
     size = {"n": m.n} if m.kind == "structured" else {"h": m.h}
