@@ -456,8 +456,10 @@ def cmd_plot(args) -> int:
     missing = [f for f in ("summary.json", "solution.xdmf", "solution.h5")
                if not (outdir / f).is_file()]
     if missing:
-        return error(f"{outdir}: not a results directory (missing {', '.join(missing)})",
-                     EXIT_BAD_INPUT)
+        killed = "; a run killed before its end writes no summary.json" \
+            if missing == ["summary.json"] else ""
+        return error(f"{outdir}: not a results directory (missing {', '.join(missing)})"
+                     f"{killed}", EXIT_BAD_INPUT)
     from app.post.plot import ResultsError, check_results
     try:
         check_results(outdir)                  # a damaged file: one line naming it

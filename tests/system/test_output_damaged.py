@@ -73,3 +73,4 @@ def test_plot_of_a_killed_run_names_what_is_missing(results, tmp_path):
     proc = run_cli(["plot", out, "--animate"])
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert proc.stderr.strip().count("\n") == 0 and "summary.json" in proc.stderr
+    assert "killed" in proc.stderr
