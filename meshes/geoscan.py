@@ -68,6 +68,7 @@ _CAD = {".stl", ".STL", ".brep", ".brp", ".BRP", ".rle", ".iges", ".IGES", ".igs
 # the first line of a file gmsh reads as a mesh (else it parses the file as a script)
 _MESH_HEADERS = (b"$MeshFormat", b"$Comments", b"$NOD", b"$ELM", b"$PTS", b"$PARA")
 _MAX_FILES = 200
+_MAX_STRING = 1023            # gmsh 4.8's parsestring() keeps at most this many characters
 _WORD = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _NUMBER = re.compile(r"[0-9]+\.?[0-9]*(?:[Ee][-+]?[0-9]+)?|\.[0-9]+(?:[Ee][-+]?[0-9]+)?")
 
@@ -96,8 +97,12 @@ def tokens(text: str, name: str) -> list[Token]:
         The tokens, comments and white space dropped.
 
     Raises:
-        GeoScanError: an unterminated comment or string.
+        GeoScanError: an unterminated comment or string, a string longer than gmsh's
+            scanner takes, or a NUL byte (where gmsh and this scanner would differ).
     """
+    if "\0" in text:            # gmsh's scanner ends a comment or string at a NUL byte
+        line = text.count("\n", 0, text.index("\0")) + 1
+        raise GeoScanError(f"{name}, line {line}: a NUL byte; a gmsh script is text")
     out, i, line, n = [], 0, 1, len(text)
     while i < n:
         c = text[i]
@@ -117,6 +122,9 @@ def tokens(text: str, name: str) -> list[Token]:
             j = text.find(c, i + 1)
             if j < 0:
                 raise GeoScanError(f"{name}, line {line}: a string {c} is never closed")
+            if j - i - 1 > _MAX_STRING:     # gmsh would lex the rest of it as statements
+                raise GeoScanError(f"{name}, line {line}: a string of more than "
+                                   f"{_MAX_STRING} characters (gmsh's limit)")
             out.append(Token("string", text[i + 1:j], line))
             line += text.count("\n", i, j)
             i = j + 1

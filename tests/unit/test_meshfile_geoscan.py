@@ -122,7 +122,7 @@ def test_a_msh_that_is_a_script_is_refused(tmp_path):
     assert not mark.exists()
 
 
-@pytest.mark.parametrize("statement, message", [
+UNKNOWN_FILES = [
     ('Include StrCat("a", ".geo");', r"'Include' needs a literal file name"),
     ("name = \"a.geo\"; Include name;", r"'Include' needs a literal file name"),
     ('Include "missing.geo";', r"missing\.geo is not a readable file"),
@@ -132,7 +132,14 @@ def test_a_msh_that_is_a_script_is_refused(tmp_path):
     ('Include "part.geo";', r"'part\.geo' includes itself"),
     ('x = "unterminated;', r"a string \" is never closed"),
     ("/* unterminated", r"a comment /\* is never closed"),
-])
+    # where gmsh's scanner would stop a string or comment early (an error in gmsh 4.8)
+    ('s = "' + "A" * 1023 + ' SystemCall \'touch x\';";', r"a string of more than 1023"),
+    ('/* \0 SystemCall "touch x"; */', r"line 6: a NUL byte"),
+]
+
+
+@pytest.mark.parametrize("statement, message", UNKNOWN_FILES,
+                         ids=[u[0][:24].replace("\0", "NUL") for u in UNKNOWN_FILES])
 def test_files_gmsh_would_read_must_be_known(tmp_path, statement, message):
     geo = _write(tmp_path / "part.geo", SQUARE + statement)
     with pytest.raises(MeshFileError, match=message) as err:
