@@ -108,10 +108,22 @@ def write_replacing(path: Path, draw):
     Returns:
         What ``draw`` returned.
     """
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    tmp = temporary(path)
     result = draw(tmp)
     os.replace(tmp, path)
     return result
+
+
+def temporary(path: Path) -> Path:
+    """The hidden temporary file write_replacing writes ``path`` through.
+
+    Args:
+        path: the file.
+
+    Returns:
+        .<stem>.tmp<suffix> beside it.
+    """
+    return path.with_name(f".{path.stem}.tmp{path.suffix}")
 
 
 BAR = {"color": "black", "vertical": False, "position_x": 0.25, "position_y": 0.02,

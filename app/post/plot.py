@@ -605,11 +605,18 @@ class Painter:
         return {"files": lines + pictures["files"], "frames": pictures["frames"]}
 
     def cancel(self) -> None:
-        """Stop the processes that still run (a run that ends without figures)."""
+        """Stop the processes that still run (a run that ends without figures, Ctrl-C while
+        drawing) and remove the temporary files they were writing."""
+        killed = False
         for proc in (self.pictures, self.lines):
             if proc is not None and proc.poll() is None:
                 proc.kill()
                 proc.communicate()
+                killed = True
+        if killed and self._job is not None:
+            from app.post.pictures import temporary
+            for name in FIGURES:
+                temporary(Path(self._job["results"]) / name).unlink(missing_ok=True)
 
 
 def _own_line_figures() -> list[str]:

@@ -38,3 +38,14 @@ def test_a_failed_line_figure_process_leaves_them_to_the_runs_process(results, m
     files = plot.plot_all(results, painter=painter)
     assert {f.name for f in files} >= set(plot.LINE_FIGURES)
     assert all((results / n).is_file() for n in plot.LINE_FIGURES)
+
+
+def test_stopped_figure_processes_leave_no_temporary_files(results):
+    """Ctrl-C while drawing stops the figure processes (SIGKILL): the temporary files they
+    were writing (.animation.tmp.gif, ...) are removed."""
+    from app.post import plot
+    painter = plot.Painter()
+    painter.draw(results, 1.0, 2, True)
+    (results / ".animation.tmp.gif").write_bytes(b"GIF89a")   # as a killed writer leaves it
+    painter.cancel()
+    assert not list(results.glob(".*.tmp*"))
