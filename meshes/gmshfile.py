@@ -371,7 +371,11 @@ def _check_planar(gmsh, path: str) -> None:
     xyz = np.concatenate(xyz)
     extent = max(float(np.ptp(xyz[:, 0])), float(np.ptp(xyz[:, 1])))
     z = xyz[:, 2]
-    if np.abs(z).max() > 1e-12 * max(extent, np.finfo(float).tiny):
+    tol = 1e-12 * max(extent, np.finfo(float).tiny)
+    if np.ptp(z) <= tol < np.abs(z).max():
+        raise MeshFileError(f"{path}: the 2D mesh lies in the plane z = {z[0]:g}, not z = 0; "
+                            "move it to z = 0 (a 2D mesh must lie in the plane z = 0)")
+    if np.abs(z).max() > tol:
         raise MeshFileError(f"{path}: the 2D mesh is not planar (z from {z.min():g} to "
                             f"{z.max():g}); a 2D mesh must lie in the plane z = 0")
 

@@ -86,6 +86,8 @@ BAD_GEO = [
      r"Physical Curve 1 \('a'\) and Physical Curve 2 \('b'\) share elements"),
     ("tilted.geo", SQUARE.replace("{1, 0, 0,", "{1, 0, 0.5,").replace("{1, 1, 0,", "{1, 1, 0.5,")
      + 'Physical Surface("body") = {1};', 2, r"not planar \(z from 0 to 0.5\).*plane z = 0"),
+    ("raised.geo", SQUARE.replace(", 0, 0.3}", ", 1.5, 0.3}") + 'Physical Surface("body") = {1};',
+     2, r"the 2D mesh lies in the plane z = 1\.5, not z = 0; move it to z = 0"),
     ("box.geo", BOX, 2, r"the geometry is 3D .*set mesh.dim: 3"),
     ("square.geo", GOOD, 3, r"holds no 3D elements .*set mesh.dim: 2"),
     ("points.geo", "Point(1) = {0, 0, 0, 1}; Physical Point(1) = {1};", 2,
