@@ -160,7 +160,7 @@ def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0,
             verdict = _INTERRUPTED
         except Exception as err:   # never leave the other ranks waiting for rank 0
             verdict = f"cannot load {path}: {type(err).__name__}: {err}"
-        if verdict is not None:
+        if verdict is not None and not _busy:
             gmsh.finalize()
         if verdict is not None:
             verdict = " ".join(verdict.splitlines())    # gmsh's messages may span lines
@@ -216,8 +216,9 @@ def _read(gmsh, path: str, dim: int, size: float, max_vertices: float = MAX_VERT
         _check_last_line(p, path)
         _mesh_geo(gmsh, path, dim, size, max_vertices)
     else:
+        _check_file_size(p, path)
         try:
-            gmsh.merge(str(p))
+            _interruptible(gmsh.merge, str(p))
         except Exception as err:
             raise MeshFileError(f"gmsh cannot read {path}: {err}") from None
     _check_elements(gmsh, path, dim)
@@ -234,6 +235,46 @@ def _read(gmsh, path: str, dim: int, size: float, max_vertices: float = MAX_VERT
     if not np.array_equal(np.sort(nodes), np.arange(1, len(nodes) + 1)):
         gmsh.model.mesh.renumberNodes()     # model_to_mesh needs node tags 1..N
     return (*_boundary_groups(gmsh, path, dim), interior)
+
+
+_busy = []      # a gmsh call an interrupt left running in its thread (gmsh is not usable)
+
+
+def _interruptible(call, *args):
+    """Rank 0: ``call(*args)`` (a long gmsh call, e.g. reading a large .msh) in a thread,
+    the main thread waiting: SIGINT/SIGTERM raise KeyboardInterrupt here at once (Python runs
+    signal handlers in the main thread only, never inside gmsh's C++ code).  The call is
+    left running: the process is ending (the CLI exits with 3)."""
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        return call(*args)
+    out = {}
+
+    def work():
+        try:
+            out["value"] = call(*args)
+        except BaseException as err:   # noqa: BLE001 (raised again in the main thread)
+            out["error"] = err
+    thread = threading.Thread(target=work, daemon=True, name="gmsh")
+    thread.start()
+    try:
+        while thread.is_alive():
+            thread.join(0.1)
+    except KeyboardInterrupt:
+        _busy.append(thread)
+        raise
+    if "error" in out:
+        raise out["error"]
+    return out.get("value")
+
+
+def _check_file_size(p: Path, path: str) -> None:
+    """Rank 0: a .msh larger than half the machine's memory cannot be held by gmsh."""
+    size, budget = p.stat().st_size, _memory_budget()
+    if budget and size > budget:
+        raise MeshFileError(f"{path} is {size / 2**30:.1f} GB, more than half this machine's "
+                            f"memory ({2 * budget / 2**30:.1f} GB): gmsh could not hold the "
+                            "mesh; use a coarser mesh")
 
 
 def _check_last_line(p: Path, path: str) -> None:

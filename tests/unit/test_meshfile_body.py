@@ -141,3 +141,31 @@ def test_tiny_point_sizes_are_refused_before_gmsh_meshes(name, dim):
                                             r"\(limit 1e\+08\)"):
         load_mesh_file(MPI.COMM_SELF, ROOT / "cases" / name, dim, size=1e-6)
     assert time.monotonic() - start < 30
+
+
+def test_a_msh_larger_than_half_the_memory_is_refused(tmp_path, monkeypatch):
+    path = _triangles(tmp_path / "big.msh", [(0, 0, 0), (1, 0, 0), (1, 1, 0)], [[1, 2, 3]])
+    monkeypatch.setattr(gmshfile, "_memory_budget", lambda: 100)
+    with pytest.raises(MeshFileError, match=r"big\.msh is 0\.0 GB, more than half this "
+                                            r"machine's memory .*gmsh could not hold"):
+        load_mesh_file(MPI.COMM_SELF, path, 2)
+
+
+def test_a_long_gmsh_call_is_interruptible():
+    """Reading a large .msh runs in a thread: SIGINT reaches the main thread at once (a
+    20 GB file was read for 10 minutes with SIGTERM ignored)."""
+    import os
+    import signal
+    import threading
+    import time
+    release = threading.Event()
+    threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
+    start = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        gmshfile._interruptible(release.wait, 30)
+    assert time.monotonic() - start < 5
+    release.set()
+    gmshfile._busy.clear()
+    assert gmshfile._interruptible(lambda a, b: a + b, 1, 2) == 3
+    with pytest.raises(ValueError, match="x"):
+        gmshfile._interruptible(int, "x")
