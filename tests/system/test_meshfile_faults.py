@@ -108,7 +108,7 @@ def test_a_signal_while_gmsh_meshes_ends_the_run_at_once(tmp_path, sig):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 30             # (or gmsh meshes in this process)
-        while (child := _child_of(proc.pid, "part.geo")) is None and \
+        while (child := _child_of(proc.pid, "geomesh.py")) is None and \
                 time.monotonic() < deadline:
             assert proc.poll() is None, proc.communicate()
             time.sleep(0.05)
