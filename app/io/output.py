@@ -76,6 +76,64 @@ class OutputError(OSError):
     error on every rank, so that no rank waits in a collective for one that gave up."""
 
 
+def write_xdmf(comm, path: Path, mode: str, action, describe) -> None:
+    """``action(f)`` on dolfinx's XDMFFile ``path``, closed after (collective).
+
+    A file whose HDF5 write or close failed (a disk full, a file size limit) is never
+    destroyed: dolfinx 0.5's XDMFFile destructor closes the HDF5 file again, and HDF5 then
+    dies -- a segmentation fault in H5F__close serially, std::terminate (abort) from the
+    destructor under mpirun -- before the run could record its failure.  It is leaked
+    instead (one more reference, never released: a list would be emptied at interpreter
+    exit), and HDF5's termination is disarmed (``_disarm_hdf5_termination``).
+
+    Args:
+        comm: the MPI communicator.
+        path: the XDMF file.
+        mode: "w" or "a".
+        action: called with the open file.
+        describe: the OutputError's message from dolfinx's RuntimeError.
+
+    Raises:
+        OutputError: dolfinx's HDF5 layer failed.
+    """
+    f = None
+    try:
+        f = dio.XDMFFile(comm, str(path), mode)
+        with f:
+            action(f)
+    except RuntimeError as exc:
+        if f is not None:
+            import ctypes
+            ctypes.pythonapi.Py_IncRef(ctypes.py_object(f))
+            _disarm_hdf5_termination()
+        raise OutputError(describe(exc)) from None
+
+
+def _disarm_hdf5_termination() -> None:
+    """After an HDF5 file failed to close, HDF5 keeps a half-destroyed file object, and its
+    termination closes every open file: parallel HDF5 terminates in MPI_Finalize (a delete
+    callback on MPI_COMM_SELF), where that file crashes it (segmentation fault in
+    H5F__close_cb, after the run recorded its failure: exit 139 for 1).  The process ends
+    soon after, and the OS closes the files: parallel HDF5 is marked not initialised
+    (HDF5 1.10's global H5_libinit_g), so that its termination does nothing.  Best effort."""
+    import ctypes
+    try:
+        maps = Path("/proc/self/maps").read_text()
+    except OSError:
+        return
+    paths = {line.split()[-1] for line in maps.splitlines() if "/libhdf5" in line}
+    for path in paths:
+        name = Path(path).name
+        if not name.startswith("libhdf5") or "_hl" in name or "_cpp" in name:
+            continue
+        try:
+            lib = ctypes.CDLL(path)
+            if hasattr(lib, "H5Pset_fapl_mpio"):             # parallel HDF5 only
+                ctypes.c_bool.in_dll(lib, "H5_libinit_g").value = False
+        except (OSError, ValueError):
+            continue
+
+
 def on_rank0(comm, action, *args):
     """Run ``action(*args)`` on rank 0 only (collective).
 
@@ -201,11 +259,8 @@ class FieldWriter:
         self.h5 = self.path.with_suffix(".h5")
         self.work_h5 = self.work.with_suffix(".h5")
         on_rank0(comm, self._fresh_files)
-        try:
-            with dio.XDMFFile(comm, str(self.work), "w") as f:
-                f.write_mesh(mesh)
-        except RuntimeError as exc:             # dolfinx's HDF5 layer
-            raise OutputError(f"{self.h5}: cannot write the mesh ({exc})") from None
+        write_xdmf(comm, self.work, "w", lambda f: f.write_mesh(mesh),
+                   lambda exc: f"{self.h5}: cannot write the mesh ({exc})")
         self.xml, self._layout, self._mesh_xml = None, None, None
         on_rank0(comm, self._start_xml)
 
@@ -269,13 +324,11 @@ class FieldWriter:
             OutputError: HDF5 or the file system refused (solution.xdmf then still
                 describes the earlier steps).
         """
-        try:
-            with dio.XDMFFile(self.comm, str(self.work), "a") as f:
-                for fn in self.fields:
-                    f.write_function(fn, t)
-        except RuntimeError as exc:             # dolfinx's HDF5 layer: disk full, read-only
-            raise OutputError(f"{self.h5}: cannot write the fields at t = {t:g} ({exc})") \
-                from None
+        def fields(f):
+            for fn in self.fields:
+                f.write_function(fn, t)
+        write_xdmf(self.comm, self.work, "a", fields,    # disk full, read-only
+                   lambda exc: f"{self.h5}: cannot write the fields at t = {t:g} ({exc})")
         on_rank0(self.comm, self._add_time, t)
 
     def close(self) -> None:

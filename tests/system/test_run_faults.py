@@ -204,6 +204,34 @@ def test_disk_full_at_an_output_step_names_the_last_step_written(tmp_path, monke
     assert [int(r.split(",")[0]) for r in rows[1:]] == [1, 2]
 
 
+def test_hdf5_file_size_limit_is_a_failed_run_not_a_crash(tmp_path):
+    """A real HDF5 write fault (the file size limit RLIMIT_FSIZE stands for a full disk:
+    solution.h5 cannot grow past 150 kB): dolfinx's XDMFFile failed to close the HDF5 file,
+    and its destructor, then HDF5's termination in MPI_Finalize, crashed (segmentation
+    fault, exit 139 or 59, no summary).  Now exit 1, one error line, summary.json agreeing
+    with the files."""
+    import resource
+    args = ["run", PAPER_CASE, "--set", "time.N=200", "--set", "mesh.n=8", "--quiet"]
+    assert run_cli([*args, "--set", "time.N=2", "--out", tmp_path / "warm"]).returncode == 0
+
+    def limit():                      # the JIT cache is warm: only the outputs grow
+        resource.setrlimit(resource.RLIMIT_FSIZE, (150_000, 150_000))
+    out = tmp_path / "limited"
+    env = {**os.environ, **MPI_ENV, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.run([sys.executable, "-m", "app", *map(str, args), "--out", str(out),
+                           "--no-plots"], cwd=ROOT, env=env, capture_output=True, text=True,
+                          timeout=300, preexec_fn=limit)
+    assert proc.returncode == 1, proc.stderr[-3000:]
+    assert "Segmentation" not in proc.stderr and "Traceback" not in proc.stderr
+    lines = [x for x in proc.stderr.splitlines() if x.startswith("vpcontact")]
+    assert len(lines) == 1 and "cannot write the outputs" in lines[0], proc.stderr[-3000:]
+    s = _summary(out)
+    assert s["status"] == "failed" and s["steps"][-1]["written"] is False
+    n = s["last_good_step"]
+    assert 0 < n == s["failure"]["step"] - 1 and f"outputs up to step {n} are in" in lines[0]
+    assert len(_xdmf_times(out)) == n + 1
+
+
 def test_summary_write_failure_is_reported(tmp_path, monkeypatch, capsys):
     import app.io.output as output
     real = output.atomic_write
