@@ -395,7 +395,7 @@ def cmd_bench(args) -> int:
     outdir = Path(args.out)
     try:                              # every argument and the case, before anything runs
         bm.check_arguments(args.case, args.levels, extra, args.ranks, args.repeat,
-                           args.memory_steps or [])
+                           args.memory_steps or [], box3d_levels=args.box3d_levels or [])
         why = unusable(outdir)
         if why:
             raise CaseError(f"--out {outdir}: not a writable directory ({why})")

@@ -45,46 +45,48 @@ def split_petsc_args(argv: list[str]) -> tuple[list[str], dict]:
 
 
 # ----------------------------------------------------------------------------- argument types
-def _int_at_least(text: str, low: int) -> int:
-    """An integer argument >= low, or argparse's error naming what is allowed."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer (allowed: {low} or "
-                                         "more)") from None
-    if value < low:
-        raise argparse.ArgumentTypeError(f"{value} (allowed: {low} or more)")
+# The largest value of each integer option (a larger one is refused in one line, exit 2,
+# before anything runs; a huge number reached range() and 2 ** r as an "internal error" or
+# kept the process counting refinements for ever):
+MAX_CELLS = 4096         # cells per side of a built-in mesh (app/io/schema.py, mesh.n)
+MAX_STEPS = 1_000_000    # time steps (app/io/case.py MAX_STEPS, time.N)
+MAX_REFINEMENTS = 30     # a mesh.file refined r times has >= 4^r cells: 30 is beyond any
+                         # mesh within app/io/case.py's MAX_VERTICES = 1e8
+MAX_THREADS = 1024       # BLAS threads of run --threads
+MAX_RANKS = 4096         # bench --ranks (bench refuses more than the machine's cores)
+MAX_REPEAT = 100         # bench --repeat (app/studies/bench.py MAX_REPEAT)
+_INTEGER = re.compile(r"^\s*[-+]?[0-9]+\s*$")
+
+
+def _int_within(text: str, low: int, high: int) -> int:
+    """An integer argument from low to high, or argparse's error naming what is allowed."""
+    allowed = f"allowed: {low} to {high}"
+    if not _INTEGER.match(text):
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer ({allowed})")
+    digits = text.strip().lstrip("+-")
+    if len(digits.lstrip("0")) > len(str(high)):      # int() of 5000 digits fails: no int
+        raise argparse.ArgumentTypeError(f"{text.strip()} is out of range ({allowed})")
+    value = int(text)
+    if not low <= value <= high:
+        raise argparse.ArgumentTypeError(f"{value} is out of range ({allowed})")
     return value
 
 
-def positive_int(text: str) -> int:
-    """argparse type: an integer >= 1.
+def int_range(low: int, high: int):
+    """An argparse type: an integer from ``low`` to ``high`` (both included).
 
     Args:
-        text: the argument.
+        low: the smallest value allowed.
+        high: the largest value allowed.
 
     Returns:
-        Its value.
-
-    Raises:
-        argparse.ArgumentTypeError: if it is not an integer >= 1.
+        The type function: text -> int, raising argparse.ArgumentTypeError (one line naming
+        the allowed range) for anything else.
     """
-    return _int_at_least(text, 1)
-
-
-def nonnegative_int(text: str) -> int:
-    """argparse type: an integer >= 0.
-
-    Args:
-        text: the argument.
-
-    Returns:
-        Its value.
-
-    Raises:
-        argparse.ArgumentTypeError: if it is not an integer >= 0.
-    """
-    return _int_at_least(text, 0)
+    def parse(text: str) -> int:
+        return _int_within(text, low, high)
+    parse.__name__ = f"integer from {low} to {high}"
+    return parse
 
 
 def positive_float(text: str) -> float:
@@ -125,9 +127,9 @@ def cells_and_steps(text: str) -> tuple[int, int]:
         raise argparse.ArgumentTypeError(f"{text!r} (allowed: n:N, cells per side and time "
                                          "steps, e.g. 256:32)")
     try:
-        return positive_int(parts[0]), positive_int(parts[1])
+        return _int_within(parts[0], 1, MAX_CELLS), _int_within(parts[1], 1, MAX_STEPS)
     except argparse.ArgumentTypeError as exc:
-        raise argparse.ArgumentTypeError(f"{text!r}: {exc} (allowed: n:N, e.g. 256:32)") \
+        raise argparse.ArgumentTypeError(f"{text!r}: {exc}; n:N, e.g. 256:32") \
             from None
 
 
@@ -187,7 +189,7 @@ def _add_run(sub) -> None:
                           "settings may differ)")
     run.add_argument("--no-plots", action="store_true",
                      help="do not draw the figures at the end (see the plot command)")
-    run.add_argument("--threads", type=positive_int, metavar="N",
+    run.add_argument("--threads", type=int_range(1, MAX_THREADS), metavar="N",
                      help="BLAS threads of the large dense operations (the fast solver's "
                           "3D set-up and Gamma3 problem; default: the cores this process may "
                           "use; under mpirun: of rank 0, which solves the Gamma3 problem, "
@@ -235,11 +237,11 @@ def _add_convergence(sub) -> None:
                     "mesh.size, then refined) with time.N 2^r steps; the reference is the mesh "
                     "refined R times. Example: --levels 0 1 2 --reference 3.")
     conv.add_argument("case", help="YAML case file with a structured mesh or a mesh.file")
-    conv.add_argument("--levels", type=nonnegative_int, nargs="+", metavar="L",
+    conv.add_argument("--levels", type=int_range(0, MAX_CELLS), nargs="+", metavar="L",
                       help="levels: built-in mesh: 1/h and/or 1/k of each run (default: 8 16 32 "
                            "64); mesh.file: refinements of its mesh (default: 0 1 2, or 0 .. "
                            "R-1 with --reference R)")
-    conv.add_argument("--reference", type=positive_int, metavar="R",
+    conv.add_argument("--reference", type=int_range(1, MAX_CELLS), metavar="R",
                       help="the reference run: built-in mesh n = N = R (default: 128); "
                            "mesh.file: its mesh refined R times (default: the largest level "
                            "+ 1)")
@@ -264,13 +266,13 @@ def _add_stability(sub) -> None:
                     "(stability.csv, stability.md).")
     stab.add_argument("case", help="YAML case file (a built-in mesh or a mesh.file)")
     _case_options(stab, "sweep", "results/<case name>/stability")
-    stab.add_argument("--n", type=positive_int,
+    stab.add_argument("--n", type=int_range(1, MAX_CELLS),
                       help="cells per side of the coarse built-in mesh (default: 8; not with "
                            "mesh.file)")
-    stab.add_argument("--refine", type=nonnegative_int, metavar="R",
+    stab.add_argument("--refine", type=int_range(0, MAX_REFINEMENTS), metavar="R",
                       help="mesh.file: refine the case's mesh R times for the base (default: "
                            "0, the mesh as read; the variant 'h/2' refines once more)")
-    stab.add_argument("--steps", type=positive_int, default=8,
+    stab.add_argument("--steps", type=int_range(1, MAX_STEPS), default=8,
                       help="time steps of the base variant")
 
 
@@ -279,25 +281,27 @@ def _add_bench(sub) -> None:
                        description="Whole-process timings of a case with each step solver, "
                                    "serial and under mpirun -n 2 (bench.json, bench.md).")
     b.add_argument("case", nargs="?", default="cases/wang_cheng_2021.yaml")
-    b.add_argument("--levels", type=positive_int, nargs="+", default=[16, 32, 64, 128],
+    b.add_argument("--levels", type=int_range(1, MAX_CELLS), nargs="+", default=[16, 32, 64, 128],
                    help="h = k = 1/L levels (default 16 32 64 128)")
     b.add_argument("--extra", type=cells_and_steps, nargs="*", default=[(256, 32)],
                    metavar="n:N", help="extra (cells per side : steps) runs (default 256:32)")
-    b.add_argument("--memory-steps", type=positive_int, nargs="*", default=[64, 256, 1024, 4096],
+    b.add_argument("--memory-steps", type=int_range(1, MAX_STEPS), nargs="*",
+                   default=[64, 256, 1024, 4096],
                    metavar="N", help="step counts of the memory-term cost runs "
                                      "(recursion vs direct sum; none: skip)")
-    b.add_argument("--scene-n", type=int, default=121, metavar="n",
+    b.add_argument("--scene-n", type=int_range(0, MAX_CELLS), default=121, metavar="n",
                    help="cells per side of the user-scene comparison (the case's square "
                         "rotated and read from a .geo, against the built-in rectangle, 64 "
                         "steps; default 121: 29768 dofs; 0: skip)")
-    b.add_argument("--box3d-levels", type=positive_int, nargs="*", default=[8, 16, 24, 32, 64],
+    b.add_argument("--box3d-levels", type=int_range(1, MAX_CELLS), nargs="*",
+                   default=[8, 16, 24, 32, 64],
                    metavar="n", help="cells per edge of the 3D rows (cases/box3d.yaml, 8 steps, "
                                      "default solver; with a 32-step n = 32 run, SNES VI at "
                                      "n <= 16, mpirun -n 2 at 32 (else the largest n), the 2D "
                                      "reference at 1/128 and a log-log plot; default 8 16 24 "
                                      "32 64: 824k dofs at 64; none: skip)")
-    b.add_argument("--ranks", type=positive_int, nargs="+", default=[1, 2])
-    b.add_argument("--repeat", type=positive_int, default=3, metavar="R",
+    b.add_argument("--ranks", type=int_range(1, MAX_RANKS), nargs="+", default=[1, 2])
+    b.add_argument("--repeat", type=int_range(1, MAX_REPEAT), default=3, metavar="R",
                    help="measured runs per configuration, every solver alike; the fastest "
                         "is reported, all are kept (default 3; the --extra levels run once)")
     b.add_argument("--out", default="results/bench", type=path_arg, help="output directory")

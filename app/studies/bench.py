@@ -115,7 +115,7 @@ def _positive_ints(option: str, values, allowed: str = "positive integers") -> N
 
 
 def check_arguments(case, levels, extra=(), nprocs=(1, 2), repeat: int = 1,
-                    memory_steps=(), methods=("snes_vi", "fast")) -> None:
+                    memory_steps=(), methods=("snes_vi", "fast"), box3d_levels=()) -> None:
     """Refuse a bench that cannot run as asked, before anything runs.
 
     The case is read and validated at every level with every step solver.
@@ -128,6 +128,7 @@ def check_arguments(case, levels, extra=(), nprocs=(1, 2), repeat: int = 1,
         repeat: timed runs per configuration.
         memory_steps: step counts of the memory-term rows.
         methods: the step solvers timed.
+        box3d_levels: the cells per edge of the 3D rows (cases/box3d.yaml, 8 steps).
 
     Raises:
         CaseError: naming the option (or the case file) and the allowed values.
@@ -165,6 +166,19 @@ def check_arguments(case, levels, extra=(), nprocs=(1, 2), repeat: int = 1,
         for how in ("recursion", "direct"):
             validate(load_raw(MEMORY_CASE, [*_overrides(16, N, "fast"),
                                             f"contact.memory.sum={how}"]), str(MEMORY_CASE))
+    _check_box3d(box3d_levels)
+
+
+def _check_box3d(levels) -> None:
+    """The 3D rows' box at every --box3d-levels n is a valid case (e.g. within the vertex
+    limit), checked before the 2D rows run."""
+    from app.studies.bench3d import BOX3D
+    _positive_ints("--box3d-levels", levels)
+    for n in levels:
+        try:
+            validate(load_raw(BOX3D, [f"mesh.n={n}", "time.N=32"]), str(BOX3D))
+        except CaseError as exc:
+            raise CaseError(f"--box3d-levels {n}: {exc}") from None
 
 
 def bench(case, outdir: Path, levels, methods=("snes_vi", "fast"), nprocs=(1, 2),
