@@ -171,6 +171,16 @@ class Simulation:
         self._signals = None
         self._clock = {}
 
+    @property
+    def stop_signal(self) -> str | None:
+        """The signal (e.g. "SIGINT") that asked this run, on this rank, to stop after its
+        current step; None if none did or the run is not stepping (read-only).
+
+        Returns:
+            The signal's name, or None.
+        """
+        return self._signals.signal if self._signals is not None else None
+
     def add(self, observer: Observer) -> Simulation:
         """Register an observer (called in the order added).
 
@@ -441,7 +451,7 @@ class Simulation:
                         record["newton_iterations"], "; later steps start with backtracking"
                         if self.solver.sticky_robust else "")
         self.steps.append(record)
-        signalled = self._signals is not None and self._signals.signal is not None
+        signalled = self.stop_signal is not None
         self.interrupted = self.comm.allreduce(signalled, op=MPI.LOR)   # all ranks agree
         try:
             for obs in self.observers:
@@ -457,7 +467,7 @@ class Simulation:
 
     def _interrupt(self) -> StopRun:
         """The stop after a signal: outputs are complete up to step n."""
-        signal = self._signals.signal if self._signals is not None else None
+        signal = self.stop_signal
         failure = StepFailure(self.n, self.t,
                               f"interrupted by {signal or 'a signal on another rank'}",
                               hint=f"continue with: ./vpcontact run CASE --restart "

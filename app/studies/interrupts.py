@@ -104,8 +104,7 @@ class SignalWatch:
             sim: the Simulation, at its end.
             summary: its RunSummary (unused).
         """
-        request = getattr(sim, "_signals", None)          # the run's _StopRequest
-        names = sim.comm.allgather(getattr(request, "signal", None))
+        names = sim.comm.allgather(sim.stop_signal)
         self.signal = next((n for n in names if n), None)
 
 
