@@ -35,7 +35,8 @@ class BoxMesh(RectangleMesh):
 
 
 def _gmsh_model(L, n, h):
-    import gmsh
+    from .gmshfile import import_gmsh
+    gmsh = import_gmsh()
 
     gmsh.model.add("box")
     vol = gmsh.model.occ.addBox(0, 0, 0, *L)

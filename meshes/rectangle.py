@@ -90,7 +90,8 @@ class RectangleMesh:
 
 
 def _gmsh_model(L1: float, L2: float, n: int | None, h: float | None, diagonal: str | None):
-    import gmsh
+    from .gmshfile import import_gmsh
+    gmsh = import_gmsh()
 
     gmsh.model.add("rectangle")
     geo = gmsh.model.geo
@@ -232,19 +233,34 @@ def gmsh_mesh(comm: MPI.Comm, gdim: int, build, scale: float):
     Returns:
         (mesh, cell tags, facet tags).
     """
-    import gmsh
+    from .gmshfile import _INTERRUPTED, _busy, _interruptible, import_gmsh
+    gmsh = import_gmsh()              # before gmshio, whose import of gmsh resets SIGINT
     from dolfinx.io import gmshio
-
+    verdict = error = None
     if comm.rank == 0:
-        gmsh.initialize()
+        gmsh.initialize(readConfigFiles=False)
         gmsh.option.setNumber("General.Terminal", 0)
         try:
-            build()
-            msh, ct, ft = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=gdim)
-        finally:
+            _interruptible(build)         # SIGINT/SIGTERM stop the wait for gmsh at once
+        except KeyboardInterrupt as stop:  # its argument names the signal
+            verdict = (_INTERRUPTED, *stop.args)
+        except Exception as err:
+            error, verdict = err, f"rank 0 could not build the mesh: {type(err).__name__}: {err}"
+        if verdict is not None and not _busy:   # else gmsh is still meshing after a signal
             gmsh.finalize()
-    else:
-        msh, ct, ft = gmshio.model_to_mesh(None, comm, 0, gdim=gdim)
+    verdict = comm.bcast(verdict, root=0)       # never leave the other ranks waiting
+    if isinstance(verdict, tuple):
+        raise KeyboardInterrupt(*verdict[1:])
+    if error is not None:
+        raise error
+    if verdict is not None:
+        raise RuntimeError(verdict)
+    try:
+        msh, ct, ft = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0,
+                                           gdim=gdim)
+    finally:
+        if comm.rank == 0:
+            gmsh.finalize()
     if scale != 1.0:
         msh.geometry.x[:, :gdim] *= scale
     return msh, ct, ft

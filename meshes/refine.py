@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .gmshfile import MeshFileError, _read
+from .gmshfile import _INTERRUPTED, MeshFileError, _busy, _read, import_gmsh
 
 _LINEAR = {1: 1, 2: 2, 3: 4}          # gmsh element type of the linear simplex of each dim
 # the triangle (a, b, c) with edge midpoints (ab, bc, ca) -> 4 triangles, as local indices of
@@ -409,28 +409,14 @@ def read_sizes(comm, path, dim: int, size: float, levels: int) -> list[int]:
 
 def _on_root(comm, path, work, doing: str = "read", share: bool = True):
     """``work(gmsh)`` on rank 0 with gmsh initialised; a failure is a MeshFileError on
-    every rank (never leave the other ranks waiting for rank 0).  Returns its result, on
-    every rank if ``share``, else on rank 0 (None elsewhere).
+    every rank, and SIGINT/SIGTERM on rank 0 a KeyboardInterrupt on every rank (never leave
+    the other ranks waiting for rank 0 in a collective).  Returns its result, on every rank
+    if ``share``, else on rank 0 (None elsewhere).
 
-    The process's SIGINT handler is kept: gmsh's module sets SIGINT to its default action
-    when first imported and its ``finalize`` restores the handler of that moment, so a
-    Ctrl-C while gmsh meshed killed the process outright (no line, no clean-up); now a
-    signal is acted on when gmsh's call returns (KeyboardInterrupt, raised through)."""
-    import signal
-    import threading
-    handler = signal.getsignal(signal.SIGINT)
-    import gmsh
-    if threading.current_thread() is not threading.main_thread() or handler is None:
-        return _gmsh_session(gmsh, comm, path, work, doing, share)
-    signal.signal(signal.SIGINT, handler)
-    try:
-        return _gmsh_session(gmsh, comm, path, work, doing, share)
-    finally:
-        signal.signal(signal.SIGINT, handler)
-
-
-def _gmsh_session(gmsh, comm, path, work, doing: str, share: bool):
-    """_on_root's body."""
+    gmsh comes from ``import_gmsh``, which keeps the process's SIGINT handler (gmsh's module
+    sets SIGINT to its default action, which killed the process outright: no line, no exit
+    code 3)."""
+    gmsh = import_gmsh()
     result, verdict = None, None
     if comm.rank == 0:
         gmsh.initialize(readConfigFiles=False)
@@ -439,11 +425,16 @@ def _gmsh_session(gmsh, comm, path, work, doing: str, share: bool):
             result = work(gmsh)
         except MeshFileError as err:
             verdict = " ".join(str(err).splitlines())
+        except KeyboardInterrupt as stop:      # its argument names the signal
+            verdict = (_INTERRUPTED, *stop.args)
         except Exception as err:
             verdict = f"cannot {doing} {path}: {type(err).__name__}: {err}"
         finally:
-            gmsh.finalize()
+            if not _busy:            # a gmsh call a signal left running: gmsh is in use
+                gmsh.finalize()
     verdict = comm.bcast(verdict, root=0)
+    if isinstance(verdict, tuple):
+        raise KeyboardInterrupt(*verdict[1:])
     if verdict is not None:
         raise MeshFileError(verdict)
     return comm.bcast(result, root=0) if share else result

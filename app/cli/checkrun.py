@@ -90,8 +90,8 @@ def info() -> list[str]:
             "ptscotch", "hdf5"]
     have = [p for p in pkgs if PETSc.Sys.hasExternalPackage(p)]
     try:
-        import gmsh
-        gmsh_v = gmsh.__version__
+        from meshes.gmshfile import import_gmsh
+        gmsh_v = import_gmsh().__version__
     except Exception as exc:  # noqa: BLE001
         gmsh_v = f"not importable ({exc})"
     dirs = caches()
