@@ -237,7 +237,8 @@ def test_bench_refuses_bad_input_before_running(tmp_path, blocker):
     cases = [(["bench", tmp_path / "missing.yaml"], "missing.yaml"),
              (["bench", "--out", blocker / "b"], "--out"),
              (["bench", "--out", blocker], "--out"),
-             (["bench", "--levels", "5000"], "mesh.n")]
+             (["bench", "--levels", "5000"], "--levels: 5000 is out of range (allowed: 1 to "
+                                             "4096)")]
     for args, named in cases:
         if "--out" not in args:
             args += ["--out", tmp_path / "b"]
