@@ -17,6 +17,7 @@ progress and samplers are observers (app/observers.py) added with ``add()``.
 from __future__ import annotations
 
 import logging
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -128,12 +129,30 @@ class _StopRequest:
     def _handler(self, signum, frame):
         import signal
         self.signal = signal.Signals(signum).name
+        _unblock_std_streams()
 
     def __exit__(self, *exc):
         import signal
         for sig, old in self._old.items():
             signal.signal(sig, old)
         return False
+
+
+def _unblock_std_streams() -> None:
+    """Under mpirun, make the rank's stdout and stderr non-blocking once a signal asked to
+    stop: mpirun sends SIGTERM when it aborts the job (Ctrl-C, or a log reader that quit:
+    Open MPI aborts after about ten writes to the closed pipe) and then stops reading the
+    ranks' output, so a rank writing its log would block until Open MPI kills it (1 s later
+    by default) and leave no summary.  A write that would block now fails, and the
+    std streams' SafeStream (app/cli/streams.py) drops the output from there on.  Serially
+    the descriptors may be a terminal shared with the shell: left as they are."""
+    if "OMPI_COMM_WORLD_SIZE" not in os.environ and "PMI_SIZE" not in os.environ:
+        return
+    for fd in (1, 2):
+        try:
+            os.set_blocking(fd, False)
+        except OSError:
+            pass
 
 
 class Simulation:

@@ -1,0 +1,85 @@
+"""Interrupts under mpirun -n 2, as README "Running a case" states them: SIGINT or SIGTERM to
+mpirun (which sends SIGTERM to the ranks) ends the run after the current step with a
+checkpoint and summary.json `status: interrupted`; mpirun's exit code is its own (Open MPI
+4.1: 1 after it forwarded a signal, not the ranks' 3); a log reader that quits makes mpirun
+abort the job the same way (after about ten writes to the closed pipe), with nothing left
+hanging.  The ranks get time to finish their step (OMPI_MCA_odls_base_sigkill_timeout, as
+the README advises): by default Open MPI kills them 1 s after the SIGTERM."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from conftest import MPI_ENV, PAPER_CASE, ROOT
+
+pytestmark = pytest.mark.mpi
+
+ENV = {**os.environ, **MPI_ENV, "PYTHONPATH": str(ROOT),
+       "OMPI_MCA_odls_base_sigkill_timeout": "10"}
+
+
+def _command(out, *extra):
+    return ["mpirun", "-n", "2", sys.executable, "-m", "app", "run", str(PAPER_CASE),
+            "--out", str(out), "--no-plots", "--set", "mesh.n=8", "--set", "time.N=20000",
+            *extra]
+
+
+def _written_steps(out):
+    try:
+        return (out / "solution.xdmf").read_text().count("solution.h5:/Function/u/")
+    except FileNotFoundError:
+        return 0
+
+
+def _wait_for_steps(proc, out):
+    deadline = time.monotonic() + 300
+    while _written_steps(out) < 2:
+        if proc.poll() is not None or time.monotonic() > deadline:
+            proc.kill()
+            pytest.fail(f"the run wrote no step (exit {proc.poll()})")
+        time.sleep(0.05)
+
+
+def _interrupted(out):
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted" and s["mpi_ranks"] == 2, s.get("failure")
+    n = s["last_good_step"]
+    assert 0 < n < 20000 and s["failure"]["reason"] == "interrupted by SIGTERM"
+    assert (out / f"checkpoint_{n:06d}.npz").exists()
+    assert _written_steps(out) >= 2
+    return s
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_to_mpirun_ends_the_run_as_interrupted(sig, tmp_path):
+    out = tmp_path / "o"
+    with open(tmp_path / "stderr", "w") as err:
+        proc = subprocess.Popen(_command(out, "--quiet"), cwd=ROOT, env=ENV,
+                                stdout=subprocess.DEVNULL, stderr=err)
+        _wait_for_steps(proc, out)
+        proc.send_signal(sig)
+        code = proc.wait(timeout=120)
+    # mpirun's own exit code (README): 1 with Open MPI 4.1; never 0, never a crash
+    assert code in (1, 3), (tmp_path / "stderr").read_text()[-2000:]
+    _interrupted(out)
+    assert "Traceback" not in (tmp_path / "stderr").read_text()
+
+
+def test_log_reader_quitting_under_mpirun_interrupts_the_run(tmp_path):
+    """The reader of a --verbose log reads one line and quits (`| head -1`): mpirun aborts
+    and stops reading the ranks' output, so rank 0 blocked writing its log until Open MPI
+    killed it (1 s after the SIGTERM, its default here) and left no summary.json; its
+    output is now dropped once the signal came (simulation._unblock_std_streams)."""
+    out = tmp_path / "o"
+    env = {k: v for k, v in ENV.items() if k != "OMPI_MCA_odls_base_sigkill_timeout"}
+    proc = subprocess.Popen(_command(out, "--verbose"), cwd=ROOT, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    proc.stdout.readline()
+    proc.stdout.close()
+    code = proc.wait(timeout=300)
+    assert code != 0
+    _interrupted(out)
