@@ -96,6 +96,7 @@ def write_xdmf(comm, path: Path, mode: str, action, describe) -> None:
     Raises:
         OutputError: dolfinx's HDF5 layer failed.
     """
+    _quiet_hdf5()
     f = None
     try:
         f = dio.XDMFFile(comm, str(path), mode)
@@ -117,21 +118,51 @@ def _disarm_hdf5_termination() -> None:
     soon after, and the OS closes the files: parallel HDF5 is marked not initialised
     (HDF5 1.10's global H5_libinit_g), so that its termination does nothing.  Best effort."""
     import ctypes
+    for lib in _parallel_hdf5():
+        try:
+            ctypes.c_bool.in_dll(lib, "H5_libinit_g").value = False
+        except ValueError:
+            continue
+
+
+def _quiet_hdf5() -> None:
+    """Parallel HDF5 (dolfinx's) prints its whole error stack to stderr on a failure (140
+    lines for a full disk); the failure is reported as one OutputError line instead
+    (H5Eset_auto2 with no handler: dolfinx still raises).  Once per process."""
+    global _HDF5_QUIET
+    if _HDF5_QUIET:
+        return
+    _HDF5_QUIET = True
+    import ctypes
+    for lib in _parallel_hdf5():
+        try:
+            lib.H5Eset_auto2(ctypes.c_int64(0), None, None)     # H5E_DEFAULT
+        except (AttributeError, OSError):
+            continue
+
+
+_HDF5_QUIET = False
+
+
+def _parallel_hdf5() -> list:
+    """The parallel HDF5 libraries this process has loaded (ctypes), none where unknown."""
+    import ctypes
     try:
         maps = Path("/proc/self/maps").read_text()
     except OSError:
-        return
-    paths = {line.split()[-1] for line in maps.splitlines() if "/libhdf5" in line}
-    for path in paths:
+        return []
+    libs = []
+    for path in {line.split()[-1] for line in maps.splitlines() if "/libhdf5" in line}:
         name = Path(path).name
         if not name.startswith("libhdf5") or "_hl" in name or "_cpp" in name:
             continue
         try:
             lib = ctypes.CDLL(path)
-            if hasattr(lib, "H5Pset_fapl_mpio"):             # parallel HDF5 only
-                ctypes.c_bool.in_dll(lib, "H5_libinit_g").value = False
-        except (OSError, ValueError):
+        except OSError:
             continue
+        if hasattr(lib, "H5Pset_fapl_mpio"):             # parallel HDF5 only
+            libs.append(lib)
+    return libs
 
 
 def on_rank0(comm, action, *args):

@@ -208,8 +208,8 @@ def test_hdf5_file_size_limit_is_a_failed_run_not_a_crash(tmp_path):
     """A real HDF5 write fault (the file size limit RLIMIT_FSIZE stands for a full disk:
     solution.h5 cannot grow past 150 kB): dolfinx's XDMFFile failed to close the HDF5 file,
     and its destructor, then HDF5's termination in MPI_Finalize, crashed (segmentation
-    fault, exit 139 or 59, no summary).  Now exit 1, one error line, summary.json agreeing
-    with the files."""
+    fault, exit 139 or 59, no summary; and 140 lines of HDF5's error stack).  Now exit 1,
+    one error line, summary.json agreeing with the files."""
     import resource
     args = ["run", PAPER_CASE, "--set", "time.N=200", "--set", "mesh.n=8", "--quiet"]
     assert run_cli([*args, "--set", "time.N=2", "--out", tmp_path / "warm"]).returncode == 0
@@ -223,7 +223,7 @@ def test_hdf5_file_size_limit_is_a_failed_run_not_a_crash(tmp_path):
                           timeout=300, preexec_fn=limit)
     assert proc.returncode == 1, proc.stderr[-3000:]
     assert "Segmentation" not in proc.stderr and "Traceback" not in proc.stderr
-    lines = [x for x in proc.stderr.splitlines() if x.startswith("vpcontact")]
+    lines = [x for x in proc.stderr.splitlines() if x.strip()]   # no HDF5 error stack
     assert len(lines) == 1 and "cannot write the outputs" in lines[0], proc.stderr[-3000:]
     s = _summary(out)
     assert s["status"] == "failed" and s["steps"][-1]["written"] is False
