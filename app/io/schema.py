@@ -123,7 +123,11 @@ SCHEMA = _obj({
         "direction": {"type": "array", "items": _num, "minItems": 2, "maxItems": 3,
                       "description": "[dx, dy(, dz)]: a fixed approach direction of a flat "
                                      "rigid foundation (normalised): u_nu = u . d, the "
-                                     "tangential parts orthogonal to d (absent: the outward "
+                                     "tangential parts orthogonal to d; it must point from "
+                                     "the body toward the obstacle, under 90 degrees to the "
+                                     "outward normal at every Gamma3 node (refused otherwise, "
+                                     "naming the node; warned of above 80 degrees on average) "
+                                     "(absent: the outward "
                                      "unit normal of Gamma3 at each node; (0, -1) / (0, 0, -1) "
                                      "on the built-in bottom side)"},
         "normal_compliance": _obj({
