@@ -117,6 +117,78 @@ def import_gmsh():
     return gmsh
 
 
+def on_root(comm: MPI.Comm, work, failure, keep: bool = False, share: bool = True,
+            error: type = MeshFileError, reraise: bool = False):
+    """``work(gmsh)`` on rank 0 with gmsh initialised, its verdict broadcast; collective.
+
+    Gmsh runs on one rank only; any failure there is broadcast so that no rank is left
+    waiting for rank 0 in a collective call.  gmsh comes from ``import_gmsh`` (the process's
+    SIGINT handler is kept, so SIGINT/SIGTERM end the run with exit code 3).  Gmsh is
+    finalised on rank 0 afterwards, unless ``keep`` and ``work`` succeeded (the caller then
+    reads gmsh's model, e.g. with ``gmshio.model_to_mesh``, and finalises it), and unless a
+    gmsh call an interrupt left running in its thread (``_busy``) still uses gmsh.
+
+    Args:
+        comm: the MPI communicator.
+        work: called on rank 0 as ``work(gmsh)``; its result is returned.
+        failure: ``failure(err)``, the message of an Exception ``work`` raised (made one
+            line: gmsh's messages may span lines).
+        keep: leave gmsh initialised on rank 0 when ``work`` succeeded.
+        share: return the result on every rank (else on rank 0, None elsewhere).
+        error: the exception class raised with the message.
+        reraise: rank 0 raises ``work``'s own exception (the other ranks ``error``).
+
+    Returns:
+        ``work``'s result (on every rank if ``share``).
+
+    Raises:
+        KeyboardInterrupt: on every rank, with the signal's name as rank 0's had, when
+            SIGINT/SIGTERM stopped ``work``.
+        Exception: ``error(message)`` on every rank (rank 0: ``work``'s own if ``reraise``)
+            when ``work`` failed.
+    """
+    gmsh = import_gmsh()
+    result = verdict = raised = None
+    if comm.rank == 0:
+        gmsh.initialize(readConfigFiles=False)
+        gmsh.option.setNumber("General.Terminal", 0)
+        done = False
+        try:
+            result, done = work(gmsh), True
+        except KeyboardInterrupt as stop:       # its argument names the signal
+            verdict = (_INTERRUPTED, *stop.args)
+        except Exception as err:                # never leave the other ranks waiting
+            raised, verdict = err, " ".join(str(failure(err)).splitlines())
+        finally:
+            if not (keep and done) and not _busy:   # else gmsh is in use (model, signal)
+                gmsh.finalize()
+    verdict, shared = comm.bcast((verdict, result if share else None), root=0)
+    if isinstance(verdict, tuple):
+        raise KeyboardInterrupt(*verdict[1:])
+    if raised is not None and reraise:
+        raise raised
+    if verdict is not None:
+        raise error(verdict)
+    return shared if share else result
+
+
+def file_failure(path, doing: str):
+    """The message of a failure reading a gmsh file, for ``on_root``.
+
+    Args:
+        path: the file.
+        doing: the verb of the message, e.g. "load".
+
+    Returns:
+        ``failure(err)``: a MeshFileError's own message, else "cannot <doing> <path>: ...".
+    """
+    def failure(err: Exception) -> str:
+        if isinstance(err, MeshFileError):
+            return str(err)
+        return f"cannot {doing} {path}: {type(err).__name__}: {err}"
+    return failure
+
+
 def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0,
                    max_vertices: float = MAX_VERTICES) -> FileMesh:
     """Read a gmsh ``.msh`` or mesh a ``.geo`` and distribute it; collective on ``comm``.
@@ -148,27 +220,9 @@ def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0,
         raise ValueError(f"dim must be 2 or 3, got {dim!r}")
     if not size > 0:
         raise ValueError(f"size must be > 0, got {size!r}")
-    verdict = found = None
-    if comm.rank == 0:
-        gmsh.initialize(readConfigFiles=False)
-        gmsh.option.setNumber("General.Terminal", 0)
-        try:
-            found = (*_read(gmsh, path, dim, size, max_vertices), _other_groups(gmsh, dim))
-        except MeshFileError as err:
-            verdict = str(err)
-        except KeyboardInterrupt:
-            verdict = _INTERRUPTED
-        except Exception as err:   # never leave the other ranks waiting for rank 0
-            verdict = f"cannot load {path}: {type(err).__name__}: {err}"
-        if verdict is not None and not _busy:
-            gmsh.finalize()
-        if verdict is not None:
-            verdict = " ".join(verdict.splitlines())    # gmsh's messages may span lines
-    verdict, found = comm.bcast((verdict, found), root=0)
-    if verdict == _INTERRUPTED:
-        raise KeyboardInterrupt
-    if verdict is not None:
-        raise MeshFileError(verdict)
+    found = on_root(comm, lambda gmsh: (*_read(gmsh, path, dim, size, max_vertices),
+                                        _other_groups(gmsh, dim)),
+                    file_failure(path, "load"), keep=True)
     try:
         msh, ct, ft = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0,
                                            gdim=dim)

@@ -233,28 +233,14 @@ def gmsh_mesh(comm: MPI.Comm, gdim: int, build, scale: float):
     Returns:
         (mesh, cell tags, facet tags).
     """
-    from .gmshfile import _INTERRUPTED, _busy, _interruptible, import_gmsh
+    from .gmshfile import _interruptible, import_gmsh, on_root
     gmsh = import_gmsh()              # before gmshio, whose import of gmsh resets SIGINT
     from dolfinx.io import gmshio
-    verdict = error = None
-    if comm.rank == 0:
-        gmsh.initialize(readConfigFiles=False)
-        gmsh.option.setNumber("General.Terminal", 0)
-        try:
-            _interruptible(build)         # SIGINT/SIGTERM stop the wait for gmsh at once
-        except KeyboardInterrupt as stop:  # its argument names the signal
-            verdict = (_INTERRUPTED, *stop.args)
-        except Exception as err:
-            error, verdict = err, f"rank 0 could not build the mesh: {type(err).__name__}: {err}"
-        if verdict is not None and not _busy:   # else gmsh is still meshing after a signal
-            gmsh.finalize()
-    verdict = comm.bcast(verdict, root=0)       # never leave the other ranks waiting
-    if isinstance(verdict, tuple):
-        raise KeyboardInterrupt(*verdict[1:])
-    if error is not None:
-        raise error
-    if verdict is not None:
-        raise RuntimeError(verdict)
+    # SIGINT/SIGTERM stop the wait for gmsh at once (_interruptible); rank 0 raises build's
+    # own error, the other ranks a RuntimeError
+    on_root(comm, lambda _: _interruptible(build),
+            lambda err: f"rank 0 could not build the mesh: {type(err).__name__}: {err}",
+            keep=True, share=False, error=RuntimeError, reraise=True)
     try:
         msh, ct, ft = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0,
                                            gdim=gdim)

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .gmshfile import _INTERRUPTED, MeshFileError, _busy, _read, import_gmsh
+from .gmshfile import MeshFileError, _read, file_failure, on_root
 
 _LINEAR = {1: 1, 2: 2, 3: 4}          # gmsh element type of the linear simplex of each dim
 # the triangle (a, b, c) with edge midpoints (ab, bc, ca) -> 4 triangles, as local indices of
@@ -403,41 +403,8 @@ def read_sizes(comm, path, dim: int, size: float, levels: int) -> list[int]:
     Raises:
         MeshFileError: on every rank, if the file cannot be used.
     """
-    return _on_root(comm, path, lambda gmsh: level_vertices(read_level(gmsh, path, dim, size),
-                                                            levels))
-
-
-def _on_root(comm, path, work, doing: str = "read", share: bool = True):
-    """``work(gmsh)`` on rank 0 with gmsh initialised; a failure is a MeshFileError on
-    every rank, and SIGINT/SIGTERM on rank 0 a KeyboardInterrupt on every rank (never leave
-    the other ranks waiting for rank 0 in a collective).  Returns its result, on every rank
-    if ``share``, else on rank 0 (None elsewhere).
-
-    gmsh comes from ``import_gmsh``, which keeps the process's SIGINT handler (gmsh's module
-    sets SIGINT to its default action, which killed the process outright: no line, no exit
-    code 3)."""
-    gmsh = import_gmsh()
-    result, verdict = None, None
-    if comm.rank == 0:
-        gmsh.initialize(readConfigFiles=False)
-        gmsh.option.setNumber("General.Terminal", 0)
-        try:
-            result = work(gmsh)
-        except MeshFileError as err:
-            verdict = " ".join(str(err).splitlines())
-        except KeyboardInterrupt as stop:      # its argument names the signal
-            verdict = (_INTERRUPTED, *stop.args)
-        except Exception as err:
-            verdict = f"cannot {doing} {path}: {type(err).__name__}: {err}"
-        finally:
-            if not _busy:            # a gmsh call a signal left running: gmsh is in use
-                gmsh.finalize()
-    verdict = comm.bcast(verdict, root=0)
-    if isinstance(verdict, tuple):
-        raise KeyboardInterrupt(*verdict[1:])
-    if verdict is not None:
-        raise MeshFileError(verdict)
-    return comm.bcast(result, root=0) if share else result
+    return on_root(comm, lambda gmsh: level_vertices(read_level(gmsh, path, dim, size), levels),
+                   file_failure(path, "read"))
 
 
 def refine_file(comm, path, dim: int, size: float, levels: int, out_dir,
@@ -471,5 +438,5 @@ def refine_file(comm, path, dim: int, size: float, levels: int, out_dir,
             write_msh(gmsh, level, Path(out_dir) / f"level{level.level}.msh")
         return out
 
-    out = _on_root(comm, path, work, "refine", share=False)
+    out = on_root(comm, work, file_failure(path, "refine"), share=False)
     return [Path(out_dir) / f"level{r}.msh" for r in range(levels + 1)], out
