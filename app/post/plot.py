@@ -639,12 +639,25 @@ def _figure_process(*options):
 
 
 def _give(proc, job: dict) -> None:
-    """Send a figure process its job (one JSON line)."""
+    """Send a figure process its job (one JSON line).
+
+    SIGPIPE is ignored during the write: a figure process that died makes the write fail
+    (BrokenPipeError) instead of raising SIGPIPE, which PETSc's signal handler, installed
+    in any process that has loaded dolfinx, turns into an MPI_Abort of the caller (the
+    command line ignores SIGPIPE anyway; a Python script or a test does not)."""
+    import signal
+    import threading
+
+    main = threading.current_thread() is threading.main_thread()
+    before = signal.signal(signal.SIGPIPE, signal.SIG_IGN) if main else None
     try:
         proc.stdin.write(json.dumps(job) + "\n")
         proc.stdin.flush()                     # communicate() closes it
     except OSError:            # it died while starting: _result reports its error
         pass
+    finally:
+        if main:
+            signal.signal(signal.SIGPIPE, before)
 
 
 def _result(proc) -> dict:
