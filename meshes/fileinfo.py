@@ -6,37 +6,20 @@ writes near the top: the numbers of points, curves, surfaces and volumes; the di
 that of the highest kind present.  It is read here without gmsh.  Any other file (a ``.geo``,
 whose geometry exists only once gmsh has run the script, or a ``.msh`` of format 2) is
 scanned first (meshes/geoscan.py: nothing a case may not do) and opened by gmsh in a child
-process, which prints ``gmsh.model.getDimension()``: the script runs out of this process,
-and SIGINT/SIGTERM stop it at once (the child is killed, KeyboardInterrupt raised again).
+process (``python meshes/geomesh.py --dimension``: it dies with its parent and may add at
+most half the machine's memory), which prints ``gmsh.model.getDimension()``: the script
+runs out of this process, and SIGINT/SIGTERM stop it at once (the child is killed,
+KeyboardInterrupt raised again).
 Answers are kept per file (path, size and modification time).
 """
 from __future__ import annotations
 
-import os
 import struct
-import subprocess
-import sys
 from pathlib import Path
 
+from .geomesh import memory_budget, refusal, run_child
 from .geoscan import GeoScanError, mesh_files
 
-# the child: gmsh and the standard library only; it dies with its parent and may use at most
-# half the machine's memory more than at its start (a script that meshes while it is opened)
-_CHILD = """import ctypes, os, resource, signal, sys
-import gmsh
-ctypes.CDLL(None).prctl(1, int(signal.SIGKILL))          # PR_SET_PDEATHSIG
-if os.getppid() != int(sys.argv[2]):
-    os._exit(3)
-more = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
-with open("/proc/self/statm") as f:
-    used = int(f.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
-resource.setrlimit(resource.RLIMIT_AS, (used + more, used + more))
-gmsh.initialize(readConfigFiles=False)
-gmsh.option.setNumber("General.Terminal", 0)
-gmsh.open(sys.argv[1])
-print(gmsh.model.getDimension(), flush=True)
-gmsh.finalize()
-"""
 _HEADER_LINES = 10_000            # lines read before $Entities (the physical names)
 _cache: dict = {}
 
@@ -120,19 +103,10 @@ def _gmsh_dimension(p: Path) -> int:
         mesh_files(p)
     except GeoScanError as err:
         raise FileInfoError(str(err)) from None
-    child = subprocess.Popen([sys.executable, "-c", _CHILD, str(p), str(os.getpid())],
-                             stdin=subprocess.DEVNULL,
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                             env={**os.environ, "PYTHONPATH": ""})
-    try:
-        out, err = child.communicate()
-    except BaseException:          # KeyboardInterrupt (SIGINT/SIGTERM): stop gmsh now
-        child.kill()
-        child.wait()
-        raise
-    lines = out.decode(errors="replace").split()
-    if child.returncode != 0 or not lines or not lines[-1].lstrip("-").isdigit():
-        said = [ln for ln in err.decode(errors="replace").splitlines() if ln.strip()]
-        why = said[-1] if said else f"exit status {child.returncode}"
-        raise FileInfoError(f"gmsh cannot read {p}: {why}")
+    code, out, err = run_child(["--dimension", str(p)], memory_budget())
+    lines = out.split()
+    if code != 0 or not lines or not lines[-1].lstrip("-").isdigit():
+        said = refusal(err) or next((ln for ln in reversed(err.splitlines()) if ln.strip()),
+                                    f"exit status {code}")
+        raise FileInfoError(f"gmsh cannot read {p}: {said}")
     return int(lines[-1])

@@ -1,4 +1,5 @@
-"""Mesh a ``.geo`` in a child process: ``python meshes/geomesh.py GEO MSH DIM SIZE MAX MEMORY``.
+"""Mesh a ``.geo`` in a child process: ``python meshes/geomesh.py GEO MSH DIM SIZE MAX MEMORY``
+(or tell a gmsh file's dimension: ``python meshes/geomesh.py --dimension FILE MEMORY``).
 
 ``meshes.gmshfile`` runs this file as a separate process (gmsh and the standard library only;
 it imports nothing of vpcontact) and merges the ``.msh`` it writes.  A child can be stopped:
@@ -15,7 +16,11 @@ curves alone have at least 2 (largest extent) / h nodes), then from a mesh of th
 with sizes floored at 1e-5 of the bounding box (mean segment length h1: about (bounding box
 measure) / h1^dim nodes; the floor keeps that mesh small).  The mesh made is counted too.
 
-Exit status: 0 the mesh is written to MSH; 2 refused, with one line on stderr.
+``--dimension`` opens the file the same way and prints ``gmsh.model.getDimension()``
+(meshes/fileinfo.py).  ``run_child`` is the parent's side of both.
+
+Exit status: 0 the mesh is written to MSH (the dimension printed); 2 refused, with one line
+on stderr.
 """
 from __future__ import annotations
 
@@ -31,6 +36,59 @@ def _refuse(message: str):
     sys.stderr.write(REFUSED + " ".join(str(message).splitlines()) + "\n")
     sys.stderr.flush()
     os._exit(2)
+
+
+def memory_budget() -> int:
+    """Bytes of address space a gmsh child may add: half the machine's memory (0: unknown).
+
+    Returns:
+        The budget in bytes.
+    """
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
+    except (ValueError, OSError):
+        return 0
+
+
+def run_child(args: list[str], memory: int) -> tuple[int, str, str]:
+    """Run this file as a child process (gmsh and the standard library only) and wait.
+
+    Args:
+        args: its arguments (see the module docstring) before MEMORY.
+        memory: the bytes of address space the child may add (``_limit_process``).
+
+    Returns:
+        (exit status, stdout, stderr).
+
+    Raises:
+        KeyboardInterrupt: SIGINT/SIGTERM while it runs: the child is killed first (gmsh's
+            C++ code would not return before it is done).
+    """
+    import subprocess
+    cmd = [sys.executable, os.path.abspath(__file__), *args, str(int(memory))]
+    env = {**os.environ, "VPCONTACT_PARENT": str(os.getpid()), "PYTHONPATH": ""}
+    child = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, env=env)
+    try:
+        out, err = child.communicate()
+    except BaseException:          # KeyboardInterrupt (SIGINT/SIGTERM): stop gmsh now
+        child.kill()
+        child.wait()
+        raise
+    return child.returncode, out.decode(errors="replace"), err.decode(errors="replace")
+
+
+def refusal(err: str) -> str | None:
+    """The one-line reason a child refused.
+
+    Args:
+        err: the child's stderr.
+
+    Returns:
+        The text of its last ``REFUSED`` line, or None.
+    """
+    said = [line[len(REFUSED):] for line in err.splitlines() if line.startswith(REFUSED)]
+    return said[-1] if said else None
 
 
 def _limit_process(memory: int, parent: int) -> None:
@@ -176,13 +234,34 @@ def mesh(gmsh, path: str, out: str, dim: int, size: float, most: float) -> None:
     gmsh.finalize()
 
 
+def dimension(gmsh, path: str) -> None:
+    """Print the dimension of the gmsh file ``path`` (``gmsh.model.getDimension()``).
+
+    Args:
+        gmsh: the gmsh module.
+        path: the file, scanned by the parent (meshes/geoscan.py).
+    """
+    gmsh.initialize(readConfigFiles=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        gmsh.open(path)
+    except Exception as err:
+        _refuse(str(err))
+    print(gmsh.model.getDimension(), flush=True)
+    gmsh.finalize()
+
+
 if __name__ == "__main__":
-    _geo, _out, _dim, _size, _most, _memory = sys.argv[1:7]
+    _args, _memory = sys.argv[1:-1], int(sys.argv[-1])
     import gmsh as _gmsh  # the libraries first: their mappings count in the limit
     import numpy  # noqa: F401
-    _limit_process(int(_memory), int(os.environ.get("VPCONTACT_PARENT", os.getppid())))
+    _limit_process(_memory, int(os.environ.get("VPCONTACT_PARENT", os.getppid())))
     try:
-        mesh(_gmsh, _geo, _out, int(_dim), float(_size), float(_most))
+        if _args[0] == "--dimension":
+            dimension(_gmsh, _args[1])
+        else:
+            _geo, _out, _dim, _size, _most = _args
+            mesh(_gmsh, _geo, _out, int(_dim), float(_size), float(_most))
     except MemoryError:
         _refuse("out of memory")
     os._exit(0)

@@ -23,8 +23,6 @@ an estimate before meshing when the mesh sizes ask for one.
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,6 +32,8 @@ from mpi4py import MPI
 
 from .bodycheck import BodyError, check_cells, check_facets, check_lower_groups
 from .extent import mesh_extent
+from .geomesh import memory_budget as _memory_budget
+from .geomesh import refusal, run_child
 from .geoscan import GeoScanError, mesh_files
 
 SUFFIXES = (".msh", ".geo")
@@ -339,14 +339,6 @@ def _check_last_line(p: Path, path: str) -> None:
                             "but its first statement; end the file with a line break")
 
 
-def _memory_budget() -> int:
-    """Bytes of address space the meshing child may add: half the machine's memory."""
-    try:
-        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
-    except (ValueError, OSError):
-        return 0
-
-
 def _mesh_geo(gmsh, path: str, dim: int, size: float, most: float,
               memory: int | None = None) -> None:
     """Rank 0: mesh the ``.geo`` in ``dim`` dimensions, lengths scaled by ``size``, in a
@@ -356,20 +348,10 @@ def _mesh_geo(gmsh, path: str, dim: int, size: float, most: float,
     memory = _memory_budget() if memory is None else memory
     with tempfile.TemporaryDirectory(prefix="vpcontact-geo-") as tmp:
         out = os.path.join(tmp, "mesh.msh")
-        cmd = [sys.executable, os.path.join(os.path.dirname(__file__), "geomesh.py"), path,
-               out, str(dim), repr(float(size)), repr(float(most)), str(int(memory))]
-        env = {**os.environ, "VPCONTACT_PARENT": str(os.getpid())}
-        child = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                 stderr=subprocess.PIPE, env=env)
-        try:
-            _, err = child.communicate()
-        except BaseException:          # KeyboardInterrupt (SIGINT/SIGTERM): stop gmsh now
-            child.kill()
-            child.wait()
-            raise
-        err = err.decode(errors="replace")
-        if child.returncode != 0 or not os.path.exists(out):
-            raise MeshFileError(_child_failure(path, child.returncode, err, memory))
+        code, _, err = run_child([path, out, str(dim), repr(float(size)), repr(float(most))],
+                                 memory)
+        if code != 0 or not os.path.exists(out):
+            raise MeshFileError(_child_failure(path, code, err, memory))
         try:
             gmsh.merge(out)
         except Exception as exc:
@@ -378,12 +360,11 @@ def _mesh_geo(gmsh, path: str, dim: int, size: float, most: float,
 
 def _child_failure(path: str, code: int, err: str, memory: int) -> str:
     """The one-line reason why the meshing child failed."""
-    from .geomesh import REFUSED
     lines = [line for line in err.splitlines() if line.strip()]
-    said = [line[len(REFUSED):] for line in lines if line.startswith(REFUSED)]
-    if said and "out of memory" not in said[-1]:
-        return said[-1]
-    if said or "bad_alloc" in err or "MemoryError" in err or code in (-6, -9):
+    said = refusal(err)
+    if said is not None and "out of memory" not in said:
+        return said
+    if said is not None or "bad_alloc" in err or "MemoryError" in err or code in (-6, -9):
         return (f"gmsh ran out of memory meshing {path} (limit {memory / 2**30:.1f} GB more "
                 "than gmsh itself): its mesh sizes ask for too fine a mesh; use larger "
                 "mesh sizes (Mesh.MeshSizeMax, the points' sizes, mesh.size)")

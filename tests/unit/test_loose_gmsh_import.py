@@ -1,8 +1,8 @@
 """gmsh is imported in this process only through meshes.gmshfile.import_gmsh, which keeps the
 process's SIGINT handler: gmsh's module sets SIGINT to its default action when first
 imported (and dolfinx.io.gmshio imports gmsh), so Ctrl-C killed the process with no line
-and no exit code 3.  The meshing children (meshes/fileinfo.py's script, meshes/geomesh.py
-run as a program) are other processes, killed by their parent on a signal."""
+and no exit code 3.  The meshing children (meshes/geomesh.py run as a program) are other
+processes, killed by their parent on a signal."""
 import os
 import re
 import subprocess
@@ -12,7 +12,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 IMPORT = re.compile(r"^\s*(import gmsh\b|from gmsh\b|from dolfinx\.io import gmshio|"
                     r"from dolfinx\.io\.gmshio|import dolfinx\.io\.gmshio)", re.M)
-CHILDREN = {"meshes/fileinfo.py": "_CHILD = ", "meshes/geomesh.py": "__main__"}
+CHILDREN = {"meshes/geomesh.py": "__main__"}
 
 
 def _imports(path: Path) -> list[int]:
