@@ -71,6 +71,17 @@ def run_cli(args, nprocs: int = 1, cwd=None, timeout=600, plots=False):
 
 
 @pytest.fixture(scope="session")
+def tiny_run_dir(tmp_path_factory):
+    """A results directory of the paper case at h = 1/4, two steps, run once by the command
+    line (no figures).  Tests that change it work on a copy (shutil.copytree)."""
+    out = tmp_path_factory.mktemp("tiny") / "run"
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--set", "mesh.n=4", "--set",
+                    "time.N=2", "--quiet"])
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+@pytest.fixture(scope="session")
 def paper_run():
     """The paper case (h = k = 1/16) run once in-process."""
     return run_case(make_case())

@@ -8,16 +8,7 @@ import shutil
 import h5py
 import pytest
 
-from conftest import PAPER_CASE, run_cli
-
-
-@pytest.fixture(scope="module")
-def results(tmp_path_factory):
-    out = tmp_path_factory.mktemp("damaged") / "run"
-    proc = run_cli(["run", PAPER_CASE, "--out", out, "--set", "mesh.n=4", "--set",
-                    "time.N=2", "--quiet"])
-    assert proc.returncode == 0, proc.stderr
-    return out
+from conftest import run_cli
 
 
 def _truncate(name, size):
@@ -52,10 +43,10 @@ DAMAGES = {
 
 
 @pytest.mark.parametrize("damage", DAMAGES, ids=list(DAMAGES))
-def test_plot_of_a_damaged_directory_is_one_line_naming_the_file(results, tmp_path, damage):
+def test_plot_of_a_damaged_directory_is_one_line_naming_the_file(tiny_run_dir, tmp_path, damage):
     name, apply = DAMAGES[damage]
     out = tmp_path / "r"
-    shutil.copytree(results, out)
+    shutil.copytree(tiny_run_dir, out)
     apply(out)
     proc = run_cli(["plot", out, "--animate"])
     lines = [x for x in (proc.stdout + proc.stderr).splitlines() if x.strip()]
@@ -65,10 +56,10 @@ def test_plot_of_a_damaged_directory_is_one_line_naming_the_file(results, tmp_pa
     assert not list(out.glob("*.png")) and not (out / "animation.gif").exists()
 
 
-def test_plot_of_a_killed_run_names_what_is_missing(results, tmp_path):
+def test_plot_of_a_killed_run_names_what_is_missing(tiny_run_dir, tmp_path):
     """A run killed before its end has no summary.json: refused in one line."""
     out = tmp_path / "r"
-    shutil.copytree(results, out)
+    shutil.copytree(tiny_run_dir, out)
     (out / "summary.json").unlink()
     proc = run_cli(["plot", out, "--animate"])
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
