@@ -43,13 +43,35 @@ def _label(gmsh, d: int, tag: int) -> str:
     return f"{_PHYSICAL[d]} {tag} ({name!r})" if name else f"{_PHYSICAL[d]} {tag}"
 
 
-def check_facets(gmsh, path: str, dim: int) -> dict[int, tuple[int, int]]:
+def check_body(gmsh, path: str, dim: int) -> dict[int, tuple[int, int]]:
+    """The three checks of the module docstring, on the body's cells read once from gmsh.
+
+    Args:
+        gmsh: the gmsh module with the mesh loaded (linear simplices, checked before).
+        path: the mesh file, for the message.
+        dim: the space dimension.
+
+    Returns:
+        check_facets' {physical tag: (facets inside the body, facets)}.
+
+    Raises:
+        BodyError: the first check that fails.
+    """
+    cells, _ = _elements(gmsh, dim)
+    interior = check_facets(gmsh, path, dim, cells)    # model_to_mesh segfaults otherwise
+    check_lower_groups(gmsh, path, dim, cells)
+    check_cells(gmsh, path, dim, cells)
+    return interior
+
+
+def check_facets(gmsh, path: str, dim: int, cells: np.ndarray) -> dict[int, tuple[int, int]]:
     """Every facet of a boundary group is a facet of a body cell (else BodyError).
 
     Args:
         gmsh: the gmsh module with the mesh loaded (linear simplices, checked before).
         path: the mesh file, for the message.
         dim: the space dimension.
+        cells: the body's cells, node tags (n, dim + 1).
 
     Returns:
         {physical tag: (facets inside the body, facets)} of the groups of dimension dim - 1
@@ -58,7 +80,6 @@ def check_facets(gmsh, path: str, dim: int) -> dict[int, tuple[int, int]]:
     Raises:
         BodyError: a group has facets that are not facets of any body cell.
     """
-    cells, _ = _elements(gmsh, dim)
     facets, owners = _elements(gmsh, dim - 1)
     if len(facets) == 0:
         return {}
@@ -82,7 +103,7 @@ def check_facets(gmsh, path: str, dim: int) -> dict[int, tuple[int, int]]:
     return interior
 
 
-def check_lower_groups(gmsh, path: str, dim: int) -> None:
+def check_lower_groups(gmsh, path: str, dim: int, cells: np.ndarray) -> None:
     """Every node of a physical group of dimension below dim - 1 (a Physical Point; a
     Physical Curve in 3D) is a vertex of a body cell: dolfinx's model_to_mesh reads these
     groups too, and dies with a segmentation fault on a point off the body.
@@ -91,11 +112,11 @@ def check_lower_groups(gmsh, path: str, dim: int) -> None:
         gmsh: the gmsh module with the mesh loaded.
         path: the mesh file, for the message.
         dim: the space dimension.
+        cells: the body's cells, node tags (n, dim + 1).
 
     Raises:
         BodyError: naming the first such group off the body.
     """
-    cells, _ = _elements(gmsh, dim)
     used = np.unique(cells)
     for d in range(dim - 1):
         for _, tag in gmsh.model.getPhysicalGroups(d):
@@ -111,18 +132,18 @@ def check_lower_groups(gmsh, path: str, dim: int) -> None:
                                 "entities from it")
 
 
-def check_cells(gmsh, path: str, dim: int) -> None:
+def check_cells(gmsh, path: str, dim: int, cells: np.ndarray) -> None:
     """Every body cell has finite vertices and a measure (module docstring).
 
     Args:
         gmsh: the gmsh module with the mesh loaded.
         path: the mesh file, for the message.
         dim: the space dimension.
+        cells: the body's cells, node tags (n, dim + 1).
 
     Raises:
         BodyError: naming the first degenerate cell and its vertices.
     """
-    cells, _ = _elements(gmsh, dim)
     tags, xyz, _ = gmsh.model.mesh.getNodes()
     where = np.zeros(int(np.max(tags)) + 1, dtype=np.int64)
     where[np.asarray(tags, dtype=np.int64)] = np.arange(len(tags))

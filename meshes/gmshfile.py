@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from .bodycheck import BodyError, check_cells, check_facets, check_lower_groups
+from .bodycheck import BodyError, check_body
 from .extent import mesh_extent
 from .geomesh import memory_budget as _memory_budget
 from .geomesh import refusal, run_child
@@ -280,9 +280,7 @@ def _read(gmsh, path: str, dim: int, size: float, max_vertices: float = MAX_VERT
     if dim == 2:
         _check_planar(gmsh, path)
     try:
-        interior = check_facets(gmsh, path, dim)    # model_to_mesh segfaults otherwise
-        check_lower_groups(gmsh, path, dim)
-        check_cells(gmsh, path, dim)
+        interior = check_body(gmsh, path, dim)
     except BodyError as err:
         raise MeshFileError(str(err)) from None
     nodes = gmsh.model.mesh.getNodes()[0]
