@@ -70,7 +70,7 @@ $(STAMP): pyproject.toml
 	@$(PY) -c "import dolfinx, petsc4py, gmsh, yaml, jsonschema, pyvista, app; print('setup: dolfinx', dolfinx.__version__, 'pyvista', pyvista.__version__, 'ok')"
 	@touch $(STAMP)
 
-# ./vpcontact runs .venv/bin/python -m app (the README's commands use it too)
+# ./vpcontact runs .venv/bin/python -m vpcontact (the README's commands use it too)
 demo: setup
 	./vpcontact run $(CASE) --overwrite
 
@@ -95,7 +95,7 @@ bench: setup
 	./vpcontact bench $(CASE)
 
 docs: setup
-	$(PY) -m app.io.docs README.md
+	$(PY) -m vpcontact.io.docs README.md
 
 clean:
 	rm -rf results .pytest_cache

@@ -21,10 +21,10 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from app.io import checkpoint
-from app.io.contact_xdmf import ContactWriter
-from app.io.history import HistoryWriter, history_columns
-from app.io.output import (
+from vpcontact.io import checkpoint
+from vpcontact.io.contact_xdmf import ContactWriter
+from vpcontact.io.history import HistoryWriter, history_columns
+from vpcontact.io.output import (
     FieldWriter,
     OutputError,
     gather_contact_table,
@@ -32,7 +32,7 @@ from app.io.output import (
     write_contact_csv,
     write_json,
 )
-from app.records import HINT_OUTPUT, StepFailure
+from vpcontact.records import HINT_OUTPUT, StepFailure
 
 log = logging.getLogger("vpcontact")
 

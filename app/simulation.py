@@ -26,20 +26,20 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from app.io.case import MAX_VERTICES, Case, CaseError, rescale_for_length
-from app.io.output import OutputError
-from app.model.datapoints import check_data_on_mesh
-from app.model.gamma3 import Gamma3History, Kernel
-from app.model.history import ImplicitViscoplasticHistory, ViscoplasticHistory
-from app.model.problem import ContactProblem
-from app.model.stepping import StepTooSmall, make_stepper
-from app.observers import Observer, StopRun
-from app.post.diagnostics import diagnose
-from app.records import HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
-from app.solvers import select_solver, threads
-from app.solvers.snesvi import StepSolveError, describe_petsc_error
-from meshes import build_box, build_rectangle
-from meshes.gmshfile import MeshFileError, load_mesh_file
+from vpcontact.io.case import MAX_VERTICES, Case, CaseError, rescale_for_length
+from vpcontact.io.output import OutputError
+from vpcontact.meshes import build_box, build_rectangle
+from vpcontact.meshes.gmshfile import MeshFileError, load_mesh_file
+from vpcontact.model.datapoints import check_data_on_mesh
+from vpcontact.model.gamma3 import Gamma3History, Kernel
+from vpcontact.model.history import ImplicitViscoplasticHistory, ViscoplasticHistory
+from vpcontact.model.problem import ContactProblem
+from vpcontact.model.stepping import StepTooSmall, make_stepper
+from vpcontact.observers import Observer, StopRun
+from vpcontact.post.diagnostics import diagnose
+from vpcontact.records import HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
+from vpcontact.solvers import select_solver, threads
+from vpcontact.solvers.snesvi import StepSolveError, describe_petsc_error
 
 log = logging.getLogger("vpcontact")
 
@@ -162,7 +162,7 @@ class Simulation:
         case: the validated Case.
         comm: the MPI communicator.
         outdir: the directory the output observers write to (None: a run in memory).
-        restart: an app.io.checkpoint.Checkpoint to continue from (None: start at t = 0).
+        restart: an vpcontact.io.checkpoint.Checkpoint to continue from (None: start at t = 0).
 
     Attributes:
         problem: the ContactProblem (u, sigma, forms, norms).
@@ -581,13 +581,13 @@ def run(case: Case, comm, observers=(), *, outdir: Path | None = None, restart=N
         comm: the MPI communicator.
         observers: app.observers.Observer instances, called in this order.
         outdir: the directory the output observers write to.
-        restart: an app.io.checkpoint.Checkpoint to continue from.
+        restart: an vpcontact.io.checkpoint.Checkpoint to continue from.
         monitor: stop a run whose norms blow up as "diverged" (app/post/divergence.py).
 
     Returns:
         The RunResult (status, summary dict, and the problem and histories at the end).
     """
-    from app.post.divergence import BlowUpMonitor
+    from vpcontact.post.divergence import BlowUpMonitor
 
     sim = Simulation(case, comm, outdir=outdir, restart=restart)
     if monitor:

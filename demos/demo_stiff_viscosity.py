@@ -22,22 +22,18 @@
 #     .venv/bin/python demos/demo_stiff_viscosity.py
 #     mpirun -n 2 .venv/bin/python demos/demo_stiff_viscosity.py
 #
-# As in `demo_wang_cheng.py`, the package `app` is imported first (threads, MPI, caches).
+# As in `demo_wang_cheng.py`, run it with `OPENBLAS_NUM_THREADS=1`.
 
 # +
 import logging
 import sys
 from pathlib import Path
 
-import app  # noqa: F401  (first: see above)
-
-# isort: split
-
 from mpi4py import MPI
 
-from app.io.case import load_raw, validate
-from app.post.divergence import BlowUpMonitor
-from app.simulation import Simulation
+from vpcontact import Simulation, validate
+from vpcontact.io.case import load_raw
+from vpcontact.post.divergence import BlowUpMonitor
 
 # -
 

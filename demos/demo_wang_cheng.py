@@ -28,9 +28,9 @@
 # The fields go to `$VPCONTACT_DEMO_OUT`, else to `vpcontact-demos/wang_cheng` under the
 # system's temporary directory.
 #
-# The package `app` is imported before numpy and mpi4py: on import it limits OpenBLAS to one
-# thread (the small per-cell algebra is much slower with more), makes a serial run a light
-# Open MPI singleton and checks that the JIT caches are writable.
+# Importing `vpcontact` changes nothing in the process. Multithreaded OpenBLAS makes the small
+# per-cell algebra much slower: run with `OPENBLAS_NUM_THREADS=1` (the command line sets it
+# itself).
 
 # +
 import logging
@@ -39,17 +39,11 @@ import sys
 import tempfile
 from pathlib import Path
 
-import app  # noqa: F401  (first: see above)
-
-# isort: split
-
 import numpy as np
 from mpi4py import MPI
 
-from app.io.case import validate
-from app.model.contact_laws import dpsi
-from app.observers import FieldOutput, Observer
-from app.simulation import Simulation
+from vpcontact import FieldOutput, Observer, Simulation, validate
+from vpcontact.model.contact_laws import dpsi
 
 # -
 

@@ -29,14 +29,14 @@ MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
 
 
 def paper_raw() -> dict:
-    from app.io.case import load_raw
+    from vpcontact.io.case import load_raw
     return load_raw(PAPER_CASE)
 
 
 def make_case(raw: dict | None = None, **sections):
     """Validate the paper case, with whole sections or keys replaced: make_case(time={'N': 2})
     merges into the section; a value of None removes the section."""
-    from app.io.case import validate
+    from vpcontact.io.case import validate
     raw = copy.deepcopy(raw if raw is not None else paper_raw())
     for name, value in sections.items():
         if value is None:
@@ -52,17 +52,17 @@ def run_case(case):
     """Run in this process without writing outputs; returns the RunResult."""
     from mpi4py import MPI
 
-    from app.simulation import run
+    from vpcontact.simulation import run
     return run(case, MPI.COMM_WORLD)
 
 
 def run_cli(args, nprocs: int = 1, cwd=None, timeout=600, plots=False):
-    """Run ``python -m app`` (under mpirun -n nprocs if > 1); returns CompletedProcess.
+    """Run ``python -m vpcontact`` (under mpirun -n nprocs if > 1); returns CompletedProcess.
     ``run`` commands get --no-plots unless ``plots`` (the figures take seconds to draw)."""
     args = list(map(str, args))
     if args and args[0] == "run" and not plots:
         args.append("--no-plots")
-    cmd = [sys.executable, "-m", "app", *args]
+    cmd = [sys.executable, "-m", "vpcontact", *args]
     if nprocs > 1:
         cmd = ["mpirun", "-n", str(nprocs), *cmd]
     env = {**os.environ, **MPI_ENV, "PYTHONPATH": str(ROOT)}
@@ -88,5 +88,5 @@ def paper_run():
 
 
 def validate_raw(raw: dict):
-    from app.io.case import validate
+    from vpcontact.io.case import validate
     return validate(raw, "test-case")

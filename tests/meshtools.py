@@ -49,7 +49,7 @@ def _write_moved(path, build, n: int, R: np.ndarray) -> Path:
     the grid i / n, rotate them by R and write the .msh 4.1 with "body" named."""
     import gmsh
 
-    from meshes.rectangle import DOMAIN_TAG
+    from vpcontact.meshes.rectangle import DOMAIN_TAG
 
     path = Path(path)
     d = R.shape[0]
@@ -85,7 +85,7 @@ def write_rotated_square(path, n: int, angle_deg: float, diagonal: str = "right"
     Returns:
         The path written.
     """
-    from meshes.rectangle import _gmsh_model
+    from vpcontact.meshes.rectangle import _gmsh_model
 
     return _write_moved(path, lambda: _gmsh_model(1.0, 1.0, n, None, diagonal), n,
                         rotation_2d(angle_deg))
@@ -102,7 +102,7 @@ def write_rotated_box(path, n: int, angles_deg) -> Path:
     Returns:
         The path written.
     """
-    from meshes.box import _gmsh_model
+    from vpcontact.meshes.box import _gmsh_model
 
     return _write_moved(path, lambda: _gmsh_model((1.0, 1.0, 1.0), n, None), n,
                         rotation_3d(angles_deg))

@@ -1,4 +1,4 @@
-"""Command line: ``./vpcontact run CASE.yaml`` (the launcher; ``python -m app`` in the
+"""Command line: ``./vpcontact run CASE.yaml`` (the launcher; ``python -m vpcontact`` in the
 project's environment, or its ``vpcontact`` console script, are the same).
 
 Arguments of the form ``-snes_rtol 1e-12`` / ``-ksp_view`` (one leading dash) are PETSc

@@ -17,12 +17,12 @@ def report(case, comm) -> list[str]:
     """
     import numpy as np
 
-    from app.io.case import fast_eligible, rescale_for_length
-    from app.model.datapoints import check_data_on_mesh
-    from app.model.problem import ContactProblem
-    from app.post.diagnostics import diagnose
-    from app.simulation import build_mesh
-    from app.solvers import choose_method, gamma3_dofs
+    from vpcontact.io.case import fast_eligible, rescale_for_length
+    from vpcontact.model.datapoints import check_data_on_mesh
+    from vpcontact.model.problem import ContactProblem
+    from vpcontact.post.diagnostics import diagnose
+    from vpcontact.simulation import build_mesh
+    from vpcontact.solvers import choose_method, gamma3_dofs
 
     body = build_mesh(case, comm)
     if case.mesh.file is not None:      # as Simulation.setup: the data on the mesh's points
@@ -82,15 +82,15 @@ def info() -> list[str]:
     from mpi4py import MPI
     from petsc4py import PETSc
 
-    from app import __version__
-    from app.io.cachedirs import caches
+    from vpcontact import __version__
+    from vpcontact.io.cachedirs import caches
 
     v = PETSc.Sys.getVersion()
     pkgs = ["mumps", "superlu_dist", "suitesparse", "hypre", "metis", "parmetis", "scalapack",
             "ptscotch", "hdf5"]
     have = [p for p in pkgs if PETSc.Sys.hasExternalPackage(p)]
     try:
-        from meshes.gmshfile import import_gmsh
+        from vpcontact.meshes.gmshfile import import_gmsh
         gmsh_v = import_gmsh().__version__
     except Exception as exc:  # noqa: BLE001
         gmsh_v = f"not importable ({exc})"

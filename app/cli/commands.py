@@ -11,12 +11,12 @@ import dataclasses
 import time
 from pathlib import Path
 
-from app import __version__
-from app.cli import outdir as outdirs
-from app.cli.logs import log, setup_logging
-from app.cli.outdir import CONVERGENCE_FILES, STABILITY_FILES
-from app.io.errors import CaseError
-from app.io.messages import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED, error, interrupted
+from vpcontact import __version__
+from vpcontact.cli import outdir as outdirs
+from vpcontact.cli.logs import log, setup_logging
+from vpcontact.cli.outdir import CONVERGENCE_FILES, STABILITY_FILES
+from vpcontact.io.errors import CaseError
+from vpcontact.io.messages import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED, error, interrupted
 
 
 def start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
@@ -38,7 +38,7 @@ def start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
     """
     from mpi4py import MPI
 
-    from app.io.case import load_raw, validate
+    from vpcontact.io.case import load_raw, validate
 
     comm = MPI.COMM_WORLD
     setup_logging(comm, args.quiet, getattr(args, "verbose", False))
@@ -46,7 +46,7 @@ def start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
         raw = load_raw(args.case, args.overrides)
         case = validate(raw, args.case)
         if petsc_cli:
-            from app.io.petscopts import check_petsc_options
+            from vpcontact.io.petscopts import check_petsc_options
             check_petsc_options(petsc_cli, "command line", where="-", base=case.petsc)
         if check:
             check(case)
@@ -63,7 +63,7 @@ def start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
 def _restart_check(args, loaded: dict):
     """The check of --restart (a ``start`` check): the checkpoint exists, is not in the
     output directory and belongs to the case; it is put into ``loaded["checkpoint"]``."""
-    from app.io.checkpoint import Checkpoint, latest
+    from vpcontact.io.checkpoint import Checkpoint, latest
 
     def check(case):
         if not args.restart:
@@ -106,8 +106,8 @@ def cmd_run(args, petsc_cli: dict) -> int:
     if case is None:
         return EXIT_BAD_INPUT
 
-    from app.cli.progress import ProgressBar
-    from app.observers import (
+    from vpcontact.cli.progress import ProgressBar
+    from vpcontact.observers import (
         Checkpointer,
         ContactOutput,
         FieldOutput,
@@ -115,8 +115,8 @@ def cmd_run(args, petsc_cli: dict) -> int:
         RunFiles,
         StepLog,
     )
-    from app.simulation import run
-    from app.solvers import threads
+    from vpcontact.simulation import run
+    from vpcontact.solvers import threads
 
     if args.verbose:
         petsc_cli = {"snes_monitor": None, "snes_converged_reason": None, **petsc_cli}
@@ -146,7 +146,7 @@ def _early_painter(comm, no_plots: bool):
     has a rank) or without figures."""
     if no_plots or comm.size > 1:
         return None
-    from app.post.plot import Painter
+    from vpcontact.post.plot import Painter
     try:
         return Painter()
     except OSError as exc:             # cannot start a process: the figures start their own
@@ -206,7 +206,7 @@ def plots(outdir: Path, animate: bool = False, painter=None) -> str:
         "interrupted" (Ctrl-C stops the drawing only: the run's files are complete and its
         summary stays as written).
     """
-    from app.post.plot import PicturesError, plot_all
+    from vpcontact.post.plot import PicturesError, plot_all
     t0 = time.perf_counter()
     try:
         files = plot_all(outdir, log=log.info, animate=animate, painter=painter)
@@ -242,8 +242,8 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
     """
     from mpi4py import MPI
 
-    from app.studies import convergence as cv
-    from app.studies.runcache import default_cache_dir
+    from vpcontact.studies import convergence as cv
+    from vpcontact.studies.runcache import default_cache_dir
 
     cache_dir = None if args.no_cache else Path(args.cache_dir or default_cache_dir())
     chosen = {}
@@ -290,7 +290,7 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
 def _convergence_interrupted(exc: KeyboardInterrupt, cache_dir: Path | None,
                              outdir: Path) -> str:
     """The line of a convergence study ended by a signal: where, and what is kept."""
-    from app.studies.interrupts import StudyInterrupted, signal_name
+    from vpcontact.studies.interrupts import StudyInterrupted, signal_name
     if not isinstance(exc, StudyInterrupted):           # while writing the report
         return (f"convergence study interrupted by {signal_name(exc)} while writing its "
                 f"report to {outdir}; every run is done" + (
@@ -317,8 +317,8 @@ def cmd_stability(args, petsc_cli: dict) -> int:
     """
     from mpi4py import MPI
 
-    from app.studies import stability as st
-    from app.studies.convergence import check_level_sizes
+    from vpcontact.studies import stability as st
+    from vpcontact.studies.convergence import check_level_sizes
 
     def check(c):
         st.base_case(c.raw, args.n, args.steps, args.case, args.refine)
@@ -348,7 +348,7 @@ def cmd_stability(args, petsc_cli: dict) -> int:
 def _stability_report(comm, args, case, raw, outdir: Path, outcomes, interrupted=None):
     """stability.csv and stability.md (rank 0); ``interrupted`` says by what and where if
     the outcomes are those of an interrupted sweep."""
-    from app.studies import stability as st
+    from vpcontact.studies import stability as st
     if comm.rank == 0:
         st.write_csv(outdir / "stability.csv", outcomes)
         file = case.mesh.file is not None
@@ -360,7 +360,7 @@ def _stability_report(comm, args, case, raw, outdir: Path, outcomes, interrupted
 def _stability_interrupted(comm, args, case, raw, outdir: Path, exc) -> str:
     """The line of a sweep ended by a signal, after the report of the runs that finished
     (the signals held back while it is written)."""
-    from app.studies.interrupts import StudyInterrupted, signal_name, signals_held
+    from vpcontact.studies.interrupts import StudyInterrupted, signal_name, signals_held
     if not isinstance(exc, StudyInterrupted):           # while writing the report
         return (f"stability sweep interrupted by {signal_name(exc)} while writing its report "
                 f"to {outdir}; every variant had run")
@@ -387,9 +387,9 @@ def cmd_bench(args) -> int:
     Returns:
         The exit code: 0 done, 1 a configuration failed, 2 bad input, 3 interrupted.
     """
-    from app.io.cachedirs import unusable
-    from app.studies import bench as bm
-    from app.studies.scenebench import scene_rows
+    from vpcontact.io.cachedirs import unusable
+    from vpcontact.studies import bench as bm
+    from vpcontact.studies.scenebench import scene_rows
 
     extra = list(args.extra)          # (n, N) pairs, parsed by cells_and_steps
     outdir = Path(args.out)
@@ -413,7 +413,7 @@ def cmd_bench(args) -> int:
     except RuntimeError as exc:
         return error(str(exc), EXIT_FAILED)
     except KeyboardInterrupt as exc:     # the run in progress was stopped with the bench
-        from app.studies.interrupts import signal_name
+        from vpcontact.studies.interrupts import signal_name
         return interrupted(f"bench interrupted by {signal_name(exc)}; its run was stopped, "
                            f"no bench.json or bench.md written to {outdir}")
     bm.write(outdir, rows, memory, scene, box3d)
@@ -428,7 +428,7 @@ def cmd_bench(args) -> int:
 def _box3d_rows(outdir: Path, levels: list[int]) -> list[dict]:
     """The bench's 3D rows (app/studies/bench3d.py) and their plot bench3d.png; none if no
     levels are asked for."""
-    from app.studies import bench3d
+    from vpcontact.studies import bench3d
     if not levels:
         return []
     print(f"3D rows: box3d at n = {' '.join(map(str, levels))}")
@@ -460,7 +460,7 @@ def cmd_plot(args) -> int:
             if missing == ["summary.json"] else ""
         return error(f"{outdir}: not a results directory (missing {', '.join(missing)})"
                      f"{killed}", EXIT_BAD_INPUT)
-    from app.post.plot import ResultsError, check_results
+    from vpcontact.post.plot import ResultsError, check_results
     try:
         check_results(outdir)                  # a damaged file: one line naming it
     except ResultsError as exc:
@@ -483,8 +483,8 @@ def cmd_check(args) -> int:
     """
     from mpi4py import MPI
 
-    from app.cli.checkrun import report
-    from app.io.case import load_raw, validate
+    from vpcontact.cli.checkrun import report
+    from vpcontact.io.case import load_raw, validate
     comm = MPI.COMM_WORLD
     setup_logging(comm, False)
     try:
@@ -506,7 +506,7 @@ def cmd_info(args) -> int:
     Returns:
         0.
     """
-    from app.cli.checkrun import info
+    from vpcontact.cli.checkrun import info
     for line in info():
         print(line)
     return 0

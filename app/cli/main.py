@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import sys
 
-from app.cli import commands
-from app.cli.parser import build_parser, split_petsc_args
-from app.io.errors import CaseError
-from app.io.messages import EXIT_BAD_INPUT, EXIT_FAILED, error, internal_error, interrupted
+from vpcontact.cli import commands
+from vpcontact.cli.parser import build_parser, split_petsc_args
+from vpcontact.io.errors import CaseError
+from vpcontact.io.messages import EXIT_BAD_INPUT, EXIT_FAILED, error, internal_error, interrupted
 
 # command -> (function, takes the command line's PETSc options)
 COMMANDS = {
@@ -65,12 +65,12 @@ def dispatch(args, petsc_cli: dict) -> int:
 
 def _unexpected(exc: Exception) -> int:
     """The exit code of an exception no command handled, after its line."""
-    from app.studies.interrupts import caused_by_interrupt
+    from vpcontact.studies.interrupts import caused_by_interrupt
     if caused_by_interrupt(exc):      # a signal inside a C extension's import or call
         return interrupted(_BEFORE_THE_LOOP, all_ranks=True)
     from petsc4py import PETSc
     if isinstance(exc, PETSc.Error):  # PETSc refused an option or a matrix: not our bug
-        from app.solvers.snesvi import describe_petsc_error
+        from vpcontact.solvers.snesvi import describe_petsc_error
         return error(f"{describe_petsc_error(exc)} (check the PETSc options; -help "
                      "lists them)", EXIT_FAILED)
     return internal_error(exc)
@@ -101,18 +101,10 @@ def main(argv: list[str] | None = None) -> int:
         return error("out of memory: the case is too large for this machine (try a coarser "
                      "mesh, mesh.n or mesh.h)", EXIT_FAILED)
     except OSError as exc:              # environmental: disk full, read-only, permissions
-        from app.io.output import describe_os_error
+        from vpcontact.io.output import describe_os_error
         return error(describe_os_error(exc), EXIT_FAILED)
     except Exception as exc:
         return _unexpected(exc)
-
-
-def console() -> None:
-    """The ``vpcontact`` console script: as ``python -m app`` (app/__main__.py)."""
-    from app.cli.streams import repair_std_streams
-    from app.startup import quick_exit
-    repair_std_streams()
-    quick_exit(main())
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -6,7 +6,7 @@ import atexit
 import os
 from pathlib import Path
 
-from app.io.errors import CaseError
+from vpcontact.io.errors import CaseError
 
 # the files of each command besides a run's (app/io/output.py OUTPUT_FILES)
 CONVERGENCE_FILES = ("convergence.csv", "convergence.md", "convergence.png")
@@ -30,7 +30,7 @@ def foreign_files(outdir: Path) -> list[str]:
     Returns:
         Their names, sorted.
     """
-    from app.io.output import OUTPUT_FILES
+    from vpcontact.io.output import OUTPUT_FILES
     ours = {*OUTPUT_FILES, *CONVERGENCE_FILES, *STABILITY_FILES, *BENCH_FILES,
             *OUR_DIRECTORIES}
     return sorted(p.name for p in outdir.iterdir() if p.name not in ours
@@ -126,11 +126,11 @@ def release_locks() -> None:
 def _earlier_outputs(outdir: Path, files) -> list[str]:
     """The outputs of an earlier command in ``outdir`` (a run's: its checkpoints and
     figures as well)."""
-    from app.io.output import OUTPUT_FILES
+    from vpcontact.io.output import OUTPUT_FILES
 
     existing = [f for f in (files or OUTPUT_FILES) if (outdir / f).exists()]
     if files is None:
-        from app.post.plot import FIGURES
+        from vpcontact.post.plot import FIGURES
         existing += sorted(p.name for p in outdir.glob("checkpoint_*.npz"))
         existing += [f for f in FIGURES if (outdir / f).exists()]
     return existing

@@ -7,9 +7,9 @@ import argparse
 import math
 import re
 
-from app import __version__
-from app.io.cachedirs import CACHE_SEARCH
-from app.io.messages import EXIT_BAD_INPUT, error_line
+from vpcontact import __version__
+from vpcontact.io.cachedirs import CACHE_SEARCH
+from vpcontact.io.messages import EXIT_BAD_INPUT, error_line
 
 _PETSC_OPT = re.compile(r"^-[A-Za-z][A-Za-z0-9_]*$")
 _NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")

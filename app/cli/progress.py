@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 import time
 
-from app.observers import Observer
+from vpcontact.observers import Observer
 
 
 def _clock(seconds: float) -> str:

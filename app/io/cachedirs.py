@@ -30,7 +30,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from app.io.messages import EXIT_FAILED, error, warning, warning_line
+from vpcontact.io.messages import EXIT_FAILED, error, warning, warning_line
 
 CONFIG_FILES = (("ffcx", "ffcx_parameters.json"), ("dolfinx", "dolfinx_jit_parameters.json"))
 XDG_VARS = ("XDG_CACHE_HOME", "XDG_CONFIG_HOME")

@@ -18,10 +18,10 @@ from pathlib import Path
 import jsonschema
 import yaml
 
-from app.io.errors import CaseError
-from app.io.petscopts import PetscOptions, check_petsc_options
-from app.io.schema import DEFAULT_PETSC, SCHEMA
-from meshes.rectangle import SIDES
+from vpcontact.io.errors import CaseError
+from vpcontact.io.petscopts import PetscOptions, check_petsc_options
+from vpcontact.io.schema import DEFAULT_PETSC, SCHEMA
+from vpcontact.meshes.rectangle import SIDES
 
 MAX_INT_DIGITS = 30
 
@@ -648,7 +648,7 @@ def _check_components(items, path: str, dim: int, source: str, in_time: bool = T
 
 def _check_component(c, path: str, names: tuple, source: str) -> None:
     """An expression parses with ``names``; a table (only if t is a name) increases in t."""
-    from app.io import expressions
+    from vpcontact.io import expressions
 
     if isinstance(c, str):
         try:
@@ -848,7 +848,7 @@ def _check_given(data: dict, source: str) -> Path | None:
 def _file_dimension(path: Path, source: str, cheap: bool = False) -> int | None:
     """The dimension of the mesh file (meshes/fileinfo.py; None if ``cheap`` and gmsh would
     be needed)."""
-    from meshes.fileinfo import FileInfoError, file_dimension
+    from vpcontact.meshes.fileinfo import FileInfoError, file_dimension
     try:
         return file_dimension(path, cheap)
     except FileInfoError as exc:
@@ -859,7 +859,7 @@ def _check_file_dimension(dim: int, path: Path, source: str, cheap: bool = False
     """Refuse a mesh.dim that contradicts the mesh file (``cheap``: only if the file tells
     its dimension without gmsh); a file whose dimension cannot be told is left to the
     mesh's loading, which says what is wrong with it."""
-    from meshes.fileinfo import FileInfoError, file_dimension
+    from vpcontact.meshes.fileinfo import FileInfoError, file_dimension
     try:
         found = file_dimension(path, cheap)
     except FileInfoError:
@@ -1035,7 +1035,7 @@ def _check_loads(data: dict, source: str) -> None:
 def _check_contact(contact: dict, dim: int, source: str) -> None:
     """The gap's expression (x, y, z only), the approach direction (dim components, not
     zero), the friction law's sign and the memory kernel."""
-    from app.io import expressions
+    from vpcontact.io import expressions
 
     g = contact.get("g")
     if isinstance(g, str):
@@ -1092,7 +1092,7 @@ def _check_values(data: dict, time_grid: TimeGrid, source: str,
     default boundaries; g >= 0 is sampled on the built-in mesh's contact sides.  ``length``:
     the body's size L (default: body_length(data)); ``samples``: the sample points of the
     loaded mesh (datacheck.PointSamples; default: as above)."""
-    from app.io import datacheck
+    from vpcontact.io import datacheck
 
     mesh, bounds = data["mesh"], data["boundaries"]
     adaptive = time_grid.adaptive is not None

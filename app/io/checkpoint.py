@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from app.io.canonical import stable_json
-from app.io.errors import CaseError
-from app.io.output import on_rank0
+from vpcontact.io.canonical import stable_json
+from vpcontact.io.errors import CaseError
+from vpcontact.io.output import on_rank0
 
 PATTERN = "checkpoint_*.npz"
 KEEP = 2                       # the newest checkpoints kept in an output directory
@@ -82,7 +82,7 @@ def _mesh_files_digest(case) -> str | list[str]:
     """SHA-256 of each file the mesh is made of: the .msh or .geo and every file a .geo
     includes or merges (meshes.geoscan.mesh_files), in the order gmsh reads them (one file:
     its digest alone, as checkpoints written before included files counted have it)."""
-    from meshes.geoscan import GeoScanError, mesh_files
+    from vpcontact.meshes.geoscan import GeoScanError, mesh_files
     try:
         files = mesh_files(case.mesh.file)
     except GeoScanError as exc:

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from app.io.output import OutputError, on_rank0
-from app.io.xdmf import Field, TemporalXdmf, data_item
+from vpcontact.io.output import OutputError, on_rank0
+from vpcontact.io.xdmf import Field, TemporalXdmf, data_item
 
 STATE_CODES = {"separated": 0, "compliance": 1, "bound": 2, "prescribed": 3}
 TOPOLOGY = {2: "Polyline", 3: "Triangle", 4: "Quadrilateral"}      # by nodes per facet

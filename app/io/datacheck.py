@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from app.io import expressions
+from vpcontact.io import expressions
 
 MAX_MAGNITUDE = 1e100                # as app/io/case.py's limit for the numbers of a case
 MAX_CELLS = {2: 128, 3: 16}        # sample grid: at most this many cells per side

@@ -1,6 +1,6 @@
 """The README's case-file reference, generated from the schema (so it cannot drift).
 
-``make docs`` (``python -m app.io.docs``) rewrites the block between the markers in README.md;
+``make docs`` (``python -m vpcontact.io.docs``) rewrites the block between the markers in README.md;
 tests/unit/test_docs.py fails when the README is out of date.
 """
 from __future__ import annotations
@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from app.io.schema import DEFAULT_PETSC, SCHEMA
+from vpcontact.io.schema import DEFAULT_PETSC, SCHEMA
 
 START, END = "<!-- case-reference:start -->", "<!-- case-reference:end -->"
 
@@ -82,7 +82,7 @@ def render(readme: str) -> str:
 
 
 def main() -> int:
-    """``python -m app.io.docs [README.md]``: regenerate the README's reference block.
+    """``python -m vpcontact.io.docs [README.md]``: regenerate the README's reference block.
 
     Returns:
         The exit status, 0.

@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from app.io.output import atomic_write, csv_text, on_rank0
+from vpcontact.io.output import atomic_write, csv_text, on_rank0
 
 STATES = ("bound", "compliance", "separated", "prescribed")
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from dolfinx import io as dio
 
-from app.io.xdmf import TemporalXdmf, XdmfLayoutError, dolfinx_layout, dolfinx_time_key
+from vpcontact.io.xdmf import TemporalXdmf, XdmfLayoutError, dolfinx_layout, dolfinx_time_key
 
 OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv", "contact.xdmf",
                 "contact.h5", "history.csv")

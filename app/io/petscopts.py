@@ -21,7 +21,7 @@ import functools
 import math
 import re
 
-from app.io.errors import CaseError
+from vpcontact.io.errors import CaseError
 
 # app/solvers/snesvi.py's PREFIX (tests/unit/test_case_hostile.py)
 PREFIX = "vpcontact_"

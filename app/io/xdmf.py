@@ -168,7 +168,7 @@ def _publish(path: Path, data: bytes) -> None:
     """Replace the file by a temporary file and a rename (not synced: a killed process
     leaves the page cache intact, and the HDF5 data the XML points at is not synced
     either)."""
-    from app.io.output import atomic_write
+    from vpcontact.io.output import atomic_write
     atomic_write(path, data, sync=False)
 
 

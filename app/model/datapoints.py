@@ -15,8 +15,8 @@ from dolfinx import cpp as dcpp
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from app.io.case import Case, CaseError, check_values_on_mesh
-from app.io.datacheck import PointSamples
+from vpcontact.io.case import Case, CaseError, check_values_on_mesh
+from vpcontact.io.datacheck import PointSamples
 
 
 def entity_points(msh, dim: int, entities: np.ndarray) -> np.ndarray:

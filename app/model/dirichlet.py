@@ -18,7 +18,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from app.io.errors import CaseError
+from vpcontact.io.errors import CaseError
 
 
 @dataclass

@@ -25,8 +25,8 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from app.io import expressions
-from app.io.errors import CaseError
+from vpcontact.io import expressions
+from vpcontact.io.errors import CaseError
 
 log = logging.getLogger("vpcontact")
 

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 from dolfinx import fem
 
-from app.model.implicit import BackwardEulerPerzyna, LocalFailure
-from app.model.material import Perzyna, VonMisesProjection
-from app.solvers import kernels
+from vpcontact import kernels
+from vpcontact.model.implicit import BackwardEulerPerzyna, LocalFailure
+from vpcontact.model.material import Perzyna, VonMisesProjection
 
 
 class _CommittedHistory:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.model.material import Perzyna
+from vpcontact.model.material import Perzyna
 
 
 class LocalFailure(RuntimeError):

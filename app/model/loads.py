@@ -14,7 +14,7 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
-from app.io import expressions
+from vpcontact.io import expressions
 
 
 def is_zero(component) -> bool:

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from forms.elasticity import lame_constants
+from vpcontact.forms.elasticity import lame_constants
 
 # (row, col) of the coordinates t_i in the d x d tensor
 _PAIRS = {2: [(0, 0), (1, 1), (0, 1)],

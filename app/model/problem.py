@@ -19,17 +19,17 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from app.io.case import Case, CaseError
-from app.model.dirichlet import build_dirichlet, check_rigid_motions
-from app.model.frames import ContactFrames, build_frames, facet_normals, gap_values
-from app.model.gamma3 import NodalField
-from app.model.loads import TimeData
-from app.model.material import Elasticity
-from app.model.strain import StrainOperator
-from forms.contact import gamma3_measure
-from forms.elasticity import elasticity_operator, eps, plane_strain_moduli
-from forms.step import BulkData, ContactData, build_step_forms
-from meshes.bodycheck import interior_role
+from vpcontact.forms.contact import gamma3_measure
+from vpcontact.forms.elasticity import elasticity_operator, eps, plane_strain_moduli
+from vpcontact.forms.step import BulkData, ContactData, build_step_forms
+from vpcontact.io.case import Case, CaseError
+from vpcontact.meshes.bodycheck import interior_role
+from vpcontact.model.dirichlet import build_dirichlet, check_rigid_motions
+from vpcontact.model.frames import ContactFrames, build_frames, facet_normals, gap_values
+from vpcontact.model.gamma3 import NodalField
+from vpcontact.model.loads import TimeData
+from vpcontact.model.material import Elasticity
+from vpcontact.model.strain import StrainOperator
 
 
 @dataclass

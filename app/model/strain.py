@@ -27,8 +27,8 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from app.solvers import kernels
-from forms.elasticity import elasticity_operator, eps, lame_constants
+from vpcontact import kernels
+from vpcontact.forms.elasticity import elasticity_operator, eps, lame_constants
 
 
 def _inverse(J: np.ndarray) -> np.ndarray:

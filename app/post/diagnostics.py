@@ -20,10 +20,10 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
-from app.solvers import dense, threads
-from app.solvers.amg import AMG_PETSC, AMG_PREFIX, near_nullspace, rigid_body_modes
-from app.solvers.snesvi import PREFIX, clear_petsc_options, direct_solver, set_petsc_options
-from forms.elasticity import eps
+from vpcontact.forms.elasticity import eps
+from vpcontact.solvers import dense, threads
+from vpcontact.solvers.amg import AMG_PETSC, AMG_PREFIX, near_nullspace, rigid_body_modes
+from vpcontact.solvers.snesvi import PREFIX, clear_petsc_options, direct_solver, set_petsc_options
 
 STABILITY_LIMIT = 2.0
 TRACE_PREFIX = PREFIX + "trace_"        # the iterative K^-1 of trace_constant

@@ -29,8 +29,8 @@ import math
 
 import numpy as np
 
-from app.observers import Observer, StopRun
-from app.records import HINT_DIVERGED, StepFailure
+from vpcontact.observers import Observer, StopRun
+from vpcontact.records import HINT_DIVERGED, StepFailure
 
 BLOWUP_FACTOR = 100.0
 log = logging.getLogger("vpcontact")

@@ -12,7 +12,7 @@ and contact.xdmf (the Gamma3 facets with the contact table), for any geometry, 2
 
 No display is needed: VTK renders through EGL (libEGL, Mesa) where no X display is set.
 
-The pictures are drawn in a process of their own (``python -m app.post.pictures``, started by
+The pictures are drawn in a process of their own (``python -m vpcontact.post.pictures``, started by
 app/post/plot.py, which also hands it some of the line figures; a second such process with
 --no-pictures draws the other line figures meanwhile): VTK's wheel is built with
 the old C++ string ABI, and in a process that has loaded dolfinx its std::regex code binds to
@@ -435,7 +435,7 @@ def warm_up(pictures: bool = True) -> None:
     """
     import h5py  # noqa: F401
 
-    from app.post.plot import _mpl
+    from vpcontact.post.plot import _mpl
     plt = _mpl()                               # matplotlib's first figure costs 0.1-0.2 s
     fig = plt.figure(figsize=(1, 1))
     fig.text(0.5, 0.5, "x")
@@ -485,7 +485,7 @@ def main(argv=None) -> int:
         args.dim, args.animate, args.line = job["dim"], job["animate"], job["line"]
     files = [] if args.no_pictures else draw_all(args.results, args.factor, args.dim)
     if args.line:
-        from app.post.plot import draw_line_figures
+        from vpcontact.post.plot import draw_line_figures
         files += draw_line_figures(args.results, args.line, args.factor)
     frames = None
     if args.animate:

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from app.model import contact_laws
-from app.post.pictures import ANIMATION, PICTURES, write_replacing
+from vpcontact.model import contact_laws
+from vpcontact.post.pictures import ANIMATION, PICTURES, write_replacing
 
 LINE_FIGURES = ("fig3_deformed_contact.png", "fig4_tangential.png", "fig2_laws.png",
                 "history.png", "forces.png")
@@ -548,7 +548,7 @@ def plot_all(outdir: Path, log=None, animate: bool = False, painter=None) -> lis
 
 
 class Painter:
-    """The figures' processes: ``python -m app.post.pictures --wait`` (pyvista's pictures,
+    """The figures' processes: ``python -m vpcontact.post.pictures --wait`` (pyvista's pictures,
     PAINTER_LINE_FIGURES, the animation; it loads pyvista and matplotlib and starts OpenGL
     at once) and ``... --wait --no-pictures`` (the other line figures; it loads
     matplotlib), each waiting for its job, without MPI's variables (they are no ranks of a
@@ -614,7 +614,7 @@ class Painter:
                 proc.communicate()
                 killed = True
         if killed and self._job is not None:
-            from app.post.pictures import temporary
+            from vpcontact.post.pictures import temporary
             for name in FIGURES:
                 temporary(Path(self._job["results"]) / name).unlink(missing_ok=True)
 
@@ -625,13 +625,13 @@ def _own_line_figures() -> list[str]:
 
 
 def _figure_process(*options):
-    """Start ``python -m app.post.pictures --wait`` (with options), MPI's variables left
+    """Start ``python -m vpcontact.post.pictures --wait`` (with options), MPI's variables left
     out."""
     import os
     import subprocess
     import sys
 
-    from app.post import pictures
+    from vpcontact.post import pictures
     env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_", "PMI_"))}
     return subprocess.Popen([sys.executable, "-P", "-m", pictures.__name__, "--wait", *options],
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE,

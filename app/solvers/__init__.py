@@ -74,7 +74,7 @@ def choose_method(case, n_gamma3_dofs: int) -> str:
     Returns:
         "fast" or "snes_vi".
     """
-    from app.io.case import fast_eligible
+    from vpcontact.io.case import fast_eligible
 
     method = case.numerics.method
     if method != "auto":
@@ -113,8 +113,8 @@ def snes_vi_options(case, linear: str) -> dict:
     """
     if linear != "amg":
         return dict(case.petsc)
-    from app.io.schema import DEFAULT_PETSC
-    from app.solvers.amg import AMG_PETSC, DIRECT_KEYS
+    from vpcontact.io.schema import DEFAULT_PETSC
+    from vpcontact.solvers.amg import AMG_PETSC, DIRECT_KEYS
 
     given = {k: v for k, v in case.petsc.items()
              if not (k in DIRECT_KEYS and DEFAULT_PETSC.get(k) == v)}
@@ -147,9 +147,9 @@ def select_solver(case, problem) -> StepSolver:
     # the default snes_atol is raised to the residual's round-off floor; a given one is kept
     default_atol = case.petsc.get("snes_atol") == case.petsc_defaults.get("snes_atol")
     if choose_method(case, gamma3_dofs(problem)) == "fast":
-        from app.solvers.fast import FastStepSolver
+        from vpcontact.solvers.fast import FastStepSolver
         return FastStepSolver(problem, case.petsc, roundoff_floor=default_atol)
-    from app.solvers.snesvi import SNESVISolver
+    from vpcontact.solvers.snesvi import SNESVISolver
     linear = choose_linear(case, problem.V.dofmap.index_map.size_global * problem.dim)
     return SNESVISolver(problem, snes_vi_options(case, linear), linear=linear,
                         roundoff_floor=default_atol)

@@ -40,10 +40,12 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from app.io.errors import CaseError
-from app.solvers import dense, kernels, threads
-from app.solvers.nodal import NodalContact
-from app.solvers.schur import (
+from vpcontact import kernels
+from vpcontact.forms.elasticity import elasticity_operator, eps
+from vpcontact.io.errors import CaseError
+from vpcontact.solvers import dense, threads
+from vpcontact.solvers.nodal import NodalContact
+from vpcontact.solvers.schur import (
     GLastLDL,
     cholesky_solve,
     g_last_factor,
@@ -51,8 +53,7 @@ from app.solvers.schur import (
     gather_csr,
     schur_pair,
 )
-from app.solvers.snesvi import StepSolveError
-from forms.elasticity import elasticity_operator, eps
+from vpcontact.solvers.snesvi import StepSolveError
 
 log = logging.getLogger("vpcontact")
 
@@ -128,7 +129,12 @@ class FastStepSolver:
         or MUMPS wrapper, or PETSc options for the fast solver given): PETSc's direct solver
         for the steps (MUMPS in parallel) and S, C from a G-last factorisation of the
         gathered matrix on rank 0 -- two factorisations per run, counted as such."""
-        from app.solvers.snesvi import PREFIX, clear_petsc_options, direct_solver, set_petsc_options
+        from vpcontact.solvers.snesvi import (
+            PREFIX,
+            clear_petsc_options,
+            direct_solver,
+            set_petsc_options,
+        )
         petsc_options = any(str(k).startswith("fast_") for k in self.options)
         module = kernels.load() if self.comm.size == 1 and not petsc_options else None
         if module is not None:
@@ -163,7 +169,7 @@ class FastStepSolver:
         """Under mpirun: one distributed MUMPS factorisation with the Gamma3 dofs as Schur
         variables (app/solvers/mumps.py); False (two factorisations then) where the
         wrapper cannot be built on every rank or MUMPS fails (the same on every rank)."""
-        from app.solvers import mumps
+        from vpcontact.solvers import mumps
         module = mumps.load()
         if not self.comm.allreduce(module is not None, op=MPI.LAND):
             return False
@@ -500,7 +506,7 @@ class FastStepSolver:
             return self._solve_fast()
         except StepSolveError as exc:
             if self._snes is None:
-                from app.solvers.snesvi import SNESVISolver
+                from vpcontact.solvers.snesvi import SNESVISolver
                 self._snes = SNESVISolver(self.problem, self.options,
                                           roundoff_floor=self.roundoff_floor)
             log.warning("  fast solver: %s; solving this step with SNES VI", exc)

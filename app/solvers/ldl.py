@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.solvers import kernels
+from vpcontact import kernels
 
 CHOLMOD = kernels.Library("_vpcontact_cholmod", ("cholmod_ldl",), "CHOLMOD L D L^T (using SuperLU)",
                           libraries=("cholmod",), include_dirs=("/usr/include/suitesparse",))

@@ -17,14 +17,14 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-from app.solvers import kernels
-from app.solvers.schur import (
+from vpcontact import kernels
+from vpcontact.solvers.schur import (
     _symmetric_from_triangle,
     gather_csr,
     interior_last_ordering,
     spd_cholesky,
 )
-from app.solvers.threads import root_call
+from vpcontact.solvers.threads import root_call
 
 MUMPS = kernels.Library("_vpcontact_mumps", ("mumps_schur",),
                         "MUMPS with Gamma3 Schur variables (factorising twice under mpirun)",

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.model import contact_laws as laws
-from app.solvers.kernels import buf
+from vpcontact.kernels import buf
+from vpcontact.model import contact_laws as laws
 
 
 def nodal_contact_numpy(y, nu, c, xi, theta, fr, delta, w, need_hessian=True):

@@ -120,7 +120,7 @@ def _metis_order(indptr: np.ndarray, indices: np.ndarray) -> np.ndarray | None:
     no neighbour (the Dirichlet dofs, whose couplings are stored zeros) come first: they
     cause no fill.  On box3d's matrix at n = 24 this order (nodal graph) costs 3.1e10 flops,
     CHOLMOD's own on the dof matrix 3.2e10, PETSc's nested dissection 1.6e11 (measured)."""
-    from app.solvers import ldl
+    from vpcontact.solvers import ldl
     module = ldl.load()
     if module is None:
         return None
@@ -239,7 +239,7 @@ class GLastLDL:
     """
 
     def __init__(self, A: CSR, G: np.ndarray, bs: int, module, blocks: bool = True):
-        from app.solvers.ldl import Factor
+        from vpcontact.solvers.ldl import Factor
         self.n, self.m = A.n, len(G)
         self.perm = interior_last_ordering(A, G, bs)
         # the factor's pattern is the ordering's graph: no stored zeros (with them, the
@@ -276,7 +276,7 @@ def g_last_factor(A: CSR, G: np.ndarray, bs: int = 1, blocks: bool = True):
     Returns:
         A GLastLDL or a GLastLU.
     """
-    from app.solvers import ldl
+    from vpcontact.solvers import ldl
     module = ldl.load()
     if module is not None:
         try:
@@ -322,7 +322,7 @@ def _schur_pair_cholesky(factor: GLastLDL) -> tuple[np.ndarray, np.ndarray] | No
     """
     from scipy.linalg.lapack import dlauum
 
-    from app.solvers.threads import blas_threads
+    from vpcontact.solvers.threads import blas_threads
     D_G = factor.D[factor.n - factor.m:]
     if not np.all(D_G > 0):
         return None
@@ -348,7 +348,7 @@ def spd_cholesky(S: np.ndarray) -> np.ndarray | None:
     """
     from scipy.linalg.lapack import dpotrf
 
-    from app.solvers.threads import blas_threads
+    from vpcontact.solvers.threads import blas_threads
     with blas_threads(large=len(S) > LAPACK_MIN):
         C, info = dpotrf(S, lower=1, clean=1)
     return C if info == 0 else None

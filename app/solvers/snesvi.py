@@ -13,8 +13,8 @@ import numpy as np
 from dolfinx import fem
 from petsc4py import PETSc
 
-from app.solvers.amg import InactiveSetAMG, rigid_body_modes
-from app.solvers.rotation import FrameMap
+from vpcontact.solvers.amg import InactiveSetAMG, rigid_body_modes
+from vpcontact.solvers.rotation import FrameMap
 
 PREFIX = "vpcontact_"
 log = logging.getLogger("vpcontact")

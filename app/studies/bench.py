@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from app.io.case import CaseError, fast_eligible, load_raw, validate
-from app.io.output import atomic_write
+from vpcontact.io.case import CaseError, fast_eligible, load_raw, validate
+from vpcontact.io.output import atomic_write
 
 MAX_REPEAT = 100             # --repeat: more gives no better minimum, only a longer bench
 ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
@@ -55,7 +55,7 @@ def measured_run(case: Path, out: Path, overrides: list[str], nprocs: int = 1):
     Raises:
         RuntimeError: the run failed (its command and the end of its error output).
     """
-    cmd = [sys.executable, "-m", "app", "run", str(case), "--out", str(out), "--overwrite",
+    cmd = [sys.executable, "-m", "vpcontact", "run", str(case), "--out", str(out), "--overwrite",
            "--no-plots", "--quiet"]
     for item in overrides:
         cmd += ["--set", item]
@@ -172,7 +172,7 @@ def check_arguments(case, levels, extra=(), nprocs=(1, 2), repeat: int = 1,
 def _check_box3d(levels) -> None:
     """The 3D rows' box at every --box3d-levels n is a valid case (e.g. within the vertex
     limit), checked before the 2D rows run."""
-    from app.studies.bench3d import BOX3D
+    from vpcontact.studies.bench3d import BOX3D
     _positive_ints("--box3d-levels", levels)
     for n in levels:
         try:
@@ -298,7 +298,7 @@ def memory_rows(outdir: Path, steps=(64, 256, 1024), n: int = 16, log=print) -> 
     for N in steps:
         for how in ("recursion", "direct"):
             out = outdir / "runs" / f"memory_{how}_N{N}"
-            cmd = [sys.executable, "-m", "app", "run", str(MEMORY_CASE), "--out", str(out),
+            cmd = [sys.executable, "-m", "vpcontact", "run", str(MEMORY_CASE), "--out", str(out),
                    "--overwrite", "--no-plots", "--quiet", "--set", f"mesh.n={n}",
                    "--set", f"time.N={N}", "--set", f"output.every={N}",
                    "--set", f"contact.memory.sum={how}", "--set", "solver.method=fast"]
@@ -345,7 +345,7 @@ def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None,
         scene: the user-scene rows (app/studies/scenebench.py), or None.
         box3d: the 3D rows (app/studies/bench3d.py), or None.
     """
-    from app.studies import bench3d, scenebench
+    from vpcontact.studies import bench3d, scenebench
     atomic_write(outdir / "bench.json", json.dumps(
         {"solvers": rows, "memory_term": memory or [], "scene": scene or [],
          "box3d": box3d or [], "box3d_scaling": bench3d.scaling(box3d or [])}, indent=2) + "\n")

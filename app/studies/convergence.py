@@ -31,19 +31,26 @@ from pathlib import Path
 
 import numpy as np
 
-from app.io.case import CaseError, validate
-from app.io.output import atomic_write, csv_text
-from app.observers import Observer
-from app.studies import runcache
-from app.studies.grid import Grid, GridSampler, cell_l2_norm, prolong_dg0, prolong_p1, strain_norm
-from app.studies.interrupts import (
+from vpcontact.io.case import CaseError, validate
+from vpcontact.io.output import atomic_write, csv_text
+from vpcontact.observers import Observer
+from vpcontact.studies import runcache
+from vpcontact.studies.grid import (
+    Grid,
+    GridSampler,
+    cell_l2_norm,
+    prolong_dg0,
+    prolong_p1,
+    strain_norm,
+)
+from vpcontact.studies.interrupts import (
     SignalWatch,
     StudyInterrupted,
     check_run,
     signal_name,
     signals_held,
 )
-from app.studies.nested import LevelSampler, NestedLevel
+from vpcontact.studies.nested import LevelSampler, NestedLevel
 
 log = logging.getLogger("vpcontact")
 
@@ -263,7 +270,7 @@ def check_cache_dir(cache_dir: Path | None, comm) -> None:
     """
     if cache_dir is None:
         return
-    from app.io.cachedirs import unusable
+    from vpcontact.io.cachedirs import unusable
     why = comm.bcast(unusable(Path(cache_dir)) if comm.rank == 0 else None, root=0)
     if why:
         raise CaseError(f"--cache-dir {cache_dir}: not a writable directory ({why})")
@@ -366,7 +373,7 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
     """
     import dataclasses
 
-    from app.simulation import run
+    from vpcontact.simulation import run
 
     if level is None:
         case = _case_at(raw, n, N, delta, source)
@@ -639,7 +646,7 @@ def _level_rows(levels, recs, ref, vary, T, delta, comm) -> list[dict]:
 
 def check_level_sizes(case, comm, option: str, value: int, extra: int = 0) -> None:
     """Refuse a study whose finest refinement of the case's mesh.file would be larger than
-    the built-in meshes may be (app.io.case.MAX_VERTICES vertices) or could not be refined
+    the built-in meshes may be (vpcontact.io.case.MAX_VERTICES vertices) or could not be refined
     in the memory rank 0 has (meshes/refine.py, ``too_large``), before anything is refined
     or run: the vertex counts follow from the mesh read (``read_sizes``); collective.
 
@@ -656,9 +663,9 @@ def check_level_sizes(case, comm, option: str, value: int, extra: int = 0) -> No
     """
     if case.mesh.file is None:
         return
-    from app.io.case import MAX_VERTICES
-    from meshes import MeshFileError
-    from meshes.refine import available_memory, read_sizes, too_large
+    from vpcontact.io.case import MAX_VERTICES
+    from vpcontact.meshes import MeshFileError
+    from vpcontact.meshes.refine import available_memory, read_sizes, too_large
     finest = value + extra
     try:
         sizes = read_sizes(comm, case.mesh.file, case.dim, case.mesh.size, finest)
@@ -692,9 +699,9 @@ def level_meshes(case, reference: int, comm):
     if case.mesh.file is None:
         yield None
         return
-    from app.io.case import MAX_VERTICES
-    from meshes import MeshFileError
-    from meshes.refine import refine_file
+    from vpcontact.io.case import MAX_VERTICES
+    from vpcontact.meshes import MeshFileError
+    from vpcontact.meshes.refine import refine_file
 
     tmp = comm.bcast(tempfile.mkdtemp(prefix="vpcontact-levels-") if comm.rank == 0 else None,
                      root=0)
@@ -933,7 +940,7 @@ def write_plot(path: Path, res: dict) -> None:
     """
     import matplotlib.pyplot as plt
 
-    from app.post.pictures import write_replacing
+    from vpcontact.post.pictures import write_replacing
     fig = convergence_figure(res)
     write_replacing(path, lambda tmp: fig.savefig(tmp, dpi=120))
     plt.close(fig)

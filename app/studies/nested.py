@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from meshes.refine import MeshLevel
-from meshes.refine import prolong_dg0 as _prolong_dg0
-from meshes.refine import prolong_p1 as _prolong_p1
+from vpcontact.meshes.refine import MeshLevel
+from vpcontact.meshes.refine import prolong_dg0 as _prolong_dg0
+from vpcontact.meshes.refine import prolong_p1 as _prolong_p1
 
 
 @dataclass

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from app.io.canonical import stable_json
-from app.studies.interrupts import signals_held
+from vpcontact.io.canonical import stable_json
+from vpcontact.studies.interrupts import signals_held
 
 FORMAT_VERSION = 1
 IGNORED = ("name", "description", "output")
@@ -31,7 +31,7 @@ def default_cache_dir() -> Path:
     Returns:
         app/io/cachedirs.py's cache root (``CACHE_SEARCH``, or its replacement).
     """
-    from app.io.cachedirs import cache_root
+    from vpcontact.io.cachedirs import cache_root
     return cache_root()
 
 

@@ -28,9 +28,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.io.case import CaseError, validate
-from app.io.output import atomic_write, csv_text
-from app.studies.interrupts import (
+from vpcontact.io.case import CaseError, validate
+from vpcontact.io.output import atomic_write, csv_text
+from vpcontact.studies.interrupts import (
     SignalWatch,
     StudyInterrupted,
     caused_by_interrupt,
@@ -301,7 +301,7 @@ def run_variant(raw: dict, variant: Variant, scheme: str, comm, petsc_cli: dict)
     Raises:
         KeyboardInterrupt: SIGINT or SIGTERM (StudyInterrupted if it stopped the run).
     """
-    from app.simulation import run
+    from vpcontact.simulation import run
 
     r = apply_changes(raw, variant.changes)
     r.setdefault("time", {})["scheme"] = scheme
@@ -452,7 +452,7 @@ def sweep(raw: dict, comm, petsc_cli: dict, n: int | None = None, N: int = 8,
 
     if "file" not in base["mesh"]:
         return _sweep(base, comm, petsc_cli, chosen(base, {"mesh.n": 2 * base["mesh"]["n"]}))
-    from app.studies.convergence import level_meshes
+    from vpcontact.studies.convergence import level_meshes
 
     r = refine or 0
     try:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, paper_raw, run_case, run_cli, validate_raw
-from forms.elasticity import lame_constants
+from vpcontact.forms.elasticity import lame_constants
 
 BOX = ROOT / "cases" / "box3d.yaml"
 
@@ -42,7 +42,7 @@ def test_3d_uniform_stress_patch(size):
 
 def test_box_case_nodal_laws():
     """Normal law (4.1) and the vector friction law at every Gamma3 node of the 3D case."""
-    from app.io.case import load_raw
+    from vpcontact.io.case import load_raw
     raw = load_raw(BOX)
     raw["mesh"]["n"] = 4
     raw["time"]["N"] = 4
@@ -107,7 +107,7 @@ def test_convergence_refuses_3d(tmp_path):
 def test_box_amg_equals_lu():
     """SNES VI with CG + GAMG (rigid body modes on the inactive set) and with LU: the same
     Newton iterations and the same u_n to 1e-8 on the 3D box."""
-    from app.io.case import load_raw
+    from vpcontact.io.case import load_raw
     runs = {}
     for linear in ("direct", "amg"):
         raw = load_raw(BOX)

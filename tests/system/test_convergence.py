@@ -98,7 +98,7 @@ def test_bad_study_input_exits_2(tmp_path, args, pattern):
 def test_convergence_figure_labels_both_log_axes(errors):
     """convergence.png: the Error axes carry tick labels (the left panel had none when the
     errors spanned less than a decade), and no labelled minor ticks crowd the time axis."""
-    from app.studies.convergence import convergence_figure
+    from vpcontact.studies.convergence import convergence_figure
     rows = [{"delta": 1e-7, "h": h, "k": h, "error": e, "solve_s": s}
             for h, e, s in ((0.5, errors[0], 0.021), (1.0, errors[1], 0.014))]
     fig = convergence_figure({"vary": "h", "deltas": [1e-7], "rows": rows, "paper": False,

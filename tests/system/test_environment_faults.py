@@ -20,10 +20,10 @@ CACHE_VARS = ("HOME", "XDG_CACHE_HOME", "XDG_CONFIG_HOME", "VPCONTACT_CACHE", "M
 
 
 def _cli(args, env=None, nprocs=1):
-    """``python -m app ARGS`` with the environment ``env`` in place of the cache variables."""
+    """``python -m vpcontact ARGS`` with the environment ``env`` in place of the cache variables."""
     base = {k: v for k, v in os.environ.items() if k not in CACHE_VARS}
     base.update(MPI_ENV, PYTHONPATH=str(ROOT), HOME=os.environ.get("HOME", "/root"))
-    cmd = [sys.executable, "-m", "app", *map(str, args)]
+    cmd = [sys.executable, "-m", "vpcontact", *map(str, args)]
     if nprocs > 1:
         cmd = ["mpirun", "-n", str(nprocs), *cmd]
     return subprocess.run(cmd, cwd=ROOT, env={**base, **(env or {})}, capture_output=True,
@@ -92,7 +92,8 @@ def test_empty_or_relative_xdg_values_are_ignored(tmp_path, var, value):
     vpcontact all use the home directory's, as the XDG specification asks."""
     work, home = tmp_path / "work", tmp_path / "home"
     work.mkdir()
-    code = ("import app, matplotlib; from dolfinx import jit; from app.io import cachedirs; "
+    code = ("from vpcontact.cli.entry import prepare_process; prepare_process(); "
+            "import matplotlib; from dolfinx import jit; from vpcontact.io import cachedirs; "
             "print(jit.DOLFINX_DEFAULT_JIT_PARAMETERS['cache_dir'][0]); "
             "print(cachedirs.cache_root()); print(matplotlib.get_cachedir())")
     env = {k: v for k, v in os.environ.items() if k not in CACHE_VARS}
@@ -124,7 +125,7 @@ def test_a_tmpdir_that_is_no_writable_directory_is_ignored(blocker, where):
 
 # ------------------------------------------------------------------ compiled kernels
 def _tiny_module(tmp_path, monkeypatch, tag):
-    from app.solvers.kernels import build as kernels
+    from vpcontact.kernels import build as kernels
     monkeypatch.setattr(kernels, "cache_dir", lambda: tmp_path / "kernels")
     src = f"int plus_{tag}(int x) {{ return x + {len(tag)}; }}"
     name = kernels.module_name(f"_vpcontact_test_{tag}", f"int plus_{tag}(int x);", src)
@@ -145,7 +146,7 @@ def test_damaged_cached_kernel_is_rebuilt_in_process(tmp_path, monkeypatch, capl
 
 
 def test_damaged_cached_kernel_is_rebuilt_by_a_run(tmp_path):
-    from app.solvers import kernels
+    from vpcontact import kernels
     cache = tmp_path / "cache"
     name = kernels.CELL_KERNELS.name()
     target = cache / "kernels" / f"{name}.so"
@@ -256,8 +257,8 @@ def test_bench_refuses_bad_input_before_running(tmp_path, blocker):
     (dict(nprocs=[1, 99999]), "--ranks 99999: more ranks than the"),
     (dict(repeat=99999999999), r"--repeat: 99999999999 is not allowed \(allowed: 1 to 100\)")])
 def test_bench_arguments_are_checked_by_the_library(kwargs, option):
-    from app.io.errors import CaseError
-    from app.studies import bench
+    from vpcontact.io.errors import CaseError
+    from vpcontact.studies import bench
     args = dict(levels=[4], extra=[], nprocs=[1], repeat=1, memory_steps=[])
     args.update(kwargs)
     with pytest.raises(CaseError, match=f"^{option}"):
@@ -269,8 +270,8 @@ def test_bench_arguments_are_checked_by_the_library(kwargs, option):
 
 
 def test_bench_fast_solver_impossible_is_refused(tmp_path):
-    from app.io.case import CaseError, load_raw
-    from app.studies import bench
+    from vpcontact.io.case import CaseError, load_raw
+    from vpcontact.studies import bench
     raw = load_raw(PAPER_CASE)
     raw.setdefault("time", {})["scheme"] = "implicit"
     case = tmp_path / "implicit.yaml"
@@ -280,9 +281,9 @@ def test_bench_fast_solver_impossible_is_refused(tmp_path):
 
 
 def test_bench_with_failed_configurations_exits_1(tmp_path, monkeypatch, capsys):
-    from app.cli.commands import cmd_bench
-    from app.cli.parser import build_parser
-    from app.studies import bench
+    from vpcontact.cli.commands import cmd_bench
+    from vpcontact.cli.parser import build_parser
+    from vpcontact.studies import bench
     monkeypatch.setattr(bench, "bench", lambda *a, **k: [
         {"n": 4, "h": 0.25, "N": 4, "method": "fast", "nprocs": 1, "failed": "boom"}])
     args = build_parser().parse_args(["bench", "--levels", "4", "--extra", "--ranks", "1",
@@ -308,16 +309,16 @@ def test_convergence_cache_dir_checked_first(tmp_path, blocker):
 @pytest.mark.parametrize("deltas", [[float("nan")], [0.0], [-1e-3], [float("inf")], [],
                                     [1e-3, 1e-3], [1e-4, 1e-3, 0.001]])
 def test_convergence_deltas_checked_by_the_library(deltas):
-    from app.io.errors import CaseError
-    from app.studies.convergence import plan_runs
+    from vpcontact.io.errors import CaseError
+    from vpcontact.studies.convergence import plan_runs
     with pytest.raises(CaseError, match="^--deltas"):
         plan_runs([2], 4, "both", None, deltas)
 
 
 def test_convergence_plan_validates_every_run():
-    from app.io.errors import CaseError
-    from app.studies.convergence import plan_runs
     from conftest import make_case
+    from vpcontact.io.errors import CaseError
+    from vpcontact.studies.convergence import plan_runs
     with pytest.raises(CaseError, match="mesh.n"):
         plan_runs([8], 8192, "both", make_case())
 
@@ -328,9 +329,9 @@ def test_convergence_plan_validates_every_run():
 def test_stability_refuses_bad_n_and_steps(n, steps, option):
     from mpi4py import MPI
 
-    from app.io.errors import CaseError
-    from app.studies import stability
     from conftest import paper_raw
+    from vpcontact.io.errors import CaseError
+    from vpcontact.studies import stability
     with pytest.raises(CaseError, match=f"^{option}: .* \\(allowed: positive integers\\)"):
         stability.sweep(paper_raw(), MPI.COMM_WORLD, {}, n, steps)
 
@@ -338,16 +339,16 @@ def test_stability_refuses_bad_n_and_steps(n, steps, option):
 def test_stability_sweep_of_only_invalid_variants_is_an_error():
     from mpi4py import MPI
 
-    from app.io.errors import CaseError
-    from app.studies import stability
     from conftest import paper_raw
+    from vpcontact.io.errors import CaseError
+    from vpcontact.studies import stability
     bad = [stability.Variant("material", "E < 0", {"material.E": -1.0})]
     with pytest.raises(CaseError, match="no variant of the stability sweep"):
         stability.sweep(paper_raw(), MPI.COMM_WORLD, {}, 4, 2, variants=bad)
 
 
 def test_damaged_run_cache_entries_are_recomputed(tmp_path):
-    from app.studies import runcache
+    from vpcontact.studies import runcache
     cache = tmp_path / "cache"
     args = ["convergence", PAPER_CASE, "--levels", "2", "--reference", "4", "--out",
             tmp_path / "c", "--overwrite", "--cache-dir", cache]

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from test_step_kkt import check_complementarity
 
-from app.io.errors import CaseError
 from conftest import PAPER_CASE, ROOT, paper_raw, run_case, run_cli, validate_raw
+from vpcontact.io.errors import CaseError
 
 
 def _pair(raw):
@@ -40,7 +40,7 @@ def test_fast_equals_snes_vi_on_the_paper_case():
 
 
 def test_fast_equals_snes_vi_with_memory_and_slip():
-    from app.io.case import load_raw
+    from vpcontact.io.case import load_raw
     raw = load_raw(ROOT / "cases" / "memory.yaml")
     raw["contact"]["friction"]["slip"] = {"theta_inf": 0.3, "s0": 0.002}
     raw["mesh"]["n"] = 8
@@ -50,7 +50,7 @@ def test_fast_equals_snes_vi_with_memory_and_slip():
 
 
 def test_fast_equals_snes_vi_in_3d():
-    from app.io.case import load_raw
+    from vpcontact.io.case import load_raw
     raw = load_raw(ROOT / "cases" / "box3d.yaml")
     raw["mesh"]["n"] = 4
     raw["time"]["N"] = 2
@@ -64,8 +64,8 @@ def test_box3d_n12_iterations_bounded_and_solvers_agree(monkeypatch, kept_factor
     Gamma3 problem's line search once stalled for 160-200 iterations at the energy's round-off
     in 3D), and the two agree to 1e-8; also with the Gamma3 Newton systems solved by CG with
     a kept factor (the large-m path, here forced at m = 468)."""
-    from app.io.case import load_raw
-    from app.solvers import dense
+    from vpcontact.io.case import load_raw
+    from vpcontact.solvers import dense
     if kept_factor:
         monkeypatch.setattr(dense, "PCG_MIN", 0)
     raw = load_raw(ROOT / "cases" / "box3d.yaml")

@@ -5,14 +5,14 @@ import copy
 import numpy as np
 import pytest
 
-from app.io.case import CaseError, load_case
 from conftest import ROOT, paper_raw, run_case, validate_raw
+from vpcontact.io.case import CaseError, load_case
 
 CASES = ROOT / "cases"
 
 
 def _raw(name):
-    from app.io.case import load_raw
+    from vpcontact.io.case import load_raw
     return load_raw(CASES / f"{name}.yaml")
 
 

@@ -33,7 +33,7 @@ def patched(*args, **kwargs):
         time.sleep(30)
     return real(*args, **kwargs)
 setattr(mod, name, patched)
-from app.cli.main import main
+from vpcontact.cli.main import main
 code = main(sys.argv[5:])
 with open(f"{out}.rank{MPI.COMM_WORLD.rank}", "w") as f:
     f.write(str(code))
@@ -59,7 +59,7 @@ def _codes(tmp_path, nprocs: int) -> list[str]:
             if Path(f"{tmp_path / 'code'}.rank{r}").exists() else None for r in range(nprocs)]
 
 
-@pytest.mark.parametrize("target", ["meshes.box._gmsh_model",            # gmsh meshes
+@pytest.mark.parametrize("target", ["vpcontact.meshes.box._gmsh_model",            # gmsh meshes
                                     "dolfinx.io.gmshio.model_to_mesh"])   # gmsh's model read
 @pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
 def test_a_signal_while_the_builtin_mesh_is_built_ends_the_run_with_exit_3(tmp_path, target,
@@ -73,7 +73,7 @@ def test_a_signal_while_the_builtin_mesh_is_built_ends_the_run_with_exit_3(tmp_p
 
 
 def test_a_signal_on_rank_0_while_it_builds_the_mesh_stops_every_rank(tmp_path):
-    proc = _run_patched(tmp_path, "meshes.box._gmsh_model", "SIGINT",
+    proc = _run_patched(tmp_path, "vpcontact.meshes.box._gmsh_model", "SIGINT",
                         ["run", BOX3D, "--set", "mesh.n=2", "--set", "time.N=1", "--out",
                          str(tmp_path / "o"), "--no-plots"], nprocs=2)
     assert _codes(tmp_path, 2) == ["3", "3"], (proc.returncode, proc.stderr[-2000:])
@@ -84,7 +84,7 @@ def test_a_signal_on_rank_0_while_it_builds_the_mesh_stops_every_rank(tmp_path):
 @pytest.mark.parametrize("nprocs", [1, 2])
 def test_a_signal_on_rank_0_while_it_reads_the_mesh_of_a_study_stops_every_rank(tmp_path,
                                                                                 nprocs):
-    proc = _run_patched(tmp_path, "meshes.refine.read_level", "SIGTERM",
+    proc = _run_patched(tmp_path, "vpcontact.meshes.refine.read_level", "SIGTERM",
                         ["convergence", HERTZ, "--set", "mesh.size=4", "--levels", "0",
                          "--reference", "1", "--no-cache", "--out", str(tmp_path / "o")],
                         nprocs=nprocs)

@@ -103,7 +103,7 @@ def test_a_signal_while_gmsh_meshes_ends_the_run_at_once(tmp_path, sig):
     """A mesh of ~3e7 nodes takes gmsh minutes; the signal ends the run within seconds."""
     case = _case(tmp_path, SQUARE + "Mesh.MeshSizeMax = 2e-4;\n")
     env = {**os.environ, **MPI_ENV, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.Popen([sys.executable, "-m", "app", "run", str(case), "--out",
+    proc = subprocess.Popen([sys.executable, "-m", "vpcontact", "run", str(case), "--out",
                              str(tmp_path / "out"), "--no-plots"], cwd=ROOT, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:

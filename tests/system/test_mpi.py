@@ -46,8 +46,8 @@ import pathlib
 import sys
 import time
 from mpi4py import MPI
-from app.solvers import threads
-from app.solvers.snesvi import StepSolveError
+from vpcontact.solvers import threads
+from vpcontact.solvers.snesvi import StepSolveError
 comm = MPI.COMM_WORLD
 
 def busy():
@@ -94,7 +94,7 @@ def test_root_call_lets_the_other_ranks_sleep_and_raises_everywhere(tmp_path):
 SIGNAL_ON_RANK_1 = """
 import os, signal, sys
 from mpi4py import MPI
-from app.studies import convergence as cv
+from vpcontact.studies import convergence as cv
 count, real = [0], cv.GridSamples.step
 def step(self, sim, record):
     real(self, sim, record)
@@ -102,7 +102,7 @@ def step(self, sim, record):
     if count[0] == 9 and MPI.COMM_WORLD.rank == 1:
         os.kill(os.getpid(), signal.SIGINT)
 cv.GridSamples.step = step
-from app.cli.main import main
+from vpcontact.cli.main import main
 sys.exit(main(sys.argv[1:]))
 """
 

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from app.observers import Observer, StopRun
-from app.records import StepFailure
-from app.simulation import Simulation, run
 from conftest import make_case
+from vpcontact.observers import Observer, StopRun
+from vpcontact.records import StepFailure
+from vpcontact.simulation import Simulation, run
 
 TINY = dict(mesh={"n": 4}, time={"T": 1.0, "N": 3})
 

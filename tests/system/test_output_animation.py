@@ -15,8 +15,8 @@ FRAME_BYTES = 800 * 560          # one quantized frame (pictures.FRAME)
 
 
 def _animate(out) -> tuple[int, int]:
-    """(frames, peak resident bytes) of `python -m app.post.pictures OUT --animate`."""
-    proc = subprocess.Popen([sys.executable, "-P", "-m", "app.post.pictures", str(out),
+    """(frames, peak resident bytes) of `python -m vpcontact.post.pictures OUT --animate`."""
+    proc = subprocess.Popen([sys.executable, "-P", "-m", "vpcontact.post.pictures", str(out),
                              "--animate", "--dim", "2"], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONPATH": str(ROOT)})

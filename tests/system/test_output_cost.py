@@ -51,7 +51,7 @@ def test_solution_xdmf_costs_the_same_at_every_step(tmp_path):
     from dolfinx import fem
     from dolfinx import mesh as dmesh
 
-    from app.io.output import FieldWriter
+    from vpcontact.io.output import FieldWriter
     mesh = dmesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
     u = fem.Function(fem.VectorFunctionSpace(mesh, ("CG", 1)), name="u")
     sigma = fem.Function(fem.TensorFunctionSpace(mesh, ("DG", 0)), name="sigma")
@@ -73,7 +73,7 @@ def test_solution_xdmf_costs_the_same_at_every_step(tmp_path):
 
 
 def test_contact_xdmf_costs_the_same_at_every_step(tmp_path):
-    from app.io.contact_xdmf import ContactWriter
+    from vpcontact.io.contact_xdmf import ContactWriter
     x = np.linspace(0.0, 1.0, 9)
     facets = np.zeros((8, 2, 3))
     facets[:, 0, 0], facets[:, 1, 0] = x[:-1], x[1:]
@@ -94,7 +94,7 @@ def test_contact_xdmf_costs_the_same_at_every_step(tmp_path):
 def _temporal(tmp_path):
     import xml.etree.ElementTree as ET
 
-    from app.io.xdmf import Field, TemporalXdmf, data_item
+    from vpcontact.io.xdmf import Field, TemporalXdmf, data_item
     topology = ET.Element("Topology", TopologyType="Polyline", NumberOfElements="1",
                           NodesPerElement="2")
     topology.append(data_item("c.h5", "/Mesh/topology", (1, 2), "Int"))
@@ -124,7 +124,7 @@ def test_each_time_writes_its_grid_once(tmp_path, monkeypatch):
     for n in range(60):
         xml.add(n / 64, attributes(n))
         assert _times(tmp_path / "c.xdmf") == [k / 64 for k in range(n + 1)]
-    from app.io.xdmf import TAIL
+    from vpcontact.io.xdmf import TAIL
     assert written == [len(xml.grid(n / 64, attributes(n)) + TAIL)     # the first time:
                for n in range(1, 60)]                                  # a rename
     assert max(written) < 800

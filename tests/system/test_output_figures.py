@@ -16,7 +16,7 @@ def results(tiny_run_dir, tmp_path_factory):
 
 
 def test_the_runs_process_draws_no_figure(results, monkeypatch):
-    from app.post import plot
+    from vpcontact.post import plot
 
     def here(*args, **kwargs):
         raise AssertionError("a line figure drawn in the run's process")
@@ -29,7 +29,7 @@ def test_the_runs_process_draws_no_figure(results, monkeypatch):
 
 def test_a_failed_line_figure_process_leaves_them_to_the_runs_process(results, monkeypatch):
     """If the line figures' process dies, the line figures are drawn in this process."""
-    from app.post import plot
+    from vpcontact.post import plot
     for name in plot.LINE_FIGURES:
         (results / name).unlink(missing_ok=True)
     painter = plot.Painter()
@@ -42,7 +42,7 @@ def test_a_failed_line_figure_process_leaves_them_to_the_runs_process(results, m
 def test_stopped_figure_processes_leave_no_temporary_files(results):
     """Ctrl-C while drawing stops the figure processes (SIGKILL): the temporary files they
     were writing (.animation.tmp.gif, ...) are removed."""
-    from app.post import plot
+    from vpcontact.post import plot
     painter = plot.Painter()
     painter.draw(results, 1.0, 2, True)
     (results / ".animation.tmp.gif").write_bytes(b"GIF89a")   # as a killed writer leaves it

@@ -44,7 +44,7 @@ def test_a_held_lock_still_refuses_a_second_run(tmp_path):
     """While a process holds the directory (a run's lock() in a process that waits), a
     run there is refused with exit 2; once that process ends, the file is gone."""
     out = tmp_path / "o"
-    code = ("import sys; from pathlib import Path; from app.cli.outdir import lock; "
+    code = ("import sys; from pathlib import Path; from vpcontact.cli.outdir import lock; "
             "assert lock(Path(sys.argv[1])) is None; print('locked', flush=True); "
             "sys.stdin.readline()")
     holder = subprocess.Popen([sys.executable, "-c", code, str(out)], cwd=ROOT, text=True,
@@ -65,7 +65,7 @@ def test_lock_taken_on_a_file_being_removed_is_taken_again(tmp_path, monkeypatch
     removes it and ends, B's flock then succeeds on a file that is no longer in the
     directory; B must lock the directory's file instead (else a third process C would
     take the new file while B writes)."""
-    from app.cli import outdir
+    from vpcontact.cli import outdir
     path = tmp_path / ".vpcontact.lock"
     a = open(path, "a+")
     fcntl.flock(a, fcntl.LOCK_EX)

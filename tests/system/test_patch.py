@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from conftest import make_case, paper_raw, run_case
-from forms.elasticity import plane_stress_constants
+from vpcontact.forms.elasticity import plane_stress_constants
 
 
 @pytest.mark.parametrize("mesh", [{"kind": "structured", "n": 4, "diagonal": "left"},

@@ -39,7 +39,7 @@ def test_figure_is_a_nonblank_png(paper_out, name):
 
 
 def test_deformed_mesh_differs_from_undeformed(paper_out, tmp_path):
-    from app.post.plot import Results, fig3_deformed_contact
+    from vpcontact.post.plot import Results, fig3_deformed_contact
     res = Results(paper_out)
     f0 = fig3_deformed_contact(res, tmp_path / "undeformed.png", factor=0.0)
     f1 = fig3_deformed_contact(res, tmp_path / "deformed.png")
@@ -50,7 +50,7 @@ def test_deformed_mesh_differs_from_undeformed(paper_out, tmp_path):
 
 def test_fig3_shows_the_bound_as_c_nu_g(paper_out):
     """The paper's convention: where u_nu = g the bar is c_nu g; the figure's data say so."""
-    from app.post.plot import Results
+    from vpcontact.post.plot import Results
     res = Results(paper_out)
     c = res.contact
     assert set(c["state"]) <= {"bound", "compliance", "separated"}
@@ -91,7 +91,7 @@ def test_body_picture_is_the_paraview_recipe(paper_out, tmp_path):
     import subprocess
     import sys
 
-    from app.post import pictures
+    from vpcontact.post import pictures
     assert _colours(paper_out / "body.png") >= 200
     out = tmp_path / "still"
     out.mkdir()
@@ -138,7 +138,7 @@ def test_info():
 def test_fine_mesh_figure_draws_outlines(tmp_path):
     """Above MAX_DRAWN_CELLS the deformed mesh is drawn by its outline (not a block of
     lines); still deformed != undeformed."""
-    from app.post.plot import MAX_DRAWN_CELLS, Results, fig3_deformed_contact
+    from vpcontact.post.plot import MAX_DRAWN_CELLS, Results, fig3_deformed_contact
     out = tmp_path / "fine"
     proc = run_cli(["run", PAPER_CASE, "--out", out, "--set", "mesh.n=72", "--set",
                     "time.N=2", "--set", "solver.method=fast"])

@@ -23,7 +23,7 @@ ENV = {**os.environ, **MPI_ENV, "PYTHONPATH": str(ROOT),
 
 
 def _command(out, *extra):
-    return ["mpirun", "-n", "2", sys.executable, "-m", "app", "run", str(PAPER_CASE),
+    return ["mpirun", "-n", "2", sys.executable, "-m", "vpcontact", "run", str(PAPER_CASE),
             "--out", str(out), "--no-plots", "--set", "mesh.n=8", "--set", "time.N=20000",
             *extra]
 

@@ -75,7 +75,7 @@ def test_every_command_has_a_form_that_works_in_a_new_shell():
             if word.endswith(".yaml"):
                 assert (ROOT / word).is_file(), f"{word} does not exist: {line}"
     text = README.read_text()
-    assert not re.search(r"(?<![/\w])python3? -m app\b", text)   # a bare python on PATH
+    assert not re.search(r"(?<![/\w])python3? -m vpcontact\b", text)   # a bare python on PATH
     assert ".venv/bin/activate" not in text
 
 
@@ -121,12 +121,12 @@ def test_launcher_through_a_symlink_from_elsewhere(new_shell_env, tmp_path):
 
 def test_launcher_keeps_the_environment(new_shell_env, tmp_path):
     """OPENBLAS_NUM_THREADS: 1 when unset, the caller's value otherwise; other variables
-    pass through.  Probed with a copy of the launcher that runs python -c instead of -m app
+    pass through.  Probed with a copy of the launcher that runs python -c instead of -m vpcontact
     (beside a symlink to .venv)."""
     code = "import os; print(os.environ['OPENBLAS_NUM_THREADS'], os.environ['VP_PROBE'])"
     text = (ROOT / "vpcontact").read_text()
-    assert '-m app "$@"' in text
-    (tmp_path / "vpcontact").write_text(text.replace('-m app "$@"', f'-c "{code}"'))
+    assert '-m vpcontact "$@"' in text
+    (tmp_path / "vpcontact").write_text(text.replace('-m vpcontact "$@"', f'-c "{code}"'))
     (tmp_path / ".venv").symlink_to(ROOT / ".venv")
     for value, expected in ((None, "1 x"), ("3", "3 x")):
         env = {k: v for k, v in new_shell_env.items() if k != "OPENBLAS_NUM_THREADS"}
@@ -156,4 +156,4 @@ def test_make_help_lists_every_target():
                          text=True).stdout   # as typed in a shell, not as a sub-make of make test
     for target in set(phony) - {"help"}:
         assert re.search(rf"^make {target}\b", out, re.M), target
-    assert "./vpcontact" in out and "python3 -m app" not in out
+    assert "./vpcontact" in out and "python3 -m vpcontact" not in out

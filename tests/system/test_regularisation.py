@@ -6,8 +6,8 @@ the default delta, for the paper case (all nodes slip) and a sticking case (all 
 import numpy as np
 import pytest
 
-from app.io.schema import SCHEMA
 from conftest import paper_raw, run_case, validate_raw
+from vpcontact.io.schema import SCHEMA
 
 DEFAULT_DELTA = SCHEMA["properties"]["solver"]["properties"]["delta"]["default"]
 

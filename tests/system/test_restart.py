@@ -35,7 +35,7 @@ def _start_long_run(out, *extra):
     """A long run (h = 1/32, 4000 steps) in the background, returned once solution.xdmf
     holds t = 0 and at least one step: waiting for progress, not for a fixed time, so a
     slow or loaded machine cannot make the signal land before the first step."""
-    cmd = [sys.executable, "-m", "app", "run", str(PAPER_CASE), "--out", str(out),
+    cmd = [sys.executable, "-m", "vpcontact", "run", str(PAPER_CASE), "--out", str(out),
            "--no-plots", "--set", "mesh.n=32", "--set", "time.N=4000",
            "--set", "solver.method=fast", *extra]
     proc = subprocess.Popen(cmd, cwd=ROOT, env={**MPI_ENV, "PATH": "/usr/bin:/bin",
@@ -235,7 +235,7 @@ def test_restart_of_a_very_small_body(ranks, tmp_path):
 
 
 def test_match_points_is_relative_to_the_mesh():
-    from app.io.checkpoint import match_points
+    from vpcontact.io.checkpoint import match_points
     rng = np.random.default_rng(1)
     grid = np.stack(np.meshgrid(np.linspace(0, 1, 17), np.linspace(0, 1, 17)), -1).reshape(-1, 2)
     order = rng.permutation(len(grid))

@@ -81,7 +81,7 @@ def test_run_just_beyond_the_explicit_limit_still_completes(tmp_path):
 
 
 def test_monitor_names_non_finite_quantities():
-    from app.post.divergence import BlowUpMonitor
+    from vpcontact.post.divergence import BlowUpMonitor
     mon = BlowUpMonitor.__new__(BlowUpMonitor)
     mon.scale, mon.bound, mon.kappa_bound = 1.0, 10.0, 10.0
     rec = {"n": 1, "t": 0.1, "norm_u_V": 1.0, "norm_sigma_Q": float("nan"), "max_vm": 1.0,
@@ -122,7 +122,7 @@ def _fails_at_call(real, nth: int, error: Exception, counts=lambda *args: True):
 def test_failing_local_update_is_a_failed_step(tmp_path, monkeypatch, capsys):
     """A numerical error of the history update (here injected at step 3) is a failed step:
     summary with status failed naming the step, exit 1, outputs of steps 0-2 intact."""
-    from app.model import history
+    from vpcontact.model import history
     failing = _fails_at_call(history.ViscoplasticHistory.before_solve, 3, RuntimeError(
         "von Mises projection: secular equation did not converge"))
     monkeypatch.setattr(history.ViscoplasticHistory, "before_solve", failing)
@@ -138,7 +138,7 @@ def test_failing_local_update_is_a_failed_step(tmp_path, monkeypatch, capsys):
 # ------------------------------------------------------------------ output faults
 def _in_process_run(out, monkeypatch, extra=()):
     """cli.main in this process (so faults can be injected); returns the exit code."""
-    import app.cli.main as cli
+    import vpcontact.cli.main as cli
     monkeypatch.chdir(ROOT)
     return cli.main(["run", str(PAPER_CASE), "--out", str(out), "--quiet", "--no-plots",
                      *TINY, *extra])
@@ -147,7 +147,7 @@ def _in_process_run(out, monkeypatch, extra=()):
 def test_hdf5_failure_mid_run_is_a_failed_run(tmp_path, monkeypatch, capsys):
     """The file system fills up at the third field write: status failed naming the file,
     exit 1, solution.xdmf still describes the two steps written before."""
-    import app.io.output as output
+    import vpcontact.io.output as output
     failing = _fails_at_call(output.dio.XDMFFile, 3, RuntimeError(
         "Failed to write HDF5 dataset (No space left on device)"),
         counts=lambda comm, path, mode: mode == "a")             # the field writes only
@@ -175,7 +175,7 @@ def test_disk_full_at_an_output_step_names_the_last_step_written(tmp_path, monke
     ``written`` mark, the message and every per-step file agree on step 2 (they said 3)."""
     import errno
 
-    from app.io import xdmf
+    from vpcontact.io import xdmf
     real = xdmf.TemporalXdmf._append
     appends = []
 
@@ -218,7 +218,7 @@ def test_hdf5_file_size_limit_is_a_failed_run_not_a_crash(tmp_path):
         resource.setrlimit(resource.RLIMIT_FSIZE, (150_000, 150_000))
     out = tmp_path / "limited"
     env = {**os.environ, **MPI_ENV, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.run([sys.executable, "-m", "app", *map(str, args), "--out", str(out),
+    proc = subprocess.run([sys.executable, "-m", "vpcontact", *map(str, args), "--out", str(out),
                            "--no-plots"], cwd=ROOT, env=env, capture_output=True, text=True,
                           timeout=300, preexec_fn=limit)
     assert proc.returncode == 1, proc.stderr[-3000:]
@@ -233,7 +233,7 @@ def test_hdf5_file_size_limit_is_a_failed_run_not_a_crash(tmp_path):
 
 
 def test_summary_write_failure_is_reported(tmp_path, monkeypatch, capsys):
-    import app.io.output as output
+    import vpcontact.io.output as output
     real = output.atomic_write
 
     def refuse(path, text, **options):
@@ -253,7 +253,7 @@ def test_summary_write_failure_is_reported(tmp_path, monkeypatch, capsys):
 def test_numpy_types_in_the_summary(tmp_path):
     """contact.friction.c1 = 0: the well-posedness verdict is a numpy bool; the summary is
     written (it was 'bool_ is not JSON serializable', exit 1)."""
-    from app.io.output import to_json
+    from vpcontact.io.output import to_json
     assert json.loads(to_json({"a": np.bool_(True), "b": np.float64(2.5),
                                "c": np.arange(2)})) == {"a": True, "b": 2.5, "c": [0, 1]}
     out = tmp_path / "c1zero"
@@ -311,7 +311,8 @@ def test_closed_stdout_does_not_kill_the_run(tmp_path):
     """`run --verbose CASE | head -1`: PETSc turned SIGPIPE into MPI_ABORT (empty output
     directory).  Now the run finishes its files and exits 0."""
     out = tmp_path / "piped"
-    cmd = [sys.executable, "-m", "app", "run", str(PAPER_CASE), "--out", str(out), "--verbose",
+    cmd = [sys.executable, "-m", "vpcontact", "run", str(PAPER_CASE), "--out", str(out),
+           "--verbose",
            "--no-plots", *TINY]
     proc = subprocess.Popen(cmd, cwd=ROOT, env={**os.environ, **MPI_ENV},
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -324,13 +325,13 @@ def test_closed_stdout_does_not_kill_the_run(tmp_path):
 
 
 def test_ctrl_c_while_drawing_keeps_a_true_summary(tmp_path, monkeypatch, capsys):
-    import app.post.plot as plot
+    import vpcontact.post.plot as plot
 
     def interrupted(outdir, log=None, **options):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(plot, "plot_all", interrupted)
-    import app.cli.main as cli
+    import vpcontact.cli.main as cli
     monkeypatch.chdir(ROOT)
     out = tmp_path / "drawing"
     code = cli.main(["run", str(PAPER_CASE), "--out", str(out), "--quiet", *TINY])
@@ -342,7 +343,7 @@ def test_ctrl_c_while_drawing_keeps_a_true_summary(tmp_path, monkeypatch, capsys
 
 def test_ctrl_c_while_writing_the_summary_still_writes_it(tmp_path, monkeypatch):
     """SIGINT arriving during the final writes is deferred: summary.json is written."""
-    import app.observers as observers
+    import vpcontact.observers as observers
     real = observers.write_json
 
     def signalled(comm, path, data):
@@ -358,7 +359,7 @@ def test_ctrl_c_while_writing_the_summary_still_writes_it(tmp_path, monkeypatch)
 def test_checkpoint_write_failure_is_a_failed_run(tmp_path, monkeypatch, capsys):
     """The disk fills up while a checkpoint is written: status failed naming the file, no
     partial checkpoint left, exit 1 (collective: no rank waits for rank 0)."""
-    import app.io.checkpoint as checkpoint
+    import vpcontact.io.checkpoint as checkpoint
 
     def full(fh, **arrays):
         fh.write(b"partial")
@@ -413,7 +414,7 @@ def test_out_of_an_earlier_run_with_studies_is_accepted(tmp_path):
 @pytest.mark.parametrize("redirect", [">&-", ">/dev/full", "2>&-", "2>/dev/full"])
 def test_closed_or_full_std_streams_do_not_stop_the_run(tmp_path, redirect):
     out = tmp_path / "streams"
-    cmd = (f"{sys.executable} -m app run {PAPER_CASE} --out {out} --no-plots "
+    cmd = (f"{sys.executable} -m vpcontact run {PAPER_CASE} --out {out} --no-plots "
            f"{' '.join(TINY)} {redirect}")
     proc = subprocess.run(["bash", "-c", cmd], cwd=ROOT, env={**os.environ, **MPI_ENV},
                           capture_output=True, text=True, timeout=300)
@@ -478,7 +479,7 @@ def test_adaptive_limit_below_k_min_fails_at_once(tmp_path):
 def test_signal_while_starting_is_one_line(tmp_path, sig):
     """Ctrl-C or SIGTERM while the modules load (here: once MPI is loaded) printed a
     KeyboardInterrupt traceback (or nothing, exit 143); now one line and exit 3."""
-    cmd = [sys.executable, "-m", "app", "run", str(PAPER_CASE), "--out", str(tmp_path / "s"),
+    cmd = [sys.executable, "-m", "vpcontact", "run", str(PAPER_CASE), "--out", str(tmp_path / "s"),
            "--no-plots", *TINY]
     proc = subprocess.Popen(cmd, cwd=ROOT, env={**os.environ, **MPI_ENV},
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

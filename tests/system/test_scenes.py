@@ -17,8 +17,8 @@ NORMS = ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa")
 
 
 def _run(path, overrides=()):
-    from app.io.case import load_case
-    from app.simulation import run
+    from vpcontact.io.case import load_case
+    from vpcontact.simulation import run
     result = run(load_case(path, list(overrides)), MPI.COMM_WORLD)
     assert result.status == "completed"
     return result

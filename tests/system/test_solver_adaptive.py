@@ -42,7 +42,7 @@ def test_fast_and_snes_vi_take_the_same_adaptive_grid(adaptive):
 def test_the_grid_ignores_the_iteration_count(monkeypatch):
     """A step solver reporting many iterations takes the same grid (the iteration count is
     a property of the solver, not of the discrete problem)."""
-    from app.solvers.fast import FastStepSolver
+    from vpcontact.solvers.fast import FastStepSolver
     raw = _adaptive({})
     raw["solver"]["method"] = "fast"
     plain = run_case(validate_raw(raw))

@@ -51,7 +51,7 @@ def test_the_floor_is_below_the_default_tolerance_on_the_paper_case():
     floor bounds ROUNDOFF_FACTOR eps || J u || from above (|J| |u| >= |J u| entrywise)."""
     from dolfinx import fem
 
-    from app.solvers.snesvi import ROUNDOFF_FACTOR, RoundoffFloor
+    from vpcontact.solvers.snesvi import ROUNDOFF_FACTOR, RoundoffFloor
     raw = paper_raw()
     raw["time"]["N"] = 4
     result = run_case(validate_raw(raw))

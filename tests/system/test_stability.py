@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from app.model.problem import ContactProblem
-from app.post.diagnostics import trace_constant
-from app.simulation import build_mesh
 from conftest import PAPER_CASE, make_case, paper_raw, run_case, run_cli, validate_raw
+from vpcontact.model.problem import ContactProblem
+from vpcontact.post.diagnostics import trace_constant
+from vpcontact.simulation import build_mesh
 
 
 def _coarse(**time):
@@ -53,8 +53,8 @@ def test_implicit_and_explicit_converge_to_each_other():
 
 
 def test_implicit_local_update_and_tangent():
-    from app.model.implicit import BackwardEulerPerzyna
-    from app.model.material import Elasticity, Perzyna
+    from vpcontact.model.implicit import BackwardEulerPerzyna
+    from vpcontact.model.material import Elasticity, Perzyna
     law = Elasticity(1000.0, 0.4, 2)
     be = BackwardEulerPerzyna(Perzyna(law, 1.0, 10.0))     # stiff: k/(2 lambda1) E ~ 80
     rng = np.random.default_rng(3)
@@ -94,9 +94,9 @@ def test_adaptive_rejection_restores_every_history(monkeypatch):
     """A solver failure injected for k > 0.3: starting from k = 1 the step is rejected twice
     (all histories rolled back) and the run continues with k = 0.25.  With memory and slip
     dependence active, the result must equal the fixed grid N = 4 to round-off."""
-    from app.io.case import load_raw
-    from app.solvers.snesvi import SNESVISolver, StepSolveError
     from conftest import ROOT
+    from vpcontact.io.case import load_raw
+    from vpcontact.solvers.snesvi import SNESVISolver, StepSolveError
 
     raw = load_raw(ROOT / "cases" / "memory.yaml")
     raw["mesh"]["n"] = 8
@@ -132,7 +132,7 @@ def test_adaptive_rejection_restores_every_history(monkeypatch):
 
 
 def test_stepper_unit():
-    from app.model.stepping import AdaptiveSteps
+    from vpcontact.model.stepping import AdaptiveSteps
     st = AdaptiveSteps(1.0, 0.25, rate=10.0, scheme="explicit", grow=2.0, max_change=0.1,
                        max_indicator=1.0)
     assert st.next_k(0.0) == 0.0625          # halved twice: 0.25 r = 2.5 > 1

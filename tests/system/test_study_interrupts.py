@@ -25,7 +25,7 @@ ENV = {**os.environ, **MPI_ENV, "PYTHONPATH": str(ROOT)}
 # the study's process sends itself a signal after the given accepted step of all its runs
 SIGNAL_AT_STEP = """
 import os, signal, sys
-from app.studies import convergence as cv
+from vpcontact.studies import convergence as cv
 count, real = [0], cv.GridSamples.step
 def step(self, sim, record):
     real(self, sim, record)
@@ -33,7 +33,7 @@ def step(self, sim, record):
     if count[0] == int(sys.argv[1]):
         os.kill(os.getpid(), getattr(signal, sys.argv[2]))
 cv.GridSamples.step = step
-from app.cli.main import main
+from vpcontact.cli.main import main
 sys.exit(main(sys.argv[3:]))
 """
 
@@ -51,7 +51,7 @@ def _one_line(stdout: str, stderr: str) -> str:
 
 def _cache_entries(cache):
     """The cache's files: every one a whole entry that loads (no temporary file left)."""
-    from app.studies import runcache
+    from vpcontact.studies import runcache
     files = sorted(cache.iterdir()) if cache.exists() else []
     assert all(f.name.startswith("run-") and f.suffix == ".h5" for f in files), files
     for f in files:
@@ -93,7 +93,7 @@ def test_signal_in_the_last_step_of_a_run_ends_the_study(tmp_path, step, where):
 
 
 def _popen(args):
-    return subprocess.Popen([sys.executable, "-m", "app", *map(str, args)], cwd=ROOT, env=ENV,
+    return subprocess.Popen([sys.executable, "-m", "vpcontact", *map(str, args)], cwd=ROOT, env=ENV,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -155,7 +155,7 @@ def test_signal_while_a_run_is_cached_keeps_the_entry_whole(tmp_path, monkeypatc
     (then the signal acts); the run had finished, so it is kept (it was lost before)."""
     import h5py
 
-    from app.studies import runcache
+    from vpcontact.studies import runcache
     real = h5py.File.create_dataset
 
     def create_dataset(self, name, *args, **kwargs):

@@ -20,7 +20,7 @@ def test_level_vertices_are_the_refined_meshes(geo, dim, size):
     """The vertex counts computed without refining equal those of the refined meshes."""
     import gmsh
 
-    from meshes.refine import level_vertices, read_level, refine
+    from vpcontact.meshes.refine import level_vertices, read_level, refine
     gmsh.initialize(readConfigFiles=False)
     gmsh.option.setNumber("General.Terminal", 0)
     try:
@@ -37,8 +37,8 @@ def test_refine_file_refuses_before_refining(tmp_path, monkeypatch):
     built first (minutes and gigabytes for a large reference); now nothing is refined."""
     from mpi4py import MPI
 
-    from meshes import MeshFileError
-    from meshes import refine as rf
+    from vpcontact.meshes import MeshFileError
+    from vpcontact.meshes import refine as rf
     calls = []
     monkeypatch.setattr(rf, "refine", lambda level: calls.append(level) or 1 / 0)
     with pytest.raises(MeshFileError, match="refined 4 times would have 2.9"):
@@ -49,7 +49,7 @@ def test_refine_file_refuses_before_refining(tmp_path, monkeypatch):
 
 def test_too_large_names_the_first_level_over_either_limit():
     """Vertex limit (the built-in meshes', 1e8) and memory (700 B per vertex in 2D)."""
-    from meshes.refine import too_large
+    from vpcontact.meshes.refine import too_large
     sizes = [10 ** 6, 4 * 10 ** 6, 16 * 10 ** 6, 64 * 10 ** 6, 256 * 10 ** 6]
     assert too_large(sizes, 2, 1e8, None) == (4, "would have 2.56e+08 vertices (limit 1e+08)")
     assert too_large(sizes, 2, 1e8, 5e9) == (
@@ -70,7 +70,7 @@ def test_too_many_refinements_are_refused_before_any_computation(tmp_path, args,
     refined 7 times 5e7 (30 GB to refine): one line naming the option and the values
     allowed, exit 2, no output directory, in seconds (before: the study refined the mesh
     for minutes; punch --refine 6 was killed for want of memory, exit 137)."""
-    from meshes.refine import available_memory
+    from vpcontact.meshes.refine import available_memory
     if memory and (available_memory() is None or available_memory() > 30e9):
         pytest.skip("refused for want of memory only below 30 GB available")
     out = tmp_path / "o"
@@ -86,7 +86,7 @@ def test_too_many_refinements_are_refused_before_any_computation(tmp_path, args,
 # the process sends itself SIGINT as gmsh starts to mesh the .geo (the n-th time)
 SIGNAL_WHILE_MESHING = """
 import os, signal, sys
-from meshes import gmshfile
+from vpcontact.meshes import gmshfile
 count, real = [0], gmshfile._mesh_geo
 def mesh_geo(*args):
     count[0] += 1
@@ -94,7 +94,7 @@ def mesh_geo(*args):
         os.kill(os.getpid(), signal.SIGINT)
     return real(*args)
 gmshfile._mesh_geo = mesh_geo
-from app.cli.main import main
+from vpcontact.cli.main import main
 sys.exit(main(sys.argv[2:]))
 """
 

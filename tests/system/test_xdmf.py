@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import pyvista as pv
 
-from app.io.xdmf import Field, TemporalXdmf, XdmfLayoutError, dolfinx_layout
 from conftest import PAPER_CASE, ROOT, run_cli
+from vpcontact.io.xdmf import Field, TemporalXdmf, XdmfLayoutError, dolfinx_layout
 
 RUNS = {"2d": (PAPER_CASE, ["mesh.n=8"]), "3d": (ROOT / "cases" / "box3d.yaml", ["mesh.n=4"])}
 

@@ -6,12 +6,12 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from app.io.case import load_raw, validate
-from app.simulation import build_mesh
-from app.solvers import AUTO_AMG_MIN_DOFS, choose_linear, snes_vi_options
-from app.solvers.amg import AMG_PETSC, orthonormal_columns, rigid_body_modes
 from conftest import ROOT, make_case
-from forms.elasticity import eps
+from vpcontact.forms.elasticity import eps
+from vpcontact.io.case import load_raw, validate
+from vpcontact.simulation import build_mesh
+from vpcontact.solvers import AUTO_AMG_MIN_DOFS, choose_linear, snes_vi_options
+from vpcontact.solvers.amg import AMG_PETSC, orthonormal_columns, rigid_body_modes
 
 
 def _box(**solver):
@@ -73,8 +73,8 @@ def test_rigid_body_modes_have_no_strain(dim):
 def test_trace_constant_by_lanczos_and_gamg_equals_power_iteration_with_lu():
     """(2.6)'s ||gamma||^2 on the 3D box: Lanczos with CG + GAMG (the iterative path's
     tolerances) against the power iteration with LU (Rayleigh quotients to 1e-10)."""
-    from app.model.problem import ContactProblem
-    from app.post.diagnostics import trace_constant
+    from vpcontact.model.problem import ContactProblem
+    from vpcontact.post.diagnostics import trace_constant
     raw = load_raw(ROOT / "cases" / "box3d.yaml")
     raw["mesh"]["n"] = 6
     case = validate(raw, "box")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from app.io import cachedirs
+from vpcontact.io import cachedirs
 
 
 @pytest.fixture
@@ -33,7 +33,7 @@ def test_precedence_of_the_run_cache(tmp_path):
 
 def test_the_run_cache_is_described_once():
     """The convergence command's --cache-dir help says what vpcontact_dir does."""
-    out = subprocess.run([sys.executable, "-m", "app", "convergence", "--help"],
+    out = subprocess.run([sys.executable, "-m", "vpcontact", "convergence", "--help"],
                          capture_output=True, text=True, check=True).stdout
     assert cachedirs.CACHE_SEARCH in " ".join(out.split())
 
@@ -46,8 +46,8 @@ def test_ffcx_cache_is_where_dolfinx_puts_it():
 
 def test_the_caches_in_use_are_one_definition(tmp_path):
     """Kernels, run cache, `info` and dolfinx agree, with XDG_CACHE_HOME set as well."""
-    code = ("from app.solvers import kernels; from app.studies import runcache; "
-            "from app.cli import checkrun; from dolfinx import jit; "
+    code = ("from vpcontact import kernels; from vpcontact.studies import runcache; "
+            "from vpcontact.cli import checkrun; from dolfinx import jit; "
             "print(kernels.cache_dir()); print(runcache.default_cache_dir()); "
             "print(jit.DOLFINX_DEFAULT_JIT_PARAMETERS['cache_dir'][0]); "
             "print(*checkrun.info(), sep='\\n')")

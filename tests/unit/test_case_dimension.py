@@ -11,9 +11,9 @@ import time
 
 import pytest
 
-from app.io.case import CaseError
 from conftest import ROOT, validate_raw
-from meshes.fileinfo import FileInfoError, file_dimension
+from vpcontact.io.case import CaseError
+from vpcontact.meshes.fileinfo import FileInfoError, file_dimension
 
 SQUARE_GEO = """Point(1) = {0, 0, 0, 0.5}; Point(2) = {1, 0, 0, 0.5};
 Point(3) = {1, 1, 0, 0.5}; Point(4) = {0, 1, 0, 0.5};
@@ -146,7 +146,7 @@ def test_a_geo_that_runs_a_command_is_refused_before_gmsh_opens_it(tmp_path):
 
 VALIDATE = """
 import json, sys
-from app.io.case import validate
+from vpcontact.io.case import validate
 case = validate(json.loads(sys.argv[1]), "test-case")
 print(json.dumps([case.mesh.dim, "gmsh" in sys.modules]))
 """
@@ -190,7 +190,7 @@ def test_sigint_while_gmsh_reads_a_slow_geo_exits_3(tmp_path):
     geo = _geo(tmp_path, SQUARE_GEO + "For i In {1:1000000000}\n  x = i;\nEndFor\n", "slow.geo")
     case = tmp_path / "case.yaml"
     case.write_text(json.dumps(_raw(geo, top=(0.0, -1.0))))
-    proc = subprocess.Popen([sys.executable, "-m", "app", "check", str(case)], cwd=ROOT,
+    proc = subprocess.Popen([sys.executable, "-m", "vpcontact", "check", str(case)], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONPATH": str(ROOT)})
     try:

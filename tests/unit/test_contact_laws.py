@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 import ufl
 
-from app.model import contact_laws as laws
-from app.solvers import kernels
-from app.solvers.nodal import NodalContact, nodal_contact_numpy
-from forms import contact as forms
+from vpcontact import kernels
+from vpcontact.forms import contact as forms
+from vpcontact.model import contact_laws as laws
+from vpcontact.solvers.nodal import NodalContact, nodal_contact_numpy
 
 FR = (1.0, 60.0, 60.0, 0.01)                 # b, c1, c2, u1 of the paper's Sec. 4
 ORIGIN = (0.0,)                              # UFL evaluates the constant expressions anywhere

@@ -9,13 +9,13 @@ import pytest
 import yaml
 from mpi4py import MPI
 
-import app.simulation
-from app.io.case import CaseError
-from app.io.datacheck import PointSamples
-from app.model.datapoints import check_data_on_mesh, mesh_samples, with_rounded
-from app.simulation import build_mesh
+import vpcontact.simulation
 from conftest import PAPER_CASE, make_case, run_case, run_cli
 from meshtools import write_rotated_square
+from vpcontact.io.case import CaseError
+from vpcontact.io.datacheck import PointSamples
+from vpcontact.model.datapoints import check_data_on_mesh, mesh_samples, with_rounded
+from vpcontact.simulation import build_mesh
 
 
 @pytest.fixture(scope="module")
@@ -78,7 +78,7 @@ def test_refused_on_the_built_in_mesh_too(sections, message, where):
 def test_refused_on_the_mesh_file_before_any_computation(square, sections, message, where,
                                                           monkeypatch):
     case = make_case(_raw(square, **sections))      # validation cannot see the position
-    monkeypatch.setattr(app.simulation, "ContactProblem", _no_computation)
+    monkeypatch.setattr(vpcontact.simulation, "ContactProblem", _no_computation)
     with pytest.raises(CaseError) as err:
         run_case(case)
     text = str(err.value)
@@ -158,7 +158,7 @@ def test_round_off_does_not_hide_a_singular_point(tmp_path, monkeypatch):
     -5/(x - 0.5) is finite (3e12); the rounded point (0.5, 1) is sampled too."""
     tilted = write_rotated_square(tmp_path / "tilted.msh", 4, 1e-10)
     case = make_case(_raw(tilted, loads={"traction": {"top": [0.0, "-5/(x - 0.5)"]}}))
-    monkeypatch.setattr(app.simulation, "ContactProblem", _no_computation)
+    monkeypatch.setattr(vpcontact.simulation, "ContactProblem", _no_computation)
     with pytest.raises(CaseError) as err:
         run_case(case)
     assert "loads.traction.top[1]: -inf is not a finite number at x = 0.5, y = 1, t = 0" \

@@ -10,12 +10,12 @@ import yaml
 from dolfinx import fem
 from mpi4py import MPI
 
-from app.io.case import CaseError
-from app.model.dirichlet import body_parts
-from app.model.problem import ContactProblem
-from app.simulation import build_mesh
 from conftest import MPI_ENV, ROOT, run_cli, validate_raw
-from meshes import build_box, build_rectangle
+from vpcontact.io.case import CaseError
+from vpcontact.meshes import build_box, build_rectangle
+from vpcontact.model.dirichlet import body_parts
+from vpcontact.model.problem import ContactProblem
+from vpcontact.simulation import build_mesh
 
 TWO_SQUARES = """lc = 0.5;
 Point(1) = {0, 0, 0, lc}; Point(2) = {1, 0, 0, lc}; Point(3) = {1, 1, 0, lc};
@@ -117,8 +117,8 @@ BODY_PARTS_SCRIPT = """
 import json, sys
 from mpi4py import MPI
 from dolfinx import fem
-from meshes import build_rectangle
-from app.model.dirichlet import body_parts
+from vpcontact.meshes import build_rectangle
+from vpcontact.model.dirichlet import body_parts
 V = fem.VectorFunctionSpace(build_rectangle(MPI.COMM_WORLD, 1.0, 1.0, n=8).mesh, ("CG", 1))
 p = body_parts(V)
 with open(f"{sys.argv[1]}.{MPI.COMM_WORLD.rank}", "w") as fh:

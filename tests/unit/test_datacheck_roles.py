@@ -6,11 +6,11 @@ import pytest
 import yaml
 from mpi4py import MPI
 
-from app.io.case import CaseError
-from app.model.problem import ContactProblem
-from app.simulation import build_mesh
 from conftest import PAPER_CASE, make_case
 from meshtools import write_rotated_square
+from vpcontact.io.case import CaseError
+from vpcontact.model.problem import ContactProblem
+from vpcontact.simulation import build_mesh
 
 
 @pytest.fixture(scope="module")

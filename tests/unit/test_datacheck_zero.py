@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from app.model.problem import ContactProblem
 from conftest import make_case, run_case
-from meshes import build_rectangle
+from vpcontact.meshes import build_rectangle
+from vpcontact.model.problem import ContactProblem
 
 VP = {"lambda1": 100.0, "lambda2": 100.0}
 
@@ -48,7 +48,7 @@ def test_zero_initial_values_are_zero_on_the_mesh():
                                              "sigma0": [["0*x", 0], [0, "0*y"]]},
                      material={"viscoplastic": {**VP, "kappa0": "0*x"}})
     problem = ContactProblem(case, build_rectangle(MPI.COMM_SELF, 1.0, 1.0, n=2))
-    from app.simulation import build_history
+    from vpcontact.simulation import build_history
     history = build_history(case, problem)
     history.kappa.x.array[:] = 7.0
     problem.u.x.array[:] = 5.0

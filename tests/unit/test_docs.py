@@ -1,7 +1,7 @@
 """The README's case-file reference matches the schema (regenerate: make docs)."""
-from app.io.docs import END, START, render
-from app.io.schema import SCHEMA
 from conftest import ROOT
+from vpcontact.io.docs import END, START, render
+from vpcontact.io.schema import SCHEMA
 
 
 def test_readme_reference_is_current():

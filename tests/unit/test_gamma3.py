@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from app.model.gamma3 import Kernel, MemorySum, SlipSum
+from vpcontact.model.gamma3 import Kernel, MemorySum, SlipSum
 
 
 def _steps(rng, n=40):

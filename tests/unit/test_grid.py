@@ -4,8 +4,10 @@ import pytest
 from dolfinx import geometry
 from mpi4py import MPI
 
-from app.model.problem import ContactProblem
-from app.studies.grid import (
+from conftest import make_case
+from vpcontact.meshes import build_rectangle
+from vpcontact.model.problem import ContactProblem
+from vpcontact.studies.grid import (
     Grid,
     GridSampler,
     cell_centroids,
@@ -14,8 +16,6 @@ from app.studies.grid import (
     prolong_p1,
     strain_norm,
 )
-from conftest import make_case
-from meshes import build_rectangle
 
 
 def _problem(n, diagonal, L1=1.0, L2=1.0):

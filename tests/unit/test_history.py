@@ -3,11 +3,11 @@ kappa_n = kappa_{n-1} + k_n Gk(sigma_{n-1}, kappa_{n-1}), cell by cell."""
 import numpy as np
 from mpi4py import MPI
 
-from app.model.history import ViscoplasticHistory
-from app.model.material import Perzyna, PlaneStress, to_voigt
-from app.model.problem import ContactProblem
 from conftest import make_case
-from meshes import build_rectangle
+from vpcontact.meshes import build_rectangle
+from vpcontact.model.history import ViscoplasticHistory
+from vpcontact.model.material import Perzyna, PlaneStress, to_voigt
+from vpcontact.model.problem import ContactProblem
 
 
 def test_advance_matches_the_scheme():

@@ -1,4 +1,4 @@
-"""The compiled kernels (app/solvers/kernels/) equal their numpy references: the Perzyna
+"""The compiled kernels (app/kernels/) equal their numpy references: the Perzyna
 update, the cell passes, the split solve's sweeps, CHOLMOD's factor; the build reads the cdef
 from the headers, hashes every file, and falls back to numpy where nothing can be built."""
 import re
@@ -7,9 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.model.material import Elasticity, VonMisesProjection, from_voigt, to_voigt
-from app.solvers import dense, kernels, ldl, mumps
-from app.solvers.kernels import build
+from vpcontact import kernels
+from vpcontact.kernels import build
+from vpcontact.model.material import Elasticity, VonMisesProjection, from_voigt, to_voigt
+from vpcontact.solvers import dense, ldl, mumps
 
 ROOT = Path(__file__).resolve().parents[2]
 module = kernels.load()
@@ -168,7 +169,7 @@ def test_split_solve_equals_numpy(kind, bs):
     equal to 1e-12."""
     import scipy.sparse as sp
 
-    from app.solvers.schur import CSR, GLastLDL, GLastLU
+    from vpcontact.solvers.schur import CSR, GLastLDL, GLastLU
     A = _spd(40, seed=bs)
     G = np.array([6, 7, 30, 31])
     S = sp.csr_matrix(A)
@@ -209,9 +210,9 @@ def test_cholmod_factor_equals_numpy():
 
 # ------------------------------------------------------------------ the build
 LIBRARIES = {
-    "cells": (kernels.CELL_KERNELS, ["app/solvers/kernels/perzyna.py",
-                                     "app/solvers/kernels/sweeps.py",
-                                     "app/solvers/kernels/cells.py", "app/solvers/nodal.py",
+    "cells": (kernels.CELL_KERNELS, ["app/kernels/perzyna.py",
+                                     "app/kernels/sweeps.py",
+                                     "app/kernels/cells.py", "app/solvers/nodal.py",
                                      "app/model/strain.py"]),
     "dense": (dense.DENSE, ["app/solvers/dense.py"]),
     "cholmod": (ldl.CHOLMOD, ["app/solvers/ldl.py"]),
@@ -289,7 +290,7 @@ def test_the_name_hashes_every_file(tmp_path, monkeypatch):
 def test_no_compiler_falls_back_to_numpy(tmp_path, monkeypatch, caplog):
     """Where nothing can be built (here: the compiler fails), every load returns None with
     a warning, and the numpy references serve."""
-    from app.solvers.nodal import NodalContact
+    from vpcontact.solvers.nodal import NodalContact
 
     def no_compiler(*args, **kwargs):
         raise RuntimeError("no C compiler")

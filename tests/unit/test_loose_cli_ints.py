@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from app.cli import parser as cli
+from vpcontact.cli import parser as cli
 
 ROOT = Path(__file__).resolve().parents[2]
 HUGE = "99999999999999999999"
@@ -77,9 +77,9 @@ def test_the_ends_of_each_range_are_accepted(command, option, value, expected):
 
 
 def test_the_ranges_are_the_limits_of_the_case_and_the_bench():
-    from app.io.case import MAX_STEPS, MAX_VERTICES
-    from app.io.schema import SCHEMA
-    from app.studies.bench import MAX_REPEAT
+    from vpcontact.io.case import MAX_STEPS, MAX_VERTICES
+    from vpcontact.io.schema import SCHEMA
+    from vpcontact.studies.bench import MAX_REPEAT
     assert cli.MAX_CELLS == SCHEMA["properties"]["mesh"]["properties"]["n"]["maximum"]
     assert cli.MAX_STEPS == MAX_STEPS
     assert cli.MAX_REPEAT == MAX_REPEAT
@@ -87,8 +87,8 @@ def test_the_ranges_are_the_limits_of_the_case_and_the_bench():
 
 
 def test_box3d_levels_over_the_vertex_limit_are_refused_before_the_bench_runs():
-    from app.io.case import CaseError
-    from app.studies import bench
+    from vpcontact.io.case import CaseError
+    from vpcontact.studies import bench
     with pytest.raises(CaseError, match=r"--box3d-levels 4096: .*box3d\.yaml: mesh\.n"):
         bench.check_arguments(str(ROOT / "cases/wang_cheng_2021.yaml"), [8], [], [1], 1,
                               [], box3d_levels=[8, 4096])
@@ -97,7 +97,7 @@ def test_box3d_levels_over_the_vertex_limit_are_refused_before_the_bench_runs():
 
 
 def test_a_huge_reference_of_a_mesh_file_study_is_one_line_exit_2(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "app", "convergence",
+    proc = subprocess.run([sys.executable, "-m", "vpcontact", "convergence",
                            "cases/hertz_cylinder.yaml", "--reference", HUGE,
                            "--out", str(tmp_path / "cv")],
                           cwd=ROOT, capture_output=True, text=True, timeout=120)

@@ -52,7 +52,7 @@ def ours(signum, frame):
     raise KeyboardInterrupt
 signal.signal(signal.SIGINT, ours)
 import dolfinx.io
-from meshes import box, rectangle
+from vpcontact.meshes import box, rectangle
 seen = []
 def watch(module, name):
     real = getattr(module, name)

@@ -8,8 +8,8 @@ import types
 import pytest
 from mpi4py import MPI
 
-from app.simulation import Simulation, _StopRequest
-from app.studies.interrupts import SignalWatch
+from vpcontact.simulation import Simulation, _StopRequest
+from vpcontact.studies.interrupts import SignalWatch
 
 
 def test_stop_signal_is_none_outside_a_run_and_read_only():

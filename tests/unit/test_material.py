@@ -4,8 +4,8 @@ import pytest
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from app.model.material import Perzyna, PlaneStress, from_voigt, to_voigt
-from forms.elasticity import elasticity_operator
+from vpcontact.forms.elasticity import elasticity_operator
+from vpcontact.model.material import Perzyna, PlaneStress, from_voigt, to_voigt
 
 
 def test_voigt_roundtrip():

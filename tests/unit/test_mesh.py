@@ -8,7 +8,7 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from meshes import BOUNDARY_TAGS, SIDES, build_box, build_rectangle
+from vpcontact.meshes import BOUNDARY_TAGS, SIDES, build_box, build_rectangle
 
 
 def _cells(rect):

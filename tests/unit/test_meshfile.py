@@ -12,8 +12,8 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from conftest import MPI_ENV, ROOT
-from meshes import MeshFileError, build_box, build_rectangle, gmshfile, load_mesh_file
 from meshtools import rotation_2d, rotation_3d, write_rotated_box, write_rotated_square
+from vpcontact.meshes import MeshFileError, build_box, build_rectangle, gmshfile, load_mesh_file
 
 SQUARE = """Point(1) = {0, 0, 0, 0.3}; Point(2) = {1, 0, 0, 0.3};
 Point(3) = {1, 1, 0, 0.3}; Point(4) = {0, 1, 0, 0.3};
@@ -295,7 +295,7 @@ def _check_sides(m, R, sides, n):
 TWO_RANKS = """
 import json, pathlib, sys
 from mpi4py import MPI
-from meshes import MeshFileError, load_mesh_file
+from vpcontact.meshes import MeshFileError, load_mesh_file
 comm = MPI.COMM_WORLD
 m = load_mesh_file(comm, sys.argv[1], int(sys.argv[2]))
 try:

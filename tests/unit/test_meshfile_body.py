@@ -10,8 +10,8 @@ import pytest
 from mpi4py import MPI
 
 from conftest import ROOT
-from meshes import MeshFileError, gmshfile, load_mesh_file
-from meshes.bodycheck import interior_role
+from vpcontact.meshes import MeshFileError, gmshfile, load_mesh_file
+from vpcontact.meshes.bodycheck import interior_role
 
 SQUARE = """Point(1) = {0, 0, 0, 0.25}; Point(2) = {1, 0, 0, 0.25};
 Point(3) = {1, 1, 0, 0.25}; Point(4) = {0, 1, 0, 0.25};
@@ -70,7 +70,7 @@ def test_a_degenerate_tetrahedron_is_refused(tmp_path):
 
 def _load_in_child(path, dim):
     """load_mesh_file in a separate process: a segmentation fault must not end pytest."""
-    code = ("import sys; from mpi4py import MPI; from meshes import MeshFileError, "
+    code = ("import sys; from mpi4py import MPI; from vpcontact.meshes import MeshFileError, "
             "load_mesh_file\ntry:\n    load_mesh_file(MPI.COMM_SELF, sys.argv[1], "
             "int(sys.argv[2])); print('LOADED')\nexcept MeshFileError as e:\n    print(e)")
     return subprocess.run([sys.executable, "-c", code, str(path), str(dim)], cwd=ROOT,

@@ -6,8 +6,8 @@ from pathlib import Path
 import pytest
 from mpi4py import MPI
 
-from meshes import MeshFileError, geoscan, load_mesh_file
-from meshes.geoscan import GeoScanError, mesh_files, tokens
+from vpcontact.meshes import MeshFileError, geoscan, load_mesh_file
+from vpcontact.meshes.geoscan import GeoScanError, mesh_files, tokens
 
 SQUARE = """Point(1) = {0, 0, 0, 0.5}; Point(2) = {1, 0, 0, 0.5};
 Point(3) = {1, 1, 0, 0.5}; Point(4) = {0, 1, 0, 0.5};
@@ -101,7 +101,7 @@ def test_opt_files_gmsh_merges_are_scanned(tmp_path):
 
 
 def _save_msh(geo: Path, msh: Path) -> None:
-    from meshes.gmshfile import import_gmsh
+    from vpcontact.meshes.gmshfile import import_gmsh
     gmsh = import_gmsh()
     gmsh.initialize(readConfigFiles=False)
     gmsh.option.setNumber("General.Terminal", 0)
@@ -184,7 +184,7 @@ def test_tokens_follow_gmsh_scanner():
 
 
 def _case(tmp_path, geo_name="part.geo"):
-    from app.io.case import load_case
+    from vpcontact.io.case import load_case
     path = tmp_path / "case.yaml"
     path.write_text(f"mesh: {{file: {geo_name}, dim: 2}}\n"
                     "material: {E: 1000.0, nu: 0.3, plane: strain}\n"
@@ -193,7 +193,7 @@ def _case(tmp_path, geo_name="part.geo"):
 
 
 def test_a_change_in_an_included_file_changes_the_fingerprint(tmp_path):
-    from app.io.checkpoint import case_fingerprint
+    from vpcontact.io.checkpoint import case_fingerprint
     _write(tmp_path / "sizes.geo", "h = 0.5;")
     _write(tmp_path / "part.geo", 'Include "sizes.geo";\n' + SQUARE.replace("0.5}", "h}"))
     case = _case(tmp_path)
@@ -205,7 +205,7 @@ def test_a_change_in_an_included_file_changes_the_fingerprint(tmp_path):
     _save_msh(tmp_path / "part.geo", tmp_path / "part.msh")
     import hashlib
 
-    from app.io.canonical import stable_json
+    from vpcontact.io.canonical import stable_json
     msh_case = _case(tmp_path, "part.msh")
     raw = msh_case.raw
     data = {k: raw.get(k) for k in ("mesh", "material", "contact", "loads", "initial",

@@ -10,9 +10,9 @@ import pytest
 from mpi4py import MPI
 
 from conftest import MPI_ENV, ROOT
-from meshes import MeshFileError, gmshfile, load_mesh_file
-from meshes.gmshfile import file_failure, on_root
-from meshes.rectangle import gmsh_mesh
+from vpcontact.meshes import MeshFileError, gmshfile, load_mesh_file
+from vpcontact.meshes.gmshfile import file_failure, on_root
+from vpcontact.meshes.rectangle import gmsh_mesh
 
 COMM = MPI.COMM_WORLD
 
@@ -67,8 +67,8 @@ def test_the_result_is_shared_or_kept_on_rank_0():
 TWO_RANKS = """
 import json, sys
 from mpi4py import MPI
-from meshes.gmshfile import file_failure, on_root
-from meshes.rectangle import gmsh_mesh
+from vpcontact.meshes.gmshfile import file_failure, on_root
+from vpcontact.meshes.rectangle import gmsh_mesh
 comm = MPI.COMM_WORLD
 out = {}
 def build():

@@ -3,7 +3,7 @@ Gamma3 start guess."""
 import numpy as np
 import pytest
 
-from app.solvers import dense
+from vpcontact.solvers import dense
 
 
 def _directions(S, d):
@@ -54,7 +54,7 @@ def test_start_extrapolates_the_last_two_steps():
     restart (no time), the linear extrapolation in time after two steps (any step sizes)."""
     from types import SimpleNamespace
 
-    from app.solvers.fast import FastStepSolver
+    from vpcontact.solvers.fast import FastStepSolver
 
     clock = SimpleNamespace(value=0.1)
     solver = SimpleNamespace(_y_prev=[], problem=SimpleNamespace(

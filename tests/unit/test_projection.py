@@ -3,7 +3,7 @@ cannot depend on the CPU or BLAS (bisection on the multiplier, brute-force sampl
 import numpy as np
 import pytest
 
-from app.model.material import PlaneStress, VonMisesProjection
+from vpcontact.model.material import PlaneStress, VonMisesProjection
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +72,7 @@ def test_projection_is_energy_closest_point(law, proj):
 
 
 # ----------------------------------------------------------------------------- 3D
-from app.model.material import Elasticity, RadialReturn, make_projection  # noqa: E402
+from vpcontact.model.material import Elasticity, RadialReturn, make_projection  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -157,7 +157,7 @@ def test_3d_closed_form_equals_generic_projection(law3):
 
 
 def test_3d_von_mises_is_three_halves_dev_dev(law3):
-    from app.model.material import from_voigt
+    from vpcontact.model.material import from_voigt
     rng = np.random.default_rng(13)
     t = rng.normal(size=(50, 6))
     tau = from_voigt(t, 3)

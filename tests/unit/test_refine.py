@@ -9,8 +9,8 @@ import yaml
 from mpi4py import MPI
 
 from conftest import ROOT
-from meshes import load_mesh_file
-from meshes.refine import MeshLevel, prolong_dg0, prolong_p1, refine, refine_file
+from vpcontact.meshes import load_mesh_file
+from vpcontact.meshes.refine import MeshLevel, prolong_dg0, prolong_p1, refine, refine_file
 
 HERTZ_GEO = ROOT / "cases" / "hertz_cylinder.geo"
 SPHERE_GEO = ROOT / "cases" / "sphere3d.geo"
@@ -124,7 +124,7 @@ def test_refined_msh_files_are_reproducible(hertz_levels, tmp_path):
 def test_refine_refuses_facets_off_the_cells():
     level = MeshLevel(np.array([[0.0, 0], [1, 0], [0, 1], [1, 1]]), np.array([[0, 1, 2]]),
                       np.array([1]), np.array([[1, 3]]), np.array([2]))
-    from meshes import MeshFileError
+    from vpcontact.meshes import MeshFileError
     with pytest.raises(MeshFileError, match="tagged facet"):
         refine(level)
 
@@ -132,9 +132,9 @@ def test_refine_refuses_facets_off_the_cells():
 def test_level_norms_and_sampling_match_dolfinx(hertz_levels, tmp_path):
     """On a refined level read by a run: the sampler puts every value at its level index,
     and the level's norms equal the problem's own ||u||_V and ||sigma||_Q."""
-    from app.io.case import validate
-    from app.model.problem import ContactProblem
-    from app.studies.nested import LevelSampler, NestedLevel, row_positions
+    from vpcontact.io.case import validate
+    from vpcontact.model.problem import ContactProblem
+    from vpcontact.studies.nested import LevelSampler, NestedLevel, row_positions
 
     paths, levels = hertz_levels
     raw = yaml.safe_load((ROOT / "cases" / "hertz_cylinder.yaml").read_text())

@@ -2,9 +2,9 @@
 (choose_method) and the step control's state() / load_state()."""
 import pytest
 
-from app.model.stepping import AdaptiveSteps, FixedSteps
-from app.solvers import AUTO_FAST_MAX_GAMMA3_DOFS, choose_method
 from conftest import make_case
+from vpcontact.model.stepping import AdaptiveSteps, FixedSteps
+from vpcontact.solvers import AUTO_FAST_MAX_GAMMA3_DOFS, choose_method
 
 
 @pytest.mark.parametrize("dofs, expected", [(0, "fast"), (AUTO_FAST_MAX_GAMMA3_DOFS, "fast"),

@@ -6,8 +6,8 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from app.solvers import ldl
-from app.solvers.schur import CSR, GLastLDL, GLastLU, gamma3_schur_pair
+from vpcontact.solvers import ldl
+from vpcontact.solvers.schur import CSR, GLastLDL, GLastLU, gamma3_schur_pair
 
 
 def _spd(n=60, seed=0):
@@ -44,7 +44,7 @@ def test_schur_complement_equals_the_inverse_of_the_dense_flexibility():
 def test_schur_pair_by_triangular_products(monkeypatch, lapack):
     """S = K_GG - K_GI K_II^-1 K_IG and its Cholesky factor from CHOLMOD's trailing blocks,
     by the general products and by LAPACK's dlauum (chosen above LAPACK_MIN dofs)."""
-    from app.solvers import schur
+    from vpcontact.solvers import schur
     monkeypatch.setattr(schur, "LAPACK_MIN", 0 if lapack else 10**9)
     A = _spd(80, seed=4)
     G = np.array([3, 9, 40, 41, 42, 43, 100, 159, 12])
@@ -130,8 +130,8 @@ def test_split_solve_with_given_gamma3_values(bs, kind):
     """kernels.GLastSolve: forward, y0 = S^-1 r, backward with u_G = y solves the interior
     equations exactly, and u_G = y0 is the unconstrained solution K^-1 b; with scalar and
     2 x 2 block storage of L (G is two whole nodes, so the nodal ordering applies)."""
-    from app.solvers import kernels
-    from app.solvers.schur import cholesky_solve, schur_pair
+    from vpcontact import kernels
+    from vpcontact.solvers.schur import cholesky_solve, schur_pair
     module = kernels.load()
     if module is None:
         pytest.skip("no C compiler")
@@ -166,7 +166,7 @@ def test_interior_graph_is_the_nonzero_pattern(bs):
     """schur._interior_graph (numpy) against scipy: the pattern of the nonzero entries of
     A_II, of its nodes for bs = 2 (a node pair is an edge if any entry of the block is
     nonzero); stored zeros (Dirichlet rows) are no edges."""
-    from app.solvers.schur import _interior_graph
+    from vpcontact.solvers.schur import _interior_graph
     A = _spd(30, seed=4)
     row = slice(A.indptr[8], A.indptr[9])           # a Dirichlet-like row: stored zeros
     A.data[row] = np.where(A.indices[row] == 8, 1.0, 0.0)
@@ -185,7 +185,7 @@ def test_interior_graph_is_the_nonzero_pattern(bs):
 def test_cholmod_blocks_in_place_equal_a_copy(bs):
     """ldl.Factor writes the blocks over CHOLMOD's values; forced to copy them into a new
     array (and free CHOLMOD's factor) it gives the same blocks, D and L_GG bit for bit."""
-    from app.solvers.schur import interior_last_ordering
+    from vpcontact.solvers.schur import interior_last_ordering
     module = ldl.load()
     if module is None:
         pytest.skip("CHOLMOD not available")
@@ -205,8 +205,8 @@ def test_mumps_schur_variables_give_the_pair_and_the_split_solve():
     mpirun tests run it on two): S and its Cholesky factor as the dense reference, and the
     condensation / expansion cycle r = b_G - K_GI K_II^-1 b_I, u = K^-1 (b + E_G lambda) with
     u_G = y."""
-    from app.solvers import mumps
-    from app.solvers.schur import cholesky_solve
+    from vpcontact.solvers import mumps
+    from vpcontact.solvers.schur import cholesky_solve
     module = mumps.load()
     if module is None:
         pytest.skip("the MUMPS wrapper cannot be built here")

@@ -10,13 +10,15 @@ from pathlib import Path
 
 import pytest
 
-from app.io import cachedirs
 from conftest import MPI_ENV, ROOT
+from vpcontact.io import cachedirs
 
 # a small form of its own (the constant makes its hash differ from the application's forms)
 SCRIPT = """
+from vpcontact.cli.entry import prepare_process
+prepare_process()   # as the command line does: the JIT cache's repair installed
 import ufl
-from app.cli.logs import quiet_jit_log
+from vpcontact.cli.logs import quiet_jit_log
 quiet_jit_log()   # as the command line does: cffi's compiler lines out of stderr
 from dolfinx import fem, mesh
 from mpi4py import MPI
@@ -151,7 +153,7 @@ def test_elf_damage_accepts_the_libraries_python_loads():
 
 
 KERNEL = """
-from app.solvers.kernels import build
+from vpcontact.kernels import build
 module = build.compiled("_vpcontact_test_truncated", "int plus_one(int);",
                         "int plus_one(int x) { return x + 1; }", "a test module")
 print("VALUE", module.lib.plus_one(41))
@@ -159,7 +161,7 @@ print("VALUE", module.lib.plus_one(41))
 
 
 def test_a_truncated_kernel_library_is_built_again(tmp_path):
-    """The same damage in the compiled kernels' cache (app/solvers/kernels/build.py): found
+    """The same damage in the compiled kernels' cache (app/kernels/build.py): found
     from the ELF headers, not by loading the library (SIGBUS)."""
     env = {**os.environ, "VPCONTACT_CACHE": str(tmp_path), "PYTHONPATH": str(ROOT)}
 
@@ -176,10 +178,12 @@ def test_a_truncated_kernel_library_is_built_again(tmp_path):
 UNFINISHED = """
 import sys
 from pathlib import Path
+from vpcontact.cli.entry import prepare_process
+prepare_process()   # as the command line does: the JIT cache's repair installed
 from mpi4py import MPI
 import ufl
 from dolfinx import fem, mesh
-from app.io.cachedirs import JitCacheError
+from vpcontact.io.cachedirs import JitCacheError
 m = mesh.create_unit_square(MPI.COMM_WORLD, 2, 2)
 V = fem.FunctionSpace(m, ("CG", 1))
 u = fem.Function(V)
@@ -220,7 +224,7 @@ def test_a_compilation_still_running_is_one_error_on_every_rank(tmp_path, compil
 
 
 def test_the_command_line_prints_a_damaged_cache_as_one_line(monkeypatch, capsys):
-    from app.cli import main
+    from vpcontact.cli import main
     damaged = cachedirs.JitCacheError("the FFCx JIT cache entry x is damaged and cannot be "
                                         "removed; delete the directory /c")
 
@@ -251,7 +255,7 @@ def test_a_compilation_that_fails_is_one_line_on_every_rank(tmp_path, nprocs):
     """The C compiler fails (as on a full disk; here CC names no program): one line naming
     the FFCx cache, exit 1, no internal error (under mpirun dolfinx turned rank 0's error
     into a RuntimeError on every rank: an internal error and MPI_Abort)."""
-    cmd = [sys.executable, "-m", "app", "run", str(ROOT / "cases" / "wang_cheng_2021.yaml"),
+    cmd = [sys.executable, "-m", "vpcontact", "run", str(ROOT / "cases" / "wang_cheng_2021.yaml"),
            "--out", str(tmp_path / "out"), "--no-plots", "--set", "mesh.n=2",
            "--set", "time.N=1"]
     if nprocs > 1:

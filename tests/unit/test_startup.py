@@ -1,13 +1,15 @@
-"""The singleton MPI settings of app/__init__.py must not leak into child processes (an
-inherited OMPI_MCA_btl=self breaks `mpirun -n 2` started from a serial run)."""
+"""The command line's process set-up (app/cli/entry.py prepare_process): its singleton MPI
+settings must not leak into child processes (an inherited OMPI_MCA_btl=self breaks `mpirun -n 2` started from a serial run)."""
 import os
 import subprocess
 import sys
 
+PREP = "from vpcontact.cli.entry import prepare_process; prepare_process(); "
+
 
 def test_singleton_settings_are_not_inherited():
     env = {k: v for k, v in os.environ.items() if not k.startswith("OMPI_MCA_")}
-    code = ("import os, app; from mpi4py import MPI; "
+    code = ("import os; " + PREP + "from mpi4py import MPI; "
             "print(MPI.COMM_WORLD.size, "
             "sorted(k for k in os.environ if k.startswith('OMPI_MCA_')))")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
@@ -17,7 +19,7 @@ def test_singleton_settings_are_not_inherited():
 
 def test_user_settings_win():
     env = {**os.environ, "OMPI_MCA_btl": "self,vader"}
-    code = "import os, app; print(os.environ['OMPI_MCA_btl'])"
+    code = "import os; " + PREP + "print(os.environ['OMPI_MCA_btl'])"
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                          text=True, check=True).stdout.strip()
     assert out == "self,vader"
@@ -26,7 +28,7 @@ def test_user_settings_win():
 def test_pkg_resources_stand_in():
     """ufl/ffcx get their versions without the real pkg_resources; any other use of it
     loads the real module (app/startup.py)."""
-    code = ("import sys, app, ufl, ffcx; from importlib.metadata import version; "
+    code = ("import sys; " + PREP + "import ufl, ffcx; from importlib.metadata import version; "
             "s = sys.modules['pkg_resources']; "
             "print(ufl.__version__ == version('fenics-ufl'), "
             "ffcx.__version__ == version('fenics-ffcx'), type(s).__name__); "
@@ -42,10 +44,10 @@ def test_pkg_resources_stand_in():
 def test_quick_exit_flushes_and_finalises(tmp_path):
     """quick_exit: the exit status, Python's buffered output, atexit handlers, and PETSc's
     -log_view report (printed at PetscFinalize through C's stdio) all survive."""
-    code = ("import atexit, sys, app, petsc4py; petsc4py.init(['x', '-log_view']); "
+    code = ("import atexit, sys; " + PREP + "import petsc4py; petsc4py.init(['x', '-log_view']); "
             "from petsc4py import PETSc; "
             "atexit.register(lambda: print('atexit ran')); print('buffered', end=''); "
-            "from app.startup import quick_exit; quick_exit(3)")
+            "from vpcontact.startup import quick_exit; quick_exit(3)")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert p.returncode == 3, p.stderr
     assert p.stdout.startswith("buffered") and "atexit ran" in p.stdout

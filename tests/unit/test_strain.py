@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from app.model.problem import ContactProblem
-from app.simulation import build_mesh
-from app.solvers import kernels
 from conftest import ROOT, make_case
+from vpcontact import kernels
+from vpcontact.model.problem import ContactProblem
+from vpcontact.simulation import build_mesh
 
 pytestmark = pytest.mark.skipif(kernels.load() is None, reason="no C compiler")
 
@@ -17,7 +17,7 @@ def _problem(dim):
     if dim == 2:
         case = make_case(mesh={"n": 6, "diagonal": "left", "L1": 1.5})
     else:
-        from app.io.case import load_raw, validate
+        from vpcontact.io.case import load_raw, validate
         raw = load_raw(ROOT / "cases" / "box3d.yaml")
         raw["mesh"]["n"] = 3
         case = validate(raw, "box")
@@ -65,7 +65,7 @@ def test_cell_passes_equal_the_assembled_operators(dim):
 def test_batched_inverse(d):
     """strain._inverse (adjugates) against numpy's LAPACK inverse, for sheared, stretched
     and reflected (det < 0) cells."""
-    from app.model.strain import _inverse
+    from vpcontact.model.strain import _inverse
     rng = np.random.default_rng(d)
     J = rng.normal(size=(200, d, d)) + 3 * np.eye(d)
     J[::3] *= 1e-3                                   # small cells

@@ -5,7 +5,7 @@ import os
 import pytest
 from mpi4py import MPI
 
-from app.solvers import threads
+from vpcontact.solvers import threads
 
 threadpoolctl = pytest.importorskip("threadpoolctl")
 

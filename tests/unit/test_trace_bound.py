@@ -7,8 +7,8 @@ import pytest
 import scipy.linalg
 from mpi4py import MPI
 
-from app.post import diagnostics
 from conftest import paper_raw, validate_raw
+from vpcontact.post import diagnostics
 
 
 def _pair(m=40, seed=0):
@@ -36,9 +36,9 @@ def test_bound_brackets_the_trace_constant_on_the_paper_case():
     """||gamma||^2 <= c_max lam_K <= (c_max / c_min) ||gamma||^2, with c_min, c_max the
     extreme eigenvalues of E: lam_K = max |v|^2_Gamma3 / (E eps(v), eps(v)) lies between
     ||gamma||^2 / c_max and ||gamma||^2 / c_min."""
-    from app.model.problem import ContactProblem
-    from app.simulation import build_mesh
-    from app.solvers.fast import FastStepSolver
+    from vpcontact.model.problem import ContactProblem
+    from vpcontact.simulation import build_mesh
+    from vpcontact.solvers.fast import FastStepSolver
     case = validate_raw(paper_raw())
     problem = ContactProblem(case, build_mesh(case, MPI.COMM_WORLD))
     solver = FastStepSolver(problem)

@@ -39,7 +39,7 @@ def cache_dir() -> Path:
     Returns:
         The ``kernels`` directory of the cache (app/io/cachedirs.py).
     """
-    from app.io.cachedirs import caches
+    from vpcontact.io.cachedirs import caches
     return caches().kernels
 
 
@@ -124,7 +124,7 @@ def _load_or_build(name: str, target: Path, build, what: str):
     """The cached module; built first (``build(target)``) if missing, rebuilt if it does not
     load (a truncated or otherwise damaged file; a truncated one is found by its ELF
     headers before it is loaded: it would load and die with SIGBUS)."""
-    from app.io.cachedirs import elf_damage
+    from vpcontact.io.cachedirs import elf_damage
     if target.exists():
         try:
             why = elf_damage(target)

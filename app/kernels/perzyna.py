@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.solvers.kernels.build import buf
+from vpcontact.kernels.build import buf
 
 
 def perzyna_advance_numpy(law, lambda1: float, lambda2: float, sigma: np.ndarray,
@@ -28,7 +28,7 @@ def perzyna_advance_numpy(law, lambda1: float, lambda2: float, sigma: np.ndarray
         kappa: the hardening variable per cell (ncells), updated.
         k: the time step.
     """
-    from app.model.material import Perzyna
+    from vpcontact.model.material import Perzyna
     t = law.to_voigt(sigma)
     g_sigma, g_kappa = Perzyna(law, lambda1, lambda2).rates(t, kappa)
     H[:] += k * law.from_voigt(g_sigma).reshape(-1)
@@ -52,7 +52,7 @@ class PerzynaKernel:
 
     def __init__(self, law, projection, lambda1: float, lambda2: float, module,
                  rtol: float = 1e-14, max_iter: int = 100):
-        from app.model.material import _FLAT, _FROM
+        from vpcontact.model.material import _FLAT, _FROM
         d = law.dim
         self.mod, self.d, self.m = module, d, law.m
         self.l1, self.l2, self.rtol, self.max_iter = lambda1, lambda2, rtol, max_iter

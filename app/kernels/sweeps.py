@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.solvers.kernels.build import buf
+from vpcontact.kernels.build import buf
 
 
 def block_size(bs: int, ni: int) -> int:

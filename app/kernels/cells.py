@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.solvers.kernels.build import buf
+from vpcontact.kernels.build import buf
 
 
 def cell_pass(module, nodes, G, vol, lmbda, two_mu, u, H=None, sigma=None,

@@ -17,10 +17,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from app.solvers.kernels.build import Library, buf, cache_dir, compiled, module_name
-from app.solvers.kernels.cells import cell_load, cell_load_numpy, cell_pass, cell_pass_numpy
-from app.solvers.kernels.perzyna import PerzynaKernel, perzyna_advance_numpy
-from app.solvers.kernels.sweeps import GLastSolve, block_size, split_solve_numpy
+from vpcontact.kernels.build import Library, buf, cache_dir, compiled, module_name
+from vpcontact.kernels.cells import cell_load, cell_load_numpy, cell_pass, cell_pass_numpy
+from vpcontact.kernels.perzyna import PerzynaKernel, perzyna_advance_numpy
+from vpcontact.kernels.sweeps import GLastSolve, block_size, split_solve_numpy
 
 __all__ = [
     "CELL_KERNELS", "GLastSolve", "Library", "PerzynaKernel", "block_size", "buf", "cache_dir",
