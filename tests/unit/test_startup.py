@@ -1,5 +1,6 @@
 """The command line's process set-up (app/cli/entry.py prepare_process): its singleton MPI
-settings must not leak into child processes (an inherited OMPI_MCA_btl=self breaks `mpirun -n 2` started from a serial run)."""
+settings must not leak into child processes (an inherited OMPI_MCA_btl=self breaks
+`mpirun -n 2` started from a serial run)."""
 import os
 import subprocess
 import sys
