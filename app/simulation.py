@@ -35,6 +35,7 @@ from vpcontact.model.gamma3 import Gamma3History, Kernel
 from vpcontact.model.history import ImplicitViscoplasticHistory, ViscoplasticHistory
 from vpcontact.model.problem import ContactProblem
 from vpcontact.model.stepping import StepTooSmall, make_stepper
+from vpcontact.model.viscoplastic import viscoplastic_law
 from vpcontact.observers import Observer, StopRun
 from vpcontact.post.diagnostics import diagnose
 from vpcontact.records import HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
@@ -70,7 +71,8 @@ def build_mesh(case: Case, comm):
 
 
 def build_history(case: Case, problem):
-    """The viscoplastic history H_n, kappa_n of (3.2)-(3.3), if the case has a Perzyna law.
+    """The viscoplastic history H_n, kappa_n of (3.2)-(3.3), if the case has a viscoplastic
+    law (app/model/viscoplastic.py).
 
     Args:
         case: the validated Case.
@@ -79,11 +81,11 @@ def build_history(case: Case, problem):
     Returns:
         A ViscoplasticHistory (explicit scheme), an ImplicitViscoplasticHistory, or None.
     """
-    vp = case.material.viscoplastic
-    if not vp:
+    law = viscoplastic_law(case.material.viscoplastic, problem.elasticity)
+    if law is None:
         return None
     cls = ImplicitViscoplasticHistory if problem.implicit else ViscoplasticHistory
-    return cls(problem, vp.lambda1, vp.lambda2)
+    return cls(problem, law)
 
 
 def build_gamma3_history(case: Case, problem) -> Gamma3History | None:

@@ -1,6 +1,6 @@
 /* The explicit Perzyna update of the history terms (3.2)-(3.3), vectorised across cells.
-   The numpy reference is app/model/material.py (Perzyna.rates with VonMisesProjection);
-   tests/unit/test_kernels.py compares them. */
+   The numpy reference is app/model/viscoplastic.py (ExplicitUpdate of Perzyna.rates, with
+   material.VonMisesProjection); tests/unit/test_kernels.py compares them. */
 #include <math.h>
 #include <stddef.h>
 

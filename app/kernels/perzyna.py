@@ -1,11 +1,13 @@
-"""The explicit Perzyna update (3.2)-(3.3) compiled (perzyna.c), and its numpy reference.
+"""The explicit Perzyna update (3.2)-(3.3) compiled (perzyna.c).
 
 At h = 1/128 the explicit Perzyna update of the 32,768 cells took 10 ms per step in numpy
 (whole-array Newton iterations on the secular equation, temporaries): more than the two
 back-substitutions of the fast solver.  The same algorithm as material.VonMisesProjection,
-one cell at a time in C, takes well under a millisecond.  The numpy code
-(``perzyna_advance_numpy``: material.Perzyna.rates) stays the reference
+one cell at a time in C, takes well under a millisecond.  The law's numpy update
+(app/model/viscoplastic.py: ExplicitUpdate from Perzyna.rates) stays the reference
 (tests/unit/test_kernels.py compares them) and the fallback when no C compiler is available.
+The kernel knows no law object: its data (E, the von Mises form, the projection's
+eigenbasis, the coordinates' positions in the tensor) are passed in.
 """
 from __future__ import annotations
 
@@ -14,45 +16,26 @@ import numpy as np
 from vpcontact.kernels.build import buf
 
 
-def perzyna_advance_numpy(law, lambda1: float, lambda2: float, sigma: np.ndarray,
-                          H: np.ndarray, kappa: np.ndarray, k: float) -> None:
-    """H += k Gfun(sigma, kappa), kappa += k Gk(sigma, kappa) in place, in numpy: one explicit
-    step of the history terms (3.2)-(3.3) (the reference of ``PerzynaKernel.advance``).
-
-    Args:
-        law: the elasticity (material.Elasticity).
-        lambda1: the viscosity lambda1 of the Perzyna law.
-        lambda2: the hardening parameter lambda2 of the Perzyna law.
-        sigma: sigma per cell, flat (ncells * d * d).
-        H: the history tensor per cell, flat (ncells * d * d), updated.
-        kappa: the hardening variable per cell (ncells), updated.
-        k: the time step.
-    """
-    from vpcontact.model.material import Perzyna
-    t = law.to_voigt(sigma)
-    g_sigma, g_kappa = Perzyna(law, lambda1, lambda2).rates(t, kappa)
-    H[:] += k * law.from_voigt(g_sigma).reshape(-1)
-    kappa[:] += k * g_kappa
-
-
 class PerzynaKernel:
-    """perzyna_advance for one law (material.Perzyna), on flat DG0 arrays.  Each cell's
+    """perzyna_advance for one Perzyna law, on flat DG0 arrays.  Each cell's
     secular-equation root is kept between calls as the next call's start (``mu``): the
     roots change little from step to step (1.6 against 1.8 ms per call at h = 1/128).
 
     Args:
-        law: the elasticity (material.Elasticity).
-        projection: its von Mises projection (material.VonMisesProjection).
+        law: the elasticity: its ``dim``, ``m``, ``Cmat`` and von Mises form ``M``.
+        projection: its von Mises projection: ``AV``, ``V``, ``lam`` and the ``groups`` of
+            equal eigenvalues.
         lambda1: the viscosity lambda1 of the Perzyna law.
         lambda2: the hardening parameter lambda2 of the Perzyna law.
         module: the compiled kernels (kernels.load()).
+        flat: the flat (row-major d x d) positions of the t-coordinates.
+        from_: for each tensor entry, its t-coordinate.
         rtol: the relative tolerance of the secular equation's root.
         max_iter: the most Newton sweeps over the cells.
     """
 
-    def __init__(self, law, projection, lambda1: float, lambda2: float, module,
+    def __init__(self, law, projection, lambda1: float, lambda2: float, module, flat, from_,
                  rtol: float = 1e-14, max_iter: int = 100):
-        from vpcontact.model.material import _FLAT, _FROM
         d = law.dim
         self.mod, self.d, self.m = module, d, law.m
         self.l1, self.l2, self.rtol, self.max_iter = lambda1, lambda2, rtol, max_iter
@@ -60,8 +43,8 @@ class PerzynaKernel:
         self.C, self.M = c(law.Cmat, dtype=float), c(law.M, dtype=float)
         self.AV, self.V = c(projection.AV, dtype=float), c(projection.V, dtype=float)
         self.lam = c(projection.lam, dtype=float)
-        self.flat = c(_FLAT[d], dtype=np.intc)
-        self.from_ = c(_FROM[d], dtype=np.intc)
+        self.flat = c(flat, dtype=np.intc)
+        self.from_ = c(from_, dtype=np.intc)
         self.glam = c([projection.lam[g[0]] for g in projection.groups], dtype=float)
         self.GM = np.zeros((len(self.glam), self.m))       # GM[g, j] = 1: lam_j in group g
         for i, g in enumerate(projection.groups):
@@ -71,7 +54,7 @@ class PerzynaKernel:
 
     def advance(self, sigma: np.ndarray, H: np.ndarray, kappa: np.ndarray, k: float) -> int:
         """H += k Gfun(sigma, kappa), kappa += k Gk(sigma, kappa) in place: one explicit step
-        of (3.2)-(3.3) (numpy reference: ``perzyna_advance_numpy``).
+        of (3.2)-(3.3) (numpy reference: the law's ExplicitUpdate).
 
         Args:
             sigma: sigma per cell, flat contiguous float64 (ncells * d * d).

@@ -1,9 +1,10 @@
 """History terms of scheme (3.2)-(3.3), explicit (left end point) as in the paper.
 
-H_n     = sum_{j=1..n} k_j Gfun(sigma_{j-1}, kappa_{j-1}) + sigma0 - E eps(u0)   (DG0 tensor)
-kappa_n = sum_{j=1..n} k_j Gk(sigma_{j-1}, kappa_{j-1}) + kappa0                  (DG0 scalar)
-so H_n = H_{n-1} + k_n Gfun(sigma_{n-1}, kappa_{n-1}) with H_0 = sigma0 - E eps(u0), and
-likewise for kappa.  Only a case with a viscoplastic law has this history; an elastic case
+H_n     = sum_{j=1..n} k_j G(sigma_{j-1}, kappa_{j-1}) + sigma0 - E eps(u0)   (DG0 tensor)
+kappa_n = sum_{j=1..n} k_j Gk(sigma_{j-1}, kappa_{j-1}) + kappa0     (DG0, m components)
+so H_n = H_{n-1} + k_n G(sigma_{n-1}, kappa_{n-1}) with H_0 = sigma0 - E eps(u0), and
+likewise for kappa; G and Gk are the law's (app/model/viscoplastic.py).  Only a case with a
+viscoplastic law has this history; an elastic case
 creates no history object at all.  The state is committed only through ``advance`` (after
 the previous step converged), so a failed step leaves it untouched.
 """
@@ -11,14 +12,28 @@ from __future__ import annotations
 
 from dolfinx import fem
 
-from vpcontact import kernels
-from vpcontact.model.implicit import BackwardEulerPerzyna, LocalFailure
-from vpcontact.model.material import Perzyna, VonMisesProjection
+from vpcontact.model.implicit import LocalFailure
+from vpcontact.model.viscoplastic import ViscoplasticLaw
+
+
+def kappa_function(Y, m: int) -> fem.Function:
+    """The internal variables kappa in R^m per cell: a DG0 scalar Function for m = 1 (the
+    paper's Perzyna law), else DG0 with m components.
+
+    Args:
+        Y: the DG0 scalar space Y^h.
+        m: the law's number of internal variables.
+
+    Returns:
+        The Function "kappa" (zero).
+    """
+    space = Y if m == 1 else fem.VectorFunctionSpace(Y.mesh, ("DG", 0), dim=m)
+    return fem.Function(space, name="kappa")
 
 
 class _CommittedHistory:
     """The committed state of a viscoplastic history: H (the problem's DG0 tensor function)
-    and kappa (DG0 scalar); what adaptive rollback and checkpoints save and restore."""
+    and kappa (DG0, m components); what adaptive rollback and checkpoints save and restore."""
 
     H: fem.Function
     kappa: fem.Function
@@ -43,24 +58,19 @@ class _CommittedHistory:
 
 class ViscoplasticHistory(_CommittedHistory):
     """Holds H_n (the problem's DG0 function ``H``) and kappa_n, and advances them by the
-    explicit sums (3.2)-(3.3).  H_0 = sigma0 - E eps(u0) and kappa_0 are set by
+    explicit sums (3.2)-(3.3) of the law.  H_0 = sigma0 - E eps(u0) and kappa_0 are set by
     ``problem.set_initial_values``.
 
     Args:
         problem: the ContactProblem (its elasticity law, H, and the DG0 space Y).
-        lambda1: the Perzyna law's lambda1.
-        lambda2: the Perzyna law's lambda2.
+        law: the viscoplastic law (app/model/viscoplastic.py).
     """
 
-    def __init__(self, problem, lambda1: float, lambda2: float):
-        self.elasticity = problem.elasticity
-        self.law = Perzyna(problem.elasticity, lambda1, lambda2)
+    def __init__(self, problem, law: ViscoplasticLaw):
+        self.law = law
         self.H = problem.H
-        self.kappa = fem.Function(problem.Y, name="kappa")
-        # the same update compiled (kernels/perzyna.c), unless no C compiler is available
-        module = kernels.load()
-        self.kernel = None if module is None else kernels.PerzynaKernel(
-            problem.elasticity, VonMisesProjection(problem.elasticity), lambda1, lambda2, module)
+        self.kappa = kappa_function(problem.Y, law.m)
+        self.update = law.explicit()         # compiled for Perzyna where it can be
 
     def before_solve(self, problem, k: float) -> None:
         """H_n, kappa_n from sigma_{n-1}, kappa_{n-1} (explicit: known before the solve).
@@ -83,7 +93,7 @@ class ViscoplasticHistory(_CommittedHistory):
         return problem.update_sigma()
 
     def advance(self, sigma_prev, k: float) -> None:
-        """H_n = H_{n-1} + k_n Gfun(sigma_{n-1}, kappa_{n-1}), same for kappa (3.2)-(3.3).
+        """H_n = H_{n-1} + k_n G(sigma_{n-1}, kappa_{n-1}), same for kappa (3.2)-(3.3).
 
         ``self.kappa`` holds kappa_{n-1} on entry and kappa_n on exit.  All local cells (owned
         and ghost) are updated with the same data, so ghosts stay consistent without
@@ -94,16 +104,10 @@ class ViscoplasticHistory(_CommittedHistory):
             k: the step k_n.
 
         Raises:
-            RuntimeError: the von Mises projection failed (the state is unchanged).
+            RuntimeError: the law's update failed (the state is unchanged).
         """
-        if self.kernel is not None:         # writes nothing if it fails: the state of n - 1
-            if self.kernel.advance(sigma_prev.x.array, self.H.x.array, self.kappa.x.array, k):
-                raise RuntimeError("von Mises projection: secular equation did not converge")
-            return
-        t = self.elasticity.to_voigt(sigma_prev.x.array)
-        g_sigma, g_kappa = self.law.rates(t, self.kappa.x.array)
-        self.H.x.array[:] += k * self.elasticity.from_voigt(g_sigma).reshape(-1)
-        self.kappa.x.array[:] += k * g_kappa
+        self.update(sigma_prev.x.array, self.H.x.array,
+                    self.kappa.x.array.reshape(-1, self.law.m), k)
 
 
 class ImplicitViscoplasticHistory(_CommittedHistory):
@@ -114,16 +118,15 @@ class ImplicitViscoplasticHistory(_CommittedHistory):
 
     Args:
         problem: the ContactProblem (becomes its ``constitutive`` update).
-        lambda1: the Perzyna law's lambda1.
-        lambda2: the Perzyna law's lambda2.
+        law: the viscoplastic law (app/model/viscoplastic.py).
     """
 
-    def __init__(self, problem, lambda1: float, lambda2: float):
+    def __init__(self, problem, law: ViscoplasticLaw):
         self.elasticity = problem.elasticity
-        self.law = Perzyna(problem.elasticity, lambda1, lambda2)
-        self.local = BackwardEulerPerzyna(self.law)
+        self.law = law
+        self.local = law.implicit()
         self.H = problem.H
-        self.kappa = fem.Function(problem.Y, name="kappa")
+        self.kappa = kappa_function(problem.Y, law.m)
         self._kappa_trial = None
         self.k = None
         problem.constitutive = self
@@ -139,7 +142,7 @@ class ImplicitViscoplasticHistory(_CommittedHistory):
 
     def update(self, problem) -> bool:
         """The trial state at the current u: sigma, kappa and the algorithmic tangent by the
-        backward Euler Perzyna update from the committed H_{n-1}, kappa_{n-1}.
+        backward-Euler update of the law from the committed H_{n-1}, kappa_{n-1}.
 
         Args:
             problem: the ContactProblem (its u, sigma and C_alg).
@@ -151,7 +154,8 @@ class ImplicitViscoplasticHistory(_CommittedHistory):
         eps_t = problem.strain_voigt()
         s_tr = law.apply(eps_t) + law.to_voigt(self.H.x.array)
         try:
-            sigma, kappa, C = self.local.solve(s_tr, self.kappa.x.array, self.k)
+            sigma, kappa, C = self.local.solve(s_tr, self.kappa.x.array.reshape(-1, self.law.m),
+                                               self.k)
         except LocalFailure:
             return False
         problem.sigma.x.array[:] = law.from_voigt(sigma).reshape(-1)
@@ -173,6 +177,6 @@ class ImplicitViscoplasticHistory(_CommittedHistory):
         if not self.update(problem):   # at the converged u_n
             raise LocalFailure("implicit Perzyna update failed at the converged step")
         law = self.elasticity
-        self.kappa.x.array[:] = self._kappa_trial
+        self.kappa.x.array[:] = self._kappa_trial.reshape(-1)
         self.H.x.array[:] = law.from_voigt(self._sigma_t - law.apply(self._eps_t)).reshape(-1)
         problem.update_vm()

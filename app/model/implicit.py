@@ -1,15 +1,16 @@
-"""Right-end-point (implicit, backward-Euler) variant of the history terms.
+"""Right-end-point (implicit, backward-Euler) variant of the history terms, for any
+viscoplastic law (app/model/viscoplastic.py).
 
-Instead of the paper's left-end-point sums (3.2)-(3.3), step n uses sigma_n, kappa_n in Gfun
+Instead of the paper's left-end-point sums (3.2)-(3.3), step n uses sigma_n, kappa_n in G
 and Gk:
-    sigma_n = E eps(u_n) + H_{n-1} + k_n Gfun(sigma_n, kappa_n),
+    sigma_n = E eps(u_n) + H_{n-1} + k_n G(sigma_n, kappa_n),
     kappa_n = kappa_{n-1} + k_n Gk(sigma_n, kappa_n),
 i.e. per cell, with the trial stress s_tr = E eps(u_n) + H_{n-1} (H_{n-1} = sigma_{n-1} -
-E eps(u_{n-1})):
+E eps(u_{n-1})), the law's ``implicit_residual`` (R_s, R_k) = 0; for Perzyna's law
     R_s = sigma - s_tr + k/(2 lambda1) E (sigma - P_kappa sigma) = 0,
     R_k = kappa - kappa_{n-1} - k 2/(3 lambda2) ||sigma - P_kappa sigma||_VM = 0.
 This local system is solved by a vectorised Newton iteration (finite-difference Jacobian of
-size m+1, backtracking on the residual norm) inside every evaluation of the global residual;
+size mt + m, backtracking on the residual norm) inside every evaluation of the global residual;
 the global Jacobian uses the algorithmic tangent d sigma / d eps = [J_loc^-1]_{sigma sigma} E.
 The update is dissipative for any k (backward Euler of a monotone relaxation), which is why it
 stays bounded where the explicit scheme's stability limit k r_max <= 2 is exceeded.
@@ -18,48 +19,40 @@ from __future__ import annotations
 
 import numpy as np
 
-from vpcontact.model.material import Perzyna
-
 
 class LocalFailure(RuntimeError):
     """The local Newton iteration of the implicit update failed at some cells."""
 
 
-class BackwardEulerPerzyna:
-    """Vectorised per-cell solver of the implicit Perzyna update; t-coordinates (n, m).
+class BackwardEuler:
+    """Vectorised per-cell solver of a law's implicit update; sigma in t-coordinates (n, mt),
+    kappa (n, m).
 
     Args:
-        perzyna: the Perzyna law (its elasticity E, lambda1, lambda2).
+        law: the viscoplastic law (its elasticity E and ``implicit_residual``).
         rtol: tolerance of the scaled local residual.
         max_iter: local Newton iterations allowed.
     """
 
-    def __init__(self, perzyna: Perzyna, rtol: float = 1e-12, max_iter: int = 60):
-        self.pz = perzyna
-        self.elasticity = perzyna.elasticity
+    def __init__(self, law, rtol: float = 1e-12, max_iter: int = 60):
+        self.law = law
+        self.elasticity = law.elasticity
         self.m = self.elasticity.m
         self.rtol, self.max_iter = rtol, max_iter
 
     def residual(self, z, s_tr, kappa_prev, k):
-        """The local residual (R_s, R_k) of the backward-Euler update.
+        """The local residual (R_s, R_k) of the backward-Euler update (the law's).
 
         Args:
-            z: (n, m + 1) unknowns: sigma in t-coordinates, then kappa.
-            s_tr: (n, m) trial stresses E eps(u_n) + H_{n-1}.
-            kappa_prev: (n,) kappa_{n-1}.
+            z: (n, mt + m) unknowns: sigma in t-coordinates, then kappa.
+            s_tr: (n, mt) trial stresses E eps(u_n) + H_{n-1}.
+            kappa_prev: (n, m) kappa_{n-1}.
             k: the time step k_n.
 
         Returns:
-            The (n, m + 1) residuals.
+            The (n, mt + m) residuals.
         """
-        m, pz = self.m, self.pz
-        s, kap = z[:, :m], z[:, m]
-        excess = s - pz.project(s, np.maximum(kap, 0.0))
-        r = np.empty_like(z)
-        r[:, :m] = s - s_tr + (0.5 * k / pz.lambda1) * self.elasticity.apply(excess)
-        r[:, m] = kap - kappa_prev \
-            - (2.0 * k / (3.0 * pz.lambda2)) * self.elasticity.von_mises(excess)
-        return r
+        return self.law.implicit_residual(z, s_tr, kappa_prev, k)
 
     def _jacobian(self, z, r0, s_tr, kappa_prev, k, scale):
         n, m1 = z.shape
@@ -77,12 +70,12 @@ class BackwardEulerPerzyna:
         Cells inside the ball K(kappa_{n-1}) are elastic: sigma = s_tr.
 
         Args:
-            s_tr: (n, m) trial stresses E eps(u_n) + H_{n-1} in t-coordinates.
-            kappa_prev: (n,) kappa_{n-1}.
+            s_tr: (n, mt) trial stresses E eps(u_n) + H_{n-1} in t-coordinates.
+            kappa_prev: (n, m) kappa_{n-1}.
             k: the time step k_n.
 
         Returns:
-            (sigma_n (n, m), kappa_n (n,), C_alg (n, m, m)): C_alg maps d eps
+            (sigma_n (n, mt), kappa_n (n, m), C_alg (n, mt, mt)): C_alg maps d eps
             (t-coordinates) to d sigma, the algorithmic tangent.
 
         Raises:
@@ -92,12 +85,13 @@ class BackwardEulerPerzyna:
         n = s_tr.shape[0]
         sigma, kappa = s_tr.copy(), kappa_prev.copy()
         C = np.broadcast_to(self.elasticity.Cmat, (n, m, m)).copy()
-        flow = self.elasticity.von_mises(s_tr) > kappa_prev
+        flow = ~self.law.elastic(s_tr, kappa_prev)
         if not np.any(flow):
             return sigma, kappa, C
         st, kp = s_tr[flow], kappa_prev[flow]
-        scale = np.maximum(np.abs(st).max(axis=1), 1e-300)[:, None] * np.ones((1, m + 1))
-        scale[:, m] = np.maximum(scale[:, 0], kp)
+        scale = np.maximum(np.abs(st).max(axis=1), 1e-300)[:, None] * \
+            np.ones((1, m + kp.shape[1]))
+        scale[:, m:] = np.maximum(scale[:, :1], kp)
         z = np.column_stack([st, kp])
         r = self.residual(z, st, kp, k)
         norm = np.linalg.norm(r / scale, axis=1)
@@ -134,6 +128,6 @@ class BackwardEulerPerzyna:
                                f"{int((norm > self.rtol).sum())} cell(s)")
         J = self._jacobian(z, r, st, kp, k, scale[:, 0])
         Jinv = np.linalg.inv(J)
-        sigma[flow], kappa[flow] = z[:, :m], z[:, m]
+        sigma[flow], kappa[flow] = z[:, :m], z[:, m:]
         C[flow] = Jinv[:, :m, :m] @ self.elasticity.Cmat
         return sigma, kappa, C

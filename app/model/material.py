@@ -1,4 +1,4 @@
-"""Perzyna viscoplasticity of the paper (Section 4), in 2D and 3D.
+"""Elasticity and the von Mises projection of the paper (Section 4), in 2D and 3D.
 
 Stresses are stored per cell (DG0) as d x d arrays; the per-cell algebra uses coordinates
 t = (t11, t22, t12) in 2D and t = (t11, t22, t33, t23, t13, t12) in 3D, vectorised over cells:
@@ -8,10 +8,9 @@ t = (t11, t22, t12) in 2D and t = (t11, t22, t33, t23, t13, t12) in 3D, vectoris
 - the von Mises form ||tau||_VM^2 = t^T M t: in 2D t11^2 + t22^2 - t11 t22 + 3 t12^2 (the
   paper), in 3D 3/2 dev(tau):dev(tau).
 
-Perzyna law: Gfun(sigma, kappa) = -1/(2 lambda1) E (sigma - P sigma),
-             Gk(sigma, kappa)   = 2/(3 lambda2) ||sigma - P sigma||_VM,
-P = P_K(kappa) the projection onto K(kappa) = {||tau||_VM <= kappa} in the energy inner
-product, exact in both dimensions (VonMisesProjection in 2D, RadialReturn in 3D).
+The projection P = P_K(kappa) onto K(kappa) = {||tau||_VM <= kappa} in the energy inner
+product, exact in both dimensions (VonMisesProjection in 2D, RadialReturn in 3D), is the
+Perzyna law's (app/model/viscoplastic.py).
 """
 from __future__ import annotations
 
@@ -27,8 +26,8 @@ _PAIRS = {2: [(0, 0), (1, 1), (0, 1)],
 
 
 # flat (row-major d x d) positions of the coordinates, and of every tensor entry
-_FLAT = {d: np.array([i * d + j for i, j in _PAIRS[d]]) for d in (2, 3)}
-_FROM = {d: np.array([next(k for k, p in enumerate(_PAIRS[d]) if set(p) == {i, j})
+FLAT = {d: np.array([i * d + j for i, j in _PAIRS[d]]) for d in (2, 3)}
+FROM = {d: np.array([next(k for k, p in enumerate(_PAIRS[d]) if set(p) == {i, j})
                       for i in range(d) for j in range(d)]) for d in (2, 3)}
 
 
@@ -44,7 +43,7 @@ def to_voigt(tau: np.ndarray, dim: int = 2) -> np.ndarray:
     Returns:
         The (n, m) coordinates (m = 3 in 2D, 6 in 3D).
     """
-    return np.asarray(tau).reshape(-1, dim * dim)[:, _FLAT[dim]]
+    return np.asarray(tau).reshape(-1, dim * dim)[:, FLAT[dim]]
 
 
 def from_voigt(t: np.ndarray, dim: int = 2) -> np.ndarray:
@@ -58,7 +57,7 @@ def from_voigt(t: np.ndarray, dim: int = 2) -> np.ndarray:
         The (n, d, d) symmetric tensors.
     """
     t = np.asarray(t).reshape(-1, len(_PAIRS[dim]))
-    return t[:, _FROM[dim]].reshape(-1, dim, dim)
+    return t[:, FROM[dim]].reshape(-1, dim, dim)
 
 
 def _von_mises_matrix(dim: int) -> np.ndarray:
@@ -322,48 +321,3 @@ class VonMisesProjection:
         else:
             out[outside] = ((z * factor) @ self.V.T) * c[:, None]
         return out
-
-
-@dataclass(frozen=True)
-class Perzyna:
-    """The paper's Perzyna law (Section 4): the rates (Gfun, Gk) at (sigma, kappa).
-
-    Attributes:
-        elasticity: the elasticity E.
-        lambda1: viscosity of the stress rate Gfun.
-        lambda2: viscosity of the hardening rate Gk.
-    """
-
-    elasticity: Elasticity
-    lambda1: float
-    lambda2: float
-
-    def __post_init__(self):
-        object.__setattr__(self, "_project", make_projection(self.elasticity))
-
-    def project(self, t: np.ndarray, kappa: np.ndarray) -> np.ndarray:
-        """The projection P_K(kappa).
-
-        Args:
-            t: rows (n, m) of t-coordinates.
-            kappa: (n,) radii >= 0.
-
-        Returns:
-            The rows (n, m) of P_K(kappa) t.
-        """
-        return self._project(t, kappa)
-
-    def rates(self, t: np.ndarray, kappa: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The rates of the history sums H_n, kappa_n of (3.2)-(3.3).
-
-        Args:
-            t: rows (n, m) of sigma in t-coordinates.
-            kappa: (n,) hardening values.
-
-        Returns:
-            (Gfun, Gk): Gfun = -1/(2 lambda1) E (sigma - P sigma), rows (n, m), and
-            Gk = 2/(3 lambda2) ||sigma - P sigma||_VM, (n,).
-        """
-        excess = t - self._project(t, kappa)
-        return (-0.5 / self.lambda1) * self.elasticity.apply(excess), \
-            (2.0 / (3.0 * self.lambda2)) * self.elasticity.von_mises(excess)

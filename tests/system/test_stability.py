@@ -53,13 +53,13 @@ def test_implicit_and_explicit_converge_to_each_other():
 
 
 def test_implicit_local_update_and_tangent():
-    from vpcontact.model.implicit import BackwardEulerPerzyna
-    from vpcontact.model.material import Elasticity, Perzyna
+    from vpcontact.model.material import Elasticity
+    from vpcontact.model.viscoplastic import Perzyna
     law = Elasticity(1000.0, 0.4, 2)
-    be = BackwardEulerPerzyna(Perzyna(law, 1.0, 10.0))     # stiff: k/(2 lambda1) E ~ 80
+    be = Perzyna(law, 1.0, 10.0).implicit()     # stiff: k/(2 lambda1) E ~ 80
     rng = np.random.default_rng(3)
     s_tr = rng.normal(size=(200, 3)) * 30
-    kp = rng.uniform(0.0, 10.0, 200)
+    kp = rng.uniform(0.0, 10.0, (200, 1))
     sig, kap, C = be.solve(s_tr, kp, 0.1)
     r = be.residual(np.column_stack([sig, kap]), s_tr, kp, 0.1)
     assert np.abs(r).max() < 1e-9 * np.abs(s_tr).max()

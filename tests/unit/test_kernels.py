@@ -9,7 +9,15 @@ import pytest
 
 from vpcontact import kernels
 from vpcontact.kernels import build
-from vpcontact.model.material import Elasticity, VonMisesProjection, from_voigt, to_voigt
+from vpcontact.model.material import (
+    FLAT,
+    FROM,
+    Elasticity,
+    VonMisesProjection,
+    from_voigt,
+    to_voigt,
+)
+from vpcontact.model.viscoplastic import ExplicitUpdate, Perzyna
 from vpcontact.solvers import dense, ldl, mumps
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -18,9 +26,16 @@ needs_c = pytest.mark.skipif(module is None, reason="no C compiler")
 
 
 def _reference(law, sigma, H, kappa, k, l1, l2):
+    """The law's numpy update (app/model/viscoplastic.py)."""
     H, kappa = H.copy(), kappa.copy()
-    kernels.perzyna_advance_numpy(law, l1, l2, sigma, H, kappa, k)
+    ExplicitUpdate(Perzyna(law, l1, l2))(sigma, H, kappa.reshape(-1, 1), k)
     return H, kappa
+
+
+def _kernel(law, l1, l2, **kw):
+    """The compiled update with the law's data passed in."""
+    return kernels.PerzynaKernel(law, VonMisesProjection(law), l1, l2, module, FLAT[law.dim],
+                                 FROM[law.dim], **kw)
 
 
 @needs_c
@@ -40,7 +55,7 @@ def test_kernel_equals_numpy(dim):
     H0 = rng.normal(size=n * dim * dim)
     H0 = from_voigt(to_voigt(H0, dim), dim).reshape(-1).copy()   # symmetric
     H_ref, kappa_ref = _reference(law, sigma, H0, kappa, 0.01, 100.0, 50.0)
-    kern = kernels.PerzynaKernel(law, VonMisesProjection(law), 100.0, 50.0, module)
+    kern = _kernel(law, 100.0, 50.0)
     H, kap = H0.copy(), kappa.copy()
     assert kern.advance(sigma, H, kap, 0.01) == 0
     # round-off of the excess t - P t is relative to |t|: the update's scale k/(2 l1) E |t|
@@ -58,7 +73,7 @@ def test_kernel_propagates_nan():
     t = np.array([[1.0, 2.0, np.nan], [3.0, 0.0, 1.0]])
     sigma = from_voigt(t, 2).reshape(-1).copy()
     H, kappa = np.zeros(8), np.array([0.1, 0.1])
-    kernels.PerzynaKernel(law, VonMisesProjection(law), 1.0, 1.0, module).advance(
+    _kernel(law, 1.0, 1.0).advance(
         sigma, H, kappa, 0.1)
     assert np.isnan(H[:4]).all() and np.isnan(kappa[0])
     assert np.isfinite(H[4:]).all() and np.isfinite(kappa[1])
@@ -67,7 +82,7 @@ def test_kernel_propagates_nan():
 @needs_c
 def test_kernel_checks_arrays():
     law = Elasticity(1000.0, 0.4, 2)
-    kern = kernels.PerzynaKernel(law, VonMisesProjection(law), 1.0, 1.0, module)
+    kern = _kernel(law, 1.0, 1.0)
     with pytest.raises(ValueError):
         kern.advance(np.zeros(8), np.zeros(8), np.zeros(3), 0.1)
     with pytest.raises(TypeError):
@@ -84,7 +99,7 @@ def test_kernel_start_from_last_roots(factor):
     t = rng.normal(size=(500, law.m))
     sigma = from_voigt(t, 2).reshape(-1).copy()
     kappa0 = law.von_mises(t) * rng.uniform(0.1, 0.9, size=500)     # all outside
-    kern = kernels.PerzynaKernel(law, VonMisesProjection(law), 100.0, 50.0, module)
+    kern = _kernel(law, 100.0, 50.0)
     H1, k1 = np.zeros(2000), kappa0.copy()
     assert kern.advance(sigma, H1, k1, 0.01) == 0                   # cold: mu = 0 on entry
     assert np.all(kern.mu > 0)
@@ -106,7 +121,7 @@ def test_kernel_failure_writes_nothing():
     kappa = law.von_mises(t) * 0.5
     H = rng.normal(size=200)
     H0, kappa0 = H.copy(), kappa.copy()
-    kern = kernels.PerzynaKernel(law, VonMisesProjection(law), 1.0, 1.0, module, max_iter=1)
+    kern = _kernel(law, 1.0, 1.0, max_iter=1)
     assert kern.advance(sigma, H, kappa, 0.1) > 0
     assert np.array_equal(H, H0) and np.array_equal(kappa, kappa0)
 

@@ -5,7 +5,8 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 
 from vpcontact.forms.elasticity import elasticity_operator
-from vpcontact.model.material import Perzyna, PlaneStress, from_voigt, to_voigt
+from vpcontact.model.material import PlaneStress, from_voigt, to_voigt
+from vpcontact.model.viscoplastic import Perzyna
 
 
 def test_voigt_roundtrip():
@@ -38,7 +39,9 @@ def test_perzyna_rates():
     pz = Perzyna(law, lambda1=100.0, lambda2=50.0)
     t = np.array([[30.0, -5.0, 12.0], [1.0, 1.0, 0.0]])
     kappa = np.array([10.0, 100.0])
-    gs, gk = pz.rates(t, kappa)
+    gs, gk = pz.rates(t, kappa[:, None])
+    assert gk.shape == (2, 1)
+    gk = gk[:, 0]
     excess = t[0] - pz.project(t[:1], kappa[:1])[0]
     np.testing.assert_allclose(gs[0], -law.Cmat @ excess / 200.0, rtol=1e-13)
     assert gk[0] == pytest.approx(2.0 / 150.0 * law.von_mises(excess[None])[0], rel=1e-13)

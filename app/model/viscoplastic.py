@@ -1,0 +1,274 @@
+"""Viscoplastic laws of the model: sigma' = E eps(u') + G(sigma, kappa), kappa' = Gk(sigma,
+kappa) (1.2)-(1.3), kappa in R^m, and their discrete history terms (3.2)-(3.3).
+
+A law holds no state: it declares ``m``, the number of internal variables kappa, and gives
+G and Gk vectorised over cells (``rates``: sigma in t-coordinates (n, mt) and kappa (n, m)
+in, G (n, mt) and Gk (n, m) out; app/model/material.py describes the t-coordinates).  From
+them it builds the two updates a run calls, each an object that keeps its own work arrays:
+
+- ``explicit()``: H_n = H_{n-1} + k_n G(sigma_{n-1}, kappa_{n-1}), kappa_n = kappa_{n-1} +
+  k_n Gk(sigma_{n-1}, kappa_{n-1}) (3.2)-(3.3), in numpy from ``rates`` by default;
+- ``implicit()``: the backward-Euler variant's local solve (app/model/implicit.py), whose
+  residual is ``implicit_residual`` (by default from ``rates``).
+
+A new law is a subclass that sets ``m`` and implements ``rates`` (and, where it has one,
+a faster ``explicit`` or an exact ``implicit_residual``).  Perzyna's law of the paper's
+Section 4 (m = 1) uses its compiled update (app/kernels/perzyna.c) where a C compiler is
+available.
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+from vpcontact import kernels
+from vpcontact.model.material import (
+    FLAT,
+    FROM,
+    Elasticity,
+    VonMisesProjection,
+    make_projection,
+)
+
+
+class ViscoplasticLaw(ABC):
+    """A viscoplastic law: G and Gk of (1.2)-(1.3), vectorised over cells, no state.
+
+    Args:
+        elasticity: the elasticity E (its t-coordinates, E and the von Mises form).
+
+    Attributes:
+        m: the number of internal variables kappa (a class attribute).
+    """
+
+    m: int = 1
+
+    def __init__(self, elasticity: Elasticity):
+        self.elasticity = elasticity
+
+    @abstractmethod
+    def rates(self, t: np.ndarray, kappa: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """G and Gk of (1.2)-(1.3) per cell.
+
+        Args:
+            t: rows (n, mt) of sigma in t-coordinates.
+            kappa: (n, m) internal variables.
+
+        Returns:
+            (G, Gk): G rows (n, mt) in t-coordinates, Gk (n, m).
+        """
+
+    def elastic(self, t: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+        """The cells where the law does not flow (G = 0, Gk = 0): the implicit update keeps
+        the trial state there.
+
+        Args:
+            t: rows (n, mt) of sigma in t-coordinates.
+            kappa: (n, m) internal variables.
+
+        Returns:
+            (n,) booleans.
+        """
+        G, Gk = self.rates(t, kappa)
+        return ~(np.any(G != 0.0, axis=1) | np.any(Gk != 0.0, axis=1))
+
+    def implicit_residual(self, z: np.ndarray, s_tr: np.ndarray, kappa_prev: np.ndarray,
+                          k: float) -> np.ndarray:
+        """The backward-Euler local residual: R_s = sigma - s_tr - k G(sigma, kappa),
+        R_k = kappa - kappa_{n-1} - k Gk(sigma, kappa).
+
+        Args:
+            z: (n, mt + m) unknowns: sigma in t-coordinates, then kappa.
+            s_tr: (n, mt) trial stresses E eps(u_n) + H_{n-1}.
+            kappa_prev: (n, m) kappa_{n-1}.
+            k: the time step k_n.
+
+        Returns:
+            The (n, mt + m) residuals.
+        """
+        mt = self.elasticity.m
+        G, Gk = self.rates(z[:, :mt], z[:, mt:])
+        r = np.empty_like(z)
+        r[:, :mt] = z[:, :mt] - s_tr - k * G
+        r[:, mt:] = z[:, mt:] - kappa_prev - k * Gk
+        return r
+
+    def explicit(self) -> ExplicitUpdate:
+        """Returns: the explicit update (3.2)-(3.3) of this law, in numpy."""
+        return ExplicitUpdate(self)
+
+    def implicit(self, rtol: float = 1e-12, max_iter: int = 60):
+        """The backward-Euler local solve of this law (app/model/implicit.py).
+
+        Args:
+            rtol: tolerance of the scaled local residual.
+            max_iter: local Newton iterations allowed.
+
+        Returns:
+            A BackwardEuler.
+        """
+        from vpcontact.model.implicit import BackwardEuler
+        return BackwardEuler(self, rtol, max_iter)
+
+
+class ExplicitUpdate:
+    """H += k G(sigma, kappa), kappa += k Gk(sigma, kappa) in place (3.2)-(3.3), in numpy.
+
+    Args:
+        law: the ViscoplasticLaw.
+    """
+
+    def __init__(self, law: ViscoplasticLaw):
+        self.law = law
+
+    def __call__(self, sigma: np.ndarray, H: np.ndarray, kappa: np.ndarray, k: float) -> None:
+        """One explicit step of the history terms; nothing is written if it fails.
+
+        Args:
+            sigma: sigma_{n-1} per cell, flat (ncells * d * d).
+            H: H_{n-1} per cell, same layout; becomes H_n.
+            kappa: kappa_{n-1}, (ncells, m); becomes kappa_n.
+            k: the step k_n.
+
+        Raises:
+            RuntimeError: the law's evaluation failed (e.g. a projection did not converge).
+        """
+        el = self.law.elasticity
+        g_sigma, g_kappa = self.law.rates(el.to_voigt(sigma), kappa)
+        H[:] += k * el.from_voigt(g_sigma).reshape(-1)
+        kappa[:] += k * g_kappa
+
+
+class Perzyna(ViscoplasticLaw):
+    """The paper's Perzyna law (Section 4), m = 1:
+    G(sigma, kappa) = -1/(2 lambda1) E (sigma - P sigma),
+    Gk(sigma, kappa) = 2/(3 lambda2) ||sigma - P sigma||_VM,
+    P = P_K(kappa) the energy-norm projection onto K(kappa) = {||tau||_VM <= kappa}.
+
+    Args:
+        elasticity: the elasticity E.
+        lambda1: viscosity of the stress rate G.
+        lambda2: viscosity of the hardening rate Gk.
+    """
+
+    m = 1
+
+    def __init__(self, elasticity: Elasticity, lambda1: float, lambda2: float):
+        super().__init__(elasticity)
+        self.lambda1, self.lambda2 = lambda1, lambda2
+        self._project = make_projection(elasticity)
+
+    def project(self, t: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+        """The projection P_K(kappa).
+
+        Args:
+            t: rows (n, mt) of t-coordinates.
+            kappa: (n,) radii >= 0.
+
+        Returns:
+            The rows (n, mt) of P_K(kappa) t.
+        """
+        return self._project(t, kappa)
+
+    def rates(self, t, kappa):
+        """G = -1/(2 lambda1) E (sigma - P sigma), Gk = 2/(3 lambda2) ||sigma - P sigma||_VM.
+
+        Args:
+            t: rows (n, mt) of sigma in t-coordinates.
+            kappa: (n, 1) hardening values.
+
+        Returns:
+            (G rows (n, mt), Gk (n, 1)).
+        """
+        excess = t - self._project(t, kappa[:, 0])
+        return (-0.5 / self.lambda1) * self.elasticity.apply(excess), \
+            ((2.0 / (3.0 * self.lambda2)) * self.elasticity.von_mises(excess))[:, None]
+
+    def elastic(self, t, kappa):
+        """Inside the ball K(kappa): ||sigma||_VM <= kappa.
+
+        Args:
+            t: rows (n, mt) of sigma in t-coordinates.
+            kappa: (n, 1) hardening values.
+
+        Returns:
+            (n,) booleans.
+        """
+        return ~(self.elasticity.von_mises(t) > kappa[:, 0])
+
+    def implicit_residual(self, z, s_tr, kappa_prev, k):
+        """The backward-Euler residual of Perzyna's law, kappa clipped at 0 in P:
+        R_s = sigma - s_tr + k/(2 lambda1) E (sigma - P_kappa sigma),
+        R_k = kappa - kappa_{n-1} - k 2/(3 lambda2) ||sigma - P_kappa sigma||_VM.
+
+        Args:
+            z: (n, mt + 1) unknowns: sigma in t-coordinates, then kappa.
+            s_tr: (n, mt) trial stresses E eps(u_n) + H_{n-1}.
+            kappa_prev: (n, 1) kappa_{n-1}.
+            k: the time step k_n.
+
+        Returns:
+            The (n, mt + 1) residuals.
+        """
+        mt = self.elasticity.m
+        s, kap = z[:, :mt], z[:, mt]
+        excess = s - self.project(s, np.maximum(kap, 0.0))
+        r = np.empty_like(z)
+        r[:, :mt] = s - s_tr + (0.5 * k / self.lambda1) * self.elasticity.apply(excess)
+        r[:, mt] = kap - kappa_prev[:, 0] \
+            - (2.0 * k / (3.0 * self.lambda2)) * self.elasticity.von_mises(excess)
+        return r
+
+    def explicit(self):
+        """The explicit update (3.2)-(3.3) compiled (app/kernels/perzyna.c), or in numpy
+        where no C compiler is available.
+
+        Returns:
+            A CompiledPerzynaUpdate or an ExplicitUpdate.
+        """
+        module = kernels.load()
+        return ExplicitUpdate(self) if module is None else CompiledPerzynaUpdate(self, module)
+
+
+class CompiledPerzynaUpdate:
+    """Perzyna's explicit update (3.2)-(3.3) by the compiled kernel (kernels.PerzynaKernel,
+    which keeps each cell's last root as the next start).
+
+    Args:
+        law: the Perzyna law.
+        module: the compiled kernels (kernels.load()).
+    """
+
+    def __init__(self, law: Perzyna, module):
+        el = law.elasticity
+        self.kernel = kernels.PerzynaKernel(el, VonMisesProjection(el), law.lambda1,
+                                            law.lambda2, module, FLAT[el.dim], FROM[el.dim])
+
+    def __call__(self, sigma, H, kappa, k) -> None:
+        """As ExplicitUpdate.__call__ (nothing is written if a cell's root search fails).
+
+        Args:
+            sigma: sigma_{n-1} per cell, flat (ncells * d * d).
+            H: H_{n-1} per cell, same layout; becomes H_n.
+            kappa: kappa_{n-1}, (ncells, 1); becomes kappa_n.
+            k: the step k_n.
+
+        Raises:
+            RuntimeError: the secular equation of the projection did not converge.
+        """
+        if self.kernel.advance(sigma, H, kappa.reshape(-1), k):
+            raise RuntimeError("von Mises projection: secular equation did not converge")
+
+
+def viscoplastic_law(vp, elasticity: Elasticity) -> ViscoplasticLaw | None:
+    """The case's viscoplastic law.
+
+    Args:
+        vp: the case's ``material.viscoplastic`` section (or None: an elastic body).
+        elasticity: the elasticity E.
+
+    Returns:
+        A Perzyna law, or None.
+    """
+    return None if vp is None else Perzyna(elasticity, vp.lambda1, vp.lambda2)
