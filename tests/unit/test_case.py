@@ -7,8 +7,9 @@ import re
 import pytest
 
 from conftest import PAPER_CASE, ROOT, make_case, paper_raw
+from vpcontact.case import CaseError, load_case, validate
+from vpcontact.case.reading import parse_override, safe_load
 from vpcontact.cli.parser import split_petsc_args
-from vpcontact.io.case import CaseError, load_case, parse_override, safe_load, validate
 
 
 def test_paper_case_values():
@@ -131,7 +132,7 @@ time: {T: 1.0, N: 4}
 def test_shipped_cases_keep_their_scene():
     """The paper's cases: the built-in mesh with the default boundaries; the new keys at
     their defaults; case.raw validates to the same Case (the studies re-validate it)."""
-    from vpcontact.io.case import Boundaries
+    from vpcontact.case.model import Boundaries
     for name in ("wang_cheng_2021", "memory", "slip_weakening", "box3d"):
         case = load_case(PAPER_CASE.parent / f"{name}.yaml")
         assert (case.mesh.file, case.mesh.size, case.mesh.engine) == (None, 1.0, "gmsh")
@@ -322,7 +323,7 @@ def test_rescale_for_length(tmp_path):
     """For a mesh.file the PETSc defaults are scaled to the body's size once it is known; the
     options given in the case file or on the command line stay, checked against the new
     limits."""
-    from vpcontact.io.case import rescale_for_length
+    from vpcontact.case import rescale_for_length
     case = _case_file(tmp_path, SCENE)
     assert case.petsc["snes_vi_zero_tolerance"] == pytest.approx(1e-8)
     small = rescale_for_length(case, 1e-3)

@@ -12,7 +12,7 @@ import time
 import pytest
 
 from conftest import ROOT, validate_raw
-from vpcontact.io.case import CaseError
+from vpcontact.case import CaseError
 from vpcontact.meshes.fileinfo import FileInfoError, file_dimension
 
 SQUARE_GEO = """Point(1) = {0, 0, 0, 0.5}; Point(2) = {1, 0, 0, 0.5};
@@ -146,7 +146,7 @@ def test_a_geo_that_runs_a_command_is_refused_before_gmsh_opens_it(tmp_path):
 
 VALIDATE = """
 import json, sys
-from vpcontact.io.case import validate
+from vpcontact.case import validate
 case = validate(json.loads(sys.argv[1]), "test-case")
 print(json.dumps([case.mesh.dim, "gmsh" in sys.modules]))
 """

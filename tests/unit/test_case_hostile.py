@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from conftest import PAPER_CASE, make_case, paper_raw
-from vpcontact.io.case import CaseError, load_raw, parse_override
+from vpcontact.case import CaseError, load_raw
+from vpcontact.case.reading import parse_override
 from vpcontact.io.output import classify
 
 
@@ -29,7 +30,7 @@ def test_names_that_are_paths_are_refused(name):
 
 
 def test_a_file_name_that_is_a_path_needs_a_name(tmp_path):
-    from vpcontact.io.case import validate
+    from vpcontact.case import validate
     raw = load_raw(PAPER_CASE)
     del raw["name"]
     with pytest.raises(CaseError, match="set name"):
@@ -141,8 +142,8 @@ def test_files_that_are_not_regular_are_refused_without_reading(kind, tmp_path):
 
 
 def test_a_file_larger_than_the_limit_is_read_no_further(tmp_path, monkeypatch):
-    import vpcontact.io.case
-    monkeypatch.setattr(vpcontact.io.case, "MAX_FILE_BYTES", 100)
+    import vpcontact.case.reading
+    monkeypatch.setattr(vpcontact.case.reading, "MAX_FILE_BYTES", 100)
     big = tmp_path / "big.yaml"
     big.write_text("# " + "x" * 200 + "\n")
     with pytest.raises(CaseError, match="larger than 100 bytes"):
@@ -169,7 +170,7 @@ def test_petsc_options_petsc_would_refuse_are_refused(options, pattern):
 def test_valid_petsc_options_pass_and_the_database_is_left_clean():
     from petsc4py import PETSc
 
-    from vpcontact.io.petscopts import PREFIX, check_petsc_options
+    from vpcontact.solvers.optioncheck import PREFIX, check_petsc_options
     from vpcontact.solvers.snesvi import PREFIX as SOLVER_PREFIX
     assert PREFIX == SOLVER_PREFIX
     options = {"snes_monitor": None, "ksp_type": "gmres", "pc_type": "jacobi",
@@ -247,7 +248,7 @@ def test_petsc_options_that_would_solve_a_different_problem_are_refused(options,
 
 
 def test_the_case_scales_bound_the_absolute_tolerances_given_later():
-    from vpcontact.io.petscopts import check_petsc_options
+    from vpcontact.solvers.optioncheck import check_petsc_options
     petsc = make_case(mesh={"L1": 1e-3, "L2": 1e-3}).petsc
     with pytest.raises(CaseError, match=r"^command line: -snes_atol: .*up to 8e-06"):
         check_petsc_options({"snes_atol": 1e-5}, "command line", where="-", base=petsc)
@@ -293,7 +294,7 @@ def test_a_mesh_file_that_is_not_a_regular_file_is_refused_without_reading(kind,
         (tmp_path / name).mkdir()
     raw = {"mesh": {"file": name}, "material": {"E": 1.0, "nu": 0.3}, "loads": {},
            "time": {"T": 1.0, "N": 1}}
-    from vpcontact.io.case import validate
+    from vpcontact.case import validate
     with pytest.raises(CaseError) as info:
         validate(raw, str(tmp_path / "case.yaml"))
     assert "\n" not in str(info.value) and re.search(

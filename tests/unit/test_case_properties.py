@@ -11,8 +11,9 @@ from hypothesis import example, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 from conftest import paper_raw  # noqa: E402
-from vpcontact.io.case import Case, CaseError, safe_load, validate  # noqa: E402
-from vpcontact.io.schema import SCHEMA  # noqa: E402
+from vpcontact.case import Case, CaseError, validate  # noqa: E402
+from vpcontact.case.reading import safe_load  # noqa: E402
+from vpcontact.case.schema import SCHEMA  # noqa: E402
 
 KEYS = sorted(SCHEMA["properties"]) + ["mesh.n", "material.E", "material.nu", "time.N",
                                        "time.T", "contact.g", "loads.f0", "solver.method",

@@ -12,8 +12,8 @@ from mpi4py import MPI
 import vpcontact.simulation
 from conftest import PAPER_CASE, make_case, run_case, run_cli
 from meshtools import write_rotated_square
-from vpcontact.io.case import CaseError
-from vpcontact.io.datacheck import PointSamples
+from vpcontact.case import CaseError
+from vpcontact.case.datacheck import PointSamples
 from vpcontact.model.datapoints import check_data_on_mesh, mesh_samples, with_rounded
 from vpcontact.simulation import build_mesh
 

@@ -11,7 +11,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from conftest import MPI_ENV, ROOT, run_cli, validate_raw
-from vpcontact.io.case import CaseError
+from vpcontact.case import CaseError
 from vpcontact.meshes import build_box, build_rectangle
 from vpcontact.model.dirichlet import body_parts
 from vpcontact.model.problem import ContactProblem

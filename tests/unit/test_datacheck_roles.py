@@ -8,7 +8,7 @@ from mpi4py import MPI
 
 from conftest import PAPER_CASE, make_case
 from meshtools import write_rotated_square
-from vpcontact.io.case import CaseError
+from vpcontact.case import CaseError
 from vpcontact.model.problem import ContactProblem
 from vpcontact.simulation import build_mesh
 

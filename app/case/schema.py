@@ -1,0 +1,268 @@
+"""JSON schema of a case file (validated with jsonschema; defaults are filled from it).
+
+Sections: physical data (mesh geometry, boundary parts, material, contact, loads, initial
+values, time) are separate from numerical settings (solver), PETSc options (petsc, passed
+through with our prefix) and output.  Every key has a description and, where sensible, a
+default; units SI.  Cross-key rules (dimension of vectors, time-grid combinations, boundary
+groups, keys that do not apply with mesh.file, ...) are checked in app/case/rules.py and
+meshrules.py, which also fills the defaults that depend on other keys (boundaries).  The
+PETSc defaults are the solvers' (app/solvers/options.py).
+"""
+from __future__ import annotations
+
+from vpcontact.solvers.options import DEFAULT_PETSC as DEFAULT_PETSC  # moved: temporary re-export
+
+_num = {"type": "number"}
+_pos = {"type": "number", "exclusiveMinimum": 0}
+_nonneg = {"type": "number", "minimum": 0}
+_expr = {"type": "string", "minLength": 1, "maxLength": 500}
+_table = {"type": "array", "minItems": 1, "maxItems": 100000,
+          "items": {"type": "array", "items": _num, "minItems": 2, "maxItems": 2}}
+# a component of a load: a number, an expression in t, x, y, z, or a table in time
+_component = {"oneOf": [_num, _expr, {"type": "object", "additionalProperties": False,
+                                      "required": ["table"], "properties": {"table": _table}}]}
+_vector = {"type": "array", "items": _component, "minItems": 2, "maxItems": 3,
+           "description": "2 or 3 components (the mesh dimension): number, expression string "
+                          "in t, x, y, z, or {table: [[t, value], ...]} (piecewise linear in t)"}
+# a prescribed displacement component: a load component or null (that component is free)
+_free_component = {"oneOf": [_num, _expr, {"type": "object", "additionalProperties": False,
+                                           "required": ["table"],
+                                           "properties": {"table": _table}},
+                             {"type": "null"}]}
+# a boundary part: a physical group's name (mesh.file) or tag (an integer >= 0), or a side of
+# the built-in rectangle / box (left right bottom top, and front back in 3D)
+_group = {"oneOf": [{"type": "string", "minLength": 1, "maxLength": 200},
+                    {"type": "integer", "minimum": 0}]}
+_groups = {"type": "array", "items": _group, "maxItems": 1000}
+
+
+# a case name is one path component below results/: letters, digits, _ . -, not "." or ".."
+NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]*$"
+
+
+def _obj(props: dict, required: list | None = None, description: str = "",
+         default=None) -> dict:
+    out = {"type": "object", "additionalProperties": False, "properties": props,
+           "description": description}
+    if required:
+        out["required"] = required
+    if default is not None:
+        out["default"] = default
+    return out
+
+
+SCHEMA = _obj({
+    "name": {"type": "string", "pattern": NAME_PATTERN, "maxLength": 100,
+             "description": "case name (default: the file name without extension); "
+                            "names the default output directory results/<name>"},
+    "description": {"type": "string", "description": "free text"},
+    "mesh": _obj({
+        "file": {"type": "string", "minLength": 1, "maxLength": 4096,
+                 "description": "a gmsh .msh (format 4.1) or .geo file, relative to the case "
+                                "file's directory; its physical groups name the boundary parts "
+                                "(boundaries, loads); a .geo is meshed by gmsh at load time "
+                                "(absent: the built-in rectangle / box of L1, L2, L3; the keys "
+                                "L1 L2 L3 kind n h diagonal engine are not used with mesh.file)"},
+        "dim": {"enum": [2, 3], "default": 2,
+                "description": "2: plane body (material.plane), z = 0 for mesh.file; 3: solid "
+                               "(a box, or a tetrahedral mesh.file), isotropic Hooke; with "
+                               "mesh.file the file's dimension when absent (the default 2 is "
+                               "the built-in mesh's), and refused if it contradicts the file"},
+        "size": {**_pos, "default": 1.0,
+                 "description": "factor on the characteristic lengths of a .geo mesh.file "
+                                "(< 1: finer; only with a .geo)"},
+        "L1": {**_pos, "default": 1.0, "description": "length in x [m] (built-in mesh)"},
+        "L2": {**_pos, "default": 1.0, "description": "length in y [m] (built-in mesh)"},
+        "L3": {**_pos, "default": 1.0, "description": "length in z [m] (built-in 3D mesh)"},
+        "kind": {"enum": ["structured", "unstructured"], "default": "structured",
+                 "description": "structured: transfinite n per side (2D: nested under "
+                                "refinement); unstructured: gmsh Delaunay with target size h"},
+        "n": {"type": "integer", "minimum": 1, "maximum": 4096, "default": 16,
+              "description": "cells per side (structured)"},
+        "h": {**_pos, "description": "target mesh size [m] (unstructured)"},
+        "diagonal": {"enum": ["right", "left"], "default": "right",
+                     "description": "2D structured: right = each square cut from (x0,y0) to "
+                                    "(x1,y1), left = from (x0,y1) to (x1,y0)"},
+        "engine": {"enum": ["gmsh", "dolfinx"], "default": "gmsh",
+                   "description": "builder of the built-in structured rectangle / box (the "
+                                  "same cells either way; unstructured meshes come from gmsh)"},
+    }, description="the body: a gmsh mesh.file, or the built-in rectangle (0, L1) x (0, L2) / "
+                   "box (0, L1) x (0, L2) x (0, L3) whose sides are the groups left {x = 0}, "
+                   "right {x = L1}, bottom {y = 0} (3D: {z = 0}), top {y = L2} (3D: "
+                   "{z = L3}) and in 3D front {y = 0}, back {y = L2}"),
+    "boundaries": _obj({
+        "clamped": {**_groups, "description": "the groups of Gamma1, where u = 0 (default: "
+                                              "[left] for the built-in mesh, [] for mesh.file; "
+                                              "[] is allowed when loads.displacement fixes "
+                                              "the rigid motions)"},
+        "contact": {**_groups, "description": "the groups of Gamma3, the contact boundary "
+                                              "(default: [bottom] for the built-in mesh; "
+                                              "required with mesh.file and a contact section)"},
+    }, description="boundary parts: lists of group names (the built-in mesh's sides or "
+                   "mesh.file's physical groups) or physical tags (integers >= 0, mesh.file "
+                   "only); Gamma2 is the rest of the boundary.  Built-in meshes default to "
+                   "clamped [left], contact [bottom]"),
+    "material": _obj({
+        "E": {**_pos, "description": "Young's modulus [N/m^2]"},
+        "nu": {"type": "number", "minimum": 0, "exclusiveMaximum": 0.5,
+               "description": "Poisson's ratio"},
+        "viscoplastic": _obj({
+            "lambda1": {**_pos, "description": "viscosity lambda1 of Gfun [N s/m^2]"},
+            "lambda2": {**_pos, "description": "lambda2 of the kappa law Gk [s]"},
+            "kappa0": {"oneOf": [_nonneg, _expr], "default": 0.0,
+                       "description": "initial internal state variable kappa0 [N/m^2]: a "
+                                      "number or an expression in x, y, z"},
+        }, required=["lambda1", "lambda2"],
+            description="Perzyna law (absent: elastic body, no history update)"),
+        "plane": {"enum": ["stress", "strain"], "default": "stress",
+                  "description": "2D: plane stress (the paper's, a thin plate) or plane strain "
+                                 "(a long body); not used in 3D"},
+    }, required=["E", "nu"], description="material"),
+    "contact": _obj({
+        "g": {"oneOf": [_nonneg, _expr],
+              "description": "the initial gap to the rigid foundation, the bound u_nu <= g on "
+                             "Gamma3 [m]: a number >= 0 or an expression in x, y, z (not t), "
+                             ">= 0 on Gamma3 (absent: no unilateral constraint)"},
+        "direction": {"type": "array", "items": _num, "minItems": 2, "maxItems": 3,
+                      "description": "[dx, dy(, dz)]: a fixed approach direction of a flat "
+                                     "rigid foundation (normalised): u_nu = u . d, the "
+                                     "tangential parts orthogonal to d; it must point from "
+                                     "the body toward the obstacle, under 90 degrees to the "
+                                     "outward normal at every Gamma3 node (refused otherwise, "
+                                     "naming the node; warned of above 80 degrees on average) "
+                                     "(absent: the outward "
+                                     "unit normal of Gamma3 at each node; (0, -1) / (0, 0, -1) "
+                                     "on the built-in bottom side)"},
+        "normal_compliance": _obj({
+            "c_nu": {**_nonneg, "description": "stiffness of p(r) = c_nu r^+ [N/m^3]"},
+        }, required=["c_nu"], description="normal compliance (4.1)"),
+        "memory": _obj({
+            "b0": {**_nonneg, "description": "memory kernel amplitude b0 [N/(m^3 s)]"},
+            "beta": {**_nonneg, "default": 0.0,
+                     "description": "decay rate of the exponential kernel b0 exp(-beta t) [1/s]"},
+            "kernel": {"enum": ["exponential", "power", "table"], "default": "exponential",
+                       "description": "b(t) = b0 exp(-beta t), b0 (1 + t/tau)^-alpha, or b0 "
+                                      "times the piecewise-linear table"},
+            "alpha": {**_pos, "description": "exponent of the power kernel"},
+            "tau": {**_pos, "description": "time scale of the power kernel [s]"},
+            "table": {**_table, "description": "[[t, b], ...] of the table kernel"},
+            "sum": {"enum": ["auto", "recursion", "direct"], "default": "auto",
+                    "description": "auto: exact O(1) recursion for the exponential kernel, "
+                                   "stored history and direct sum otherwise"},
+        }, required=["b0"], description="memory term xi(t) = int_0^t b(t-s) u_nu^+(s) ds "
+                                          "(absent: no memory term)"),
+        "friction": _obj({
+            "b": {**_nonneg, "description": "friction bound at zero slip [N/m^2]"},
+            "c1": {**_nonneg, "description": "softening slope on 0 < |u_tau| < u1"},
+            "c2": {**_nonneg, "description": "hardening slope on |u_tau| >= u1"},
+            "u1": {**_pos, "description": "slip where softening turns into hardening [m]"},
+            "slip": _obj({
+                "theta_inf": {"type": "number", "minimum": 0, "maximum": 1,
+                              "description": "limit of theta(s) for large accumulated slip"},
+                "s0": {**_pos, "description": "slip scale of theta(s) [m s]"},
+            }, required=["theta_inf", "s0"],
+                description="slip dependence j = theta(s) psi, theta(s) = theta_inf + "
+                            "(1 - theta_inf) exp(-s/s0), s = int_0^t |u_tau| (absent: none)"),
+        }, required=["b", "c1", "c2", "u1"],
+            description="nonmonotone friction law (4.2) (absent: frictionless)"),
+    }, description="contact on Gamma3 = boundaries.contact (built-in meshes: the bottom "
+                   "side by default) with a rigid foundation (absent: Gamma3 is traction "
+                   "free)"),
+    "loads": _obj({
+        "f0": {**_vector, "description": "body force density [N/m^3]; " + _vector["description"]},
+        "traction": {"type": "object", "additionalProperties": _vector,
+                     "description": "{group: [tx, ty(, tz)]}: traction f2 [N/m^2] on each "
+                                    "group of Gamma2 (a name or a physical tag; the built-in "
+                                    "mesh's sides left right bottom top, front back in 3D); "
+                                    "not on a clamped group, nor on a contact group of a case "
+                                    "with a contact section; components: number, expression "
+                                    "in t, x, y, z, or {table: [[t, value], ...]}"},
+        "pressure": {"type": "object", "additionalProperties": _component,
+                     "description": "{group: p}: normal pressure [N/m^2] on each group of "
+                                    "Gamma2, the traction -p n with the outward unit normal n "
+                                    "of the reference configuration; p a number, expression "
+                                    "in t, x, y, z, or {table: ...}"},
+        "displacement": {"type": "object",
+                         "additionalProperties": {"type": "array", "items": _free_component,
+                                                  "minItems": 2, "maxItems": 3},
+                         "description": "{group: [ux, uy(, uz)]}: prescribed displacement "
+                                        "[m] on each group, a component being a number, "
+                                        "expression in t, x, y, z, {table: ...} or null "
+                                        "(free), at least one not null (e.g. a symmetry "
+                                        "roller [0, null]); not on a clamped group, nor on a "
+                                        "contact group of a case with a contact section"},
+    }, description="loads"),
+    "initial": _obj({
+        "u0": {**_vector, "description": "initial displacement (must satisfy u_nu <= g on "
+                                         "Gamma3 and vanish on Gamma1)"},
+        "sigma0": {"type": "array", "minItems": 2, "maxItems": 3,
+                   "items": {"type": "array", "minItems": 2, "maxItems": 3, "items": _component},
+                   "description": "initial stress, a symmetric d x d matrix of components"},
+    }, description="initial values u0, sigma0 (default 0; kappa0 is in material.viscoplastic)"),
+    "time": _obj({
+        "T": {**_pos, "description": "final time [s]"},
+        "N": {"type": "integer", "minimum": 1, "maximum": 1000000,
+              "description": "number of time steps"},
+        "k": {**_pos, "description": "uniform time step (instead of N) [s]"},
+        "grading": {**_pos, "description": "geometric grading with N steps: k_{j+1} = grading "
+                                           "k_j (instead of uniform steps)"},
+        "times": {"type": "array", "items": _num, "minItems": 2, "maxItems": 1000001,
+                  "description": "explicit time points 0 = t0 < t1 < ... (instead of T, N)"},
+        "adaptive": _obj({
+            "k_min": {**_pos, "description": "smallest step before the run gives up [s] "
+                                             "(default: first step / 1024)"},
+            "k_max": {**_pos, "description": "largest step [s] (default: T)"},
+            "grow": {"type": "number", "minimum": 1, "default": 1.5,
+                     "description": "factor by which the step grows after a step that "
+                                    "changed the solution by at most max_change"},
+            "max_change": {"type": "number", "exclusiveMinimum": 0, "default": 0.2,
+                           "description": "the step grows after one with max|u_n - u_{n-1}| "
+                                          "<= max_change max|u_n| (a property of the "
+                                          "solution: every step solver takes the same grid)"},
+            "max_indicator": {**_pos, "default": 1.0,
+                              "description": "explicit scheme: halve the step while k r_max "
+                                             "exceeds this (1: no overshoot, 2: limit)"},
+        }, description="adaptive steps from the first step of the grid to T: a step is "
+                       "rejected and halved when the step solver fails or the stability "
+                       "indicator is exceeded, and grows after a step that changed the "
+                       "solution little (absent: fixed grid)"),
+        "scheme": {"enum": ["explicit", "implicit"], "default": "explicit",
+                   "description": "history terms at the left end point (explicit, the paper's "
+                                  "(3.2)-(3.3)) or the right end point (implicit, backward "
+                                  "Euler, stable for any k)"},
+    }, description="time grid: T with N or k (uniform), T with N and grading, or times"),
+    "solver": _obj({
+        "method": {"enum": ["snes_vi", "fast", "auto"], "default": "auto",
+                   "description": "step solver: snes_vi (PETSc SNES vinewtonrsls with bounds "
+                                  "on the normal dofs of Gamma3, general), fast (one "
+                                  "factorisation per run, Gamma3 condensation; explicit scheme "
+                                  "and vertex quadrature), auto (fast where it applies and "
+                                  "Gamma3 has at most 6000 dofs)"},
+        "linear": {"enum": ["direct", "amg", "auto"], "default": "auto",
+                   "description": "Newton systems of snes_vi: direct (LU), amg (CG with "
+                                  "algebraic multigrid, GAMG, knowing the rigid body modes; "
+                                  "for large 3D meshes), auto (amg in 3D above 20000 dofs)"},
+        "delta": {**_pos, "default": 1.0e-7,
+                  "description": "regularisation width of |u_tau| (friction) and u_nu^+ "
+                                 "(memory term) [m]"},
+        "quadrature": {"enum": ["vertex", "gauss"], "default": "vertex",
+                       "description": "Gamma3 quadrature: vertex (nodal) rule or Gauss"},
+        "gauss_degree": {"type": "integer", "minimum": 1, "maximum": 10, "default": 2,
+                         "description": "degree of the Gauss rule (quadrature: gauss)"},
+    }, description="numerical settings of the step solver", default={}),
+    "petsc": {"type": "object", "default": {},
+              "additionalProperties": {"type": ["string", "number", "boolean", "null"]},
+              "propertyNames": {"pattern": r"^[a-z][a-z0-9_]*$"},
+              "description": "PETSc options without the leading '-', passed unchanged "
+                             "with the prefix vpcontact_ (e.g. snes_rtol: 1e-10)"},
+    "output": _obj({
+        "every": {"type": "integer", "minimum": 1, "default": 1,
+                  "description": "write the fields every m-th step (the last step always)"},
+        "checkpoint_every": {"type": "integer", "minimum": 1,
+                             "description": "save the full state (u, sigma, kappa, H_n, memory "
+                                            "and slip histories, time position) every m-th "
+                                            "step to checkpoint.npz, for run --restart DIR "
+                                            "(absent: no checkpoints)"},
+    }, description="outputs", default={}),
+}, required=["mesh", "material", "loads", "time"])
+SCHEMA["$schema"] = "http://json-schema.org/draft-07/schema#"

@@ -1,0 +1,100 @@
+"""The case's data values at sample points of the body and times (app/case/datacheck.py):
+before the mesh is built (the built-in mesh's own points, or what does not depend on the
+position of a mesh.file), and once more on the loaded mesh's points.  The same pass gives
+the stress scale of the data, which the PETSc defaults are scaled with
+(app/solvers/options.py)."""
+from __future__ import annotations
+
+import math
+
+from vpcontact.case import datacheck
+from vpcontact.case.meshrules import DEFAULT_BOUNDARIES
+from vpcontact.case.model import Case, TimeGrid
+from vpcontact.io.errors import CaseError
+
+
+def check_values(data: dict, time_grid: TimeGrid, source: str,
+                 length: float | None = None, samples=None) -> float:
+    """The data values at sample points of the body and times: finite, initial values in
+    the model's set.
+
+    The body of a mesh.file is unknown before it is loaded: only what does not depend on
+    the position is sampled then (the mesh's nodes are checked when it is loaded), and L is
+    1.  The geometric checks of u0 (zero on Gamma1, u_nu <= g on Gamma3) need the built-in
+    mesh with the default boundaries; g >= 0 is sampled on the built-in mesh's contact
+    sides.
+
+    Args:
+        data: the default-filled, settled case mapping.
+        time_grid: the case's time grid.
+        source: the case file, for messages.
+        length: the body's size L (default: body_length(data)).
+        samples: the sample points of the loaded mesh (datacheck.PointSamples; default:
+            as above).
+
+    Returns:
+        The stress scale of the data: loads, sigma0 and the stress E |u| / L of the
+        initial and prescribed displacements.
+
+    Raises:
+        CaseError: for a value that is not finite, out of range or outside the model's
+            set, naming the key and the point (x, t).
+    """
+    mesh, bounds = data["mesh"], data["boundaries"]
+    adaptive = time_grid.adaptive is not None
+    if samples is None and "file" in mesh:
+        samples = datacheck.Samples.unknown(mesh["dim"], time_grid.times, adaptive)
+    elif samples is None:
+        lengths = [mesh["L1"], mesh["L2"], mesh["L3"]][:mesh["dim"]]
+        cells = [mesh["n"] if mesh["kind"] == "structured" else math.ceil(L / mesh["h"])
+                 for L in lengths]
+        samples = datacheck.Samples(lengths, cells, time_grid.times, adaptive)
+    geometric = "file" not in mesh and bounds == DEFAULT_BOUNDARIES
+    vp = data["material"].get("viscoplastic")
+    contact = data.get("contact", {})
+    try:
+        loads = datacheck.check_loads(data["loads"], samples)
+        moved = datacheck.check_displacement(data["loads"].get("displacement", {}), samples)
+        if contact:
+            datacheck.check_gap(contact.get("g"), bounds["contact"], samples)
+        u0, sigma0 = datacheck.check_initial(data.get("initial", {}),
+                                             vp["kappa0"] if vp else None, contact.get("g"),
+                                             samples, contact.get("direction"), geometric)
+    except datacheck.DataError as exc:
+        raise CaseError(f"{source}: {exc}") from None
+    length = body_length(data) if length is None else length
+    return max(loads, sigma0, data["material"]["E"] * max(u0, moved) / length)
+
+
+def check_values_on_mesh(case: Case, samples, length: float) -> float:
+    """The checks of validation (``check_values``) on the points of the loaded mesh.
+
+    Args:
+        case: the validated case.
+        samples: the mesh's sample points and the times (datacheck.PointSamples).
+        length: the body's size L [m].
+
+    Returns:
+        The stress scale of the data on these points (as validation's).
+
+    Raises:
+        CaseError: for a value that is not finite, out of range or outside the model's set,
+            naming the key and the point (x, t).
+    """
+    return check_values(case.raw, case.time, case.source, length, samples)
+
+
+def body_length(data: dict) -> float:
+    """The body's length scale known before the mesh is built.
+
+    Args:
+        data: the default-filled case mapping.
+
+    Returns:
+        The longest side of the built-in mesh; 1 for a mesh.file (see rescale_for_length).
+    """
+    mesh = data["mesh"]
+    if "file" in mesh:
+        return 1.0
+    return max([mesh["L1"], mesh["L2"], mesh["L3"]][:mesh["dim"]])
+
