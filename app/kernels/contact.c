@@ -1,10 +1,11 @@
-/* The nodal contact energy of the fast solver (app/solvers/nodal.py: NodalContact; its numpy
-   reference is built from app/model/contact_laws.py). */
+/* The nodal contact energy of the condensed solver (wrapper: app/kernels/contact.py, used by
+   app/solvers/nodal.py: NodalContact; its numpy reference nodal_contact_numpy composes the
+   laws of app/model/contact_laws.py). */
 #include <math.h>
 
 #include "contact.h"
 
-/* The nodal contact energy of the fast solver's Gamma3 problem (nodal.NodalContact):
+/* The nodal contact energy of the condensed solver's Gamma3 problem (nodal.NodalContact):
    E = sum_i w_i phi_i(y_i) with r = y.nu,
    phi = c/2 (r+)^2 + xi (r + sqrt(r^2 + delta^2))/2 + theta psi(sqrt(|y_tau|^2 + delta^2)),
    its gradient (n x d) and, if hess != NULL, the nodal Hessian blocks (n x d x d).

@@ -5,60 +5,22 @@ rectangle rule):
 
 xi_n = sum_{j=1..n} k_j b(t_n - t_{j-1}) u_{j-1,nu}^+,     s_n = sum_{j=1..n} k_j |u_{j-1,tau}|.
 
-For the exponential kernel b(t) = b0 exp(-beta t) the sum obeys the exact recursion
-    xi_n = exp(-beta k_n) (xi_{n-1} + k_n b0 u_{n-1,nu}^+)
-(split off the j = n term and factor exp(-beta (t_n - t_{n-1})) out of the rest; exact for
-non-uniform steps), so it costs O(1) per node and step.  A general kernel keeps the history
-of u_nu^+ per node and sums directly (O(n) per node and step).  The slip obeys
-s_n = s_{n-1} + k_n |u_{n-1,tau}|.  Each term exists only if the case enables it.
+The kernel b(t) and theta(s) are laws of app/model/contact_laws.py (no state); these
+sums are their state.  For a kernel with an exact recursion (the exponential kernel
+b(t) = b0 exp(-beta t): ``ExponentialKernel.recursion``) the sum costs O(1) per node and
+step; a general kernel keeps the history of u_nu^+ per node and sums directly (O(n) per node
+and step).  The slip obeys s_n = s_{n-1} + k_n |u_{n-1,tau}|.  Each term exists only if the
+case enables it.
 """
 from __future__ import annotations
 
 import numpy as np
 from dolfinx import fem
 
+from vpcontact.model.contact_laws import MemoryKernel, SlipWeakening, memory_kernel
+from vpcontact.model.primitives import NUMPY
 
-# ----------------------------------------------------------------------------- kernels
-class Kernel:
-    """b(t) of the memory term: exponential b0 exp(-beta t), power law
-    b0 (1 + t / tau)^-alpha, or b0 times a piecewise-linear table.
-
-    Args:
-        kind: "exponential", "power" or "table".
-        b0: the factor b0.
-        beta: the exponential kernel's rate.
-        alpha: the power law's exponent.
-        tau: the power law's time scale.
-        table: (t, b) points of the table kernel.
-
-    Raises:
-        ValueError: an unknown ``kind``.
-    """
-
-    def __init__(self, kind: str, b0: float, beta: float = 0.0, alpha: float = 1.0,
-                 tau: float = 1.0, table=None):
-        self.kind, self.b0, self.beta, self.alpha, self.tau = kind, b0, beta, alpha, tau
-        if kind == "table":
-            pts = np.asarray(table, dtype=float)
-            self._ts, self._bs = pts[:, 0], pts[:, 1]
-        elif kind not in ("exponential", "power"):
-            raise ValueError(f"unknown kernel {kind!r}")
-
-    def __call__(self, t):
-        """Evaluate the kernel.
-
-        Args:
-            t: time(s) since the contribution, >= 0 (a number or an array).
-
-        Returns:
-            b(t), elementwise (an array of t's shape).
-        """
-        t = np.asarray(t, dtype=float)
-        if self.kind == "exponential":
-            return self.b0 * np.exp(-self.beta * t)
-        if self.kind == "power":
-            return self.b0 * (1.0 + t / self.tau) ** (-self.alpha)
-        return self.b0 * np.interp(t, self._ts, self._bs)
+Kernel = memory_kernel  # moved: temporary re-export
 
 
 class MemorySum:
@@ -68,18 +30,19 @@ class MemorySum:
     Args:
         kernel: b(t).
         m: the number of nodes.
-        recursion: the exact O(1) recursion (exponential kernel only); None: the recursion
-            for the exponential kernel, the direct sum otherwise.
+        recursion: the kernel's exact O(1) recursion (recursive kernels only); None: the
+            recursion where the kernel has one, the direct sum otherwise.
 
     Raises:
-        ValueError: the recursion asked for with a kernel that is not exponential.
+        ValueError: the recursion asked for with a kernel that has none.
     """
 
-    def __init__(self, kernel: Kernel, m: int, recursion: bool | None = None):
+    def __init__(self, kernel: MemoryKernel, m: int, recursion: bool | None = None):
         self.kernel = kernel
-        self.recursion = kernel.kind == "exponential" if recursion is None else recursion
-        if self.recursion and kernel.kind != "exponential":
-            raise ValueError("the recursion is exact only for the exponential kernel")
+        self.recursion = kernel.recursive if recursion is None else recursion
+        if self.recursion and not kernel.recursive:
+            raise ValueError("the recursion is exact only for a recursive kernel "
+                             "(the exponential one)")
         self.xi = np.zeros(m)
         self._t_prev: list[float] = []       # t_{j-1}
         self._k: list[float] = []            # k_j
@@ -124,8 +87,7 @@ class MemorySum:
         """
         k = t_n - t_prev
         if self.recursion:
-            decay = np.exp(-self.kernel.beta * k)
-            self.xi = decay * (self.xi + k * self.kernel.b0 * r_plus)
+            self.xi = self.kernel.recursion(self.xi, r_plus, k)
         else:
             self._t_prev.append(t_prev)
             self._k.append(k)
@@ -141,13 +103,12 @@ class SlipSum:
 
     Args:
         m: the number of nodes.
-        theta_inf: theta(s) for s -> infinity.
-        s0: the slip scale of theta.
+        law: theta(s) (``SlipWeakening``).
     """
 
-    def __init__(self, m: int, theta_inf: float, s0: float):
+    def __init__(self, m: int, law: SlipWeakening):
         self.s = np.zeros(m)
-        self.theta_inf, self.s0 = theta_inf, s0
+        self.law = law
 
     def advance(self, abs_tau: np.ndarray, k: float) -> np.ndarray:
         """s_n = s_{n-1} + k_n |u_{n-1,tau}|.
@@ -179,9 +140,9 @@ class SlipSum:
         slip version of (4.2)) at the current s_n.
 
         Returns:
-            theta(s_n) = theta_inf + (1 - theta_inf) exp(-s_n / s0), shape (m,).
+            theta(s_n) of the law, shape (m,).
         """
-        return self.theta_inf + (1.0 - self.theta_inf) * np.exp(-self.s / self.s0)
+        return self.law.theta(self.s)
 
 
 # ----------------------------------------------------------------------------- wiring
@@ -220,7 +181,7 @@ class Gamma3History:
     Args:
         problem: the ContactProblem (u, the Gamma3 nodes and normal, the Functions xi and
             theta).
-        memory: {"kernel": Kernel, "recursion": bool | None}, or None: no memory term.
+        memory: {"kernel": MemoryKernel, "recursion": bool | None}, or None: no memory term.
         slip: {"theta_inf": ..., "s0": ...}, or None: no slip dependence.
     """
 
@@ -236,7 +197,7 @@ class Gamma3History:
             self.xi = problem.xi
             self.xi.set(self.memory.xi)
         if slip is not None:
-            self.slip = SlipSum(m, slip["theta_inf"], slip["s0"])
+            self.slip = SlipSum(m, SlipWeakening(slip["theta_inf"], slip["s0"]))
             self.theta = problem.theta
             self.theta.set(self.slip.theta())
 
@@ -272,7 +233,7 @@ class Gamma3History:
         u = self.u.x.array.reshape(-1, self.dim)[self.nodes]
         u_nu = np.einsum("ij,ij->i", u, self.normal)
         if self.memory is not None:
-            self.xi.set(self.memory.advance(np.maximum(u_nu, 0.0), t_prev, t_n))
+            self.xi.set(self.memory.advance(NUMPY.pos(u_nu), t_prev, t_n))
         if self.slip is not None:
             u_tau = u - u_nu[:, None] * self.normal
             self.slip.advance(np.linalg.norm(u_tau, axis=1), t_n - t_prev)

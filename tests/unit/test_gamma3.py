@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from vpcontact.model.gamma3 import Kernel, MemorySum, SlipSum
+from vpcontact.model.contact_laws import SlipWeakening, memory_kernel
+from vpcontact.model.gamma3 import MemorySum, SlipSum
 
 
 def _steps(rng, n=40):
@@ -13,7 +14,7 @@ def _steps(rng, n=40):
 def test_recursion_equals_direct_sum_on_nonuniform_steps():
     rng = np.random.default_rng(0)
     t = _steps(rng)
-    kern = Kernel("exponential", b0=3.0, beta=2.5)
+    kern = memory_kernel("exponential", b0=3.0, beta=2.5)
     rec, direct = MemorySum(kern, 7, recursion=True), MemorySum(kern, 7, recursion=False)
     r_hist = []
     for n in range(1, len(t)):
@@ -34,7 +35,7 @@ def test_recursion_equals_direct_sum_on_nonuniform_steps():
 def test_general_kernels_direct_sum(kind, kw):
     rng = np.random.default_rng(1)
     t = _steps(rng, 15)
-    kern = Kernel(kind, b0=2.0, **kw)
+    kern = memory_kernel(kind, b0=2.0, **kw)
     mem = MemorySum(kern, 3)
     assert not mem.recursion
     rs = [np.abs(rng.normal(size=3)) for _ in range(len(t) - 1)]
@@ -48,7 +49,7 @@ def test_general_kernels_direct_sum(kind, kw):
 
 
 def test_slip_sum_and_theta():
-    slip = SlipSum(2, theta_inf=0.4, s0=0.01)
+    slip = SlipSum(2, SlipWeakening(theta_inf=0.4, s0=0.01))
     np.testing.assert_allclose(slip.theta(), 1.0)
     slip.advance(np.array([0.01, 0.0]), 0.5)
     slip.advance(np.array([0.03, 0.0]), 0.25)
@@ -64,7 +65,7 @@ def test_memory_state_round_trip(recursion):
     rng = np.random.default_rng(2)
     t = _steps(rng, 12)
     rs = [np.abs(rng.normal(size=4)) for _ in range(len(t) - 1)]
-    mem = MemorySum(Kernel("exponential", b0=1.5, beta=0.8), 4, recursion=recursion)
+    mem = MemorySum(memory_kernel("exponential", b0=1.5, beta=0.8), 4, recursion=recursion)
     for n in range(1, 6):
         mem.advance(rs[n - 1], t[n - 1], t[n])
     saved = mem.state()
@@ -75,13 +76,13 @@ def test_memory_state_round_trip(recursion):
     np.testing.assert_array_equal(mem.xi, saved["xi"])
     again = [mem.advance(rs[n - 1], t[n - 1], t[n]).copy() for n in range(6, len(t))]
     np.testing.assert_array_equal(np.array(again), np.array(first))
-    fresh = MemorySum(Kernel("exponential", b0=1.5, beta=0.8), 4, recursion=recursion)
+    fresh = MemorySum(memory_kernel("exponential", b0=1.5, beta=0.8), 4, recursion=recursion)
     fresh.load_state(saved)                    # into another object: the same state
     assert fresh.state()["t_prev"] == saved["t_prev"] and fresh.state()["k"] == saved["k"]
 
 
 def test_slip_state_round_trip():
-    slip = SlipSum(3, theta_inf=0.4, s0=0.1)
+    slip = SlipSum(3, SlipWeakening(theta_inf=0.4, s0=0.1))
     slip.advance(np.array([1.0, 2.0, 3.0]), 0.1)
     saved = slip.state()
     slip.advance(np.array([5.0, 5.0, 5.0]), 0.2)
