@@ -116,7 +116,8 @@ class FieldOutput(Observer):
             OutputError: solution.xdmf cannot be written.
         """
         p = sim.problem
-        fields = [p.u, p.sigma, p.sigma_vm] + ([sim.history.kappa] if sim.history else [])
+        kappa = p.state.kappa
+        fields = [p.u, p.sigma, p.sigma_vm] + ([kappa] if kappa is not None else [])
         self.writer = FieldWriter(sim.comm, Path(sim.outdir) / "solution.xdmf", p.mesh, fields)
         self.writer.write(sim.t)
 

@@ -10,9 +10,10 @@ For n = 1..N (steps k_n = t_n - t_{n-1} may vary, or adapt):
 
 ``setup()`` builds the mesh, the problem, the history terms, the step solver, the step
 control and the diagnostics (and restores a checkpoint); ``step()`` does one step (an
-adaptive step rejected by the solver is undone through ``state()``/``load_state()`` and
-retried with k/2); ``run()`` steps to T and returns the RunSummary.  Outputs, checkpoints,
-progress and samplers are observers (app/observers.py) added with ``add()``.
+adaptive step rejected by the solver is undone by the State's ``restore()``,
+app/model/state.py, and retried with k/2); ``run()`` steps to T and returns the
+RunSummary.  Outputs, checkpoints, progress and samplers are observers (app/observers.py)
+added with ``add()``.
 """
 from __future__ import annotations
 
@@ -32,10 +33,9 @@ from vpcontact.meshes import build_box, build_rectangle
 from vpcontact.meshes.gmshfile import MeshFileError, load_mesh_file
 from vpcontact.model.datapoints import check_data_on_mesh
 from vpcontact.model.gamma3 import Gamma3History, Kernel
-from vpcontact.model.history import ImplicitViscoplasticHistory, ViscoplasticHistory
+from vpcontact.model.history import ViscoplasticHistory
 from vpcontact.model.problem import ContactProblem
 from vpcontact.model.stepping import StepTooSmall, make_stepper
-from vpcontact.model.viscoplastic import viscoplastic_law
 from vpcontact.observers import Observer, StopRun
 from vpcontact.post.diagnostics import diagnose
 from vpcontact.records import HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
@@ -81,11 +81,11 @@ def build_history(case: Case, problem):
     Returns:
         A ViscoplasticHistory (explicit scheme), an ImplicitViscoplasticHistory, or None.
     """
-    law = viscoplastic_law(case.material.viscoplastic, problem.elasticity)
-    if law is None:
+    if problem.law is None:
         return None
-    cls = ImplicitViscoplasticHistory if problem.implicit else ViscoplasticHistory
-    return cls(problem, law)
+    if problem.implicit:
+        return problem.implicit_update        # the step problem's residual hook runs it
+    return ViscoplasticHistory(problem, problem.law)
 
 
 def build_gamma3_history(case: Case, problem) -> Gamma3History | None:
@@ -227,8 +227,9 @@ class Simulation:
                                                   check_data_on_mesh(case, self.domain))
         self.problem = problem = ContactProblem(case, self.domain)
         self.history = build_history(case, problem)
-        problem.set_initial_values(self.history.kappa if self.history else None)
+        problem.set_initial_values()
         self.gamma3_history = build_gamma3_history(case, problem)
+        problem.state.attach_gamma3(self.gamma3_history)
         threads.configure(self.comm)
         self.solver = select_solver(case, problem)
         self._clock["setup"] = time.perf_counter() - self._clock["start"]
@@ -246,6 +247,7 @@ class Simulation:
             log.info("restarted from %s at step %d (t = %g)", self.restart.path, self.n, self.t)
         else:
             self.problem.update_sigma()                 # sigma_0
+        self.problem.state.commit()
 
     def _log_case(self) -> None:
         """The run's first lines: mesh, dofs, steps, adaptive steps, active terms."""
@@ -340,10 +342,10 @@ class Simulation:
             if g3:
                 g3.advance(self.t, t_new)           # xi_n, s_n from u_{n-1}
             t_g3 = time.perf_counter() - t_g3
-            p.set_time(t_new)                       # f_n, prescribed displacements
+            p.set_time(t_new, k)                    # f_n, prescribed displacements, k_n
             its = self.solver.solve()               # u_n in U^h, (3.4)
             # sigma_n (explicit: E eps(u_n) + H_n, (3.2))
-            norms = history.after_solve(p) if history else p.update_sigma()
+            norms = history.after_solve(p, k) if history else p.update_sigma()
         except StepSolveError:
             raise
         except PETSc.Error as exc:                  # e.g. -ksp_error_if_not_converged
@@ -353,28 +355,21 @@ class Simulation:
         return its, norms, t_g3
 
     def state(self) -> dict:
-        """The history of the scheme after the last accepted step: sigma_n, the viscoplastic
-        history (H_n, kappa_n) and the Gamma3 history (xi_n, s_n).  (u_n is not part of it:
-        a failed step solve leaves u at u_n itself.)
+        """A copy of the scheme's state (app/model/state.py): u_n, sigma_n, H_n, kappa_n and
+        the Gamma3 history (xi_n, s_n).
 
         Returns:
-            {"sigma": array, "history": dict or None, "gamma3": dict or None}.
+            The State's snapshot().
         """
-        return {"sigma": self.problem.sigma.x.array.copy(),
-                "history": self.history.state() if self.history else None,
-                "gamma3": self.gamma3_history.state() if self.gamma3_history else None}
+        return self.problem.state.snapshot()
 
     def load_state(self, state: dict) -> None:
-        """Restore ``state()`` (undo a rejected adaptive step).
+        """Set the scheme's state from ``state()`` of this run.
 
         Args:
             state: as returned by ``state()``.
         """
-        if self.history:
-            self.history.load_state(state["history"])
-        if self.gamma3_history:
-            self.gamma3_history.load_state(state["gamma3"])
-        self.problem.sigma.x.array[:] = state["sigma"]
+        self.problem.state.load(state)
 
     # ------------------------------------------------------------------ step internals
     def _next_k(self) -> float:
@@ -393,12 +388,13 @@ class Simulation:
             k = self._next_k()
             t_new = self.stepper.next_t(self.t, k)
             t0 = time.perf_counter()
-            saved = self.state() if self.stepper.adaptive else None
             try:
-                return (k, t_new, *self.advance(k, t_new), t0)
+                result = (k, t_new, *self.advance(k, t_new), t0)
+                self.problem.state.commit()         # trial -> committed (adaptive: a copy)
+                return result
             except StepSolveError as exc:
-                if saved is not None:               # adaptive: undo the history, retry k/2
-                    self.load_state(saved)
+                if self.stepper.adaptive:           # undo the step's trial state, retry k/2
+                    self.problem.state.restore()
                     if self.stepper.reject(k, str(exc)):
                         log.warning("step at t = %g with k = %g rejected (%s); retrying with "
                                     "k = %g", self.t, k, exc.args[0].split(";")[0],
@@ -430,7 +426,7 @@ class Simulation:
         """The step's record (app/records.py); ``norms`` = (||u||_V, ||sigma||_Q) if the
         stress update computed them already, else they are computed here (collective)."""
         p = self.problem
-        kappa = self.history.kappa if self.history else None
+        kappa = p.state.kappa
         norm_u, norm_sigma = norms or (p.norm("V"), p.norm("Q"))
         record = {
             "n": self.n, "t": self.t,

@@ -8,8 +8,9 @@ sum the stored u_nu^+ history; slip: s_n).  Values are stored with the coordinat
 nodes / cell midpoints, gathered on rank 0 into one ``checkpoint.npz`` (written
 atomically), so a run can restart on any number of MPI ranks: each rank matches its own
 nodes and cells by coordinates (within 1e-6 of the smallest distance between two of them,
-whatever the body's size: ``match_points``).  A restart puts the state back through the same
-``load_state`` methods.
+whatever the body's size: ``match_points``).  The fields are the State's
+(app/model/state.py: ``fields()`` and its Gamma3 history's ``state()``), and a restart puts
+them back through the same interface.
 """
 from __future__ import annotations
 
@@ -145,23 +146,14 @@ def _gather(comm, x, v):
     return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
-def _fields(problem, history):
-    out = {"u": problem.u, "sigma": problem.sigma}
-    if problem.H is not None:
-        out["H"] = problem.H
-    if history is not None:
-        out["kappa"] = history.kappa
-    return out
-
-
 def save(outdir: Path, sim) -> Path:
     """Write the state after step n to outdir/checkpoint_<n>.npz (collective); older
     checkpoints beyond the newest KEEP are removed.
 
     Args:
         outdir: the run's output directory.
-        sim: the Simulation (its comm, case, problem, history, gamma3_history, stepper,
-            n, t and step records).
+        sim: the Simulation (its comm, case, problem and its State, stepper, n, t and step
+            records).
 
     Returns:
         The checkpoint's path.
@@ -169,14 +161,14 @@ def save(outdir: Path, sim) -> Path:
     Raises:
         OutputError: the file could not be written (on every rank).
     """
-    comm, problem = sim.comm, sim.problem
+    comm, problem, state = sim.comm, sim.problem, sim.problem.state
     path = Path(outdir) / file_name(sim.n)
     arrays = {}
-    for name, f in _fields(problem, sim.history).items():
+    for name, f in state.fields().items():
         x, v = _gather(comm, *_owned_rows(f))
         if comm.rank == 0:
             arrays[f"{name}_x"], arrays[f"{name}_v"] = x, v
-    g3 = sim.gamma3_history.state() if sim.gamma3_history is not None else None
+    g3 = state.gamma3.state() if state.gamma3 is not None else None
     if g3 is not None:
         _gamma3_arrays(comm, problem, g3, arrays)
     if comm.rank == 0:
@@ -430,7 +422,7 @@ class Checkpoint:
         on all.
 
         Args:
-            sim: the Simulation (its problem, history, gamma3_history and stepper are set).
+            sim: the Simulation (its problem with its State, and stepper are set).
 
         Returns:
             The step records up to step n.
@@ -442,7 +434,7 @@ class Checkpoint:
         comm = problem.comm
         n_g3 = comm.allreduce(len(problem.gamma3.nodes) if problem.gamma3 is not None else 0)
         try:
-            self._restore_fields(problem, sim.history, sim.gamma3_history, n_g3)
+            self._restore_fields(problem, problem.state, n_g3)
             why = None
         except CheckpointError as exc:
             why = exc.why
@@ -455,9 +447,11 @@ class Checkpoint:
         problem.update_vm()
         return list(self.meta["steps"])
 
-    def _restore_fields(self, problem, history, g3, n_g3: int) -> None:
-        """The fields of u, sigma, H, kappa and the Gamma3 histories (local, no collectives)."""
-        for name, f in _fields(problem, history).items():
+    def _restore_fields(self, problem, state, n_g3: int) -> None:
+        """The State's fields u, sigma, H, kappa and its Gamma3 history (local, no
+        collectives)."""
+        g3 = state.gamma3
+        for name, f in state.fields().items():
             V = f.function_space
             x = V.tabulate_dof_coordinates()           # owned and ghost: no scatter needed
             values = self._lookup(name, x, V.dofmap.index_map.size_global)

@@ -27,9 +27,12 @@ from vpcontact.meshes.bodycheck import interior_role
 from vpcontact.model.dirichlet import build_dirichlet, check_rigid_motions
 from vpcontact.model.frames import ContactFrames, build_frames, facet_normals, gap_values
 from vpcontact.model.gamma3 import NodalField
+from vpcontact.model.history import ImplicitViscoplasticHistory
 from vpcontact.model.loads import TimeData
 from vpcontact.model.material import Elasticity
+from vpcontact.model.state import State
 from vpcontact.model.strain import StrainOperator
+from vpcontact.model.viscoplastic import viscoplastic_law
 
 
 @dataclass
@@ -63,9 +66,12 @@ class ContactProblem:
 
     Attributes:
         elasticity: the Elasticity E of the case (app/model/material.py).
+        law: the viscoplastic law (app/model/viscoplastic.py), or None (elastic body).
         V, Q, Y: the spaces V^h (P1 vectors), Q^h (DG0 tensors), Y^h (DG0 scalars).
-        u, sigma, sigma_vm: u_n, sigma_n and its von Mises norm.
+        state: the State (u, sigma, H, kappa, xi, s; app/model/state.py).
+        u, sigma, sigma_vm: u_n, sigma_n and its von Mises norm (the State's).
         H: the pre-stress H_n of (3.2), or None without history and initial values.
+        implicit_update: the implicit scheme's local update (the residual hook's), or None.
         xi, theta: the Gamma3 nodal fields xi_n (memory) and theta(s_n) (slip), or None.
         forms: the StepForms of J_n (forms/step.py).
         dirichlet: the Dirichlet data (Gamma1 and loads.displacement); ``bcs`` its conditions.
@@ -82,22 +88,21 @@ class ContactProblem:
                            if d == 2 and case.material.plane == "strain"
                            else (case.material.E, case.material.nu))
         self.elasticity = Elasticity(self.E, self.nu, d)
+        self.law = viscoplastic_law(case.material.viscoplastic, self.elasticity)
         self.V = fem.VectorFunctionSpace(msh, ("CG", 1))
         self.Q = fem.TensorFunctionSpace(msh, ("DG", 0))
         self.Y = fem.FunctionSpace(msh, ("DG", 0))
-        self.u = fem.Function(self.V, name="u")
-        self.sigma = fem.Function(self.Q, name="sigma")
-        self.sigma_vm = fem.Function(self.Y, name="sigma_vm")
         # H_n exists only with a history (viscoplastic law) or nonzero initial values.
         init = case.initial
-        has_H = case.material.viscoplastic is not None or init.u0 is not None \
-            or init.sigma0 is not None
-        self.H = fem.Function(self.Q, name="H") if has_H else None
+        has_H = self.law is not None or init.u0 is not None or init.sigma0 is not None
+        self.state = State(self.V, self.Q, self.Y, has_H,
+                           self.law.m if self.law is not None else None,
+                           rollback=case.time.adaptive is not None)
         # Implicit history variant: the forms take sigma and the algorithmic tangent per
-        # cell (updated by ``constitutive`` before every residual), not E eps(u) + H_n.
-        self.implicit = case.time.scheme == "implicit" and case.material.viscoplastic is not None
-        self.constitutive = None
+        # cell (updated by the residual hook before every residual), not E eps(u) + H_n.
+        self.implicit = case.time.scheme == "implicit" and self.law is not None
         self.C_alg = None
+        self.k = None                      # the step k_n of set_time (the implicit update's)
         if self.implicit:
             m = self.elasticity.m
             self.C_alg = fem.Function(fem.TensorFunctionSpace(msh, ("DG", 0), shape=(m, m)),
@@ -124,6 +129,30 @@ class ContactProblem:
         # app/model/strain.py
         self._C = elasticity_operator(self.constants["E"], self.constants["nu"], d)
         self.strain_operator = StrainOperator(self.V, self.Q, self.E, self.nu)
+        # the implicit scheme's local update, run by the residual hook (before_residual)
+        self.implicit_update = ImplicitViscoplasticHistory(self, self.law) \
+            if self.implicit else None
+
+    # the live fields of the State (app/model/state.py)
+    @property
+    def u(self):
+        """u_n (the State's)."""
+        return self.state.u
+
+    @property
+    def sigma(self):
+        """sigma_n (the State's)."""
+        return self.state.sigma
+
+    @property
+    def sigma_vm(self):
+        """||sigma_n||_VM per cell (the State's)."""
+        return self.state.sigma_vm
+
+    @property
+    def H(self):
+        """H_n, or None without history and initial values (the State's)."""
+        return self.state.H
 
     # ------------------------------------------------------------------ boundary groups
     def group_tag(self, ref, key: str) -> int:
@@ -221,12 +250,16 @@ class ContactProblem:
         """The facet tags of Gamma3 (the contact groups)."""
         return tuple(sorted({self.tags[r] for r in self.case.boundaries.contact}))
 
-    def set_time(self, t: float) -> None:
-        """The data of time t_n: loads f_n and the prescribed displacements.
+    def set_time(self, t: float, k: float | None = None) -> None:
+        """The data of step n: loads f_n and the prescribed displacements at t_n, and the
+        step k_n (the implicit scheme's local update uses it at every residual).
 
         Args:
-            t: the time.
+            t: the time t_n.
+            k: the step k_n (None: unchanged).
         """
+        if k is not None:
+            self.k = k
         self.time_data.set_time(t)
         self.dirichlet.set_time()
 
@@ -355,17 +388,16 @@ class ContactProblem:
         return self.mesh.topology.index_map(self.dim).size_local
 
     # ------------------------------------------------------------------ initial values
-    def set_initial_values(self, kappa=None) -> None:
-        """u = u0, H_0 = sigma0 - E eps(u0) (3.2), kappa = kappa0 (3.3) (cell averages).
-
-        Args:
-            kappa: the DG0 Function kappa, or None without viscoplasticity.
+    def set_initial_values(self) -> None:
+        """u = u0, H_0 = sigma0 - E eps(u0) (3.2), kappa = kappa0 (3.3) (cell averages) in
+        the State.
 
         Raises:
             CaseError: if the initial values are not finite, kappa0 < 0 somewhere, or u0
                 violates u = 0 on Gamma1 or u_nu <= g on Gamma3 (on every rank).
         """
         init, scalar = self.case.initial, self.time_data.scalar
+        kappa = self.state.kappa
         if init.u0 is not None:
             vec = ufl.as_vector([scalar(c) for c in init.u0])
             self.u.interpolate(fem.Expression(vec, self.V.element.interpolation_points()))
@@ -529,7 +561,9 @@ class ContactProblem:
         Returns:
             False if the update failed (the residual is then NaN), else True.
         """
-        return self.constitutive.update(self) if self.constitutive is not None else True
+        if self.implicit_update is None:
+            return True
+        return self.implicit_update.trial(self, self.k)
 
     def _reduce(self, value: float, op) -> float:
         return self.comm.allreduce(value, op=getattr(MPI, op))

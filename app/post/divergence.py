@@ -112,7 +112,8 @@ class BlowUpMonitor(Observer):
                 state).
         """
         p = sim.problem
-        self.set_bounds(sim.case, p, p.cell_max(sim.history.kappa) if sim.history else 0.0)
+        kappa = p.state.kappa
+        self.set_bounds(sim.case, p, p.cell_max(kappa) if kappa is not None else 0.0)
 
     def check(self, sim, record: dict) -> None:
         """Refuse step n if its record is implausible (see ``blow_up``).

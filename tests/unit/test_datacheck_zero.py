@@ -48,11 +48,10 @@ def test_zero_initial_values_are_zero_on_the_mesh():
                                              "sigma0": [["0*x", 0], [0, "0*y"]]},
                      material={"viscoplastic": {**VP, "kappa0": "0*x"}})
     problem = ContactProblem(case, build_rectangle(MPI.COMM_SELF, 1.0, 1.0, n=2))
-    from vpcontact.simulation import build_history
-    history = build_history(case, problem)
-    history.kappa.x.array[:] = 7.0
+    kappa = problem.state.kappa
+    kappa.x.array[:] = 7.0
     problem.u.x.array[:] = 5.0
-    problem.set_initial_values(history.kappa)
+    problem.set_initial_values()
     assert np.all(problem.u.x.array == 0.0)
     assert np.all(problem.H.x.array == 0.0)
-    assert np.all(history.kappa.x.array == 0.0)
+    assert np.all(kappa.x.array == 0.0)

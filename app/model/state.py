@@ -1,0 +1,133 @@
+"""The state of scheme (3.2)-(3.4): u_n, sigma_n, H_n, kappa_n in R^m and, on Gamma3, xi_n
+and s_n, as the live fields a step reads and writes and a committed copy.
+
+During step n the live fields are the trial state: the explicit history update writes H_n,
+kappa_n (3.2)-(3.3), the step solve u_n (3.4), the stress update sigma_n (3.2) (the implicit
+variant writes sigma at every residual and H_n, kappa_n at the converged u_n).  ``commit()``
+keeps a copy of the live state after a converged step and ``restore()`` puts it back (the
+adaptive step control's rollback); a run that never rolls back keeps no copy.  Checkpoints
+write and read the state through ``fields()`` and the Gamma3 history's ``state()`` /
+``load_state()`` (app/io/checkpoint.py), after the fenics-constitutive pattern of a problem
+holding committed and trial history.
+"""
+from __future__ import annotations
+
+import numpy as np
+from dolfinx import fem
+
+
+def kappa_function(Y, m: int) -> fem.Function:
+    """The internal variables kappa in R^m per cell: a DG0 scalar Function for m = 1 (the
+    paper's Perzyna law), else DG0 with m components.
+
+    Args:
+        Y: the DG0 scalar space Y^h.
+        m: the law's number of internal variables.
+
+    Returns:
+        The Function "kappa" (zero).
+    """
+    space = Y if m == 1 else fem.VectorFunctionSpace(Y.mesh, ("DG", 0), dim=m)
+    return fem.Function(space, name="kappa")
+
+
+class State:
+    """u_n (P1), sigma_n and its von Mises norm, H_n (DG0 tensors), kappa_n (DG0, m
+    components) and the Gamma3 history (xi_n, s_n), live and committed.
+
+    Args:
+        V: the P1 vector space V^h.
+        Q: the DG0 tensor space Q^h.
+        Y: the DG0 scalar space Y^h.
+        has_H: whether the scheme has the pre-stress H_n (a viscoplastic law or initial
+            values).
+        m: the law's number of internal variables, or None without a viscoplastic law.
+        rollback: keep a committed copy (adaptive steps); else ``commit`` copies nothing.
+
+    Attributes:
+        u, sigma, sigma_vm, H, kappa: the live Functions (H, kappa None when absent).
+        m: the number of internal variables (None without a law).
+        gamma3: the Gamma3 history (app/model/gamma3.py: xi_n, s_n), or None; set by
+            ``attach_gamma3``.
+        committed: the committed copy (None before the first ``commit`` or without
+            rollback).
+    """
+
+    def __init__(self, V, Q, Y, has_H: bool, m: int | None, rollback: bool = False):
+        self.u = fem.Function(V, name="u")
+        self.sigma = fem.Function(Q, name="sigma")
+        self.sigma_vm = fem.Function(Y, name="sigma_vm")
+        self.H = fem.Function(Q, name="H") if has_H else None
+        self.m = m
+        self.kappa = kappa_function(Y, m) if m is not None else None
+        self.gamma3 = None
+        self.rollback = rollback
+        self.committed = None
+
+    def attach_gamma3(self, history) -> None:
+        """Make the Gamma3 history (xi_n, s_n) part of the state.
+
+        Args:
+            history: a Gamma3History, or None.
+        """
+        self.gamma3 = history
+
+    @property
+    def kappa_cells(self) -> np.ndarray | None:
+        """kappa per local cell as a (cells, m) view of the live Function (None without a
+        law)."""
+        return None if self.kappa is None else self.kappa.x.array.reshape(-1, self.m)
+
+    @property
+    def xi(self) -> np.ndarray | None:
+        """xi_n at the local Gamma3 nodes (None without the memory term)."""
+        g3 = self.gamma3
+        return g3.memory.xi if g3 is not None and g3.memory is not None else None
+
+    @property
+    def s(self) -> np.ndarray | None:
+        """s_n at the local Gamma3 nodes (None without slip dependence)."""
+        g3 = self.gamma3
+        return g3.slip.s if g3 is not None and g3.slip is not None else None
+
+    def fields(self) -> dict[str, fem.Function]:
+        """The cell and node fields of the state, in the checkpoint's order.
+
+        Returns:
+            {"u", "sigma"(, "H")(, "kappa")} -> Function.
+        """
+        out = {"u": self.u, "sigma": self.sigma}
+        if self.H is not None:
+            out["H"] = self.H
+        if self.kappa is not None:
+            out["kappa"] = self.kappa
+        return out
+
+    def snapshot(self) -> dict:
+        """A copy of the live state (local arrays, owned and ghost entries).
+
+        Returns:
+            {"fields": {name: array}, "gamma3": the Gamma3 history's state() or None}.
+        """
+        return {"fields": {k: f.x.array.copy() for k, f in self.fields().items()},
+                "gamma3": self.gamma3.state() if self.gamma3 is not None else None}
+
+    def load(self, snapshot: dict) -> None:
+        """Set the live state from ``snapshot()`` of the same run.
+
+        Args:
+            snapshot: as returned by ``snapshot()``.
+        """
+        for name, f in self.fields().items():
+            f.x.array[:] = snapshot["fields"][name]
+        if self.gamma3 is not None:
+            self.gamma3.load_state(snapshot["gamma3"])
+
+    def commit(self) -> None:
+        """Trial -> committed, after a converged step (a copy only with ``rollback``)."""
+        if self.rollback:
+            self.committed = self.snapshot()
+
+    def restore(self) -> None:
+        """Committed -> trial: undo a step (``commit`` must have been called)."""
+        self.load(self.committed)
