@@ -40,7 +40,7 @@ AMG_PETSC = {
     "amg_mg_levels_ksp_max_it": 2,
 }
 
-# Options of the direct default (app/io/schema.DEFAULT_PETSC) that the iterative path drops
+# Options of the direct default (app/solvers/options.DEFAULT_PETSC) that the iterative path drops
 # unless the case gives them with other values.
 DIRECT_KEYS = ("ksp_type", "pc_type", "pc_factor_mat_solver_type")
 

@@ -214,6 +214,8 @@ def _petsc_failure(items: tuple) -> str | None:
     from petsc4py import PETSc
 
     objects = []
+    db = PETSc.Options()          # the options of a solver alive now are put back after
+    kept = {key: db.getString(PREFIX + key) for key, _ in items if db.hasName(PREFIX + key)}
     push_options(dict(items), PREFIX)
     try:
         A = PETSc.Mat().createAIJ([6, 6], bsize=2, nnz=3, comm=PETSc.COMM_SELF)
@@ -240,6 +242,7 @@ def _petsc_failure(items: tuple) -> str | None:
         return lines[-1] if lines else f"error code {exc.ierr}"
     finally:
         remove_options(dict(items), PREFIX)
+        push_options(kept, PREFIX)
         for obj in reversed(objects):
             obj.destroy()
     return None

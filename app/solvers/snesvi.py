@@ -2,8 +2,10 @@
 
 Bounds only on the normal dofs of Gamma3 nodes (in the nodal frames where Gamma3 is curved:
 app/solvers/rotation.py); Dirichlet dofs are imposed in the residual and Jacobian (set_bc /
-diagonal 1).  Direct LU (MUMPS) by default.  Options are read
-from the PETSc options database under our prefix, so every PETSc option works.
+diagonal 1).  Direct LU (MUMPS) by default.  The options (app/solvers/options.py) are put
+into PETSc's database under our prefix once, when the solver is built, and taken out when it
+is destroyed, so every PETSc option works, also those PETSc reads while solving (monitors,
+views, the multigrid levels' set-up).
 """
 from __future__ import annotations
 
@@ -14,9 +16,12 @@ from dolfinx import fem
 from petsc4py import PETSc
 
 from vpcontact.solvers.amg import InactiveSetAMG, rigid_body_modes
+from vpcontact.solvers.options import PREFIX, push_options, remove_options
 from vpcontact.solvers.rotation import FrameMap
 
-PREFIX = "vpcontact_"
+set_petsc_options = push_options  # moved: temporary re-export
+clear_petsc_options = remove_options  # moved: temporary re-export
+
 log = logging.getLogger("vpcontact")
 
 _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
@@ -75,36 +80,6 @@ def reason_name(reason: int) -> str:
         text if it has none.
     """
     return _REASONS.get(reason, str(reason))
-
-
-def set_petsc_options(options: dict, prefix: str = PREFIX) -> None:
-    """Put options into the PETSc options database under a prefix.
-
-    Args:
-        options: name without '-' -> value; None or True set a flag (empty value), False
-            sets "false", anything else its str().
-        prefix: the options prefix (e.g. "vpcontact_": -vpcontact_snes_rtol).
-    """
-    db = PETSc.Options()
-    for key, value in options.items():
-        if value is None or value is True:
-            db.setValue(prefix + key, "")
-        elif value is False:
-            db.setValue(prefix + key, "false")
-        else:
-            db.setValue(prefix + key, str(value))
-
-
-def clear_petsc_options(options: dict, prefix: str = PREFIX) -> None:
-    """Remove options (set by set_petsc_options) from the PETSc options database again.
-
-    Args:
-        options: the names (without '-') to remove; only the keys are used.
-        prefix: the prefix they were set under.
-    """
-    db = PETSc.Options()
-    for key in options:
-        db.delValue(prefix + key)
 
 
 def direct_solver(A: PETSc.Mat, comm, prefix: str | None = None) -> PETSc.KSP:
@@ -245,14 +220,18 @@ class SNESVISolver:
                 fem.petsc.assemble_matrix(self.A, problem.J_form, problem.bcs)
                 self.A.assemble()
             self.A_frames = self.A.PtAP(self.frames.R)
-        self.options, self.prefix = options, prefix
-        self.snes = self._create(options)
+        self.options, self.prefix = dict(options), prefix
+        push_options(self.options, prefix)      # in the database while the solver lives
+        self.snes = self._create()
         self._robust = None
         self.continuation_stages = 0
         self.fallback = None
         self.sticky_robust = False
 
-    def _create(self, options: dict):
+    def _create(self, robust: bool = False):
+        """A SNES reading this solver's options; ``robust``: with ROBUST on top (the
+        database keeps this solver's options: ROBUST is put in for the SNES's
+        setFromOptions only)."""
         snes = PETSc.SNES().create(self.problem.comm)
         snes.setOptionsPrefix(self.prefix)
         if self.frames is None:
@@ -261,13 +240,15 @@ class SNESVISolver:
         else:
             snes.setFunction(self._F_frames, self.b_frames)
             snes.setJacobian(self._J_frames, self.A_frames, self.A_frames)
-        # Options pass through unchanged under our prefix; removed again once read so that
-        # they cannot leak into another solver created in the same process.
-        set_petsc_options(options, self.prefix)
+        if robust:
+            push_options(self.ROBUST, self.prefix)
         try:
             snes.setFromOptions()
         finally:
-            clear_petsc_options(options, self.prefix)
+            if robust:
+                remove_options(self.ROBUST, self.prefix)
+                push_options({k: v for k, v in self.options.items() if k in self.ROBUST},
+                             self.prefix)
         if snes.getType().startswith("vi"):
             lb, ub = self.problem.bounds()
             snes.setVariableBounds(lb, ub)
@@ -318,7 +299,7 @@ class SNESVISolver:
     def robust(self):
         """The fallback SNES with a backtracking line search (created when first needed)."""
         if self._robust is None:
-            self._robust = self._create({**self.options, **self.ROBUST})
+            self._robust = self._create(robust=True)
         return self._robust
 
     def _F(self, snes, x, b):
@@ -386,18 +367,13 @@ class SNESVISolver:
             A.axpy(1.0, self.B, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
 
     def _snes_solve(self, snes) -> None:
-        """SNES from the current u, with our options in the database while it runs (PCs
-        set up their parts, e.g. multigrid levels, from it when the inactive set changes)."""
+        """SNES from the current u (our options are in the database while it runs: PCs set
+        up their parts, e.g. multigrid levels, from it when the inactive set changes)."""
         if self.frames is None:
             self.u.vector.copy(self.x)
         else:
             self.frames.to_frames(self.u.vector, self.x)
-        options = self.options if snes is self.snes else {**self.options, **self.ROBUST}
-        set_petsc_options(options, self.prefix)
-        try:
-            snes.solve(None, self.x)
-        finally:
-            clear_petsc_options(options, self.prefix)
+        snes.solve(None, self.x)
 
     def _met_negative_curvature(self, snes) -> bool:
         """Whether CG stopped on a direction of negative curvature: the Jacobian was
@@ -417,6 +393,7 @@ class SNESVISolver:
         log.warning("SNES VI: the Newton system is indefinite (CG: %s); GMRES from now on",
                     _KSP_REASONS.get(ksp.getConvergedReason()))
         self.options = {**self.options, **INDEFINITE_KSP}
+        push_options(INDEFINITE_KSP, self.prefix)
         for other in (self.snes, self._robust):
             if other is not None:
                 other.getKSP().setType("gmres")
@@ -503,7 +480,9 @@ class SNESVISolver:
         return its
 
     def destroy(self) -> None:
-        """Free the PETSc objects (SNES, matrices, vectors)."""
+        """Free the PETSc objects (SNES, matrices, vectors) and take the options out of
+        PETSc's database."""
+        remove_options(self.options, self.prefix)
         for obj in (self.snes, self._robust, self.A, self.b, self.x, self.K, self.B,
                     self.floor):
             if obj is not None:

@@ -7,11 +7,12 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from conftest import ROOT, make_case
+from vpcontact.case import load_raw, validate
 from vpcontact.forms.elasticity import eps
-from vpcontact.io.case import load_raw, validate
 from vpcontact.simulation import build_mesh
-from vpcontact.solvers import AUTO_AMG_MIN_DOFS, choose_linear, snes_vi_options
+from vpcontact.solvers import AUTO_AMG_MIN_DOFS, choose_linear
 from vpcontact.solvers.amg import AMG_PETSC, orthonormal_columns, rigid_body_modes
+from vpcontact.solvers.options import snes_vi_options
 
 
 def _box(**solver):
