@@ -15,7 +15,7 @@ DEB_PACKAGES := python3-dolfinx-real python3-petsc4py-real python3-mpi4py python
                 python3-pip python3-setuptools python3-wheel python3-dev openmpi-bin \
                 python3-h5py python3-matplotlib python3-hypothesis libopenblas0-pthread \
                 libsuitesparse-dev python3-threadpoolctl libmumps-dev \
-                libegl1 libegl-mesa0 libgl1 libglx-mesa0
+                libegl1 libegl-mesa0 libgl1 libglx-mesa0 python3-sphinx python3-myst-parser
 # pyvista (off-screen pictures through EGL, no display needed) and its VTK are not Debian
 # bookworm packages (python3-vtk9 is VTK 9.1, older than pyvista needs): from PyPI, pinned.
 PYVISTA := pyvista==0.49.1 vtk==9.7.2
@@ -35,11 +35,12 @@ help:
 	@echo "                  (idempotent)"
 	@echo "make demo         run $(CASE) (the paper's Section 4 example) into results/"
 	@echo "make test         run the test suite (serial and mpirun -n 2)"
-	@echo "make lint         ruff check of app, forms, meshes, tests and demos (pyproject.toml)"
+	@echo "make lint         ruff check of app, forms, meshes, tests, demos and docs (pyproject.toml)"
 	@echo "make convergence  the paper's Table 1 study (h = k = 1/8..1/64 vs 1/128) for three deltas"
 	@echo "make stability    stiff and extreme variants of the paper case (stability.md/.csv)"
 	@echo "make bench        step solver timings (results/bench/bench.json, bench.md)"
-	@echo "make docs         regenerate the README's case-file reference from app/io/schema.py"
+	@echo "make docs         the documentation as HTML (Sphinx) in docs/_build/html, its case-file"
+	@echo "                  reference regenerated from the schema first"
 	@echo "make clean        remove results/ and .pytest_cache"
 	@echo "After make setup, the commands: ./vpcontact run|check|plot|info|convergence|stability|bench"
 	@echo "  (./vpcontact --help); in parallel: mpirun -n 2 ./vpcontact run CASE.yaml, as root with"
@@ -67,7 +68,7 @@ $(STAMP): pyproject.toml
 	@# the rest still works; the next make setup tries again.
 	$(PY) -m pip install --quiet ruff==$(RUFF_VERSION) || echo "setup: warning: ruff not installed (make lint needs it)"
 	$(PY) -m pip install --quiet $(PYVISTA) || { echo "setup: error: pyvista (PyPI) could not be installed: the pictures and their tests need it"; exit 1; }
-	@$(PY) -c "import dolfinx, petsc4py, gmsh, yaml, jsonschema, pyvista, app; print('setup: dolfinx', dolfinx.__version__, 'pyvista', pyvista.__version__, 'ok')"
+	@$(PY) -c "import dolfinx, petsc4py, gmsh, yaml, jsonschema, pyvista, vpcontact; print('setup: dolfinx', dolfinx.__version__, 'pyvista', pyvista.__version__, 'ok')"
 	@touch $(STAMP)
 
 # ./vpcontact runs .venv/bin/python -m vpcontact (the README's commands use it too)
@@ -78,7 +79,7 @@ test: setup
 	$(PY) -m pytest -ra tests
 
 lint: setup
-	$(PY) -m ruff check app forms meshes tests demos
+	$(PY) -m ruff check app forms meshes tests demos docs
 
 # The paper's Table 1 configuration, for the default delta and two larger ones (work-precision
 # view across the friction regularisation). Runs are cached in the run cache: $VPCONTACT_CACHE,
@@ -94,8 +95,12 @@ stability: setup
 bench: setup
 	./vpcontact bench $(CASE)
 
+# the case-file reference (docs/case-file.md) from the schema, then the HTML: -W, a warning is an
+# error (tests/unit/test_docs.py runs the same build)
 docs: setup
-	$(PY) -m vpcontact.io.docs README.md
+	$(PY) -m vpcontact.io.docs docs/case-file.md
+	$(PY) -m sphinx -W --keep-going -q -b html -d docs/_build/doctrees docs docs/_build/html
+	@echo "docs: docs/_build/html/index.html"
 
 clean:
 	rm -rf results .pytest_cache

@@ -1,7 +1,7 @@
-"""The README's case-file reference, generated from the schema (so it cannot drift).
+"""The case-file reference (docs/case-file.md), generated from the schema so it cannot drift.
 
-``make docs`` (``python -m vpcontact.io.docs``) rewrites the block between the markers in README.md;
-tests/unit/test_docs.py fails when the README is out of date.
+``make docs`` (``python -m vpcontact.io.docs``) rewrites the block between the markers of
+docs/case-file.md; tests/unit/test_docs.py fails when the page is out of date.
 """
 from __future__ import annotations
 
@@ -9,9 +9,10 @@ import json
 import sys
 from pathlib import Path
 
-from vpcontact.io.schema import DEFAULT_PETSC, SCHEMA
+from vpcontact.case.schema import DEFAULT_PETSC, SCHEMA
 
 START, END = "<!-- case-reference:start -->", "<!-- case-reference:end -->"
+PAGE = "docs/case-file.md"
 
 
 def _type(sub: dict) -> str:
@@ -60,34 +61,34 @@ def reference_markdown() -> str:
     lines = ["| key | type / allowed | default | meaning |", "|---|---|---|---|"]
     for path, req, typ, default, desc in _rows(SCHEMA):
         name = f"`{path}`" + (" (required)" if req else "")
-        desc = desc.replace("|", "\\|")
+        desc = desc.replace("|", "\\|").replace("<", "\\<")     # a table cell, no HTML
         lines.append(f"| {name} | {typ} | {default} | {desc} |")
     lines += ["", "Default PETSc options: " + ", ".join(f"`{k} {v}`" for k, v in
                                                    DEFAULT_PETSC.items()) + "."]
     return "\n".join(lines)
 
 
-def render(readme: str) -> str:
-    """The README with its generated block replaced.
+def render(page: str) -> str:
+    """The page with its generated block replaced.
 
     Args:
-        readme: the README's text, with the START and END markers.
+        page: the page's text, with the START and END markers.
 
     Returns:
         The text with ``reference_markdown()`` between the markers.
     """
-    head, rest = readme.split(START, 1)
+    head, rest = page.split(START, 1)
     _, tail = rest.split(END, 1)
     return f"{head}{START}\n{reference_markdown()}\n{END}{tail}"
 
 
 def main() -> int:
-    """``python -m vpcontact.io.docs [README.md]``: regenerate the README's reference block.
+    """``python -m vpcontact.io.docs [PAGE]``: regenerate the page's reference block.
 
     Returns:
         The exit status, 0.
     """
-    path = Path(sys.argv[1] if len(sys.argv) > 1 else "README.md")
+    path = Path(sys.argv[1] if len(sys.argv) > 1 else PAGE)
     path.write_text(render(path.read_text()))
     print(f"updated the case-file reference in {path}")
     return 0

@@ -1,7 +1,8 @@
-"""The README's commands work as written, in a new shell after `make demo`: every command line
-of its ```bash blocks has a form that needs no activated environment (./vpcontact, mpirun -n 2
-./vpcontact, make), and the cheap ones run verbatim from the repository root with a `python3`
-first on PATH that is not the project's (a decoy that fails, as pyenv's lacks mpi4py)."""
+"""The commands of the README and of the documentation's pages (docs/*.md) work as written, in a
+new shell after `make demo`: every command line of their ```bash blocks has a form that needs no
+activated environment (./vpcontact, mpirun -n 2 ./vpcontact, make), and the cheap ones run
+verbatim from the repository root with a `python3` first on PATH that is not the project's (a
+decoy that fails, as pyenv's lacks mpi4py)."""
 import json
 import os
 import re
@@ -13,17 +14,20 @@ import pytest
 from conftest import MPI_ENV, ROOT
 
 README = ROOT / "README.md"
+PAGES = [README, *sorted((ROOT / "docs").glob("*.md"))]
 AS_ROOT = "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
 FORMS = ("./vpcontact ", "make ", "mpirun -n 2 ./vpcontact ", AS_ROOT + "mpirun -n 2 ./vpcontact ")
 CHEAP = re.compile(r"\./vpcontact (check cases/\S+\.yaml|info|--help|\w+ --help)")
 
 
-def readme_commands() -> list[str]:
-    """The command lines of the README's ```bash blocks (continuations joined), as written
-    (comments included: bash drops them)."""
-    blocks = re.findall(r"^```bash\n(.*?)^```", README.read_text(), re.S | re.M)
+def page_commands(pages=PAGES) -> list[str]:
+    """The command lines of the pages' ```bash blocks (continuations joined), as written
+    (comments included: bash drops them), each once."""
+    blocks = [b for page in pages
+              for b in re.findall(r"^```bash\n(.*?)^```", page.read_text(), re.S | re.M)]
     lines = "\n".join(blocks).replace("\\\n", " ").splitlines()
-    return [ln.strip() for ln in lines if ln.strip() and not ln.strip().startswith("#")]
+    found = [ln.strip() for ln in lines if ln.strip() and not ln.strip().startswith("#")]
+    return list(dict.fromkeys(found))
 
 
 def _command(line: str) -> str:
@@ -31,7 +35,8 @@ def _command(line: str) -> str:
     return shlex.join(shlex.split(line, comments=True))
 
 
-COMMANDS = readme_commands()
+COMMANDS = page_commands()
+README_COMMANDS = page_commands([README])
 CHEAP_COMMANDS = [ln for ln in COMMANDS if CHEAP.fullmatch(_command(ln))]
 
 
@@ -74,16 +79,20 @@ def test_every_command_has_a_form_that_works_in_a_new_shell():
         for word in words:              # no placeholders: every case file named exists
             if word.endswith(".yaml"):
                 assert (ROOT / word).is_file(), f"{word} does not exist: {line}"
-    text = README.read_text()
-    assert not re.search(r"(?<![/\w])python3? -m vpcontact\b", text)   # a bare python on PATH
-    assert ".venv/bin/activate" not in text
+    for page in PAGES:
+        text = page.read_text()
+        assert not re.search(r"(?<![/\w])python3? -m vpcontact\b", text), page  # a bare python
+        assert ".venv/bin/activate" not in text, page
 
 
 def test_the_cheap_commands_are_found():
-    """The README keeps showing check, info and the help (else the test below tests less)."""
-    found = " ".join(CHEAP_COMMANDS)
+    """The README keeps showing check, info and the help (else the test below tests less),
+    and the two commands: make setup and the paper case's run."""
+    found = " ".join(ln for ln in README_COMMANDS if CHEAP.fullmatch(_command(ln)))
     assert "./vpcontact check cases/" in found and "./vpcontact info" in found
     assert "./vpcontact --help" in found and "./vpcontact run --help" in found
+    commands = [_command(ln) for ln in README_COMMANDS]
+    assert "make setup" in commands and "./vpcontact run cases/wang_cheng_2021.yaml" in commands
 
 
 @pytest.mark.parametrize("line", CHEAP_COMMANDS)
@@ -99,7 +108,7 @@ def test_cheap_command_runs_verbatim(line, new_shell_env):
 def test_mpirun_command_runs_tiny(new_shell_env, tmp_path):
     """The README's `mpirun -n 2 ./vpcontact run ...` line, verbatim but for its output
     directory and a tiny resolution."""
-    line = next(ln for ln in COMMANDS if " mpirun -n 2 ./vpcontact run " in f" {ln}")
+    line = next(ln for ln in README_COMMANDS if " mpirun -n 2 ./vpcontact run " in f" {ln}")
     cmd = re.sub(r"--out \S+", f"--out {shlex.quote(str(tmp_path / 'np2'))}", _command(line))
     cmd += " --set mesh.n=4 --set time.N=2 --no-plots --quiet"
     env = {**new_shell_env, "OMPI_MCA_rmaps_base_oversubscribe": "1"}   # a 1-core machine
