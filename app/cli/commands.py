@@ -389,6 +389,7 @@ def cmd_bench(args) -> int:
     """
     from vpcontact.io.cachedirs import unusable
     from vpcontact.studies import bench as bm
+    from vpcontact.studies.benchrun import run_overrides
     from vpcontact.studies.scenebench import scene_rows
 
     extra = list(args.extra)          # (n, N) pairs, parsed by cells_and_steps
@@ -407,7 +408,7 @@ def cmd_bench(args) -> int:
         rows = bm.bench(args.case, outdir, args.levels, nprocs=args.ranks, extra=extra,
                         repeat=args.repeat)
         memory = bm.memory_rows(outdir, steps=args.memory_steps) if args.memory_steps else []
-        scene = scene_rows(Path(args.case), outdir, args.scene_n, 64, bm.run_overrides,
+        scene = scene_rows(Path(args.case), outdir, args.scene_n, 64, run_overrides,
                            args.repeat) if args.scene_n else []
         box3d = _box3d_rows(outdir, args.box3d_levels)
     except RuntimeError as exc:
@@ -460,7 +461,7 @@ def cmd_plot(args) -> int:
             if missing == ["summary.json"] else ""
         return error(f"{outdir}: not a results directory (missing {', '.join(missing)})"
                      f"{killed}", EXIT_BAD_INPUT)
-    from vpcontact.post.plot import ResultsError, check_results
+    from vpcontact.post.results import ResultsError, check_results
     try:
         check_results(outdir)                  # a damaged file: one line naming it
     except ResultsError as exc:

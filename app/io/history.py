@@ -10,7 +10,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from vpcontact.io.output import atomic_write, csv_text, on_rank0
+from vpcontact.io.files import atomic_write
+from vpcontact.io.output import csv_text, on_rank0
 
 STATES = ("bound", "compliance", "separated", "prescribed")
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from dolfinx import io as dio
 
+from vpcontact.io.files import atomic_write
 from vpcontact.io.xdmf import TemporalXdmf, XdmfLayoutError, dolfinx_layout, dolfinx_time_key
 
 OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv", "contact.xdmf",
@@ -38,37 +39,6 @@ def csv_text(columns, rows) -> str:
         w.writerow({k: "" if r.get(k) is None else repr(float(r[k]))
                     if isinstance(r[k], float) else r[k] for k in columns})
     return buf.getvalue()
-
-
-def atomic_write(path: Path, text: str | bytes, sync: bool = True) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename.
-
-    Args:
-        path: the file.
-        text: its new content (str, or bytes written as they are).
-        sync: fsync the file before the rename (the XDMF files skip it: a killed process
-            leaves the page cache intact, and the HDF5 data they point at is not synced
-            either).
-
-    Raises:
-        OSError: the write failed (the old file, if any, is unchanged).
-    """
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    try:
-        with open(tmp, "wb" if isinstance(text, bytes) else "w") as fh:
-            fh.write(text)
-            fh.flush()
-            if sync:
-                os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except OSError as exc:          # disk full, read-only: the old file stays as it was
-        if exc.filename is None:
-            exc.filename = str(path)
-        try:
-            tmp.unlink()
-        except OSError:
-            pass
-        raise
 
 
 class OutputError(OSError):

@@ -19,6 +19,8 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
+from vpcontact.io.files import atomic_write
+
 
 class XdmfLayoutError(ValueError):
     """The XML is not the layout dolfinx writes (a mesh Grid, temporal collections)."""
@@ -168,7 +170,6 @@ def _publish(path: Path, data: bytes) -> None:
     """Replace the file by a temporary file and a rename (not synced: a killed process
     leaves the page cache intact, and the HDF5 data the XML points at is not synced
     either)."""
-    from vpcontact.io.output import atomic_write
     atomic_write(path, data, sync=False)
 
 

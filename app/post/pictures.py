@@ -17,7 +17,7 @@ app/post/plot.py, which also hands it some of the line figures; a second such pr
 --no-pictures draws the other line figures meanwhile): VTK's wheel is built with
 the old C++ string ABI, and in a process that has loaded dolfinx its std::regex code binds to
 dolfinx's instantiations and aborts (std::bad_alloc as soon as a scalar bar is drawn;
-measured).  This module and app/post/plot.py import no dolfinx.
+measured).  This module, app/post/plot.py and linefigures.py import no dolfinx.
 """
 from __future__ import annotations
 
@@ -28,6 +28,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+
+from vpcontact.io.files import write_replacing
+from vpcontact.post.linefigures import draw_line_figures, pyplot
 
 PICTURES = ("body.png", "fig5_vm_kappa.png", "contact_pressure.png")
 ANIMATION = "animation.gif"
@@ -95,35 +98,6 @@ def deformed(grid, factor: float):
     out = grid.copy()
     out.points = moved_points(grid, factor)
     return out
-
-
-def write_replacing(path: Path, draw):
-    """Write a file through a hidden temporary file beside it and a rename, so that a
-    reader never sees half a picture.
-
-    Args:
-        path: the file.
-        draw: called with the temporary file's path (same suffix) to write it.
-
-    Returns:
-        What ``draw`` returned.
-    """
-    tmp = temporary(path)
-    result = draw(tmp)
-    os.replace(tmp, path)
-    return result
-
-
-def temporary(path: Path) -> Path:
-    """The hidden temporary file write_replacing writes ``path`` through.
-
-    Args:
-        path: the file.
-
-    Returns:
-        .<stem>.tmp<suffix> beside it.
-    """
-    return path.with_name(f".{path.stem}.tmp{path.suffix}")
 
 
 BAR = {"color": "black", "vertical": False, "position_x": 0.25, "position_y": 0.02,
@@ -435,8 +409,7 @@ def warm_up(pictures: bool = True) -> None:
     """
     import h5py  # noqa: F401
 
-    from vpcontact.post.plot import _mpl
-    plt = _mpl()                               # matplotlib's first figure costs 0.1-0.2 s
+    plt = pyplot()                              # matplotlib's first figure costs 0.1-0.2 s
     fig = plt.figure(figsize=(1, 1))
     fig.text(0.5, 0.5, "x")
     fig.savefig(os.devnull, format="png")
@@ -485,7 +458,6 @@ def main(argv=None) -> int:
         args.dim, args.animate, args.line = job["dim"], job["animate"], job["line"]
     files = [] if args.no_pictures else draw_all(args.results, args.factor, args.dim)
     if args.line:
-        from vpcontact.post.plot import draw_line_figures
         files += draw_line_figures(args.results, args.line, args.factor)
     frames = None
     if args.animate:

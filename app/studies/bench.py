@@ -23,11 +23,12 @@ from pathlib import Path
 import numpy as np
 
 from vpcontact.io.case import CaseError, fast_eligible, load_raw, validate
-from vpcontact.io.output import atomic_write
+from vpcontact.io.files import atomic_write
+from vpcontact.studies import bench3d, scenebench
+from vpcontact.studies.bench3d import BOX3D
+from vpcontact.studies.benchrun import ENV, run_overrides
 
 MAX_REPEAT = 100             # --repeat: more gives no better minimum, only a longer bench
-ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-       "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
 
 
 def _overrides(n: int, N: int, method: str, steps: int | None = None) -> list[str]:
@@ -38,74 +39,6 @@ def _overrides(n: int, N: int, method: str, steps: int | None = None) -> list[st
 
 def _run(case, out, n, N, method, nprocs, steps=None, log=print):
     return run_overrides(case, out, _overrides(n, N, method, steps), nprocs)
-
-
-def measured_run(case: Path, out: Path, overrides: list[str], nprocs: int = 1):
-    """One whole-process run, timed from outside, with its peak resident memory.
-
-    Args:
-        case: the case file.
-        out: the output directory (overwritten).
-        overrides: --set items.
-        nprocs: MPI ranks (mpirun above 1).
-
-    Returns:
-        (wall s, peak resident set in bytes of the largest process, summary.json as a dict).
-
-    Raises:
-        RuntimeError: the run failed (its command and the end of its error output).
-    """
-    cmd = [sys.executable, "-m", "vpcontact", "run", str(case), "--out", str(out), "--overwrite",
-           "--no-plots", "--quiet"]
-    for item in overrides:
-        cmd += ["--set", item]
-    if nprocs > 1:
-        cmd = ["mpirun", "-n", str(nprocs), *cmd]
-    err = out.parent / f"{out.name}.stderr"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    with open(err, "w") as stderr:
-        proc = subprocess.Popen(cmd, env={**os.environ, **ENV}, stdout=subprocess.DEVNULL,
-                                stderr=stderr)
-        try:
-            _, status, usage = os.wait4(proc.pid, 0)
-        except BaseException:          # SIGINT/SIGTERM to the bench: its run ends with it
-            _stop(proc)
-            raise
-    wall = time.perf_counter() - t0
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    if proc.returncode != 0:
-        raise RuntimeError(f"bench run failed ({' '.join(cmd)}):\n{err.read_text()[-2000:]}")
-    peak = usage.ru_maxrss * 1024                      # kilobytes on Linux
-    return wall, peak, json.loads((out / "summary.json").read_text())
-
-
-def _stop(proc: subprocess.Popen) -> None:
-    """End a bench run whose bench was interrupted: SIGTERM (the run stops after its step),
-    SIGKILL if it has not ended within 10 s; never left running on its own."""
-    proc.terminate()
-    try:
-        proc.wait(timeout=10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
-
-
-def run_overrides(case, out, overrides: list[str], nprocs: int = 1):
-    """One whole-process run of a case, timed from outside (``measured_run`` without the
-    memory).
-
-    Args:
-        case: the case file.
-        out: the output directory (overwritten).
-        overrides: --set items.
-        nprocs: MPI ranks (mpirun above 1).
-
-    Returns:
-        (wall time [s], the run's summary.json).
-    """
-    wall, _, summary = measured_run(case, out, overrides, nprocs)
-    return wall, summary
 
 
 def _positive_ints(option: str, values, allowed: str = "positive integers") -> None:
@@ -172,7 +105,6 @@ def check_arguments(case, levels, extra=(), nprocs=(1, 2), repeat: int = 1,
 def _check_box3d(levels) -> None:
     """The 3D rows' box at every --box3d-levels n is a valid case (e.g. within the vertex
     limit), checked before the 2D rows run."""
-    from vpcontact.studies.bench3d import BOX3D
     _positive_ints("--box3d-levels", levels)
     for n in levels:
         try:
@@ -345,7 +277,6 @@ def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None,
         scene: the user-scene rows (app/studies/scenebench.py), or None.
         box3d: the 3D rows (app/studies/bench3d.py), or None.
     """
-    from vpcontact.studies import bench3d, scenebench
     atomic_write(outdir / "bench.json", json.dumps(
         {"solvers": rows, "memory_term": memory or [], "scene": scene or [],
          "box3d": box3d or [], "box3d_scaling": bench3d.scaling(box3d or [])}, indent=2) + "\n")

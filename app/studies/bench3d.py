@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vpcontact.studies.bench import measured_run
+from vpcontact.studies.benchrun import measured_run
 
 CASES = Path(__file__).resolve().parents[2] / "cases"
 BOX3D = CASES / "box3d.yaml"

@@ -32,7 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from vpcontact.io.case import CaseError, validate
-from vpcontact.io.output import atomic_write, csv_text
+from vpcontact.io.files import atomic_write
+from vpcontact.io.output import csv_text
 from vpcontact.observers import Observer
 from vpcontact.studies import runcache
 from vpcontact.studies.grid import (
@@ -940,7 +941,7 @@ def write_plot(path: Path, res: dict) -> None:
     """
     import matplotlib.pyplot as plt
 
-    from vpcontact.post.pictures import write_replacing
+    from vpcontact.io.files import write_replacing
     fig = convergence_figure(res)
     write_replacing(path, lambda tmp: fig.savefig(tmp, dpi=120))
     plt.close(fig)

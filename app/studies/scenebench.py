@@ -17,7 +17,7 @@ from pathlib import Path
 import yaml
 
 from vpcontact.io.case import load_raw
-from vpcontact.io.output import atomic_write
+from vpcontact.io.files import atomic_write
 
 ANGLE = 30.0
 _GEO = """// The unit square rotated by {angle} degrees about the origin, n x n transfinite.

@@ -1,0 +1,361 @@
+"""The line figures of a run, drawn headless with matplotlib (Agg) from the files of a
+results directory (app/post/results.py): solution.xdmf/.h5 (mesh and fields), contact.csv
+(Gamma3 table) and summary.json (case data and step history); the pictures of the body
+(body.png, fig5_vm_kappa.png, contact_pressure.png, animation.gif) are pyvista's
+(app/post/pictures.py); app/post/plot.py's figure processes draw both.
+
+- fig3_deformed_contact.png: deformed mesh at T (displacement magnified, factor printed) with
+  the interface forces -sigma_nu along Gamma3 as in the paper's Fig. 3; at nodes with
+  u_nu = g the bar shows c_nu g (the paper plots the normal compliance part there);
+- fig4_tangential.png: u_tau and -sigma_tau along Gamma3 with u1 marked (Fig. 4);
+- fig2_laws.png: the normal and tangential contact laws of the case (Fig. 2);
+- history.png: norms, max von Mises, max kappa and iterations against time;
+- forces.png: the contact force and the supports' reactions against time.
+In 3D fig3 shows Gamma3 seen along z.
+"""
+from __future__ import annotations
+
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+
+from vpcontact.io.files import write_replacing
+from vpcontact.model import contact_laws
+from vpcontact.post.results import Results
+
+LINE_FIGURES = ("fig3_deformed_contact.png", "fig4_tangential.png", "fig2_laws.png",
+                "history.png", "forces.png")
+DPI = 110
+
+
+def pyplot():
+    """matplotlib's pyplot on the Agg back end (headless; loaded on first use).
+
+    Returns:
+        The matplotlib.pyplot module.
+    """
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+# ----------------------------------------------------------------------------- 2D / 3D views
+MAX_DRAWN_CELLS = 8192          # finer 2D meshes are drawn by their outline
+
+
+def _boundary_edges(cells: np.ndarray) -> np.ndarray:
+    """Edges (vertex pairs) of a triangle mesh that belong to one triangle only."""
+    e = np.concatenate([cells[:, [0, 1]], cells[:, [1, 2]], cells[:, [2, 0]]])
+    key = np.sort(e, axis=1)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return e[counts[inv] == 1]
+
+
+def _faces_3d(cells: np.ndarray) -> np.ndarray:
+    """Boundary faces (triangles) of a set of tetrahedra."""
+    f = np.concatenate([cells[:, [0, 1, 2]], cells[:, [0, 1, 3]], cells[:, [0, 2, 3]],
+                        cells[:, [1, 2, 3]]])
+    owner = np.tile(np.arange(len(cells)), 4)
+    key = np.sort(f, axis=1)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    once = counts[inv] == 1
+    return f[once], owner[once]
+
+
+def _bottom_faces(res: Results):
+    """Triangles of Gamma3 and the cell each belongs to (3D): the boundary faces whose
+    vertices are all contact.csv nodes, else (no contact) the bottom face z = 0, else the
+    whole boundary."""
+    faces, owner = _faces_3d(res.cells)
+    scale = max(1.0, float(np.ptp(res.x)))
+    if res.contact is not None:
+        keys = {tuple(p) for p in np.round(np.column_stack(
+            [res.contact[a] for a in "xyz"]) / scale, 8)}
+        at = np.array([tuple(p) in keys for p in np.round(res.x / scale, 8)])
+        on = at[faces].sum(axis=1) >= 2          # the faces next to clamped nodes too
+    else:
+        on = np.all(np.abs(res.x[faces, 2]) <= 1e-9 * scale, axis=1)
+    if not on.any():
+        on[:] = True
+    return faces[on], owner[on]
+
+
+def _save(plt, fig, path: Path, title: str | None = None) -> None:
+    """Title, tight layout, write the PNG, free the figure."""
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI, pil_kwargs={"compress_level": 1})    # 3x faster than 6
+    plt.close(fig)
+
+
+# ----------------------------------------------------------------------------- figures
+def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None) -> float:
+    """Deformed mesh at T with the contact forces along Gamma3 (the paper's Fig. 3).
+
+    Args:
+        res: the run's data.
+        path: the PNG file to write.
+        factor: the displacement factor, default ``res.magnification()``.
+
+    Returns:
+        The factor used.
+    """
+    plt = pyplot()
+    factor = res.magnification() if factor is None else factor
+    fig, ax = plt.subplots(figsize=(7.5, 6.5))
+    X = res.x + factor * res.u
+    if res.dim == 2 and len(res.cells) > MAX_DRAWN_CELLS:
+        # a fine mesh would be a solid block of lines: the outlines (body.png shows the body)
+        edges = _boundary_edges(res.cells)
+        from matplotlib.collections import LineCollection
+        for P, colour in ((res.x, "0.6"), (X, "tab:blue")):     # one artist, not one a line
+            ax.add_collection(LineCollection(P[edges], colors=colour, lw=0.8))
+        ax.autoscale_view()
+    elif res.dim == 2:
+        ax.triplot(res.x[:, 0], res.x[:, 1], res.cells, color="0.85", lw=0.4)
+        ax.triplot(X[:, 0], X[:, 1], res.cells, color="tab:blue", lw=0.5)
+    else:
+        faces, _ = _bottom_faces(res)
+        ax.triplot(res.x[:, 0], res.x[:, 1], faces, color="0.85", lw=0.4)
+        ax.triplot(X[:, 0], X[:, 1], faces, color="tab:blue", lw=0.5)
+    c = res.contact
+    if c is not None and res.dim == 2:
+        c_nu = (res.case.get("contact", {}).get("normal_compliance") or {}).get("c_nu")
+        g = res.case.get("contact", {}).get("g")
+        force = c["neg_sigma_nu"].copy()
+        bound = c["state"] == "bound"
+        if c_nu is not None and g is not None:
+            force[bound] = c_nu * g              # the paper's Fig. 3 convention
+        scale = 0.15 * float(np.ptp(res.x[:, 1])) / max(np.abs(force).max(), 1e-300)
+        xb = c["x"] + factor * c["u_x"]
+        yb = c["y"] + factor * c["u_y"]
+        for state, colour in (("bound", "tab:red"), ("compliance", "tab:green"),
+                              ("separated", "0.5")):
+            m = c["state"] == state
+            if m.any():
+                ax.vlines(xb[m], yb[m] - scale * force[m], yb[m], colors=colour, lw=2,
+                          label=f"-sigma_nu, {state} ({int(m.sum())} nodes)")
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="upper right", fontsize=8)
+        ax.set_ylim(min(yb.min() - scale * max(force.max(), 0) - 0.05, -0.3), None)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]" if res.dim == 2 else "y [m] (Gamma3 seen along z)")
+    ax.set_title(f"Deformed configuration at t = {res.t:g} (displacement x {factor:g}); "
+                 "contact forces on Gamma3", fontsize=10)
+    _save(plt, fig, path)
+    return factor
+
+
+def fig4_tangential(res: Results, path: Path) -> None:
+    """u_tau and -sigma_tau along Gamma3 at T, with u1 marked (the paper's Fig. 4).
+
+    Args:
+        res: the run's data.
+        path: the PNG file to write.
+    """
+    plt = pyplot()
+    fig, axes = plt.subplots(2, 1, figsize=(7.5, 6.5), sharex=True)
+    c = res.contact
+    u1 = (res.case.get("contact", {}).get("friction") or {}).get("u1")
+    if c is None:
+        axes[0].text(0.5, 0.5, "no contact boundary in this case", ha="center")
+    else:
+        key = "u_tau" if "u_tau" in c else "u_tau1"
+        skey = "neg_sigma_tau" if "neg_sigma_tau" in c else "neg_sigma_tau1"
+        order = np.argsort(c["x"])
+        x = c["x"][order]
+        axes[0].plot(x, c[key][order], "o-", ms=3, label="u_tau . tau")
+        if u1:
+            for s in (-u1, u1):
+                axes[0].axhline(s, color="tab:red", ls="--", lw=1)
+            axes[0].text(x.min(), -u1, " -u1", color="tab:red", va="bottom", fontsize=8)
+        axes[0].set_ylabel("u_tau . tau [m]")
+        axes[0].legend(fontsize=8)
+        axes[1].plot(x, c[skey][order], "o-", ms=3, color="tab:orange",
+                     label="-sigma_tau . tau")
+        axes[1].set_ylabel("-sigma_tau . tau [N/m^2]")
+        axes[1].legend(fontsize=8)
+        if res.dim == 3:
+            axes[0].set_title("3D: first tangential component, all Gamma3 nodes", fontsize=9)
+    axes[1].set_xlabel("x on Gamma3 [m]")
+    _save(plt, fig, path,
+          f"Tangential displacement and friction stress along Gamma3 at t = {res.t:g}")
+
+
+def normal_law(c_nu, g, r):
+    """-sigma_nu of (4.1) for the figure (Fig. 2a).
+
+    Args:
+        c_nu: the compliance coefficient, or None (no normal compliance: 0).
+        g: the bound of u_nu (at u_nu = g any value from c_nu g up is admissible).
+        r: normal displacements u_nu <= g.
+
+    Returns:
+        p(u_nu) = c_nu u_nu^+ (app/model/contact_laws.py).
+    """
+    return contact_laws.normal_compliance(r, c_nu or 0.0)
+
+
+def tangential_law(fr, rho):
+    """|sigma_tau| = psi'(|u_tau|) of law (4.2) for |u_tau| > 0 (Fig. 2b).
+
+    Args:
+        fr: the case's friction parameters (b, c1, c2, u1).
+        rho: slips |u_tau| > 0.
+
+    Returns:
+        psi'(rho) (app/model/contact_laws.py).
+    """
+    return contact_laws.dpsi(rho, fr["b"], fr["c1"], fr["c2"], fr["u1"])
+
+
+def fig2_laws(res: Results, path: Path) -> None:
+    """The case's normal law (4.1) and friction law (4.2) (the paper's Fig. 2).
+
+    Args:
+        res: the run's data.
+        path: the PNG file to write.
+    """
+    plt = pyplot()
+    contact = res.case.get("contact") or {}
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+    g = contact.get("g")
+    if isinstance(g, str):          # a gap field: the law at its largest value on Gamma3
+        c = res.contact
+        g = float(c["g"].max()) if c is not None and "g" in c else None
+    c_nu = (contact.get("normal_compliance") or {}).get("c_nu")
+    ax = axes[0]
+    if g is not None or c_nu is not None:
+        top = g if g else 0.02
+        r = np.linspace(-0.5 * top, top, 200)
+        ax.plot(r, normal_law(c_nu, g, r), color="tab:blue", label="p(u_nu) = c_nu u_nu^+")
+        if g is not None:
+            pg = normal_law(c_nu, g, np.array([g]))[0]
+            ax.vlines(g, pg, pg + max(pg, 1.0), color="tab:red",
+                      label="u_nu = g: -sigma_nu >= c_nu g (unilateral)")
+            ax.axvline(g, color="tab:red", ls=":", lw=0.8)
+        ax.legend(fontsize=8)
+    else:
+        ax.text(0.5, 0.5, "no normal contact law", ha="center", transform=ax.transAxes)
+    ax.set_xlabel("u_nu [m]")
+    ax.set_ylabel("-sigma_nu [N/m^2]")
+    ax.set_title("normal law (4.1)", fontsize=10)
+    fr = contact.get("friction")
+    ax = axes[1]
+    if fr:
+        rho = np.linspace(0, 3 * fr["u1"], 300)[1:]
+        ax.plot(rho, tangential_law(fr, rho), color="tab:blue", label="psi'(|u_tau|)")
+        ax.vlines(0, 0, fr["b"], color="tab:blue", lw=3, label="|u_tau| = 0: [0, b] (stick)")
+        ax.axvline(fr["u1"], color="tab:red", ls="--", lw=1)
+        ax.text(fr["u1"], 0, " u1", color="tab:red", va="bottom")
+        ax.legend(fontsize=8)
+        ax.set_ylim(bottom=0)
+    else:
+        ax.text(0.5, 0.5, "frictionless", ha="center", transform=ax.transAxes)
+    ax.set_xlabel("|u_tau| [m]")
+    ax.set_ylabel("|sigma_tau| [N/m^2]")
+    ax.set_title("nonmonotone friction law (4.2)", fontsize=10)
+    _save(plt, fig, path, f"Contact laws of case {res.summary.get('case')} (the paper's Fig. 2)")
+
+
+def history(res: Results, path: Path) -> None:
+    """Norms, max von Mises stress, max kappa and iterations against time.
+
+    Args:
+        res: the run's data.
+        path: the PNG file to write.
+
+    Returns:
+        None (the figure is written to ``path``).
+    """
+    plt = pyplot()
+    steps = res.summary.get("steps", [])
+    t = np.array([s["t"] for s in steps])
+    fig, axes = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
+
+    def col(k):
+        return np.array([s[k] for s in steps])
+    if len(t):
+        ax = axes[0, 0]
+        ax.plot(t, col("norm_u_V"), "o-", ms=2, label="||u||_V")
+        ax.set_ylabel("||u||_V")
+        ax2 = ax.twinx()
+        ax2.plot(t, col("norm_sigma_Q"), "s-", ms=2, color="tab:orange", label="||sigma||_Q")
+        ax2.set_ylabel("||sigma||_Q")
+        ax.set_title("norms", fontsize=10)
+        axes[0, 1].plot(t, col("max_vm"), "o-", ms=2)
+        axes[0, 1].set_title("max ||sigma||_VM", fontsize=10)
+        axes[1, 0].plot(t, col("max_kappa"), "o-", ms=2, color="tab:green")
+        axes[1, 0].set_title("max kappa", fontsize=10)
+        axes[1, 1].vlines(t, 0, col("newton_iterations"), color="tab:purple",
+                          lw=max(0.5, min(4.0, 300 / len(t))))      # one artist per panel
+        axes[1, 1].set_title("Newton / Gamma3 iterations per step", fontsize=10)
+    for ax in axes[1]:
+        ax.set_xlabel("t [s]")
+    _save(plt, fig, path, f"History of run {res.summary.get('case')} "
+                          f"({res.summary.get('status')})")
+
+
+def forces(res: Results, path: Path) -> None:
+    """The force resultants on the body against time: the foundation's (contact_force) and
+    each Dirichlet group's reaction, per component (a held indentation shows the contact
+    force relaxing).
+
+    Args:
+        res: the run's data.
+        path: the PNG file to write.
+    """
+    plt = pyplot()
+    steps = [s for s in res.summary.get("steps", []) if "reactions" in s]
+    dim = res.dim
+    fig, axes = plt.subplots(1, dim, figsize=(5 * dim, 4.2), sharex=True)
+    t = np.array([s["t"] for s in steps])
+    series = {}
+    if any("contact_force" in s for s in steps):
+        series["contact (foundation)"] = [s.get("contact_force", [0.0] * dim) for s in steps]
+    for name in (steps[-1]["reactions"] if steps else {}):
+        series[f"reaction on {name}"] = [s["reactions"][name] for s in steps]
+    for i, ax in enumerate(axes):
+        for label, values in series.items():
+            ax.plot(t, np.asarray(values)[:, i], "o-", ms=2, label=label)
+        ax.axhline(0.0, color="0.7", lw=0.8)
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel(f"F_{'xyz'[i]} [N{'/m' if dim == 2 else ''}]")
+    if series:
+        axes[0].legend(fontsize=8)
+    else:
+        axes[0].text(0.5, 0.5, "no supports or contact", ha="center",
+                     transform=axes[0].transAxes)
+    _save(plt, fig, path, f"Forces on the body, run {res.summary.get('case')}")
+
+
+def draw_line_figures(outdir: Path, names, factor: float, res=None) -> list[Path]:
+    """Draw line figures (each to a temporary file, then renamed).
+
+    Args:
+        outdir: the results directory.
+        names: which (of LINE_FIGURES).
+        factor: fig3's displacement magnification.
+        res: the run's Results (None: read).
+
+    Returns:
+        The files written.
+    """
+    res = Results(outdir) if res is None else res
+    written = []
+    for name in names:
+        options = {"factor": factor} if name.startswith("fig3") else {}
+        path = Path(outdir) / name
+        write_replacing(path, partial(LINE_FIGURE_FUNCTIONS[name], res, **options))
+        written.append(path)
+    return written
+
+
+# LINE_FIGURES' drawing functions, (res, path) (fig3 also takes the factor)
+LINE_FIGURE_FUNCTIONS = {"fig3_deformed_contact.png": fig3_deformed_contact,
+                         "fig4_tangential.png": fig4_tangential, "fig2_laws.png": fig2_laws,
+                         "history.png": history, "forces.png": forces}
