@@ -2,8 +2,8 @@
 
 The C sources and their headers live beside the Python wrappers, one pair per job:
     perzyna.c/.h      the explicit Perzyna update (3.2)-(3.3)      perzyna.py
-    ldl_blocks.c/.h   the fast solver's split solve (node blocks)   sweeps.py
-    contact.c/.h      the nodal contact energy (4.1)-(4.2)          app/solvers/nodal.py
+    ldl_blocks.c/.h   the condensed solver's split solve (blocks)  sweeps.py
+    contact.c/.h      the nodal contact energy (4.1)-(4.2)          contact.py
     cells.c/.h        the cell-strain operator                      cells.py
     dense.c/.h        the Gamma3 problem's Newton direction         app/solvers/dense.py
     cholmod_ldl.c/.h  CHOLMOD's L D L^T                              app/solvers/ldl.py
@@ -19,13 +19,13 @@ from pathlib import Path
 
 from vpcontact.kernels.build import Library, buf, cache_dir, compiled, module_name
 from vpcontact.kernels.cells import cell_load, cell_load_numpy, cell_pass, cell_pass_numpy
-from vpcontact.kernels.perzyna import PerzynaKernel, perzyna_advance_numpy
+from vpcontact.kernels.perzyna import PerzynaKernel
 from vpcontact.kernels.sweeps import GLastSolve, block_size, split_solve_numpy
 
 __all__ = [
     "CELL_KERNELS", "GLastSolve", "Library", "PerzynaKernel", "block_size", "buf", "cache_dir",
     "cell_load", "cell_load_numpy", "cell_pass", "cell_pass_numpy", "compiled", "library_file",
-    "load", "module_name", "perzyna_advance_numpy", "split_solve_numpy",
+    "load", "module_name", "split_solve_numpy",
 ]
 
 CELL_KERNELS = Library("_vpcontact_kernels", ("perzyna", "ldl_blocks", "contact", "cells"),

@@ -1,4 +1,4 @@
-/* The projected Newton direction of the fast solver's Gamma3 problem by LAPACK
+/* The projected Newton direction of the condensed solver's Gamma3 problem by LAPACK
    (app/solvers/dense.py: NewtonDirection, whose numpy reference is NewtonDirection._numpy). */
 #include <stddef.h>
 

@@ -1,4 +1,4 @@
-/* The projected Newton direction of the fast solver's Gamma3 problem (dense.c). */
+/* The projected Newton direction of the condensed solver's Gamma3 problem (dense.c). */
 #ifndef VPCONTACT_DENSE_H
 #define VPCONTACT_DENSE_H
 

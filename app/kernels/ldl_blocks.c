@@ -1,4 +1,4 @@
-/* The split solve of the fast solver: K = L D L^T ordered interior first, Gamma3 last, with
+/* The split solve of the condensed solver: K = L D L^T ordered interior first, Gamma3 last, with
    the interior columns of L in node blocks (kernels/sweeps.py: GLastSolve, and its numpy
    reference split_solve_numpy). */
 #include "ldl_blocks.h"

@@ -1,8 +1,8 @@
-"""The split solve of the fast solver compiled (ldl_blocks.c), and its numpy reference.
+"""The split solve of the condensed solver compiled (ldl_blocks.c), and its numpy reference.
 
 With K = L D L^T ordered interior first, Gamma3 (G) last, one step's solve is a forward sweep
 over the interior columns of L (which yields the Gamma3 problem's data), the Gamma3 problem,
-and a backward sweep with u_G given (app/solvers/fast.py).  ``GLastSolve`` keeps L's interior
+and a backward sweep with u_G given (app/solvers/condensed/).  ``GLastSolve`` keeps L's interior
 columns in node blocks for the C sweeps; ``split_solve_numpy`` is the same solve with dense
 triangular solves, the reference of the tests.
 """
@@ -56,7 +56,8 @@ def split_solve_numpy(L: np.ndarray, D: np.ndarray, perm: np.ndarray, m: int, b:
 
 class GLastSolve:
     """u = K^-1 (b + E_G lambda) in one forward and one backward sweep, with the Gamma3 values
-    y = u_G found in between (app/solvers/fast.py): with K = L D L^T ordered interior first, G last,
+    y = u_G found in between (app/solvers/condensed/): with K = L D L^T ordered interior
+    first, G last,
         forward:  z_I = L_II^-1 b_I,  r = b_G - L_GI z_I,
         Gamma3:   S u_G = r + lambda (S = L_GG D_G L_GG^T), i.e. y0 = S^-1 r without contact,
         backward: u_I = L_II^-T (D_I^-1 z_I - L_GI^T y).

@@ -1,4 +1,5 @@
-"""The projected Newton direction of the fast solver's Gamma3 problem (app/solvers/fast.py).
+"""The projected Newton direction of the condensed solver's Gamma3 problem
+(app/solvers/condensed/problem.py).
 
 Each Newton iteration of the step problem on Gamma3 solves
     (S + W)_ff p_f = -g_f,   p = 0 on the binding dofs,

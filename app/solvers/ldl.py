@@ -1,6 +1,6 @@
 """K = L D L^T by CHOLMOD (SuiteSparse, Debian's libsuitesparse-dev) in a given order.
 
-The fast solver factorises the symmetric positive definite elasticity matrix once per run
+The condensed solver factorises the symmetric positive definite elasticity matrix once per run
 with the Gamma3 dofs ordered last (schur.py).  SuperLU (scipy) computes L and U, twice the
 work of a Cholesky factorisation; CHOLMOD's supernodal Cholesky L L^T gives the same L D L^T
 (L_ldl = L D^-1/2, D = diag(L)^2) in a fraction of the time (at h = 1/128, 33,282 dofs: see

@@ -1,4 +1,4 @@
-"""The fast solver under mpirun: one distributed MUMPS factorisation of K with the Gamma3
+"""The condensed solver under mpirun: one distributed MUMPS factorisation of K with the Gamma3
 dofs G as Schur variables (kernels/mumps_schur.c, MUMPS's C interface through cffi).
 
 K = L D L^T is factorised once, distributed over the ranks (lower triangle without stored
@@ -10,7 +10,7 @@ A step is a condensation (the forward sweep: r = F_G - K_GI K_II^-1 F_I on rank 
 distributed right-hand side), the Gamma3 problem on rank 0, and an expansion (the backward
 sweep with u_G = y: the distributed solution), so only r and y (m values) go through rank 0.
 Where the wrapper cannot be built (no MUMPS headers, no compiler) ``load`` returns None and the
-fast solver factorises twice (PETSc's MUMPS and a G-last factorisation on rank 0).
+condensed solver factorises twice (PETSc's MUMPS and a G-last factorisation on rank 0).
 """
 from __future__ import annotations
 

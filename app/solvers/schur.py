@@ -1,4 +1,4 @@
-"""The Gamma3 Schur complement S of the fast solver and its Cholesky factor, from one sparse
+"""The Gamma3 Schur complement S of the condensed solver and its Cholesky factor, from one sparse
 factorisation with the Gamma3 dofs ordered last.
 
 If the rows and columns of K are ordered so that the Gamma3 dofs G come last and K = L U
@@ -10,7 +10,7 @@ PETSc's LU and 44 s with MUMPS column by column under mpirun -n 2; measured).  T
 is ordered by CHOLMOD's fill-reducing order (AMD or METIS; PETSc's nested dissection where
 CHOLMOD is missing) of the node graph, so a node's dofs stay together,
 the factorisation is CHOLMOD's L D L^T (app/solvers/ldl.py) or, without it, SuperLU's L U (scipy),
-on rank 0 with the matrix gathered there (the fast path is for problems whose Gamma3 is
+on rank 0 with the matrix gathered there (the condensed solver is for problems whose Gamma3 is
 small; the matrix itself is a few MB at the sizes it is chosen for).  The CHOLMOD path needs
 numpy and PETSc only: importing scipy.sparse pulls in scipy.linalg and scipy.sparse.csgraph
 (0.1 s of start-up, measured), so scipy is imported for the SuperLU fallback alone.

@@ -5,7 +5,7 @@ threads).  A serial run of a large 3D scene has cores idle during its BLAS-bound
 G-last CHOLMOD factorisation and the dense work of the Gamma3 problem: ``blas_threads`` lets
 exactly those use the cores this process may run on.
 
-Under mpirun the fast solver's Gamma3 problem is solved on one rank (GAMMA3_ROOT), while the
+Under mpirun the condensed solver's Gamma3 problem is solved on one rank (GAMMA3_ROOT), while the
 others wait asleep in ``idle_bcast`` (spinning in MPI would keep their cores busy).  That
 rank's large operations use the cores of every rank on its node: mpirun binds each rank to
 one core, so ``blas_threads`` widens the root's affinity to theirs for the operation and

@@ -1,4 +1,4 @@
-"""The fast step solver solves the same discrete problem as SNES VI."""
+"""The condensed step solver solves the same discrete problem as SNES VI."""
 import csv
 import json
 
@@ -13,9 +13,9 @@ from vpcontact.io.errors import CaseError
 def _pair(raw):
     raw.setdefault("solver", {})["method"] = "snes_vi"
     a = run_case(validate_raw(raw))
-    raw["solver"]["method"] = "fast"
+    raw["solver"]["method"] = "condensed"
     b = run_case(validate_raw(raw))
-    assert b.summary["solver"]["used"] == "fast" and a.summary["solver"]["used"] == "snes_vi"
+    assert b.summary["solver"]["used"] == "condensed" and a.summary["solver"]["used"] == "snes_vi"
     return a, b
 
 
@@ -27,7 +27,7 @@ def _diff(a, b):
     return du, dn
 
 
-def test_fast_equals_snes_vi_on_the_paper_case():
+def test_condensed_equals_snes_vi_on_the_paper_case():
     """Both solve the same regularised discrete problem (delta = 1e-7): they agree to the
     solver tolerances (measured 1.6e-13), far inside the regularisation's consistency error
     (3e-11, tests/system/test_regularisation.py)."""
@@ -39,7 +39,7 @@ def test_fast_equals_snes_vi_on_the_paper_case():
     assert b.summary["solver"]["factorisations"] == 1
 
 
-def test_fast_equals_snes_vi_with_memory_and_slip():
+def test_condensed_equals_snes_vi_with_memory_and_slip():
     from vpcontact.io.case import load_raw
     raw = load_raw(ROOT / "cases" / "memory.yaml")
     raw["contact"]["friction"]["slip"] = {"theta_inf": 0.3, "s0": 0.002}
@@ -49,7 +49,7 @@ def test_fast_equals_snes_vi_with_memory_and_slip():
     assert du < 1e-9 and dn < 1e-10
 
 
-def test_fast_equals_snes_vi_in_3d():
+def test_condensed_equals_snes_vi_in_3d():
     from vpcontact.io.case import load_raw
     raw = load_raw(ROOT / "cases" / "box3d.yaml")
     raw["mesh"]["n"] = 4
@@ -95,7 +95,9 @@ def test_fast_refuses_the_implicit_scheme():
 
 
 @pytest.mark.mpi
-def test_fast_serial_equals_two_ranks(tmp_path):
+def test_condensed_serial_equals_two_ranks(tmp_path):
+    """Under mpirun (MUMPS with Schur variables) as serially; ``fast``, the former name, is
+    still accepted in a case."""
     out = {}
     for n in (1, 2):
         d = tmp_path / f"np{n}"
@@ -105,7 +107,7 @@ def test_fast_serial_equals_two_ranks(tmp_path):
         out[n] = (json.loads((d / "summary.json").read_text()),
                   list(csv.DictReader(open(d / "contact.csv"))))
     (s1, c1), (s2, c2) = out[1], out[2]
-    assert s1["solver"]["used"] == s2["solver"]["used"] == "fast"
+    assert s1["solver"]["used"] == s2["solver"]["used"] == "condensed"
     for a, b in zip(s1["steps"], s2["steps"], strict=True):
         for key in ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa"):
             assert b[key] == pytest.approx(a[key], rel=1e-10), key
@@ -116,11 +118,12 @@ def test_fast_serial_equals_two_ranks(tmp_path):
 
 
 def test_compiled_split_equals_petsc_path():
-    """Serial fast solver: the compiled one-solve path (one SuperLU factorisation) and the
-    general path (PETSc LU + Z_GG from SuperLU: two factorisations, chosen when PETSc options
-    for the fast solver are given) give the same solution."""
+    """Serial condensed solver: the compiled one-solve path (CholmodCondensation: one
+    factorisation) and the general path (PetscCondensation: PETSc LU + S from a G-last
+    factorisation, two factorisations, chosen when PETSc options fast_* are given) give the
+    same solution."""
     raw = paper_raw()
-    raw.setdefault("solver", {})["method"] = "fast"
+    raw.setdefault("solver", {})["method"] = "condensed"
     a = run_case(validate_raw(raw))
     raw["petsc"] = {"fast_pc_factor_mat_solver_type": "petsc"}
     b = run_case(validate_raw(raw))

@@ -50,27 +50,23 @@ def test_indefinite_matrix_gives_none():
 
 
 def test_start_extrapolates_the_last_two_steps():
-    """FastStepSolver._start: y0 at the first step, the last solution after one step or a
+    """Gamma3Problem._start: y0 at the first step, the last solution after one step or a
     restart (no time), the linear extrapolation in time after two steps (any step sizes)."""
     from types import SimpleNamespace
 
-    from vpcontact.solvers.fast import FastStepSolver
+    from vpcontact.solvers.condensed.problem import Gamma3Problem
 
-    clock = SimpleNamespace(value=0.1)
-    solver = SimpleNamespace(_y_prev=[], problem=SimpleNamespace(
-        time_data=SimpleNamespace(t=clock)))
+    problem = SimpleNamespace(_y_prev=[])
     y0 = np.array([5.0, 6.0])
-    assert np.array_equal(FastStepSolver._start(solver, y0), y0)
-    FastStepSolver._remember(solver, np.array([1.0, 2.0]))          # step at t = 0.1
-    clock.value = 0.3
-    assert np.array_equal(FastStepSolver._start(solver, y0), [1.0, 2.0])
-    FastStepSolver._remember(solver, np.array([2.0, 2.0]))          # step at t = 0.3
-    clock.value = 0.4                                                # k = 0.1 after k = 0.2
-    assert np.allclose(FastStepSolver._start(solver, y0), [2.5, 2.0], rtol=1e-15)
-    solver._y_prev = [(None, np.array([3.0, 1.0]))]                 # warm_start (restart)
-    FastStepSolver._remember(solver, np.array([4.0, 1.0]))
-    clock.value = 0.5
-    assert np.array_equal(FastStepSolver._start(solver, y0), [4.0, 1.0])
+    assert np.array_equal(Gamma3Problem._start(problem, y0, 0.1), y0)
+    Gamma3Problem._remember(problem, np.array([1.0, 2.0]), 0.1)      # step at t = 0.1
+    assert np.array_equal(Gamma3Problem._start(problem, y0, 0.3), [1.0, 2.0])
+    Gamma3Problem._remember(problem, np.array([2.0, 2.0]), 0.3)      # step at t = 0.3
+    # k = 0.1 after k = 0.2
+    assert np.allclose(Gamma3Problem._start(problem, y0, 0.4), [2.5, 2.0], rtol=1e-15)
+    problem._y_prev = [(None, np.array([3.0, 1.0]))]                # warm_start (restart)
+    Gamma3Problem._remember(problem, np.array([4.0, 1.0]), 0.4)
+    assert np.array_equal(Gamma3Problem._start(problem, y0, 0.5), [4.0, 1.0])
 
 
 def _system(rng, m, d):

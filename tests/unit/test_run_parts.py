@@ -7,7 +7,8 @@ from vpcontact.model.stepping import AdaptiveSteps, FixedSteps
 from vpcontact.solvers import AUTO_FAST_MAX_GAMMA3_DOFS, choose_method
 
 
-@pytest.mark.parametrize("dofs, expected", [(0, "fast"), (AUTO_FAST_MAX_GAMMA3_DOFS, "fast"),
+@pytest.mark.parametrize("dofs, expected", [(0, "condensed"),
+                                            (AUTO_FAST_MAX_GAMMA3_DOFS, "condensed"),
                                             (AUTO_FAST_MAX_GAMMA3_DOFS + 1, "snes_vi")])
 def test_auto_picks_fast_up_to_the_dense_limit(dofs, expected):
     case = make_case(solver={"method": "auto"})
@@ -20,10 +21,10 @@ def test_auto_picks_snes_vi_where_fast_does_not_apply():
     assert choose_method(case, 2) == "snes_vi"
 
 
-@pytest.mark.parametrize("method", ["fast", "snes_vi"])
-def test_an_explicit_method_is_kept(method):
+@pytest.mark.parametrize("method, chosen", [("fast", "condensed"), ("snes_vi", "snes_vi")])
+def test_an_explicit_method_is_kept(method, chosen):
     case = make_case(solver={"method": method})
-    assert choose_method(case, 10 * AUTO_FAST_MAX_GAMMA3_DOFS) == method
+    assert choose_method(case, 10 * AUTO_FAST_MAX_GAMMA3_DOFS) == chosen
 
 
 def test_fixed_steps_state_round_trip():

@@ -1,4 +1,4 @@
-"""The (2.6) diagnostic's upper bound from the fast solver's Schur complement
+"""The (2.6) diagnostic's upper bound from the condensed solver's Schur complement
 (diagnostics.trace_constant_bound): lam_max(A x = lam S x) as lam_max(C^-1 A C^-T) with
 S = C C^T against the dense generalised eigenproblem, by both of its paths, and the bound
 against the trace constant itself on the paper case."""
@@ -38,10 +38,10 @@ def test_bound_brackets_the_trace_constant_on_the_paper_case():
     ||gamma||^2 / c_max and ||gamma||^2 / c_min."""
     from vpcontact.model.problem import ContactProblem
     from vpcontact.simulation import build_mesh
-    from vpcontact.solvers.fast import FastStepSolver
+    from vpcontact.solvers.condensed import CondensedStepSolver
     case = validate_raw(paper_raw())
     problem = ContactProblem(case, build_mesh(case, MPI.COMM_WORLD))
-    solver = FastStepSolver(problem)
+    solver = CondensedStepSolver(problem)
     bound = diagnostics.trace_constant_bound(problem, solver)
     value, _ = diagnostics.trace_constant(problem, rtol=1e-12, max_iter=5000)
     c = np.linalg.eigvalsh(problem.elasticity.Cmat)

@@ -1,0 +1,59 @@
+"""The right-hand side of the condensed solver's linear step: F_n = f_n - B^T H_n.
+
+K u = F_n is the bulk part of the step problem (3.4) with the history term H_n of (3.2) at
+u = 0: the loads f_n by assembly, the pre-stress by B^T, the transposed cell-strain operator,
+and prescribed displacements u_D by lifting (b -= K_{:,D} u_D, b_D = u_D).
+"""
+from __future__ import annotations
+
+from dolfinx import fem
+from petsc4py import PETSc
+
+
+class StepRightHandSide:
+    """Assembles F_n for the current time data and history (collective).
+
+    Args:
+        problem: the ContactProblem (forms.loads, H, strain_operator, Dirichlet data).
+        a: the compiled bilinear form of K (for the lifting).
+    """
+
+    def __init__(self, problem, a):
+        self.problem, self.a = problem, a
+        self.loads_form = fem.form(problem.forms.loads) if problem.forms.loads is not None \
+            else None
+        self._loads = fem.petsc.create_vector(self.loads_form) if self.loads_form else None
+        self._lift = None if problem.dirichlet.homogeneous else problem.u.vector.duplicate()
+
+    def assemble(self, b: PETSc.Vec) -> None:
+        """b = F_n = f_n - B^T H_n (zero at the clamped dofs, u_D at the prescribed ones).
+
+        Args:
+            b: a vector of K's row layout, overwritten.
+        """
+        p = self.problem
+        b.set(0.0)
+        if self._loads is not None:
+            with self._loads.localForm() as bl:   # ghosted: dolfinx assembles the local form
+                bl.set(0.0)
+            fem.petsc.assemble_vector(self._loads, self.loads_form)
+            self._loads.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            b.array[:] = self._loads.array_r
+        if p.H is not None:
+            p.strain_operator.pre_stress_load(p.H, b)        # b -= B^T H_n
+        if p.dirichlet.homogeneous:
+            fem.petsc.set_bc(b, p.bcs, scale=0.0)
+            return
+        lift = self._lift
+        with lift.localForm() as loc:
+            loc.set(0.0)
+        fem.petsc.apply_lifting(lift, [self.a], [p.bcs])
+        lift.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        b.array[:] += lift.array_r
+        fem.petsc.set_bc(b, p.bcs)
+
+    def destroy(self) -> None:
+        """Free the PETSc vectors."""
+        for obj in (self._loads, self._lift):
+            if obj is not None:
+                obj.destroy()

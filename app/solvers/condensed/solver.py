@@ -1,0 +1,192 @@
+"""The condensed step solver: one factorisation of the elasticity matrix per run, and per
+step a condensation onto the Gamma3 dofs, the small Gamma3 problem and an expansion.
+
+The step problem (3.4) with the nodal (vertex) Gamma3 rule reads: find u minimising
+1/2 u^T K u - F_n^T u + sum_i w_i phi_i(u_i) with u_nu,i <= g, where K is the (constant)
+elasticity matrix and F_n = f_n - B^T H_n (rhs.py).  ``CondensedStepSolver`` composes
+    a Condensation of K (condensation.py: CHOLMOD, MUMPS Schur or PETSc back end),
+    the Gamma3Problem on the condensed dofs (problem.py, in the WorkFrames of frames.py),
+and solves a step as y0 = condense(F_n); y = the Gamma3 problem from y0; u = expand(y).
+It solves the same discrete problem as SNESVISolver, which takes over a step whose Gamma3
+problem fails.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+
+from vpcontact.forms.elasticity import elasticity_operator, eps
+from vpcontact.solvers.condensed.condensation import factorise
+from vpcontact.solvers.condensed.frames import work_frames
+from vpcontact.solvers.condensed.layout import Gamma3Layout
+from vpcontact.solvers.condensed.problem import Gamma3Problem
+from vpcontact.solvers.condensed.rhs import StepRightHandSide
+from vpcontact.solvers.snesvi import StepSolveError
+
+log = logging.getLogger("vpcontact")
+
+
+class CondensedStepSolver:
+    """Solves one step of (3.4) by condensation onto the Gamma3 dofs, for eligible cases
+    (explicit history scheme, nodal Gamma3 rule: solvers/choice.py).  A StepSolver
+    (app/solvers/__init__.py).
+
+    Attributes:
+        gamma3: whether there is a Gamma3 problem (Gamma3 dofs not all prescribed).
+        m: the number of Gamma3 dofs.
+        layout: the Gamma3Layout (None without Gamma3).
+        condensation: the Condensation of K (its S and C on GAMMA3_ROOT).
+
+    Args:
+        problem: the ContactProblem.
+        options: PETSc options; options named fast_* configure the direct solver of K
+            (and select the PETSc back end); all are passed to the SNES VI fallback.
+        rtol: relative tolerance of the projected gradient of the Gamma3 problem.
+        roundoff_floor: for the SNES VI fallback (SNESVISolver's argument).
+    """
+
+    name = "condensed"
+
+    def __init__(self, problem, options: dict | None = None, rtol: float = 1e-13,
+                 roundoff_floor: bool = True):
+        self.problem, self.u, self.comm = problem, problem.u, problem.comm
+        self.continuation_stages, self.fallback, self.sticky_robust = 0, None, False
+        self.roundoff_floor = roundoff_floor
+        self.options = options or {}
+        self._snes = None
+        V, d = problem.V, problem.dim
+        C = elasticity_operator(problem.constants["E"], problem.constants["nu"], d)
+        du, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+        a = fem.form(ufl.inner(C(eps(du)), eps(v)) * ufl.dx)
+        # serial: d x d blocks (BAIJ), the fastest PETSc back-substitution
+        K = fem.petsc.create_matrix(a, "baij" if self.comm.size == 1 else None)
+        fem.petsc.assemble_matrix(K, a, bcs=problem.bcs)
+        K.assemble()
+        self.K = K
+        self.rhs = StepRightHandSide(problem, a)
+        self.b, self.x = K.createVecRight(), K.createVecRight()
+        self.layout = self._layout()
+        self.gamma3 = self.layout is not None
+        self.m = self.layout.m if self.gamma3 else 0
+        G_rows = self.layout.global_rows() if self.gamma3 else np.zeros(0, dtype=np.int32)
+        self.condensation = factorise(K, G_rows, d, self.layout, self.options, self.comm)
+        self.factorisations = self.condensation.factorisations
+        self.gamma3_problem = None
+        if self.gamma3:
+            self.gamma3_problem = Gamma3Problem(self.comm, self.condensation.S,
+                                                work_frames(problem, self.layout),
+                                                self.layout.w, problem.case, rtol)
+
+    def _layout(self) -> Gamma3Layout | None:
+        """The Gamma3 dofs, or None where there are none to condense (collective)."""
+        if self.problem.gamma3 is None:
+            return None
+        layout = Gamma3Layout(self.problem, self.K.getOwnershipRange()[0])
+        if layout.m == 0:
+            # every Gamma3 node is fully prescribed (problem._gamma3_nodes drops those): a
+            # Gamma3 problem of size 0, nothing to condense -- u = K^-1 F_n, as SNES VI
+            # solves it with no bound left (the same on every rank: g_nodes is gathered)
+            log.info("  condensed solver: every Gamma3 node is prescribed, no Gamma3 problem")
+            return None
+        return layout
+
+    @property
+    def S(self) -> np.ndarray | None:
+        """The Schur complement on GAMMA3_ROOT (None elsewhere, or without Gamma3)."""
+        return self.condensation.S
+
+    @property
+    def C(self) -> np.ndarray | None:
+        """S's lower Cholesky factor where S is."""
+        return self.condensation.C
+
+    def describe(self) -> str:
+        """The solver as the run's log line names it.
+
+        Returns:
+            'condensed (one factorisation, <m> Gamma3 dofs)', or without the count if there
+            is no Gamma3 problem.
+        """
+        return (f"condensed (one factorisation, {self.m} Gamma3 dofs)" if self.gamma3
+                else "condensed (one factorisation)")
+
+    def gamma3_stats(self) -> dict | None:
+        """The Gamma3 problem's linear algebra so far (summary.json: solver.gamma3), the
+        same on every rank.
+
+        Returns:
+            {"dofs": m, "factorisations": dense Cholesky factorisations of the Newton
+            matrix, "cg_iterations": CG iterations with a kept factor, "threads": BLAS
+            threads of its large operations}, or None without Gamma3.
+        """
+        if not self.gamma3:
+            return None
+        return {"dofs": self.m, **self.gamma3_problem.stats()}
+
+    def warm_start(self) -> None:
+        """Start the next Gamma3 problem from the current u (after a restart)."""
+        if self.gamma3:
+            self.gamma3_problem.warm_start(self.layout.gather_vector(self.u.vector))
+
+    def solve(self) -> int:
+        """Solve step (3.4) from u_{n-1}; on success u holds u_n.  If the Gamma3 problem
+        fails (the projected Newton iteration can zig-zag when nodes sit at nearly nonsmooth
+        points), this step is solved by SNES VI instead (the same discrete problem;
+        ``self.fallback`` = "snes_vi").
+
+        Returns:
+            The iterations of the Gamma3 problem (or SNES's Newton iterations).
+
+        Raises:
+            StepSolveError: the SNES VI fallback failed too.
+        """
+        self.fallback = None
+        try:
+            return self._solve_condensed()
+        except StepSolveError as exc:
+            if self._snes is None:
+                from vpcontact.solvers.snesvi import SNESVISolver
+                self._snes = SNESVISolver(self.problem, self.options,
+                                          roundoff_floor=self.roundoff_floor)
+            log.warning("  condensed solver: %s; solving this step with SNES VI", exc)
+            its = self._snes.solve()
+            self.fallback = "snes_vi"
+            return its
+
+    def _solve_condensed(self) -> int:
+        """y0 = condense(F_n), the Gamma3 problem, u = expand(y)."""
+        self.rhs.assemble(self.b)
+        y0 = self.condensation.condense(self.b)
+        its, y = 0, np.zeros(0)
+        if self.gamma3:
+            self._gamma3_inputs()
+            t = float(self.problem.time_data.t.value)
+            y, its = self.gamma3_problem.solve_on_root(y0, t)
+        self.condensation.expand(y, self.x)
+        self._set_u()
+        return its
+
+    def _gamma3_inputs(self) -> None:
+        """The step's memory term xi_n and slip factor theta(s_n) at the Gamma3 nodes."""
+        p, layout = self.problem, self.layout
+        self.gamma3_problem.set_data(
+            None if p.xi is None else layout.gather_nodal(p, p.xi),
+            None if p.theta is None else layout.gather_nodal(p, p.theta))
+
+    def _set_u(self) -> None:
+        """u = x, unless x is not finite anywhere (then StepSolveError on every rank)."""
+        if self.comm.allreduce(not np.all(np.isfinite(self.x.array_r)), op=MPI.LOR):
+            raise StepSolveError("condensed solver: non-finite solution")
+        self.u.vector.array[:self.x.getLocalSize()] = self.x.array_r
+        self.u.x.scatter_forward()
+
+    def destroy(self) -> None:
+        """Free the PETSc objects (and those of the SNES VI fallback, if it was created)."""
+        for obj in (self.K, self.b, self.x, self.rhs, self.condensation):
+            obj.destroy()
+        if self._snes is not None:
+            self._snes.destroy()
