@@ -133,18 +133,8 @@ def cells_and_steps(text: str) -> tuple[int, int]:
             from None
 
 
-def path_arg(text: str) -> str:
-    """argparse type of a file or directory argument: not empty.
-
-    Args:
-        text: the argument.
-
-    Returns:
-        ``text`` unchanged.
-
-    Raises:
-        argparse.ArgumentTypeError: if it is empty or blank.
-    """
+def _path_arg(text: str) -> str:
+    """argparse type of a file or directory argument: refused if empty or blank."""
     if not text.strip():
         raise argparse.ArgumentTypeError("an empty path (allowed: a file or directory name)")
     return text
@@ -161,7 +151,7 @@ class _Parser(argparse.ArgumentParser):
 
 def _case_options(parser, what: str, default_out: str) -> None:
     """Options shared by the commands that read a case and write an output directory."""
-    parser.add_argument("--out", metavar="DIR", type=path_arg,
+    parser.add_argument("--out", metavar="DIR", type=_path_arg,
                         help=f"output directory (default: {default_out})")
     parser.add_argument("--set", dest="overrides", action="append", default=[],
                         metavar="KEY=VALUE",
@@ -182,7 +172,7 @@ def _add_run(sub) -> None:
                                      "solution.xdmf, summary.json and contact.csv.")
     run.add_argument("case", help="YAML case file (see cases/)")
     _case_options(run, "run", "results/<case name>")
-    run.add_argument("--restart", metavar="DIR", type=path_arg,
+    run.add_argument("--restart", metavar="DIR", type=_path_arg,
                      help="continue from the newest DIR/checkpoint_*.npz (or a given "
                           "checkpoint file), written with output.checkpoint_every or when a "
                           "run is interrupted; the case must be the same (solver and output "
@@ -251,7 +241,7 @@ def _add_convergence(sub) -> None:
                       help="friction regularisation widths to study (default: the case's); "
                            "the reference uses the smallest of these and the case's")
     _case_options(conv, "study", "results/<case name>/convergence")
-    conv.add_argument("--cache-dir", metavar="DIR", type=path_arg,
+    conv.add_argument("--cache-dir", metavar="DIR", type=_path_arg,
                       help=f"run cache (default: {CACHE_SEARCH})")
     conv.add_argument("--no-cache", action="store_true", help="recompute every run")
 
@@ -304,7 +294,7 @@ def _add_bench(sub) -> None:
     b.add_argument("--repeat", type=int_range(1, MAX_REPEAT), default=3, metavar="R",
                    help="measured runs per configuration, every solver alike; the fastest "
                         "is reported, all are kept (default 3; the --extra levels run once)")
-    b.add_argument("--out", default="results/bench", type=path_arg, help="output directory")
+    b.add_argument("--out", default="results/bench", type=_path_arg, help="output directory")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -143,15 +143,8 @@ def ffcx_dir(env) -> Path:
     return Path(base) / "fenics"
 
 
-def config_dir(env) -> Path:
-    """The user configuration directory, read the way FFCx and dolfinx read it.
-
-    Args:
-        env: the environment (a mapping).
-
-    Returns:
-        $XDG_CONFIG_HOME, else ~/.config.
-    """
+def _config_dir(env) -> Path:
+    """$XDG_CONFIG_HOME, else ~/.config: read the way FFCx and dolfinx read it."""
     return Path(env["XDG_CONFIG_HOME"] if "XDG_CONFIG_HOME" in env else _home(env) / ".config")
 
 
@@ -226,7 +219,7 @@ def prepare(env=None) -> Caches:
     # so that dolfinx, FFCx and matplotlib, which read them too, use the home directory's
     ignored = [(var, env.pop(var)) for var in XDG_VARS
                if var in env and not os.path.isabs(env[var])]
-    cfg = config_dir(env)
+    cfg = _config_dir(env)
     why = _config_unreadable(cfg)
     if why:
         _replace(env, replaced, "settings", cfg, why, "XDG_CONFIG_HOME", "config")
@@ -239,7 +232,7 @@ def prepare(env=None) -> Caches:
     if why:
         ffcx = _replace(env, replaced, "FFCx cache", ffcx, why, "XDG_CACHE_HOME", "fenics")
     mpl = Path(env["MPLCONFIGDIR"]) if env.get("MPLCONFIGDIR") else \
-        config_dir(env) / "matplotlib"
+        _config_dir(env) / "matplotlib"
     why = unusable(mpl)
     if why:
         _replace(env, replaced, "matplotlib", mpl, why, "MPLCONFIGDIR", "matplotlib")
@@ -368,8 +361,7 @@ def elf_damage(path: Path) -> str | None:
 
 
 def _jit_entry(cache_dir: Path, module_name: str) -> list[Path]:
-    """The files of one FFCx cache entry that exist (the libraries in any suffix Python
-    loads extensions with)."""
+    """The existing files of one FFCx cache entry (libraries: any extension suffix Python loads)."""
     names = [module_name + s for s in JIT_ENTRY_SUFFIXES]
     names += [module_name + s for s in importlib.machinery.EXTENSION_SUFFIXES]
     return [cache_dir / n for n in names if os.path.lexists(cache_dir / n)]
@@ -437,8 +429,7 @@ def discard_jit_entry(cache_dir: Path, module_name: str) -> None:
 
 
 def _damaged(message: str) -> JitCacheError:
-    """The error, remembered for the other ranks (``one_line_jit_errors``): under mpirun
-    dolfinx keeps only its text on rank 0."""
+    """The error, kept for the other ranks (under mpirun dolfinx keeps its text on rank 0 only)."""
     global _JIT_DAMAGED
     _JIT_DAMAGED = JitCacheError(message)
     return _JIT_DAMAGED

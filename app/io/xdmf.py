@@ -167,9 +167,7 @@ def _restore_tail(fd: int, offset: int) -> None:
 
 
 def _publish(path: Path, data: bytes) -> None:
-    """Replace the file by a temporary file and a rename (not synced: a killed process
-    leaves the page cache intact, and the HDF5 data the XML points at is not synced
-    either)."""
+    """Replace the file by a rename, unsynced (the HDF5 data it points at is not synced either)."""
     atomic_write(path, data, sync=False)
 
 

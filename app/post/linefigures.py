@@ -186,30 +186,13 @@ def fig4_tangential(res: Results, path: Path) -> None:
           f"Tangential displacement and friction stress along Gamma3 at t = {res.t:g}")
 
 
-def normal_law(c_nu, g, r):
-    """-sigma_nu of (4.1) for the figure (Fig. 2a).
-
-    Args:
-        c_nu: the compliance coefficient, or None (no normal compliance: 0).
-        g: the bound of u_nu (at u_nu = g any value from c_nu g up is admissible).
-        r: normal displacements u_nu <= g.
-
-    Returns:
-        p(u_nu) = c_nu u_nu^+ (app/model/contact_laws.py).
-    """
+def _normal_law(c_nu, g, r):
+    """-sigma_nu = p(u_nu) = c_nu u_nu^+ of (4.1) at u_nu = r <= g (c_nu None: 0) (Fig. 2a)."""
     return contact_laws.normal_compliance(r, c_nu or 0.0)
 
 
-def tangential_law(fr, rho):
-    """|sigma_tau| = psi'(|u_tau|) of law (4.2) for |u_tau| > 0 (Fig. 2b).
-
-    Args:
-        fr: the case's friction parameters (b, c1, c2, u1).
-        rho: slips |u_tau| > 0.
-
-    Returns:
-        psi'(rho) (app/model/contact_laws.py).
-    """
+def _tangential_law(fr, rho):
+    """|sigma_tau| = psi'(rho) of (4.2) at slips rho = |u_tau| > 0; fr: b, c1, c2, u1 (Fig. 2b)."""
     return contact_laws.dpsi(rho, fr["b"], fr["c1"], fr["c2"], fr["u1"])
 
 
@@ -232,9 +215,9 @@ def fig2_laws(res: Results, path: Path) -> None:
     if g is not None or c_nu is not None:
         top = g if g else 0.02
         r = np.linspace(-0.5 * top, top, 200)
-        ax.plot(r, normal_law(c_nu, g, r), color="tab:blue", label="p(u_nu) = c_nu u_nu^+")
+        ax.plot(r, _normal_law(c_nu, g, r), color="tab:blue", label="p(u_nu) = c_nu u_nu^+")
         if g is not None:
-            pg = normal_law(c_nu, g, np.array([g]))[0]
+            pg = _normal_law(c_nu, g, np.array([g]))[0]
             ax.vlines(g, pg, pg + max(pg, 1.0), color="tab:red",
                       label="u_nu = g: -sigma_nu >= c_nu g (unilateral)")
             ax.axvline(g, color="tab:red", ls=":", lw=0.8)
@@ -248,7 +231,7 @@ def fig2_laws(res: Results, path: Path) -> None:
     ax = axes[1]
     if fr:
         rho = np.linspace(0, 3 * fr["u1"], 300)[1:]
-        ax.plot(rho, tangential_law(fr, rho), color="tab:blue", label="psi'(|u_tau|)")
+        ax.plot(rho, _tangential_law(fr, rho), color="tab:blue", label="psi'(|u_tau|)")
         ax.vlines(0, 0, fr["b"], color="tab:blue", lw=3, label="|u_tau| = 0: [0, b] (stick)")
         ax.axvline(fr["u1"], color="tab:red", ls="--", lw=1)
         ax.text(fr["u1"], 0, " u1", color="tab:red", va="bottom")

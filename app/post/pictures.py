@@ -72,31 +72,15 @@ class Dataset:
         return self.reader.read()
 
 
-def moved_points(grid, factor: float) -> np.ndarray:
-    """The points of a grid moved by factor * u (NaN displacements count as 0).
-
-    Args:
-        grid: a pyvista grid with point data u.
-        factor: the magnification.
-
-    Returns:
-        Shape (points, 3).
-    """
+def _moved_points(grid, factor: float) -> np.ndarray:
+    """The grid's points (points, 3) moved by factor * u (NaN displacements count as 0)."""
     return np.asarray(grid.points) + factor * np.nan_to_num(np.asarray(grid.point_data["u"]))
 
 
-def deformed(grid, factor: float):
-    """The grid moved by factor * u (a copy; ``grid`` must carry the point array u).
-
-    Args:
-        grid: a pyvista grid with point data u.
-        factor: the magnification.
-
-    Returns:
-        The warped grid.
-    """
+def _deformed(grid, factor: float):
+    """A copy of the grid (with point data u) moved by factor * u."""
     out = grid.copy()
-    out.points = moved_points(grid, factor)
+    out.points = _moved_points(grid, factor)
     return out
 
 
@@ -179,7 +163,7 @@ def body_picture(outdir: Path, grid, t: float, factor: float, dim: int, path: Pa
         dim: the body's dimension.
         path: the PNG file.
     """
-    body = deformed(grid, factor)
+    body = _deformed(grid, factor)
     gamma3 = _contact_last(outdir, factor)
     title = f"t = {t:g}: von Mises stress, displacement x {factor:g}, Gamma3 in black"
     p = _body_plotter(body, gamma3, dim, color_range(body.cell_data["sigma_vm"]), title)
@@ -237,7 +221,7 @@ def fields_picture(grid, t: float, dim: int, path: Path) -> None:
 def _contact_last(outdir: Path, factor: float):
     """Gamma3 (contact.xdmf) at the last time, deformed; None without contact.xdmf."""
     path = outdir / "contact.xdmf"
-    return deformed(Dataset(path).at(), factor) if path.exists() else None
+    return _deformed(Dataset(path).at(), factor) if path.exists() else None
 
 
 def pressure_picture(outdir: Path, path: Path) -> None:
@@ -309,8 +293,8 @@ def animate(outdir: Path, factor: float, dim: int, path: Path, duration_ms: int 
     solution = Dataset(outdir / "solution.xdmf")
     contact = Dataset(outdir / "contact.xdmf") if (outdir / "contact.xdmf").exists() else None
     times = solution.times or [0.0]
-    body = deformed(solution.at(times[-1]), factor)
-    gamma3 = deformed(contact.at(times[-1]), factor) if contact is not None else None
+    body = _deformed(solution.at(times[-1]), factor)
+    gamma3 = _deformed(contact.at(times[-1]), factor) if contact is not None else None
     p = _body_plotter(body, gamma3, dim, animation_range(solution, times), "", FRAME)
     caption = p.add_text(" ", position=(10, 10), font_size=10, color="black")  # a vtkTextActor
     try:
@@ -318,10 +302,10 @@ def animate(outdir: Path, factor: float, dim: int, path: Path, duration_ms: int 
             gif = GifStream(fh, duration_ms)
             for t in times:
                 grid = solution.at(t)
-                body.points = moved_points(grid, factor)
+                body.points = _moved_points(grid, factor)
                 body.cell_data["sigma_vm"] = grid.cell_data["sigma_vm"]
                 if gamma3 is not None:
-                    gamma3.points = moved_points(contact.at(t), factor)
+                    gamma3.points = _moved_points(contact.at(t), factor)
                 caption.SetInput(f"t = {t:g}: von Mises stress, displacement x {factor:g}")
                 p.render()
                 image = Image.fromarray(p.screenshot(return_img=True))

@@ -222,15 +222,8 @@ def _check_deltas(deltas) -> None:
                         "numbers > 0)")
 
 
-def base_steps(case) -> int:
-    """The time steps of level 0 of a mesh.file study: the case's time.N.
-
-    Args:
-        case: the validated Case.
-
-    Returns:
-        The number of steps of the case's time grid.
-    """
+def _base_steps(case) -> int:
+    """The time steps of level 0 of a mesh.file study: the case's time.N."""
     return len(case.time.times) - 1
 
 
@@ -244,7 +237,7 @@ def _plan_refinements(levels, reference, vary, case, deltas) -> list[tuple[int, 
         raise CaseError(f"--levels {bad}: every level must be below the reference {reference} "
                         "(the reference is the mesh refined the most)")
     _check_deltas(deltas)
-    N0 = base_steps(case)
+    N0 = _base_steps(case)
     plan = [(r, N0 * 2 ** r) if vary == "both" else (r, N0 * 2 ** reference) if vary == "h"
             else (reference, N0 * 2 ** r) for r in levels]
     ds = list(deltas) if deltas else [case.numerics.delta]
@@ -485,16 +478,8 @@ def run_error(level: RunRecord, ref: RunRecord) -> dict:
     return best
 
 
-def observed_rates(x: list[float], err: list[float]) -> list[float | None]:
-    """The observed convergence rates between consecutive levels (Table 1's rates).
-
-    Args:
-        x: the mesh size (or step) of each level.
-        err: the Error of each level.
-
-    Returns:
-        rate_i = log(E_{i-1} / E_i) / log(x_{i-1} / x_i); None for the first level.
-    """
+def _observed_rates(x: list[float], err: list[float]) -> list[float | None]:
+    """Table 1's rates log(E_{i-1} / E_i) / log(x_{i-1} / x_i) (x: h or k); None at level 0."""
     return [None] + [math.log(err[i - 1] / err[i]) / math.log(x[i - 1] / x[i])
                      for i in range(1, len(err))]
 
@@ -564,7 +549,7 @@ def study(raw: dict, source: str, levels: list[int], reference: int, vary: str,
     deltas = list(deltas) if deltas else [base.numerics.delta]
     ref_delta = min([base.numerics.delta, *deltas])
     file = base.mesh.file is not None
-    ref_N = base_steps(base) * 2 ** reference if file else reference
+    ref_N = _base_steps(base) * 2 ** reference if file else reference
     t0 = time.perf_counter()
     progress = _Progress(f"the refinement of {base.mesh.file}" if file else "its set-up")
     try:
@@ -635,7 +620,7 @@ def _level_rows(levels, recs, ref, vary, T, delta, comm) -> list[dict]:
     errs = comm.bcast(errs, root=0)
     xs = [r.h if vary != "k" else T / r.N for r in recs]
     printed = [float(f"{e['error']:.10g}") for e in errs]
-    rates = observed_rates(xs, printed)
+    rates = _observed_rates(xs, printed)
     return [{"delta": delta, "level": L, "h": r.h, "k": T / r.N,
              "n": None if isinstance(r.grid, NestedLevel) else r.n, "N": r.N, "dofs": r.dofs,
              "steps": r.N, "error": p, "e_sigma": e["e_sigma"], "e_u": e["e_u"],

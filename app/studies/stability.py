@@ -229,8 +229,7 @@ def _gap_variants(g) -> list[Variant]:
 
 
 def _pulling(raw: dict) -> Variant:
-    """The loads pulling the body away from the foundation: the paper's top traction turned
-    upwards on a 2D built-in mesh, every load reversed otherwise."""
+    """Loads pulling the body off the foundation: 2D built-in, top traction up; else all x -1."""
     if "file" not in raw["mesh"] and raw["mesh"].get("dim", 2) == 2:
         return Variant("loads", "pulling away (top +8)", {"loads.traction.top": [0.0, 8.0]})
     return Variant("loads", "pulling away (loads x-1)", _loads_scaled(raw, -1.0))
@@ -350,9 +349,7 @@ def run_variant(raw: dict, variant: Variant, scheme: str, comm, petsc_cli: dict)
 
 
 def _reference_step(base: dict, steps: list[dict]) -> int:
-    """The step the growth is measured against: the first at or after the base's first
-    time point T/N (a variant with finer steps is not measured against a tiny first step of
-    a load ramp); the first step if the run stopped before."""
+    """The growth's first step: the first at t >= the base's T/N (not a ramp's tiny step), or 0."""
     t_ref = base["time"]["T"] / base["time"]["N"]
     reached = [i for i, st in enumerate(steps) if st["t"] >= t_ref * (1 - 1e-9)]
     return reached[0] if reached else 0
