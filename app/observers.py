@@ -32,6 +32,7 @@ from vpcontact.io.output import (
     write_contact_csv,
     write_json,
 )
+from vpcontact.post import quantities
 from vpcontact.records import HINT_OUTPUT, StepFailure
 
 log = logging.getLogger("vpcontact")
@@ -157,7 +158,7 @@ class ContactOutput(Observer):
 
     def _table(self, sim) -> dict | None:
         c = sim.case.contact
-        table = sim.problem.contact_table(sim.boundary_residual)   # None: assembled
+        table = quantities.contact_table(sim.problem, sim.boundary_residual)   # None: assembled
         return gather_contact_table(sim.comm, table, c.g,
                                     compliance=c.c_nu is not None)
 
@@ -292,7 +293,7 @@ class RunFiles(Observer):
         try:
             if sim.problem.gamma3 is not None and steps:
                 summary.contact_states = write_contact_csv(
-                    sim.comm, outdir / "contact.csv", sim.problem.contact_table(),
+                    sim.comm, outdir / "contact.csv", quantities.contact_table(sim.problem),
                     sim.case.contact.g, compliance=sim.case.contact.c_nu is not None)
         except OutputError as exc:
             summary.fail(StepFailure.output(summary.last_good_step, steps[-1]["t"], exc))

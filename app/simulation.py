@@ -37,6 +37,7 @@ from vpcontact.model.history import ViscoplasticHistory
 from vpcontact.model.problem import ContactProblem
 from vpcontact.model.stepping import StepTooSmall, make_stepper
 from vpcontact.observers import Observer, StopRun
+from vpcontact.post import quantities
 from vpcontact.post.diagnostics import diagnose
 from vpcontact.records import HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
 from vpcontact.solvers import select_solver, threads
@@ -427,21 +428,22 @@ class Simulation:
         stress update computed them already, else they are computed here (collective)."""
         p = self.problem
         kappa = p.state.kappa
-        norm_u, norm_sigma = norms or (p.norm("V"), p.norm("Q"))
+        norm_u, norm_sigma = norms or (quantities.norm(p, "V"), quantities.norm(p, "Q"))
         record = {
             "n": self.n, "t": self.t,
             "norm_u_V": norm_u,
             "norm_sigma_Q": norm_sigma,
-            "norm_kappa_Y": p.cell_norm(kappa) if kappa is not None else 0.0,
-            "max_vm": p.cell_max(p.sigma_vm),
-            "max_kappa": p.cell_max(kappa) if kappa is not None else 0.0,
+            "norm_kappa_Y": quantities.cell_norm(p, kappa) if kappa is not None else 0.0,
+            "max_vm": quantities.cell_max(p, p.sigma_vm),
+            "max_kappa": quantities.cell_max(p, kappa) if kappa is not None else 0.0,
             "newton_iterations": its,
             "linear_iterations": getattr(self.solver, "linear_iterations", None),
             "wall_s": wall,
             "k": k,
         }
-        self.boundary_residual = p.bulk_residual(layer=True)      # forces, contact table
-        forces = p.forces(self.boundary_residual)   # on the body: supports, foundation
+        # the nodal forces of the boundary layer: the forces and the contact table
+        self.boundary_residual = quantities.bulk_residual(p, layer=True)
+        forces = quantities.forces(p, self.boundary_residual)   # on the body: supports, ...
         record["reactions"] = forces["reactions"]
         if forces["contact_force"] is not None:
             record["contact_force"] = forces["contact_force"]

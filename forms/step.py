@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 
 import ufl
 
-from . import contact
 from .elasticity import elasticity_operator, eps
 
 
@@ -87,20 +86,18 @@ class ContactData:
         ds_c: the Gamma3 measure (forms.contact.gamma3_measure).
         normal: the unit normal nu of Gamma3: a UFL vector (constant where Gamma3 is flat or
             the approach direction is fixed) or the P1 Function of the nodal normals.
-        c_nu: normal compliance stiffness, or None.
-        friction: dict(b, c1, c2, u1) of law (4.2), or None.
+        law: the contact laws composed into the energy density phi(u_nu, u_tau; xi, theta)
+            (app/model/contact_laws.ContactLaw, its parameters the forms' Constants): its
+            ``energy_terms`` gives the integrands and their names.
         theta: P1 Function theta(s_n) of the slip-dependent friction, or None.
         xi: P1 Function xi_n of the memory term, or None.
-        delta: regularisation width of |u_tau| and u_nu^+.
     """
 
     ds_c: object
     normal: object
-    c_nu: object = None
-    friction: dict | None = None
+    law: object = None
     theta: object = None
     xi: object = None
-    delta: object = None
 
 
 def voigt(tau, dim: int):
@@ -152,28 +149,13 @@ def _loads(u, bulk: BulkData, dx):
 def _boundary_energy(u, gamma3: ContactData | None):
     """int_Gamma3 [P(u_nu) + xi_n u_nu^+ + theta(s_n) psi(|u_tau|)] (4.1)-(4.2), regularised
     with delta, or None; the term names."""
-    parts, terms = [], []
-    if gamma3 is None or (gamma3.c_nu is None and gamma3.friction is None
-                          and gamma3.xi is None):
-        return None, terms
-    ds_c, delta = gamma3.ds_c, gamma3.delta
+    if gamma3 is None or gamma3.law is None:
+        return None, []
     nu_vec = gamma3.normal if isinstance(gamma3.normal, ufl.core.expr.Expr) \
         else ufl.as_vector(gamma3.normal)
     u_nu = ufl.dot(u, nu_vec)
-    if gamma3.c_nu is not None:
-        parts.append(contact.normal_compliance_energy(u_nu, gamma3.c_nu) * ds_c)
-        terms.append("normal compliance")
-    if gamma3.xi is not None:
-        parts.append(gamma3.xi * contact.regularised_positive_part(u_nu, delta) * ds_c)
-        terms.append("memory term xi_n u_nu^+ (regularised)")
-    if gamma3.friction is not None:
-        u_tau = u - u_nu * nu_vec
-        j = contact.friction_energy(u_tau, delta, **gamma3.friction)
-        if gamma3.theta is not None:
-            j = gamma3.theta * j
-            terms.append("slip dependence theta(s_n)")
-        parts.append(j * ds_c)
-        terms.append("friction (regularised Clarke term)")
+    values, terms = gamma3.law.energy_terms(u_nu, u - u_nu * nu_vec, gamma3.xi, gamma3.theta)
+    parts = [e * gamma3.ds_c for e in values]
     return (sum(parts) if parts else None), terms
 
 

@@ -30,6 +30,7 @@ import math
 import numpy as np
 
 from vpcontact.observers import Observer, StopRun
+from vpcontact.post.quantities import cell_max
 from vpcontact.records import HINT_DIVERGED, StepFailure
 
 BLOWUP_FACTOR = 100.0
@@ -77,7 +78,7 @@ def stress_scale(case, problem) -> float:
     E_max = float(np.max(np.linalg.eigvals(problem.elasticity.Cmat).real))
     data = max(case.data_stress, contact_scale(case, E_max, problem.length_scale,
                                                problem.gap_scale))
-    return max(data if math.isfinite(data) else 0.0, problem.cell_max(problem.sigma_vm))
+    return max(data if math.isfinite(data) else 0.0, cell_max(problem, problem.sigma_vm))
 
 
 class BlowUpMonitor(Observer):
@@ -113,7 +114,7 @@ class BlowUpMonitor(Observer):
         """
         p = sim.problem
         kappa = p.state.kappa
-        self.set_bounds(sim.case, p, p.cell_max(kappa) if kappa is not None else 0.0)
+        self.set_bounds(sim.case, p, cell_max(p, kappa) if kappa is not None else 0.0)
 
     def check(self, sim, record: dict) -> None:
         """Refuse step n if its record is implausible (see ``blow_up``).

@@ -227,7 +227,7 @@ def test_cholmod_factor_equals_numpy():
 LIBRARIES = {
     "cells": (kernels.CELL_KERNELS, ["app/kernels/perzyna.py",
                                      "app/kernels/sweeps.py",
-                                     "app/kernels/cells.py", "app/solvers/nodal.py",
+                                     "app/kernels/cells.py", "app/kernels/contact.py",
                                      "app/model/strain.py"]),
     "dense": (dense.DENSE, ["app/solvers/dense.py"]),
     "cholmod": (ldl.CHOLMOD, ["app/solvers/ldl.py"]),
@@ -305,6 +305,12 @@ def test_the_name_hashes_every_file(tmp_path, monkeypatch):
 def test_no_compiler_falls_back_to_numpy(tmp_path, monkeypatch, caplog):
     """Where nothing can be built (here: the compiler fails), every load returns None with
     a warning, and the numpy references serve."""
+    from vpcontact.model.contact_laws import (
+        ContactLaw,
+        NormalCompliance,
+        PiecewiseLinearFriction,
+        RegularisedNorm,
+    )
     from vpcontact.solvers.nodal import NodalContact
 
     def no_compiler(*args, **kwargs):
@@ -316,8 +322,9 @@ def test_no_compiler_falls_back_to_numpy(tmp_path, monkeypatch, caplog):
         assert kernels.load() is None and dense.load() is None and ldl.load() is None
     assert caplog.text.count("unavailable (no C compiler)") == 3
     assert "using numpy" in caplog.text and "using SuperLU" in caplog.text
-    contact = NodalContact(np.ones(2), [0.0, -1.0], 100.0, (1.0, 60.0, 60.0, 0.01), 1e-7,
-                           kernels.load())
+    law = ContactLaw(NormalCompliance(100.0), friction=PiecewiseLinearFriction(
+        1.0, 60.0, 60.0, 0.01), norm=RegularisedNorm(1e-7))
+    contact = NodalContact(np.ones(2), [0.0, -1.0], law, kernels.load())
     e, g, H = contact.evaluate(np.array([[0.0, -0.01], [0.02, 0.0]]))
     assert np.isfinite(e) and g.shape == (2, 2) and H.shape == (2, 2, 2)
     direction = dense.NewtonDirection(np.eye(4), 2, dense.load())

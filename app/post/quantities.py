@@ -1,0 +1,162 @@
+"""Quantities derived from the state of a run: the step record's norms (||u||_V,
+||sigma||_Q, ||kappa||_Y, the largest cell values), the bulk residual at the nodes and from
+it the reactions on the Dirichlet groups, the contact force and the contact table of the
+Gamma3 nodes.  Functions of the ContactProblem (its discretisation, State and forms);
+collective where they reduce over ranks, as their docstrings say.
+"""
+from __future__ import annotations
+
+import numpy as np
+from dolfinx import fem
+from petsc4py import PETSc
+
+
+def norm(problem, which: str) -> float:
+    """A norm of the step record, reduced over ranks; collective.
+
+    Exact cell sums (eps(u) and sigma are constant on cells).
+
+    Args:
+        problem: the ContactProblem.
+        which: "V" for ||u||_V = ||eps(u)||_L2, "Q" for ||sigma||_Q.
+
+    Returns:
+        The norm.
+    """
+    op = problem.strain_operator
+    if which == "V":
+        return float(np.sqrt(max(op.strain_norm2(problem.u), 0.0)))
+    local = op.energy_norm2(problem.sigma.x.array[:op.n_owned * problem.dim**2])
+    return float(np.sqrt(problem.reduce(local, "SUM")))
+
+
+def cell_norm(problem, f) -> float:
+    """L2 norm of a DG0 function (||kappa||_Y), reduced over ranks; collective.
+
+    Args:
+        problem: the ContactProblem.
+        f: a DG0 Function on the mesh (scalar, or m components: the Euclidean norm per cell).
+
+    Returns:
+        The norm.
+    """
+    n = problem.num_owned_cells
+    vol = problem.cell_volumes()[:n]
+    bs = f.function_space.dofmap.index_map_bs
+    if bs == 1:
+        local = float(np.sum(vol * f.x.array[:n] ** 2))
+    else:
+        local = float(np.sum(vol * (f.x.array[:n * bs].reshape(n, bs) ** 2).sum(axis=1)))
+    return float(np.sqrt(problem.reduce(local, "SUM")))
+
+
+def cell_max(problem, f) -> float:
+    """The largest cell value of a DG0 function (of any of its components), over ranks;
+    collective.
+
+    Args:
+        problem: the ContactProblem.
+        f: a DG0 Function on the mesh.
+
+    Returns:
+        The maximum (-inf without cells).
+    """
+    n = problem.num_owned_cells * f.function_space.dofmap.index_map_bs
+    local = float(np.max(f.x.array[:n])) if n else -np.inf
+    return float(problem.reduce(local, "MAX"))
+
+
+def bulk_residual(problem, layer: bool = False) -> np.ndarray:
+    """The bulk residual r = (sigma_n, eps(phi_i)) - f_n(phi_i) at the owned nodes: the
+    force the boundary (supports, contact) exerts on the body at each node.
+
+    Args:
+        problem: the ContactProblem.
+        layer: assemble only the cells touching Dirichlet and Gamma3 vertices (exact
+            there, not elsewhere).
+
+    Returns:
+        (owned nodes, d) nodal forces.
+    """
+    r = fem.petsc.assemble_vector(problem.boundary_residual_form if layer
+                                  else problem.bulk_form)
+    r.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    out = r.array_r.reshape(-1, problem.dim).copy()
+    r.destroy()
+    return out
+
+
+def contact_table(problem, r: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Per owned Gamma3 node: coordinates, displacement, u_nu, tangential components in
+    the nodal frame, and the contact force densities -sigma_nu, -sigma_tau (and xi,
+    theta(s), the gap where it varies).
+
+    The force at node i is the bulk residual r_i = (sigma_n, eps(phi_i)) - f(phi_i)
+    divided by the node's weight w_i = int phi_i ds: with the nodal rule this is exactly
+    p(u_nu) + memory force + (bound multiplier)/w_i in the normal direction and the
+    friction force in the tangential ones.
+
+    Args:
+        problem: the ContactProblem.
+        r: the bulk residual (bulk_residual()), or None to assemble it.
+
+    Returns:
+        Column name -> values of the owned Gamma3 nodes (sorted by coordinates).
+    """
+    gm, d, fr = problem.gamma3, problem.dim, problem.frames
+    rr = (bulk_residual(problem, layer=True) if r is None else r)[gm.nodes]
+    uu = problem.u.x.array.reshape(-1, d)[gm.nodes]
+    pos = np.searchsorted(fr.nodes, gm.nodes)
+    nu, tau = fr.normal[pos], fr.tangents[pos]
+    axes = "xyz"[:d]
+    table = {a: gm.x[:, i] for i, a in enumerate(axes)}
+    table.update({f"u_{a}": uu[:, i] for i, a in enumerate(axes)})
+    table["u_nu"] = np.einsum("ij,ij->i", uu, nu)
+    u_tau = np.einsum("ij,ikj->ik", uu, tau)
+    f_tau = -np.einsum("ij,ikj->ik", rr, tau) / gm.weight[:, None]
+    suffix = [""] if d == 2 else ["1", "2"]
+    for k, sfx in enumerate(suffix):
+        table[f"u_tau{sfx}"] = u_tau[:, k]
+    if d == 3:
+        table["u_tau"] = np.linalg.norm(u_tau, axis=1)
+    table["neg_sigma_nu"] = -np.einsum("ij,ij->i", rr, nu) / gm.weight
+    for k, sfx in enumerate(suffix):
+        table[f"neg_sigma_tau{sfx}"] = f_tau[:, k]
+    if problem.xi is not None:
+        table["xi"] = problem.xi.function.x.array[problem.xi.dofs[pos]]
+    if problem.theta is not None:
+        table["theta"] = problem.theta.function.x.array[problem.theta.dofs[pos]]
+    if isinstance(problem.case.contact.g, str):
+        table["g"] = fr.g[pos]
+    # hidden (not a CSV column): the Dirichlet data prescribe u_nu here, so the force is
+    # a support's reaction, not a contact pressure
+    table["_prescribed"] = ~fr.bounded[pos]
+    return table
+
+
+def forces(problem, r: np.ndarray | None = None) -> dict:
+    """The reaction force resultant on each Dirichlet group and the total contact
+    force, both exerted on the body (collective).  With the loads they sum to zero
+    (equilibrium, up to the solver's tolerance).
+
+    Args:
+        problem: the ContactProblem.
+        r: the bulk residual (bulk_residual()), or None to assemble it.
+
+    Returns:
+        {"reactions": {group: [F_x, F_y(, F_z)]}, "contact_force": [...] (Gamma3 dofs
+        that no Dirichlet condition prescribes) or None without contact}.
+    """
+    r = (bulk_residual(problem, layer=True) if r is None else r).ravel()
+    d = problem.dim
+    reactions = {}
+    for grp in problem.dirichlet.groups:
+        local = np.bincount(grp.dofs % d, weights=r[grp.dofs], minlength=d)
+        reactions[str(grp.name)] = [float(v) for v in problem.comm.allreduce(local)]
+    contact = None
+    if problem.gamma3 is not None:
+        nodes = problem.gamma3.nodes
+        free = ~problem.dirichlet.fixed[nodes]
+        local = (r.reshape(-1, d)[nodes] * free).sum(axis=0)
+        contact = [float(v) for v in problem.comm.allreduce(local)]
+    return {"reactions": reactions, "contact_force": contact}
