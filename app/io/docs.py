@@ -9,7 +9,8 @@ import json
 import sys
 from pathlib import Path
 
-from vpcontact.case.schema import DEFAULT_PETSC, SCHEMA
+from vpcontact.case.schema import SCHEMA
+from vpcontact.solvers.options import DEFAULT_PETSC
 
 START, END = "<!-- case-reference:start -->", "<!-- case-reference:end -->"
 PAGE = "docs/case-file.md"

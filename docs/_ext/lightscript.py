@@ -30,6 +30,8 @@ def _paragraphs(lines: list[str]):
             cell = True
             continue
         if cell and line.strip() == "# -":
+            while para and not para[-1].strip():
+                para.pop()
             yield False, para
             para, cell = [], False
         elif cell or line.strip():

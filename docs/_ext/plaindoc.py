@@ -10,11 +10,14 @@ warning is shown as a literal block, so ``sphinx-build -W`` holds whatever the p
 """
 from __future__ import annotations
 
+import copy
+import functools
 import io
 import re
 
 from docutils.core import publish_doctree
-from docutils.parsers.rst import directives, roles
+from docutils.frontend import get_default_settings
+from docutils.parsers.rst import Parser, directives, roles
 from sphinx.ext import autosummary
 
 _DIRECTIVE, _ROLE = directives.directive, roles.role      # docutils' own, before Sphinx's
@@ -93,19 +96,34 @@ def safe_lines(lines: list[str]) -> list[str]:
 
 def _warnings(lines: list[str]) -> list[str]:
     """docutils' warnings and errors for the text, its own directives and roles only."""
+    return list(_text_warnings("\n".join(lines)))
+
+
+@functools.cache
+def _settings():
+    """docutils' settings for the check, made once (making them costs more than a parse)."""
+    settings = get_default_settings(Parser)
+    settings.report_level, settings.halt_level = 2, 5
+    settings.file_insertion_enabled = settings.raw_enabled = False
+    return settings
+
+
+@functools.lru_cache(maxsize=4096)
+def _text_warnings(text: str) -> tuple[str, ...]:
+    """The warnings of one text (autosummary and autodoc each process a docstring)."""
     stream = io.StringIO()
+    settings = copy.copy(_settings())
+    settings.warning_stream = stream
     patched = directives.directive, roles.role
     directives.directive, roles.role = _DIRECTIVE, _ROLE
     try:
-        publish_doctree("\n".join(lines), settings_overrides={
-            "warning_stream": stream, "report_level": 2, "halt_level": 5,
-            "file_insertion_enabled": False, "raw_enabled": False})
+        publish_doctree(text, settings=settings)
     except Exception as exc:                    # noqa: BLE001 - any failure: not safe
-        return [repr(exc)]
+        return (repr(exc),)
     finally:
         directives.directive, roles.role = patched
     found = re.findall(r"\((?:WARNING|ERROR|SEVERE)/\d\) (.*)", stream.getvalue())
-    return [m for m in found if not m.startswith(_IGNORED)]
+    return tuple(m for m in found if not m.startswith(_IGNORED))
 
 
 def _as_literal(lines: list[str]) -> list[str]:

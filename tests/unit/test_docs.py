@@ -48,6 +48,16 @@ def test_relative_links_lead_to_files():
             assert path.exists(), f"{page.name}: {target}"
 
 
+def test_cited_paths_exist():
+    """Every file or folder of the repository the README and the pages name (app/..., forms/...,
+    tests/..., ...) is there: the pages follow the code when it moves."""
+    cited = re.compile(r"(?<![\w/.])(?:app|forms|meshes|tests|cases|demos|docs)/[\w./*-]*[\w/*]")
+    missing = [f"{page.name}: {path}" for page in PAGES
+               for path in sorted(set(cited.findall(page.read_text())))
+               if not path.startswith("docs/_build") and not list(ROOT.glob(path.rstrip("/")))]
+    assert not missing, missing
+
+
 def test_readme_is_an_entry_page():
     text = (ROOT / "README.md").read_text()
     assert len(text.splitlines()) <= 300
@@ -61,7 +71,7 @@ def test_light_script_to_page():
     script = "\n".join([
         "# ---", "# jupyter:", "#   jupytext: {}", "# ---", "",
         "# # Title", "#", "# Some *text*.", "",
-        "# +", "import os", "", "# a comment in a cell", "x = 1", "# -", "",
+        "# +", "import os", "", "# a comment in a cell", "x = 1", "", "# -", "",
         "y = 2", "", "z = 3  # trailing", "", "# More text", "#     indented code", "",
         "# a comment touching code", "w = 4"])
     assert to_markdown(script) == "\n".join([
