@@ -11,6 +11,9 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+# solver.method's former names -> the names the Case holds
+METHOD_NAMES = {"fast": "condensed"}
+
 
 @dataclass(frozen=True)
 class MeshSpec:
@@ -159,8 +162,8 @@ class TimeGrid:
 
 @dataclass(frozen=True)
 class Numerics:
-    """The ``solver`` section: step solver, delta, Gamma3 quadrature, SNES VI's linear
-    solver."""
+    """The ``solver`` section: step solver ("snes_vi", "condensed" or "auto"; a case file's
+    "fast" is read as "condensed"), delta, Gamma3 quadrature, SNES VI's linear solver."""
 
     method: str
     delta: float
@@ -281,6 +284,7 @@ def build_case(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Cas
     fr, mem = contact.get("friction"), contact.get("memory")
     slip = fr.get("slip") if fr else None
     name = case_name(data, source)
+    method = METHOD_NAMES.get(data["solver"]["method"], data["solver"]["method"])
     g, d = contact.get("g"), contact.get("direction")
     return Case(
         name=name,
@@ -311,7 +315,7 @@ def build_case(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Cas
         initial=Initial(tuple(init["u0"]) if "u0" in init else None,
                         tuple(map(tuple, init["sigma0"])) if "sigma0" in init else None),
         time=time_grid,
-        numerics=Numerics(**data["solver"]),
+        numerics=Numerics(**{**data["solver"], "method": method}),
         petsc=petsc,
         output=OutputSpec(**data["output"]),
         raw=data,

@@ -232,12 +232,13 @@ SCHEMA = _obj({
                                   "Euler, stable for any k)"},
     }, description="time grid: T with N or k (uniform), T with N and grading, or times"),
     "solver": _obj({
-        "method": {"enum": ["snes_vi", "fast", "auto"], "default": "auto",
+        "method": {"enum": ["snes_vi", "condensed", "fast", "auto"], "default": "auto",
                    "description": "step solver: snes_vi (PETSc SNES vinewtonrsls with bounds "
-                                  "on the normal dofs of Gamma3, general), fast (one "
+                                  "on the normal dofs of Gamma3, general), condensed (one "
                                   "factorisation per run, Gamma3 condensation; explicit scheme "
-                                  "and vertex quadrature), auto (fast where it applies and "
-                                  "Gamma3 has at most 6000 dofs)"},
+                                  "and vertex quadrature; fast is its former name), auto "
+                                  "(condensed where it applies and Gamma3 has at most 6000 "
+                                  "dofs)"},
         "linear": {"enum": ["direct", "amg", "auto"], "default": "auto",
                    "description": "Newton systems of snes_vi: direct (LU), amg (CG with "
                                   "algebraic multigrid, GAMG, knowing the rigid body modes; "

@@ -29,8 +29,11 @@ from vpcontact.case.schemacheck import check_schema, fill_defaults
 from vpcontact.case.timegrid import check_adaptive, time_grid
 from vpcontact.case.values import body_length, check_values
 from vpcontact.io.errors import CaseError
+from vpcontact.solvers.choice import condensed_eligible
 from vpcontact.solvers.optioncheck import PetscOptions, check_petsc_options
 from vpcontact.solvers.options import case_defaults
+
+fast_eligible = condensed_eligible  # moved: temporary re-export
 
 
 def validate(data: dict, source: str = "<case>") -> Case:
@@ -76,17 +79,17 @@ def _validate(data: dict, source: str) -> Case:
     grid = dataclasses.replace(time_grid(data["time"], source), scheme=data["time"]["scheme"],
                                adaptive=data["time"].get("adaptive"))
     check_adaptive(grid.adaptive, grid.times, source)
-    stress = check_values(data, grid, source)
     case = build_case(data, source, grid, {})
+    stress = check_values(case)
     defaults, limits = case_defaults(case, stress, body_length(data))
     check_petsc_options(data.get("petsc", {}), source, base=defaults, limits=limits)
     check_name(data, source)
     petsc = PetscOptions({**defaults, **data.get("petsc", {})}, limits)
     case = dataclasses.replace(case, petsc=petsc, data_stress=stress, petsc_defaults=defaults)
-    ok, why = fast_eligible(case)
-    if case.numerics.method == "fast" and not ok:
-        raise CaseError(f"{source}: solver.method: 'fast' is not possible here: {why} "
-                        "(allowed: snes_vi, auto)")
+    ok, why = condensed_eligible(case)
+    if case.numerics.method == "condensed" and not ok:
+        raise CaseError(f"{source}: solver.method: {data['solver']['method']!r} is not "
+                        f"possible here: {why} (allowed: snes_vi, auto)")
     return case
 
 
@@ -113,8 +116,7 @@ def rescale_for_length(case: Case, length: float, stress: float | None = None) -
     if not MIN_LENGTH <= length <= MAX_LENGTH:
         raise CaseError(f"{case.source}: mesh.file: the body's size {length:g} m is degenerate "
                         f"(allowed: {MIN_LENGTH:g} to {MAX_LENGTH:g})")
-    stress = check_values(case.raw, case.time, case.source, length) if stress is None \
-        else float(stress)
+    stress = check_values(case, length) if stress is None else float(stress)
     defaults, limits = case_defaults(case, stress, length)
     in_file = case.raw.get("petsc", {})
     missing = object()
@@ -139,19 +141,3 @@ def load_case(path: str | Path, overrides: list[str] = ()) -> Case:
         CaseError: for any problem, in one line naming the file and key.
     """
     return validate(load_raw(path, overrides), str(path))
-def fast_eligible(case: Case) -> tuple[bool, str]:
-    """Can the fast step solver (app/solvers/fast.py) solve this case?
-
-    Args:
-        case: the case.
-
-    Returns:
-        (eligible, why not: "" when eligible).
-    """
-    if case.time.scheme != "explicit" and case.material.viscoplastic is not None:
-        return False, "the implicit history variant makes the bulk problem nonlinear"
-    if case.numerics.quadrature != "vertex" and case.contact.active:
-        return False, "the fast solver needs the nodal (vertex) Gamma3 quadrature"
-    return True, ""
-
-

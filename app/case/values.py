@@ -9,12 +9,11 @@ import math
 
 from vpcontact.case import datacheck
 from vpcontact.case.meshrules import DEFAULT_BOUNDARIES
-from vpcontact.case.model import Case, TimeGrid
+from vpcontact.case.model import Case
 from vpcontact.io.errors import CaseError
 
 
-def check_values(data: dict, time_grid: TimeGrid, source: str,
-                 length: float | None = None, samples=None) -> float:
+def check_values(case: Case, length: float | None = None, samples=None) -> float:
     """The data values at sample points of the body and times: finite, initial values in
     the model's set.
 
@@ -25,10 +24,8 @@ def check_values(data: dict, time_grid: TimeGrid, source: str,
     sides.
 
     Args:
-        data: the default-filled, settled case mapping.
-        time_grid: the case's time grid.
-        source: the case file, for messages.
-        length: the body's size L (default: body_length(data)).
+        case: the case (its data as given in ``raw``, the gap g, E, the time grid).
+        length: the body's size L (default: body_length(case.raw)).
         samples: the sample points of the loaded mesh (datacheck.PointSamples; default:
             as above).
 
@@ -40,6 +37,7 @@ def check_values(data: dict, time_grid: TimeGrid, source: str,
         CaseError: for a value that is not finite, out of range or outside the model's
             set, naming the key and the point (x, t).
     """
+    data, time_grid, g = case.raw, case.time, case.contact.g
     mesh, bounds = data["mesh"], data["boundaries"]
     adaptive = time_grid.adaptive is not None
     if samples is None and "file" in mesh:
@@ -51,19 +49,18 @@ def check_values(data: dict, time_grid: TimeGrid, source: str,
         samples = datacheck.Samples(lengths, cells, time_grid.times, adaptive)
     geometric = "file" not in mesh and bounds == DEFAULT_BOUNDARIES
     vp = data["material"].get("viscoplastic")
-    contact = data.get("contact", {})
     try:
         loads = datacheck.check_loads(data["loads"], samples)
         moved = datacheck.check_displacement(data["loads"].get("displacement", {}), samples)
-        if contact:
-            datacheck.check_gap(contact.get("g"), bounds["contact"], samples)
+        datacheck.check_gap(g, bounds["contact"], samples)
         u0, sigma0 = datacheck.check_initial(data.get("initial", {}),
-                                             vp["kappa0"] if vp else None, contact.get("g"),
-                                             samples, contact.get("direction"), geometric)
+                                             vp["kappa0"] if vp else None, g, samples,
+                                             data.get("contact", {}).get("direction"),
+                                             geometric)
     except datacheck.DataError as exc:
-        raise CaseError(f"{source}: {exc}") from None
+        raise CaseError(f"{case.source}: {exc}") from None
     length = body_length(data) if length is None else length
-    return max(loads, sigma0, data["material"]["E"] * max(u0, moved) / length)
+    return max(loads, sigma0, case.material.E * max(u0, moved) / length)
 
 
 def check_values_on_mesh(case: Case, samples, length: float) -> float:
@@ -81,7 +78,7 @@ def check_values_on_mesh(case: Case, samples, length: float) -> float:
         CaseError: for a value that is not finite, out of range or outside the model's set,
             naming the key and the point (x, t).
     """
-    return check_values(case.raw, case.time, case.source, length, samples)
+    return check_values(case, length, samples)
 
 
 def body_length(data: dict) -> float:

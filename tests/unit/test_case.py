@@ -70,6 +70,18 @@ def test_incompatible_combinations():
         make_case(mesh={"kind": "unstructured"})
 
 
+@pytest.mark.parametrize("given", ["condensed", "fast"])
+def test_the_condensed_solver_under_its_name_and_its_former_one(given):
+    case = make_case(solver={"method": given})
+    assert case.numerics.method == "condensed"
+    assert case.raw["solver"]["method"] == given          # the case as written
+    implicit = {"T": 1.0, "N": 4, "scheme": "implicit"}
+    with pytest.raises(CaseError, match=rf"^test-case: solver\.method \(line 38\): '{given}' "
+                                        r"is not possible here: the implicit history variant"):
+        make_case(solver={"method": given}, time=implicit)
+    assert make_case(solver={"method": "auto"}, time=implicit).numerics.method == "auto"
+
+
 def test_not_a_mapping(tmp_path):
     p = tmp_path / "x.yaml"
     p.write_text("- just\n- a list\n")
