@@ -39,7 +39,8 @@ def test_figure_is_a_nonblank_png(paper_out, name):
 
 
 def test_deformed_mesh_differs_from_undeformed(paper_out, tmp_path):
-    from vpcontact.post.plot import Results, fig3_deformed_contact
+    from vpcontact.post.linefigures import fig3_deformed_contact
+    from vpcontact.post.results import Results
     res = Results(paper_out)
     f0 = fig3_deformed_contact(res, tmp_path / "undeformed.png", factor=0.0)
     f1 = fig3_deformed_contact(res, tmp_path / "deformed.png")
@@ -50,7 +51,7 @@ def test_deformed_mesh_differs_from_undeformed(paper_out, tmp_path):
 
 def test_fig3_shows_the_bound_as_c_nu_g(paper_out):
     """The paper's convention: where u_nu = g the bar is c_nu g; the figure's data say so."""
-    from vpcontact.post.plot import Results
+    from vpcontact.post.results import Results
     res = Results(paper_out)
     c = res.contact
     assert set(c["state"]) <= {"bound", "compliance", "separated"}
@@ -138,7 +139,8 @@ def test_info():
 def test_fine_mesh_figure_draws_outlines(tmp_path):
     """Above MAX_DRAWN_CELLS the deformed mesh is drawn by its outline (not a block of
     lines); still deformed != undeformed."""
-    from vpcontact.post.plot import MAX_DRAWN_CELLS, Results, fig3_deformed_contact
+    from vpcontact.post.linefigures import MAX_DRAWN_CELLS, fig3_deformed_contact
+    from vpcontact.post.results import Results
     out = tmp_path / "fine"
     proc = run_cli(["run", PAPER_CASE, "--out", out, "--set", "mesh.n=72", "--set",
                     "time.N=2", "--set", "solver.method=fast"])
