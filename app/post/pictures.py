@@ -427,7 +427,7 @@ def main(argv=None) -> int:
     ap.add_argument("--factor", type=float, default=1.0)
     ap.add_argument("--dim", type=int, default=2)
     ap.add_argument("--animate", action="store_true")
-    ap.add_argument("--line", nargs="*", default=[], help="line figures (app/post/plot.py)")
+    ap.add_argument("--line", nargs="*", default=[], help="line figures (app/post/linefigures.py)")
     ap.add_argument("--wait", action="store_true")
     ap.add_argument("--no-pictures", action="store_true",
                     help="only the line figures given with --line")
