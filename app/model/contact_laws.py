@@ -456,14 +456,15 @@ class ContactLaw:
         memory: the law multiplied by the memory term xi_n, or None.
         friction: the friction potential psi (4.2), or None.
         norm: the regularised norm of the slip (with friction).
-        slip: theta(s) of the slip dependence, or None (theta = 1).
+
+    The nodal factors xi_n and theta(s_n) come from the Gamma3 history (app/model/gamma3.py,
+    with the ``MemoryKernel`` and ``SlipWeakening`` laws).
     """
 
     normal: ScalarLaw | None = None
     memory: ScalarLaw | None = None
     friction: ScalarLaw | None = None
     norm: RegularisedNorm | None = None
-    slip: SlipWeakening | None = None
 
     def terms(self, xi=None, theta=None) -> list[Term]:
         """The terms of phi in order: normal compliance, memory, friction.
@@ -511,7 +512,7 @@ def contact_law(contact, delta, const=None) -> ContactLaw:
     """The laws of a case's contact section.
 
     Args:
-        contact: the case's ``contact`` section (c_nu, friction with its slip, memory).
+        contact: the case's ``contact`` section (c_nu, friction, memory).
         delta: the regularisation width (``solver.delta``).
         const: (name, value) -> the parameter in the laws (the forms' dolfinx Constants);
             None: the numbers themselves.
@@ -528,6 +529,4 @@ def contact_law(contact, delta, const=None) -> ContactLaw:
     return ContactLaw(
         normal=normal,
         memory=None if contact.memory is None else RegularisedPositivePart(d),
-        friction=friction, norm=None if fr is None else RegularisedNorm(d),
-        slip=None if fr is None or fr.slip is None else
-        SlipWeakening(fr.slip.theta_inf, fr.slip.s0))
+        friction=friction, norm=None if fr is None else RegularisedNorm(d))

@@ -20,8 +20,6 @@ from dolfinx import fem
 from vpcontact.model.contact_laws import MemoryKernel, SlipWeakening, memory_kernel
 from vpcontact.model.primitives import NUMPY
 
-Kernel = memory_kernel  # moved: temporary re-export
-
 
 class MemorySum:
     """The memory term xi_n = sum_{j=1..n} k_j b(t_n - t_{j-1}) u_{j-1,nu}^+ of (3.4) at m
@@ -181,23 +179,26 @@ class Gamma3History:
     Args:
         problem: the ContactProblem (u, the Gamma3 nodes and normal, the Functions xi and
             theta).
-        memory: {"kernel": MemoryKernel, "recursion": bool | None}, or None: no memory term.
-        slip: {"theta_inf": ..., "s0": ...}, or None: no slip dependence.
+        kernel: b(t) of the memory term, or None: no memory term.
+        slip: theta(s) of the slip dependence, or None: none.
+        recursion: the memory sum by the kernel's recursion (True), directly (False) or
+            the recursion where the kernel has one (None).
     """
 
-    def __init__(self, problem, memory=None, slip=None):
+    def __init__(self, problem, kernel: MemoryKernel | None = None,
+                 slip: SlipWeakening | None = None, recursion: bool | None = None):
         self.u = problem.u
         self.nodes = problem.gamma3_local_nodes
         self.normal = problem.frames.normal          # (m, d): nu_i at the nodes
         self.dim = problem.dim
         m = len(self.nodes)
         self.memory = self.slip = None
-        if memory is not None:
-            self.memory = MemorySum(memory["kernel"], m, memory.get("recursion"))
+        if kernel is not None:
+            self.memory = MemorySum(kernel, m, recursion)
             self.xi = problem.xi
             self.xi.set(self.memory.xi)
         if slip is not None:
-            self.slip = SlipSum(m, SlipWeakening(slip["theta_inf"], slip["s0"]))
+            self.slip = SlipSum(m, slip)
             self.theta = problem.theta
             self.theta.set(self.slip.theta())
 
@@ -238,3 +239,27 @@ class Gamma3History:
             u_tau = u - u_nu[:, None] * self.normal
             self.slip.advance(np.linalg.norm(u_tau, axis=1), t_n - t_prev)
             self.theta.set(self.slip.theta())
+
+
+def build_gamma3_history(case, problem) -> Gamma3History | None:
+    """The memory term xi_n and the accumulated slip s_n, only if the case enables them.
+
+    Args:
+        case: the validated Case (contact.memory, contact.friction.slip).
+        problem: the ContactProblem.
+
+    Returns:
+        A Gamma3History, or None.
+    """
+    c = case.contact
+    kernel = slip = recursion = None
+    if c.memory is not None:
+        mk = c.memory
+        kernel = memory_kernel(mk.kernel, mk.b0, beta=mk.beta, alpha=mk.alpha or 1.0,
+                               tau=mk.tau or 1.0, table=mk.table)
+        recursion = None if mk.sum == "auto" else mk.sum == "recursion"
+    if c.friction is not None and c.friction.slip is not None:
+        slip = SlipWeakening(c.friction.slip.theta_inf, c.friction.slip.s0)
+    if kernel is None and slip is None:
+        return None
+    return Gamma3History(problem, kernel, slip, recursion)

@@ -161,8 +161,7 @@ def test_composition_terms_and_names():
 def test_contact_law_from_a_case():
     """The builder: each parameter through ``const`` once (delta shared by the memory term
     and the norm), in the order the forms' Constants were always made; absent parts None."""
-    slip = SimpleNamespace(theta_inf=0.3, s0=0.002)
-    fr = SimpleNamespace(b=1.0, c1=60.0, c2=50.0, u1=0.01, slip=slip)
+    fr = SimpleNamespace(b=1.0, c1=60.0, c2=50.0, u1=0.01, slip=None)
     contact = SimpleNamespace(c_nu=100.0, friction=fr, memory=object())
     made = []
 
@@ -174,7 +173,6 @@ def test_contact_law_from_a_case():
     assert law.normal == laws.NormalCompliance(("C", "c_nu", 100.0))
     assert law.friction.c2 == ("C", "c2", 50.0)
     assert law.memory.delta is law.norm.delta
-    assert law.slip == laws.SlipWeakening(0.3, 0.002)
     plain = laws.contact_law(SimpleNamespace(c_nu=None, friction=None, memory=None), 1e-7)
     assert plain == laws.ContactLaw()
     numbers = laws.contact_law(contact, 1e-7)
