@@ -37,14 +37,50 @@ class _Numpy:
 
 
 class _Ufl:
-    """The primitives on UFL expressions (ufl is imported when first used)."""
+    """The primitives on UFL expressions (ufl is imported where first used: the figures
+    evaluate the laws without it)."""
 
-    def __getattr__(self, name):
+    @staticmethod
+    def le(a, b):
+        """a <= b."""
         import ufl
-        table = {"le": ufl.le, "gt": ufl.gt, "sqrt": ufl.sqrt, "exp": ufl.exp,
-                 "pos": lambda r: ufl.conditional(ufl.gt(r, 0.0), r, 0.0),
-                 "where": ufl.conditional, "sqnorm": lambda x: ufl.dot(x, x)}
-        return table[name]
+        return ufl.le(a, b)
+
+    @staticmethod
+    def gt(a, b):
+        """a > b."""
+        import ufl
+        return ufl.gt(a, b)
+
+    @staticmethod
+    def sqrt(x):
+        """The square root."""
+        import ufl
+        return ufl.sqrt(x)
+
+    @staticmethod
+    def exp(x):
+        """The exponential."""
+        import ufl
+        return ufl.exp(x)
+
+    @staticmethod
+    def pos(r):
+        """r^+ = max(r, 0)."""
+        import ufl
+        return ufl.conditional(ufl.gt(r, 0.0), r, 0.0)
+
+    @staticmethod
+    def where(condition, a, b):
+        """a where condition holds, else b."""
+        import ufl
+        return ufl.conditional(condition, a, b)
+
+    @staticmethod
+    def sqnorm(x):
+        """|x|^2 of a UFL vector."""
+        import ufl
+        return ufl.dot(x, x)
 
 
 NUMPY = _Numpy()
