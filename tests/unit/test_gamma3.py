@@ -1,9 +1,11 @@
 """Memory term and accumulated slip on Gamma3."""
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from vpcontact.model.contact_laws import SlipWeakening, memory_kernel
-from vpcontact.model.gamma3 import MemorySum, SlipSum
+from vpcontact.model.gamma3 import MemorySum, SlipSum, build_gamma3_history
 
 
 def _steps(rng, n=40):
@@ -91,3 +93,51 @@ def test_slip_state_round_trip():
     np.testing.assert_array_equal(slip.s, expected)
     saved["s"][:] = 0.0                        # the state is a copy
     np.testing.assert_array_equal(slip.s, expected)
+
+
+class _Field:
+    """A stand-in for the problem's NodalField: keeps the values set."""
+
+    def __init__(self):
+        self.values = None
+
+    def set(self, values):
+        self.values = np.array(values)
+
+
+def _problem(u_nodes, normal):
+    """The attributes of the problem Gamma3History reads: u, the Gamma3 nodes and normals,
+    the nodal fields xi and theta."""
+    u = SimpleNamespace(x=SimpleNamespace(array=np.asarray(u_nodes, dtype=float).ravel()))
+    return SimpleNamespace(u=u, gamma3_local_nodes=np.arange(len(u_nodes)),
+                           frames=SimpleNamespace(normal=np.asarray(normal, dtype=float)),
+                           dim=2, xi=_Field(), theta=_Field())
+
+
+def _case(memory=None, slip=None):
+    friction = SimpleNamespace(b=1.0, c1=60.0, c2=60.0, u1=0.01, slip=slip)
+    return SimpleNamespace(contact=SimpleNamespace(memory=memory, friction=friction))
+
+
+def test_history_built_from_the_case_laws():
+    """build_gamma3_history: the case's kernel and theta(s) laws, the sum it asks for, and
+    one step of xi_n = k b(t_n - t_{n-1}) u_nu^+ and s_n = k |u_tau| from u_{n-1}."""
+    assert build_gamma3_history(_case(), _problem([[0.0, 0.0]], [[0.0, -1.0]])) is None
+    memory = SimpleNamespace(kernel="power", b0=2.0, beta=0.0, alpha=0.7, tau=0.3, table=None,
+                             sum="auto")
+    slip = SimpleNamespace(theta_inf=0.4, s0=0.01)
+    u = [[0.003, -0.002], [-0.001, 0.005]]               # u_nu = -u_y: 0.002, -0.005
+    problem = _problem(u, [[0.0, -1.0], [0.0, -1.0]])
+    history = build_gamma3_history(_case(memory, slip), problem)
+    assert history.memory.kernel == memory_kernel("power", 2.0, alpha=0.7, tau=0.3)
+    assert not history.memory.recursion and history.slip.law == SlipWeakening(0.4, 0.01)
+    assert np.array_equal(problem.theta.values, [1.0, 1.0])
+    history.advance(0.5, 0.75)
+    b = 2.0 * (1.0 + 0.25 / 0.3) ** -0.7                  # b(t_n - t_{n-1})
+    np.testing.assert_allclose(problem.xi.values, [0.25 * b * 0.002, 0.0], rtol=1e-15)
+    np.testing.assert_allclose(history.slip.s, [0.25 * 0.003, 0.25 * 0.001], rtol=1e-15)
+    np.testing.assert_allclose(problem.theta.values,
+                               0.4 + 0.6 * np.exp(-history.slip.s / 0.01), rtol=1e-15)
+    memory.sum, memory.kernel = "direct", "exponential"
+    direct = build_gamma3_history(_case(memory, None), _problem(u, [[0.0, -1.0]] * 2))
+    assert not direct.memory.recursion and direct.slip is None
