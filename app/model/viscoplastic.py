@@ -94,6 +94,15 @@ class ViscoplasticLaw(ABC):
         r[:, mt:] = z[:, mt:] - kappa_prev - k * Gk
         return r
 
+    def relaxation_rate(self) -> float | None:
+        """The largest relaxation rate r_max of the explicit update (3.2): the explicit
+        scheme is stable for k r_max <= 2 (app/post/diagnostics.py).
+
+        Returns:
+            r_max, or None where the law does not know it (no stability indicator then).
+        """
+        return None
+
     def explicit(self) -> ExplicitUpdate:
         """Returns: the explicit update (3.2)-(3.3) of this law, in numpy."""
         return ExplicitUpdate(self)
@@ -219,6 +228,15 @@ class Perzyna(ViscoplasticLaw):
         r[:, mt] = kap - kappa_prev[:, 0] \
             - (2.0 * k / (3.0 * self.lambda2)) * self.elasticity.von_mises(excess)
         return r
+
+    def relaxation_rate(self) -> float:
+        """Near the ball the update relaxes the excess by (I - k E/(2 lambda1)).
+
+        Returns:
+            r_max = lambda_max(E) / (2 lambda1), E acting on symmetric tensors.
+        """
+        return float(np.max(np.linalg.eigvals(self.elasticity.Cmat).real)) / \
+            (2.0 * self.lambda1)
 
     def explicit(self):
         """The explicit update (3.2)-(3.3) compiled (app/kernels/perzyna.c), or in numpy

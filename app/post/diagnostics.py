@@ -35,19 +35,6 @@ TRACE_PREFIX = PREFIX + "trace_"        # the iterative K^-1 of trace_constant
 LANCZOS_RTOL, TRACE_CG_RTOL = 1e-4, 1e-6
 
 
-def relaxation_rate(elasticity, lambda1: float) -> float:
-    """The largest relaxation rate of the explicit history update (3.2).
-
-    Args:
-        elasticity: the Elasticity E (app/model/material.py).
-        lambda1: the Perzyna viscosity lambda1.
-
-    Returns:
-        r_max = lambda_max(E) / (2 lambda1), E acting on symmetric tensors.
-    """
-    return float(np.max(np.linalg.eigvals(elasticity.Cmat).real)) / (2.0 * lambda1)
-
-
 def ellipticity(elasticity) -> float:
     """The ellipticity constant m_E of (2.6).
 
@@ -354,9 +341,9 @@ def diagnose(problem, solver=None) -> Diagnostics:
     case, elasticity = problem.case, problem.elasticity
     ks = np.diff(case.time.times)
     k_max = float(ks.max())
-    vp = case.material.viscoplastic
-    rate = relaxation_rate(elasticity, vp.lambda1) if vp else None
-    indicator = k_max * rate if vp else None
+    # the law's largest relaxation rate r_max (app/model/viscoplastic.py), None if unknown
+    rate = problem.law.relaxation_rate() if problem.law is not None else None
+    indicator = k_max * rate if rate is not None else None
     fr = case.contact.friction
     m_E = ellipticity(elasticity)
     m_j = fr.c1 if fr else 0.0

@@ -80,6 +80,15 @@ def test_perzyna_specialisations_equal_the_defaults():
     np.testing.assert_allclose(k1, k2, rtol=1e-12)
 
 
+def test_relaxation_rate():
+    """Perzyna: r_max = lambda_max(E) / (2 lambda1) (the stability indicator's rate); a law
+    that does not know its rate gives None (no indicator)."""
+    lam_max = np.linalg.eigvalsh(0.5 * (EL.Cmat + EL.Cmat.T)).max()
+    assert Perzyna(EL, 100.0, 50.0).relaxation_rate() == pytest.approx(lam_max / 200.0,
+                                                                     rel=1e-13)
+    assert Relaxation(EL).relaxation_rate() is None
+
+
 def test_law_of_a_case():
     class VP:
         lambda1, lambda2 = 10.0, 20.0
