@@ -82,6 +82,18 @@ def tiny_run_dir(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def paper_cli_run(tmp_path_factory):
+    """The paper case (h = k = 1/16) run once by the command line as a user runs it, figures
+    and progress bar included: (its results directory, the CompletedProcess).  Every module
+    that checks the paper case's outputs reads this run; tests that change the directory
+    work on a copy (shutil.copytree)."""
+    out = tmp_path_factory.mktemp("paper") / "run"
+    proc = run_cli(["run", PAPER_CASE, "--out", out], plots=True)
+    assert proc.returncode == 0, proc.stderr
+    return out, proc
+
+
+@pytest.fixture(scope="session")
 def paper_run():
     """The paper case (h = k = 1/16) run once in-process."""
     return run_case(make_case())

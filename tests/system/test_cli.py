@@ -2,6 +2,7 @@
 earlier results are not overwritten; PETSc options reach the solver; failures exit 1."""
 import csv
 import json
+import shutil
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -15,13 +16,19 @@ STEP_KEYS = {"t", "norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kap
 
 
 @pytest.fixture(scope="module")
-def demo_out(tmp_path_factory):
-    out = tmp_path_factory.mktemp("demo") / "paper"
-    proc = run_cli(["run", PAPER_CASE, "--out", out, "--verbose"])
+def demo_out(paper_cli_run):
+    """The paper case's results directory (conftest.paper_cli_run), read only."""
+    return paper_cli_run[0]
+
+
+def test_verbose_prints_each_step_and_the_petsc_monitor(tmp_path):
+    """--verbose: a line per step with its Newton iterations, and PETSc's monitor (h = 1/4,
+    the paper's 16 steps)."""
+    proc = run_cli(["run", PAPER_CASE, "--out", tmp_path / "o", "--set", "mesh.n=4",
+                    "--verbose"])
     assert proc.returncode == 0, proc.stderr
     assert "step  16/16" in proc.stdout and "newton" in proc.stdout    # per-step lines
     assert "SNES Function norm" in proc.stdout                       # PETSc monitor
-    return out
 
 
 def test_demo_writes_the_three_outputs(demo_out):
@@ -53,11 +60,13 @@ def test_demo_writes_the_three_outputs(demo_out):
     np.testing.assert_allclose(u_nu, -np.array([float(r["u_y"]) for r in rows]))
 
 
-def test_existing_results_are_not_overwritten(demo_out):
-    before = (demo_out / "summary.json").read_text()
-    proc = run_cli(["run", PAPER_CASE, "--out", demo_out, "--set", "time.N=1"])
+def test_existing_results_are_not_overwritten(demo_out, tmp_path):
+    out = tmp_path / "paper"
+    shutil.copytree(demo_out, out)          # a copy: the session's run stays as it was
+    before = (out / "summary.json").read_text()
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--set", "time.N=1"])
     assert proc.returncode == 2 and "--overwrite" in proc.stderr
-    assert (demo_out / "summary.json").read_text() == before
+    assert (out / "summary.json").read_text() == before
 
 
 def test_bad_case_exits_2_and_writes_nothing(tmp_path):

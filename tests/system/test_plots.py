@@ -1,4 +1,5 @@
 """The figures of a run, the progress bar, check (dry run) and info."""
+import shutil
 import struct
 
 import numpy as np
@@ -20,13 +21,15 @@ def _png(path):
 
 
 @pytest.fixture(scope="module")
-def paper_out(tmp_path_factory):
-    out = tmp_path_factory.mktemp("plots") / "paper"
-    proc = run_cli(["run", PAPER_CASE, "--out", out], plots=True)
-    assert proc.returncode == 0, proc.stderr
+def paper_out(paper_cli_run, tmp_path_factory):
+    """A copy of the paper case's run (conftest.paper_cli_run): these tests delete, redraw
+    and add figures."""
+    run, proc = paper_cli_run
     assert "figures" in proc.stdout
     # the progress bar (not a terminal: a line per 10% of the time interval) on stderr
     assert "100.0%" in proc.stderr and "ETA" in proc.stderr and "step 16/16" in proc.stderr
+    out = tmp_path_factory.mktemp("plots") / "paper"
+    shutil.copytree(run, out)
     return out
 
 
