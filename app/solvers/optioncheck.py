@@ -11,8 +11,9 @@ with an error code and a traceback.  Here:
 - tolerances (``*_rtol``, ...) must be numbers >= 0 (relative ones below 1), counts
   (``*_max_it``, ...) integers of a 32-bit PetscInt;
 - what the step problems need: SNES VI types (the bound u_nu <= g), an exact factorisation
-  for the fast solver by a package its matrix type supports, absolute tolerances below the
-  case's scales (``limits``), at most MAX_OPTIONS options;
+  for the condensed solver (its options are named fast_*) by a package its matrix type
+  supports, absolute tolerances below the case's scales (``limits``), at most MAX_OPTIONS
+  options;
 - as a catch-all, a throwaway SNES and KSP with the same prefixes read the options and set
   up a small matrix; a PETSc error there is reported naming the option that causes it.
 """
@@ -45,8 +46,8 @@ MAX_PETSC_INT = 2**31 - 1         # PetscInt of the Debian PETSc build (32 bit)
 MAX_OPTIONS = 100                 # PETSc's database holds 512 in all (its own ones included)
 # the step problem is a variational inequality: only SNES VI types honour the bound
 VI_SNES_TYPES = ("vinewtonrsls", "vinewtonssls")
-# the fast solver's matrix (app/solvers/fast.py): BAIJ in serial, AIJ under mpirun; packages
-# that factorise it exactly, by PC type (measured with this PETSc build)
+# the condensed solver's matrix (app/solvers/condensed/): BAIJ in serial, AIJ under mpirun;
+# the packages that factorise it exactly, by PC type (measured with this PETSc build)
 FAST_PACKAGES = {(True, "lu"): ("mumps", "petsc"), (True, "cholesky"): ("petsc",),
                  (False, "lu"): ("mumps", "superlu_dist"),
                  (False, "cholesky"): ("mumps", "superlu_dist")}

@@ -134,8 +134,8 @@ class RoundoffFloor:
     absolute values), so its computed value carries errors of order eps |J| |x|.  A problem
     whose stiffness varies by orders of magnitude (nu -> 1/2: lambda / mu = 5000 at
     nu = 0.4999) has ||F|| >> eps || |J| |x| || only far from the solution, and a fixed
-    absolute tolerance below the floor is never met (the fast solver's tolerances scale with
-    its Schur complement S y0 the same way, app/solvers/fast.py).
+    absolute tolerance below the floor is never met (the condensed solver's tolerances scale
+    with its Schur complement S y0 the same way, app/solvers/condensed/).
 
     The floor is ROUNDOFF_FACTOR eps || |J| |x| ||_2 with |J| from the first assembled
     Jacobian (its magnitude, not its value, matters).
