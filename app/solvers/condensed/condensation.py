@@ -20,7 +20,9 @@ from typing import Protocol
 import numpy as np
 from petsc4py import PETSc
 
-OPTIONS = "fast_"       # PETSc options named fast_* configure PETSc's direct solver of K
+from vpcontact.solvers.options import FAST_PREFIX, PREFIX
+
+OPTIONS = FAST_PREFIX[len(PREFIX):]     # case options fast_* configure PETSc's solver of K
 
 
 class Condensation(Protocol):
