@@ -7,6 +7,7 @@ import pytest
 
 from conftest import ROOT, paper_raw, run_case, validate_raw
 from vpcontact.io.case import CaseError, load_case
+from vpcontact.post.quantities import contact_table
 
 CASES = ROOT / "cases"
 
@@ -17,7 +18,7 @@ def _raw(name):
 
 
 def _final(res):
-    tab = res.problem.contact_table()
+    tab = contact_table(res.problem)
     return np.column_stack([tab["u_x"], tab["u_y"]]), \
         np.array([[s[k] for k in ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y")]
                   for s in res.summary["steps"]])
@@ -60,7 +61,7 @@ def test_memory_changes_the_solution_and_direct_sum_agrees():
 def _memory_complementarity(res):
     case, p = res.problem.case, res.problem
     c_nu, g, delta = case.contact.c_nu, case.contact.g, case.numerics.delta
-    tab = p.contact_table()
+    tab = contact_table(p)
     u_nu, f, xi = tab["u_nu"], tab["neg_sigma_nu"], tab["xi"]
     tol = 1e-7 * c_nu * g
     assert np.all(u_nu <= g * (1 + 1e-12)) and np.all(xi >= 0)
@@ -104,7 +105,7 @@ def test_theta_inf_one_equals_plain_friction():
 
 def test_slip_weakening_follows_theta():
     res = run_case(validate_raw(_raw("slip_weakening")))
-    g3, tab = res.gamma3_history, res.problem.contact_table()
+    g3, tab = res.gamma3_history, contact_table(res.problem)
     fr = res.problem.case.contact.friction
     s = g3.slip.s
     assert np.all(s > 0)

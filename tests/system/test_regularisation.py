@@ -8,6 +8,7 @@ import pytest
 
 from conftest import paper_raw, run_case, validate_raw
 from vpcontact.io.schema import SCHEMA
+from vpcontact.post.quantities import contact_table
 
 DEFAULT_DELTA = SCHEMA["properties"]["solver"]["properties"]["delta"]["default"]
 
@@ -18,7 +19,7 @@ def _solve(delta, b):
     raw["contact"]["friction"]["b"] = b
     res = run_case(validate_raw(raw))
     assert res.status == "completed"
-    tab = res.problem.contact_table()
+    tab = contact_table(res.problem)
     u = np.column_stack([tab["u_x"], tab["u_y"]])
     return u, np.array([[s["norm_u_V"], s["norm_sigma_Q"], s["norm_kappa_Y"]]
                         for s in res.summary["steps"]])

@@ -11,6 +11,7 @@ from mpi4py import MPI
 
 from conftest import PAPER_CASE, ROOT, run_cli
 from meshtools import rotation_2d, rotation_3d, write_rotated_box, write_rotated_square
+from vpcontact.post.quantities import contact_table
 
 HERTZ = ROOT / "cases" / "hertz_cylinder.yaml"
 NORMS = ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa")
@@ -51,7 +52,7 @@ def _hertz_fit(x, p):
 
 def test_hertz_cylinder_half_width_and_pressure():
     result = _run(HERTZ)
-    tab = result.problem.contact_table()
+    tab = contact_table(result.problem)
     step = result.summary["steps"][-1]
     P = 2.0 * step["contact_force"][1]                 # the whole cylinder: two quarters
     E, nu, R = 1000.0, 0.3, 1.0
@@ -80,7 +81,7 @@ def test_hertz_fast_equals_snes_vi_and_kkt(tmp_path, direction):
     tabs = {}
     for method in ("fast", "snes_vi"):
         res = _run(path, [f"solver.method={method}"])
-        tabs[method] = res.problem.contact_table()
+        tabs[method] = contact_table(res.problem)
         pb = res.problem
         pos = np.searchsorted(pb.frames.nodes, pb.gamma3.nodes)
         # the nodes with no prescribed component (the roller's and the top's are reactions)
@@ -180,7 +181,7 @@ def test_paper_case_rotated_by_30_degrees(tmp_path, method):
     for a, b in zip(ref.summary["steps"], rot.summary["steps"], strict=True):
         for key in NORMS:
             assert b[key] == pytest.approx(a[key], rel=1e-8, abs=1e-14), key
-    t_ref, t_rot = ref.problem.contact_table(), rot.problem.contact_table()
+    t_ref, t_rot = contact_table(ref.problem), contact_table(rot.problem)
     back = np.column_stack([t_rot["x"], t_rot["y"]]) @ R        # R^T x, row-wise
     order, ref = _matched(back, np.column_stack([t_ref["x"], t_ref["y"]]))
     for col in ("u_nu", "u_tau", "neg_sigma_nu", "neg_sigma_tau"):
@@ -208,7 +209,7 @@ def test_box_rotated_3d(tmp_path, method):
     for a, b in zip(ref.summary["steps"], rot.summary["steps"], strict=True):
         for key in NORMS:
             assert b[key] == pytest.approx(a[key], rel=1e-8, abs=1e-14), key
-    t_ref, t_rot = ref.problem.contact_table(), rot.problem.contact_table()
+    t_ref, t_rot = contact_table(ref.problem), contact_table(rot.problem)
     back = np.column_stack([t_rot[a] for a in "xyz"]) @ R
     order, ref = _matched(back, np.column_stack([t_ref[a] for a in "xyz"]))
 
@@ -233,7 +234,7 @@ def test_hertz_sphere_3d(tmp_path):
                                       "top": [None, None, -0.02]}},
            "time": {"T": 1.0, "N": 1}}
     res = _run(_write(tmp_path, raw))
-    tab = res.problem.contact_table()
+    tab = contact_table(res.problem)
     P = 4.0 * res.summary["steps"][-1]["contact_force"][2]
     E_star = 1000.0 / (1 - 0.3 ** 2)
     a = (3 * P / (4 * E_star)) ** (1 / 3)

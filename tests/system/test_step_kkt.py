@@ -4,6 +4,7 @@ import numpy as np
 from dolfinx import fem
 
 from conftest import paper_raw, run_case, validate_raw
+from vpcontact.post.quantities import contact_table
 
 
 def dpsi(r, b, c1, c2, u1):
@@ -14,7 +15,7 @@ def dpsi(r, b, c1, c2, u1):
 def check_complementarity(res, stick_tol=1e-5):
     case, p = res.problem.case, res.problem
     c_nu, g, fr = case.contact.c_nu, case.contact.g, case.contact.friction
-    tab = p.contact_table()
+    tab = contact_table(p)
     u_nu, f_nu = tab["u_nu"], tab["neg_sigma_nu"]
     u_tau, f_tau = tab["u_tau"], tab["neg_sigma_tau"]
     scale = c_nu * g
