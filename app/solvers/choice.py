@@ -3,9 +3,9 @@ at import time, so case validation can ask ``condensed_eligible``.
 
 ``condensed_eligible`` is the rule of the condensed solver (app/solvers/condensed/): the bulk
 problem of a step must be linear (explicit history scheme) and every Gamma3 term a sum of
-nodal energies (vertex quadrature).  ``choose_method`` resolves ``solver.method``
-(``fast`` is the condensed solver's former name, still accepted), ``choose_linear`` SNES VI's
-``solver.linear``.
+nodal energies (vertex quadrature).  ``choose_method`` resolves ``solver.method`` (the Case
+holds ``condensed`` where a file gives ``fast``, its former name: app/case/model.py),
+``choose_linear`` SNES VI's ``solver.linear``.
 """
 from __future__ import annotations
 
@@ -18,8 +18,6 @@ AUTO_FAST_MAX_GAMMA3_DOFS = 6000
 # dofs) LU 15.3 s, CG + GAMG 7.2 s; n = 24 (46,875) 130 s against 40 s (docs/performance.md).
 # Below, LU costs seconds and takes indefinite Jacobians (beyond (2.6)) as they come.
 AUTO_AMG_MIN_DOFS = 20_000
-
-CONDENSED_NAMES = ("condensed", "fast")     # solver.method values of the condensed solver
 
 
 def condensed_eligible(case) -> tuple[bool, str]:
@@ -52,8 +50,6 @@ def choose_method(case, n_gamma3_dofs: int) -> str:
         "condensed" or "snes_vi".
     """
     method = case.numerics.method
-    if method in CONDENSED_NAMES:
-        return "condensed"
     if method != "auto":
         return method
     ok, _ = condensed_eligible(case)
