@@ -32,7 +32,7 @@ from vpcontact.io.output import OutputError
 from vpcontact.meshes import build_box, build_rectangle
 from vpcontact.meshes.gmshfile import MeshFileError, load_mesh_file
 from vpcontact.model.datapoints import check_data_on_mesh
-from vpcontact.model.gamma3 import Gamma3History, Kernel
+from vpcontact.model.gamma3 import Gamma3History, build_gamma3_history
 from vpcontact.model.history import ViscoplasticHistory
 from vpcontact.model.problem import ContactProblem
 from vpcontact.model.stepping import StepTooSmall, make_stepper
@@ -87,31 +87,6 @@ def build_history(case: Case, problem):
     if problem.implicit:
         return problem.implicit_update        # the step problem's residual hook runs it
     return ViscoplasticHistory(problem, problem.law)
-
-
-def build_gamma3_history(case: Case, problem) -> Gamma3History | None:
-    """The memory term xi_n and the accumulated slip s_n, only if the case enables them.
-
-    Args:
-        case: the validated Case (contact.memory, contact.friction.slip).
-        problem: the ContactProblem.
-
-    Returns:
-        A Gamma3History, or None.
-    """
-    c = case.contact
-    memory = slip = None
-    if c.memory is not None:
-        mk = c.memory
-        kernel = Kernel(mk.kernel, mk.b0, beta=mk.beta, alpha=mk.alpha or 1.0,
-                        tau=mk.tau or 1.0, table=mk.table)
-        memory = {"kernel": kernel,
-                  "recursion": None if mk.sum == "auto" else mk.sum == "recursion"}
-    if c.friction is not None and c.friction.slip is not None:
-        slip = {"theta_inf": c.friction.slip.theta_inf, "s0": c.friction.slip.s0}
-    if memory is None and slip is None:
-        return None
-    return Gamma3History(problem, memory=memory, slip=slip)
 
 
 class _StopRequest:

@@ -198,10 +198,11 @@ def trace_constant_bound(problem, solver) -> float | None:
     if not getattr(solver, "gamma3", False) or not hasattr(solver, "S"):
         return None
     M = _gamma3_mass(problem)
-    rows, cols = solver._owned_rows.astype(np.int32), solver.global_G_dofs()  # collective
+    layout = solver.layout
+    rows, cols = layout.owned_rows.astype(np.int32), layout.global_rows()  # collective
     local = M.getValues(rows, cols) if len(rows) else np.zeros((0, solver.m))
     M.destroy()
-    MG = solver.gather_GG(local)                     # on the rank that holds S
+    MG = layout.gather_matrix(local)                 # on the rank that holds S
 
     def largest():
         with threads.blas_threads(large=solver.m >= dense.PCG_MIN):
