@@ -43,7 +43,8 @@ import numpy as np
 from mpi4py import MPI
 
 from vpcontact import FieldOutput, Observer, Simulation, validate
-from vpcontact.model.contact_laws import dpsi
+from vpcontact.model.contact_laws import PiecewiseLinearFriction
+from vpcontact.post.quantities import contact_table
 
 # -
 
@@ -166,7 +167,7 @@ class ContactWatch(Observer):
         self.rows = []
 
     def step(self, sim, record):
-        table = sim.problem.contact_table()
+        table = contact_table(sim.problem)
         g = sim.case.contact.g
         u_nu = table["u_nu"]
         at_bound = u_nu >= g * (1 - 1e-9)
@@ -277,7 +278,7 @@ check(H1 == 0.0, "H_1 = 0 (the explicit history lags one step)")
 
 c = case.contact
 fr = c.friction
-table = problem.contact_table()
+table = contact_table(problem)
 u_nu, p_nu = table["u_nu"], table["neg_sigma_nu"]
 u_tau, p_tau = table["u_tau"], table["neg_sigma_tau"]
 tol = 1e-7 * c.c_nu * c.g
@@ -290,7 +291,8 @@ check(np.all(np.abs(p_nu[separated]) <= tol), "(4.1): no force where separated")
 check(np.allclose(p_nu[inside], c.c_nu * u_nu[inside], rtol=0.0, atol=tol),
       "(4.1): -sigma_nu = c_nu u_nu in compliance")
 check(np.all(p_nu[at_bound] >= c.c_nu * c.g - tol), "(4.1): -sigma_nu >= c_nu g at the bound")
-expected = dpsi(np.abs(u_tau[slip]), fr.b, fr.c1, fr.c2, fr.u1) * np.sign(u_tau[slip])
+psi = PiecewiseLinearFriction(fr.b, fr.c1, fr.c2, fr.u1)
+expected = psi.derivative(np.abs(u_tau[slip])) * np.sign(u_tau[slip])
 check(np.allclose(p_tau[slip], expected, rtol=1e-6, atol=tol), "(4.2): friction on slip")
 
 # The paper's picture at $T$: part of $\Gamma_3$ at the bound, part in compliance, and every

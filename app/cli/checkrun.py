@@ -17,12 +17,12 @@ def report(case, comm) -> list[str]:
     """
     import numpy as np
 
-    from vpcontact.io.case import fast_eligible, rescale_for_length
+    from vpcontact.io.case import rescale_for_length
     from vpcontact.model.datapoints import check_data_on_mesh
     from vpcontact.model.problem import ContactProblem
     from vpcontact.post.diagnostics import diagnose
     from vpcontact.simulation import build_mesh
-    from vpcontact.solvers import choose_method, gamma3_dofs
+    from vpcontact.solvers import choose_method, condensed_eligible, gamma3_dofs
 
     body = build_mesh(case, comm)
     if case.mesh.file is not None:      # as Simulation.setup: the data on the mesh's points
@@ -32,7 +32,7 @@ def report(case, comm) -> list[str]:
     ks = np.diff(case.time.times)
     n_dofs = gamma3_dofs(problem)
     n_g = n_dofs // problem.dim
-    ok, why = fast_eligible(case)
+    ok, why = condensed_eligible(case)
     method = choose_method(case, n_dofs)
     m = case.mesh
     if m.file is not None:
@@ -58,7 +58,7 @@ def report(case, comm) -> list[str]:
         "active terms: " + ", ".join(case.active_terms()),
         "left out: " + (", ".join(case.omitted_terms()) or "nothing"),
         f"step solver: {method}" + (" (solver.method: auto)" if case.numerics.method == "auto"
-                                    else "") + ("" if ok else f"; fast not possible: {why}"),
+                                    else "") + ("" if ok else f"; condensed not possible: {why}"),
     ]
     diag = diagnose(problem)
     lines += [text for _, text in diag.messages()]

@@ -388,7 +388,7 @@ def gather_contact_table(comm, table: dict, g: float | None,
 
     Args:
         comm: the MPI communicator.
-        table: this rank's columns (problem.contact_table()).
+        table: this rank's columns (post.quantities.contact_table).
         g: the bound of the unilateral constraint (None: no bound).
         compliance: the foundation has a normal compliance (see classify).
 
@@ -438,7 +438,7 @@ def write_contact_csv(comm, path: Path, table: dict, g: float | None,
     Args:
         comm: the MPI communicator.
         path: the CSV file.
-        table: this rank's columns (problem.contact_table()).
+        table: this rank's columns (post.quantities.contact_table).
         g: the bound of the unilateral constraint (None: no bound).
         compliance: the foundation has a normal compliance (see classify).
 

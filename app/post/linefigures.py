@@ -188,12 +188,13 @@ def fig4_tangential(res: Results, path: Path) -> None:
 
 def _normal_law(c_nu, g, r):
     """-sigma_nu = p(u_nu) = c_nu u_nu^+ of (4.1) at u_nu = r <= g (c_nu None: 0) (Fig. 2a)."""
-    return contact_laws.normal_compliance(r, c_nu or 0.0)
+    return contact_laws.NormalCompliance(c_nu or 0.0).derivative(r)
 
 
 def _tangential_law(fr, rho):
     """|sigma_tau| = psi'(rho) of (4.2) at slips rho = |u_tau| > 0; fr: b, c1, c2, u1 (Fig. 2b)."""
-    return contact_laws.dpsi(rho, fr["b"], fr["c1"], fr["c2"], fr["u1"])
+    psi = contact_laws.PiecewiseLinearFriction(fr["b"], fr["c1"], fr["c2"], fr["u1"])
+    return psi.derivative(rho)
 
 
 def fig2_laws(res: Results, path: Path) -> None:

@@ -22,8 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from vpcontact.io.case import CaseError, fast_eligible, load_raw, validate
+from vpcontact.io.case import CaseError, load_raw, validate
 from vpcontact.io.files import atomic_write
+from vpcontact.solvers.choice import condensed_eligible
 from vpcontact.studies import bench3d, scenebench
 from vpcontact.studies.bench3d import BOX3D
 from vpcontact.studies.benchrun import ENV, run_overrides
@@ -48,7 +49,7 @@ def _positive_ints(option: str, values, allowed: str = "positive integers") -> N
 
 
 def check_arguments(case, levels, extra=(), nprocs=(1, 2), repeat: int = 1,
-                    memory_steps=(), methods=("snes_vi", "fast"), box3d_levels=()) -> None:
+                    memory_steps=(), methods=("snes_vi", "condensed"), box3d_levels=()) -> None:
     """Refuse a bench that cannot run as asked, before anything runs.
 
     The case is read and validated at every level with every step solver.
@@ -91,8 +92,8 @@ def check_arguments(case, levels, extra=(), nprocs=(1, 2), repeat: int = 1,
     for n, N in [(L, L) for L in levels] + [tuple(e) for e in extra]:
         for method in methods:
             c = validate(load_raw(case, _overrides(n, N, method)), str(case))
-            ok, why = fast_eligible(c)
-            if method == "fast" and not ok:
+            ok, why = condensed_eligible(c)
+            if method == "condensed" and not ok:
                 raise CaseError(f"{case}: the bench times the fast step solver, which is not "
                                 f"possible for this case: {why}")
     for N in memory_steps:
@@ -113,7 +114,7 @@ def _check_box3d(levels) -> None:
             raise CaseError(f"--box3d-levels {n}: {exc}") from None
 
 
-def bench(case, outdir: Path, levels, methods=("snes_vi", "fast"), nprocs=(1, 2),
+def bench(case, outdir: Path, levels, methods=("snes_vi", "condensed"), nprocs=(1, 2),
           extra=(), log=print, repeat: int = 1) -> list[dict]:
     """Time the step solvers on the case, each configuration in its own process.
 
@@ -170,7 +171,7 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "fast"), nprocs=(1, 2)
                     f"set-up {s['setup_s']:.2f} s, steps {s['loop_s']:.2f} s, "
                     f"{s['newton_iterations_total']} Newton iterations")
         for np_ in nprocs:
-            a, b = finals.get(("snes_vi", np_)), finals.get(("fast", np_))
+            a, b = finals.get(("snes_vi", np_)), finals.get(("condensed", np_))
             if a and b:
                 diff = float(np.abs(a["_u"] - b["_u"]).max() / np.abs(a["_u"]).max())
                 for r in (a, b):

@@ -35,6 +35,7 @@ from vpcontact.io.case import CaseError, validate
 from vpcontact.io.files import atomic_write
 from vpcontact.io.output import csv_text
 from vpcontact.observers import Observer
+from vpcontact.post.quantities import contact_table
 from vpcontact.studies import runcache
 from vpcontact.studies.grid import (
     Grid,
@@ -400,7 +401,7 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
                            f"{s['failure']['reason']} at step {s['failure']['step']}")
     rec = RunRecord(n, N, delta, grid, s["mesh"]["dofs"], np.array(case.time.times),
                     s["solve_s"], s["setup_s"], s["newton_iterations_total"], False,
-                    sampler.snaps, _gather_table(result.problem.contact_table(), comm),
+                    sampler.snaps, _gather_table(contact_table(result.problem), comm),
                     s["steps"][-1] if s["steps"] else None)
     try:
         with signals_held():          # the finished run is logged and cached whole

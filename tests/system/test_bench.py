@@ -18,9 +18,9 @@ def test_bench_command(tmp_path):
     assert len(rows) == 2 * 2 * 2 and not any("failed" in r for r in rows)
     for r in rows:
         assert r["solution_difference"] < 1e-9 and r["speedup_fast_vs_snes"] > 0
-        # fast: one factorisation, serial and under mpirun (MUMPS with Gamma3 as Schur
+        # condensed: one factorisation, serial and under mpirun (MUMPS with Gamma3 as Schur
         # variables)
-        expected = 1 if r["method"] == "fast" else None
+        expected = 1 if r["method"] == "condensed" else None
         assert r["factorisations"] == expected
         assert {"dofs", "wall_s", "setup_s", "step_median_s", "newton_total"} <= set(r)
         assert len(r["wall_runs_s"]) == 2 and r["wall_s"] == min(r["wall_runs_s"])
@@ -43,7 +43,7 @@ def test_bench_command(tmp_path):
         assert "failed" not in r and 0 < r["peak_rss_gb"] < 3 and r["max_iterations"] <= 20
         assert len(r["iterations"]) == r["N"] and r["wall_s"] > r["loop_s"] > 0
     assert box3d["box3d n = 6"]["dofs"] == 3 * 7 ** 3
-    assert box3d["box3d n = 6"]["method"] == "fast"
+    assert box3d["box3d n = 6"]["method"] == "condensed"
     assert box3d["2D reference 1/128, fast"]["dofs"] == 2 * 129 ** 2
     for n in (4, 6):
         assert box3d[f"box3d n = {n}, SNES VI"]["agreement_vs_default"] < 1e-8

@@ -42,12 +42,12 @@ def test_fast_and_snes_vi_take_the_same_adaptive_grid(adaptive):
 def test_the_grid_ignores_the_iteration_count(monkeypatch):
     """A step solver reporting many iterations takes the same grid (the iteration count is
     a property of the solver, not of the discrete problem)."""
-    from vpcontact.solvers.fast import FastStepSolver
+    from vpcontact.solvers.condensed import CondensedStepSolver
     raw = _adaptive({})
     raw["solver"]["method"] = "fast"
     plain = run_case(validate_raw(raw))
-    solve = FastStepSolver.solve
-    monkeypatch.setattr(FastStepSolver, "solve", lambda self: solve(self) + 100)
+    solve = CondensedStepSolver.solve
+    monkeypatch.setattr(CondensedStepSolver, "solve", lambda self: solve(self) + 100)
     slow = run_case(validate_raw(raw))
     assert _grid(slow) == _grid(plain)
     assert slow.summary["steps"][0]["newton_iterations"] >= 100

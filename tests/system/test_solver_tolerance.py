@@ -22,12 +22,12 @@ def _incompressible(viscoplastic: bool, N: int) -> dict:
 
 def _both(raw: dict):
     runs = {}
-    for method in ("snes_vi", "fast"):
+    for method in ("snes_vi", "condensed"):
         raw.setdefault("solver", {})["method"] = method
         runs[method] = run_case(validate_raw(raw))
         assert runs[method].status == "completed", runs[method].summary.get("failure")
         assert runs[method].summary["solver"]["used"] == method
-    return runs["snes_vi"], runs["fast"]
+    return runs["snes_vi"], runs["condensed"]
 
 
 def _agreement(a, b) -> tuple[float, float]:
