@@ -27,7 +27,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from vpcontact.io.case import MAX_VERTICES, Case, CaseError, rescale_for_length
+from vpcontact.case import Case, CaseError, rescale_for_length
+from vpcontact.case.meshrules import MAX_VERTICES
 from vpcontact.io.output import OutputError
 from vpcontact.meshes import build_box, build_rectangle
 from vpcontact.meshes.gmshfile import MeshFileError, load_mesh_file

@@ -32,7 +32,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from vpcontact import Simulation, validate
-from vpcontact.io.case import load_raw
+from vpcontact.case import load_raw
 from vpcontact.post.divergence import BlowUpMonitor
 
 # -

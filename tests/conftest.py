@@ -29,14 +29,14 @@ MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
 
 
 def paper_raw() -> dict:
-    from vpcontact.io.case import load_raw
+    from vpcontact.case import load_raw
     return load_raw(PAPER_CASE)
 
 
 def make_case(raw: dict | None = None, **sections):
     """Validate the paper case, with whole sections or keys replaced: make_case(time={'N': 2})
     merges into the section; a value of None removes the section."""
-    from vpcontact.io.case import validate
+    from vpcontact.case import validate
     raw = copy.deepcopy(raw if raw is not None else paper_raw())
     for name, value in sections.items():
         if value is None:
@@ -100,5 +100,5 @@ def paper_run():
 
 
 def validate_raw(raw: dict):
-    from vpcontact.io.case import validate
+    from vpcontact.case import validate
     return validate(raw, "test-case")

@@ -10,8 +10,6 @@ PETSc defaults are the solvers' (app/solvers/options.py).
 """
 from __future__ import annotations
 
-from vpcontact.solvers.options import DEFAULT_PETSC as DEFAULT_PETSC  # moved: temporary re-export
-
 _num = {"type": "number"}
 _pos = {"type": "number", "exclusiveMinimum": 0}
 _nonneg = {"type": "number", "minimum": 0}

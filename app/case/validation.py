@@ -33,8 +33,6 @@ from vpcontact.solvers.choice import condensed_eligible
 from vpcontact.solvers.optioncheck import PetscOptions, check_petsc_options
 from vpcontact.solvers.options import case_defaults
 
-fast_eligible = condensed_eligible  # moved: temporary re-export
-
 
 def validate(data: dict, source: str = "<case>") -> Case:
     """Validate a raw case mapping.

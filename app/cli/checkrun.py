@@ -17,7 +17,7 @@ def report(case, comm) -> list[str]:
     """
     import numpy as np
 
-    from vpcontact.io.case import rescale_for_length
+    from vpcontact.case import rescale_for_length
     from vpcontact.model.datapoints import check_data_on_mesh
     from vpcontact.model.problem import ContactProblem
     from vpcontact.post.diagnostics import diagnose

@@ -38,7 +38,7 @@ def start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
     """
     from mpi4py import MPI
 
-    from vpcontact.io.case import load_raw, validate
+    from vpcontact.case import load_raw, validate
 
     comm = MPI.COMM_WORLD
     setup_logging(comm, args.quiet, getattr(args, "verbose", False))
@@ -46,7 +46,7 @@ def start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
         raw = load_raw(args.case, args.overrides)
         case = validate(raw, args.case)
         if petsc_cli:
-            from vpcontact.io.petscopts import check_petsc_options
+            from vpcontact.solvers.optioncheck import check_petsc_options
             check_petsc_options(petsc_cli, "command line", where="-", base=case.petsc)
         if check:
             check(case)
@@ -484,8 +484,8 @@ def cmd_check(args) -> int:
     """
     from mpi4py import MPI
 
+    from vpcontact.case import load_raw, validate
     from vpcontact.cli.checkrun import report
-    from vpcontact.io.case import load_raw, validate
     comm = MPI.COMM_WORLD
     setup_logging(comm, False)
     try:

@@ -48,10 +48,10 @@ def split_petsc_args(argv: list[str]) -> tuple[list[str], dict]:
 # The largest value of each integer option (a larger one is refused in one line, exit 2,
 # before anything runs; a huge number reached range() and 2 ** r as an "internal error" or
 # kept the process counting refinements for ever):
-MAX_CELLS = 4096         # cells per side of a built-in mesh (app/io/schema.py, mesh.n)
-MAX_STEPS = 1_000_000    # time steps (app/io/case.py MAX_STEPS, time.N)
+MAX_CELLS = 4096         # cells per side of a built-in mesh (app/case/schema.py, mesh.n)
+MAX_STEPS = 1_000_000    # time steps (app/case/timegrid.py MAX_STEPS, time.N)
 MAX_REFINEMENTS = 30     # a mesh.file refined r times has >= 4^r cells: 30 is beyond any
-                         # mesh within app/io/case.py's MAX_VERTICES = 1e8
+                         # mesh within app/case/meshrules.py's MAX_VERTICES = 1e8
 MAX_THREADS = 1024       # BLAS threads of run --threads
 MAX_RANKS = 4096         # bench --ranks (bench refuses more than the machine's cores)
 MAX_REPEAT = 100         # bench --repeat (app/studies/bench.py MAX_REPEAT)

@@ -1,7 +1,7 @@
 """The case's data checked on the points of a loaded mesh file, before anything is computed.
 
 Validation cannot sample the data of a mesh.file where they depend on the position (the body
-is not known then, app/io/datacheck.py).  Once the mesh is loaded, the same checks run on its
+is not known then, app/case/datacheck.py).  Once the mesh is loaded, the same checks run on its
 own points: the nodes and cell midpoints of the body for the body's data (f0, u0, sigma0,
 kappa0), the nodes and facet midpoints of each group for the data acting on it (tractions,
 pressures, prescribed displacements, the gap g on Gamma3), each also rounded to 1e-9 of the
@@ -15,8 +15,9 @@ from dolfinx import cpp as dcpp
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from vpcontact.io.case import Case, CaseError, check_values_on_mesh
-from vpcontact.io.datacheck import PointSamples
+from vpcontact.case import Case, CaseError
+from vpcontact.case.datacheck import PointSamples
+from vpcontact.case.values import check_values_on_mesh
 
 
 def entity_points(msh, dim: int, entities: np.ndarray) -> np.ndarray:

@@ -18,8 +18,8 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from vpcontact.case import Case, CaseError
 from vpcontact.forms.contact import gamma3_measure
-from vpcontact.io.case import Case, CaseError
 from vpcontact.meshes.bodycheck import interior_role
 from vpcontact.model.dirichlet import build_dirichlet, check_rigid_motions
 from vpcontact.model.frames import ContactFrames, build_frames, facet_normals, gap_values
@@ -128,7 +128,7 @@ class Discretisation:
         self.clamped_nodes = self.dirichlet.clamped_nodes
 
     def _check_roles(self) -> None:
-        """The rules validation applies to the groups' spellings (app/io/case.py: no group
+        """The rules validation applies to the groups' spellings (app/case/rules.py: no group
         twice in a role, clamped and contact disjoint, no load on a clamped group nor, in a
         case with contact, on Gamma3), applied to the groups themselves: a group's name and
         its physical tag are one group.

@@ -25,7 +25,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from vpcontact.io import expressions
+from vpcontact.case import expressions
 from vpcontact.io.errors import CaseError
 
 log = logging.getLogger("vpcontact")

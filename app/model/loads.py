@@ -3,7 +3,7 @@
 A component of a load vector is one of
 - a number (constant in time and space);
 - {"table": [[t0, v0], [t1, v1], ...]}: piecewise linear in t (constant beyond the ends);
-- an expression string in t, x, y, z (app/io/expressions.py).
+- an expression string in t, x, y, z (app/case/expressions.py).
 Time enters through dolfinx Constants updated by ``set_time`` at every step, so the compiled
 forms do not change with t.
 """
@@ -14,7 +14,7 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
-from vpcontact.io import expressions
+from vpcontact.case import expressions
 
 
 def is_zero(component) -> bool:

@@ -19,10 +19,10 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from vpcontact.case import Case, CaseError
 from vpcontact.forms.contact import gamma3_measure
 from vpcontact.forms.elasticity import elasticity_operator, eps, plane_strain_moduli
 from vpcontact.forms.step import BulkData, ContactData, build_step_forms
-from vpcontact.io.case import Case, CaseError
 from vpcontact.model.contact_laws import contact_law
 from vpcontact.model.discretisation import Discretisation
 from vpcontact.model.gamma3 import NodalField

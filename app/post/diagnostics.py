@@ -23,7 +23,8 @@ from petsc4py import PETSc
 from vpcontact.forms.elasticity import eps
 from vpcontact.solvers import dense, threads
 from vpcontact.solvers.amg import AMG_PETSC, AMG_PREFIX, near_nullspace, rigid_body_modes
-from vpcontact.solvers.snesvi import PREFIX, clear_petsc_options, direct_solver, set_petsc_options
+from vpcontact.solvers.options import push_options, remove_options
+from vpcontact.solvers.snesvi import PREFIX, direct_solver
 
 STABILITY_LIMIT = 2.0
 TRACE_PREFIX = PREFIX + "trace_"        # the iterative K^-1 of trace_constant
@@ -80,12 +81,12 @@ def _stiffness_solver(K: PETSc.Mat, problem, linear: str) -> PETSc.KSP:
     ksp.setTolerances(rtol=TRACE_CG_RTOL, atol=0.0, max_it=2000)
     ksp.getPC().setType("gamg")
     options = {k[len(AMG_PREFIX):]: v for k, v in AMG_PETSC.items() if k.startswith(AMG_PREFIX)}
-    set_petsc_options(options, TRACE_PREFIX)
+    push_options(options, TRACE_PREFIX)
     try:                                # the multigrid levels read theirs when set up
         ksp.setFromOptions()
         ksp.setUp()
     finally:
-        clear_petsc_options(options, TRACE_PREFIX)
+        remove_options(options, TRACE_PREFIX)
     return ksp
 
 

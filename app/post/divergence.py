@@ -10,7 +10,7 @@ dozen steps while the run still "completes".
 ``stress_scale`` collects the data's stress levels (no solve needed):
 - the loads and initial data: |f2| on the traction sides, |f0| L (div sigma = -f0),
   |sigma0| and E |u0| / L, sampled over the body and the time grid when the case was
-  validated (Case.data_stress, app/io/datacheck.py);
+  validated (Case.data_stress, app/case/datacheck.py);
 - the contact laws: c_nu g (the normal compliance force at the bound), the memory force
   b0 T g, the friction bound's constants;
 - the elastic stress of a displacement g over the body, E_max g / L;

@@ -19,9 +19,6 @@ from vpcontact.solvers.amg import InactiveSetAMG, rigid_body_modes
 from vpcontact.solvers.options import PREFIX, push_options, remove_options
 from vpcontact.solvers.rotation import FrameMap
 
-set_petsc_options = push_options  # moved: temporary re-export
-clear_petsc_options = remove_options  # moved: temporary re-export
-
 log = logging.getLogger("vpcontact")
 
 _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}

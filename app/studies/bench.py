@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vpcontact.io.case import CaseError, load_raw, validate
+from vpcontact.case import CaseError, load_raw, validate
 from vpcontact.io.files import atomic_write
 from vpcontact.solvers.choice import condensed_eligible
 from vpcontact.studies import bench3d, scenebench

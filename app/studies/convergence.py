@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vpcontact.io.case import CaseError, validate
+from vpcontact.case import CaseError, validate
 from vpcontact.io.files import atomic_write
 from vpcontact.io.output import csv_text
 from vpcontact.observers import Observer
@@ -633,7 +633,7 @@ def _level_rows(levels, recs, ref, vary, T, delta, comm) -> list[dict]:
 
 def check_level_sizes(case, comm, option: str, value: int, extra: int = 0) -> None:
     """Refuse a study whose finest refinement of the case's mesh.file would be larger than
-    the built-in meshes may be (vpcontact.io.case.MAX_VERTICES vertices) or could not be refined
+    the built-in meshes may be (app/case/meshrules.py MAX_VERTICES) or could not be refined
     in the memory rank 0 has (meshes/refine.py, ``too_large``), before anything is refined
     or run: the vertex counts follow from the mesh read (``read_sizes``); collective.
 
@@ -650,7 +650,7 @@ def check_level_sizes(case, comm, option: str, value: int, extra: int = 0) -> No
     """
     if case.mesh.file is None:
         return
-    from vpcontact.io.case import MAX_VERTICES
+    from vpcontact.case.meshrules import MAX_VERTICES
     from vpcontact.meshes import MeshFileError
     from vpcontact.meshes.refine import available_memory, read_sizes, too_large
     finest = value + extra
@@ -686,7 +686,7 @@ def level_meshes(case, reference: int, comm):
     if case.mesh.file is None:
         yield None
         return
-    from vpcontact.io.case import MAX_VERTICES
+    from vpcontact.case.meshrules import MAX_VERTICES
     from vpcontact.meshes import MeshFileError
     from vpcontact.meshes.refine import refine_file
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import yaml
 
-from vpcontact.io.case import load_raw
+from vpcontact.case import load_raw
 from vpcontact.io.files import atomic_write
 
 ANGLE = 30.0

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from vpcontact.io.case import CaseError, validate
+from vpcontact.case import CaseError, validate
 from vpcontact.io.files import atomic_write
 from vpcontact.io.output import csv_text
 from vpcontact.studies.interrupts import (

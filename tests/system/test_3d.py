@@ -43,7 +43,7 @@ def test_3d_uniform_stress_patch(size):
 
 def test_box_case_nodal_laws():
     """Normal law (4.1) and the vector friction law at every Gamma3 node of the 3D case."""
-    from vpcontact.io.case import load_raw
+    from vpcontact.case import load_raw
     raw = load_raw(BOX)
     raw["mesh"]["n"] = 4
     raw["time"]["N"] = 4
@@ -66,6 +66,7 @@ def test_box_case_nodal_laws():
 
 
 @pytest.mark.mpi
+@pytest.mark.slow
 @pytest.mark.parametrize("extra", [
     ["--set", "time.N=4"],
     # m = 1026 >= PCG_MIN: the kept factor and CG; under mpirun rank 0 borrows rank 1's core
@@ -108,7 +109,7 @@ def test_convergence_refuses_3d(tmp_path):
 def test_box_amg_equals_lu():
     """SNES VI with CG + GAMG (rigid body modes on the inactive set) and with LU: the same
     Newton iterations and the same u_n to 1e-8 on the 3D box."""
-    from vpcontact.io.case import load_raw
+    from vpcontact.case import load_raw
     runs = {}
     for linear in ("direct", "amg"):
         raw = load_raw(BOX)

@@ -270,7 +270,7 @@ def test_bench_arguments_are_checked_by_the_library(kwargs, option):
 
 
 def test_bench_fast_solver_impossible_is_refused(tmp_path):
-    from vpcontact.io.case import CaseError, load_raw
+    from vpcontact.case import CaseError, load_raw
     from vpcontact.studies import bench
     raw = load_raw(PAPER_CASE)
     raw.setdefault("time", {})["scheme"] = "implicit"

@@ -40,7 +40,7 @@ def test_condensed_equals_snes_vi_on_the_paper_case():
 
 
 def test_condensed_equals_snes_vi_with_memory_and_slip():
-    from vpcontact.io.case import load_raw
+    from vpcontact.case import load_raw
     raw = load_raw(ROOT / "cases" / "memory.yaml")
     raw["contact"]["friction"]["slip"] = {"theta_inf": 0.3, "s0": 0.002}
     raw["mesh"]["n"] = 8
@@ -50,7 +50,7 @@ def test_condensed_equals_snes_vi_with_memory_and_slip():
 
 
 def test_condensed_equals_snes_vi_in_3d():
-    from vpcontact.io.case import load_raw
+    from vpcontact.case import load_raw
     raw = load_raw(ROOT / "cases" / "box3d.yaml")
     raw["mesh"]["n"] = 4
     raw["time"]["N"] = 2
@@ -58,13 +58,14 @@ def test_condensed_equals_snes_vi_in_3d():
     assert du < 1e-9 and dn < 1e-10
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kept_factor", [False, True])
 def test_box3d_n12_iterations_bounded_and_solvers_agree(monkeypatch, kept_factor):
     """box3d at n = 12 (8 steps): every step of both solvers within 20 iterations (the
     Gamma3 problem's line search once stalled for 160-200 iterations at the energy's round-off
     in 3D), and the two agree to 1e-8; also with the Gamma3 Newton systems solved by CG with
     a kept factor (the large-m path, here forced at m = 468)."""
-    from vpcontact.io.case import load_raw
+    from vpcontact.case import load_raw
     from vpcontact.solvers import dense
     if kept_factor:
         monkeypatch.setattr(dense, "PCG_MIN", 0)

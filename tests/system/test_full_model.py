@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, paper_raw, run_case, validate_raw
-from vpcontact.io.case import CaseError, load_case
+from vpcontact.case import CaseError, load_case
 from vpcontact.post.quantities import contact_table
 
 CASES = ROOT / "cases"
 
 
 def _raw(name):
-    from vpcontact.io.case import load_raw
+    from vpcontact.case import load_raw
     return load_raw(CASES / f"{name}.yaml")
 
 

@@ -37,8 +37,8 @@ def _refusal(path: Path) -> str:
     a CaseError, which the command line prints as this line."""
     from mpi4py import MPI
 
+    from vpcontact.case import load_case
     from vpcontact.cli.checkrun import report
-    from vpcontact.io.case import load_case
     from vpcontact.io.errors import CaseError
     from vpcontact.io.messages import error_line
     with pytest.raises(CaseError) as refused:

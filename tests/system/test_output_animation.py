@@ -11,6 +11,7 @@ import pytest
 
 from conftest import PAPER_CASE, ROOT, run_cli
 
+pytestmark = pytest.mark.slow    # two runs and two animations: about 12 s
 FRAME_BYTES = 800 * 560          # one quantized frame (pictures.FRAME)
 
 

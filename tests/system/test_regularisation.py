@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from conftest import paper_raw, run_case, validate_raw
-from vpcontact.io.schema import SCHEMA
+from vpcontact.case.schema import SCHEMA
 from vpcontact.post.quantities import contact_table
 
 DEFAULT_DELTA = SCHEMA["properties"]["solver"]["properties"]["delta"]["default"]

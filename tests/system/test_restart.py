@@ -86,6 +86,7 @@ def _history(out):
         return list(csv.DictReader(fh))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ranks", [(2, 2), (1, 2), (2, 1)])
 def test_restart_under_mpi(ranks, tmp_path):
     """Checkpoint written on r1 ranks, restarted on r2 ranks: the same result."""

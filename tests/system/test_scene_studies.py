@@ -16,7 +16,7 @@ E, NU, R = 1000.0, 0.3, 1.0
 
 
 def _hertz_study(size, levels, reference, cache_dir):
-    from vpcontact.io.case import load_raw
+    from vpcontact.case import load_raw
     from vpcontact.studies import convergence as cv
     raw = load_raw(HERTZ, [f"mesh.size={size}"])
     return cv.study(raw, str(HERTZ), levels, reference, "both", None, MPI.COMM_WORLD,
@@ -128,7 +128,7 @@ def test_two_ranks_give_the_same_errors_on_a_mesh_file(cli_study, tmp_path):
     ([0], None, ["time.grading=1.1"], "uniform steps"),
 ])
 def test_bad_levels_of_a_mesh_file_are_refused(levels, reference, overrides, pattern):
-    from vpcontact.io.case import load_raw, validate
+    from vpcontact.case import load_raw, validate
     from vpcontact.io.errors import CaseError
     from vpcontact.studies import convergence as cv
     case = validate(load_raw(HERTZ, overrides), str(HERTZ))
@@ -159,7 +159,7 @@ def test_scale_handles_expressions_tables_and_free_components():
 
 @pytest.fixture(scope="module")
 def punch_sweep():
-    from vpcontact.io.case import load_raw
+    from vpcontact.case import load_raw
     from vpcontact.studies import stability as st
     raw = load_raw(PUNCH, ["mesh.size=4"])
     keep = {"baseline", "lambda1=0.01, k=T/16", "g x10", "pulling away (loads x-1)",
@@ -195,7 +195,7 @@ def test_stability_sweep_on_a_mesh_file(punch_sweep):
 def test_stability_variants_fit_the_scene():
     """Variants whose data a scene lacks are left out (and said so); a gap expression gets
     factors, a number the given values; --n and --refine belong to their kind of mesh."""
-    from vpcontact.io.case import load_raw
+    from vpcontact.case import load_raw
     from vpcontact.io.errors import CaseError
     from vpcontact.studies import stability as st
     raw = load_raw(HERTZ)
@@ -218,7 +218,7 @@ def test_growth_of_a_load_ramp_is_not_a_blow_up():
     """The Hertz push grows linearly in t: with 1024 steps the norms grow 1024-fold from
     the first step, yet only 2-fold from the base's first time point T/2, which the growth
     is measured against: the fine-step variant is bounded."""
-    from vpcontact.io.case import load_raw
+    from vpcontact.case import load_raw
     from vpcontact.studies import stability as st
     raw = load_raw(HERTZ, ["mesh.size=8"])
     out = st.sweep(raw, MPI.COMM_WORLD, {}, None, 2, source=str(HERTZ),

@@ -18,7 +18,7 @@ NORMS = ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa")
 
 
 def _run(path, overrides=()):
-    from vpcontact.io.case import load_case
+    from vpcontact.case import load_case
     from vpcontact.simulation import run
     result = run(load_case(path, list(overrides)), MPI.COMM_WORLD)
     assert result.status == "completed"
@@ -100,7 +100,8 @@ def test_hertz_fast_equals_snes_vi_and_kkt(tmp_path, direction):
     assert np.abs(tab["neg_sigma_tau"]).max() <= 1e-8 * scale_p    # frictionless
 
 
-@pytest.mark.parametrize("name, steps", [("punch_relaxation", 20), ("sphere3d", 2)])
+@pytest.mark.parametrize("name, steps", [("punch_relaxation", 20),
+                                         pytest.param("sphere3d", 2, marks=pytest.mark.slow)])
 def test_shipped_scenes_fast_equals_snes_vi(name, steps):
     """The shipped scenes (a viscoplastic punch with a gap field; a ball in a compliant,
     frictional socket in rotated 3D frames): both step solvers agree to 1e-8 at every step,

@@ -95,7 +95,7 @@ def test_adaptive_rejection_restores_every_history(monkeypatch):
     (all histories rolled back) and the run continues with k = 0.25.  With memory and slip
     dependence active, the result must equal the fixed grid N = 4 to round-off."""
     from conftest import ROOT
-    from vpcontact.io.case import load_raw
+    from vpcontact.case import load_raw
     from vpcontact.solvers.snesvi import SNESVISolver, StepSolveError
 
     raw = load_raw(ROOT / "cases" / "memory.yaml")
@@ -164,6 +164,7 @@ def test_wellposedness_warning_exactly_when_margin_negative(tmp_path, c1, b, war
     assert ("uniqueness of the solution is not guaranteed" in proc.stdout) == warned
 
 
+@pytest.mark.slow
 def test_stability_sweep_cli(tmp_path):
     """The default sweep on a tiny mesh: every variant converges or stops with a reason, no
     traceback; the stiff explicit variants are flagged unbounded, the implicit ones not."""

@@ -1,5 +1,5 @@
 """Data on a mesh file are checked as on the built-in mesh: once the mesh
-is loaded, app/io/datacheck.py's checks run on its own points (app/model/datapoints.py),
+is loaded, app/case/datacheck.py's checks run on its own points (app/model/datapoints.py),
 with the same one-line error naming the key and the point (x, t), before any computation,
 on every rank."""
 import re

@@ -77,8 +77,9 @@ def test_the_ends_of_each_range_are_accepted(command, option, value, expected):
 
 
 def test_the_ranges_are_the_limits_of_the_case_and_the_bench():
-    from vpcontact.io.case import MAX_STEPS, MAX_VERTICES
-    from vpcontact.io.schema import SCHEMA
+    from vpcontact.case.meshrules import MAX_VERTICES
+    from vpcontact.case.schema import SCHEMA
+    from vpcontact.case.timegrid import MAX_STEPS
     from vpcontact.studies.bench import MAX_REPEAT
     assert cli.MAX_CELLS == SCHEMA["properties"]["mesh"]["properties"]["n"]["maximum"]
     assert cli.MAX_STEPS == MAX_STEPS
@@ -87,7 +88,7 @@ def test_the_ranges_are_the_limits_of_the_case_and_the_bench():
 
 
 def test_box3d_levels_over_the_vertex_limit_are_refused_before_the_bench_runs():
-    from vpcontact.io.case import CaseError
+    from vpcontact.case import CaseError
     from vpcontact.studies import bench
     with pytest.raises(CaseError, match=r"--box3d-levels 4096: .*box3d\.yaml: mesh\.n"):
         bench.check_arguments(str(ROOT / "cases/wang_cheng_2021.yaml"), [8], [], [1], 1,

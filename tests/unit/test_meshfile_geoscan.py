@@ -184,7 +184,7 @@ def test_tokens_follow_gmsh_scanner():
 
 
 def _case(tmp_path, geo_name="part.geo"):
-    from vpcontact.io.case import load_case
+    from vpcontact.case import load_case
     path = tmp_path / "case.yaml"
     path.write_text(f"mesh: {{file: {geo_name}, dim: 2}}\n"
                     "material: {E: 1000.0, nu: 0.3, plane: strain}\n"

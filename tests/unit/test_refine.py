@@ -133,7 +133,7 @@ def test_refine_refuses_facets_off_the_cells():
 def test_level_norms_and_sampling_match_dolfinx(hertz_levels, tmp_path):
     """On a refined level read by a run: the sampler puts every value at its level index,
     and the level's norms equal the problem's own ||u||_V and ||sigma||_Q."""
-    from vpcontact.io.case import validate
+    from vpcontact.case import validate
     from vpcontact.model.problem import ContactProblem
     from vpcontact.studies.nested import LevelSampler, NestedLevel, row_positions
 

@@ -17,7 +17,7 @@ def _problem(dim):
     if dim == 2:
         case = make_case(mesh={"n": 6, "diagonal": "left", "L1": 1.5})
     else:
-        from vpcontact.io.case import load_raw, validate
+        from vpcontact.case import load_raw, validate
         raw = load_raw(ROOT / "cases" / "box3d.yaml")
         raw["mesh"]["n"] = 3
         case = validate(raw, "box")
