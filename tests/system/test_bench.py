@@ -3,9 +3,12 @@ speed-up and cost columns, the memory-term cost rows (recursion == direct sum), 
 rows (box3d: iterations, memory, agreement of the solvers and of mpirun, the plot)."""
 import json
 
+import pytest
+
 from conftest import run_cli
 
 
+@pytest.mark.slow
 def test_bench_command(tmp_path):
     out = tmp_path / "bench"
     proc = run_cli(["bench", "--levels", "4", "8", "--extra", "--ranks", "1", "2",
