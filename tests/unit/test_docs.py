@@ -99,9 +99,10 @@ def test_literal_blocks_keep_their_text():
     assert safe_lines(doc) == ["Text::", "", "    |literal| *kept*_", "", r"After \|x\|."]
 
 
+@pytest.mark.slow
 def test_sphinx_build_passes_with_warnings_as_errors(tmp_path):
     """``make docs``'s build (-W: a warning fails it) into a temporary directory, API
-    reference and demos included; it took 25-30 s of CPU when measured."""
+    reference and demos included (make test runs it: 22-30 s of CPU when measured)."""
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
     start = time.perf_counter()
     proc = subprocess.run(
