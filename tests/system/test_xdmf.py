@@ -177,12 +177,12 @@ def test_history_csv_has_a_row_per_step(tmp_path, nprocs):
     assert s["steps"][-1]["contact_states"]["nodes"] == len(states)
 
 
-def test_readme_pyvista_snippet_runs_verbatim(tmp_path):
-    """The README's Python example, on a run's output: it reads the last time, warps by u
-    and writes vm.png coloured by sigma_vm (in a process of its own, as the README says)."""
+def test_user_guide_pyvista_snippet_runs_verbatim(tmp_path):
+    """The user guide's Python example (docs/user-guide.md), on a run's output: it reads the last time, warps by u
+    and writes vm.png coloured by sigma_vm (in a process of its own, as the guide says)."""
     import subprocess
     import sys
-    text = (ROOT / "README.md").read_text()
+    text = (ROOT / "docs" / "user-guide.md").read_text()
     block = text.split("```python\nimport pyvista as pv", 1)[1].split("```", 1)[0]
     out, _ = _run(tmp_path, "2d", 1)
     code = "import pyvista as pv" + block.replace("results/wang_cheng_2021", str(out))
