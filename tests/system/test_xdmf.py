@@ -178,8 +178,9 @@ def test_history_csv_has_a_row_per_step(tmp_path, nprocs):
 
 
 def test_user_guide_pyvista_snippet_runs_verbatim(tmp_path):
-    """The user guide's Python example (docs/user-guide.md), on a run's output: it reads the last time, warps by u
-    and writes vm.png coloured by sigma_vm (in a process of its own, as the guide says)."""
+    """The user guide's Python example (docs/user-guide.md), on a run's output: it reads the
+    last time, warps by u and writes vm.png coloured by sigma_vm (in a process of its own,
+    as the guide says)."""
     import subprocess
     import sys
     text = (ROOT / "docs" / "user-guide.md").read_text()
