@@ -98,7 +98,7 @@ bench: setup
 # the case-file reference (docs/case-file.md) from the schema, then the HTML: -W, a warning is an
 # error (tests/unit/test_docs.py runs the same build)
 docs: setup
-	$(PY) -m vpcontact.io.docs docs/case-file.md
+	$(PY) -m vpcontact.case.reference docs/case-file.md
 	$(PY) -m sphinx -W --keep-going -q -b html -d docs/_build/doctrees docs docs/_build/html
 	@echo "docs: docs/_build/html/index.html"
 

@@ -1,6 +1,6 @@
 """The case-file reference (docs/case-file.md), generated from the schema so it cannot drift.
 
-``make docs`` (``python -m vpcontact.io.docs``) rewrites the block between the markers of
+``make docs`` (``python -m vpcontact.case.reference``) rewrites the block between the markers of
 docs/case-file.md; tests/unit/test_docs.py fails when the page is out of date.
 """
 from __future__ import annotations
@@ -84,7 +84,7 @@ def render(page: str) -> str:
 
 
 def main() -> int:
-    """``python -m vpcontact.io.docs [PAGE]``: regenerate the page's reference block.
+    """``python -m vpcontact.case.reference [PAGE]``: regenerate the page's reference block.
 
     Returns:
         The exit status, 0.
