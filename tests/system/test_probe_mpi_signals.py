@@ -4,7 +4,14 @@ checkpoint and summary.json `status: interrupted`; mpirun's exit code is its own
 4.1: 1 after it forwarded a signal, not the ranks' 3); a log reader that quits makes mpirun
 abort the job the same way (after about ten writes to the closed pipe), with nothing left
 hanging.  The ranks get time to finish their step (OMPI_MCA_odls_base_sigkill_timeout, as
-the README advises): by default Open MPI kills them 1 s after the SIGTERM."""
+the README advises): by default Open MPI kills them 1 s after the SIGTERM.
+
+The timeout also sets how long the ranks go on and mpirun waits: Open MPI 4.1's mpirun, on
+SIGINT or SIGTERM (or a rank's non-zero exit), sends the ranks SIGCONT at once, SIGTERM one
+timeout later, SIGKILL after another, and exits only then, however early the ranks ended
+(strace, with 10 s: SIGCONT +0.005 s, SIGTERM +10.0 s, SIGKILL +18.1 s, mpirun gone at +18.2 s;
+the ranks' summary.json was written 0.07 s after their SIGTERM).  3 s leaves them
+ample time and each test about 6 s of waiting (19 s with 10)."""
 import json
 import os
 import signal
@@ -19,7 +26,7 @@ from conftest import MPI_ENV, PAPER_CASE, ROOT
 pytestmark = pytest.mark.mpi
 
 ENV = {**os.environ, **MPI_ENV, "PYTHONPATH": str(ROOT),
-       "OMPI_MCA_odls_base_sigkill_timeout": "10"}
+       "OMPI_MCA_odls_base_sigkill_timeout": "3"}
 
 
 def _command(out, *extra):
