@@ -61,7 +61,6 @@ def _interrupted(out):
     return s
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_signal_to_mpirun_ends_the_run_as_interrupted(sig, tmp_path):
     out = tmp_path / "o"
