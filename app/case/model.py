@@ -53,11 +53,15 @@ class Boundaries:
 
 @dataclass(frozen=True)
 class Viscoplastic:
-    """``material.viscoplastic``: the Perzyna law's lambda1, lambda2 and kappa0."""
+    """``material.viscoplastic``: the law ("perzyna" or "power"), lambda1, lambda2, kappa0,
+    and the power law's exponent n and stress scale s_ref (None with perzyna)."""
 
     lambda1: float
     lambda2: float
     kappa0: float | str
+    law: str = "perzyna"
+    n: float | None = None
+    s_ref: float | None = None
 
 
 @dataclass(frozen=True)
@@ -216,7 +220,10 @@ class Case:
         terms = [f"plane-{self.material.plane} elasticity" if self.dim == 2
                  else "isotropic elasticity (3D)"]
         if self.material.viscoplastic:
-            terms.append("Perzyna viscoplastic history H_n, kappa_n"
+            vp = self.material.viscoplastic
+            name = "Perzyna" if vp.law == "perzyna" else \
+                f"power-law Perzyna (n = {vp.n:g}, s_ref = {vp.s_ref:g})"
+            terms.append(f"{name} viscoplastic history H_n, kappa_n"
                          + (" (implicit, right end point)" if self.time.scheme == "implicit"
                             else " (explicit, as in the paper)"))
         if self.contact.c_nu is not None:
@@ -291,9 +298,7 @@ def build_case(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Cas
         source=source,
         mesh=_mesh_spec(mesh),
         material=Material(float(data["material"]["E"]), float(data["material"]["nu"]),
-                          Viscoplastic(float(vp["lambda1"]), float(vp["lambda2"]),
-                                       vp["kappa0"] if isinstance(vp["kappa0"], str)
-                                       else float(vp["kappa0"])) if vp else None,
+                          _viscoplastic(vp) if vp else None,
                           data["material"].get("plane")),
         contact=Contact(
             g if isinstance(g, str) else float(g) if g is not None else None,
@@ -320,6 +325,17 @@ def build_case(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Cas
         output=OutputSpec(**data["output"]),
         raw=data,
     )
+
+
+def _viscoplastic(vp: dict) -> Viscoplastic:
+    """The Viscoplastic of the material.viscoplastic section (law absent: perzyna; the power
+    law's n absent: 1)."""
+    law = vp.get("law", "perzyna")
+    power = law == "power"
+    return Viscoplastic(float(vp["lambda1"]), float(vp["lambda2"]),
+                        vp["kappa0"] if isinstance(vp["kappa0"], str) else float(vp["kappa0"]),
+                        law, float(vp.get("n", 1.0)) if power else None,
+                        float(vp["s_ref"]) if power else None)
 
 
 def _mesh_spec(mesh: dict) -> MeshSpec:

@@ -70,6 +70,8 @@ def check_structure(data: dict, source: str) -> None:
         raise CaseError(f"{source}: contact: give at least one of g, normal_compliance, "
                         "memory, friction")
     vp = data["material"].get("viscoplastic")
+    if vp:
+        _check_law_keys(vp, source)
     if vp and isinstance(vp["kappa0"], str):
         _check_components([vp["kappa0"]], "material.viscoplastic.kappa0", 1, source,
                           in_time=False, space_dim=dim)
@@ -182,6 +184,25 @@ def _check_contact(contact: dict, dim: int, source: str) -> None:
                         f"{fr['b'] - fr['c1'] * fr['u1']:g}")
     if contact.get("memory"):
         _check_memory(contact["memory"], source)
+
+
+# the keys of material.viscoplastic that only one law uses
+LAW_KEYS = {"n": "power", "s_ref": "power"}
+
+
+def _check_law_keys(vp: dict, source: str) -> None:
+    """material.viscoplastic: a key of another law (n, s_ref with perzyna) is refused; the
+    power law needs s_ref (the schema has no defaults for n and s_ref, so a key present here
+    was given)."""
+    law = vp.get("law", "perzyna")
+    for key, owner in LAW_KEYS.items():
+        if key in vp and owner != law:
+            raise CaseError(f"{source}: material.viscoplastic.{key}: not used with law "
+                            f"{law} (only with law {owner})")
+    if law == "power" and "s_ref" not in vp:
+        raise CaseError(f"{source}: material.viscoplastic.s_ref: required with law power "
+                        "(the stress scale of the overstress r = ||sigma - P sigma||_VM / "
+                        "s_ref, in Pa)")
 
 
 def _check_memory(mem: dict, source: str) -> None:

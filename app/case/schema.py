@@ -110,8 +110,22 @@ SCHEMA = _obj({
             "kappa0": {"oneOf": [_nonneg, _expr], "default": 0.0,
                        "description": "initial internal state variable kappa0 [N/m^2]: a "
                                       "number or an expression in x, y, z"},
+            "law": {"enum": ["perzyna", "power"],
+                    "description": "the viscoplastic law (absent: perzyna): perzyna, the "
+                                   "paper's G = -1/(2 lambda1) E (sigma - P sigma), Gk = "
+                                   "2/(3 lambda2) ||sigma - P sigma||_VM; power, Perzyna with "
+                                   "a power overstress: both rates times r^(n-1), r = "
+                                   "||sigma - P sigma||_VM / s_ref (n = 1: perzyna)"},
+            "n": {"type": "number", "minimum": 1,
+                  "description": "law power: the exponent n of the overstress r^(n-1) "
+                                 "(dimensionless; absent: 1); not used with perzyna"},
+            "s_ref": {**_pos, "description": "law power (required there): the stress scale "
+                                            "s_ref of the overstress r = ||sigma - P "
+                                            "sigma||_VM / s_ref [N/m^2 = Pa]; not used with "
+                                            "perzyna"},
         }, required=["lambda1", "lambda2"],
-            description="Perzyna law (absent: elastic body, no history update)"),
+            description="viscoplastic law, Perzyna's or its power overstress variant "
+                        "(absent: elastic body, no history update)"),
         "plane": {"enum": ["stress", "strain"], "default": "stress",
                   "description": "2D: plane stress (the paper's, a thin plate) or plane strain "
                                  "(a long body); not used in 3D"},

@@ -14,7 +14,7 @@ them it builds the two updates a run calls, each an object that keeps its own wo
 A new law is a subclass that sets ``m`` and implements ``rates`` (and, where it has one,
 a faster ``explicit`` or an exact ``implicit_residual``).  Perzyna's law of the paper's
 Section 4 (m = 1) uses its compiled update (app/kernels/perzyna.c) where a C compiler is
-available.
+available; PowerLaw, Perzyna's with a power overstress r^(n-1), uses the defaults.
 """
 from __future__ import annotations
 
@@ -279,14 +279,65 @@ class CompiledPerzynaUpdate:
             raise RuntimeError("von Mises projection: secular equation did not converge")
 
 
+class PowerLaw(ViscoplasticLaw):
+    """Perzyna's law with a power overstress, m = 1: with r = ||sigma - P sigma||_VM / s_ref,
+    G(sigma, kappa) = -r^(n-1)/(2 lambda1) E (sigma - P sigma),
+    Gk(sigma, kappa) = 2 r^(n-1)/(3 lambda2) ||sigma - P sigma||_VM,
+    P = P_K(kappa) the projection of Perzyna's law (app/model/material.py).  n = 1 is
+    Perzyna's law.  The explicit update is the interface's numpy ExplicitUpdate, the
+    implicit one solves the interface's default residual; the relaxation rate
+    r^(n-1) lambda_max(E)/(2 lambda1) grows without bound with the overstress, so the law
+    gives none (no stability indicator).
+
+    Args:
+        elasticity: the elasticity E.
+        lambda1: viscosity of the stress rate G [N s/m^2].
+        lambda2: viscosity of the hardening rate Gk [s].
+        n: the exponent n >= 1 of the overstress.
+        s_ref: the stress scale s_ref > 0 of the overstress [N/m^2].
+    """
+
+    m = 1
+
+    def __init__(self, elasticity: Elasticity, lambda1: float, lambda2: float, n: float,
+                 s_ref: float):
+        super().__init__(elasticity)
+        self.lambda1, self.lambda2, self.n, self.s_ref = lambda1, lambda2, n, s_ref
+        self._project = make_projection(elasticity)
+
+    def rates(self, t, kappa):
+        """G = -r^(n-1)/(2 lambda1) E (sigma - P sigma), Gk = 2 r^(n-1)/(3 lambda2)
+        ||sigma - P sigma||_VM, r = ||sigma - P sigma||_VM / s_ref; P with kappa clipped at
+        0 (the implicit update's Newton iterates may step below).
+
+        Args:
+            t: rows (n, mt) of sigma in t-coordinates.
+            kappa: (n, 1) hardening values.
+
+        Returns:
+            (G rows (n, mt), Gk (n, 1)).
+        """
+        excess = t - self._project(t, np.maximum(kappa[:, 0], 0.0))
+        vm = self.elasticity.von_mises(excess)
+        with np.errstate(over="ignore"):
+            f = (vm / self.s_ref) ** (self.n - 1.0)        # 0^0 = 1: n = 1 is Perzyna's
+        return ((-0.5 / self.lambda1) * f)[:, None] * self.elasticity.apply(excess), \
+            (((2.0 / (3.0 * self.lambda2)) * f) * vm)[:, None]
+
+
 def viscoplastic_law(vp, elasticity: Elasticity) -> ViscoplasticLaw | None:
     """The case's viscoplastic law.
 
     Args:
-        vp: the case's ``material.viscoplastic`` section (or None: an elastic body).
+        vp: the case's ``material.viscoplastic`` section (or None: an elastic body); its
+            ``law`` (absent: "perzyna") picks Perzyna or PowerLaw (with ``n``, ``s_ref``).
         elasticity: the elasticity E.
 
     Returns:
-        A Perzyna law, or None.
+        A Perzyna or PowerLaw law, or None.
     """
-    return None if vp is None else Perzyna(elasticity, vp.lambda1, vp.lambda2)
+    if vp is None:
+        return None
+    if getattr(vp, "law", "perzyna") == "power":
+        return PowerLaw(elasticity, vp.lambda1, vp.lambda2, vp.n, vp.s_ref)
+    return Perzyna(elasticity, vp.lambda1, vp.lambda2)

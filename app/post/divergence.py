@@ -18,7 +18,8 @@ dozen steps while the run still "completes".
 A step is diverged if a value is not finite, or if max ||sigma_n||_VM exceeds
 BLOWUP_FACTOR (L / h) times that scale (L / h allows for stresses concentrated at corners
 and on single contact nodes), or max kappa_n exceeds kappa_0 + 2 T / (3 lambda2) times that
-bound (the growth of kappa under the same overstress).  The factor is generous: a run near
+bound (the growth of kappa under the same overstress; for the power law times r^(n-1), r =
+the bound / s_ref, when r > 1).  The factor is generous: a run near
 the explicit limit whose norms stay bounded is never stopped, and a genuinely exploding run
 is stopped after a few steps.
 """
@@ -81,6 +82,18 @@ def stress_scale(case, problem) -> float:
     return max(data if math.isfinite(data) else 0.0, cell_max(problem, problem.sigma_vm))
 
 
+def _overstress_factor(vp, bound: float) -> float:
+    """The power law's factor r^(n-1) on kappa's rate at the overstress ``bound``,
+    r = bound / s_ref (app/model/viscoplastic.py, PowerLaw), at least 1; 1 for Perzyna's;
+    inf where it overflows (no bound on kappa then)."""
+    if vp.law != "power":
+        return 1.0
+    try:
+        return max(1.0, bound / vp.s_ref) ** (vp.n - 1.0)
+    except OverflowError:
+        return math.inf
+
+
 class BlowUpMonitor(Observer):
     """Stops a run as "diverged" at the first step whose record leaves the bounds (see the
     module docstring): an observer whose ``check`` refuses the step, so the last good
@@ -103,7 +116,7 @@ class BlowUpMonitor(Observer):
         h = problem.body.h
         self.bound = BLOWUP_FACTOR * (problem.length_scale / h) * self.scale
         self.kappa_bound = kappa0_max + (2.0 * case.time.T / (3.0 * vp.lambda2) * self.bound
-                                         if vp else 0.0)
+                                         * _overstress_factor(vp, self.bound) if vp else 0.0)
 
     def start(self, sim) -> None:
         """Set the bounds from the run's state before its first step (collective).

@@ -503,7 +503,8 @@ def matches_paper(raw: dict) -> bool:
     vp = c.material.viscoplastic
     return (c.mesh.kind == "structured" and c.mesh.L1 == 1.0 and c.mesh.L2 == 1.0
             and c.time.T == 1.0 and (c.material.E, c.material.nu) == (1000.0, 0.4)
-            and vp is not None and (vp.lambda1, vp.lambda2, vp.kappa0) == (100.0, 100.0, 0.0)
+            and vp is not None and vp.law == "perzyna"
+            and (vp.lambda1, vp.lambda2, vp.kappa0) == (100.0, 100.0, 0.0)
             and (c.contact.g, c.contact.c_nu) == (0.012, 100.0) and fr is not None
             and (fr.b, fr.c1, fr.c2, fr.u1) == (1.0, 60.0, 60.0, 0.01)
             and c.loads.traction == {"top": (0.0, -8.0), "right": (-3.2, 0.0)}
