@@ -40,20 +40,6 @@ class BackwardEuler:
         self.m = self.elasticity.m
         self.rtol, self.max_iter = rtol, max_iter
 
-    def residual(self, z, s_tr, kappa_prev, k):
-        """The local residual (R_s, R_k) of the backward-Euler update (the law's).
-
-        Args:
-            z: (n, mt + m) unknowns: sigma in t-coordinates, then kappa.
-            s_tr: (n, mt) trial stresses E eps(u_n) + H_{n-1}.
-            kappa_prev: (n, m) kappa_{n-1}.
-            k: the time step k_n.
-
-        Returns:
-            The (n, mt + m) residuals.
-        """
-        return self.law.implicit_residual(z, s_tr, kappa_prev, k)
-
     def _jacobian(self, z, r0, s_tr, kappa_prev, k, scale):
         n, m1 = z.shape
         J = np.empty((n, m1, m1))
@@ -61,7 +47,7 @@ class BackwardEuler:
             h = 1e-7 * (np.abs(z[:, j]) + scale)
             zp = z.copy()
             zp[:, j] += h
-            J[:, :, j] = (self.residual(zp, s_tr, kappa_prev, k) - r0) / h[:, None]
+            J[:, :, j] = (self.law.implicit_residual(zp, s_tr, kappa_prev, k) - r0) / h[:, None]
         return J
 
     def solve(self, s_tr, kappa_prev, k):
@@ -93,7 +79,7 @@ class BackwardEuler:
             np.ones((1, m + kp.shape[1]))
         scale[:, m:] = np.maximum(scale[:, :1], kp)
         z = np.column_stack([st, kp])
-        r = self.residual(z, st, kp, k)
+        r = self.law.implicit_residual(z, st, kp, k)
         norm = np.linalg.norm(r / scale, axis=1)
         for _ in range(self.max_iter):
             active = norm > self.rtol
@@ -107,7 +93,7 @@ class BackwardEuler:
             new_norm = np.full(dz.shape[0], np.inf)
             for _ls in range(20):   # backtracking on the scaled residual norm
                 trial = za + step[:, None] * dz
-                rt = self.residual(trial, sa, ka, k)
+                rt = self.law.implicit_residual(trial, sa, ka, k)
                 nt = np.linalg.norm(rt / sca, axis=1)
                 better = (nt < norm[active] * (1 - 1e-4 * step)) | (nt <= self.rtol)
                 accept = better & np.isinf(new_norm)

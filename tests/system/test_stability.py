@@ -61,7 +61,7 @@ def test_implicit_local_update_and_tangent():
     s_tr = rng.normal(size=(200, 3)) * 30
     kp = rng.uniform(0.0, 10.0, (200, 1))
     sig, kap, C = be.solve(s_tr, kp, 0.1)
-    r = be.residual(np.column_stack([sig, kap]), s_tr, kp, 0.1)
+    r = be.law.implicit_residual(np.column_stack([sig, kap]), s_tr, kp, 0.1)
     assert np.abs(r).max() < 1e-9 * np.abs(s_tr).max()
     assert np.all(kap >= kp - 1e-12)
     # central differences with a step well above the local Newton's stopping error (its
