@@ -4,7 +4,7 @@ At h = 1/128 the explicit Perzyna update of the 32,768 cells took 10 ms per step
 (whole-array Newton iterations on the secular equation, temporaries): more than the two
 back-substitutions of the fast solver.  The same algorithm as material.VonMisesProjection,
 one cell at a time in C, takes well under a millisecond.  The law's numpy update
-(app/model/viscoplastic.py: ExplicitUpdate from Perzyna.rates) stays the reference
+(app/model/laws.py: ExplicitUpdate from Perzyna.rates) stays the reference
 (tests/unit/test_kernels.py compares them) and the fallback when no C compiler is available.
 The kernel knows no law object: its data (E, the von Mises form, the projection's
 eigenbasis, the coordinates' positions in the tensor) are passed in.

@@ -30,50 +30,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from vpcontact.model.laws import ScalarLaw
 from vpcontact.model.primitives import backend
-
-
-class ScalarLaw:
-    """The interface of a law of one scalar per node: no state, vectorised.
-
-    Subclasses write ``energy``, ``derivative`` and ``second_derivative`` with the
-    primitives of ``backend(r)``; ``name`` names the term in the forms' list of terms.
-    """
-
-    name = "contact law"
-
-    def energy(self, r):
-        """The energy.
-
-        Args:
-            r: the variable at the nodes (numpy array or number) or a UFL expression.
-
-        Returns:
-            The energy, elementwise.
-        """
-        raise NotImplementedError
-
-    def derivative(self, r):
-        """The first derivative of ``energy``.
-
-        Args:
-            r: as for ``energy``.
-
-        Returns:
-            The derivative, elementwise.
-        """
-        raise NotImplementedError
-
-    def second_derivative(self, r):
-        """The second derivative of ``energy``.
-
-        Args:
-            r: as for ``energy``.
-
-        Returns:
-            The second derivative, elementwise.
-        """
-        raise NotImplementedError
 
 
 @dataclass(frozen=True)

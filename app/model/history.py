@@ -12,7 +12,7 @@ history objects here are the stages of a step that update them, with the law's u
 from __future__ import annotations
 
 from vpcontact.model.implicit import LocalFailure
-from vpcontact.model.viscoplastic import ViscoplasticLaw
+from vpcontact.model.laws import ViscoplasticLaw
 
 
 class ViscoplasticHistory:

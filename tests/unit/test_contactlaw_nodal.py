@@ -10,6 +10,7 @@ import ufl
 
 from vpcontact import kernels
 from vpcontact.model import contact_laws as laws
+from vpcontact.model.laws import ScalarLaw
 from vpcontact.model.primitives import backend
 from vpcontact.solvers.nodal import NodalContact, nodal_contact_numpy
 
@@ -125,7 +126,7 @@ def test_compiled_nodal_contact_without_compliance():
 
 
 @dataclass(frozen=True)
-class PowerCompliance(laws.ScalarLaw):
+class PowerCompliance(ScalarLaw):
     """A law the kernel does not know: P(r) = c (r^+)^3 / 3, p = c (r^+)^2."""
 
     c: float

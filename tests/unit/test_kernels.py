@@ -9,6 +9,7 @@ import pytest
 
 from vpcontact import kernels
 from vpcontact.kernels import build
+from vpcontact.model.laws import ExplicitUpdate
 from vpcontact.model.material import (
     FLAT,
     FROM,
@@ -17,7 +18,7 @@ from vpcontact.model.material import (
     from_voigt,
     to_voigt,
 )
-from vpcontact.model.viscoplastic import ExplicitUpdate, Perzyna
+from vpcontact.model.viscoplastic import Perzyna
 from vpcontact.solvers import dense, ldl, mumps
 
 ROOT = Path(__file__).resolve().parents[2]

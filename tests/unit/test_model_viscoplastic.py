@@ -1,4 +1,4 @@
-"""The viscoplastic law interface (app/model/viscoplastic.py): a law declares m and gives G,
+"""The viscoplastic law interface (app/model/laws.py): a law declares m and gives G,
 Gk vectorised over cells; its explicit update (3.2)-(3.3) and its implicit variant follow
 from them, so a new law is one class.  A toy law with m = 2 (linear relaxation) checks the
 defaults against the scheme written out by hand; Perzyna's specialised updates equal the
@@ -6,13 +6,9 @@ interface's defaults."""
 import numpy as np
 import pytest
 
+from vpcontact.model.laws import ExplicitUpdate, ViscoplasticLaw
 from vpcontact.model.material import Elasticity, from_voigt
-from vpcontact.model.viscoplastic import (
-    ExplicitUpdate,
-    Perzyna,
-    ViscoplasticLaw,
-    viscoplastic_law,
-)
+from vpcontact.model.viscoplastic import Perzyna, viscoplastic_law
 
 EL = Elasticity(1000.0, 0.4, 2)
 
