@@ -3,8 +3,9 @@ sigma' = E eps(u') + G(sigma, kappa), kappa' = Gk(sigma, kappa) (1.2)-(1.3).
 
 Perzyna's law of the paper's Section 4 (m = 1) uses its compiled update
 (app/kernels/perzyna.c) where a C compiler is available; PowerLaw, Perzyna's with a power
-overstress r^(n-1), uses the protocol's defaults.  ``viscoplastic_law`` builds the law a case
-names.
+overstress r^(n-1), uses the protocol's defaults; Norton's creep law and Chaboche's are in
+modules of their own (app/model/norton.py, app/model/chaboche.py).  ``viscoplastic_law``
+builds the law a case names.
 """
 from __future__ import annotations
 
@@ -202,14 +203,23 @@ def viscoplastic_law(vp, elasticity: Elasticity) -> ViscoplasticLaw | None:
 
     Args:
         vp: the case's ``material.viscoplastic`` section (or None: an elastic body); its
-            ``law`` (absent: "perzyna") picks Perzyna or PowerLaw (with ``n``, ``s_ref``).
+            ``law`` (absent: "perzyna") picks Perzyna, PowerLaw (with ``n``, ``s_ref``),
+            Norton (``A``, ``n``; app/model/norton.py) or Chaboche (``k``, ``K``, ``n``,
+            ``C``, ``gamma``, ``Q``, ``b``; app/model/chaboche.py).
         elasticity: the elasticity E.
 
     Returns:
-        A Perzyna or PowerLaw law, or None.
+        The law, or None.
     """
     if vp is None:
         return None
-    if getattr(vp, "law", "perzyna") == "power":
+    law = getattr(vp, "law", "perzyna")
+    if law == "power":
         return PowerLaw(elasticity, vp.lambda1, vp.lambda2, vp.n, vp.s_ref)
+    if law == "norton":
+        from vpcontact.model.norton import Norton
+        return Norton(elasticity, vp.A, vp.n)
+    if law == "chaboche":
+        from vpcontact.model.chaboche import Chaboche
+        return Chaboche(elasticity, vp.k, vp.K, vp.n, vp.C, vp.gamma, vp.Q, vp.b)
     return Perzyna(elasticity, vp.lambda1, vp.lambda2)

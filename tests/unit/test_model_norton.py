@@ -1,0 +1,234 @@
+"""Norton's creep law (app/model/norton.py): eps_vp' = A sigma_eq^n N, G = -E eps_vp',
+Gk = A sigma_eq^n.  The rates against hand computations with 3 x 3 tensors (uniaxial, pure
+shear, random states, 2D and 3D; the engineering-shear weights of the t-coordinates); the
+explicit update on a uniaxial bar under held strain against the closed form sigma(t) =
+[sigma0^(1-n) + (n-1) E A t]^(1/(1-n)), first order in k; the backward-Euler update on the
+same bar; creep under a constant load; the case keys and their refusals."""
+import numpy as np
+import pytest
+
+from conftest import make_case, paper_raw
+from vpcontact.io.errors import CaseError
+from vpcontact.model.laws import ExplicitUpdate
+from vpcontact.model.material import Elasticity
+from vpcontact.model.norton import Norton
+from vpcontact.model.viscoplastic import viscoplastic_law
+
+E_, NU = 1000.0, 0.3
+A_, N_EXP = 1e-6, 3.0
+S0, T_END = 40.0, 0.5
+
+
+def _tensor(row, dim):
+    """The 3 x 3 tensor of t-coordinates (2D: the in-plane stress, sigma_33 = 0)."""
+    if dim == 2:
+        s11, s22, s12 = row
+        return np.array([[s11, s12, 0.0], [s12, s22, 0.0], [0.0, 0.0, 0.0]])
+    s11, s22, s33, s23, s13, s12 = row
+    return np.array([[s11, s12, s13], [s12, s22, s23], [s13, s23, s33]])
+
+
+def _coords(tau, dim):
+    if dim == 2:
+        return np.array([tau[0, 0], tau[1, 1], tau[0, 1]])
+    return np.array([tau[0, 0], tau[1, 1], tau[2, 2], tau[1, 2], tau[0, 2], tau[0, 1]])
+
+
+def _hand_rates(t, dim, A, n):
+    """G, Gk from eps_vp' = A sigma_eq^n (3/2) dev(sigma)/sigma_eq with 3 x 3 tensors and
+    G = -E eps_vp' (2D plane stress: E on the in-plane part, the paper's constants)."""
+    if dim == 3:
+        lmbda = E_ * NU / ((1 + NU) * (1 - 2 * NU))
+    else:
+        lmbda = E_ * NU / (1 - NU ** 2)
+    two_mu = E_ / (1 + NU)
+    G, Gk = [], []
+    for row in t:
+        tau = _tensor(row, dim)
+        dev = tau - np.trace(tau) / 3 * np.eye(3)
+        seq = np.sqrt(1.5 * np.sum(dev * dev))
+        eps_vp = A * seq ** n * 1.5 * dev / seq
+        e = eps_vp[:dim, :dim]
+        Ee = lmbda * np.trace(e) * np.eye(dim) + two_mu * e
+        G.append(-_coords(Ee if dim == 3 else np.pad(Ee, (0, 1)), dim))
+        Gk.append([A * seq ** n])
+    return np.array(G), np.array(Gk)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_rates_by_hand(dim):
+    """Random stress states: G and Gk against the formula written with 3 x 3 tensors."""
+    el = Elasticity(E_, NU, dim)
+    law = Norton(el, 2e-5, 2.5)
+    t = np.random.default_rng(5).normal(size=(8, el.m)) * 30.0
+    G, Gk = law.rates(t, np.zeros((8, 1)))
+    Gh, Gkh = _hand_rates(t, dim, 2e-5, 2.5)
+    np.testing.assert_allclose(G, Gh, rtol=1e-12, atol=1e-12 * np.abs(Gh).max())
+    np.testing.assert_allclose(Gk, Gkh, rtol=1e-12)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_uniaxial_and_shear_creep_rates(dim):
+    """Uniaxial s: eps_vp' = A s^n (1, -1/2(, -1/2)), p' = A s^n.  Pure shear tau:
+    sigma_eq = sqrt(3) tau, the engineering shear rate 2 eps_vp12' = sqrt(3) A
+    (sqrt(3) tau)^n, G12 = -2 mu eps_vp12'."""
+    el = Elasticity(E_, NU, dim)
+    law = Norton(el, A_, N_EXP)
+    s, tau = 30.0, 12.0
+    uni, shear = np.zeros((1, el.m)), np.zeros((1, el.m))
+    uni[0, 0], shear[0, -1] = s, tau
+    eps, p = law.creep_rate(uni)
+    rate = A_ * s ** N_EXP
+    want = [rate, -rate / 2, 0.0] if dim == 2 else [rate, -rate / 2, -rate / 2, 0, 0, 0]
+    np.testing.assert_allclose(eps[0], want, rtol=1e-13, atol=1e-16)
+    np.testing.assert_allclose(p, [rate], rtol=1e-13)
+    eps, p = law.creep_rate(shear)
+    gamma_rate = np.sqrt(3.0) * A_ * (np.sqrt(3.0) * tau) ** N_EXP
+    np.testing.assert_allclose(2 * eps[0, -1], gamma_rate, rtol=1e-13)
+    np.testing.assert_allclose(eps[0, :-1], 0.0, atol=1e-16)
+    np.testing.assert_allclose(p, [A_ * (np.sqrt(3.0) * tau) ** N_EXP], rtol=1e-13)
+    G, Gk = law.rates(shear, np.zeros((1, 1)))
+    np.testing.assert_allclose(G[0, -1], -E_ / (1 + NU) * gamma_rate / 2, rtol=1e-13)
+
+
+def test_zero_stress_and_elastic_cells():
+    """No creep at sigma = 0 (n = 1 too) or under a hydrostatic stress in 3D; ``elastic``
+    is exactly those cells."""
+    el = Elasticity(E_, NU, 3)
+    t = np.array([[0.0] * 6, [5.0, 5.0, 5.0, 0, 0, 0], [1.0, 0, 0, 0, 0, 0]])
+    for n in (1.0, 3.0):
+        G, Gk = Norton(el, A_, n).rates(t, np.zeros((3, 1)))
+        assert np.all(G[:2] == 0) and np.all(Gk[:2] == 0) and Gk[2, 0] > 0
+        assert list(Norton(el, A_, n).elastic(t, np.zeros((3, 1)))) == [True, True, False]
+
+
+def _closed_form(t, E=E_):
+    """sigma(t) = [sigma0^(1-n) + (n-1) E A t]^(1/(1-n)) of the uniaxial bar."""
+    return (S0 ** (1 - N_EXP) + (N_EXP - 1) * E * A_ * t) ** (1 / (1 - N_EXP))
+
+
+def _bar_stress(el, H, e1):
+    """sigma = E eps + H of the bar: the axial strain e1 held, the lateral stresses zero."""
+    C = el.Cmat
+    lat = list(range(1, el.dim))
+    eps = np.zeros(el.m)
+    eps[0] = e1
+    eps[lat] = np.linalg.solve(C[np.ix_(lat, lat)], -(C[lat, 0] * e1 + H[lat]))
+    return C @ eps + H
+
+
+def _explicit_bar(dim, steps):
+    """The law's explicit update (3.2)-(3.3) on the bar; returns sigma_11(T), p(T)."""
+    el = Elasticity(E_, NU, dim)
+    update = Norton(el, A_, N_EXP).explicit()
+    assert type(update) is ExplicitUpdate
+    sigma = np.zeros(el.m)
+    sigma[0] = S0
+    e1 = np.linalg.solve(el.Cmat, sigma)[0]
+    H, kappa, k = np.zeros(dim * dim), np.zeros((1, 1)), T_END / steps
+    for _ in range(steps):
+        update(el.from_voigt(sigma[None]).reshape(-1), H, kappa, k)
+        sigma = _bar_stress(el, el.to_voigt(H)[0], e1)
+    np.testing.assert_allclose(sigma[1:], 0.0, atol=1e-12 * S0)
+    return sigma[0], kappa[0, 0]
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_relaxation_first_order(dim):
+    """Held strain: the explicit stresses converge to the closed form at order 1 (the error
+    halves with k), and p(T) = (sigma0 - sigma(T)) / E (the creep strain replaces the elastic
+    one)."""
+    ref = _closed_form(T_END)
+    assert ref < 0.7 * S0
+    errors = []
+    for steps in (100, 200, 400):
+        s, p = _explicit_bar(dim, steps)
+        errors.append(abs(s - ref) / ref)
+        np.testing.assert_allclose(p, (S0 - s) / E_, rtol=1e-10)
+    print(f"{dim}D norton relaxation, relative errors at k = T/100, T/200, T/400:", errors)
+    assert errors[-1] < 2e-3
+    for a, b in zip(errors, errors[1:]):
+        assert 1.85 < a / b < 2.15
+
+
+def test_relaxation_implicit():
+    """The backward-Euler update (the protocol's default residual, the finite-difference
+    tangent) on the bar converges to the closed form at order 1 too."""
+    el = Elasticity(E_, NU, 3)
+    local = Norton(el, A_, N_EXP).implicit()
+    lat = [1, 2]
+    ref, errors = _closed_form(T_END), []
+    for steps in (100, 200):
+        eps = np.linalg.solve(el.Cmat, np.r_[S0, np.zeros(5)])
+        H, kappa, k = np.zeros(6), np.zeros((1, 1)), T_END / steps
+        for _ in range(steps):
+            for _ in range(30):      # Newton on the lateral strains: lateral stresses 0
+                s, kap, C = local.solve((el.Cmat @ eps + H)[None], kappa, k)
+                if np.abs(s[0, lat]).max() <= 1e-13 * S0:
+                    break
+                eps[lat] -= np.linalg.solve(C[0][np.ix_(lat, lat)], s[0, lat])
+            kappa, H = kap, s[0] - el.Cmat @ eps
+        np.testing.assert_allclose(s[0, 1:], 0.0, atol=1e-12 * S0)
+        errors.append(abs(s[0, 0] - ref) / ref)
+    print("3D norton relaxation, backward Euler, relative errors at k = T/100, T/200:", errors)
+    assert errors[-1] < 2e-3 and 1.85 < errors[0] / errors[1] < 2.15
+
+
+def test_creep_under_constant_load():
+    """Constant uniaxial stress s: the creep strain grows at A s^n; with the stress held,
+    the explicit update's H rate gives the creep strain rate eps_vp' = -E^-1 G exactly."""
+    el = Elasticity(E_, NU, 3)
+    law = Norton(el, A_, N_EXP)
+    s = np.array([[25.0, 0, 0, 0, 0, 0]])
+    G, Gk = law.rates(s, np.zeros((1, 1)))
+    eps_rate = -np.linalg.solve(el.Cmat, G[0])
+    np.testing.assert_allclose(eps_rate[0], A_ * 25.0 ** N_EXP, rtol=1e-13)
+    np.testing.assert_allclose(eps_rate[1:3], -A_ * 25.0 ** N_EXP / 2, rtol=1e-13)
+    np.testing.assert_allclose(Gk[0, 0], A_ * 25.0 ** N_EXP, rtol=1e-13)
+
+
+def _raw(**vp):
+    raw = paper_raw()
+    raw["material"]["viscoplastic"] = {"law": "norton", **vp}
+    return raw
+
+
+def test_case_keys():
+    case = make_case(_raw(A=2e-6, n=4))
+    vp = case.material.viscoplastic
+    assert (vp.law, vp.A, vp.n, vp.lambda1, vp.lambda2, vp.kappa0) == \
+        ("norton", 2e-6, 4.0, None, None, 0.0)
+    law = viscoplastic_law(vp, Elasticity(E_, NU, 2))
+    assert isinstance(law, Norton) and (law.A, law.n, law.m) == (2e-6, 4.0, 1)
+    assert any("Norton (A = 2e-06, n = 4)" in term for term in case.active_terms())
+    perzyna = make_case(paper_raw()).material.viscoplastic
+    assert (perzyna.law, perzyna.A, perzyna.K) == ("perzyna", None, None)
+
+
+@pytest.mark.parametrize("vp, key", [
+    ({"A": 1e-6}, "material.viscoplastic.n"),
+    ({"n": 3}, "material.viscoplastic.A"),
+    ({"A": 0.0, "n": 3}, "material.viscoplastic.A"),
+    ({"A": -1.0, "n": 3}, "material.viscoplastic.A"),
+    ({"A": 1e-6, "n": 0.5}, "material.viscoplastic.n"),
+    ({"A": 1e-6, "n": 3, "lambda1": 1.0}, "material.viscoplastic.lambda1"),
+    ({"A": 1e-6, "n": 3, "s_ref": 1.0}, "material.viscoplastic.s_ref"),
+    ({"A": 1e-6, "n": 3, "K": 1.0}, "material.viscoplastic.K"),
+])
+def test_refusals(vp, key):
+    with pytest.raises(CaseError) as info:
+        make_case(_raw(**vp))
+    msg = str(info.value)
+    assert key in msg and "\n" not in msg
+
+
+def test_perzyna_needs_lambdas():
+    raw = paper_raw()
+    del raw["material"]["viscoplastic"]["lambda2"]
+    with pytest.raises(CaseError, match=r"material.viscoplastic.lambda2.*: required with law "
+                                        "perzyna"):
+        make_case(raw)
+    raw = paper_raw()
+    raw["material"]["viscoplastic"]["A"] = 1.0
+    with pytest.raises(CaseError, match=r"material.viscoplastic.A.*: not used with law perzyna"):
+        make_case(raw)
