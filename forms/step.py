@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import ufl
 
-from .elasticity import elasticity_operator, eps
+from .elasticity import elasticity_operator, eps, voigt
 
 
 @dataclass
@@ -54,8 +54,8 @@ class BulkData:
     values).
 
     Attributes:
-        E: Young's modulus.
-        nu: Poisson's ratio.
+        E: Young's modulus (isotropic E; None with ``C``).
+        nu: Poisson's ratio (isotropic E; None with ``C``).
         dim: space dimension d (2: plane stress, 3: isotropic Hooke).
         H: DG0 tensor Function, the pre-stress H_n of (3.2)-(3.3), or None.
         f0: body force (UFL vector) or None.
@@ -65,6 +65,8 @@ class BulkData:
             Function whose residual (stress, eps(v)) replaces the elastic energy and H_n.
         tangent: with ``stress``, the algorithmic tangent per cell in t-coordinates (shears
             weighted twice): the Jacobian (tangent eps_t(du)) . eps_t(v).
+        C: the operator tau -> E tau of an E other than the isotropic (E, nu) one
+            (forms.elasticity.voigt_operator: anisotropic, or per cell), or None.
     """
 
     E: object
@@ -76,6 +78,7 @@ class BulkData:
     ds: object = None
     stress: object = None
     tangent: object = None
+    C: object = None
 
 
 @dataclass
@@ -98,21 +101,6 @@ class ContactData:
     law: object = None
     theta: object = None
     xi: object = None
-
-
-def voigt(tau, dim: int):
-    """t-coordinates of a symmetric tensor.
-
-    Args:
-        tau: a symmetric UFL tensor.
-        dim: space dimension (2 or 3).
-
-    Returns:
-        The UFL vector (t11, t22, t12) or (t11, t22, t33, t23, t13, t12).
-    """
-    pairs = [(0, 0), (1, 1), (0, 1)] if dim == 2 else \
-        [(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)]
-    return ufl.as_vector([tau[i, j] for i, j in pairs])
 
 
 def build_step_forms(u, bulk: BulkData, gamma3: ContactData | None = None) -> StepForms:
@@ -163,7 +151,7 @@ def _explicit_forms(u, bulk: BulkData, loads, boundary, terms, dx) -> StepForms:
     """The paper's scheme: J_n = 1/2 (E eps(u), eps(u)) + (H_n, eps(u)) - f_n(u) + boundary."""
     V = u.function_space
     v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
-    C = elasticity_operator(bulk.E, bulk.nu, bulk.dim)
+    C = elasticity_operator(bulk.E, bulk.nu, bulk.dim) if bulk.C is None else bulk.C
     energy = 0.5 * ufl.inner(C(eps(u)), eps(u)) * dx
     named = ["elasticity"]
     if bulk.H is not None:

@@ -7,7 +7,10 @@ one cell at a time in C, takes well under a millisecond.  The law's numpy update
 (app/model/laws.py: ExplicitUpdate from Perzyna.rates) stays the reference
 (tests/unit/test_kernels.py compares them) and the fallback when no C compiler is available.
 The kernel knows no law object: its data (E, the von Mises form, the projection's
-eigenbasis, the coordinates' positions in the tensor) are passed in.
+eigenbasis, the coordinates' positions in the tensor) are passed in.  It takes one E for
+every cell (isotropic or any homogeneous matrix: Elasticity, MatrixElasticity); for E per
+cell (CellElasticity) Perzyna's law uses the numpy update (ExplicitUpdate, with the batched
+CellProjection).
 """
 from __future__ import annotations
 

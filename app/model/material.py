@@ -8,22 +8,25 @@ t = (t11, t22, t12) in 2D and t = (t11, t22, t33, t23, t13, t12) in 3D, vectoris
 - the von Mises form ||tau||_VM^2 = t^T M t: in 2D t11^2 + t22^2 - t11 t22 + 3 t12^2 (the
   paper), in 3D 3/2 dev(tau):dev(tau).
 
+E is isotropic and homogeneous (Elasticity: the paper's), any homogeneous matrix
+(MatrixElasticity: orthotropic, a Voigt matrix) or one matrix per cell (CellElasticity: E(x)
+in L-infinity, DG0); the laws use only ``apply``, ``Cmat``, ``A``, ``von_mises`` and the
+projection, and so work per cell (app/model/stiffness.py builds E from a case).
+
 The projection P = P_K(kappa) onto K(kappa) = {||tau||_VM <= kappa} in the energy inner
-product, exact in both dimensions (VonMisesProjection in 2D, RadialReturn in 3D), is the
-Perzyna law's (app/model/viscoplastic.py).
+product, exact in both dimensions (VonMisesProjection for any homogeneous E, its closed form
+RadialReturn for an isotropic E in 3D, CellProjection per cell), is the Perzyna law's
+(app/model/viscoplastic.py).
 """
 from __future__ import annotations
 
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 
 import numpy as np
 
+from vpcontact.forms.elasticity import PAIRS as _PAIRS  # (row, col) of each t_i
 from vpcontact.forms.elasticity import lame_constants
-
-# (row, col) of the coordinates t_i in the d x d tensor
-_PAIRS = {2: [(0, 0), (1, 1), (0, 1)],
-          3: [(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)]}
-
 
 # flat (row-major d x d) positions of the coordinates, and of every tensor entry
 FLAT = {d: np.array([i * d + j for i, j in _PAIRS[d]]) for d in (2, 3)}
@@ -70,33 +73,26 @@ def _von_mises_matrix(dim: int) -> np.ndarray:
     return M
 
 
-@dataclass(frozen=True)
-class Elasticity:
-    """The elasticity operator E and the quadratic forms in t-coordinates (d = 2 or 3).
+class ElasticityForms:
+    """The quadratic forms in t-coordinates of an elasticity E given by its matrix ``Cmat``
+    (t-coordinates of E tau from those of tau): the energy form A, the von Mises form M, E
+    tau and the coordinates.  The subclasses give ``Cmat`` and ``dim``:
+    Elasticity (isotropic), MatrixElasticity (any homogeneous E), CellElasticity (one matrix
+    per cell, E(x) in L-infinity).
 
     Attributes:
-        E: Young's modulus.
-        nu: Poisson's ratio.
-        dim: space dimension d (2: the paper's plane stress, 3: isotropic Hooke).
+        isotropic: E is isotropic and the same in every cell (the 3D closed-form projection
+            RadialReturn applies).
+        homogeneous: one matrix for every cell (``Cmat`` is (m, m), not per row).
     """
 
-    E: float
-    nu: float
-    dim: int = 2
+    isotropic = False
+    homogeneous = True
 
     @property
     def m(self) -> int:
         """The number of t-coordinates (3 in 2D, 6 in 3D)."""
         return len(_PAIRS[self.dim])
-
-    @property
-    def Cmat(self) -> np.ndarray:
-        """The (m, m) matrix of E in t-coordinates: (E tau) = Cmat t."""
-        lmbda, two_mu = lame_constants(self.E, self.nu, self.dim)
-        d, m = self.dim, self.m
-        C = two_mu * np.eye(m)
-        C[:d, :d] += lmbda
-        return C
 
     @property
     def weights(self) -> np.ndarray:
@@ -157,6 +153,214 @@ class Elasticity:
         """
         return from_voigt(t, self.dim)
 
+    def rows(self, index=None):
+        """Select the cells the rows of the next calls are (a homogeneous E: nothing to
+        select; CellElasticity.rows).
+
+        Args:
+            index: row indices (ignored here).
+
+        Returns:
+            A context manager.
+        """
+        return nullcontext()
+
+    def bounds(self) -> tuple[float, float]:
+        """m_E and M_E: the smallest and largest eigenvalue of E on symmetric tensors in the
+        Frobenius inner product (the eigenvalues of Cmat: Cmat = W^-1 A), over all cells.
+
+        Returns:
+            (m_E, M_E).
+        """
+        lam = np.linalg.eigvals(self.Cmat).real
+        return float(np.min(lam)), float(np.max(lam))
+
+
+@dataclass(frozen=True)
+class Elasticity(ElasticityForms):
+    """The isotropic elasticity operator E and the quadratic forms in t-coordinates
+    (d = 2 or 3).
+
+    Attributes:
+        E: Young's modulus.
+        nu: Poisson's ratio.
+        dim: space dimension d (2: the paper's plane stress, 3: isotropic Hooke).
+    """
+
+    E: float
+    nu: float
+    dim: int = 2
+    isotropic = True
+
+    @property
+    def Cmat(self) -> np.ndarray:
+        """The (m, m) matrix of E in t-coordinates: (E tau) = Cmat t."""
+        lmbda, two_mu = lame_constants(self.E, self.nu, self.dim)
+        d, m = self.dim, self.m
+        C = two_mu * np.eye(m)
+        C[:d, :d] += lmbda
+        return C
+
+
+class MatrixElasticity(ElasticityForms):
+    """A homogeneous elasticity E given by its matrix in t-coordinates (anisotropic:
+    orthotropic or a Voigt matrix, app/model/stiffness.py builds it from a case).
+
+    Args:
+        Cmat: the (m, m) matrix, (E tau) = Cmat t; A = diag(weights) Cmat must be
+            symmetric positive definite (checked by the builders).
+        dim: space dimension d.
+    """
+
+    def __init__(self, Cmat: np.ndarray, dim: int):
+        self.dim = dim
+        self._C = np.array(Cmat, dtype=float).reshape(self.m, self.m)
+        self._C.flags.writeable = False
+
+    @property
+    def Cmat(self) -> np.ndarray:
+        """The (m, m) matrix of E in t-coordinates."""
+        return self._C
+
+
+class CellElasticity(ElasticityForms):
+    """E(x) in L-infinity: one matrix per cell (DG0), vectorised over cells.
+
+    The rows of the per-cell arrays of a run are the cells of the DG0 spaces (owned and
+    ghost, in the DG0 dof order: the rows of sigma.x.array reshaped (n, d * d)).  The
+    distinct matrices ``mats`` are stored once and ``index`` gives each row's.  A law
+    evaluates on all rows, or on a subset of them selected with ``rows`` (the implicit
+    update's flowing cells): ``Cmat``, ``A``, ``apply`` and the projection then act on the
+    selected rows.  ``von_mises`` does not depend on E.
+
+    Args:
+        mats: (g, m, m) distinct matrices in t-coordinates.
+        index: (n,) the matrix of each row.
+        dim: space dimension d.
+        extremes: the global (m_E, M_E) over every rank's cells (``bounds``), computed
+            from ``mats`` if not given (then this rank's only).
+    """
+
+    homogeneous = False
+
+    def __init__(self, mats: np.ndarray, index: np.ndarray, dim: int,
+                 extremes: tuple[float, float] | None = None):
+        self.dim = dim
+        self.mats = np.array(mats, dtype=float).reshape(-1, self.m, self.m)
+        self.index = np.asarray(index, dtype=np.intp).reshape(-1)
+        self._selection = [np.arange(len(self.index))]
+        lam = np.linalg.eigvals(self.mats).real if len(self.mats) else np.zeros(1)
+        self._extremes = extremes if extremes is not None else \
+            (float(lam.min()), float(lam.max()))
+
+    @classmethod
+    def from_rows(cls, Cmats: np.ndarray, dim: int,
+                  extremes: tuple[float, float] | None = None) -> CellElasticity:
+        """From one matrix per row (equal matrices are stored once).
+
+        Args:
+            Cmats: (n, m, m) matrices in t-coordinates, one per row.
+            dim: space dimension d.
+            extremes: as for the constructor.
+
+        Returns:
+            The CellElasticity.
+        """
+        m = len(_PAIRS[dim])
+        flat = np.asarray(Cmats, dtype=float).reshape(-1, m * m)
+        mats, index = np.unique(flat, axis=0, return_inverse=True)
+        return cls(mats.reshape(-1, m, m), index, dim, extremes)
+
+    @classmethod
+    def from_pieces(cls, n: int, pieces, dim: int,
+                    extremes: tuple[float, float] | None = None) -> CellElasticity:
+        """From the elasticities of disjoint sets of rows (materials per group of cells).
+
+        Args:
+            n: the number of rows.
+            pieces: (rows, elasticity) pairs: row indices and a homogeneous elasticity
+                (Elasticity, MatrixElasticity) or a CellElasticity over all n rows (its
+                rows ``rows`` are taken); together they must cover every row once.
+            dim: space dimension d.
+            extremes: as for the constructor.
+
+        Returns:
+            The CellElasticity.
+
+        Raises:
+            ValueError: if the pieces do not cover every row exactly once.
+        """
+        m = len(_PAIRS[dim])
+        Cmats = np.full((n, m, m), np.nan)
+        count = np.zeros(n, dtype=int)
+        for rows, el in pieces:
+            rows = np.asarray(rows, dtype=np.intp)
+            np.add.at(count, rows, 1)
+            Cmats[rows] = el.Cmat if el.homogeneous else el.mats[el.index[rows]]
+        if np.any(count != 1):
+            raise ValueError("the pieces of a CellElasticity must cover every row once")
+        return cls.from_rows(Cmats, dim, extremes)
+
+    @property
+    def selected(self) -> np.ndarray:
+        """The rows the calls act on (all rows unless ``rows`` selected some)."""
+        return self._selection[-1]
+
+    @contextmanager
+    def rows(self, index=None):
+        """Let the calls inside act on the rows ``index`` of the current selection
+        (selections nest: inside rows(a), rows(b) selects a[b]).
+
+        Args:
+            index: row indices (or a boolean mask) into the current selection; None: all.
+
+        Yields:
+            None.
+        """
+        sel = self.selected
+        self._selection.append(sel if index is None else sel[np.asarray(index)])
+        try:
+            yield
+        finally:
+            self._selection.pop()
+
+    @property
+    def Cmat(self) -> np.ndarray:
+        """(n, m, m): the matrices of the selected rows."""
+        return self.mats[self.index[self.selected]]
+
+    @property
+    def A(self) -> np.ndarray:
+        """(n, m, m): the energy forms of the selected rows."""
+        return self.weights[None, :, None] * self.Cmat
+
+    def apply(self, t: np.ndarray) -> np.ndarray:
+        """E tau per row.
+
+        Args:
+            t: rows (n, m) of t-coordinates, one per selected row.
+
+        Returns:
+            The rows (n, m) of E tau.
+
+        Raises:
+            ValueError: if the rows are not the selected cells.
+        """
+        t = np.asarray(t, dtype=float).reshape(-1, self.m)
+        sel = self.selected
+        if t.shape[0] != len(sel):
+            raise ValueError(f"per-cell elasticity: {t.shape[0]} rows for {len(sel)} "
+                             "selected cells (select them with elasticity.rows)")
+        return np.einsum("nij,nj->ni", self.mats[self.index[sel]], t)
+
+    def bounds(self) -> tuple[float, float]:
+        """m_E and M_E over every cell (see ElasticityForms.bounds).
+
+        Returns:
+            (m_E, M_E).
+        """
+        return self._extremes
+
 
 def PlaneStress(E: float, nu: float) -> Elasticity:
     """The paper's plane-stress elasticity (d = 2).
@@ -188,8 +392,8 @@ class RadialReturn:
     """
 
     def __init__(self, elasticity: Elasticity):
-        if elasticity.dim != 3:
-            raise ValueError("RadialReturn is the 3D projection")
+        if elasticity.dim != 3 or not elasticity.isotropic:
+            raise ValueError("RadialReturn is the 3D projection of an isotropic E")
         self.elasticity = elasticity
 
     def __call__(self, s: np.ndarray, kappa: np.ndarray) -> np.ndarray:
@@ -211,9 +415,14 @@ def make_projection(elasticity: Elasticity):
         elasticity: the elasticity E that defines the energy inner product.
 
     Returns:
-        A callable (t, kappa) -> P t: VonMisesProjection in 2D, RadialReturn in 3D.
+        A callable (t, kappa) -> P t: RadialReturn for an isotropic homogeneous E in 3D,
+        VonMisesProjection for any other homogeneous E, CellProjection for E per cell.
     """
-    return VonMisesProjection(elasticity) if elasticity.dim == 2 else RadialReturn(elasticity)
+    if not elasticity.homogeneous:
+        return CellProjection(elasticity)
+    if elasticity.dim == 3 and elasticity.isotropic:
+        return RadialReturn(elasticity)
+    return VonMisesProjection(elasticity)
 
 
 class VonMisesProjection:
@@ -321,3 +530,95 @@ class VonMisesProjection:
         else:
             out[outside] = ((z * factor) @ self.V.T) * c[:, None]
         return out
+
+
+class CellProjection:
+    """VonMisesProjection's exact projection for E per cell (CellElasticity), batched: the
+    Cholesky factor and eigenbasis (V, lam) of each distinct matrix are computed once, and
+    the secular equation is solved for all rows at once with each row's lam (no grouping
+    of equal eigenvalues; the same Newton iteration from the same lower bound).  The
+    projection changes with the shape of E (anisotropy, nu(x)), not with a factor on E: P
+    is invariant under scaling A.  The rows are the elasticity's selected ones
+    (CellElasticity.rows).
+
+    Args:
+        elasticity: the CellElasticity.
+        rtol: relative tolerance of the secular equation.
+        max_iter: Newton iterations allowed.
+    """
+
+    def __init__(self, elasticity: CellElasticity, rtol: float = 1e-14, max_iter: int = 100):
+        self.elasticity = elasticity
+        self.m = elasticity.m
+        A = elasticity.weights[None, :, None] * elasticity.mats
+        M = elasticity.M
+        Linv = np.linalg.inv(np.linalg.cholesky(A))
+        lam, W = np.linalg.eigh(Linv @ M @ Linv.transpose(0, 2, 1))
+        top = lam.max(axis=1, keepdims=True)
+        self.lam = np.where(lam > 1e-12 * top, lam, 0.0)       # M may be singular (3D)
+        self.V = Linv.transpose(0, 2, 1) @ W
+        self.AV = A @ self.V                                  # z = s @ AV per matrix
+        self.rtol, self.max_iter = rtol, max_iter
+
+    def __call__(self, s: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+        """Project onto K(kappa), row by row with each selected cell's E.
+
+        Args:
+            s: rows (n, m) of t-coordinates, one per selected row of the elasticity.
+            kappa: (n,) radii >= 0 (or a scalar).
+
+        Returns:
+            The rows (n, m) of P_K(kappa) s; NaN rows for non-finite input.
+
+        Raises:
+            RuntimeError: if the secular equation does not converge.
+            ValueError: if the rows are not the selected cells.
+        """
+        s = np.asarray(s, dtype=float).reshape(-1, self.m)
+        g = self.elasticity.index[self.elasticity.selected]
+        if len(g) != s.shape[0]:
+            raise ValueError(f"per-cell projection: {s.shape[0]} rows for {len(g)} "
+                             "selected cells")
+        kappa = np.broadcast_to(np.asarray(kappa, dtype=float), (s.shape[0],))
+        out = s.copy()
+        vm2 = np.einsum("ni,ni->n", s @ self.elasticity.M, s)
+        bad = ~(np.isfinite(vm2) & np.isfinite(kappa))
+        out[bad] = np.nan
+        huge = np.flatnonzero(bad & np.isfinite(s).all(axis=1) & np.isfinite(kappa))
+        if len(huge):                          # |s|^2 overflowed: project the scaled rows
+            c = np.abs(s[huge]).max(axis=1)
+            with self.elasticity.rows(huge):
+                out[huge] = self(s[huge] / c[:, None], kappa[huge] / c) * c[:, None]
+        with np.errstate(invalid="ignore", over="ignore"):
+            outside = np.flatnonzero((vm2 > kappa * kappa) & ~bad)
+        if len(outside) == 0:
+            return out
+        gi = g[outside]
+        c = np.sqrt(vm2[outside])                      # P is positively homogeneous
+        z = np.einsum("ni,nij->nj", s[outside], self.AV[gi]) / c[:, None]
+        k = kappa[outside] / c
+        zero = k <= 1e-150
+        mu, lam = self._secular(z, np.where(zero, 1.0, k * k), self.lam[gi], zero)
+        factor = 1.0 / (1.0 + mu[:, None] * lam)
+        factor[zero] = (lam[zero] == 0.0).astype(float)
+        out[outside] = np.einsum("nij,nj->ni", self.V[gi], z * factor) * c[:, None]
+        return out
+
+    def _secular(self, z, kk2, lam, zero):
+        """The root mu >= 0 of q(mu) = kappa^2 per row (VonMisesProjection's Newton
+        iteration on 1/sqrt(q) - 1/kappa, from the lower bound of the root)."""
+        w = lam * z * z
+        lam_max = lam.max(axis=1)
+        mu = np.where(lam_max > 0, np.maximum(
+            (np.sqrt(w.sum(axis=1) / kk2) - 1.0) / np.where(lam_max > 0, lam_max, 1.0), 0.0),
+            0.0)
+        for _ in range(self.max_iter):
+            r = 1.0 / (1.0 + mu[:, None] * lam)
+            t = w * r * r
+            q = t.sum(axis=1)
+            dq = -(2.0 * lam * t * r).sum(axis=1)
+            res = np.abs(1.0 - q / kk2)
+            if np.where(zero, 0.0, res).max(initial=0.0) <= 2.0 * self.rtol:
+                return mu, lam
+            mu = mu + 2.0 * q * (1.0 - np.sqrt(q) / np.sqrt(kk2)) / dq
+        raise RuntimeError("von Mises projection: secular equation did not converge")

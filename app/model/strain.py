@@ -50,23 +50,29 @@ def _inverse(J: np.ndarray) -> np.ndarray:
 class StrainOperator:
     """sigma = E eps(u) + H per cell (3.2), the pre-stress load D^T H of (3.4), the norms.
 
+    An E other than the isotropic (E, nu) one (anisotropic, or per cell) is given as its UFL
+    operator ``C``: sigma is then the product of the assembled D_sigma (the compiled cell
+    pass knows only lmbda and two_mu); the norms and D^T H stay compiled.
+
     Args:
         V: the P1 displacement space V^h.
         Q: the DG0 tensor space Q^h.
-        E: Young's modulus.
-        nu: Poisson's ratio.
+        E: Young's modulus (isotropic E; None with ``C``).
+        nu: Poisson's ratio (isotropic E; None with ``C``).
+        C: the operator tau -> E tau (forms.elasticity.voigt_operator), or None.
     """
 
-    def __init__(self, V, Q, E: float, nu: float):
+    def __init__(self, V, Q, E: float | None, nu: float | None, C=None):
         self.d = d = V.mesh.geometry.dim
         tau = ufl.TestFunction(Q)
-        self._V, self._Q, self._E, self._nu = V, Q, E, nu
+        self._V, self._Q, self._E, self._nu, self._C = V, Q, E, nu, C
         vol = fem.petsc.assemble_vector(fem.form(tau[0, 0] * ufl.dx))
         self.n_owned = Q.dofmap.index_map.size_local
         self.vol = vol.array_r.reshape(-1, d * d)[:, 0].copy()      # owned cells, Q order
         vol.destroy()
         self.comm = V.mesh.comm
-        self.lmbda, self.two_mu = lame_constants(E, nu, d)
+        # with C the cell pass computes only the norms (lmbda, two_mu unused there)
+        self.lmbda, self.two_mu = lame_constants(E, nu, d) if C is None else (0.0, 0.0)
         self.mod = kernels.load()
         cells = self._cell_gradients(V, Q) if self.mod is not None else None
         # one path on every rank (the PETSc products and the lazy assembly are collective)
@@ -95,7 +101,7 @@ class StrainOperator:
         """(D_sigma u)_c = E eps_c(u); assembled when first used (not by the compiled
         path)."""
         du, tau = ufl.TrialFunction(self._V), ufl.TestFunction(self._Q)
-        C = elasticity_operator(self._E, self._nu, self.d)
+        C = elasticity_operator(self._E, self._nu, self.d) if self._C is None else self._C
         return self._assembled(ufl.inner(C(eps(du)), tau) / ufl.CellVolume(self._V.mesh)
                                * ufl.dx)
 
@@ -158,7 +164,7 @@ class StrainOperator:
             With the compiled kernel and ``vm``, the pass's global sums
             (||eps(u)||_L2^2, ||sigma||_Q^2); else None.
         """
-        if self._cells is not None and vm is not None:
+        if self._cells is not None and vm is not None and self._C is None:
             sums = np.array(self._cell_pass(u, H, sigma, vm))
             self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)   # buffer: no pickling
             sigma.x.scatter_forward()
