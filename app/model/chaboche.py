@@ -1,0 +1,121 @@
+"""Chaboche's unified viscoplastic law with nonlinear kinematic and isotropic hardening,
+kappa = (X, R, p) in R^8 (m = 8):
+    f = ||sigma - X||_VM - R - k,        p' = <f/K>^n,
+    eps_vp' = p' N(sigma - X),           N(tau) = d ||tau||_VM / d tau = (3/2) dev(tau)/||tau||_VM,
+    X' = (2/3) C eps_vp' - gamma X p',   R' = b (Q - R) p',
+    G(sigma, kappa) = -E eps_vp',        Gk(sigma, kappa) = (X', R', p'),
+the pair (G, Gk) of (1.2)-(1.3), with <.> the positive part; k the initial yield stress, K
+the drag stress, C and gamma the kinematic modulus and dynamic recovery, Q and b the
+saturated isotropic hardening and its rate.
+
+The back stress X is a symmetric deviatoric 3 x 3 tensor in 2D too: its six components are
+stored in the 3D t-order (X11, X22, X33, X23, X13, X12) (tensor components), then R, then p.
+X, R, p start at 0.  In 2D the stress of the model is the in-plane tensor with sigma_33 = 0
+(sigma_13 = sigma_23 = 0): in plane stress that is the stress state, and in plane strain
+the 2D model keeps the paper's 2D norm (the out-of-plane stress is not a variable of the 2D
+model; app/model/norton.py), so ||sigma - X||_VM is the 3D von Mises norm of that tensor
+minus X, which for X = 0 is the paper's 2D norm; X_33 = -(X_11 + X_22) follows from the
+flow.  The in-plane part of eps_vp' drives the stress.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from vpcontact.model.laws import ViscoplasticLaw
+from vpcontact.model.material import Elasticity, _von_mises_matrix
+from vpcontact.model.norton import flow_direction
+
+# the 3D t-coordinates of the body's stress coordinates (2D: s11, s22, s12)
+_IN_3D = {2: [0, 1, 5], 3: [0, 1, 2, 3, 4, 5]}
+_M3 = _von_mises_matrix(3)
+_W3 = np.array([1.0, 1.0, 1.0, 2.0, 2.0, 2.0])
+
+
+class Chaboche(ViscoplasticLaw):
+    """Chaboche's law (see the module docstring), m = 8, kappa = (X (6), R, p).  The
+    explicit update is the protocol's numpy ExplicitUpdate, the implicit one its default
+    residual with the finite-difference tangent; ``elastic`` is exactly f <= 0 (p' = 0
+    there).  No relaxation rate (it grows with the overstress): no stability indicator.
+
+    Args:
+        elasticity: the elasticity E.
+        k: the initial yield stress k >= 0 [Pa].
+        K: the drag stress K > 0 [Pa].
+        n: the exponent n >= 1.
+        C: the kinematic hardening modulus C >= 0 [Pa].
+        gamma: the dynamic recovery gamma >= 0.
+        Q: the saturated isotropic hardening Q [Pa].
+        b: the rate b >= 0 of the isotropic hardening.
+
+    Attributes:
+        fields: the internal variables as output fields, (name, components) in kappa's
+            order: X a 3 x 3 tensor (6 components), R, p.
+    """
+
+    m = 8
+    name = "chaboche"
+    fields = (("X", 6), ("R", 1), ("p", 1))
+
+    def __init__(self, elasticity: Elasticity, k: float, K: float, n: float, C: float,
+                 gamma: float, Q: float, b: float):
+        super().__init__(elasticity)
+        self.k, self.K, self.n, self.C, self.gamma, self.Q, self.b = k, K, n, C, gamma, Q, b
+        self._in3d = _IN_3D[elasticity.dim]
+
+    def constants(self):
+        """Returns: k, K [Pa], n [-], C [Pa], gamma [-], Q [Pa], b [-] (the case's keys)."""
+        return {"k": (self.k, "Pa"), "K": (self.K, "Pa"), "n": (self.n, "-"),
+                "C": (self.C, "Pa"), "gamma": (self.gamma, "-"), "Q": (self.Q, "Pa"),
+                "b": (self.b, "-")}
+
+    def _overstress(self, t, kappa):
+        """sigma - X in 3D t-coordinates, its von Mises norm, (3/2) dev(sigma - X) and f."""
+        s = np.zeros((t.shape[0], 6))
+        s[:, self._in3d] = t
+        seq, seq_N = flow_direction(s - kappa[:, :6], _M3, _W3)
+        return seq, seq_N, seq - kappa[:, 6] - self.k
+
+    def flow(self, t: np.ndarray, kappa: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """p' = <f/K>^n and eps_vp' = p' N(sigma - X).
+
+        Args:
+            t: rows (n, mt) of sigma in t-coordinates.
+            kappa: (n, 8) internal variables (X, R, p).
+
+        Returns:
+            (eps_vp' rows (n, 6) in 3D t-coordinates (tensor components), p' (n,)).
+        """
+        seq, seq_N, f = self._overstress(t, kappa)
+        with np.errstate(over="ignore"):
+            p_rate = (np.maximum(f, 0.0) / self.K) ** self.n
+        scale = np.divide(p_rate, seq, out=np.zeros_like(seq), where=seq > 0.0)
+        return scale[:, None] * seq_N, p_rate
+
+    def rates(self, t, kappa):
+        """G = -E eps_vp' (its in-plane part in 2D), Gk = (X', R', p').
+
+        Args:
+            t: rows (n, mt) of sigma in t-coordinates.
+            kappa: (n, 8) internal variables (X, R, p).
+
+        Returns:
+            (G rows (n, mt), Gk (n, 8)).
+        """
+        eps_vp, p_rate = self.flow(t, kappa)
+        Gk = np.empty_like(kappa)
+        Gk[:, :6] = (2.0 / 3.0 * self.C) * eps_vp - self.gamma * kappa[:, :6] * p_rate[:, None]
+        Gk[:, 6] = self.b * (self.Q - kappa[:, 6]) * p_rate
+        Gk[:, 7] = p_rate
+        return -self.elasticity.apply(eps_vp[:, self._in3d]), Gk
+
+    def elastic(self, t, kappa):
+        """No flow exactly where f <= 0 (the rates are exactly 0 there).
+
+        Args:
+            t: rows (n, mt) of sigma in t-coordinates.
+            kappa: (n, 8) internal variables (X, R, p).
+
+        Returns:
+            (n,) booleans.
+        """
+        return ~(self._overstress(t, kappa)[2] > 0.0)
