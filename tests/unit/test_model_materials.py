@@ -1,0 +1,92 @@
+"""The history update of a body of several materials (app/model/materials.py), in numpy:
+each group's law updates only its rows, with its own m (kappa has the largest; the other
+components stay 0), an elastic group keeps H and kappa, a failing group writes nothing, and
+the implicit local solve by group equals each law's own on its rows."""
+import numpy as np
+import pytest
+
+from vpcontact.model.laws import ViscoplasticLaw
+from vpcontact.model.material import Elasticity
+from vpcontact.model.materials import GroupLaws, MaterialGroup
+from vpcontact.model.viscoplastic import Perzyna
+
+
+class Linear(ViscoplasticLaw):
+    """G = -a sigma, Gk_i = (i + 1) ||sigma||_VM: rates by hand, m of one's choice."""
+
+    name = "linear"
+
+    def __init__(self, elasticity, a, m, fail=False):
+        super().__init__(elasticity)
+        self.a, self.m, self.fail = a, m, fail
+
+    def rates(self, t, kappa):
+        if self.fail:
+            raise RuntimeError("no")
+        assert kappa.shape[1] == self.m
+        vm = self.elasticity.von_mises(t)
+        return -self.a * t, vm[:, None] * np.arange(1, self.m + 1)[None, :]
+
+
+def _groups(el, laws, rows):
+    return [MaterialGroup(f"g{i}", i, r, None, el, law) for i, (r, law) in
+            enumerate(zip(rows, laws))]
+
+
+def test_explicit_update_by_group():
+    el = Elasticity(100.0, 0.3, 2)
+    rng = np.random.default_rng(3)
+    n = 9
+    rows = [np.array([0, 4, 8]), np.array([1, 2, 7]), np.array([3, 5, 6])]
+    laws = [Linear(el, 2.0, 1), Linear(el, 5.0, 3), None]
+    body = GroupLaws(_groups(el, laws, rows), el)
+    assert body.m == 3
+    t = rng.normal(size=(n, 3))
+    sigma = el.from_voigt(t).reshape(-1)
+    H0 = rng.normal(size=(n, 3))
+    H = el.from_voigt(H0).reshape(-1).copy()
+    kappa = np.zeros((n, 3))
+    kappa[:, 0] = 1.0
+    k = 0.01
+    body.explicit()(sigma, H, kappa, k)
+    Ht = el.to_voigt(H)
+    vm = el.von_mises(t)
+    for r, a, m in ((rows[0], 2.0, 1), (rows[1], 5.0, 3)):
+        assert np.allclose(Ht[r], H0[r] - k * a * t[r], rtol=1e-14, atol=1e-15)
+        assert np.allclose(kappa[r, :m], np.eye(3)[0, :m] + k * vm[r, None] *
+                           np.arange(1, m + 1), rtol=1e-14)
+        assert (kappa[r, m:] == 0.0).all()
+    assert np.array_equal(Ht[rows[2]], H0[rows[2]])               # elastic: H kept
+    assert np.array_equal(kappa[rows[2]], np.tile([1.0, 0.0, 0.0], (3, 1)))
+
+
+def test_a_failing_group_writes_nothing():
+    el = Elasticity(100.0, 0.3, 2)
+    rows = [np.array([0, 1]), np.array([2, 3])]
+    body = GroupLaws(_groups(el, [Linear(el, 1.0, 1), Linear(el, 1.0, 1, fail=True)], rows),
+                     el)
+    sigma = np.ones(16)
+    H, kappa = np.zeros(16), np.zeros((4, 1))
+    with pytest.raises(RuntimeError):
+        body.explicit()(sigma, H, kappa, 0.1)
+    assert not H.any() and not kappa.any()
+
+
+def test_implicit_by_group_equals_each_law():
+    el1, el2 = Elasticity(100.0, 0.3, 2), Elasticity(300.0, 0.2, 2)
+    p1, p2 = Perzyna(el1, 1.0, 2.0), Perzyna(el2, 3.0, 1.0)
+    rows = [np.array([0, 3, 4]), np.array([1, 5]), np.array([2])]
+    groups = [MaterialGroup("a", 1, rows[0], None, el1, p1),
+              MaterialGroup("b", 2, rows[1], None, el2, p2),
+              MaterialGroup("c", 3, rows[2], None, el2, None)]
+    rng = np.random.default_rng(5)
+    s_tr = 50.0 * rng.normal(size=(6, 3))
+    kappa = np.full((6, 1), 5.0)
+    sigma, kap, C = GroupLaws(groups, None).implicit().solve(s_tr, kappa, 0.05)
+    for g in groups[:2]:
+        ref = g.law.implicit().solve(s_tr[g.rows], kappa[g.rows], 0.05)
+        for got, want in zip((sigma, kap, C), ref):
+            assert np.array_equal(got[g.rows], want)
+    assert np.array_equal(sigma[rows[2]], s_tr[rows[2]])
+    assert np.array_equal(C[rows[2]][0], el2.Cmat) and kap[2, 0] == 5.0
+    assert not np.allclose(sigma[rows[0]], s_tr[rows[0]])        # the law flowed
