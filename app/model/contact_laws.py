@@ -17,11 +17,27 @@ The laws of the paper:
   psi' piecewise linear, at the regularised slip |x|_delta = sqrt(|x|^2 + delta^2)
   (``RegularisedNorm``), times theta(s_n) with slip dependence (``SlipWeakening``).
 
+The general laws of the model (H(p), H(j_tau)), chosen by the case's keys:
+
+- ``PowerCompliance``: p(x, r) = c_nu(x) (r^+)^m, m >= 1, c_nu a number or a field of x
+  (``space_field``: a UFL expression of x in the forms, its values at the nodes in numpy);
+- ``TableCompliance``: p(r) piecewise linear through a table from [0, 0], nondecreasing,
+  constant beyond its last point;
+- ``TableFriction``: tau(rho) = psi'(rho) piecewise linear through a table (nonmonotone,
+  tau(0) > 0), linear beyond its last point, psi its exact primitive; m_j of (2.6) is its
+  steepest softening;
+- ``TableSlip``: theta(s) piecewise linear, constant beyond its last point.
+
+The tables are ``PiecewiseLinear`` functions written as sums of ramps (r - r_k)^+, so their
+primitive and slope are exact and serve numpy and UFL alike.  b(t, x) = b0(x) b(t) (an
+expression b0 of x) is summed by app/model/gamma3.py.
+
 ``ContactLaw`` composes them into the nodal energy density of (3.4),
     phi(r, tau; xi, theta) = P(r) + xi r^+_delta + theta psi(|tau|_delta),
-and ``contact_law`` builds it from a case.  A new law (a table, a power law, a user's
-superpotential) is a new class with the three methods; the condensed solver's nodal problem
-(app/solvers/nodal.py) and the forms use it as they are.
+and ``contact_law`` builds it from a case.  A new law (a user's superpotential) is a new
+class with the three methods; the condensed solver's nodal problem (app/solvers/nodal.py)
+and the forms use it as they are (the compiled kernel serves only the paper's laws with
+numbers; any other law takes its numpy path).
 """
 from __future__ import annotations
 
@@ -31,7 +47,7 @@ from typing import NamedTuple
 import numpy as np
 
 from vpcontact.model.laws import ScalarLaw
-from vpcontact.model.primitives import backend
+from vpcontact.model.primitives import NUMPY, backend
 
 
 @dataclass(frozen=True)
@@ -44,6 +60,10 @@ class NormalCompliance(ScalarLaw):
 
     c_nu: object
     name = "normal compliance"
+
+    def constants(self):
+        """Returns: c_nu [N/m^3] (p = c_nu r^+)."""
+        return {"c_nu": (self.c_nu, "N/m^3")}
 
     def energy(self, r):
         """P(r) = c_nu / 2 (r^+)^2.
@@ -81,6 +101,186 @@ class NormalCompliance(ScalarLaw):
 
 
 @dataclass(frozen=True)
+class PowerCompliance(ScalarLaw):
+    """Normal compliance p(r) = c_nu (r^+)^m, m >= 1 (H(p)): P(r) = c_nu / (m + 1)
+    (r^+)^(m + 1), p'(r) = m c_nu (r^+)^(m - 1) for r > 0, else 0.
+
+    Attributes:
+        c_nu: the coefficient (a number, a UFL expression of x, or an array over the nodes).
+        m: the exponent m >= 1 (m = 1 is (4.1)).
+    """
+
+    c_nu: object
+    m: float
+    name = "normal compliance"
+
+    def constants(self):
+        """Returns: c_nu [N/m^(2+m)], m [-] (p = c_nu (r^+)^m)."""
+        return {"c_nu": (self.c_nu, f"N/m^{2 + self.m:g}"), "m": (self.m, "-")}
+
+    def energy(self, r):
+        """P(r) = c_nu / (m + 1) (r^+)^(m + 1).
+
+        Args:
+            r: normal displacements u_nu.
+
+        Returns:
+            P(r), elementwise.
+        """
+        return self.c_nu / (self.m + 1.0) * backend(r).pos(r) ** (self.m + 1.0)
+
+    def derivative(self, r):
+        """p(r) = c_nu (r^+)^m.
+
+        Args:
+            r: normal displacements u_nu.
+
+        Returns:
+            p(r), elementwise.
+        """
+        return self.c_nu * backend(r).pos(r) ** self.m
+
+    def second_derivative(self, r):
+        """p'(r) = m c_nu (r^+)^(m - 1) for r > 0, else 0.
+
+        Args:
+            r: normal displacements u_nu.
+
+        Returns:
+            p'(r), elementwise (0 at r = 0).
+        """
+        ops = backend(r)
+        return ops.where(ops.gt(r, 0.0), self.m * self.c_nu * ops.pos(r) ** (self.m - 1.0),
+                         0.0)
+
+
+class PiecewiseLinear:
+    """A continuous piecewise-linear function f of a table of points (x_0, f_0), ...,
+    (x_K, f_K), x increasing, as a sum of ramps,
+        f(x) = f_0 + s_0 (x - x_0) + sum_{k=1..K-1} (s_k - s_{k-1}) (x - x_k)^+,
+    s_k the slope on [x_k, x_{k+1}], continued beyond x_K with ``last_slope`` (s_{K-1}: linear
+    extrapolation; 0: constant), with its exact primitive F (F(x_0) = 0, piecewise quadratic)
+    and its derivative f' (piecewise constant), written with the primitives of
+    app/model/primitives.py (numpy and UFL alike).
+
+    Args:
+        table: the points [[x, f], ...], at least two, x increasing.
+        extrapolate: beyond x_K, "linear" (the last slope) or "constant".
+    """
+
+    def __init__(self, table, extrapolate: str = "linear"):
+        pts = np.asarray(table, dtype=float)
+        self.x, self.f = pts[:, 0], pts[:, 1]
+        self.slopes = np.diff(self.f) / np.diff(self.x)                # s_0 .. s_{K-1}
+        last = self.slopes[-1] if extrapolate == "linear" else 0.0
+        s = np.append(self.slopes, last)
+        # the kinks x_1 .. x_K and the slope changes there (a zero change is left out)
+        self.kinks = [(float(xk), float(dk)) for xk, dk in zip(self.x[1:], np.diff(s))
+                      if dk != 0.0]
+        self.x0, self.f0, self.s0 = float(self.x[0]), float(self.f[0]), float(s[0])
+
+    def value(self, x):
+        """f(x) (x >= x_0).
+
+        Args:
+            x: the argument (numpy array, number or UFL expression).
+
+        Returns:
+            f(x), elementwise.
+        """
+        ops = backend(x)
+        out = self.f0 + self.s0 * (x - self.x0)
+        for xk, dk in self.kinks:
+            out = out + dk * ops.pos(x - xk)
+        return out
+
+    def primitive(self, x):
+        """F(x) = int_{x_0}^x f, exact (x >= x_0).
+
+        Args:
+            x: the argument.
+
+        Returns:
+            F(x), elementwise.
+        """
+        ops = backend(x)
+        dx = x - self.x0
+        out = self.f0 * dx + 0.5 * self.s0 * dx**2
+        for xk, dk in self.kinks:
+            out = out + 0.5 * dk * ops.pos(x - xk) ** 2
+        return out
+
+    def slope(self, x):
+        """f'(x): the slope of the segment of x (the right one at a kink).
+
+        Args:
+            x: the argument.
+
+        Returns:
+            f'(x), elementwise.
+        """
+        ops = backend(x)
+        out = self.s0 + 0.0 * x
+        for xk, dk in self.kinks:
+            out = out + ops.where(ops.gt(x, xk), dk, 0.0)
+        return out
+
+
+class TableCompliance(ScalarLaw):
+    """Normal compliance from a table (H(p)): p(r) piecewise linear through the points
+    [[0, 0], [r_1, p_1], ...] (nondecreasing), constant beyond the last point, 0 for r <= 0;
+    P its exact primitive, p' its slope.
+
+    Args:
+        table: the points [[r, p], ...], starting at [0, 0].
+    """
+
+    name = "normal compliance"
+
+    def __init__(self, table):
+        self.p = PiecewiseLinear(table, "constant")
+
+    def constants(self):
+        """Returns: the table's points, r [m] against p [N/m^2]."""
+        return {"table": ([[float(a), float(b)] for a, b in zip(self.p.x, self.p.f)],
+                          "m, N/m^2")}
+
+    def energy(self, r):
+        """P(r) = int_0^r p.
+
+        Args:
+            r: normal displacements u_nu.
+
+        Returns:
+            P(r), elementwise.
+        """
+        return self.p.primitive(backend(r).pos(r))
+
+    def derivative(self, r):
+        """p(r).
+
+        Args:
+            r: normal displacements u_nu.
+
+        Returns:
+            p(r), elementwise.
+        """
+        return self.p.value(backend(r).pos(r))
+
+    def second_derivative(self, r):
+        """p'(r) (0 for r <= 0).
+
+        Args:
+            r: normal displacements u_nu.
+
+        Returns:
+            p'(r), elementwise.
+        """
+        ops = backend(r)
+        return ops.where(ops.gt(r, 0.0), self.p.slope(r), 0.0)
+
+
+@dataclass(frozen=True)
 class RegularisedPositivePart(ScalarLaw):
     """r^+ regularised as (r + sqrt(r^2 + delta^2)) / 2: the memory term xi_n r^+ of (3.4).
 
@@ -90,6 +290,10 @@ class RegularisedPositivePart(ScalarLaw):
 
     delta: object
     name = "memory term xi_n u_nu^+ (regularised)"
+
+    def constants(self):
+        """Returns: delta [m], the regularisation width."""
+        return {"delta": (self.delta, "m")}
 
     def energy(self, r):
         """(r + sqrt(r^2 + delta^2)) / 2.
@@ -145,6 +349,17 @@ class PiecewiseLinearFriction(ScalarLaw):
     u1: object
     name = "friction (regularised Clarke term)"
 
+    def constants(self):
+        """Returns: b [N/m^2], c1 and c2 [N/m^3], u1 [m] of law (4.2)."""
+        return {"b": (self.b, "N/m^2"), "c1": (self.c1, "N/m^3"), "c2": (self.c2, "N/m^3"),
+                "u1": (self.u1, "m")}
+
+    @property
+    def m_j(self):
+        """m_j of (2.6), the relaxed-monotonicity constant: the largest decreasing slope of
+        psi' (psi'' = -c1 on [0, u1], c2 >= 0 beyond), so m_j = c1."""
+        return self.c1
+
     def energy(self, rho):
         """psi(rho).
 
@@ -184,6 +399,66 @@ class PiecewiseLinearFriction(ScalarLaw):
         return ops.where(ops.le(rho, self.u1), -self.c1, self.c2)
 
 
+class TableFriction(ScalarLaw):
+    """Friction from a table (H(j_tau)): the friction stress tau(rho) = psi'(rho) of the slip
+    rho = |u_tau| piecewise linear through [[0, tau_0], [rho_1, tau_1], ...] (nonmonotone
+    allowed, tau_0 > 0 the bound at zero slip), extrapolated linearly beyond the last point;
+    psi its exact primitive (piecewise quadratic, psi(0) = 0), psi'' its slope.  The table
+    [[0, b], [u1, b - c1 u1], [2 u1, b - c1 u1 + c2 u1]] is law (4.2).
+
+    Args:
+        table: the points [[rho, tau], ...], rho increasing from 0.
+    """
+
+    name = "friction (regularised Clarke term)"
+
+    def __init__(self, table):
+        self.tau = PiecewiseLinear(table, "linear")
+
+    def constants(self):
+        """Returns: the table's points, rho [m] against tau [N/m^2]."""
+        return {"table": ([[float(a), float(b)] for a, b in zip(self.tau.x, self.tau.f)],
+                          "m, N/m^2")}
+
+    @property
+    def m_j(self) -> float:
+        """The largest decreasing slope of tau, the constant m_j of (2.6) (0 if none)."""
+        return float(max(0.0, -float(np.min(self.tau.slopes))))
+
+    def energy(self, rho):
+        """psi(rho) = int_0^rho tau.
+
+        Args:
+            rho: the (regularised) slip |u_tau| >= 0.
+
+        Returns:
+            psi(rho), elementwise.
+        """
+        return self.tau.primitive(rho)
+
+    def derivative(self, rho):
+        """psi'(rho) = tau(rho), the friction bound |sigma_tau| at slip rho > 0.
+
+        Args:
+            rho: the (regularised) slip.
+
+        Returns:
+            tau(rho), elementwise.
+        """
+        return self.tau.value(rho)
+
+    def second_derivative(self, rho):
+        """psi''(rho), the slope of tau (the right one at a kink).
+
+        Args:
+            rho: the (regularised) slip.
+
+        Returns:
+            psi''(rho), elementwise.
+        """
+        return self.tau.slope(rho)
+
+
 @dataclass(frozen=True)
 class RegularisedNorm:
     """|x|_delta = sqrt(|x|^2 + delta^2), the regularised slip of the friction term (4.2).
@@ -221,6 +496,16 @@ class SlipWeakening:
     s0: float
     name = "slip dependence theta(s_n)"
 
+    def constants(self):
+        """Returns: theta_inf [-], s0 [m s]."""
+        return {"theta_inf": (self.theta_inf, "-"), "s0": (self.s0, "m s")}
+
+    @property
+    def theta_max(self) -> float:
+        """The largest theta(s), 1 (theta falls from theta(0) = 1 to theta_inf <= 1): the
+        factor of the friction law's m_j in (2.6)."""
+        return 1.0
+
     def theta(self, s):
         """theta(s).
 
@@ -233,6 +518,57 @@ class SlipWeakening:
         return self.theta_inf + (1.0 - self.theta_inf) * backend(s).exp(-s / self.s0)
 
 
+class TableSlip:
+    """The slip dependence of friction from a table: theta(s) piecewise linear through
+    [[0, theta_0], [s_1, theta_1], ...], constant beyond the last point.
+
+    Args:
+        table: the points [[s, theta], ...], s increasing from 0, theta in [0, 1].
+    """
+
+    name = SlipWeakening.name
+
+    def __init__(self, table):
+        pts = np.asarray(table, dtype=float)
+        self._s, self._theta = pts[:, 0], pts[:, 1]
+
+    def constants(self):
+        """Returns: the table's points, s [m s] against theta [-]."""
+        return {"table": ([[float(a), float(b)] for a, b in zip(self._s, self._theta)],
+                          "m s, -")}
+
+    @property
+    def theta_max(self) -> float:
+        """The largest theta(s) of the table: the factor of the friction law's m_j in
+        (2.6)."""
+        return float(np.max(self._theta))
+
+    def theta(self, s):
+        """theta(s).
+
+        Args:
+            s: accumulated slips s_n at the nodes (numpy).
+
+        Returns:
+            theta(s), elementwise.
+        """
+        return np.interp(s, self._s, self._theta)
+
+
+def slip_law(slip):
+    """theta(s) of a case's ``contact.friction.slip``.
+
+    Args:
+        slip: the Slip (theta_inf and s0, or a table).
+
+    Returns:
+        A SlipWeakening or a TableSlip.
+    """
+    if getattr(slip, "table", None) is not None:
+        return TableSlip(slip.table)
+    return SlipWeakening(slip.theta_inf, slip.s0)
+
+
 # ----------------------------------------------------------------------------- memory kernels
 class MemoryKernel:
     """The interface of a memory kernel b(t) of the memory term xi_n of (3.4): no state.
@@ -242,6 +578,15 @@ class MemoryKernel:
     """
 
     recursive = False
+    name = "memory kernel"
+
+    def constants(self) -> dict:
+        """The kernel's constants with their units (``check`` lists them).
+
+        Returns:
+            name -> (value, unit).
+        """
+        return {}
 
     def __call__(self, t):
         """b(t).
@@ -282,6 +627,11 @@ class ExponentialKernel(MemoryKernel):
     b0: float
     beta: float = 0.0
     recursive = True
+    name = "memory kernel b0 exp(-beta t)"
+
+    def constants(self):
+        """Returns: b0 [N/(m^3 s)], beta [1/s]."""
+        return {"b0": (self.b0, "N/(m^3 s)"), "beta": (self.beta, "1/s")}
 
     def __call__(self, t):
         """b(t) = b0 exp(-beta t).
@@ -322,6 +672,11 @@ class PowerKernel(MemoryKernel):
     b0: float
     alpha: float = 1.0
     tau: float = 1.0
+    name = "memory kernel b0 (1 + t/tau)^-alpha"
+
+    def constants(self):
+        """Returns: b0 [N/(m^3 s)], alpha [-], tau [s]."""
+        return {"b0": (self.b0, "N/(m^3 s)"), "alpha": (self.alpha, "-"), "tau": (self.tau, "s")}
 
     def __call__(self, t):
         """b(t) = b0 (1 + t / tau)^-alpha.
@@ -343,9 +698,15 @@ class TableKernel(MemoryKernel):
         table: the (t, b) points, t increasing.
     """
 
+    name = "memory kernel b0 table(t)"
+
     def __init__(self, b0: float, table):
         pts = np.asarray(table, dtype=float)
         self.b0, self._ts, self._bs = b0, pts[:, 0], pts[:, 1]
+
+    def constants(self):
+        """Returns: b0 [N/(m^3 s)] and the table's number of points."""
+        return {"b0": (self.b0, "N/(m^3 s)"), "points": (len(self._ts), "-")}
 
     def __call__(self, t):
         """b(t) = b0 interp(t).
@@ -466,25 +827,101 @@ class ContactLaw:
         return values, names
 
 
-def contact_law(contact, delta, const=None) -> ContactLaw:
+def contact_law(contact, delta, const=None, x=None) -> ContactLaw:
     """The laws of a case's contact section.
 
     Args:
-        contact: the case's ``contact`` section (c_nu, friction, memory).
+        contact: the case's ``contact`` section (c_nu or a compliance table, friction,
+            memory).
         delta: the regularisation width (``solver.delta``).
         const: (name, value) -> the parameter in the laws (the forms' dolfinx Constants);
             None: the numbers themselves.
+        x: where a parameter given as an expression of x, y, z (c_nu(x)) is evaluated: a
+            UFL SpatialCoordinate (the forms) or the nodes' coordinates (n, d) (numpy);
+            needed only by such a parameter (``varies_in_space``).
 
     Returns:
         The ContactLaw.
     """
     param = const if const is not None else (lambda name, value: value)
     fr = contact.friction
-    friction = None if fr is None else \
-        PiecewiseLinearFriction(*(param(k, getattr(fr, k)) for k in ("b", "c1", "c2", "u1")))
-    normal = None if contact.c_nu is None else NormalCompliance(param("c_nu", contact.c_nu))
+    friction = friction_law(fr, param)
+    normal = _normal_law(contact, param, x)
     d = param("delta", delta) if fr is not None or contact.memory is not None else None
     return ContactLaw(
         normal=normal,
         memory=None if contact.memory is None else RegularisedPositivePart(d),
         friction=friction, norm=None if fr is None else RegularisedNorm(d))
+
+
+def friction_law(fr, const=None) -> ScalarLaw | None:
+    """The friction potential psi of a case's ``contact.friction``.
+
+    Args:
+        fr: the Friction (b, c1, c2, u1 of (4.2), or a table), or None.
+        const: (name, value) -> the parameter in the law (the forms' Constants); None: the
+            numbers themselves.
+
+    Returns:
+        A PiecewiseLinearFriction or a TableFriction; None without friction.
+    """
+    param = const if const is not None else (lambda name, value: value)
+    if fr is None:
+        return None
+    if getattr(fr, "table", None) is not None:
+        return TableFriction(fr.table)
+    return PiecewiseLinearFriction(*(param(k, getattr(fr, k)) for k in ("b", "c1", "c2", "u1")))
+
+
+def _normal_law(contact, param, x):
+    """The normal compliance of a contact section (None: none): (4.1) for a number c_nu
+    without m, else c_nu(x) (r^+)^m, or the table's law."""
+    table = getattr(contact, "compliance_table", None)
+    if table is not None:
+        return TableCompliance(table)
+    if contact.c_nu is None:
+        return None
+    m = getattr(contact, "compliance_m", None)
+    if isinstance(contact.c_nu, str):
+        c_nu = space_field(contact.c_nu, x)
+    else:
+        c_nu = param("c_nu", contact.c_nu)
+    return NormalCompliance(c_nu) if m is None else PowerCompliance(c_nu, float(m))
+
+
+def varies_in_space(contact) -> bool:
+    """Whether a contact law's parameter is an expression of x, y, z (c_nu(x)).
+
+    Args:
+        contact: the case's ``contact`` section.
+
+    Returns:
+        True if the laws need the coordinates ``x`` of ``contact_law``.
+    """
+    return isinstance(contact.c_nu, str)
+
+
+def space_field(text: str, x):
+    """An expression of x, y, z at points.
+
+    Args:
+        text: the expression (checked by the case's validation).
+        x: a UFL SpatialCoordinate, numpy coordinates (n, d), or None: the text itself (a
+            law built to describe itself, e.g. for summary.json, not to be evaluated).
+
+    Returns:
+        The UFL expression, its values (n,), or the text.
+    """
+    from vpcontact.case import expressions
+    if x is None:
+        return text
+    tree = expressions.parse(text, ("x", "y", "z"))
+    if backend(x) is NUMPY:
+        pts = np.asarray(x, dtype=float)
+        sym = {a: pts[:, i] for i, a in enumerate("xyz"[:pts.shape[1]])}
+        sym.setdefault("z", np.zeros(len(pts)))
+        return np.broadcast_to(expressions.evaluate(tree, sym), (len(pts),)).copy()
+    d = x.ufl_shape[0]
+    sym = {a: x[i] for i, a in enumerate("xyz"[:d])}
+    sym.setdefault("z", 0.0)
+    return expressions.to_ufl(tree, sym)

@@ -17,7 +17,13 @@ from __future__ import annotations
 import numpy as np
 from dolfinx import fem
 
-from vpcontact.model.contact_laws import MemoryKernel, SlipWeakening, memory_kernel
+from vpcontact.model.contact_laws import (
+    MemoryKernel,
+    SlipWeakening,
+    memory_kernel,
+    slip_law,
+    space_field,
+)
 from vpcontact.model.primitives import NUMPY
 
 
@@ -101,7 +107,7 @@ class SlipSum:
 
     Args:
         m: the number of nodes.
-        law: theta(s) (``SlipWeakening``).
+        law: theta(s) (``SlipWeakening`` or ``TableSlip``).
     """
 
     def __init__(self, m: int, law: SlipWeakening):
@@ -183,10 +189,14 @@ class Gamma3History:
         slip: theta(s) of the slip dependence, or None: none.
         recursion: the memory sum by the kernel's recursion (True), directly (False) or
             the recursion where the kernel has one (None).
+        b0: b0(x) at the local Gamma3 nodes for a kernel b(t, x) = b0(x) b(t) whose own
+            factor is 1 (xi_n sums k_j b(t_n - t_{j-1}) b0(x) u_{j-1,nu}^+), or None.
     """
 
     def __init__(self, problem, kernel: MemoryKernel | None = None,
-                 slip: SlipWeakening | None = None, recursion: bool | None = None):
+                 slip: SlipWeakening | None = None, recursion: bool | None = None,
+                 b0: np.ndarray | None = None):
+        self.b0 = b0
         self.u = problem.u
         self.nodes = problem.gamma3_local_nodes
         self.normal = problem.frames.normal          # (m, d): nu_i at the nodes
@@ -234,7 +244,8 @@ class Gamma3History:
         u = self.u.x.array.reshape(-1, self.dim)[self.nodes]
         u_nu = np.einsum("ij,ij->i", u, self.normal)
         if self.memory is not None:
-            self.xi.set(self.memory.advance(NUMPY.pos(u_nu), t_prev, t_n))
+            r_plus = NUMPY.pos(u_nu) if self.b0 is None else self.b0 * NUMPY.pos(u_nu)
+            self.xi.set(self.memory.advance(r_plus, t_prev, t_n))
         if self.slip is not None:
             u_tau = u - u_nu[:, None] * self.normal
             self.slip.advance(np.linalg.norm(u_tau, axis=1), t_n - t_prev)
@@ -252,14 +263,18 @@ def build_gamma3_history(case, problem) -> Gamma3History | None:
         A Gamma3History, or None.
     """
     c = case.contact
-    kernel = slip = recursion = None
+    kernel = slip = recursion = b0 = None
     if c.memory is not None:
         mk = c.memory
-        kernel = memory_kernel(mk.kernel, mk.b0, beta=mk.beta, alpha=mk.alpha or 1.0,
-                               tau=mk.tau or 1.0, table=mk.table)
+        if isinstance(mk.b0, str):          # b(t, x) = b0(x) times the kernel of factor 1
+            x = problem.V.tabulate_dof_coordinates()[problem.gamma3_local_nodes,
+                                                     :problem.dim]
+            b0 = space_field(mk.b0, x)
+        kernel = memory_kernel(mk.kernel, 1.0 if b0 is not None else mk.b0, beta=mk.beta,
+                               alpha=mk.alpha or 1.0, tau=mk.tau or 1.0, table=mk.table)
         recursion = None if mk.sum == "auto" else mk.sum == "recursion"
     if c.friction is not None and c.friction.slip is not None:
-        slip = SlipWeakening(c.friction.slip.theta_inf, c.friction.slip.s0)
+        slip = slip_law(c.friction.slip)
     if kernel is None and slip is None:
         return None
-    return Gamma3History(problem, kernel, slip, recursion)
+    return Gamma3History(problem, kernel, slip, recursion, b0)

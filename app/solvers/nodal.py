@@ -8,7 +8,8 @@ the energy density of the case's ``ContactLaw`` (app/model/contact_laws.py: norm
 compliance (4.1), memory term, friction (4.2) times theta(s_n)).  ``nodal_contact_numpy``
 composes sum_i w_i phi_i, its gradient and its nodal Hessian blocks from the laws' energy,
 derivative and second derivative, for any law; for the paper's laws ``NodalContact`` calls
-the C kernel nodal_contact (app/kernels/contact.c), whose reference it is.
+the C kernel nodal_contact (app/kernels/contact.c), whose reference it is; any other law
+(a table, c_nu (r^+)^m, c_nu(x) given per node) takes the numpy path.
 """
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ from vpcontact.model.contact_laws import (
     PiecewiseLinearFriction,
     RegularisedNorm,
     RegularisedPositivePart,
+    varies_in_space,
 )
 
 
@@ -83,6 +85,8 @@ def _kernel_parameters(law: ContactLaw):
              (law.friction, PiecewiseLinearFriction), (law.norm, RegularisedNorm))
     if any(part is not None and type(part) is not cls for part, cls in parts):
         return None
+    if law.normal is not None and np.ndim(law.normal.c_nu) > 0:      # c_nu(x): numpy
+        return None
     deltas = {x.delta for x in (law.memory, law.norm) if x is not None}
     if len(deltas) > 1:
         return None
@@ -90,6 +94,23 @@ def _kernel_parameters(law: ContactLaw):
     return (0.0 if law.normal is None else law.normal.c_nu,
             None if fr is None else (fr.b, fr.c1, fr.c2, fr.u1),
             deltas.pop() if deltas else 0.0)
+
+
+def gamma3_points(problem, layout):
+    """The Gamma3 nodes' coordinates in G order where a contact law's parameter varies in
+    space (c_nu(x)); collective.
+
+    Args:
+        problem: the ContactProblem (its owned Gamma3 nodes and coordinates, the case).
+        layout: the condensed solver's Gamma3Layout (G order).
+
+    Returns:
+        (n, d) coordinates on every rank, or None where no parameter varies in space.
+    """
+    if not varies_in_space(problem.case.contact):
+        return None
+    return layout.place_on_all(layout.local_owned_g, problem.gamma3.x,
+                               (len(layout.g_nodes), problem.dim))
 
 
 class NodalContact:
