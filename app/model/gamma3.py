@@ -10,7 +10,9 @@ sums are their state.  For a kernel with an exact recursion (the exponential ker
 b(t) = b0 exp(-beta t): ``ExponentialKernel.recursion``) the sum costs O(1) per node and
 step; a general kernel keeps the history of u_nu^+ per node and sums directly (O(n) per node
 and step).  The slip obeys s_n = s_{n-1} + k_n |u_{n-1,tau}|.  Each term exists only if the
-case enables it.
+case enables it.  A kernel b(t, x) = b0(x) b(t) with b0 an expression of x (H(b)) sums
+b0(x_i) u_{j-1,nu}^+ with the kernel of factor 1; theta(s) is the exponential law or a table
+(``slip_law``).
 """
 from __future__ import annotations
 
