@@ -720,6 +720,53 @@ class TableKernel(MemoryKernel):
         return self.b0 * np.interp(np.asarray(t, dtype=float), self._ts, self._bs)
 
 
+class FieldKernel(MemoryKernel):
+    """b(t, x) = b0(x) b(t) (H(b)): a kernel of factor 1 whose factor b0(x), an expression
+    of x, y, z, multiplies u_{j-1,nu}^+ at each node (app/model/gamma3.py); it describes
+    itself with the expression.
+
+    Args:
+        kernel: the kernel b(t) of factor 1.
+        b0: the expression b0(x).
+    """
+
+    def __init__(self, kernel: MemoryKernel, b0: str):
+        self.kernel, self.b0 = kernel, b0
+        self.recursive = kernel.recursive
+        self.name = kernel.name
+
+    def constants(self) -> dict:
+        """Returns: the kernel's constants, b0 the expression."""
+        out = dict(self.kernel.constants())
+        if "b0" in out:
+            out["b0"] = (self.b0, out["b0"][1])
+        return out
+
+    def __call__(self, t):
+        """b(t) of factor 1.
+
+        Args:
+            t: time(s) since the contribution (a number or an array).
+
+        Returns:
+            b(t) / b0(x), elementwise.
+        """
+        return self.kernel(t)
+
+    def recursion(self, xi, r_plus, k):
+        """The kernel of factor 1's recursion (r_plus already times b0(x)).
+
+        Args:
+            xi: xi_{n-1} at the nodes.
+            r_plus: b0(x) u_{n-1,nu}^+ at the nodes.
+            k: the step k_n.
+
+        Returns:
+            xi_n.
+        """
+        return self.kernel.recursion(xi, r_plus, k)
+
+
 def memory_kernel(kind: str, b0: float, beta: float = 0.0, alpha: float = 1.0,
                   tau: float = 1.0, table=None) -> MemoryKernel:
     """The memory kernel a case names.

@@ -20,6 +20,7 @@ import numpy as np
 from dolfinx import fem
 
 from vpcontact.model.contact_laws import (
+    FieldKernel,
     MemoryKernel,
     SlipWeakening,
     memory_kernel,
@@ -274,6 +275,8 @@ def build_gamma3_history(case, problem) -> Gamma3History | None:
             b0 = space_field(mk.b0, x)
         kernel = memory_kernel(mk.kernel, 1.0 if b0 is not None else mk.b0, beta=mk.beta,
                                alpha=mk.alpha or 1.0, tau=mk.tau or 1.0, table=mk.table)
+        if b0 is not None:
+            kernel = FieldKernel(kernel, mk.b0)
         recursion = None if mk.sum == "auto" else mk.sum == "recursion"
     if c.friction is not None and c.friction.slip is not None:
         slip = slip_law(c.friction.slip)

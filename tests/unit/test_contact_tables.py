@@ -117,6 +117,32 @@ def test_slip_table_interpolation_bound():
     assert table.theta_max == pytest.approx(1.0)
 
 
+@pytest.mark.parametrize("kind", ["exponential", "power"])
+def test_memory_sum_with_b0_of_x(kind):
+    """b(t, x) = b0(x) b(t): the memory sum fed with b0(x_i) u^+ (the kernel of factor 1,
+    recursion or direct sum) equals xi_n = sum_j k_j b0(x_i) b(t_n - t_{j-1}) u_{j-1}^+
+    summed by hand, at non-uniform steps; the kernel describes itself with b0(x)."""
+    from vpcontact.model.gamma3 import MemorySum
+    rng = np.random.default_rng(5)
+    x = np.array([[0.0, 0.0], [0.3, 0.0], [1.0, 0.0]])
+    b0 = laws.space_field("2 + 3 * x", x)
+    assert b0.tolist() == [2.0, 2.9, 5.0]
+    kernel = laws.FieldKernel(laws.memory_kernel(kind, 1.0, beta=1.5, alpha=2.0, tau=0.5),
+                              "2 + 3 * x")
+    assert kernel.constants()["b0"][0] == "2 + 3 * x"
+    times = np.cumsum(np.concatenate([[0.0], rng.uniform(0.05, 0.2, 6)]))
+    r = rng.uniform(0.0, 0.01, (6, 3))
+    total = MemorySum(kernel, 3)
+
+    def b(t):
+        return np.exp(-1.5 * t) if kind == "exponential" else (1.0 + t / 0.5) ** -2.0
+    for n in range(1, 7):
+        xi = total.advance(b0 * r[n - 1], times[n - 1], times[n])
+        ref = sum((times[j] - times[j - 1]) * b0 * b(times[n] - times[j - 1]) * r[j - 1]
+                  for j in range(1, n + 1))
+        assert np.allclose(xi, ref, rtol=1e-13, atol=0.0)
+
+
 # ----------------------------------------------------------------------------- consistency
 GENERAL_LAWS = [
     (laws.PowerCompliance(120.0, 2.5), np.linspace(-0.01, 0.03, 37)),
