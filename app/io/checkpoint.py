@@ -2,9 +2,10 @@
 
 Saved: t_n and the step counter, the stepper's state (the adaptive k and its decisions,
 stored under the key "history" of the file's meta data), the step records, and every field
-the next step reads: u_n (P1), sigma_n, H_n (DG0 tensors), kappa_n (DG0), and the active
-Gamma3 history terms as their ``state()`` gives them (memory term: xi_n, and for the direct
-sum the stored u_nu^+ history; slip: s_n).  Values are stored with the coordinates of their
+the next step reads: u_n (P1), sigma_n, H_n (DG0 tensors), kappa_n (DG0, the law's m
+columns: 8 for Chaboche's (X, R, p)), and the active Gamma3 history terms as their
+``state()`` gives them (memory term: xi_n, and for the direct sum the stored u_nu^+ history;
+slip: s_n).  Values are stored with the coordinates of their
 nodes / cell midpoints, gathered on rank 0 into one ``checkpoint.npz`` (written
 atomically), so a run can restart on any number of MPI ranks: each rank matches its own
 nodes and cells by coordinates (within 1e-6 of the smallest distance between two of them,
@@ -296,15 +297,16 @@ def _check_arrays(arrays: dict) -> str | None:
     return None
 
 
-def _required(case) -> dict[str, int]:
-    """The fields a checkpoint of ``case`` must hold, with their values per node/cell."""
+def _required(case) -> dict[str, int | None]:
+    """The fields a checkpoint of ``case`` must hold, with their values per node/cell (None:
+    the law's number m of internal variables, checked when the field is restored)."""
     d = case.dim
     need = {"u": d, "sigma": d * d}
     vp = case.material.viscoplastic
     if vp is not None or case.initial.u0 is not None or case.initial.sigma0 is not None:
         need["H"] = d * d
-    if vp is not None:
-        need["kappa"] = 1
+    if vp is not None:          # the law's m columns, checked against the State's kappa
+        need["kappa"] = None    # when it is restored (_restore_fields)
     c = case.contact
     if c.memory is not None:
         need["g3_xi"] = 1
@@ -370,7 +372,7 @@ class Checkpoint:
             v = self.arrays.get(f"{name}_v")
             if v is None:
                 raise CheckpointError(self.path, f"'{name}_v' is missing")
-            if v.shape[1] != cols:
+            if cols is not None and v.shape[1] != cols:
                 raise CheckpointError(self.path, f"'{name}_v' has {v.shape[1]} values per row, "
                                                  f"not {cols}")
         self._check_time(case)

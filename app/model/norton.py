@@ -53,6 +53,7 @@ class Norton(ViscoplasticLaw):
 
     m = 1
     name = "norton"
+    fields = (("p", 1),)         # kappa written to solution.xdmf as the field p
 
     def __init__(self, elasticity: Elasticity, A: float, n: float):
         super().__init__(elasticity)

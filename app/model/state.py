@@ -15,6 +15,8 @@ from __future__ import annotations
 import numpy as np
 from dolfinx import fem
 
+from vpcontact.model.material import FROM
+
 
 def kappa_function(Y, m: int) -> fem.Function:
     """The internal variables kappa in R^m per cell: a DG0 scalar Function for m = 1 (the
@@ -29,6 +31,57 @@ def kappa_function(Y, m: int) -> fem.Function:
     """
     space = Y if m == 1 else fem.VectorFunctionSpace(Y.mesh, ("DG", 0), dim=m)
     return fem.Function(space, name="kappa")
+
+
+class KappaOutput:
+    """The internal variables kappa as the fields solution.xdmf writes, each a DG0 field
+    that XDMF stores per cell (dolfinx 0.5 writes a DG0 Function per cell only if it is a
+    scalar, a d-vector or a d x d tensor): kappa itself for m = 1; for a law that names its
+    variables (its ``fields``: (name, components) in kappa's order) one Function each, a
+    scalar for 1 component, and for 6 the symmetric 3 x 3 tensor in the 3D t-order (11, 22,
+    33, 23, 13, 12) of app/model/material.py (Chaboche's back stress X): in 3D the tensor
+    itself, in 2D its in-plane d x d tensor ``X`` and its out-of-plane ``X_33`` (X_13 = X_23
+    = 0 there); otherwise (m > 1, no names) one scalar kappa_i per component.
+
+    Args:
+        kappa: the State's kappa Function (DG0, m components).
+        layout: the law's ``fields``, or None.
+
+    Attributes:
+        functions: the Functions to write.
+    """
+
+    def __init__(self, kappa: fem.Function, layout=None):
+        self.kappa, self.parts = kappa, []
+        bs = kappa.function_space.dofmap.index_map_bs
+        if layout is None and bs == 1:
+            self.functions = [kappa]
+            return
+        mesh = kappa.function_space.mesh
+        d = mesh.topology.dim
+        scalar = fem.FunctionSpace(mesh, ("DG", 0))
+        tensor = fem.TensorFunctionSpace(mesh, ("DG", 0))
+        start = 0
+        for name, size in layout or [(f"kappa_{i}", 1) for i in range(bs)]:
+            if size == 1:
+                self.parts.append((fem.Function(scalar, name=name), [start]))
+            else:                              # the 3D t-coordinates of a symmetric tensor
+                t3 = start + np.arange(6)
+                rows = t3[FROM[3]] if d == 3 else t3[[0, 5, 5, 1]]
+                self.parts.append((fem.Function(tensor, name=name), list(rows)))
+                if d == 2:
+                    self.parts.append((fem.Function(scalar, name=f"{name}_33"), [start + 2]))
+            start += size
+        self.functions = [f for f, _ in self.parts]
+
+    def update(self) -> None:
+        """Copy kappa's components into the named Functions (owned and ghost cells)."""
+        if not self.parts:
+            return
+        bs = self.kappa.function_space.dofmap.index_map_bs
+        cells = self.kappa.x.array.reshape(-1, bs)
+        for f, columns in self.parts:
+            f.x.array[:] = cells[:, columns].reshape(-1)
 
 
 class State:
