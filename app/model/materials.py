@@ -101,7 +101,8 @@ def _tag_of(ref, body, tags: list, source: str) -> int:
         return names[ref]
     if isinstance(ref, int) and ref in tags:
         return ref
-    dims = getattr(body, "other_groups", {})
+    dims = {**getattr(body, "other_groups", {}),
+            **{name: body.dim - 1 for name in getattr(body, "groups", {})}}
     hint = f"; {ref!r} is a group of dimension {dims[ref]}" if ref in dims else ""
     raise CaseError(f"{source}: materials.{ref}: no physical group of cells {ref!r} in the "
                     f"mesh (names: {', '.join(sorted(names)) or 'none'}; numbers: "

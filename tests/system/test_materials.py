@@ -10,7 +10,8 @@
 - The refusals: both keys, neither, materials without mesh.file, two plane models, a law's
   key inside materials (named with its group), a group the mesh does not have, cells in no
   group, a group given by its name and its tag.
-- serial = mpirun -n 2 on the shipped case cases/bimaterial_punch.yaml (one mpirun run).
+- The shipped case cases/bimaterial_punch.yaml: serial SNES VI = the condensed solver under
+  mpirun -n 2 (one mpirun run), and its contact force relaxes.
 """
 import json
 
@@ -177,6 +178,9 @@ def test_groups_on_the_mesh(bar_file, bar_body):
                                                "c": {"E": 1.0, "nu": 0.3}})
     assert "materials.c: no physical group of cells 'c'" in msg and "names: a, b" in msg
     msg = _groups_refusal(bar_file, bar_body, {"a": {"E": 1.0, "nu": 0.3},
+                                               "left": {"E": 1.0, "nu": 0.3}})
+    assert "'left' is a group of dimension 1" in msg
+    msg = _groups_refusal(bar_file, bar_body, {"a": {"E": 1.0, "nu": 0.3},
                                                11: {"E": 1.0, "nu": 0.3}})
     assert "the same group (physical tag 11)" in msg
     groups = material_groups(validate(bar_raw(bar_file, {12: {"E": 2.0, "nu": 0.3},
@@ -189,17 +193,19 @@ def test_groups_on_the_mesh(bar_file, bar_body):
 
 
 def test_bimaterial_punch_serial_equals_two_ranks(tmp_path):
+    """The shipped case: SNES VI serially, the condensed solver on two ranks."""
     from vpcontact.case import load_case
     from vpcontact.simulation import run
     case = ROOT / "cases" / "bimaterial_punch.yaml"
     short = ["time.T=0.6", "time.N=6"]      # k = 0.1 as the case's; 0.2 of loading, 0.4 held
-    serial = run(load_case(case, short), MPI.COMM_WORLD).summary
+    serial = run(load_case(case, short + ["solver.method=snes_vi"]), MPI.COMM_WORLD).summary
     out = tmp_path / "mpi"
     proc = run_cli(["run", case, "--out", out, "--quiet", "--set", short[0], "--set",
                     short[1]], nprocs=2)
     assert proc.returncode == 0, proc.stderr
     parallel = json.loads((out / "summary.json").read_text())
     assert parallel["mpi_ranks"] == 2 and parallel["status"] == "completed"
+    assert (serial["solver"]["used"], parallel["solver"]["used"]) == ("snes_vi", "condensed")
     assert len(serial["steps"]) == len(parallel["steps"]) == 6
     for a, b in zip(serial["steps"], parallel["steps"]):
         for key in KEYS:
