@@ -88,6 +88,9 @@ class RunSummary:
         failure: why the run stopped early (None: it did not).
         contact_states: the Gamma3 node counts of contact.csv (None: not written).
         summary_error: why summary.json could not be written (None: it was).
+        laws: the case's laws and materials with their constants and units
+            (app/post/lawreport.py: elasticity, viscoplastic law, contact laws; None: not
+            recorded).
     """
 
     case: str
@@ -108,6 +111,7 @@ class RunSummary:
     failure: StepFailure | None = None
     contact_states: dict | None = None
     summary_error: str | None = None
+    laws: dict | None = None
 
     @property
     def last_good_step(self) -> int:
@@ -131,6 +135,7 @@ class RunSummary:
              "status": self.status, "mesh": self.mesh, "time": self.time,
              "mpi_ranks": self.mpi_ranks, "active_terms": self.active_terms,
              "diagnostics": self.diagnostics, "solver": self.solver,
+             **({} if self.laws is None else {"laws": self.laws}),
              "last_good_step": self.last_good_step, "steps": self.steps,
              "newton_iterations_total": sum(s["newton_iterations"] for s in self.steps),
              "solve_s": sum(s["wall_s"] for s in self.steps),

@@ -5,8 +5,9 @@ import os
 
 
 def report(case, comm) -> list[str]:
-    """Validate-and-set-up report of a case: mesh, dofs, steps, terms, solver, diagnostics.
-    Builds the mesh, spaces and forms (JIT) but solves nothing and writes nothing.
+    """Validate-and-set-up report of a case: mesh, dofs, steps, terms, solver, the laws and
+    materials (app/post/lawreport.py), diagnostics.  Builds the mesh, spaces and forms (JIT)
+    but solves nothing and writes nothing.
 
     Args:
         case: the validated Case.
@@ -19,8 +20,10 @@ def report(case, comm) -> list[str]:
 
     from vpcontact.case import rescale_for_length
     from vpcontact.model.datapoints import check_data_on_mesh
+    from vpcontact.model.gamma3 import build_gamma3_history
     from vpcontact.model.problem import ContactProblem
     from vpcontact.post.diagnostics import diagnose
+    from vpcontact.post.lawreport import law_lines, law_report
     from vpcontact.simulation import build_mesh
     from vpcontact.solvers import choose_method, condensed_eligible, gamma3_dofs
 
@@ -61,6 +64,7 @@ def report(case, comm) -> list[str]:
                                     else "") + ("" if ok else f"; condensed not possible: {why}"),
     ]
     diag = diagnose(problem)
+    lines += law_lines(law_report(problem, build_gamma3_history(case, problem)), diag)
     lines += [text for _, text in diag.messages()]
     lines.append(f"outputs every {case.output.every} step(s)"
                  + (f", checkpoints every {case.output.checkpoint_every}"

@@ -2,12 +2,17 @@
 
 - Explicit stability indicator: the history update of (3.2) relaxes the stress like
   sigma_n ~ (I - k E/(2 lambda1)) sigma_{n-1} on the excess over the yield ball, so with the
-  largest relaxation rate r_max = lambda_max(E) / (2 lambda1) the explicit scheme needs
-  k_max r_max <= 2 (above 1 the relaxation overshoots and oscillates).  The implicit variant
-  has no such limit.
+  largest relaxation rate r_max = lambda_max(E) / (2 lambda1) (the law's
+  ``relaxation_rate``, else its Lipschitz constant L_G, app/model/laws.py) the explicit
+  scheme needs k_max r_max <= 2 (above 1 the relaxation overshoots and oscillates).  A law
+  that knows neither has its rate estimated: the spectral radius of the finite-difference
+  Jacobian dG/dsigma at the state's cell of largest ||sigma||_VM (``estimated_rate``);
+  where that vanishes (a state at rest) the indicator is unknown.  The implicit variant has
+  no such limit.
 - Well-posedness (2.6): m_E > max{sqrt(3) c1~, m_j} ||gamma||^2 with m_E the smallest
-  eigenvalue of E, m_j = c1 (relaxed monotonicity of law (4.2); theta <= 1 with slip
-  dependence), c1~ = 0 (theta is bounded: the friction bound does not grow with the slip)
+  eigenvalue of E, m_j the friction law's ``m_j`` (c1 for law (4.2): its relaxed
+  monotonicity) times the slip law's ``theta_max`` (1 for theta <= 1), c1~ = 0 (theta is
+  bounded: the friction bound does not grow with the slip)
   and ||gamma||^2 = max_v ||v||^2_{L2(Gamma3)} / ||eps(v)||^2_{L2} on the discrete space,
   computed by power iteration with the factorised stiffness.
 """
@@ -45,7 +50,44 @@ def ellipticity(elasticity) -> float:
     Returns:
         m_E, the smallest eigenvalue of E on symmetric tensors.
     """
-    return float(np.min(np.linalg.eigvals(elasticity.Cmat).real))
+    return elasticity.bounds()[0]
+
+
+def estimated_rate(law, t: np.ndarray, kappa: np.ndarray, eps: np.ndarray | None = None,
+                   comm=None, rel_step: float = 1e-6) -> float | None:
+    """An estimate of the relaxation rate of a law without a rate bound: the spectral radius
+    of the Jacobian dG/dsigma (central differences in the t-coordinates, kappa held) at the
+    cell of largest ||sigma||_VM, the largest over the ranks; collective with ``comm``.
+
+    Args:
+        law: the ViscoplasticLaw (its ``rates``, with eps where it ``uses_eps``).
+        t: rows (ncells, mt) of sigma in t-coordinates.
+        kappa: (ncells, m) internal variables.
+        eps: rows (ncells, mt) of eps(u) (a law that uses the strain), or None.
+        comm: the MPI communicator, or None (this process only).
+        rel_step: the difference step relative to the cell's largest |sigma_ij|.
+
+    Returns:
+        The estimate [1/s], or None where it vanishes (every cell at rest).
+    """
+    rate = 0.0
+    if len(t):
+        i = int(np.argmax(law.elasticity.von_mises(t)))
+        t0, mt = t[i], t.shape[1]
+        h = rel_step * max(float(np.max(np.abs(t0))), 1e-300)
+        steps = np.concatenate([t0 + h * np.eye(mt), t0 - h * np.eye(mt)])
+        rows = [np.repeat(np.asarray(kappa, dtype=float).reshape(len(t), -1)[i:i + 1],
+                          2 * mt, axis=0)]
+        if getattr(law, "uses_eps", False):
+            rows.append(np.repeat(eps[i:i + 1], 2 * mt, axis=0))
+        with law.elasticity.rows(np.full(2 * mt, i)):       # E per cell: cell i's
+            G, _ = law.rates(steps, *rows)
+        jac = (G[:mt] - G[mt:]).T / (2.0 * h)
+        rate = float(np.max(np.abs(np.linalg.eigvals(jac))))
+    if comm is not None:
+        from mpi4py import MPI
+        rate = comm.allreduce(rate, op=MPI.MAX)
+    return rate if np.isfinite(rate) and rate > 0.0 else None
 
 
 def _gamma3_mass(problem) -> PETSc.Mat:
@@ -209,7 +251,7 @@ def trace_constant_bound(problem, solver) -> float | None:
         with threads.blas_threads(large=solver.m >= dense.PCG_MIN):
             return _largest_generalised_eigenvalue(0.5 * (MG + MG.T), solver.C)
     lam_K = threads.root_call(problem.comm, largest)
-    return float(np.max(np.linalg.eigvals(problem.elasticity.Cmat).real)) * lam_K
+    return problem.elasticity.bounds()[1] * lam_K
 
 
 def _largest_generalised_eigenvalue(A: np.ndarray, C: np.ndarray) -> float:
@@ -250,18 +292,25 @@ class Diagnostics:
     Attributes:
         scheme: time.scheme (explicit or implicit).
         k_max: the largest time step.
-        relaxation_rate: r_max, or None without viscoplasticity.
-        stability_indicator: k_max r_max, or None without viscoplasticity.
+        relaxation_rate: r_max stated by the law (its relaxation rate, else its L_G), or None
+            (no law, or a law without a rate bound); the adaptive steps use it.
+        stability_indicator: k_max r_max (r_max the law's or, without one, the estimate),
+            or None (no law, or unknown).
         stability_limit: the explicit scheme's limit of k_max r_max.
         explicit_stable: the indicator is within the limit (None without viscoplasticity).
         m_E: the ellipticity constant of E.
-        m_j: the relaxed-monotonicity constant of the friction law (4.2) (c1).
+        m_j: the relaxed-monotonicity constant of the friction law (its ``m_j``: c1 for
+            (4.2)) times theta_max.
         c1_tilde: the growth constant c1~ of (2.6).
         gamma2: ||gamma||^2 (or its upper bound), None without friction.
         wellposedness_margin: m_E - max(sqrt(3) c1~, m_j) ||gamma||^2, None without friction.
         unique: the margin is positive, None without friction.
         adaptive: the case has time.adaptive.
         gamma2_is_bound: gamma2 is the upper bound c_max lam_K, not the value.
+        lipschitz_G: the law's L_G (app/model/laws.py), None where unknown or no law.
+        rate_estimate: the estimated rate (``estimated_rate``) of a law without a rate
+            bound, else None.
+        indicator_source: "law", "estimated", "unknown" or None (no law).
     """
 
     scheme: str
@@ -278,6 +327,9 @@ class Diagnostics:
     unique: bool | None
     adaptive: bool = False
     gamma2_is_bound: bool = False    # gamma2 is the upper bound c_max lam_K, not the value
+    lipschitz_G: float | None = None
+    rate_estimate: float | None = None
+    indicator_source: str | None = None
 
     def as_dict(self) -> dict:
         """The fields as a dict.
@@ -294,8 +346,18 @@ class Diagnostics:
             (level, text) pairs, level "info" or "warning".
         """
         out = []
+        if self.indicator_source == "unknown":
+            out.append(("info", "stability indicator: unknown (the law states no rate bound and "
+                                "its rates do not vary with sigma in the initial state; the "
+                                "explicit scheme's step is not checked: watch for growing "
+                                "oscillations, or use time.scheme: implicit)"))
         if self.stability_indicator is not None:
-            text = (f"stability indicator k_max r_max = {self.k_max:g} x {self.relaxation_rate:.4g}"
+            est = self.indicator_source == "estimated"
+            rate = self.rate_estimate if est else self.relaxation_rate
+            text = ("stability indicator " + ("(estimated: the law states no rate bound; "
+                                              "dG/dsigma at the initial state's largest "
+                                              "||sigma||_VM) " if est else "")
+                    + f"k_max r_max = {self.k_max:g} x {rate:.4g}"
                     f" = {self.stability_indicator:.3g} (explicit limit {self.stability_limit:g})")
             if self.scheme == "explicit" and not self.explicit_stable and self.adaptive:
                 out.append(("info", text + ": adaptive steps will keep k r_max within "
@@ -343,12 +405,13 @@ def diagnose(problem, solver=None) -> Diagnostics:
     case, elasticity = problem.case, problem.elasticity
     ks = np.diff(case.time.times)
     k_max = float(ks.max())
-    # the law's largest relaxation rate r_max (app/model/viscoplastic.py), None if unknown
-    rate = problem.law.relaxation_rate() if problem.law is not None else None
-    indicator = k_max * rate if rate is not None else None
+    law = problem.law
+    rate, lipschitz, estimate, source = _law_rate(problem)
+    indicator = k_max * rate if rate is not None else \
+        (k_max * estimate if estimate is not None else None)
     fr = case.contact.friction
     m_E = ellipticity(elasticity)
-    m_j = fr.c1 if fr else 0.0
+    m_j = friction_constant(case) if fr else 0.0
     gamma2 = margin = unique = None
     is_bound = False
     if fr is not None:
@@ -362,4 +425,42 @@ def diagnose(problem, solver=None) -> Diagnostics:
     return Diagnostics(case.time.scheme, k_max, rate, indicator, STABILITY_LIMIT,
                        None if indicator is None else indicator <= STABILITY_LIMIT,
                        m_E, m_j, 0.0, gamma2, margin, unique, case.time.adaptive is not None,
-                       is_bound)
+                       is_bound, lipschitz, estimate, source if law is not None else None)
+
+
+def _law_rate(problem) -> tuple:
+    """(r_max stated by the law or None, L_G or None, the estimate or None, the source)."""
+    law = problem.law
+    if law is None:
+        return None, None, None, None
+    lipschitz = law.lipschitz_constant()
+    rate = law.relaxation_rate()        # the largest relaxation rate, None if unknown
+    rate = lipschitz if rate is None else rate
+    if rate is not None:
+        return rate, lipschitz, None, "law"
+    el, H = problem.elasticity, problem.state.H       # sigma_0 = E eps(u_0) + H_0 (3.2)
+    eps = problem.strain_voigt()
+    t = el.apply(eps) + el.to_voigt(H.x.array)
+    kappa = problem.state.kappa_cells
+    # a body of several materials (app/model/materials.py): each group's law on its rows
+    parts = [(g.law, g.rows) for g in law.flowing] if hasattr(law, "flowing") else \
+        [(law, slice(None))]
+    found = [estimated_rate(g, t[rows], kappa[rows, :g.m], eps[rows], problem.comm)
+             for g, rows in parts]
+    estimate = max((e for e in found if e is not None), default=None)
+    return None, None, estimate, "estimated" if estimate is not None else "unknown"
+
+
+def friction_constant(case) -> float:
+    """m_j of (2.6): the friction law's ``m_j`` times the slip law's ``theta_max``.
+
+    Args:
+        case: the Case (its contact section has friction).
+
+    Returns:
+        m_j.
+    """
+    from vpcontact.model.contact_laws import friction_law, slip_law
+    friction = friction_law(case.contact.friction)
+    slip = case.contact.friction.slip
+    return friction.m_j * (1.0 if slip is None else slip_law(slip).theta_max)

@@ -1,0 +1,193 @@
+"""Steady creep of a thick-walled tube under internal pressure p (inner radius a, outer b), a
+quarter annulus in plane strain with symmetry rollers on its straight edges and no contact
+section, under Norton's law eps_vp' = A sigma_eq^n (3/2) dev(sigma) / sigma_eq.
+
+At long times the stress stops changing, the creep strain rate is compatible and, the creep
+being isochoric with eps_33 = 0, the hoop stress approaches Norton's steady state
+    sigma_theta(r) = p [1 + (2/n - 1)(b/r)^(2/n)] / [(b/a)^(2/n) - 1]
+(3D von Mises norm with the out-of-plane stress sigma_33 = (sigma_r + sigma_theta)/2).
+
+- With the out-of-plane stress carried by the law (the test's ``PlaneStrainNorton``, a law
+  of the Python API: kappa = (p, eps_vp33), sigma_33 = nu (sigma_11 + sigma_22) -
+  E eps_vp33), the run reaches the closed form: sigma_theta averaged over the innermost and
+  the outermost layer of cells is within 0.1 % of the closed form's average over the same
+  layer (measured: -0.067 % inner, -0.058 % outer).
+- ``law: norton`` in plane strain keeps the 2D model's norm (sigma_33 = 0 in ||sigma||_VM,
+  app/model/norton.py): its steady state is that model's, computed here independently
+  (a shooting ODE in r with scipy's solve_ivp; the run is within 0.06 % of it), not the
+  closed form (+11.6 % inner, -8.3 % outer for n = 3, b/a = 2): that comparison is an
+  expected failure until the law carries sigma_33 in plane strain.
+
+Mesh: 24 x 24 cells per quarter (transfinite, alternating diagonals: with one diagonal
+direction the P1 triangles lock under isochoric creep, measured +84 % at the inner layer on
+16 x 16; the error is mostly the polygonal arc: 24 x 12 gives -0.26 %); explicit scheme,
+25 steps to T = 5 (with 8 steps the run diverges, with 12 it oscillates), 1 s per run.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+from vpcontact.model.laws import ViscoplasticLaw
+
+A_IN, B_OUT, P, A_NORTON, N_NORTON = 1.0, 2.0, 1.0, 1.0e-3, 3.0
+NR, NT = 24, 24
+TOL = 1e-3
+
+GEO = f"""// quarter annulus a <= r <= b, x, y >= 0 (written by tests/system/test_tube_creep.py)
+a = {A_IN}; b = {B_OUT}; nr = {NR}; nt = {NT};
+Point(1) = {{0, 0, 0}}; Point(2) = {{a, 0, 0}}; Point(3) = {{b, 0, 0}};
+Point(4) = {{0, b, 0}}; Point(5) = {{0, a, 0}};
+Line(1) = {{2, 3}}; Circle(2) = {{3, 1, 4}}; Line(3) = {{4, 5}}; Circle(4) = {{5, 1, 2}};
+Curve Loop(1) = {{1, 2, 3, 4}}; Plane Surface(1) = {{1}};
+Transfinite Curve{{1, 3}} = nr + 1; Transfinite Curve{{2, 4}} = nt + 1;
+Transfinite Surface{{1}} Alternate;
+Physical Curve("symy", 1) = {{1}}; Physical Curve("outer", 2) = {{2}};
+Physical Curve("symx", 3) = {{3}}; Physical Curve("inner", 4) = {{4}};
+Physical Surface("body", 10) = {{1}};
+"""
+
+
+def closed_form(r):
+    """Norton's steady hoop stress in plane strain (module docstring)."""
+    q = 2.0 / N_NORTON
+    return P * (1.0 + (q - 1.0) * (B_OUT / r) ** q) / ((B_OUT / A_IN) ** q - 1.0)
+
+
+def model_steady_state(r_eval):
+    """The steady hoop stress of the 2D model's Norton law in plane strain (norm with
+    sigma_33 = 0): with the radial velocity v, eps_theta' = v / r and eps_r' = v' equal the
+    creep rates A s^(n-1) (s_theta - s_r/2) and A s^(n-1) (s_r - s_theta/2), s^2 = s_r^2 +
+    s_theta^2 - s_r s_theta; equilibrium s_r' = (s_theta - s_r) / r; s_r(a) = -p,
+    s_r(b) = 0 by shooting on v(a)."""
+    n = N_NORTON
+
+    def s_theta(v, r, sr):
+        f = lambda st: A_NORTON * np.sqrt(sr * sr + st * st - sr * st) ** (n - 1) \
+            * (st - 0.5 * sr) - v / r                                    # noqa: E731
+        return brentq(f, -100.0, 100.0, xtol=1e-14)
+
+    def rhs(r, y):
+        v, sr = y
+        st = s_theta(v, r, sr)
+        return [A_NORTON * np.sqrt(sr * sr + st * st - sr * st) ** (n - 1) * (sr - 0.5 * st),
+                (st - sr) / r]
+
+    def solve(v0):
+        return solve_ivp(rhs, (A_IN, B_OUT), [v0, -P], rtol=1e-11, atol=1e-13,
+                         dense_output=True)
+    v0 = brentq(lambda v: solve(v).y[1, -1], 1e-6, 100.0, xtol=1e-14)
+    sol = solve(v0).sol
+    return np.array([s_theta(sol(r)[0], r, sol(r)[1]) for r in r_eval])
+
+
+class PlaneStrainNorton(ViscoplasticLaw):
+    """Norton's law in plane strain with the out-of-plane stress (a law of the Python API):
+    kappa = (p, eps_vp33); with isochoric creep and eps_33 = 0, sigma_33 = nu (sigma_11 +
+    sigma_22) - E eps_vp33 (E, nu the 3D constants); eps_vp' = A s^n (3/2) dev(sigma) / s
+    with s the 3D von Mises norm; G = -2 mu eps_vp' in the plane (tr eps_vp' = 0)."""
+
+    m = 2
+    name = "norton with sigma_33 (test)"
+
+    def __init__(self, elasticity, A: float, n: float):
+        super().__init__(elasticity)
+        self.A, self.n = A, n
+        self.nu = elasticity.nu / (1.0 + elasticity.nu)       # from the plane-strain moduli
+        self.E = elasticity.E * (1.0 - self.nu ** 2)
+
+    def constants(self):
+        """Returns: A, n."""
+        return {"A": (self.A, "Pa^-n s^-1"), "n": (self.n, "-")}
+
+    def rates(self, t, kappa):
+        """G (n, 3) and (p', eps_vp33') (n, 2)."""
+        s33 = self.nu * (t[:, 0] + t[:, 1]) - self.E * kappa[:, 1]
+        mean = (t[:, 0] + t[:, 1] + s33) / 3.0
+        d11, d22, d33, d12 = t[:, 0] - mean, t[:, 1] - mean, s33 - mean, t[:, 2]
+        s = np.sqrt(1.5 * (d11 ** 2 + d22 ** 2 + d33 ** 2 + 2.0 * d12 ** 2))
+        f = 1.5 * self.A * s ** (self.n - 1.0)
+        G = -(self.E / (1.0 + self.nu)) * f[:, None] * np.stack([d11, d22, d12], axis=1)
+        return G, np.stack([self.A * s ** self.n, f * d33], axis=1)
+
+
+@pytest.fixture(scope="module")
+def tube_case(tmp_path_factory):
+    from vpcontact.case import validate
+    folder = tmp_path_factory.mktemp("tube")
+    (folder / "tube.geo").write_text(GEO)
+    raw = {"name": "tube", "mesh": {"file": "tube.geo"},
+           "material": {"E": 1000.0, "nu": 0.3, "plane": "strain",
+                        "viscoplastic": {"law": "norton", "A": A_NORTON, "n": N_NORTON}},
+           "boundaries": {"clamped": []},
+           "loads": {"pressure": {"inner": P},
+                     "displacement": {"symy": [None, 0.0], "symx": [0.0, None]}},
+           "time": {"T": 5.0, "N": 25}}
+    return validate(raw, str(folder / "tube.yaml"))
+
+
+def _run(case, law=None):
+    """(the hoop stress, the centroid radius, the area) per cell at T."""
+    from mpi4py import MPI
+
+    from vpcontact.simulation import Simulation
+    sim = Simulation(case, MPI.COMM_SELF, law=law)
+    assert sim.run().status == "completed"
+    p = sim.problem
+    nc = p.mesh.topology.index_map(2).size_local
+    xy = p.mesh.geometry.x[:, :2][p.mesh.geometry.dofmap.array.reshape(-1, 3)[:nc]]
+    x = xy.mean(axis=1)
+    e1, e2 = xy[:, 1] - xy[:, 0], xy[:, 2] - xy[:, 0]
+    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    sig = p.sigma.x.array.reshape(-1, 2, 2)[:nc]
+    th = np.arctan2(x[:, 1], x[:, 0])
+    s, c = np.sin(th), np.cos(th)
+    hoop = sig[:, 0, 0] * s * s + sig[:, 1, 1] * c * c - 2.0 * sig[:, 0, 1] * s * c
+    return hoop, np.hypot(x[:, 0], x[:, 1]), area
+
+
+def _ring_errors(run, reference):
+    """The relative error of sigma_theta averaged over the innermost and the outermost layer
+    of cells (r in [a, a + dr] and [b - dr, b]) against the reference's average over the
+    same layer, int s r dr / int r dr (Gauss-Legendre, 8 points)."""
+    hoop, r, area = run
+    dr = (B_OUT - A_IN) / NR
+    xg, wg = np.polynomial.legendre.leggauss(8)
+    out = {}
+    for name, r0 in (("inner", A_IN), ("outer", B_OUT - dr)):
+        ring = (r > r0) & (r < r0 + dr)
+        rq = r0 + 0.5 * dr * (xg + 1.0)
+        exact = np.sum(wg * rq * reference(rq)) / np.sum(wg * rq)
+        out[name] = float(np.sum(hoop[ring] * area[ring]) / np.sum(area[ring]) / exact - 1.0)
+    return out
+
+
+@pytest.fixture(scope="module")
+def norton_run(tube_case):
+    return _run(tube_case)
+
+
+def test_closed_form_with_the_out_of_plane_stress(tube_case):
+    err = _ring_errors(_run(tube_case, lambda el: PlaneStrainNorton(el, A_NORTON, N_NORTON)),
+                       closed_form)
+    print(f"tube, Norton with sigma_33: relative error of sigma_theta vs the closed form: "
+          f"inner {err['inner']:+.2e}, outer {err['outer']:+.2e}")
+    assert abs(err["inner"]) <= TOL and abs(err["outer"]) <= TOL, err
+
+
+def test_norton_plane_strain_is_the_2d_model(norton_run):
+    err = _ring_errors(norton_run, model_steady_state)
+    closed = _ring_errors(norton_run, closed_form)
+    print(f"tube, law norton (2D norm): vs its model's steady state: inner "
+          f"{err['inner']:+.2e}, outer {err['outer']:+.2e}; vs the closed form: inner "
+          f"{closed['inner']:+.2e}, outer {closed['outer']:+.2e}")
+    assert abs(err["inner"]) <= TOL and abs(err["outer"]) <= TOL, err
+
+
+@pytest.mark.xfail(strict=True, reason="law norton in plane strain uses the 2D norm "
+                                       "(sigma_33 = 0): not the closed form's model")
+def test_norton_closed_form(norton_run):
+    err = _ring_errors(norton_run, closed_form)
+    assert abs(err["inner"]) <= TOL and abs(err["outer"]) <= TOL, err

@@ -1,0 +1,177 @@
+"""The laws' descriptions and constants: what ``check`` lists and summary.json records
+(app/post/lawreport.py), the Lipschitz constant L_G of Perzyna's law against its closed form,
+m_j of the friction law, the estimated relaxation rate of a law without a rate bound
+(app/post/diagnostics.py) against Jacobians written by hand."""
+import json
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from conftest import make_case, paper_raw
+from vpcontact.model.contact_laws import (
+    ExponentialKernel,
+    NormalCompliance,
+    PiecewiseLinearFriction,
+    SlipWeakening,
+)
+from vpcontact.model.material import Elasticity
+from vpcontact.model.viscoplastic import Perzyna, PowerLaw
+from vpcontact.post.diagnostics import estimated_rate
+from vpcontact.records import RunSummary
+
+E, NU, LAMBDA1, LAMBDA2 = 1000.0, 0.4, 100.0, 50.0
+
+
+def _energy_norm(el, t):
+    return np.sqrt(np.einsum("ni,ij,nj->n", t, el.A, t))
+
+
+@pytest.mark.parametrize("dim, lam_max, attained, e", [
+    (2, E / (1 - NU), E / (1 - NU), [1.0, 1.0, 0.0]),       # plane stress: (1, 1, 0)
+    (3, E / (1 - 2 * NU), E / (1 + NU), [1.0, -1.0, 0, 0, 0, 0])])    # 3D: 3 K; 2 mu
+def test_perzyna_lipschitz_constant(dim, lam_max, attained, e):
+    """L_G = lambda_max(E) / (2 lambda1) (the largest eigenvalue by hand) bounds
+    |G(s1) - G(s2)|_E / |s1 - s2|_E on random pairs and kappas; at kappa = 0 the ratio along
+    e reaches it in 2D (K(0) = {0}) and 2 mu / (2 lambda1) in 3D (P keeps the hydrostatic
+    part there, so the bound is not attained)."""
+    el = Elasticity(E, NU, dim)
+    law = Perzyna(el, LAMBDA1, LAMBDA2)
+    L = law.lipschitz_constant()
+    assert L == pytest.approx(lam_max / (2 * LAMBDA1), rel=1e-13)
+    rng = np.random.default_rng(3)
+    s1, s2 = rng.normal(size=(2, 400, el.m)) * 10.0
+    kappa = rng.uniform(0.0, 15.0, size=(400, 1))
+    dG = law.rates(s1, kappa)[0] - law.rates(s2, kappa)[0]
+    assert (_energy_norm(el, dG) / _energy_norm(el, s1 - s2)).max() <= L * (1 + 1e-12)
+    e = np.array([e])
+    G0 = law.rates(e, np.zeros((1, 1)))[0]
+    assert (_energy_norm(el, G0) / _energy_norm(el, e))[0] == \
+        pytest.approx(attained / (2 * LAMBDA1), rel=1e-12)
+
+
+def test_power_law_lipschitz_constant():
+    el = Elasticity(E, NU, 2)
+    assert PowerLaw(el, LAMBDA1, LAMBDA2, 1.0, 3.0).lipschitz_constant() == \
+        pytest.approx(E / (1 - NU) / (2 * LAMBDA1), rel=1e-13)
+    assert PowerLaw(el, LAMBDA1, LAMBDA2, 2.0, 3.0).lipschitz_constant() is None
+
+
+def test_viscoplastic_descriptions():
+    el = Elasticity(E, NU, 2)
+    d = Perzyna(el, LAMBDA1, LAMBDA2).describe()
+    assert d == {"name": "perzyna", "m": 1,
+                 "constants": {"lambda1": [100.0, "N s/m^2"], "lambda2": [50.0, "s"]},
+                 "lipschitz_constant": pytest.approx(E / (1 - NU) / 200.0, rel=1e-13)}
+    d = PowerLaw(el, LAMBDA1, LAMBDA2, 3.0, 2.5).describe()
+    assert (d["name"], d["constants"]["n"], d["constants"]["s_ref"]) == \
+        ("power", [3.0, "-"], [2.5, "N/m^2"])
+    assert d["lipschitz_constant"] is None
+    json.dumps(d)
+
+
+def test_contact_law_constants():
+    assert NormalCompliance(100.0).constants() == {"c_nu": (100.0, "N/m^3")}
+    fr = PiecewiseLinearFriction(1.0, 60.0, 40.0, 0.01)
+    assert fr.constants()["c1"] == (60.0, "N/m^3") and fr.constants()["u1"] == (0.01, "m")
+    # m_j: the largest decreasing slope of psi' (sampled), c1
+    rho = np.linspace(0.0, 0.05, 5001)
+    slopes = np.diff(fr.derivative(rho)) / np.diff(rho)
+    assert fr.m_j == pytest.approx(-slopes.min(), rel=1e-9)
+    slip = SlipWeakening(0.3, 0.002)
+    assert slip.theta_max == pytest.approx(slip.theta(np.linspace(0, 1, 1001)).max())
+    assert ExponentialKernel(200.0, 1.0).constants() == {"b0": (200.0, "N/(m^3 s)"),
+                                                         "beta": (1.0, "1/s")}
+
+
+def _power_jacobian_2d(el, t, n, s_ref):
+    """dG/dsigma of the power law at kappa = 0 in plane stress (P = 0) by hand: G = -f(t)
+    C t / (2 lambda1), f = (vm / s_ref)^(n-1), grad vm = M t / vm."""
+    C, M = el.Cmat, el.M
+    vm = np.sqrt(t @ M @ t)
+    f = (vm / s_ref) ** (n - 1)
+    return -(f * C + (n - 1) * f * np.outer(C @ t, M @ t) / vm ** 2) / (2 * LAMBDA1)
+
+
+def test_estimated_rate_against_the_jacobian_by_hand():
+    """2D: the spectral radius of the Jacobian by hand; 3D uniaxial at kappa = 0 (P keeps the
+    hydrostatic part): n mu (sigma_eq / s_ref)^(n-1) / lambda1 (radial deviatoric
+    direction); at rest: None."""
+    n, s_ref = 3.0, 2.0
+    el = Elasticity(E, NU, 2)
+    law = PowerLaw(el, LAMBDA1, LAMBDA2, n, s_ref)
+    t = np.array([[1.0, 0.2, 0.1], [5.0, -1.0, 2.0], [0.5, 0.5, 0.0]])   # the second: largest
+    rate = estimated_rate(law, t, np.zeros((3, 1)))
+    exact = np.max(np.abs(np.linalg.eigvals(_power_jacobian_2d(el, t[1], n, s_ref))))
+    assert rate == pytest.approx(exact, rel=1e-7)
+    el3 = Elasticity(E, NU, 3)
+    s = 6.0
+    t3 = np.array([[s, 0, 0, 0, 0, 0.0]])
+    rate3 = estimated_rate(PowerLaw(el3, LAMBDA1, LAMBDA2, n, s_ref), t3, np.zeros((1, 1)),
+                           comm=MPI.COMM_SELF)
+    mu = E / (2 * (1 + NU))
+    assert rate3 == pytest.approx(n * mu * (s / s_ref) ** (n - 1) / LAMBDA1, rel=1e-7)
+    assert estimated_rate(law, np.zeros((4, 3)), np.zeros((4, 1))) is None
+
+
+def test_summary_records_the_laws_when_given():
+    args = dict(case="c", source="s", case_data={}, status="completed", mesh={}, time={},
+                mpi_ranks=1, active_terms=[], diagnostics={}, solver={}, steps=[],
+                setup_s=0.0, loop_s=0.0, wall_s=0.0)
+    assert "laws" not in RunSummary(**args).as_dict()
+    d = RunSummary(**args, laws={"viscoplastic": None}).as_dict()
+    assert d["laws"] == {"viscoplastic": None}
+    assert list(d)[:11] == ["case", "source", "case_data", "status", "mesh", "time",
+                            "mpi_ranks", "active_terms", "diagnostics", "solver", "laws"]
+
+
+@pytest.fixture(scope="module")
+def paper_check():
+    from vpcontact.cli.checkrun import report
+    return report(make_case(mesh={"n": 4}), MPI.COMM_SELF)
+
+
+def test_check_lists_the_paper_laws(paper_check):
+    """The paper's constants (cases/wang_cheng_2021.yaml) with units; m_E = E / (1 + nu)
+    (plane stress: the deviatoric eigenvalue), L_G = E / (1 - nu) / (2 lambda1), m_j = c1."""
+    raw = paper_raw()
+    mat, fr = raw["material"], raw["contact"]["friction"]
+    E_, nu, l1 = mat["E"], mat["nu"], mat["viscoplastic"]["lambda1"]
+    text = "\n".join(paper_check)
+    assert f"elasticity: isotropic, plane stress: E = {E_:g} N/m^2, nu = {nu:g}; " \
+           f"m_E = {E_ / (1 + nu):.4g} N/m^2" in text
+    assert f"viscoplastic law: perzyna: lambda1 = {l1:g} N s/m^2, lambda2 = " \
+           f"{mat['viscoplastic']['lambda2']:g} s (m = 1)" in text
+    assert f"L_G = {E_ / (1 - nu) / (2 * l1):.4g} 1/s" in text
+    assert f"c1 = {fr['c1']:g} N/m^3" in text and f"m_j = {fr['c1']:g} N/m^3" in text
+    assert f"contact: normal compliance: c_nu = " \
+           f"{raw['contact']['normal_compliance']['c_nu']:g} N/m^3" in text
+
+
+def test_check_estimates_the_indicator_of_a_law_without_bound():
+    """The power law (no rate bound) from a uniform initial stress at kappa0 = 0: the
+    indicator is k_max times the spectral radius of the Jacobian by hand, marked estimated;
+    from rest it is unknown."""
+    from vpcontact.model.problem import ContactProblem
+    from vpcontact.post.diagnostics import diagnose
+    from vpcontact.simulation import build_mesh
+    n, s_ref, s = 3.0, 2.0, 4.0
+    vp = {"law": "power", "lambda1": LAMBDA1, "lambda2": LAMBDA2, "n": n, "s_ref": s_ref,
+          "kappa0": 0.0}
+    for sigma0, source in (([[s, 0.0], [0.0, 0.0]], "estimated"), (None, "unknown")):
+        case = make_case(mesh={"n": 4}, time={"T": 1.0, "N": 4}, contact=None,
+                         material={**paper_raw()["material"], "viscoplastic": vp},
+                         initial={} if sigma0 is None else {"sigma0": sigma0})
+        problem = ContactProblem(case, build_mesh(case, MPI.COMM_SELF))
+        problem.set_initial_values()
+        diag = diagnose(problem)
+        assert diag.relaxation_rate is None and diag.indicator_source == source
+        if sigma0 is None:
+            assert diag.stability_indicator is None
+            assert "unknown" in diag.messages()[0][1]
+            continue
+        jac = _power_jacobian_2d(problem.elasticity, np.array([s, 0.0, 0.0]), n, s_ref)
+        rate = np.max(np.abs(np.linalg.eigvals(jac)))
+        assert diag.rate_estimate == pytest.approx(rate, rel=1e-6)
+        assert diag.stability_indicator == pytest.approx(0.25 * rate, rel=1e-6)
+        assert "(estimated" in diag.messages()[0][1]
