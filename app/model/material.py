@@ -202,7 +202,32 @@ class Elasticity(ElasticityForms):
         return C
 
 
-class MatrixElasticity(ElasticityForms):
+class _Described:
+    """The description of an elasticity built from a case (summary.json's "laws", check):
+    ``name`` and ``constants()`` as the laws give them (app/model/laws.py)."""
+
+    name = "elasticity"
+    _constants: dict | None = None
+
+    def describe_as(self, name: str, constants: dict):
+        """Set the description.
+
+        Args:
+            name: e.g. "orthotropic, plane stress".
+            constants: name -> (value, unit) (values numbers or text).
+
+        Returns:
+            self.
+        """
+        self.name, self._constants = name, dict(constants)
+        return self
+
+    def constants(self) -> dict:
+        """Returns: name -> (value, unit), as given to ``describe_as`` (else empty)."""
+        return dict(self._constants or {})
+
+
+class MatrixElasticity(_Described, ElasticityForms):
     """A homogeneous elasticity E given by its matrix in t-coordinates (anisotropic:
     orthotropic or a Voigt matrix, app/model/stiffness.py builds it from a case).
 
@@ -223,7 +248,7 @@ class MatrixElasticity(ElasticityForms):
         return self._C
 
 
-class CellElasticity(ElasticityForms):
+class CellElasticity(_Described, ElasticityForms):
     """E(x) in L-infinity: one matrix per cell (DG0), vectorised over cells.
 
     The rows of the per-cell arrays of a run are the cells of the DG0 spaces (owned and
