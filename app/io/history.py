@@ -4,6 +4,12 @@ counts, iterations, step wall time), for spreadsheets, pandas and ParaView's CSV
 Rank 0 writes the header and the rows of the steps a restart restored at the start (by an
 atomic rename), then appends one complete line per step with a single write, so the file
 holds whole rows whenever a run stops.
+
+For a law with m > 1 internal variables (Chaboche's kappa = (X, R, p)), norm_kappa_Y is the
+L2 norm over the body of the Euclidean norm of kappa's m components per cell, and max_kappa
+the largest value of any component in any cell (app/post/quantities.py, cell_norm and
+cell_max), as in summary.json's steps; for m = 1 (Perzyna's kappa, Norton's p) they are the
+norm and the largest value of kappa.
 """
 from __future__ import annotations
 

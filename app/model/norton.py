@@ -42,8 +42,9 @@ class Norton(ViscoplasticLaw):
     """Norton's creep law (see the module docstring), m = 1, kappa = p:
     G = -A sigma_eq^n E N, Gk = A sigma_eq^n.  The explicit update is the protocol's numpy
     ExplicitUpdate; the law flows wherever sigma != 0, so ``elastic`` (the implicit update's
-    cells kept at the trial state) is exactly sigma = 0.  The relaxation rate
-    n A sigma_eq^(n-1) E grows with the stress: no rate is given (no stability indicator).
+    cells kept at the trial state) is exactly sigma_eq = 0.  The relaxation rate
+    n A sigma_eq^(n-1) E grows with the stress: a rate (and the stability indicator) only
+    for n = 1.
 
     Args:
         elasticity: the elasticity E.
@@ -63,6 +64,38 @@ class Norton(ViscoplasticLaw):
     def constants(self):
         """Returns: A [Pa^-n s^-1], n [-] (as the case file's keys)."""
         return {"A": (self.A, "Pa^-n s^-1"), "n": (self.n, "-")}
+
+    def _linear_part(self) -> np.ndarray:
+        """The matrix of sigma -> E N' sigma in t-coordinates, N' sigma = sigma_eq N
+        (= (3/2) dev(sigma) in 3D): G = -A E N' sigma for n = 1."""
+        return self.elasticity.Cmat @ (self._M / self._w[:, None])
+
+    def relaxation_rate(self) -> float | None:
+        """For n = 1 the law is linear, sigma' = -A E N' sigma: E N' = W^-1 A_E W^-1 M (A_E
+        the energy form, W the weights) has real eigenvalues >= 0, and the largest, times A,
+        is the rate (3 mu A in 3D, on the deviators); for n > 1 the rate n A sigma_eq^(n-1)
+        grows with the stress: None.
+
+        Returns:
+            r_max [1/s] for n = 1, else None.
+        """
+        if self.n != 1:
+            return None
+        return self.A * float(np.max(np.linalg.eigvals(self._linear_part()).real))
+
+    def lipschitz_constant(self) -> float | None:
+        """L_G of H(G) in the energy norm |tau|_E = (E tau : tau)^1/2: for n = 1, A times
+        the operator norm of E N' in that norm (r_max where E and N' commute, as for
+        isotropic E); for n > 1 none (not Lipschitz).
+
+        Returns:
+            L_G [1/s] for n = 1, else None.
+        """
+        if self.n != 1:
+            return None
+        T, A_E = self._linear_part(), self.elasticity.A
+        adjoint_T = np.linalg.solve(A_E, T.T @ A_E)
+        return self.A * float(np.sqrt(np.max(np.linalg.eigvals(adjoint_T @ T).real)))
 
     def creep_rate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The creep strain rate eps_vp' = A sigma_eq^n N and p' = A sigma_eq^n.

@@ -37,15 +37,19 @@ def _cells(result):
     return p.sigma.x.array.reshape(-1, d, d), p.state.kappa.x.array.reshape(-1, p.law.m)
 
 
-def test_norton_relaxation_case_first_order():
+def test_norton_relaxation_case_first_order(tmp_path):
     """The shipped case: sigma_xx(T) against [s0^(1-n) + (n-1) E A (T - t_1)]^(1/(1-n)),
     s0 = E u / L at t_1 = k; the error halves with k; p = u/L - sigma_xx / E (the creep strain
-    replaced the elastic one)."""
+    replaced the elastic one); solution.xdmf holds p (not kappa) as a cell field."""
+    from vpcontact.observers import FieldOutput
+    out = tmp_path / "out"
+    out.mkdir()
     raw = yaml.safe_load(NORTON.read_text())
     vp, E, e = raw["material"]["viscoplastic"], raw["material"]["E"], 0.04
     errors = []
     for N in (20, 40):
-        res = _run(NORTON, [f"time.N={N}"])
+        res = _run(NORTON, [f"time.N={N}"], **({"observers": [FieldOutput()], "outdir": out}
+                                               if N == 20 else {}))
         sigma, kappa = _cells(res)
         s = sigma[:, 0, 0]
         np.testing.assert_allclose(s, s[0], rtol=1e-12)                    # homogeneous
@@ -55,6 +59,9 @@ def test_norton_relaxation_case_first_order():
         errors.append(abs(s[0] - exact) / exact)
         np.testing.assert_allclose(kappa[:, 0], e - s / E, rtol=1e-10)
     print("norton_relaxation.yaml: relative errors of sigma(T) at N = 20, 40:", errors)
+    text = (out / "solution.xdmf").read_text()
+    assert text.count('Attribute Name="p" AttributeType="Scalar" Center="Cell"') == 21
+    assert 'Name="kappa"' not in text
     assert exact < 0.6 * E * e                 # it relaxed
     assert errors[1] < 2e-2 and 1.8 < errors[0] / errors[1] < 2.2
 

@@ -232,3 +232,16 @@ def test_perzyna_needs_lambdas():
     raw["material"]["viscoplastic"]["A"] = 1.0
     with pytest.raises(CaseError, match=r"material.viscoplastic.A.*: not used with law perzyna"):
         make_case(raw)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_rates_of_the_linear_law(dim):
+    """n = 1: the relaxation rate and L_G are 3 mu A (isotropic E commutes with the flow
+    direction: in 3D on the deviators, in plane stress on (1, -1, 0) and the shear); none for
+    n > 1."""
+    law = Norton(Elasticity(E_, NU, dim), 2e-4, 1.0)
+    mu = E_ / (2 * (1 + NU))
+    assert law.relaxation_rate() == pytest.approx(3 * mu * 2e-4, rel=1e-12)
+    assert law.lipschitz_constant() == pytest.approx(3 * mu * 2e-4, rel=1e-12)
+    assert Norton(Elasticity(E_, NU, dim), 2e-4, 2.0).relaxation_rate() is None
+    assert Norton(Elasticity(E_, NU, dim), 2e-4, 2.0).lipschitz_constant() is None
