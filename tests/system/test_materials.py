@@ -6,6 +6,9 @@
   e_x (x) e_x is compatible, so the exact solution is u_x = T x / E1 (x <= L1), T L1 / E1 +
   T (x - L1) / E2 (beyond: the springs in series), u_y = -nu_i T y / E_i: piecewise linear
   in the cells, so P1 elements on a mesh that follows the interface reproduce it.
+- A Perzyna group in series with an elastic one (nu = 0, rollers on the top and bottom): group
+  b is one material point under sigma_xx = T with eps_yy = 0; the explicit scheme written in
+  the test (its own projection by the secular equation) gives u_end, H and kappa.
 - Both groups given the same (viscoplastic) material: the run equals the one-material run.
 - The refusals: both keys, neither, materials without mesh.file, two plane models, a law's
   key inside materials (named with its group), a group the mesh does not have, cells in no
@@ -32,7 +35,7 @@ Line(5) = {{5, 6}}; Line(6) = {{6, 1}}; Line(7) = {{2, 5}};
 Curve Loop(1) = {{1, 7, 5, 6}}; Plane Surface(1) = {{1}};
 Curve Loop(2) = {{2, 3, 4, -7}}; Plane Surface(2) = {{2}};
 Physical Curve("left", 1) = {{6}}; Physical Curve("right", 2) = {{3}};
-Physical Curve("bottom", 3) = {{1, 2}};
+Physical Curve("bottom", 3) = {{1, 2}}; Physical Curve("top", 4) = {{4, 5}};
 Physical Surface("a", 11) = {{1}}; Physical Surface("b", 12) = {{2}};
 """
 
@@ -76,6 +79,61 @@ def test_two_materials_in_series(bar_file):
     assert right.any() and np.allclose(u[right, 0], u_end, rtol=1e-9, atol=0)
     sigma = p.sigma.x.array.reshape(-1, 2, 2)          # uniform uniaxial stress T
     assert np.abs(sigma - np.array([[T, 0.0], [0.0, 0.0]])).max() <= 1e-8 * T
+
+
+def _projection(s, kappa):
+    """P_K(kappa) of a stress (s_xx, s_yy) (no shear) for nu = 0, where the energy inner
+    product is E times the Euclidean one: the closest point of the ellipse s^T M s <=
+    kappa^2, M = [[1, -1/2], [-1/2, 1]] (eigenvalues 1/2 along (1, 1), 3/2 along (1, -1)),
+    by its secular equation."""
+    from scipy.optimize import brentq
+    M = np.array([[1.0, -0.5], [-0.5, 1.0]])
+    if s @ M @ s <= kappa ** 2:
+        return s
+    lam, V = np.array([0.5, 1.5]), np.array([[1.0, 1.0], [1.0, -1.0]]) / np.sqrt(2.0)
+    z = V.T @ s
+    mu = brentq(lambda mu: np.sum(lam * z ** 2 / (1 + mu * lam) ** 2) - kappa ** 2, 0.0, 1e12,
+                xtol=1e-300, rtol=1e-15)
+    return V @ (z / (1 + mu * lam))
+
+
+def test_viscoplastic_group_in_series(bar_file):
+    """Group b Perzyna, group a elastic, nu = 0, rollers u_y = 0 on the top and bottom: u_y =
+    0, sigma_xy = 0 and sigma_xx = T hold exactly, so group b is one material point with
+    eps_yy = 0 (sigma_yy = H_yy) under sigma_xx = T: the explicit scheme (3.2)-(3.3) written
+    here gives H_n, kappa_n and eps_xx = (T - H_xx) / E_b, u_end = T L1 / E_a + L2 eps_xx."""
+    from vpcontact.simulation import run
+    Ea, Eb, lam1, lam2, kappa0, N, k = 3000.0, 1000.0, 100.0, 50.0, 1.0, 10, 0.05
+    raw = bar_raw(bar_file, {"a": {"E": Ea, "nu": 0.0}, "b": {"E": Eb, "nu": 0.0, "viscoplastic":
+                                                              {"lambda1": lam1, "lambda2": lam2,
+                                                               "kappa0": kappa0}}},
+                  time={"T": N * k, "N": N})
+    raw["loads"]["displacement"] = {"left": [0.0, None], "bottom": [None, 0.0],
+                                    "top": [None, 0.0]}
+    result = run(validate(raw), MPI.COMM_WORLD)
+    assert result.status == "completed"
+    sigma, H, kappa = np.zeros(2), np.zeros(2), kappa0      # sigma_0 = 0 (u0 = 0, H_0 = 0)
+    for _ in range(N):
+        excess = sigma - _projection(sigma, kappa)
+        H = H - k * Eb / (2.0 * lam1) * excess
+        kappa = kappa + k * 2.0 / (3.0 * lam2) * np.sqrt(excess @ np.array(
+            [[1.0, -0.5], [-0.5, 1.0]]) @ excess)
+        sigma = np.array([T, H[1]])
+    assert kappa > kappa0 + 1e-3 and H[1] > 1e-3 * T           # it flowed
+    u_end = T * L1 / Ea + L2 * (T - H[0]) / Eb
+    p = result.problem
+    x = p.V.tabulate_dof_coordinates()[:, :2]
+    u = p.u.x.array.reshape(-1, 2)
+    right = np.isclose(x[:, 0], L1 + L2)
+    assert np.allclose(u[right, 0], u_end, rtol=1e-10, atol=0) and np.abs(u[:, 1]).max() \
+        <= 1e-10 * u_end
+    groups = {g.ref: g for g in p.materials.groups}
+    Hc = p.H.x.array.reshape(-1, 2, 2)
+    kc = p.state.kappa_cells[:, 0]
+    b, a = groups["b"].rows, groups["a"].rows
+    assert np.allclose(Hc[b], np.array([[H[0], 0.0], [0.0, H[1]]]), rtol=0, atol=1e-10 * T)
+    assert np.allclose(kc[b], kappa, rtol=1e-12) and (kc[a] == 0.0).all()
+    assert np.abs(Hc[a]).max() <= 1e-12 * T                    # the elastic group: H_0 = 0
 
 
 def punch_raw(material, both: bool, N: int = 4) -> dict:
