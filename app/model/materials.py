@@ -102,7 +102,7 @@ def _tag_of(ref, body, tags: list, source: str) -> int:
     if isinstance(ref, int) and ref in tags:
         return ref
     dims = {**getattr(body, "other_groups", {}),
-            **{name: body.dim - 1 for name in getattr(body, "groups", {})}}
+            **dict.fromkeys(getattr(body, "groups", {}), body.dim - 1)}
     hint = f"; {ref!r} is a group of dimension {dims[ref]}" if ref in dims else ""
     raise CaseError(f"{source}: materials.{ref}: no physical group of cells {ref!r} in the "
                     f"mesh (names: {', '.join(sorted(names)) or 'none'}; numbers: "
@@ -122,6 +122,19 @@ class BodyMaterials:
     groups: list
     elasticity: CellElasticity
     law: object = None
+
+    def cell_counts(self, n_owned: int, comm) -> list[tuple[object, int, int]]:
+        """The number of cells of each group (all ranks); collective.
+
+        Args:
+            n_owned: the number of owned rows (the others are ghosts).
+            comm: the mesh's communicator.
+
+        Returns:
+            [(group, physical tag, cells)] in the case's order.
+        """
+        return [(g.ref, g.tag, int(comm.allreduce(int((g.rows < n_owned).sum()))))
+                for g in self.groups]
 
     def describe(self) -> dict:
         """The groups' elasticities (summary.json's "laws", ``check``).

@@ -248,6 +248,11 @@ def test_groups_on_the_mesh(bar_file, bar_body):
     tags = np.empty(len(rows), dtype=int)
     tags[Q.dofmap.list.array[ct.indices]] = ct.values
     assert all((tags[g.rows] == g.tag).all() for g in groups)
+    from vpcontact.model.materials import BodyMaterials
+    owned = body.mesh.topology.index_map(2).size_local
+    n_a = MPI.COMM_WORLD.allreduce(int(np.count_nonzero(ct.values[ct.indices < owned] == 11)))
+    assert BodyMaterials(groups, None).cell_counts(owned, MPI.COMM_WORLD) == \
+        [(12, 12, n_b), ("a", 11, n_a)]                      # check's line
 
 
 def test_bimaterial_punch_serial_equals_two_ranks(tmp_path):
