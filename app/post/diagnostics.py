@@ -440,15 +440,31 @@ def _law_rate(problem) -> tuple:
         return rate, lipschitz, None, "law"
     el, H = problem.elasticity, problem.state.H       # sigma_0 = E eps(u_0) + H_0 (3.2)
     eps = problem.strain_voigt()
-    t = el.apply(eps) + el.to_voigt(H.x.array)
-    kappa = problem.state.kappa_cells
-    # a body of several materials (app/model/materials.py): each group's law on its rows
+    estimate = state_rate(problem, el.apply(eps) + el.to_voigt(H.x.array), eps)
+    return None, None, estimate, "estimated" if estimate is not None else "unknown"
+
+
+def state_rate(problem, t: np.ndarray, eps: np.ndarray | None = None) -> float | None:
+    """``estimated_rate`` of the problem's law at the stresses t and the State's kappa; for
+    a body of several materials (app/model/materials.py) the largest of the groups' laws,
+    each on its rows; collective.
+
+    Args:
+        problem: the ContactProblem (its law, State, communicator).
+        t: rows (ncells, mt) of sigma in t-coordinates (owned and ghost cells).
+        eps: rows of eps(u) (for a law that uses the strain), or None.
+
+    Returns:
+        The estimate [1/s], or None (every cell at rest).
+    """
+    law, kappa = problem.law, problem.state.kappa_cells
+    if eps is None and getattr(law, "uses_eps", False):
+        eps = problem.strain_voigt()
     parts = [(g.law, g.rows) for g in law.flowing] if hasattr(law, "flowing") else \
         [(law, slice(None))]
-    found = [estimated_rate(g, t[rows], kappa[rows, :g.m], eps[rows], problem.comm)
-             for g, rows in parts]
-    estimate = max((e for e in found if e is not None), default=None)
-    return None, None, estimate, "estimated" if estimate is not None else "unknown"
+    found = [estimated_rate(g, t[rows], kappa[rows, :g.m], None if eps is None else eps[rows],
+                            problem.comm) for g, rows in parts]
+    return max((e for e in found if e is not None), default=None)
 
 
 def friction_constant(case) -> float:

@@ -17,6 +17,9 @@ being isochoric with eps_33 = 0, the hoop stress approaches Norton's steady stat
   (a shooting ODE in r with scipy's solve_ivp; the run is within 0.06 % of it), not the
   closed form (+11.6 % inner, -8.3 % outer for n = 3, b/a = 2): that comparison is an
   expected failure until the law carries sigma_33 in plane strain.
+- Norton states no rate bound, so the explicit run estimates its stability indicator k r at
+  every step (app/post/ratewatch.py): 1.86 at the end of the 25-step run (3.7 after its
+  first, elastic, step), above 2 in the 8-step run, which blows up.
 
 Mesh: 24 x 24 cells per quarter (transfinite, alternating diagonals: with one diagonal
 direction the P1 triangles lock under isochoric creep, measured +84 % at the inner layer on
@@ -113,28 +116,39 @@ class PlaneStrainNorton(ViscoplasticLaw):
         return G, np.stack([self.A * s ** self.n, f * d33], axis=1)
 
 
-@pytest.fixture(scope="module")
-def tube_case(tmp_path_factory):
+def _tube_case(folder, steps: int):
+    """The case: the .geo in ``folder``, explicit scheme, ``steps`` steps to T = 5."""
     from vpcontact.case import validate
-    folder = tmp_path_factory.mktemp("tube")
-    (folder / "tube.geo").write_text(GEO)
     raw = {"name": "tube", "mesh": {"file": "tube.geo"},
            "material": {"E": 1000.0, "nu": 0.3, "plane": "strain",
                         "viscoplastic": {"law": "norton", "A": A_NORTON, "n": N_NORTON}},
            "boundaries": {"clamped": []},
            "loads": {"pressure": {"inner": P},
                      "displacement": {"symy": [None, 0.0], "symx": [0.0, None]}},
-           "time": {"T": 5.0, "N": 25}}
+           "time": {"T": 5.0, "N": steps}}
     return validate(raw, str(folder / "tube.yaml"))
 
 
+@pytest.fixture(scope="module")
+def tube_folder(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("tube")
+    (folder / "tube.geo").write_text(GEO)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def tube_case(tube_folder):
+    return _tube_case(tube_folder, 25)
+
+
 def _run(case, law=None):
-    """(the hoop stress, the centroid radius, the area) per cell at T."""
+    """(the hoop stress, the centroid radius, the area) per cell at T, summary.json."""
     from mpi4py import MPI
 
     from vpcontact.simulation import Simulation
     sim = Simulation(case, MPI.COMM_SELF, law=law)
-    assert sim.run().status == "completed"
+    summary = sim.run().as_dict()
+    assert summary["status"] == "completed"
     p = sim.problem
     nc = p.mesh.topology.index_map(2).size_local
     xy = p.mesh.geometry.x[:, :2][p.mesh.geometry.dofmap.array.reshape(-1, 3)[:nc]]
@@ -145,14 +159,14 @@ def _run(case, law=None):
     th = np.arctan2(x[:, 1], x[:, 0])
     s, c = np.sin(th), np.cos(th)
     hoop = sig[:, 0, 0] * s * s + sig[:, 1, 1] * c * c - 2.0 * sig[:, 0, 1] * s * c
-    return hoop, np.hypot(x[:, 0], x[:, 1]), area
+    return hoop, np.hypot(x[:, 0], x[:, 1]), area, summary
 
 
 def _ring_errors(run, reference):
     """The relative error of sigma_theta averaged over the innermost and the outermost layer
     of cells (r in [a, a + dr] and [b - dr, b]) against the reference's average over the
     same layer, int s r dr / int r dr (Gauss-Legendre, 8 points)."""
-    hoop, r, area = run
+    hoop, r, area, _ = run
     dr = (B_OUT - A_IN) / NR
     xg, wg = np.polynomial.legendre.leggauss(8)
     out = {}
@@ -191,3 +205,23 @@ def test_norton_plane_strain_is_the_2d_model(norton_run):
 def test_norton_closed_form(norton_run):
     err = _ring_errors(norton_run, closed_form)
     assert abs(err["inner"]) <= TOL and abs(err["outer"]) <= TOL, err
+
+
+def test_the_estimated_indicator_follows_the_explicit_limit(tube_folder, norton_run):
+    """Norton states no rate bound: the run estimates k r at every step (app/post/
+    ratewatch.py).  At 25 steps the steady state's is below the explicit limit 2 (the run
+    converges); at 8 steps it exceeds it and the run blows up."""
+    from mpi4py import MPI
+
+    from vpcontact.simulation import run
+    d = norton_run[3]["diagnostics"]
+    assert d["indicator_source"] == "unknown" and d["stability_indicator"] is None
+    assert d["estimated_indicator_last"] < 2.0 < d["estimated_indicator_max"]
+    assert d["estimated_indicator_step"] == 1               # the elastic response: stiffest
+    res = run(_tube_case(tube_folder, 8), MPI.COMM_SELF)
+    coarse = res.summary["diagnostics"]
+    print(f"tube, estimated k r: 25 steps: last {d['estimated_indicator_last']:.3g}, "
+          f"largest {d['estimated_indicator_max']:.3g}; 8 steps: {res.summary['status']}, "
+          f"at step {coarse['estimated_indicator_step']}: {coarse['estimated_indicator_max']:.3g}")
+    assert coarse["estimated_indicator_max"] > 2.0
+    assert res.status == "diverged"

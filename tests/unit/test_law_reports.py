@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from conftest import make_case, paper_raw
+from conftest import ROOT, make_case, paper_raw
 from vpcontact.model.contact_laws import (
     ExponentialKernel,
     NormalCompliance,
@@ -175,3 +175,46 @@ def test_check_estimates_the_indicator_of_a_law_without_bound():
         assert diag.rate_estimate == pytest.approx(rate, rel=1e-6)
         assert diag.stability_indicator == pytest.approx(0.25 * rate, rel=1e-6)
         assert "(estimated" in diag.messages()[0][1]
+
+
+def _check_of(name: str) -> tuple[dict, str]:
+    """(the case file's data, ``check``'s report) of a shipped case, in this process."""
+    from vpcontact.case import load_case, load_raw
+    from vpcontact.cli.checkrun import report
+    path = f"{ROOT}/cases/{name}.yaml"
+    return load_raw(path), "\n".join(report(load_case(path), MPI.COMM_SELF))
+
+
+@pytest.mark.parametrize("name, m", [("norton_relaxation", 1), ("chaboche_cycle", 8)])
+def test_check_lists_a_shipped_creep_law(name, m):
+    """Every constant of the case file's law, the law's m, no L_G (n > 1: no rate bound),
+    no contact law."""
+    raw, text = _check_of(name)
+    vp = dict(raw["material"]["viscoplastic"])
+    line = next(x for x in text.splitlines() if x.startswith("viscoplastic law: "))
+    assert line.startswith(f"viscoplastic law: {vp.pop('law')}: ")
+    for key, value in vp.items():
+        assert f"{key} = {value:g}" in line, (key, line)
+    assert f"(m = {m})" in line and "L_G: not stated by the law" in line
+    assert "contact laws: none" in text
+
+
+def test_check_lists_the_friction_table_and_its_m_j():
+    """m_j of (2.6) is the table's largest decreasing slope (from the case file)."""
+    raw, text = _check_of("friction_table")
+    tab = np.array(raw["contact"]["friction"]["table"])
+    m_j = max(0.0, -np.min(np.diff(tab[:, 1]) / np.diff(tab[:, 0])))
+    friction = next(x for x in text.splitlines() if "table = " in x and "m_j" in x)
+    assert f"m_j = {m_j:g} N/m^3" in friction
+    assert f"vs max(sqrt(3) c1~, m_j) ||gamma||^2 = {m_j:.4g} x" in text
+
+
+def test_check_lists_each_material():
+    raw, text = _check_of("bimaterial_punch")
+    mats = raw["materials"]
+    for group, mat in mats.items():
+        vp = mat.get("viscoplastic")
+        law = f"perzyna: lambda1 = {vp['lambda1']:g} N s/m^2, lambda2 = " \
+              f"{vp['lambda2']:g} s (m = 1)" if vp else "none (elastic)"
+        assert f"viscoplastic law ({group}): {law}" in text
+        assert f"{group} (E = {mat['E']}, nu = {mat['nu']}" in text
