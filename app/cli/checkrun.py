@@ -63,6 +63,10 @@ def report(case, comm) -> list[str]:
         f"step solver: {method}" + (" (solver.method: auto)" if case.numerics.method == "auto"
                                     else "") + ("" if ok else f"; condensed not possible: {why}"),
     ]
+    if problem.materials:        # one material per group of cells (app/model/materials.py)
+        counts = problem.materials.cell_counts(problem.num_owned_cells, problem.comm)
+        lines.insert(4, "cell groups (materials): " + ", ".join(
+            f"{ref} (tag {tag}, {n} cells)" for ref, tag, n in counts))
     diag = diagnose(problem)
     lines += law_lines(law_report(problem, build_gamma3_history(case, problem)), diag)
     lines += [text for _, text in diag.messages()]
