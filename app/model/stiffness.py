@@ -6,6 +6,7 @@ app/case/anisotropy.py); and its UFL operator tau -> E tau for the forms.
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import asdict
 
 import numpy as np
@@ -28,6 +29,8 @@ from vpcontact.model.material import (
     ElasticityForms,
     MatrixElasticity,
 )
+
+log = logging.getLogger("vpcontact")
 
 
 def isotropic_matrices(E, nu, dim: int, plane: str | None = "stress") -> np.ndarray:
@@ -150,6 +153,9 @@ def cell_elasticity(Cmats: np.ndarray, dim: int, comm) -> CellElasticity:
         The CellElasticity.
     """
     el = CellElasticity.from_rows(Cmats, dim)
+    log.info("E per cell (%d distinct matrices on this rank's cells): sigma by the assembled "
+             "D_sigma, Perzyna's explicit update in numpy (the compiled kernels take one E)",
+             len(el.mats))
     return CellElasticity(el.mats, el.index, dim, global_bounds(el, comm))
 
 
