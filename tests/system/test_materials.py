@@ -97,16 +97,17 @@ def _projection(s, kappa):
     return V @ (z / (1 + mu * lam))
 
 
-def test_viscoplastic_group_in_series(bar_file):
+@pytest.mark.parametrize("Eb_given", [1000.0, "1000 + 0 * x"])     # E per cell: its rows
+def test_viscoplastic_group_in_series(bar_file, Eb_given):
     """Group b Perzyna, group a elastic, nu = 0, rollers u_y = 0 on the top and bottom: u_y =
     0, sigma_xy = 0 and sigma_xx = T hold exactly, so group b is one material point with
     eps_yy = 0 (sigma_yy = H_yy) under sigma_xx = T: the explicit scheme (3.2)-(3.3) written
     here gives H_n, kappa_n and eps_xx = (T - H_xx) / E_b, u_end = T L1 / E_a + L2 eps_xx."""
     from vpcontact.simulation import run
     Ea, Eb, lam1, lam2, kappa0, N, k = 3000.0, 1000.0, 100.0, 50.0, 1.0, 10, 0.05
-    raw = bar_raw(bar_file, {"a": {"E": Ea, "nu": 0.0}, "b": {"E": Eb, "nu": 0.0, "viscoplastic":
-                                                              {"lambda1": lam1, "lambda2": lam2,
-                                                               "kappa0": kappa0}}},
+    law = {"lambda1": lam1, "lambda2": lam2, "kappa0": kappa0}
+    raw = bar_raw(bar_file, {"a": {"E": Ea, "nu": 0.0},
+                             "b": {"E": Eb_given, "nu": 0.0, "viscoplastic": law}},
                   time={"T": N * k, "N": N})
     raw["loads"]["displacement"] = {"left": [0.0, None], "bottom": [None, 0.0],
                                     "top": [None, 0.0]}
