@@ -277,21 +277,34 @@ class GroupLaws:
     def rates(self, t: np.ndarray, kappa: np.ndarray, *eps) -> tuple[np.ndarray, np.ndarray]:
         """G and Gk of each group's law on its rows (0 in the elastic groups).
 
+        The rows are the cells the body's elasticity has selected (``rows``; all local
+        cells unless a caller selected some, e.g. one cell repeated for a difference
+        quotient: app/post/diagnostics.estimated_rate).
+
         Args:
-            t: rows (n, mt) of sigma in t-coordinates, every local row.
+            t: rows (n, mt) of sigma in t-coordinates, one per selected cell.
             kappa: (n, m) internal variables.
             eps: the strain rows, for a law that ``uses_eps``.
 
         Returns:
             (G rows (n, mt), Gk (n, m)).
+
+        Raises:
+            ValueError: if the rows are not the selected cells.
         """
+        cells = getattr(self.elasticity, "selected", None)
+        cells = np.arange(len(t)) if cells is None else cells
+        if len(cells) != len(t):
+            raise ValueError(f"materials: {len(t)} rows for {len(cells)} selected cells")
         G, Gk = np.zeros_like(t), np.zeros_like(kappa)
         for g in self.flowing:
-            r, mg = g.rows, g.law.m
-            extra = (eps[0][r],) if eps and getattr(g.law, "uses_eps", False) else ()
-            with g.elasticity.rows(r):
-                G[r], Gk[r, :mg] = g.law.rates(t[r], np.ascontiguousarray(kappa[r, :mg]),
-                                               *extra)
+            mine, mg = np.isin(cells, g.rows), g.law.m
+            if not mine.any():
+                continue
+            extra = (eps[0][mine],) if eps and getattr(g.law, "uses_eps", False) else ()
+            with g.elasticity.rows(cells[mine]):
+                G[mine], Gk[mine, :mg] = g.law.rates(
+                    t[mine], np.ascontiguousarray(kappa[mine, :mg]), *extra)
         return G, Gk
 
     def explicit(self) -> GroupExplicitUpdate:

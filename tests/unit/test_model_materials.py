@@ -90,3 +90,32 @@ def test_implicit_by_group_equals_each_law():
     assert np.array_equal(sigma[rows[2]], s_tr[rows[2]])
     assert np.array_equal(C[rows[2]][0], el2.Cmat) and kap[2, 0] == 5.0
     assert not np.allclose(sigma[rows[0]], s_tr[rows[0]])        # the law flowed
+
+
+def test_rates_on_the_selected_cells_and_the_estimated_rate():
+    """GroupLaws.rates on every cell is each group's law on its cells; on cells the body's
+    elasticity selected (one cell repeated: the difference quotient of estimated_rate) it is
+    that cell's law, so the estimate of the body is its group's law's own."""
+    from vpcontact.model.material import CellElasticity
+    from vpcontact.model.viscoplastic import PowerLaw
+    from vpcontact.post.diagnostics import estimated_rate
+    el1, el2 = Elasticity(100.0, 0.3, 2), Elasticity(300.0, 0.2, 2)
+    rows = [np.array([0, 2, 3]), np.array([1, 4])]
+    body_el = CellElasticity.from_pieces(5, [(rows[0], el1), (rows[1], el2)], 2)
+    groups = [MaterialGroup("a", 1, rows[0], None, el1, Perzyna(el1, 1.0, 1.0)),
+              MaterialGroup("b", 2, rows[1], None, el2, PowerLaw(el2, 1.0, 1.0, 3.0, 10.0))]
+    body = GroupLaws(groups, body_el)
+    assert body.relaxation_rate() is None and body.lipschitz_constant() is None
+    t = 40.0 * np.random.default_rng(7).normal(size=(5, 3))
+    kappa = np.ones((5, 1))
+    G, Gk = body.rates(t, kappa)
+    for g in groups:
+        Gg, Gkg = g.law.rates(t[g.rows], kappa[g.rows])
+        assert np.array_equal(G[g.rows], Gg) and np.array_equal(Gk[g.rows], Gkg)
+    for cell in range(5):
+        t[:] = 1.0
+        t[cell] = 50.0                        # the cell of largest ||sigma||_VM
+        g = next(g for g in groups if cell in g.rows)
+        want = estimated_rate(g.law, t[[cell]], kappa[[cell]])
+        assert want is not None
+        assert estimated_rate(body, t, kappa) == pytest.approx(want, rel=1e-12)
