@@ -227,3 +227,26 @@ def test_axes_not_orthogonal_3d():
     with pytest.raises(CaseError, match=r"material\.elasticity\.orthotropic\.axes.*not "
                                         r"orthogonal"):
         validate_raw(raw)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_projection_invariant_under_a_factor_on_E(dim):
+    """E(x) = c(x) E0 per cell: P_K is E0's in every cell (the energy norm's factor does not
+    move the closest point).  nu(x) moves it in plane stress (the energy form does not
+    split into deviator and trace there) and not for isotropic 3D E (radial return keeps
+    the trace and scales the deviator whatever nu)."""
+    rng = np.random.default_rng(5)
+    m = 3 * dim - 3
+    s, kappa = rng.normal(size=(6, m)) * 30.0, rng.uniform(1.0, 20.0, 6)
+    base = Elasticity(1000.0, 0.3, dim)
+    scaled = CellElasticity(np.array([c * base.Cmat for c in (0.1, 1.0, 7.0)]),
+                            [0, 1, 2, 0, 1, 2], dim)
+    ref = make_projection(base)(s, kappa)         # 3D: the closed form (RadialReturn)
+    np.testing.assert_allclose(make_projection(scaled)(s, kappa), ref, rtol=0,
+                               atol=1e-11 * np.abs(s).max())
+    other = CellElasticity(Elasticity(1000.0, 0.45, dim).Cmat[None], np.zeros(6, int), dim)
+    dev = np.abs(make_projection(other)(s, kappa) - ref).max()
+    if dim == 2:
+        assert dev > 1e-3 * np.abs(s).max()
+    else:
+        assert dev <= 1e-11 * np.abs(s).max()
