@@ -563,8 +563,8 @@ class CellProjection:
     the secular equation is solved for all rows at once with each row's lam (no grouping
     of equal eigenvalues; the same Newton iteration from the same lower bound).  The
     projection changes with the shape of E (anisotropy; nu(x) in plane stress, not for an
-    isotropic 3D E), not with a factor on E: P is invariant under scaling A.  The rows are the elasticity's selected ones
-    (CellElasticity.rows).
+    isotropic 3D E), not with a factor on E: P is invariant under scaling A.  The rows are
+    the elasticity's selected ones (CellElasticity.rows).
 
     Args:
         elasticity: the CellElasticity.
