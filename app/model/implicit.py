@@ -9,9 +9,13 @@ i.e. per cell, with the trial stress s_tr = E eps(u_n) + H_{n-1} (H_{n-1} = sigm
 E eps(u_{n-1})), the law's ``implicit_residual`` (R_s, R_k) = 0; for Perzyna's law
     R_s = sigma - s_tr + k/(2 lambda1) E (sigma - P_kappa sigma) = 0,
     R_k = kappa - kappa_{n-1} - k 2/(3 lambda2) ||sigma - P_kappa sigma||_VM = 0.
-This local system is solved by a vectorised Newton iteration (finite-difference Jacobian of
-size mt + m, backtracking on the residual norm) inside every evaluation of the global residual;
-the global Jacobian uses the algorithmic tangent d sigma / d eps = [J_loc^-1]_{sigma sigma} E.
+This local system is solved by a vectorised Newton iteration (the law's
+``implicit_jacobian`` where it gives one, else a finite-difference Jacobian of size mt + m;
+backtracking on the residual norm) inside every evaluation of the global residual; the global
+Jacobian uses the algorithmic tangent d sigma / d eps = [J_loc^-1]_{sigma sigma} E.  A law of
+the strain too (``uses_eps``, a user's law, app/model/laws.py) gets the trial strain eps(u_n),
+fixed during the local iteration; the tangent leaves out its d G / d eps (Newton's rate,
+not the solution).
 The update is dissipative for any k (backward Euler of a monotone relaxation), which is why it
 stays bounded where the explicit scheme's stability limit k r_max <= 2 is exceeded.
 """
@@ -22,6 +26,15 @@ import numpy as np
 
 class LocalFailure(RuntimeError):
     """The local Newton iteration of the implicit update failed at some cells."""
+
+
+def _solve(J, r):
+    """J^-1 r (J^-1 for r None); a singular J (a law's overflow) is a LocalFailure, so
+    that the step solver can shorten its step."""
+    try:
+        return np.linalg.inv(J) if r is None else np.linalg.solve(J, r)
+    except np.linalg.LinAlgError:
+        raise LocalFailure("implicit update: singular local Jacobian") from None
 
 
 class BackwardEuler:
@@ -40,25 +53,38 @@ class BackwardEuler:
         self.m = self.elasticity.m
         self.rtol, self.max_iter = rtol, max_iter
 
-    def _jacobian(self, z, r0, s_tr, kappa_prev, k, scale):
+    def _residual(self, z, s_tr, kappa_prev, k, eps):
+        """The law's residual; eps (the trial strain) only for a law that uses it."""
+        if eps is None:
+            return self.law.implicit_residual(z, s_tr, kappa_prev, k)
+        return self.law.implicit_residual(z, s_tr, kappa_prev, k, eps)
+
+    def _jacobian(self, z, r0, s_tr, kappa_prev, k, scale, eps=None):
+        """The law's Jacobian of the residual where it gives one, else finite differences."""
+        J = self.law.implicit_jacobian(z, s_tr, kappa_prev, k) if eps is None else \
+            self.law.implicit_jacobian(z, s_tr, kappa_prev, k, eps)
+        if J is not None:
+            return J
         n, m1 = z.shape
         J = np.empty((n, m1, m1))
         for j in range(m1):
             h = 1e-7 * (np.abs(z[:, j]) + scale)
             zp = z.copy()
             zp[:, j] += h
-            J[:, :, j] = (self.law.implicit_residual(zp, s_tr, kappa_prev, k) - r0) / h[:, None]
+            J[:, :, j] = (self._residual(zp, s_tr, kappa_prev, k, eps) - r0) / h[:, None]
         return J
 
-    def solve(self, s_tr, kappa_prev, k):
+    def solve(self, s_tr, kappa_prev, k, eps=None):
         """Solve the local system per cell.
 
-        Cells inside the ball K(kappa_{n-1}) are elastic: sigma = s_tr.
+        Cells where the law does not flow at the trial state are elastic: sigma = s_tr.
 
         Args:
             s_tr: (n, mt) trial stresses E eps(u_n) + H_{n-1} in t-coordinates.
             kappa_prev: (n, m) kappa_{n-1}.
             k: the time step k_n.
+            eps: (n, mt) the trial strain eps(u_n) in t-coordinates, for a law that
+                ``uses_eps`` (else None); fixed during the local iteration.
 
         Returns:
             (sigma_n (n, mt), kappa_n (n, m), C_alg (n, mt, mt)): C_alg maps d eps
@@ -71,29 +97,32 @@ class BackwardEuler:
         n = s_tr.shape[0]
         sigma, kappa = s_tr.copy(), kappa_prev.copy()
         C = np.broadcast_to(self.elasticity.Cmat, (n, m, m)).copy()
-        flow = ~self.law.elastic(s_tr, kappa_prev)
+        flow = ~(self.law.elastic(s_tr, kappa_prev) if eps is None else
+                 self.law.elastic(s_tr, kappa_prev, eps))
         if not np.any(flow):
             return sigma, kappa, C
         st, kp = s_tr[flow], kappa_prev[flow]
+        ep = None if eps is None else eps[flow]
         scale = np.maximum(np.abs(st).max(axis=1), 1e-300)[:, None] * \
             np.ones((1, m + kp.shape[1]))
         scale[:, m:] = np.maximum(scale[:, :1], kp)
         z = np.column_stack([st, kp])
-        r = self.law.implicit_residual(z, st, kp, k)
+        r = self._residual(z, st, kp, k, ep)
         norm = np.linalg.norm(r / scale, axis=1)
         for _ in range(self.max_iter):
             active = norm > self.rtol
             if not np.any(active):
                 break
+            epa = None if ep is None else ep[active]
             J = self._jacobian(z[active], r[active], st[active], kp[active], k,
-                               scale[active, 0])
-            dz = -np.linalg.solve(J, r[active][:, :, None])[:, :, 0]
+                               scale[active, 0], epa)
+            dz = -_solve(J, r[active][:, :, None])[:, :, 0]
             step = np.ones(dz.shape[0])
             za, sa, ka, sca = z[active], st[active], kp[active], scale[active]
             new_norm = np.full(dz.shape[0], np.inf)
             for _ls in range(20):   # backtracking on the scaled residual norm
                 trial = za + step[:, None] * dz
-                rt = self.law.implicit_residual(trial, sa, ka, k)
+                rt = self._residual(trial, sa, ka, k, epa)
                 nt = np.linalg.norm(rt / sca, axis=1)
                 better = (nt < norm[active] * (1 - 1e-4 * step)) | (nt <= self.rtol)
                 accept = better & np.isinf(new_norm)
@@ -112,8 +141,8 @@ class BackwardEuler:
         if np.any(norm > self.rtol):
             raise LocalFailure(f"implicit Perzyna update did not converge at "
                                f"{int((norm > self.rtol).sum())} cell(s)")
-        J = self._jacobian(z, r, st, kp, k, scale[:, 0])
-        Jinv = np.linalg.inv(J)
+        J = self._jacobian(z, r, st, kp, k, scale[:, 0], ep)
+        Jinv = _solve(J, None)
         sigma[flow], kappa[flow] = z[:, :m], z[:, m:]
         C[flow] = Jinv[:, :m, :m] @ self.elasticity.Cmat
         return sigma, kappa, C

@@ -18,6 +18,46 @@ written by a user.
   serves numpy (the condensed solver's nodal problem) and UFL (the step energy J_n).
 
 The built-in laws: app/model/viscoplastic.py (Perzyna, PowerLaw), app/model/contact_laws.py.
+
+A viscoplastic law written by a user (the user protocol) is any class, no base class needed,
+in tensors rather than t-coordinates::
+
+    class MyLaw:
+        m = 1                                   # the number of internal variables kappa
+
+        def __init__(self, elasticity, **params):   # the case's E, then the law's constants
+            self.elasticity = elasticity
+
+        def G(self, sigma, eps, kappa):         # (n, d, d), (n, d, d), (n, m) -> (n, d, d)
+            ...
+
+        def Gk(self, sigma, eps, kappa):        # the same arguments -> (n, m)
+            ...
+
+sigma, eps and kappa are numpy arrays over the n cells: sigma_{n-1}, eps(u_{n-1}) and
+kappa_{n-1} in the explicit update (3.2)-(3.3) (eps_{n-1} = E^-1 (sigma_{n-1} - H_{n-1})),
+sigma, kappa at the current iterate and the trial strain eps(u_n) in the implicit one.  The
+law receives the case's ``Elasticity`` (app/model/material.py: ``Cmat`` the (mt, mt) matrix
+of E in t-coordinates, ``apply``, ``von_mises``, ``to_voigt``/``from_voigt``, ``dim``) as
+the first argument of its constructor; from the command line (``material.viscoplastic.law:
+python``) the class is built as ``Class(elasticity, **params)`` with the case's
+``material.viscoplastic.params``; from the Python API ``Simulation(case, comm, law=...)``
+takes the class (or any callable ``elasticity -> law``) or a law object already built.
+Optional methods:
+
+- ``dG(sigma, eps, kappa)`` -> (dG/dsigma (n, d, d, d, d), dG/dkappa (n, d, d, m)) and
+  ``dGk(sigma, eps, kappa)`` -> (dGk/dsigma (n, m, d, d), dGk/dkappa (n, m, m)), entry
+  [..., a, b] the derivative by sigma_ab: the implicit scheme's local Newton uses them
+  (both, or neither: a finite-difference Jacobian then);
+- ``rate_bound()`` -> r_max [1/s], the largest relaxation rate of the explicit update, for
+  the stability indicator k r_max <= 2 (absent or None: no indicator from the law);
+- ``name``, a string for the logs and summary.json (absent: the class's name).
+
+``UserLaw`` (app/model/userlaw.py) turns such an object into a ViscoplasticLaw and checks
+it (m, the shapes and finiteness of G and Gk); every ViscoplasticLaw gives ``G`` and ``Gk``
+in tensors too, so a built-in law can stand wherever a user's law is expected.  A contact law
+written by a user is a ``ScalarLaw`` subclass written with the primitives of ``backend(r)``:
+it then serves both step solvers.
 """
 from __future__ import annotations
 
@@ -26,6 +66,22 @@ from abc import ABC, abstractmethod
 import numpy as np
 
 from vpcontact.model.material import Elasticity
+
+
+def elastic_strain(elasticity: Elasticity, t: np.ndarray) -> np.ndarray:
+    """E^-1 tau: the strain of a stress, in t-coordinates.
+
+    Args:
+        elasticity: E, homogeneous (Cmat (mt, mt)) or per cell (Cmat (n, mt, mt)).
+        t: rows (n, mt) of tau.
+
+    Returns:
+        The rows (n, mt) of E^-1 tau.
+    """
+    C = elasticity.Cmat
+    if C.ndim == 2:
+        return np.linalg.solve(C, np.asarray(t).T).T
+    return np.linalg.solve(C, np.asarray(t)[:, :, None])[:, :, 0]
 
 
 class ViscoplasticLaw(ABC):
@@ -39,6 +95,7 @@ class ViscoplasticLaw(ABC):
     """
 
     m: int = 1
+    uses_eps: bool = False     # rates and residual take the strain eps too (a user's law)
 
     def __init__(self, elasticity: Elasticity):
         self.elasticity = elasticity
@@ -54,6 +111,56 @@ class ViscoplasticLaw(ABC):
         Returns:
             (G, Gk): G rows (n, mt) in t-coordinates, Gk (n, m).
         """
+
+    def G(self, sigma: np.ndarray, eps: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+        """G(sigma, kappa) of (1.2) in tensors, the user protocol's form of ``rates``.
+
+        Args:
+            sigma: (n, d, d) stresses.
+            eps: (n, d, d) strains (not used by a law of sigma and kappa).
+            kappa: (n, m) internal variables.
+
+        Returns:
+            (n, d, d) tensors G.
+        """
+        el = self.elasticity
+        return el.from_voigt(self.rates(el.to_voigt(sigma), kappa)[0])
+
+    def Gk(self, sigma: np.ndarray, eps: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+        """Gk(sigma, kappa) of (1.3), the user protocol's form of ``rates``.
+
+        Args:
+            sigma: (n, d, d) stresses.
+            eps: (n, d, d) strains (not used by a law of sigma and kappa).
+            kappa: (n, m) internal variables.
+
+        Returns:
+            (n, m) rates Gk.
+        """
+        return self.rates(self.elasticity.to_voigt(sigma), kappa)[1]
+
+    def rate_bound(self) -> float | None:
+        """The user protocol's name of ``relaxation_rate``.
+
+        Returns:
+            r_max [1/s], or None.
+        """
+        return self.relaxation_rate()
+
+    def implicit_jacobian(self, z: np.ndarray, s_tr: np.ndarray, kappa_prev: np.ndarray,
+                          k: float) -> np.ndarray | None:
+        """The Jacobian of ``implicit_residual`` by z, where the law knows it.
+
+        Args:
+            z: (n, mt + m) unknowns: sigma in t-coordinates, then kappa.
+            s_tr: (n, mt) trial stresses.
+            kappa_prev: (n, m) kappa_{n-1}.
+            k: the time step k_n.
+
+        Returns:
+            (n, mt + m, mt + m), or None: the local solve then takes finite differences.
+        """
+        return None
 
     def elastic(self, t: np.ndarray, kappa: np.ndarray) -> np.ndarray:
         """The cells where the law does not flow (G = 0, Gk = 0): the implicit update keeps
@@ -119,6 +226,8 @@ class ViscoplasticLaw(ABC):
 
 class ExplicitUpdate:
     """H += k G(sigma, kappa), kappa += k Gk(sigma, kappa) in place (3.2)-(3.3), in numpy.
+    A law that ``uses_eps`` gets eps_{n-1} too, E^-1 (sigma_{n-1} - H_{n-1}), exact before
+    H is updated (sigma_{n-1} = E eps(u_{n-1}) + H_{n-1}); the other laws pay nothing for it.
 
     Args:
         law: the ViscoplasticLaw.
@@ -140,7 +249,12 @@ class ExplicitUpdate:
             RuntimeError: the law's evaluation failed (e.g. a projection did not converge).
         """
         el = self.law.elasticity
-        g_sigma, g_kappa = self.law.rates(el.to_voigt(sigma), kappa)
+        if self.law.uses_eps:          # eps_{n-1} = E^-1 (sigma_{n-1} - H_{n-1}) (3.2)
+            t = el.to_voigt(sigma)
+            eps = elastic_strain(el, t - el.to_voigt(H))
+            g_sigma, g_kappa = self.law.rates(t, kappa, eps)
+        else:
+            g_sigma, g_kappa = self.law.rates(el.to_voigt(sigma), kappa)
         H[:] += k * el.from_voigt(g_sigma).reshape(-1)
         kappa[:] += k * g_kappa
 

@@ -13,12 +13,17 @@ from conftest import MPI_ENV, PAPER_CASE, ROOT, run_cli
 
 DEMOS = sorted(p.name for p in (ROOT / "demos").glob("*.py"))
 
-# The command line run of each demo's final result: the case file and its --set options.
+# The command line run of each demo's final result: the case file, its --set options (and
+# other options).
 CLI_EQUIVALENT = {
     "demo_wang_cheng.py": (PAPER_CASE, []),
     "demo_stiff_viscosity.py": (PAPER_CASE, ["mesh.n=8", "time.N=16",
                                              "material.viscoplastic.lambda1=10",
                                              "time.scheme=implicit"]),
+    "demo_custom_law.py": (PAPER_CASE, ["mesh.n=8", "time.N=8",
+                                        "material.viscoplastic={law: python, class: SinhCreep, "
+                                        "params: {A: 0.001, s0: 5.0}}"],
+                           ["--law-module", ROOT / "demos" / "demo_custom_law.py"]),
 }
 FINAL = re.compile(r"^final norm_u_V = (\S+) norm_sigma_Q = (\S+)$", re.M)
 
@@ -63,9 +68,10 @@ def test_every_demo_is_tested():
 @pytest.mark.parametrize("name", DEMOS)
 def test_demo_equals_the_cli(name, serial, tmp_path):
     norms, _ = serial(name)
-    case, overrides = CLI_EQUIVALENT[name]
+    case, overrides, *options = CLI_EQUIVALENT[name]
     sets = [arg for item in overrides for arg in ("--set", item)]
-    proc = run_cli(["run", case, "--out", tmp_path / "cli", "--quiet", *sets])
+    proc = run_cli(["run", case, "--out", tmp_path / "cli", "--quiet", *sets,
+                    *(options[0] if options else [])])
     assert proc.returncode == 0, proc.stdout + proc.stderr
     last = json.loads((tmp_path / "cli" / "summary.json").read_text())["steps"][-1]
     assert norms == pytest.approx((last["norm_u_V"], last["norm_sigma_Q"]), rel=1e-12)

@@ -1,0 +1,134 @@
+"""The user's law module of the command line: ``--law-module FILE.py`` imports FILE.py (on
+every rank, once per process) and ``material.viscoplastic.law: python`` with ``class: Name``
+builds ``Name(elasticity, **params)`` from it (app/model/userlaw.py wraps it).  A case file
+alone never runs code: without the option a ``python`` law is refused.
+"""
+from __future__ import annotations
+
+import importlib.util
+import sys
+import traceback
+from pathlib import Path
+
+from vpcontact.io.errors import CaseError
+from vpcontact.model.material import Elasticity
+
+OPTION = "--law-module FILE.py"
+_loaded: dict = {}                   # "path", "module": the module of --law-module
+
+
+def load_law_module(path) -> object:
+    """Import a law module file (every rank of a run calls this).
+
+    Args:
+        path: the .py file given with --law-module.
+
+    Returns:
+        The module.
+
+    Raises:
+        CaseError: no such .py file, or importing it raised (its exception and line named).
+    """
+    path = Path(path)
+    if path.suffix != ".py" or not path.is_file():
+        raise CaseError(f"--law-module {path}: no such Python file (FILE.py)")
+    name = f"vpcontact_law_module_{abs(hash(str(path.resolve())))}"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:  # noqa: BLE001  (the user's code: report what it raised)
+        sys.modules.pop(name, None)
+        lines = [f.lineno for f in traceback.extract_tb(exc.__traceback__)
+                 if Path(f.filename).resolve() == path.resolve()]
+        at = f" (line {lines[-1]})" if lines else ""
+        raise CaseError(f"--law-module {path}: importing it raised {type(exc).__name__}: "
+                        f"{exc}{at}") from None
+    _loaded.update(path=path, module=module)
+    return module
+
+
+def forget_law_module() -> None:
+    """Forget the loaded module (a process that runs several cases, e.g. the tests)."""
+    _loaded.clear()
+
+
+def python_law_classes(raw: dict) -> list[tuple[str, str]]:
+    """The ``python`` laws a case names.
+
+    Args:
+        raw: the case mapping (Case.raw).
+
+    Returns:
+        [(key path, class name)] of material.viscoplastic and of each materials group.
+    """
+    sections = [("material", raw.get("material"))]
+    sections += [(f"materials.{group}", section)
+                 for group, section in (raw.get("materials") or {}).items()]
+    return [(f"{path}.viscoplastic", sec["viscoplastic"]["class"]) for path, sec in sections
+            if isinstance(sec, dict) and isinstance(sec.get("viscoplastic"), dict)
+            and sec["viscoplastic"].get("law") == "python"]
+
+
+def prepare_law_module(raw: dict, path) -> None:
+    """The command line's part: import --law-module if given and check that it defines
+    every class a ``python`` law of the case names; refuse a ``python`` law without it.
+
+    Args:
+        raw: the validated case mapping (Case.raw).
+        path: the --law-module file, or None.
+
+    Raises:
+        CaseError: a python law without --law-module, an import error, a missing class.
+    """
+    wanted = python_law_classes(raw)
+    if path is None:
+        if wanted:
+            key, name = wanted[0]
+            raise CaseError(f"{key}.law: python runs the class {name} of a Python module: "
+                            f"give the module with {OPTION} (a case file alone never runs "
+                            "code)")
+        return
+    module = load_law_module(path)
+    for key, name in wanted:
+        _law_class(module, path, name, key)
+
+
+def _law_class(module, path, name: str, key: str):
+    """The class ``name`` of the module, else CaseError naming the module and the key."""
+    cls = getattr(module, name, None)
+    if not isinstance(cls, type):
+        raise CaseError(f"--law-module {path}: no class {name} ({key}.class)")
+    return cls
+
+
+def python_law(vp, elasticity: Elasticity, key: str = "material.viscoplastic"):
+    """The ``python`` law of a case: ``Class(elasticity, **params)`` from the loaded module.
+
+    Args:
+        vp: the case's Viscoplastic (``cls``, ``params``).
+        elasticity: the elasticity E.
+        key: the key path of the section, for messages.
+
+    Returns:
+        The UserLaw.
+
+    Raises:
+        CaseError: no module loaded, no such class, its constructor refused the params, or
+            the law breaks the protocol (app/model/userlaw.py).
+    """
+    from vpcontact.model.userlaw import as_viscoplastic_law
+    if "module" not in _loaded:
+        raise CaseError(f"{key}.law: python runs the class {vp.cls} of a Python module: "
+                        f"give the module with {OPTION} (a case file alone never runs code)")
+    path = _loaded["path"]
+    cls = _law_class(_loaded["module"], path, vp.cls, key)
+    where = f"--law-module {path}: class {vp.cls}"
+    params = dict(vp.params or {})
+    try:
+        obj = cls(elasticity, **params)
+    except TypeError as exc:
+        raise CaseError(f"{where}: {vp.cls}(elasticity, **{key}.params) failed: {exc}") \
+            from None
+    return as_viscoplastic_law(obj, elasticity, where, params)

@@ -1,0 +1,139 @@
+"""A law written by the user from the command line (`material.viscoplastic.law: python`,
+`--law-module FILE.py`) and from the Python API (`Simulation(case, comm, law=...)`): Perzyna's
+law written as a user would (tests/userlaws/perzyna_law.py) gives the built-in perzyna's run
+to 1e-12 (norms, iterations and contact.csv), explicit and implicit; the refusals (no
+--law-module, no such class, a law that breaks the protocol, an import error) exit 2 with one
+line naming the key, the option or the module and class.  The runs are cli.main in this
+process, on the paper's case at h = k = 1/4."""
+import csv
+import functools
+import json
+
+import numpy as np
+import pytest
+
+from conftest import PAPER_CASE, ROOT, make_case, paper_raw
+
+LAW_MODULE = ROOT / "tests" / "userlaws" / "perzyna_law.py"
+TINY = ["--set", "mesh.n=4", "--set", "time.N=4"]
+PYTHON_LAW = ["--set", "material.viscoplastic={law: python, class: UserPerzyna, params: "
+                       "{lambda1: 100.0, lambda2: 100.0}}"]
+KEYS = ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa")
+
+
+def _main(args) -> int:
+    """cli.main in this process, the 'vpcontact' logger and the loaded law module restored
+    afterwards."""
+    import logging
+
+    import vpcontact.cli.main as cli
+    from vpcontact.model.lawmodule import forget_law_module
+    logger = logging.getLogger("vpcontact")
+    state = logger.handlers[:], logger.propagate, logger.level
+    try:
+        return cli.main([str(a) for a in args])
+    finally:
+        forget_law_module()
+        logger.handlers[:], logger.propagate = state[0], state[1]
+        logger.setLevel(state[2])
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """The built-in perzyna and the python law, explicit and implicit: {(law, scheme): dir}."""
+    out = {}
+    for scheme in ("explicit", "implicit"):
+        for law, extra in (("perzyna", []), ("python", ["--law-module", LAW_MODULE,
+                                                        *PYTHON_LAW])):
+            d = tmp_path_factory.mktemp(f"{law}_{scheme}")
+            code = _main(["run", PAPER_CASE, "--out", d, "--quiet", "--no-plots", "--overwrite",
+                          *TINY, "--set", f"time.scheme={scheme}", *extra])
+            assert code == 0, (law, scheme)
+            out[law, scheme] = d
+    return out
+
+
+def _steps(d):
+    return json.loads((d / "summary.json").read_text())["steps"]
+
+
+def _contact(d):
+    with open(d / "contact.csv") as f:
+        rows = list(csv.DictReader(f))
+    return [r.pop("state") for r in rows], np.array([[float(v) for v in r.values()]
+                                                     for r in rows])
+
+
+@pytest.mark.parametrize("scheme", ["explicit", "implicit"])
+def test_python_perzyna_equals_the_builtin(runs, scheme):
+    ref, user = _steps(runs["perzyna", scheme]), _steps(runs["python", scheme])
+    assert len(ref) == len(user) == 4
+    for a, b in zip(ref, user):
+        assert a["newton_iterations"] == b["newton_iterations"]
+        for key in KEYS:
+            assert b[key] == pytest.approx(a[key], rel=1e-12, abs=1e-300), key
+    assert ref[-1]["max_kappa"] > 0                       # the law flowed
+    (state0, c0), (state1, c1) = _contact(runs["perzyna", scheme]), \
+        _contact(runs["python", scheme])
+    assert state0 == state1 and c0.shape == c1.shape
+    scale = np.abs(c0).max(axis=0)
+    assert np.all(np.abs(c1 - c0) <= 1e-12 * scale)
+    summary = json.loads((runs["python", scheme] / "summary.json").read_text())
+    assert summary["laws"]["viscoplastic"]["name"] == "user perzyna"
+
+
+def test_api_law_equals_the_builtin(runs):
+    """Simulation(case, comm, law=class with its constants) on the perzyna case gives the
+    command line's perzyna run."""
+    from mpi4py import MPI
+
+    from userlaws.perzyna_law import UserPerzyna
+    from vpcontact.simulation import Simulation
+    case = make_case(paper_raw(), mesh={"n": 4}, time={"N": 4})
+    sim = Simulation(case, MPI.COMM_WORLD,
+                     law=functools.partial(UserPerzyna, lambda1=100.0, lambda2=100.0))
+    assert sim.run().status == "completed"
+    assert type(sim.problem.law).__name__ == "UserLaw"
+    for a, b in zip(_steps(runs["perzyna", "explicit"]), sim.steps):
+        for key in KEYS:
+            assert b[key] == pytest.approx(a[key], rel=1e-12, abs=1e-300), key
+
+
+@pytest.mark.parametrize("extra, message", [
+    ([], "material.viscoplastic.law: python runs the class UserPerzyna of a Python module: "
+         "give the module with --law-module FILE.py (a case file alone never runs code)"),
+    (["--law-module", ROOT / "tests" / "userlaws" / "nothing.py"],
+     "--law-module {root}/tests/userlaws/nothing.py: no such Python file"),
+    (["--law-module", LAW_MODULE, "--set", "material.viscoplastic.class=Missing"],
+     "--law-module {module}: no class Missing (material.viscoplastic.class)"),
+    (["--law-module", LAW_MODULE, "--set", "material.viscoplastic.class=WrongM"],
+     "--law-module {module}: class WrongM: m = 0: the number of internal variables kappa "
+     "must be an integer >= 1"),
+    (["--law-module", LAW_MODULE, "--set", "material.viscoplastic.class=WrongShape"],
+     "--law-module {module}: class WrongShape: Gk returned an array of shape (6,), expected "
+     "(6, 1)"),
+    (["--law-module", LAW_MODULE, "--set", "material.viscoplastic.class=NotFinite"],
+     "--law-module {module}: class NotFinite: G or Gk returned non-finite values (NaN/Inf) "
+     "at 6 cell(s) at sigma = 0, eps = 0, kappa = 0"),
+    (["--law-module", LAW_MODULE, "--set", "material.viscoplastic.params={lambda1: 1.0}"],
+     "UserPerzyna(elasticity, **material.viscoplastic.params) failed"),
+])
+@pytest.mark.parametrize("command", ["run", "check"])
+def test_refusals(command, extra, message, tmp_path, capsys):
+    """One line, exit 2, before any step; nothing of the module runs without the option."""
+    args = [command, PAPER_CASE, *TINY, *PYTHON_LAW, *extra]
+    if command == "run":
+        args += ["--out", tmp_path / "out", "--quiet", "--no-plots"]
+    assert _main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert message.format(root=ROOT, module=LAW_MODULE) in err, err
+    assert not (tmp_path / "out" / "summary.json").exists()
+
+
+def test_import_error_names_the_line(tmp_path, capsys):
+    bad = tmp_path / "bad_law.py"
+    bad.write_text("import numpy\n\nraise ValueError('no constants')\n")
+    assert _main(["check", PAPER_CASE, *PYTHON_LAW, "--law-module", bad]) == 2
+    err = capsys.readouterr().err
+    assert f"--law-module {bad}: importing it raised ValueError: no constants (line 3)" in err
