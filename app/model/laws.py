@@ -36,7 +36,8 @@ in tensors rather than t-coordinates::
 
 sigma, eps and kappa are numpy arrays over the n cells: sigma_{n-1}, eps(u_{n-1}) and
 kappa_{n-1} in the explicit update (3.2)-(3.3) (eps_{n-1} = E^-1 (sigma_{n-1} - H_{n-1})),
-sigma, kappa at the current iterate and the trial strain eps(u_n) in the implicit one.  The
+sigma, kappa at the current iterate and the trial strain eps(u_n) in the implicit one; G must
+be symmetric, and kappa starts at the case's ``kappa0`` in every component.  The
 law receives the case's ``Elasticity`` (app/model/material.py: ``Cmat`` the (mt, mt) matrix
 of E in t-coordinates, ``apply``, ``von_mises``, ``to_voigt``/``from_voigt``, ``dim``) as
 the first argument of its constructor; from the command line (``material.viscoplastic.law:

@@ -204,10 +204,18 @@ class UserLaw(ViscoplasticLaw):
 
         Returns:
             r_max [1/s], or None where the law gives none.
+
+        Raises:
+            CaseError: the bound is negative or not finite.
         """
         bound = getattr(self.user, "rate_bound", None)
         value = bound() if callable(bound) else None
-        return None if value is None else float(value)
+        if value is None:
+            return None
+        if not (np.isfinite(value) and value >= 0):
+            raise CaseError(f"{self.where}: rate_bound() = {value!r}: a rate [1/s] >= 0 "
+                            "(or None: not known)")
+        return float(value)
 
     def constants(self) -> dict:
         """Returns: the numeric constants the law was built with (``params``), no units."""

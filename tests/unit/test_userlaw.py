@@ -2,9 +2,13 @@
 adapter's conversions between the user's tensors and the t-coordinates, its checks (m, shapes,
 finiteness), the strain eps it passes (E^-1 (sigma - H) in the explicit update, the trial
 strain in the implicit one), the user's derivatives as the local Jacobian, and the built-in
-laws in the same protocol.  The reference is the built-in Perzyna law, and hand-made states."""
+laws in the same protocol; a contact law written by the user in both back ends.  The
+references are the built-in Perzyna law, hand-made states and closed forms."""
+import math
+
 import numpy as np
 import pytest
+import ufl
 
 from userlaws.perzyna_law import (
     NotFinite,
@@ -15,7 +19,9 @@ from userlaws.perzyna_law import (
 )
 from vpcontact.io.errors import CaseError
 from vpcontact.model.implicit import BackwardEuler
+from vpcontact.model.laws import ScalarLaw
 from vpcontact.model.material import Elasticity, from_voigt, to_voigt
+from vpcontact.model.primitives import backend
 from vpcontact.model.userlaw import LawEvaluationError, UserLaw, as_viscoplastic_law
 from vpcontact.model.viscoplastic import Perzyna
 
@@ -186,3 +192,50 @@ def test_non_finite_during_a_step():
                                                  "non-finite values .* at 1 cell"):
         law.explicit()(from_voigt(t).reshape(-1), H, kappa, 0.1)
     assert not H.any()
+
+
+class ExpCompliance(ScalarLaw):
+    """A user's contact law: p(r) = c (exp(a r^+) - 1) / a, written with backend(r)."""
+
+    name = "exponential compliance"
+
+    def __init__(self, c, a):
+        self.c, self.a = c, a
+
+    def energy(self, r):
+        ops = backend(r)
+        x = self.a * ops.pos(r)
+        return self.c * (ops.exp(x) - 1.0 - x) / self.a ** 2
+
+    def derivative(self, r):
+        ops = backend(r)
+        return self.c * (ops.exp(self.a * ops.pos(r)) - 1.0) / self.a
+
+    def second_derivative(self, r):
+        ops = backend(r)
+        return ops.where(ops.gt(r, 0.0), self.c * ops.exp(self.a * ops.pos(r)), 0.0)
+
+
+def test_a_user_contact_law_in_both_back_ends():
+    """One definition: numpy over nodes equals the closed form (math.exp), and its UFL
+    evaluation and UFL's derivatives of its energy equal the numpy values."""
+    law = ExpCompliance(100.0, 50.0)
+    r = np.array([-0.01, 0.0, 0.002, 0.02])
+    closed = [100.0 * (math.expm1(50.0 * max(x, 0.0))) / 50.0 for x in r]
+    np.testing.assert_allclose(law.derivative(r), closed, rtol=1e-14)
+    for x, e, p, h in zip(r, law.energy(r), law.derivative(r), law.second_derivative(r)):
+        v = ufl.variable(ufl.as_ufl(float(x)))
+        e_ufl = law.energy(v)
+        d1 = ufl.diff(e_ufl, v)
+        values = [float(f((0.0,))) for f in (e_ufl, d1, ufl.diff(d1, v), law.derivative(v))]
+        assert values == pytest.approx([e, p, h, p], rel=1e-12, abs=1e-12)
+
+
+def test_rate_bound_checked():
+    class Negative(UserPerzyna):
+        def rate_bound(self):
+            return -1.0
+
+    law = UserLaw(Negative(EL[2], 100.0, 50.0), EL[2], "x")
+    with pytest.raises(CaseError, match=r"rate_bound\(\) = -1.0: a rate"):
+        law.relaxation_rate()
