@@ -69,6 +69,8 @@ class UserLaw(ViscoplasticLaw):
         before the first step."""
         n, mt = self.m + 5, self.elasticity.m
         zeros = np.zeros((n, mt))
+        if len(getattr(self.elasticity, "selected", (0,))) == 0:
+            return                   # an E per cell on a rank without cells: the others probe
         with self.elasticity.rows(np.zeros(n, dtype=np.intp)):   # an E per cell: row 0's
             self._probe_at(zeros, n)
 
