@@ -1,5 +1,5 @@
 """Chaboche's unified viscoplastic law with nonlinear kinematic and isotropic hardening,
-kappa = (X, R, p) in R^8 (m = 8):
+kappa = (X, R, p) in R^8 (m = 8; in 2D plane strain (X, R, p, eps_vp33), m = 9):
     f = ||sigma - X||_VM - R - k,        p' = <f/K>^n,
     eps_vp' = p' N(sigma - X),           N(tau) = d ||tau||_VM / d tau = (3/2) dev(tau)/||tau||_VM,
     X' = (2/3) C eps_vp' - gamma X p',   R' = b (Q - R) p',
@@ -10,32 +10,35 @@ saturated isotropic hardening and its rate.
 
 The back stress X is a symmetric deviatoric 3 x 3 tensor in 2D too: its six components are
 stored in the 3D t-order (X11, X22, X33, X23, X13, X12) (tensor components), then R, then p.
-X, R, p start at 0.  In 2D the stress of the model is the in-plane tensor with sigma_33 = 0
-(sigma_13 = sigma_23 = 0): in plane stress that is the stress state, and in plane strain
-the 2D model keeps the paper's 2D norm (the out-of-plane stress is not a variable of the 2D
-model; app/model/norton.py), so ||sigma - X||_VM is the 3D von Mises norm of that tensor
-minus X, which for X = 0 is the paper's 2D norm; X_33 = -(X_11 + X_22) follows from the
-flow.  The in-plane part of eps_vp' drives the stress.
+X, R, p start at 0.  ||sigma - X||_VM is the 3D von Mises norm of the 3D stress minus X;
+in 2D (sigma_13 = sigma_23 = 0):
+- plane stress: sigma_33 = 0 (for X = 0 the norm is the paper's 2D norm); X_33 = -(X_11 +
+  X_22) follows from the flow; the in-plane part of eps_vp' drives the stress.
+- plane strain: sigma_33 = nu (sigma_11 + sigma_22) - E eps_vp33, with eps_vp33 the ninth
+  internal variable (eps_vp33' = the 33 component of eps_vp'), and G = -(C3 eps_vp')_in-plane
+  (app/model/planestrain.py: an isotropic E).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from vpcontact.model.laws import ViscoplasticLaw
-from vpcontact.model.material import Elasticity, _von_mises_matrix
+from vpcontact.model.material import Elasticity
+from vpcontact.model.norton import M3 as _M3
+from vpcontact.model.norton import W3 as _W3
 from vpcontact.model.norton import flow_direction
+from vpcontact.model.planestrain import PlaneStrain
 
 # the 3D t-coordinates of the body's stress coordinates (2D: s11, s22, s12)
 _IN_3D = {2: [0, 1, 5], 3: [0, 1, 2, 3, 4, 5]}
-_M3 = _von_mises_matrix(3)
-_W3 = np.array([1.0, 1.0, 1.0, 2.0, 2.0, 2.0])
 
 
 class Chaboche(ViscoplasticLaw):
-    """Chaboche's law (see the module docstring), m = 8, kappa = (X (6), R, p).  The
-    explicit update is the protocol's numpy ExplicitUpdate, the implicit one its default
-    residual with the finite-difference tangent; ``elastic`` is exactly f <= 0 (p' = 0
-    there).  No relaxation rate (it grows with the overstress): no stability indicator.
+    """Chaboche's law (see the module docstring), m = 8, kappa = (X (6), R, p) (2D plane
+    strain: m = 9, then eps_vp33).  The explicit update is the protocol's numpy
+    ExplicitUpdate, the implicit one its default residual with the finite-difference
+    tangent; ``elastic`` is exactly f <= 0 (p' = 0 there).  No relaxation rate (it grows
+    with the overstress): no stability indicator.
 
     Args:
         elasticity: the elasticity E.
@@ -46,10 +49,13 @@ class Chaboche(ViscoplasticLaw):
         gamma: the dynamic recovery gamma >= 0.
         Q: the saturated isotropic hardening Q [Pa].
         b: the rate b >= 0 of the isotropic hardening.
+        plane: in 2D, "stress" (sigma_33 = 0) or "strain" (eps_33 = 0: sigma_33 carried,
+            an isotropic E only); not used in 3D.
 
     Attributes:
         fields: the internal variables as output fields, (name, components) in kappa's
-            order: X a 3 x 3 tensor (6 components), R, p.
+            order: X a 3 x 3 tensor (6 components), R, p (plane strain: then eps_vp33).
+        plane_strain: the PlaneStrain of sigma_33, or None (3D, plane stress).
     """
 
     m = 8
@@ -57,10 +63,14 @@ class Chaboche(ViscoplasticLaw):
     fields = (("X", 6), ("R", 1), ("p", 1))
 
     def __init__(self, elasticity: Elasticity, k: float, K: float, n: float, C: float,
-                 gamma: float, Q: float, b: float):
+                 gamma: float, Q: float, b: float, plane: str = "stress"):
         super().__init__(elasticity)
         self.k, self.K, self.n, self.C, self.gamma, self.Q, self.b = k, K, n, C, gamma, Q, b
         self._in3d = _IN_3D[elasticity.dim]
+        self.plane_strain = PlaneStrain(elasticity) \
+            if elasticity.dim == 2 and plane == "strain" else None
+        if self.plane_strain is not None:
+            self.m, self.fields = 9, self.fields + (("eps_vp33", 1),)
 
     def constants(self):
         """Returns: k, K [Pa], n [-], C [Pa], gamma [-], Q [Pa], b [-] (the case's keys)."""
@@ -70,8 +80,11 @@ class Chaboche(ViscoplasticLaw):
 
     def _overstress(self, t, kappa):
         """sigma - X in 3D t-coordinates, its von Mises norm, (3/2) dev(sigma - X) and f."""
-        s = np.zeros((t.shape[0], 6))
-        s[:, self._in3d] = t
+        if self.plane_strain is not None:
+            s = self.plane_strain.stress(t, kappa[:, 8])
+        else:
+            s = np.zeros((t.shape[0], 6))
+            s[:, self._in3d] = t
         seq, seq_N = flow_direction(s - kappa[:, :6], _M3, _W3)
         return seq, seq_N, seq - kappa[:, 6] - self.k
 
@@ -80,7 +93,7 @@ class Chaboche(ViscoplasticLaw):
 
         Args:
             t: rows (n, mt) of sigma in t-coordinates.
-            kappa: (n, 8) internal variables (X, R, p).
+            kappa: (n, m) internal variables (X, R, p(, eps_vp33)).
 
         Returns:
             (eps_vp' rows (n, 6) in 3D t-coordinates (tensor components), p' (n,)).
@@ -92,20 +105,24 @@ class Chaboche(ViscoplasticLaw):
         return scale[:, None] * seq_N, p_rate
 
     def rates(self, t, kappa):
-        """G = -E eps_vp' (its in-plane part in 2D), Gk = (X', R', p').
+        """G = -E eps_vp' (its in-plane part in 2D; plane strain: -(C3 eps_vp')_in-plane),
+        Gk = (X', R', p'(, eps_vp33')).
 
         Args:
             t: rows (n, mt) of sigma in t-coordinates.
-            kappa: (n, 8) internal variables (X, R, p).
+            kappa: (n, m) internal variables (X, R, p(, eps_vp33)).
 
         Returns:
-            (G rows (n, mt), Gk (n, 8)).
+            (G rows (n, mt), Gk (n, m)).
         """
         eps_vp, p_rate = self.flow(t, kappa)
         Gk = np.empty_like(kappa)
         Gk[:, :6] = (2.0 / 3.0 * self.C) * eps_vp - self.gamma * kappa[:, :6] * p_rate[:, None]
         Gk[:, 6] = self.b * (self.Q - kappa[:, 6]) * p_rate
         Gk[:, 7] = p_rate
+        if self.plane_strain is not None:
+            Gk[:, 8] = eps_vp[:, 2]
+            return self.plane_strain.G(eps_vp), Gk
         return -self.elasticity.apply(eps_vp[:, self._in3d]), Gk
 
     def elastic(self, t, kappa):
@@ -113,7 +130,7 @@ class Chaboche(ViscoplasticLaw):
 
         Args:
             t: rows (n, mt) of sigma in t-coordinates.
-            kappa: (n, 8) internal variables (X, R, p).
+            kappa: (n, m) internal variables (X, R, p(, eps_vp33)).
 
         Returns:
             (n,) booleans.

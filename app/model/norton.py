@@ -1,25 +1,33 @@
-"""Norton's creep law (no yield surface), m = 1, kappa = p the accumulated creep strain:
-with sigma_eq = ||sigma||_VM and the flow direction N = d sigma_eq / d sigma
-(= (3/2) dev(sigma) / sigma_eq in 3D),
-    eps_vp' = A sigma_eq^n N,   G(sigma, p) = -E eps_vp',   Gk(sigma, p) = p' = A sigma_eq^n,
+"""Norton's creep law (no yield surface), kappa = p the accumulated creep strain (m = 1;
+in plane strain kappa = (p, eps_vp33), m = 2): with sigma_eq = ||sigma||_VM and the flow
+direction N = d sigma_eq / d sigma (= (3/2) dev(sigma) / sigma_eq in 3D),
+    eps_vp' = A sigma_eq^n N,   G(sigma, kappa) = -E eps_vp',   p' = A sigma_eq^n,
 the pair (G, Gk) of (1.2)-(1.3).
 
 The flow direction is the gradient of the body's von Mises form ||tau||_VM^2 = t^T M t
 (app/model/material.py) with respect to the tensor: in t-coordinates the shears count twice
 in tau : sigma (Elasticity.weights w), so N_t = M t / (w sigma_eq).  In 3D this is
-(3/2) dev(sigma) / sigma_eq.  In 2D the norm is the paper's t11^2 + t22^2 - t11 t22 + 3 t12^2,
-the 3D von Mises norm of the in-plane stress with sigma_33 = 0: in plane stress that is the
-stress state, and in plane strain the 2D model keeps the same norm (the out-of-plane stress
-is not a variable of the 2D model), so N is the gradient of the paper's norm in both; its
-in-plane part drives the stress (the out-of-plane creep strain -(N11 + N22) of plane stress
-only thins the plate).
+(3/2) dev(sigma) / sigma_eq.  In 2D:
+- plane stress (sigma_33 = 0, the stress state of a thin plate): the norm is the paper's
+  t11^2 + t22^2 - t11 t22 + 3 t12^2, the 3D von Mises norm of the in-plane stress, N its
+  gradient; the in-plane part of eps_vp' drives the stress (the out-of-plane creep strain
+  -(N11 + N22) only thins the plate).
+- plane strain (eps_33 = 0, a long body): sigma_33 = nu (sigma_11 + sigma_22) - E eps_vp33
+  is not 0 (app/model/planestrain.py); sigma_eq and N are the 3D ones of (sigma_11,
+  sigma_22, sigma_33, sigma_12), the creep is isochoric, kappa carries eps_vp33
+  (eps_vp33' = A sigma_eq^n N_33) and G = -(C3 eps_vp')_in-plane, the 3D E on the 3D creep
+  rate (-2 mu eps_vp' in the plane for isotropic E, the creep being isochoric).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from vpcontact.model.laws import ViscoplasticLaw
-from vpcontact.model.material import Elasticity
+from vpcontact.model.material import Elasticity, _von_mises_matrix
+from vpcontact.model.planestrain import PlaneStrain
+
+M3 = _von_mises_matrix(3)                       # the 3D von Mises form and weights
+W3 = np.array([1.0, 1.0, 1.0, 2.0, 2.0, 2.0])
 
 
 def flow_direction(t: np.ndarray, M: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -39,27 +47,37 @@ def flow_direction(t: np.ndarray, M: np.ndarray, w: np.ndarray) -> tuple[np.ndar
 
 
 class Norton(ViscoplasticLaw):
-    """Norton's creep law (see the module docstring), m = 1, kappa = p:
-    G = -A sigma_eq^n E N, Gk = A sigma_eq^n.  The explicit update is the protocol's numpy
-    ExplicitUpdate; the law flows wherever sigma != 0, so ``elastic`` (the implicit update's
-    cells kept at the trial state) is exactly sigma_eq = 0.  The relaxation rate
-    n A sigma_eq^(n-1) E grows with the stress: a rate (and the stability indicator) only
-    for n = 1.
+    """Norton's creep law (see the module docstring), m = 1, kappa = p (plane strain: m = 2,
+    kappa = (p, eps_vp33)): G = -E eps_vp' with eps_vp' = A sigma_eq^n N, p' = A sigma_eq^n.
+    The explicit update is the protocol's numpy ExplicitUpdate; the law flows wherever
+    sigma_eq != 0, so ``elastic`` (the implicit update's cells kept at the trial state) is
+    exactly sigma_eq = 0.  The relaxation rate n A sigma_eq^(n-1) E grows with the stress: a
+    rate (and the stability indicator) only for n = 1.
 
     Args:
         elasticity: the elasticity E.
         A: the Norton coefficient A > 0 [Pa^-n s^-1].
         n: the Norton exponent n >= 1.
+        plane: in 2D, "stress" (sigma_33 = 0) or "strain" (eps_33 = 0: sigma_33 carried,
+            an isotropic E only; app/model/planestrain.py); not used in 3D.
+
+    Attributes:
+        fields: kappa as output fields, (name, components): p (and eps_vp33).
+        plane_strain: the PlaneStrain of sigma_33, or None (3D, plane stress).
     """
 
     m = 1
     name = "norton"
     fields = (("p", 1),)         # kappa written to solution.xdmf as the field p
 
-    def __init__(self, elasticity: Elasticity, A: float, n: float):
+    def __init__(self, elasticity: Elasticity, A: float, n: float, plane: str = "stress"):
         super().__init__(elasticity)
         self.A, self.n = A, n
         self._M, self._w = elasticity.M, elasticity.weights
+        self.plane_strain = PlaneStrain(elasticity) \
+            if elasticity.dim == 2 and plane == "strain" else None
+        if self.plane_strain is not None:
+            self.m, self.fields = 2, (("p", 1), ("eps_vp33", 1))
 
     def constants(self):
         """Returns: A [Pa^-n s^-1], n [-] (as the case file's keys)."""
@@ -67,13 +85,15 @@ class Norton(ViscoplasticLaw):
 
     def _linear_part(self) -> np.ndarray:
         """The matrix of sigma -> E N' sigma in t-coordinates, N' sigma = sigma_eq N
-        (= (3/2) dev(sigma) in 3D): G = -A E N' sigma for n = 1."""
+        (= (3/2) dev(sigma) in 3D): G = -A E N' sigma for n = 1 (sigma_33 = 0)."""
         return self.elasticity.Cmat @ (self._M / self._w[:, None])
 
     def relaxation_rate(self) -> float | None:
         """For n = 1 the law is linear, sigma' = -A E N' sigma: E N' = W^-1 A_E W^-1 M (A_E
         the energy form, W the weights) has real eigenvalues >= 0, and the largest, times A,
-        is the rate (3 mu A in 3D, on the deviators); for n > 1 the rate n A sigma_eq^(n-1)
+        is the rate (3 mu A in 3D, on the deviators).  In plane strain the state (sigma,
+        eps_vp33) under held strain is the 3D one under held strain: 3 mu A, mu the 3D
+        shear modulus (the largest over the cells).  For n > 1 the rate n A sigma_eq^(n-1)
         grows with the stress: None.
 
         Returns:
@@ -81,57 +101,88 @@ class Norton(ViscoplasticLaw):
         """
         if self.n != 1:
             return None
+        if self.plane_strain is not None:
+            return self.A * 1.5 * float(np.max(self.plane_strain.lame()[1]))
         return self.A * float(np.max(np.linalg.eigvals(self._linear_part()).real))
 
     def lipschitz_constant(self) -> float | None:
         """L_G of H(G) in the energy norm |tau|_E = (E tau : tau)^1/2: for n = 1, A times
         the operator norm of E N' in that norm (r_max where E and N' commute, as for
-        isotropic E); for n > 1 none (not Lipschitz).
+        isotropic E; in plane strain the map of sigma at fixed eps_vp33, whose N' takes
+        sigma_33 = nu (sigma_11 + sigma_22) too); for n > 1 none (not Lipschitz).
 
         Returns:
             L_G [1/s] for n = 1, else None.
         """
         if self.n != 1:
             return None
-        T, A_E = self._linear_part(), self.elasticity.A
-        adjoint_T = np.linalg.solve(A_E, T.T @ A_E)
+        T = self._linear_part() if self.plane_strain is None else self._plane_strain_part()
+        A_E = self.elasticity.A
+        adjoint_T = np.linalg.solve(A_E, np.swapaxes(T, -1, -2) @ A_E)   # per cell too
         return self.A * float(np.sqrt(np.max(np.linalg.eigvals(adjoint_T @ T).real)))
 
-    def creep_rate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _plane_strain_part(self) -> np.ndarray:
+        """In plane strain, the matrix T of sigma -> (C3 N' sigma3)_in-plane (sigma3 with
+        sigma_33 = nu (sigma_11 + sigma_22)): G = -A T sigma + (terms of eps_vp33), n = 1;
+        per cell (n, 3, 3) for an E per cell."""
+        lmbda = self.plane_strain.lame()[0]
+        nu = np.asarray(self.plane_strain.young_poisson()[1])[..., None, None]
+        S = np.zeros(nu.shape[:-2] + (6, 3))            # sigma -> sigma3, 3D t-coordinates
+        S[..., [0, 1, 5], [0, 1, 2]] = 1.0
+        S[..., 2, :2] = nu[..., 0, :]
+        N = (M3 / W3[:, None]) @ S                      # sigma -> N' sigma3 = (3/2) dev
+        C3 = np.zeros(nu.shape[:-2] + (3, 6))           # (C3 e)_in-plane in t-coordinates
+        C3[..., :, [0, 1, 5]] = self.elasticity.Cmat
+        C3[..., :2, 2] = np.asarray(lmbda)[..., None]
+        return C3 @ N
+
+    def creep_rate(self, t: np.ndarray, kappa: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
         """The creep strain rate eps_vp' = A sigma_eq^n N and p' = A sigma_eq^n.
 
         Args:
             t: rows (n, mt) of sigma in t-coordinates.
+            kappa: (n, m) internal variables (plane strain: eps_vp33 in column 1 gives
+                sigma_33; else not used).
 
         Returns:
-            (eps_vp' rows (n, mt) in t-coordinates (tensor components), p' (n,)).
+            (eps_vp' rows (n, mt) in t-coordinates (tensor components), in plane strain
+            (n, 6) in 3D t-coordinates with eps_vp33'; p' (n,)).
         """
-        seq, seq_N = flow_direction(t, self._M, self._w)
+        if self.plane_strain is None:
+            seq, seq_N = flow_direction(t, self._M, self._w)
+        else:
+            seq, seq_N = flow_direction(self.plane_strain.stress(t, kappa[:, 1]), M3, W3)
         with np.errstate(over="ignore"):
             f = self.A * seq ** (self.n - 1.0)           # 0^0 = 1: n = 1 at sigma = 0
         return f[:, None] * seq_N, f * seq
 
     def rates(self, t, kappa):
-        """G = -E eps_vp' = -A sigma_eq^n E N, Gk = A sigma_eq^n (kappa = p does not enter).
+        """G = -E eps_vp' = -A sigma_eq^n E N, Gk = p' = A sigma_eq^n (kappa = p does not
+        enter); in plane strain G = -(C3 eps_vp')_in-plane and Gk = (p', eps_vp33').
 
         Args:
             t: rows (n, mt) of sigma in t-coordinates.
-            kappa: (n, 1) accumulated creep strains p (unused).
+            kappa: (n, m) internal variables: p (unused), in plane strain then eps_vp33.
 
         Returns:
-            (G rows (n, mt), Gk (n, 1)).
+            (G rows (n, mt), Gk (n, m)).
         """
-        eps_vp, p_rate = self.creep_rate(t)
-        return -self.elasticity.apply(eps_vp), p_rate[:, None]
+        eps_vp, p_rate = self.creep_rate(t, kappa)
+        if self.plane_strain is None:
+            return -self.elasticity.apply(eps_vp), p_rate[:, None]
+        return self.plane_strain.G(eps_vp), np.stack([p_rate, eps_vp[:, 2]], axis=1)
 
     def elastic(self, t, kappa):
         """No creep exactly where sigma_eq = 0 (the rates are exactly 0 there).
 
         Args:
             t: rows (n, mt) of sigma in t-coordinates.
-            kappa: (n, 1) accumulated creep strains (unused).
+            kappa: (n, m) internal variables (plane strain: eps_vp33 enters sigma_33).
 
         Returns:
             (n,) booleans.
         """
+        if self.plane_strain is not None:
+            return flow_direction(self.plane_strain.stress(t, kappa[:, 1]), M3, W3)[0] == 0.0
         return flow_direction(t, self._M, self._w)[0] == 0.0

@@ -82,6 +82,43 @@ def test_rates_by_hand():
         np.testing.assert_allclose(G2[i], want, rtol=1e-10, atol=1e-10 * np.abs(want).max())
 
 
+def test_plane_strain_rates_against_3d():
+    """Plane strain (m = 9, kappa = (X, R, p, eps_vp33)): random states built in 3D (total
+    strain with eps_33 = eps_13 = eps_23 = 0, an isochoric creep strain with eps_vp33, sigma
+    = C3 (eps - eps_vp) by 3D Hooke, X deviatoric with X_13 = X_23 = 0, some cells inside
+    f <= 0): G = the in-plane part of 3D Chaboche's -C3 eps_vp', Gk = (X', R', p') of the
+    3D law and eps_vp33' its 33 creep rate."""
+    from vpcontact.forms.elasticity import plane_strain_moduli
+    law = Chaboche(Elasticity(*plane_strain_moduli(E_, NU), 2), K0, KD, N_EXP, C_, GAMMA,
+                   Q_, B_, "strain")
+    assert law.m == 9 and law.fields[-1] == ("eps_vp33", 1)
+    lmbda, two_mu = E_ * NU / ((1 + NU) * (1 - 2 * NU)), E_ / (1 + NU)
+    rng = np.random.default_rng(4)
+    t, kappa, s3, flows = [], [], [], 0
+    for i in range(10):
+        a, b = rng.normal(size=(2, 3)) * 0.03
+        eps = np.array([[a[0], a[2], 0], [a[2], a[1], 0], [0, 0, 0]])
+        evp = np.array([[b[0], b[2], 0], [b[2], b[1], 0], [0, 0, -b[0] - b[1]]])
+        e = eps - evp
+        sigma = lmbda * np.trace(e) * np.eye(3) + two_mu * e
+        X = rng.normal(size=4) * 5.0
+        X[:3] -= X[:3].mean()
+        R = rng.uniform(0, 5) if i % 3 else 1e4                    # 1e4: f < 0, no flow
+        kappa.append(np.r_[X[:3], 0.0, 0.0, X[3], R, rng.uniform(0, 0.1), evp[2, 2]])
+        t.append([sigma[0, 0], sigma[1, 1], sigma[0, 1]])
+        s3.append([sigma[0, 0], sigma[1, 1], sigma[2, 2], 0, 0, sigma[0, 1]])
+    G, Gk = law.rates(np.array(t), np.array(kappa))
+    for i in range(10):
+        Gh, Gkh = _hand_rates(np.array(s3[i]), kappa[i][:8])
+        rate33 = (Gkh[2] + GAMMA * kappa[i][2] * Gkh[7]) / (2 / 3 * C_)
+        np.testing.assert_allclose(G[i], Gh[[0, 1, 5]], rtol=1e-12,
+                                   atol=1e-12 * max(np.abs(Gh).max(), 1.0))
+        np.testing.assert_allclose(Gk[i], np.r_[Gkh, rate33], rtol=1e-12,
+                                   atol=1e-12 * max(np.abs(Gkh).max(), 1.0))
+        flows += Gkh[7] > 0
+    assert flows == 6
+
+
 def _strain(t):
     """The axial strain of the cycle 0 -> EMAX -> -EMAX -> 0 over [0, 4]."""
     return EMAX * np.interp(t, [0.0, 1.0, 3.0, 4.0], [0.0, 1.0, -1.0, 0.0])

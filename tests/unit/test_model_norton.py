@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from conftest import make_case, paper_raw
+from vpcontact.forms.elasticity import plane_strain_moduli
 from vpcontact.io.errors import CaseError
 from vpcontact.model.laws import ExplicitUpdate
 from vpcontact.model.material import Elasticity
@@ -245,3 +246,172 @@ def test_rates_of_the_linear_law(dim):
     assert law.lipschitz_constant() == pytest.approx(3 * mu * 2e-4, rel=1e-12)
     assert Norton(Elasticity(E_, NU, dim), 2e-4, 2.0).relaxation_rate() is None
     assert Norton(Elasticity(E_, NU, dim), 2e-4, 2.0).lipschitz_constant() is None
+
+
+# ---------------------------------------------------------------- plane strain (eps_33 = 0)
+def _ps_elasticity():
+    """The 2D model's E in plane strain (the plane-stress form with the moduli of
+    plane_strain_moduli), as the step problem builds it."""
+    return Elasticity(*plane_strain_moduli(E_, NU), 2)
+
+
+def _hooke3(e):
+    """3D isotropic Hooke's law with E_, NU, on 3 x 3 tensors."""
+    lmbda, mu = E_ * NU / ((1 + NU) * (1 - 2 * NU)), E_ / (2 * (1 + NU))
+    return lmbda * np.trace(e) * np.eye(3) + 2 * mu * e
+
+
+def _norton3(sigma, A, n):
+    """3D Norton by hand: eps_vp' = A s^n (3/2) dev(sigma) / s, s = ||sigma||_VM; p'."""
+    dev = sigma - np.trace(sigma) / 3 * np.eye(3)
+    s = np.sqrt(1.5 * np.sum(dev * dev))
+    return A * s ** (n - 1) * 1.5 * dev, A * s ** n
+
+
+def test_plane_strain_rates_against_3d_norton():
+    """Random plane-strain states built in 3D: total strain with eps_33 = eps_13 = eps_23 = 0,
+    an isochoric creep strain eps_vp (eps_vp13 = eps_vp23 = 0), sigma = C3 (eps - eps_vp) by
+    3D Hooke; 3D Norton's sigma' = -C3 eps_vp' at held strain.  The 2D law given the
+    in-plane sigma and kappa = (p, eps_vp33) gives G = the in-plane sigma', p' and
+    eps_vp33' = the 33 creep rate."""
+    rng = np.random.default_rng(8)
+    for n in (1.0, 3.0):
+        law = Norton(_ps_elasticity(), A_, n, "strain")
+        assert law.m == 2 and law.fields == (("p", 1), ("eps_vp33", 1))
+        t, kappa, want_G, want_Gk = [], [], [], []
+        for _ in range(10):
+            a, b = rng.normal(size=(2, 3)) * 0.02
+            eps = np.array([[a[0], a[2], 0], [a[2], a[1], 0], [0, 0, 0]])
+            evp = np.array([[b[0], b[2], 0], [b[2], b[1], 0], [0, 0, -b[0] - b[1]]])
+            sigma = _hooke3(eps - evp)
+            rate, p_rate = _norton3(sigma, A_, n)
+            t.append([sigma[0, 0], sigma[1, 1], sigma[0, 1]])
+            kappa.append([rng.uniform(), evp[2, 2]])
+            sdot = -_hooke3(rate)
+            want_G.append([sdot[0, 0], sdot[1, 1], sdot[0, 1]])
+            want_Gk.append([p_rate, rate[2, 2]])
+        G, Gk = law.rates(np.array(t), np.array(kappa))
+        want_G, want_Gk = np.array(want_G), np.array(want_Gk)
+        np.testing.assert_allclose(G, want_G, rtol=0, atol=1e-12 * np.abs(want_G).max())
+        np.testing.assert_allclose(Gk, want_Gk, rtol=0, atol=1e-12 * np.abs(want_Gk).max())
+
+
+def test_plane_strain_uniaxial_and_biaxial_creep():
+    """Closed forms with eps_33 = 0 (2 mu = E/(1 + nu), the creep being isochoric):
+    uniaxial s with eps_vp33 = nu s / E (sigma_33 = 0): eps_vp' = A s^n (1, -1/2, -1/2);
+    equibiaxial s with eps_vp33 = 0: sigma_33 = 2 nu s, s_eq = (1 - 2 nu) s, eps_vp' =
+    A s_eq^n (1/2, 1/2, -1); the steady state sigma_33 = s/2 under uniaxial s: eps_vp33' = 0,
+    s_eq = sqrt(3)/2 s, eps_vp' = A s_eq^(n-1) (3/4) s (1, -1, 0)."""
+    law, s, two_mu = Norton(_ps_elasticity(), A_, N_EXP, "strain"), 30.0, E_ / (1 + NU)
+    t = np.array([[s, 0, 0], [s, s, 0], [s, 0, 0]])
+    kappa = np.array([[0, NU * s / E_], [0, 0], [0, (NU - 0.5) * s / E_]])
+    r_uni, seq_bi, seq_st = A_ * s ** N_EXP, (1 - 2 * NU) * s, np.sqrt(3) / 2 * s
+    r_bi = A_ * seq_bi ** N_EXP
+    r_st = A_ * seq_st ** (N_EXP - 1) * 0.75 * s
+    G, Gk = law.rates(t, kappa)
+    np.testing.assert_allclose(G, -two_mu * np.array([[r_uni, -r_uni / 2, 0],
+                                                      [r_bi / 2, r_bi / 2, 0],
+                                                      [r_st, -r_st, 0]]),
+                               rtol=1e-12, atol=1e-12 * two_mu * r_uni)
+    np.testing.assert_allclose(Gk, [[r_uni, -r_uni / 2], [r_bi, -r_bi],
+                                    [A_ * seq_st ** N_EXP, 0]], rtol=1e-12, atol=1e-15 * r_uni)
+    np.testing.assert_allclose(law.creep_rate(t, kappa)[0][0],
+                               [r_uni, -r_uni / 2, -r_uni / 2, 0, 0, 0], rtol=1e-12)
+
+
+def test_plane_strain_relaxation_against_3d():
+    """Every strain held (eps_33 = 0): the explicit update (3.2)-(3.3) of the 2D law with
+    kappa = (p, eps_vp33) is 3D relaxation, dev(sigma3)' = -3 mu A s^(n-1) dev(sigma3): the
+    mean stress stays, s(t) = [s0^(1-n) + (n-1) 3 mu A t]^(1/(1-n)) (sigma_33 = nu
+    (sigma_11 + sigma_22) - E eps_vp33 by hand), first order in k; p = the integral of p'."""
+    el = _ps_elasticity()
+    lmbda, mu = E_ * NU / ((1 + NU) * (1 - 2 * NU)), E_ / (2 * (1 + NU))
+    eps = np.array([0.02, -0.01, 0.015])                    # (eps_11, eps_22, eps_12)
+    sig0 = el.Cmat @ eps
+    s33 = lmbda * (eps[0] + eps[1])
+    mean0 = (sig0[0] + sig0[1] + s33) / 3
+    seq0 = np.sqrt(1.5 * ((sig0[0] - mean0) ** 2 + (sig0[1] - mean0) ** 2
+                          + (s33 - mean0) ** 2 + 2 * sig0[2] ** 2))
+    T = 0.5 / (3 * mu * A_ * seq0 ** (N_EXP - 1))          # s falls by about a third
+    exact = (seq0 ** (1 - N_EXP) + (N_EXP - 1) * 3 * mu * A_ * T) ** (1 / (1 - N_EXP))
+    errors = []
+    for steps in (100, 200):
+        update = Norton(el, A_, N_EXP, "strain").explicit()
+        H, kappa, k = np.zeros(4), np.zeros((1, 2)), T / steps
+        for _ in range(steps):
+            update(el.from_voigt((el.Cmat @ eps + el.to_voigt(H)[0])[None]).reshape(-1), H,
+                   kappa, k)
+        s = el.Cmat @ eps + el.to_voigt(H)[0]
+        s33 = NU * (s[0] + s[1]) - E_ * kappa[0, 1]
+        mean = (s[0] + s[1] + s33) / 3
+        seq = np.sqrt(1.5 * ((s[0] - mean) ** 2 + (s[1] - mean) ** 2 + (s33 - mean) ** 2
+                             + 2 * s[2] ** 2))
+        np.testing.assert_allclose(mean, mean0, rtol=1e-12)
+        errors.append(abs(seq - exact) / exact)
+    print("plane strain norton relaxation, relative errors at k = T/100, T/200:", errors)
+    assert exact < 0.75 * seq0 and errors[-1] < 3e-3 and 1.85 < errors[0] / errors[1] < 2.15
+
+
+def test_plane_strain_rates_of_the_linear_law():
+    """n = 1 in plane strain: the relaxation rate is 3D's, 3 mu A (mu = E/(2 (1 + nu)) of
+    the 3D constants); L_G too, attained by an in-plane shear, and no sampled ratio of G's
+    differences at fixed eps_vp33 exceeds it in the energy norm."""
+    el, A1 = _ps_elasticity(), 2e-4
+    law = Norton(el, A1, 1.0, "strain")
+    mu = E_ / (2 * (1 + NU))
+    assert law.relaxation_rate() == pytest.approx(3 * mu * A1, rel=1e-12)
+    L = law.lipschitz_constant()
+    assert L == pytest.approx(3 * mu * A1, rel=1e-12)
+    rng = np.random.default_rng(2)
+    t = np.vstack([[0.0, 0.0, 1.0], rng.normal(size=(50, 3))])
+    kap = np.zeros((51, 2))
+    kap[:, 1] = 1e-3
+    G = law.rates(t, kap)[0] - law.rates(np.zeros_like(t), kap)[0]
+    ratio = np.sqrt(np.einsum("ni,ij,nj->n", G, el.A, G) / np.einsum("ni,ij,nj->n", t, el.A, t))
+    assert ratio[0] == pytest.approx(L, rel=1e-12) and np.all(ratio <= L * (1 + 1e-12))
+    assert Norton(el, A1, 2.0, "strain").relaxation_rate() is None
+
+
+def test_plane_strain_per_cell_and_anisotropic():
+    """E per cell (CellElasticity): each row's rates are its own E's; an anisotropic E in
+    plane strain is refused (its 2D matrix has no out-of-plane coupling); plane stress and
+    3D ignore ``plane``."""
+    from vpcontact.model.material import CellElasticity, MatrixElasticity
+    soft = Elasticity(*plane_strain_moduli(E_ / 2, 0.2), 2)
+    el = CellElasticity.from_rows(np.stack([_ps_elasticity().Cmat, soft.Cmat]), 2)
+    t, kappa = np.array([[30.0, -5.0, 4.0], [12.0, 7.0, -3.0]]), np.array([[0, 1e-3], [0, -2e-3]])
+    G, Gk = Norton(el, A_, N_EXP, "strain").rates(t, kappa)
+    for i, one in enumerate((_ps_elasticity(), soft)):
+        Gi, Gki = Norton(one, A_, N_EXP, "strain").rates(t[i:i + 1], kappa[i:i + 1])
+        np.testing.assert_allclose(G[i], Gi[0], rtol=1e-13)
+        np.testing.assert_allclose(Gk[i], Gki[0], rtol=1e-13)
+    C = _ps_elasticity().Cmat.copy()
+    C[0, 0] *= 1.5
+    with pytest.raises(ValueError, match="isotropic"):
+        Norton(MatrixElasticity(C, 2), A_, N_EXP, "strain")
+    assert Norton(Elasticity(E_, NU, 3), A_, N_EXP, "strain").m == 1
+    assert Norton(Elasticity(E_, NU, 2), A_, N_EXP).m == 1
+
+
+def test_plane_strain_case():
+    """material.plane: strain gives the law kappa = (p, eps_vp33); a Voigt matrix there and
+    kappa0 != 0 are refused, each on one line naming the key."""
+    raw = _raw(A=2e-6, n=4)
+    raw["material"]["plane"] = "strain"
+    case = make_case(raw)
+    law = viscoplastic_law(case.material.viscoplastic, _ps_elasticity(), case.material.plane)
+    assert law.m == 2 and law.plane_strain is not None
+    bad = _raw(A=2e-6, n=4, kappa0=0.1)
+    bad["material"]["plane"] = "strain"
+    with pytest.raises(CaseError, match=r"material.viscoplastic.kappa0.*: law norton in "
+                                        "plane strain") as info:
+        make_case(bad)
+    assert "\n" not in str(info.value)
+    bad = _raw(A=2e-6, n=4)
+    bad["material"]["plane"] = "strain"
+    for key in ("E", "nu"):
+        del bad["material"][key]
+    bad["material"]["elasticity"] = {"voigt": (_ps_elasticity().Cmat
+                                               * [[1, 1, 0.5], [1, 1, 0.5], [1, 1, 0.5]]).tolist()}
+    with pytest.raises(CaseError, match=r"material.elasticity.*: law norton in plane strain"):
+        make_case(bad)
