@@ -32,6 +32,7 @@ from vpcontact.io.output import (
     write_contact_csv,
     write_json,
 )
+from vpcontact.model.state import KappaOutput
 from vpcontact.post import quantities
 from vpcontact.records import HINT_OUTPUT, StepFailure
 
@@ -101,11 +102,12 @@ def is_output_step(sim) -> bool:
 
 
 class FieldOutput(Observer):
-    """solution.xdmf in ``sim.outdir``: u, sigma, sigma_vm (and kappa) at the start, every
+    """solution.xdmf in ``sim.outdir``: u, sigma, sigma_vm (and kappa, or the law's named
+    internal variables: p for Norton's, X, R, p for Chaboche's) at the start, every
     output.every-th step, the last step and the step a signal stopped at."""
 
     def __init__(self):
-        self.writer = None
+        self.writer = self.kappa = None
 
     def start(self, sim) -> None:
         """Open solution.xdmf, write the mesh and the fields at the start time.
@@ -118,9 +120,18 @@ class FieldOutput(Observer):
         """
         p = sim.problem
         kappa = p.state.kappa
-        fields = [p.u, p.sigma, p.sigma_vm] + ([kappa] if kappa is not None else [])
+        self.kappa = KappaOutput(kappa, getattr(p.law, "fields", None)) \
+            if kappa is not None else None       # kappa, or the law's named variables
+        fields = [p.u, p.sigma, p.sigma_vm] + (self.kappa.functions if kappa is not None
+                                               else [])
         self.writer = FieldWriter(sim.comm, Path(sim.outdir) / "solution.xdmf", p.mesh, fields)
-        self.writer.write(sim.t)
+        self._write(sim.t)
+
+    def _write(self, t: float) -> None:
+        """The fields at time t (the law's named internal variables copied from kappa)."""
+        if self.kappa is not None:
+            self.kappa.update()
+        self.writer.write(t)
 
     def step(self, sim, record: dict) -> None:
         """Write the fields at sim.t if step n is an output step (every output.every-th,
@@ -134,7 +145,7 @@ class FieldOutput(Observer):
             OutputError: the write failed.
         """
         if is_output_step(sim):
-            self.writer.write(sim.t)
+            self._write(sim.t)
 
     def end(self, sim, summary) -> None:
         """Close solution.xdmf (if it was opened).
@@ -160,7 +171,7 @@ class ContactOutput(Observer):
         c = sim.case.contact
         table = quantities.contact_table(sim.problem, sim.boundary_residual)   # None: assembled
         return gather_contact_table(sim.comm, table, c.g,
-                                    compliance=c.c_nu is not None)
+                                    compliance=c.compliance)
 
     def start(self, sim) -> None:
         """Write the facet mesh and the table at the start time.
@@ -294,7 +305,7 @@ class RunFiles(Observer):
             if sim.problem.gamma3 is not None and steps:
                 summary.contact_states = write_contact_csv(
                     sim.comm, outdir / "contact.csv", quantities.contact_table(sim.problem),
-                    sim.case.contact.g, compliance=sim.case.contact.c_nu is not None)
+                    sim.case.contact.g, compliance=sim.case.contact.compliance)
         except OutputError as exc:
             summary.fail(StepFailure.output(summary.last_good_step, steps[-1]["t"], exc))
         try:

@@ -40,6 +40,8 @@ from vpcontact.model.stepping import StepTooSmall, make_stepper
 from vpcontact.observers import Observer, StopRun
 from vpcontact.post import quantities
 from vpcontact.post.diagnostics import diagnose
+from vpcontact.post.lawreport import law_report
+from vpcontact.post.ratewatch import RateWatch, needs_watch
 from vpcontact.records import HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
 from vpcontact.solvers import select_solver, threads
 from vpcontact.solvers.snesvi import StepSolveError, describe_petsc_error
@@ -142,6 +144,9 @@ class Simulation:
         comm: the MPI communicator.
         outdir: the directory the output observers write to (None: a run in memory).
         restart: an vpcontact.io.checkpoint.Checkpoint to continue from (None: start at t = 0).
+        law: a viscoplastic law that replaces the case's: a law written by the user (the
+            protocol of app/model/laws.py) as a class or callable taking the case's
+            Elasticity, or a law object; None: the case's law.
 
     Attributes:
         problem: the ContactProblem (u, sigma, forms, norms).
@@ -157,8 +162,9 @@ class Simulation:
         last_checkpoint: the checkpoint written last (set by the Checkpointer).
     """
 
-    def __init__(self, case: Case, comm, outdir: Path | None = None, restart=None):
+    def __init__(self, case: Case, comm, outdir: Path | None = None, restart=None, law=None):
         self.case, self.comm, self.outdir, self.restart = case, comm, outdir, restart
+        self.law = law
         self.observers: list[Observer] = []
         self.domain = self.problem = self.history = self.gamma3_history = None
         self.solver = self.stepper = self.diagnostics = None
@@ -202,7 +208,7 @@ class Simulation:
             lo, hi = self.domain.bbox
             self.case = case = rescale_for_length(case, float(np.max(hi - lo)),
                                                   check_data_on_mesh(case, self.domain))
-        self.problem = problem = ContactProblem(case, self.domain)
+        self.problem = problem = ContactProblem(case, self.domain, self.law)
         self.history = build_history(case, problem)
         problem.set_initial_values()
         self.gamma3_history = build_gamma3_history(case, problem)
@@ -217,6 +223,8 @@ class Simulation:
         log.info("step solver: %s, set-up (mesh, JIT, matrices) %.2f s", self.solver.describe(),
                  self._clock["setup"])
         self.stepper = make_stepper(case, self.diagnostics.relaxation_rate)
+        if needs_watch(self):       # no rate bound: k r estimated at every step, first
+            self.observers.insert(0, RateWatch())
         if self.restart is not None:
             self.steps = self.restart.restore(self)
             self.n, self.t = self.restart.n, self.restart.t
@@ -525,7 +533,7 @@ class Simulation:
             loop_s=self._clock.get("loop", 0.0),
             wall_s=time.perf_counter() - self._clock["start"],
             step_history=stepper.decisions if stepper.adaptive else None,
-            failure=self.failure)
+            failure=self.failure, laws=law_report(p, self.gamma3_history))
 
 
 @dataclass
@@ -548,7 +556,7 @@ class RunResult:
 
 
 def run(case: Case, comm, observers=(), *, outdir: Path | None = None, restart=None,
-        monitor: bool = True) -> RunResult:
+        monitor: bool = True, law=None) -> RunResult:
     """Run a case: a Simulation with the blow-up monitor (unless ``monitor`` is False) and
     the given observers.  Writes nothing unless an observer does.
 
@@ -559,13 +567,14 @@ def run(case: Case, comm, observers=(), *, outdir: Path | None = None, restart=N
         outdir: the directory the output observers write to.
         restart: an vpcontact.io.checkpoint.Checkpoint to continue from.
         monitor: stop a run whose norms blow up as "diverged" (app/post/divergence.py).
+        law: a viscoplastic law that replaces the case's (see Simulation), or None.
 
     Returns:
         The RunResult (status, summary dict, and the problem and histories at the end).
     """
     from vpcontact.post.divergence import BlowUpMonitor
 
-    sim = Simulation(case, comm, outdir=outdir, restart=restart)
+    sim = Simulation(case, comm, outdir=outdir, restart=restart, law=law)
     if monitor:
         sim.add(BlowUpMonitor())
     for obs in observers:

@@ -71,6 +71,8 @@ class FileMesh:
             (the body, edges, points), so that a case naming one gets a clear error.
         interior: physical tag -> (facets inside the body, facets) of the groups of
             dimension dim - 1 with facets shared by two cells (meshes.bodycheck).
+        cell_groups: physical name -> physical tag of the named groups of dimension dim
+            (the body's parts, whose tags ``cell_tags`` holds).
     """
 
     mesh: object
@@ -88,6 +90,7 @@ class FileMesh:
     L3: float
     other_groups: dict = field(default_factory=dict)
     interior: dict = field(default_factory=dict)
+    cell_groups: dict = field(default_factory=dict)
 
     # what the built-in meshes also say about themselves: an unstructured mesh, no grid, and
     # no single contact normal (the boundary's normals come from its facets)
@@ -221,7 +224,7 @@ def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0,
     if not size > 0:
         raise ValueError(f"size must be > 0, got {size!r}")
     found = on_root(comm, lambda gmsh: (*_read(gmsh, path, dim, size, max_vertices),
-                                        _other_groups(gmsh, dim)),
+                                        _other_groups(gmsh, dim), _named_groups(gmsh, dim)),
                     file_failure(path, "load"), keep=True)
     try:
         msh, ct, ft = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0,
@@ -229,12 +232,19 @@ def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0,
     finally:
         if comm.rank == 0:
             gmsh.finalize()
-    groups, tags, interior, other = found
+    groups, tags, interior, other, cell_groups = found
     h_min, h_max, (lo, hi) = mesh_extent(msh)
     ext = hi - lo
     return FileMesh(msh, ct, ft, groups, tags, dim, path, h_max, h_min, (lo, hi),
                     float(ext[0]), float(ext[1]), float(ext[2]) if dim == 3 else 0.0, other,
-                    interior)
+                    interior, cell_groups)
+
+
+def _named_groups(gmsh, dim: int) -> dict:
+    """Rank 0: name -> tag of the named physical groups of dimension dim (the body's)."""
+    return {gmsh.model.getPhysicalName(dim, tag): int(tag)
+            for _, tag in gmsh.model.getPhysicalGroups(dim)
+            if gmsh.model.getPhysicalName(dim, tag)}
 
 
 def _other_groups(gmsh, dim: int) -> dict:

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from vpcontact.case import expressions
+from vpcontact.case import anisotropy, expressions
 
 MAX_MAGNITUDE = 1e100            # as app/case/reading.py's limit for the numbers of a case
 MAX_CELLS = {2: 128, 3: 16}        # sample grid: at most this many cells per side
@@ -301,7 +301,8 @@ def check_displacement(displacement: dict, samples: Samples) -> float:
     return scale
 
 
-def check_gap(g, sides, samples: Samples) -> None:
+def check_gap(g, sides, samples: Samples, path: str = "contact.g",
+              what: str = "the gap to the foundation") -> None:
     """The gap g (an expression) finite and >= 0 on Gamma3 (the contact sides of a known
     body; for a mesh.file only an expression without x, y, z is sampled here).
 
@@ -309,6 +310,9 @@ def check_gap(g, sides, samples: Samples) -> None:
         g: contact.g: a number, an expression in x, y, z, or None.
         sides: boundaries.contact (side names of the built-in mesh).
         samples: the sample points.
+        path: the key (also contact.normal_compliance.c_nu, contact.memory.b0: fields of
+            x, y, z >= 0 on Gamma3).
+        what: its meaning, for the message.
 
     Raises:
         DataError: for a value that is not finite, or negative.
@@ -316,12 +320,12 @@ def check_gap(g, sides, samples: Samples) -> None:
     if not isinstance(g, str):
         return                                  # a number >= 0 (schema) or no bound
     for side in sides if samples.known else [None]:
-        v = finite_values(g, "contact.g", samples, side, with_t=False)
+        v = finite_values(g, path, samples, side, with_t=False)
         if v.size and v.min() < 0:
             points = samples.points(side)
             where = _where(points if v.shape[1] == len(points) else points[:1], samples.times,
                            (0, int(np.argmin(v[0]))), samples.dim, False)
-            raise DataError(f"contact.g: must be >= 0 on Gamma3 (the gap to the foundation), "
+            raise DataError(f"{path}: must be >= 0 on Gamma3 ({what}), "
                             f"got {v.min():.6g} at {where}")
 
 
@@ -372,3 +376,33 @@ def check_initial(initial: dict, kappa0, g, samples: Samples, direction=None,
             raise DataError(f"material.viscoplastic.kappa0: must be >= 0 everywhere, got "
                             f"{v.min():.6g}")
     return scale, stress
+
+
+def check_elasticity(material: dict, samples: Samples) -> float:
+    """A material section's elasticity at the sample points: E > 0 and 0 <= nu < 0.5 where
+    they are expressions (per cell on the mesh: app/model/stiffness.py).
+
+    Args:
+        material: the section (its E, nu, or elasticity: app/case/anisotropy.py).
+        samples: the sample points.
+
+    Returns:
+        Its modulus scale: E (its largest sampled value), or the largest eigenvalue of an
+        anisotropic E.
+
+    Raises:
+        DataError: E <= 0 or nu outside [0, 0.5) at a sample point, or a value not finite.
+    """
+    spec = material.get("elasticity")
+    if spec is not None:
+        return anisotropy.largest_modulus(
+            anisotropy.elasticity_matrix(spec, samples.dim, material.get("plane", "stress")),
+            samples.dim)
+    E = finite_values(material["E"], "material.E", samples, with_t=False)
+    nu = finite_values(material["nu"], "material.nu", samples, with_t=False)
+    if E.size and E.min() <= 0:
+        raise DataError(f"material.E: must be > 0 everywhere, got {E.min():.6g}")
+    if nu.size and (nu.min() < 0 or nu.max() >= 0.5):
+        raise DataError(f"material.nu: must be in [0, 0.5) everywhere, got values in "
+                        f"[{nu.min():.6g}, {nu.max():.6g}]")
+    return float(E.max(initial=0.0))

@@ -9,6 +9,7 @@ import math
 import os
 from pathlib import Path
 
+from vpcontact.case.materialrules import material_sections
 from vpcontact.io.errors import CaseError
 
 MAX_VERTICES = 1e8           # a mesh larger than this is refused before any computation
@@ -57,9 +58,10 @@ def check_given(data: dict, source: str) -> Path | None:
             check_file_dimension(mesh["dim"], path, source, cheap=True)
         else:
             mesh["dim"] = _file_dimension(path, source)
-    if mesh.get("dim", 2) == 3 and "plane" in data["material"]:
-        raise CaseError(f"{source}: material.plane: not used in 3D (plane stress and plane "
-                        "strain are the 2D models; a 3D body is a solid)")
+    for key, section in material_sections(data):
+        if mesh.get("dim", 2) == 3 and "plane" in section:
+            raise CaseError(f"{source}: {key}.plane: not used in 3D (plane stress and plane "
+                            "strain are the 2D models; a 3D body is a solid)")
     return path
 
 
@@ -136,7 +138,8 @@ def settle_defaults(data: dict, mesh_file: Path | None) -> None:
     if mesh_file is None or mesh_file.suffix.lower() != ".geo":
         mesh.pop("size", None)
     if mesh["dim"] == 3:
-        data["material"].pop("plane", None)
+        for _, section in material_sections(data):
+            section.pop("plane", None)
     bounds = data.setdefault("boundaries", {})
     for role, default in DEFAULT_BOUNDARIES.items():
         refs = bounds.get(role, default if mesh_file is None else [])

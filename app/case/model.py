@@ -53,52 +53,92 @@ class Boundaries:
 
 @dataclass(frozen=True)
 class Viscoplastic:
-    """``material.viscoplastic``: the law ("perzyna" or "power"), lambda1, lambda2, kappa0,
-    and the power law's exponent n and stress scale s_ref (None with perzyna)."""
+    """``material.viscoplastic``: the law ("perzyna", "power", "norton" or "chaboche"),
+    lambda1, lambda2 (perzyna, power; else None), kappa0, the exponent n (power, norton,
+    chaboche), the power law's stress scale s_ref, Norton's A, Chaboche's k, K, C, gamma, Q,
+    b, the user's class and its params (law "python") (each None where the law does not use
+    it)."""
 
-    lambda1: float
-    lambda2: float
+    lambda1: float | None
+    lambda2: float | None
     kappa0: float | str
     law: str = "perzyna"
     n: float | None = None
     s_ref: float | None = None
+    A: float | None = None
+    k: float | None = None
+    K: float | None = None
+    C: float | None = None
+    gamma: float | None = None
+    Q: float | None = None
+    b: float | None = None
+    cls: str | None = None              # law python: the class of --law-module
+    params: dict | None = None          # law python: its constructor's keyword arguments
+
+
+@dataclass(frozen=True)
+class Orthotropic:
+    """``material.elasticity.orthotropic``: the engineering constants E [E1, E2(, E3)], nu
+    [nu12(, nu13, nu23)], G [G12(, G13, G23)] and the material axes (app/case/anisotropy.py)."""
+
+    E: tuple
+    nu: tuple
+    G: tuple
+    axes: tuple
+
+
+@dataclass(frozen=True)
+class Anisotropic:
+    """``material.elasticity``: orthotropic constants or a Voigt matrix (rows, engineering
+    strains), the other None."""
+
+    orthotropic: Orthotropic | None = None
+    voigt: tuple | None = None
 
 
 @dataclass(frozen=True)
 class Material:
-    """The ``material`` section: E, nu, the viscoplastic law or None (elastic), and the 2D
-    model: "stress" (plane stress) or "strain" (plane strain); None in 3D."""
+    """The ``material`` section: E, nu (numbers, or expressions in x, y, z taken per cell;
+    None with ``elasticity``), the viscoplastic law or None (elastic), the 2D model: "stress"
+    (plane stress) or "strain" (plane strain), None in 3D; and the anisotropic
+    ``elasticity`` instead of E, nu (None: isotropic)."""
 
-    E: float
-    nu: float
+    E: float | str | None
+    nu: float | str | None
     viscoplastic: Viscoplastic | None
     plane: str | None = "stress"
+    elasticity: Anisotropic | None = None
 
 
 @dataclass(frozen=True)
 class Slip:
-    """``contact.friction.slip``: theta(s) = theta_inf + (1 - theta_inf) exp(-s/s0)."""
+    """``contact.friction.slip``: theta(s) = theta_inf + (1 - theta_inf) exp(-s/s0), or the
+    piecewise-linear ``table`` [[s, theta], ...] (then theta_inf and s0 are None)."""
 
-    theta_inf: float
-    s0: float
+    theta_inf: float | None
+    s0: float | None
+    table: tuple | None = None
 
 
 @dataclass(frozen=True)
 class Friction:
-    """``contact.friction``: the parameters of law (4.2) and the slip dependence or None."""
+    """``contact.friction``: the parameters of law (4.2) and the slip dependence or None;
+    or the friction stress ``table`` [[rho, tau], ...] (then b, c1, c2, u1 are None)."""
 
-    b: float
-    c1: float
-    c2: float
-    u1: float
+    b: float | None
+    c1: float | None
+    c2: float | None
+    u1: float | None
     slip: Slip | None = None
+    table: tuple | None = None
 
 
 @dataclass(frozen=True)
 class Memory:
-    """``contact.memory``: the memory kernel b(t) and how its sum is computed."""
+    """``contact.memory``: the memory kernel b(t) and how its sum is computed; b0 a number
+    or an expression of x, y, z (b(t, x) = b0(x) times the kernel's shape)."""
 
-    b0: float
+    b0: float | str
     beta: float
     kernel: str
     alpha: float | None
@@ -110,19 +150,29 @@ class Memory:
 @dataclass(frozen=True)
 class Contact:
     """The ``contact`` section: gap g (a number, an expression in x, y, z, or None),
-    normal compliance c_nu (4.1), friction, memory, and the fixed unit approach direction
-    (None: the outward normal of Gamma3)."""
+    normal compliance c_nu (4.1) (a number or an expression in x, y, z) with its exponent
+    compliance_m (None: absent, the law (4.1)) or the compliance_table [[r, p], ...] (then
+    c_nu is None), friction, memory, and the fixed unit approach direction (None: the
+    outward normal of Gamma3)."""
 
     g: float | str | None
-    c_nu: float | None
+    c_nu: float | str | None
     friction: Friction | None
     memory: Memory | None = None
     direction: tuple | None = None
+    compliance_m: float | None = None
+    compliance_table: tuple | None = None
+
+    @property
+    def compliance(self) -> bool:
+        """A normal compliance law is present (c_nu or a table)."""
+        return self.c_nu is not None or self.compliance_table is not None
 
     @property
     def active(self) -> bool:
         """Any Gamma3 term present."""
-        return any(x is not None for x in (self.g, self.c_nu, self.friction, self.memory))
+        return self.compliance or any(x is not None for x in (self.g, self.friction,
+                                                               self.memory))
 
 
 @dataclass(frozen=True)
@@ -191,7 +241,7 @@ class Case:
     name: str
     source: str
     mesh: MeshSpec
-    material: Material
+    material: Material | None      # None with materials
     contact: Contact
     loads: Loads
     initial: Initial
@@ -205,11 +255,18 @@ class Case:
     # the PETSc defaults (DEFAULT_PETSC scaled to the case) under petsc: rescale_for_length
     # replaces those of them that were not given
     petsc_defaults: dict = field(default_factory=dict, repr=False)
+    # materials: physical group of cells (name or tag) -> Material, or None (material)
+    materials: dict | None = None
 
     @property
     def dim(self) -> int:
         """The space dimension."""
         return self.mesh.dim
+
+    @property
+    def all_materials(self) -> tuple:
+        """The Materials of the body: (material,) or those of materials, in the given order."""
+        return (self.material,) if self.materials is None else tuple(self.materials.values())
 
     def active_terms(self) -> list[str]:
         """The model's terms this case has, for the run log.
@@ -217,23 +274,28 @@ class Case:
         Returns:
             Their names.
         """
-        terms = [f"plane-{self.material.plane} elasticity" if self.dim == 2
-                 else "isotropic elasticity (3D)"]
-        if self.material.viscoplastic:
-            vp = self.material.viscoplastic
-            name = "Perzyna" if vp.law == "perzyna" else \
-                f"power-law Perzyna (n = {vp.n:g}, s_ref = {vp.s_ref:g})"
+        first = self.all_materials[0]
+        kind = _elasticity_kind(first)
+        terms = [f"plane-{first.plane} {kind}elasticity" if self.dim == 2
+                 else f"{kind or 'isotropic '}elasticity (3D)"]
+        if self.materials is not None:
+            terms.append(f"{len(self.materials)} materials (groups "
+                         f"{', '.join(map(str, self.materials))})")
+        laws = [m.viscoplastic for m in self.all_materials if m.viscoplastic]
+        if laws:
+            name = ", ".join(dict.fromkeys(_law_title(vp) for vp in laws))
             terms.append(f"{name} viscoplastic history H_n, kappa_n"
                          + (" (implicit, right end point)" if self.time.scheme == "implicit"
                             else " (explicit, as in the paper)"))
-        if self.contact.c_nu is not None:
+        if self.contact.compliance:
             terms.append("normal compliance")
         if self.contact.g is not None:
             terms.append("unilateral constraint u_nu <= g")
         if self.contact.memory is not None:
             terms.append(f"memory term xi_n ({self.contact.memory.kernel} kernel)")
         if self.contact.friction is not None:
-            terms.append("nonmonotone friction (4.2)")
+            terms.append("nonmonotone friction (4.2)" if self.contact.friction.table is None
+                         else "nonmonotone friction (table)")
             if self.contact.friction.slip is not None:
                 terms.append("slip-dependent friction theta(s_n)")
         return terms
@@ -245,9 +307,9 @@ class Case:
             Their names.
         """
         out = []
-        if not self.material.viscoplastic:
+        if not any(m.viscoplastic for m in self.all_materials):
             out.append("viscoplastic history (elastic body)")
-        if self.contact.c_nu is None:
+        if not self.contact.compliance:
             out.append("normal compliance")
         if self.contact.g is None:
             out.append("unilateral constraint")
@@ -287,7 +349,7 @@ def build_case(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Cas
         The Case (its data_stress and petsc_defaults are set by validation).
     """
     mesh, contact, loads = data["mesh"], data.get("contact", {}), data["loads"]
-    init, vp = data.get("initial", {}), data["material"].get("viscoplastic")
+    init = data.get("initial", {})
     fr, mem = contact.get("friction"), contact.get("memory")
     slip = fr.get("slip") if fr else None
     name = case_name(data, source)
@@ -297,20 +359,19 @@ def build_case(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Cas
         name=name,
         source=source,
         mesh=_mesh_spec(mesh),
-        material=Material(float(data["material"]["E"]), float(data["material"]["nu"]),
-                          _viscoplastic(vp) if vp else None,
-                          data["material"].get("plane")),
+        material=_material(data["material"]) if "material" in data else None,
+        materials={group: _material(m) for group, m in data["materials"].items()}
+        if "materials" in data else None,
         contact=Contact(
             g if isinstance(g, str) else float(g) if g is not None else None,
-            float(contact["normal_compliance"]["c_nu"]) if "normal_compliance" in contact
-            else None,
-            Friction(*(float(fr[k]) for k in ("b", "c1", "c2", "u1")),
-                     Slip(float(slip["theta_inf"]), float(slip["s0"])) if slip else None)
-            if fr else None,
-            Memory(float(mem["b0"]), float(mem["beta"]), mem["kernel"], mem.get("alpha"),
-                   mem.get("tau"), tuple(map(tuple, mem["table"])) if "table" in mem else None,
+            _number_or_expression(contact.get("normal_compliance", {}).get("c_nu")),
+            _friction(fr, slip) if fr else None,
+            Memory(_number_or_expression(mem["b0"]), float(mem["beta"]), mem["kernel"],
+                   mem.get("alpha"), mem.get("tau"),
+                   tuple(map(tuple, mem["table"])) if "table" in mem else None,
                    mem["sum"]) if mem else None,
-            tuple(float(x) / math.hypot(*d) for x in d) if d is not None else None),
+            tuple(float(x) / math.hypot(*d) for x in d) if d is not None else None,
+            *_compliance(contact.get("normal_compliance"))),
         loads=Loads(tuple(loads["f0"]) if "f0" in loads else None,
                     {k: tuple(v) for k, v in loads.get("traction", {}).items()},
                     dict(loads.get("pressure", {})),
@@ -327,15 +388,105 @@ def build_case(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Cas
     )
 
 
+def _number_or_expression(value):
+    """A number as a float, an expression (str) as it is, None as None."""
+    return value if value is None or isinstance(value, str) else float(value)
+
+
+def _table(rows) -> tuple | None:
+    """A table [[a, b], ...] as a tuple of float pairs (None: None)."""
+    return None if rows is None else tuple((float(a), float(b)) for a, b in rows)
+
+
+def _compliance(nc: dict | None) -> tuple:
+    """(compliance_m, compliance_table) of contact.normal_compliance (absent: None, None)."""
+    nc = nc or {}
+    m = nc.get("m")
+    return (None if m is None else float(m)), _table(nc.get("table"))
+
+
+def _friction(fr: dict, slip: dict | None) -> Friction:
+    """The Friction of contact.friction: law (4.2)'s b, c1, c2, u1 or a table."""
+    s = None
+    if slip:
+        s = Slip(*(None if k not in slip else float(slip[k]) for k in ("theta_inf", "s0")),
+                 _table(slip.get("table")))
+    return Friction(*(None if k not in fr else float(fr[k]) for k in ("b", "c1", "c2", "u1")),
+                    s, _table(fr.get("table")))
+
+
+def _material(material: dict) -> Material:
+    """The Material of a material section (``material`` or an entry of ``materials``)."""
+    vp = material.get("viscoplastic")
+    return Material(_modulus(material.get("E")), _modulus(material.get("nu")),
+                    _viscoplastic(vp) if vp else None, material.get("plane"),
+                    _anisotropic(material.get("elasticity")))
+
+
+def _elasticity_kind(material: Material) -> str:
+    """The elasticity's kind for the list of terms ("" for the paper's isotropic numbers)."""
+    spec = material.elasticity
+    if spec is not None:
+        return "orthotropic " if spec.orthotropic is not None else "anisotropic (Voigt) "
+    if isinstance(material.E, str) or isinstance(material.nu, str):
+        return "isotropic per-cell (E(x), nu(x)) "
+    return ""
+
+
+def _modulus(value) -> float | str | None:
+    """E or nu: a number as float, an expression string, or None (absent)."""
+    return value if value is None or isinstance(value, str) else float(value)
+
+
+def _anisotropic(spec: dict | None) -> Anisotropic | None:
+    """The Anisotropic of a material.elasticity section (lists as tuples), or None."""
+    if spec is None:
+        return None
+    o = spec.get("orthotropic")
+    return Anisotropic(
+        Orthotropic(tuple(map(float, o["E"])), tuple(map(float, o["nu"])),
+                    tuple(map(float, o["G"])), _rows(o["axes"])) if o is not None else None,
+        _rows(spec["voigt"]) if "voigt" in spec else None)
+
+
+def _rows(matrix) -> tuple:
+    """A list of lists of numbers as a tuple of tuples of floats."""
+    return tuple(tuple(map(float, r)) for r in matrix)
+
+
 def _viscoplastic(vp: dict) -> Viscoplastic:
     """The Viscoplastic of the material.viscoplastic section (law absent: perzyna; the power
     law's n absent: 1)."""
     law = vp.get("law", "perzyna")
     power = law == "power"
+    if law == "python":
+        return Viscoplastic(None, None, vp["kappa0"] if isinstance(vp["kappa0"], str)
+                            else float(vp["kappa0"]), law, cls=vp["class"],
+                            params={k: float(v) for k, v in vp.get("params", {}).items()})
+    if law in ("norton", "chaboche"):
+        return Viscoplastic(None, None, vp["kappa0"] if isinstance(vp["kappa0"], str)
+                            else float(vp["kappa0"]), law, float(vp["n"]),
+                            **{key: float(vp[key]) for key in _LAW_CONSTANTS[law]})
     return Viscoplastic(float(vp["lambda1"]), float(vp["lambda2"]),
                         vp["kappa0"] if isinstance(vp["kappa0"], str) else float(vp["kappa0"]),
                         law, float(vp.get("n", 1.0)) if power else None,
                         float(vp["s_ref"]) if power else None)
+
+
+def _law_title(vp: Viscoplastic) -> str:
+    """The law's name and constants for the run log's active terms."""
+    if vp.law == "perzyna":
+        return "Perzyna"
+    if vp.law == "power":
+        return f"power-law Perzyna (n = {vp.n:g}, s_ref = {vp.s_ref:g})"
+    if vp.law == "python":
+        return f"the user's law {vp.cls} (--law-module)"
+    keys = ("A", "n") if vp.law == "norton" else ("k", "K", "n", "C", "gamma", "Q", "b")
+    return f"{vp.law.capitalize()} ({', '.join(f'{k} = {getattr(vp, k):g}' for k in keys)})"
+
+
+# the constants of the laws without lambda1, lambda2 (besides n)
+_LAW_CONSTANTS = {"norton": ("A",), "chaboche": ("k", "K", "C", "gamma", "Q", "b")}
 
 
 def _mesh_spec(mesh: dict) -> MeshSpec:

@@ -258,7 +258,7 @@ def check_data(data, path: str, source, budget: list) -> None:
         raise CaseError(f"{source}: {path}: {shown} is out of range (allowed: 0 or "
                         f"magnitudes from {MIN_MAGNITUDE:g} to {MAX_MAGNITUDE:g})")
     if isinstance(data, dict):
-        groups = path in tuple(f"loads.{m}" for m in GROUP_MAPS)
+        groups = path in tuple(f"loads.{m}" for m in GROUP_MAPS) + ("materials",)
         for key, value in data.items():
             if groups and not isinstance(key, str) and not _is_tag(key):
                 raise CaseError(f"{source}: {path}: the key {key!r} is not a group (a name, or "

@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 
 from vpcontact.case import expressions
+from vpcontact.case.anisotropy import check_material_elasticity
+from vpcontact.case.materialrules import material_sections, section_errors
 from vpcontact.case.model import case_name
 from vpcontact.case.reading import GROUP_MAPS
 from vpcontact.io.errors import CaseError
@@ -69,12 +71,9 @@ def check_structure(data: dict, source: str) -> None:
     if contact and not any(k in contact for k in ("g", "normal_compliance", "friction", "memory")):
         raise CaseError(f"{source}: contact: give at least one of g, normal_compliance, "
                         "memory, friction")
-    vp = data["material"].get("viscoplastic")
-    if vp:
-        _check_law_keys(vp, source)
-    if vp and isinstance(vp["kappa0"], str):
-        _check_components([vp["kappa0"]], "material.viscoplastic.kappa0", 1, source,
-                          in_time=False, space_dim=dim)
+    for path, section in material_sections(data):    # material, or each of materials
+        with section_errors(path):
+            _check_material(section, dim, source)
     _check_contact(contact, dim, source)
     init = data.get("initial", {})
     if "u0" in init:
@@ -85,6 +84,43 @@ def check_structure(data: dict, source: str) -> None:
             raise CaseError(f"{source}: initial.sigma0: expected a {dim} x {dim} matrix")
         for i, r in enumerate(rows):
             _check_components(r, f"initial.sigma0[{i}]", dim, source, in_time=False)
+
+
+def _check_material(material: dict, dim: int, source: str) -> None:
+    """A material section: its elasticity (E and nu or material.elasticity, positive
+    definite: app/case/anisotropy.py) and E, nu expressions, its viscoplastic law's keys,
+    kappa0's expression."""
+    try:
+        check_material_elasticity(material, dim)
+    except ValueError as e:
+        raise CaseError(f"{source}: {e}") from None
+    for key in ("E", "nu"):
+        if isinstance(material.get(key), str):
+            _check_component(material[key], f"material.{key}", ("x", "y", "z")[:dim], source)
+    vp = material.get("viscoplastic")
+    if vp:
+        _check_law_keys(vp, source)
+    if vp and dim == 2 and material.get("plane") == "strain":
+        _check_plane_strain_law(material, vp, source)
+    if vp and isinstance(vp["kappa0"], str):
+        _check_components([vp["kappa0"]], "material.viscoplastic.kappa0", 1, source,
+                          in_time=False, space_dim=dim)
+
+
+def _check_plane_strain_law(material: dict, vp: dict, source: str) -> None:
+    """Laws norton and chaboche in plane strain carry sigma_33 with the 3D E, nu of an
+    isotropic E (app/model/planestrain.py) and eps_vp33 in kappa, which starts at 0."""
+    law = vp.get("law", "perzyna")
+    if law not in ("norton", "chaboche"):
+        return
+    if "elasticity" in material:
+        raise CaseError(f"{source}: material.elasticity: law {law} in plane strain "
+                        "(material.plane: strain) needs an isotropic E (material.E, "
+                        "material.nu) for its out-of-plane stress sigma_33")
+    if law == "norton" and vp["kappa0"] != 0:
+        raise CaseError(f"{source}: material.viscoplastic.kappa0: law norton in plane strain "
+                        "(material.plane: strain) starts from p = 0, eps_vp33 = 0 (allowed: "
+                        "0 or absent)")
 
 
 def _check_group(ref, path: str, builtin: bool, dim: int, source: str, named: bool) -> None:
@@ -177,32 +213,131 @@ def _check_contact(contact: dict, dim: int, source: str) -> None:
     if d is not None and not math.hypot(*d) > 0:
         raise CaseError(f"{source}: contact.direction: the zero vector is no direction "
                         "(allowed: a vector of length > 0)")
+    _check_compliance(contact.get("normal_compliance"), dim, source)
     fr = contact.get("friction")
-    if fr and fr["b"] - fr["c1"] * fr["u1"] < 0:
+    if fr:
+        _check_friction(fr, source)
+    if fr and "table" not in fr and fr["b"] - fr["c1"] * fr["u1"] < 0:
         raise CaseError(f"{source}: contact.friction: b - c1 u1 must be >= 0 (the friction "
                         f"force of law (4.2) may not change sign), got "
                         f"{fr['b'] - fr['c1'] * fr['u1']:g}")
     if contact.get("memory"):
         _check_memory(contact["memory"], source)
+    if isinstance((contact.get("memory") or {}).get("b0"), str):
+        _check_component(contact["memory"]["b0"], "contact.memory.b0", tuple("xyz"[:dim]),
+                         source)
 
 
-# the keys of material.viscoplastic that only one law uses
-LAW_KEYS = {"n": "power", "s_ref": "power"}
+def _either(given: dict, path: str, keys: tuple, table: str, source: str) -> None:
+    """Exactly one of the parameters ``keys`` (all of them) and ``table`` is given."""
+    have = [k for k in keys if k in given]
+    if table in given and have:
+        raise CaseError(f"{source}: {path}.{table}: not with {', '.join(have)} (give "
+                        f"{', '.join(keys)}, or {table}; not both)")
+    if table not in given and len(have) < len(keys):
+        missing = [k for k in keys if k not in given][0]
+        raise CaseError(f"{source}: {path}.{missing}: required (give {', '.join(keys)}, or "
+                        f"{table})")
+
+
+def _table_points(rows, path: str, source: str) -> tuple[list, list]:
+    """The abscissae of a law's table start at 0 and increase strictly."""
+    xs, ys = [r[0] for r in rows], [r[1] for r in rows]
+    if xs[0] != 0.0 or any(b <= a for a, b in zip(xs, xs[1:])):
+        raise CaseError(f"{source}: {path}: the first column must start at 0 and increase "
+                        "strictly")
+    return xs, ys
+
+
+def _check_compliance(nc: dict | None, dim: int, source: str) -> None:
+    """contact.normal_compliance: c_nu (with m) or a table, nondecreasing from [0, 0]."""
+    if nc is None:
+        return
+    _either(nc, "contact.normal_compliance", ("c_nu",), "table", source)
+    if "m" in nc and "c_nu" not in nc:
+        raise CaseError(f"{source}: contact.normal_compliance.m: only with c_nu (a table "
+                        "gives p(r) itself)")
+    if isinstance(nc.get("c_nu"), str):
+        _check_component(nc["c_nu"], "contact.normal_compliance.c_nu", tuple("xyz"[:dim]),
+                         source)
+    if "table" in nc:
+        path = "contact.normal_compliance.table"
+        _, ps = _table_points(nc["table"], path, source)
+        if ps[0] != 0.0 or any(b < a for a, b in zip(ps, ps[1:])):
+            raise CaseError(f"{source}: {path}: p must start at [0, 0] and be nondecreasing "
+                            "(H(p): an increasing compliance)")
+
+
+def _check_friction(fr: dict, source: str) -> None:
+    """contact.friction: b, c1, c2, u1 or a table (tau(0) > 0, tau >= 0, last slope >= 0);
+    its slip: theta_inf, s0 or a table in [0, 1]."""
+    _either(fr, "contact.friction", ("b", "c1", "c2", "u1"), "table", source)
+    if "table" in fr:
+        path = "contact.friction.table"
+        rho, tau = _table_points(fr["table"], path, source)
+        if not tau[0] > 0:
+            raise CaseError(f"{source}: {path}: tau(0) must be > 0 (the friction bound at "
+                            f"zero slip), got {tau[0]:g}")
+        if min(tau) < 0 or tau[-1] < tau[-2]:
+            raise CaseError(f"{source}: {path}: tau must be >= 0 and its last segment "
+                            "nondecreasing (it is extrapolated linearly): the friction "
+                            "force may not change sign")
+    slip = fr.get("slip")
+    if slip is not None:
+        _either(slip, "contact.friction.slip", ("theta_inf", "s0"), "table", source)
+    if slip is not None and "table" in slip:
+        path = "contact.friction.slip.table"
+        _, theta = _table_points(slip["table"], path, source)
+        if any(not 0.0 <= v <= 1.0 for v in theta):
+            raise CaseError(f"{source}: {path}: theta must be in [0, 1]")
+
+
+# the keys of material.viscoplastic that only some laws use
+LAW_KEYS = {"lambda1": ("perzyna", "power"), "lambda2": ("perzyna", "power"),
+            "n": ("power", "norton", "chaboche"), "s_ref": ("power",), "A": ("norton",),
+            **dict.fromkeys(("k", "K", "C", "gamma", "Q", "b"), ("chaboche",))}
+# the keys each law requires, with what they are (the schema has no defaults for them)
+LAW_REQUIRED = {
+    "perzyna": {"lambda1": "the viscosity of G, in N s/m^2",
+                "lambda2": "the viscosity of Gk, in s"},
+    "power": {"lambda1": "the viscosity of G, in N s/m^2",
+              "lambda2": "the viscosity of Gk, in s",
+              "s_ref": "the stress scale of the overstress r = ||sigma - P sigma||_VM / "
+                       "s_ref, in Pa"},
+    "norton": {"A": "the coefficient of eps_vp' = A sigma_eq^n N, in Pa^-n s^-1",
+               "n": "the exponent n >= 1 of sigma_eq^n"},
+    "chaboche": {"k": "the initial yield stress, in Pa", "K": "the drag stress, in Pa",
+                 "n": "the exponent n >= 1 of <f/K>^n", "C": "the kinematic modulus, in Pa",
+                 "gamma": "the dynamic recovery", "Q": "the saturated isotropic hardening, "
+                                                  "in Pa", "b": "the isotropic rate"}}
+
+# law python: the class of --law-module and its constructor's keyword arguments
+LAW_KEYS.update({"class": ("python",), "params": ("python",)})
+LAW_REQUIRED["python"] = {"class": "the name of the law's class in the module of "
+                                   "--law-module FILE.py"}
 
 
 def _check_law_keys(vp: dict, source: str) -> None:
-    """material.viscoplastic: a key of another law (n, s_ref with perzyna) is refused; the
-    power law needs s_ref (the schema has no defaults for n and s_ref, so a key present here
-    was given)."""
+    """material.viscoplastic: a key of another law (n, s_ref with perzyna, lambda1 with
+    norton, ...) is refused; each law's own keys are required (the schema has no defaults for
+    them, so a key present here was given); chaboche starts from X = R = p = 0, so its kappa0
+    may only be 0."""
     law = vp.get("law", "perzyna")
-    for key, owner in LAW_KEYS.items():
-        if key in vp and owner != law:
+    for key, owners in LAW_KEYS.items():
+        if key in vp and law not in owners:
             raise CaseError(f"{source}: material.viscoplastic.{key}: not used with law "
-                            f"{law} (only with law {owner})")
-    if law == "power" and "s_ref" not in vp:
-        raise CaseError(f"{source}: material.viscoplastic.s_ref: required with law power "
-                        "(the stress scale of the overstress r = ||sigma - P sigma||_VM / "
-                        "s_ref, in Pa)")
+                            f"{law} (only with law{'s' * (len(owners) > 1)} "
+                            f"{', '.join(owners)})")
+    for key, what in LAW_REQUIRED[law].items():
+        if key not in vp:
+            raise CaseError(f"{source}: material.viscoplastic.{key}: required with law {law} "
+                            f"({what})")
+    if law == "chaboche" and vp["kappa0"] != 0:
+        raise CaseError(f"{source}: material.viscoplastic.kappa0: law chaboche starts from "
+                        "X = 0, R = 0, p = 0 (allowed: 0 or absent)")
+    if law == "chaboche" and vp["k"] + vp["Q"] < 0:
+        raise CaseError(f"{source}: material.viscoplastic.Q: k + Q must be >= 0 (the yield "
+                        f"radius k + R tends to k + Q), got {vp['k'] + vp['Q']:g}")
 
 
 def _check_memory(mem: dict, source: str) -> None:

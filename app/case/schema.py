@@ -101,35 +101,132 @@ SCHEMA = _obj({
                    "only); Gamma2 is the rest of the boundary.  Built-in meshes default to "
                    "clamped [left], contact [bottom]"),
     "material": _obj({
-        "E": {**_pos, "description": "Young's modulus [N/m^2]"},
-        "nu": {"type": "number", "minimum": 0, "exclusiveMaximum": 0.5,
-               "description": "Poisson's ratio"},
+        "E": {"oneOf": [_pos, _expr],
+              "description": "Young's modulus [N/m^2]: a number, or an expression in x, y, z "
+                             "taken per cell (at its midpoint: E(x) in L-infinity, DG0); "
+                             "with nu, the isotropic law; not with elasticity"},
+        "nu": {"oneOf": [{"type": "number", "minimum": 0, "exclusiveMaximum": 0.5}, _expr],
+               "description": "Poisson's ratio (dimensionless, 0 <= nu < 0.5): a number, or "
+                              "an expression in x, y, z taken per cell (at its midpoint); "
+                              "not with elasticity"},
+        "elasticity": _obj({
+            "orthotropic": _obj({
+                "E": {"type": "array", "items": _pos, "minItems": 2, "maxItems": 3,
+                      "description": "Young's moduli along the material axes [N/m^2]: [E1, "
+                                     "E2, E3] (3D; 2D plane strain), [E1, E2] (2D plane "
+                                     "stress)"},
+                "nu": {"type": "array", "items": _num, "minItems": 1, "maxItems": 3,
+                       "description": "Poisson's ratios nu_ij = -eps_j / eps_i under a "
+                                      "uniaxial stress along a_i (dimensionless): [nu12, "
+                                      "nu13, nu23], or [nu12] in 2D plane stress"},
+                "G": {"type": "array", "items": _pos, "minItems": 1, "maxItems": 3,
+                      "description": "shear moduli [N/m^2]: [G12, G13, G23], or [G12] in 2D "
+                                     "plane stress"},
+                "axes": {"type": "array", "minItems": 1, "maxItems": 2,
+                         "items": {"type": "array", "items": _num, "minItems": 2,
+                                   "maxItems": 3},
+                         "description": "the material axes in the global frame (lengths do "
+                                        "not matter; nonzero, orthogonal): [a1, a2] in 3D "
+                                        "(a3 = a1 x a2), [a1] in 2D (a2 = a1 turned by +90 "
+                                        "degrees)"},
+            }, required=["E", "nu", "G", "axes"],
+                description="orthotropic elasticity from engineering constants: in the "
+                            "material axes the compliance has 1/E_i on the diagonal, -nu_ij "
+                            "/ E_i off it, 1/G_ij on the shears; 2D plane stress takes its "
+                            "in-plane block, plane strain (3D data) the reduced compliance "
+                            "(eps_33 = 0)"),
+            "voigt": {"type": "array", "minItems": 3, "maxItems": 6,
+                      "items": {"type": "array", "items": _num, "minItems": 3, "maxItems": 6},
+                      "description": "the stiffness matrix [N/m^2], symmetric positive "
+                                     "definite, stresses from engineering strains (shears 2 "
+                                     "eps_ij) in the order (11, 22, 12) in 2D (the in-plane "
+                                     "law itself: material.plane does not change it), (11, "
+                                     "22, 33, 23, 13, 12) in 3D"},
+        }, description="an anisotropic elasticity E instead of E and nu: exactly one of "
+                       "orthotropic and voigt; refused unless positive definite (check "
+                       "prints m_E)"),
         "viscoplastic": _obj({
-            "lambda1": {**_pos, "description": "viscosity lambda1 of Gfun [N s/m^2]"},
-            "lambda2": {**_pos, "description": "lambda2 of the kappa law Gk [s]"},
+            "lambda1": {**_pos, "description": "viscosity lambda1 of Gfun [N s/m^2] (laws "
+                                              "perzyna and power: required there)"},
+            "lambda2": {**_pos, "description": "lambda2 of the kappa law Gk [s] (laws perzyna "
+                                              "and power: required there)"},
             "kappa0": {"oneOf": [_nonneg, _expr], "default": 0.0,
-                       "description": "initial internal state variable kappa0 [N/m^2]: a "
+                       "description": "initial internal state variable kappa0 [N/m^2] (law "
+                                      "norton: the initial accumulated creep strain p0, "
+                                      "dimensionless, only 0 in plane strain; law chaboche: "
+                                      "only 0, its X, R, p start "
+                                      "at 0): a "
                                       "number or an expression in x, y, z"},
-            "law": {"enum": ["perzyna", "power"],
+            "law": {"enum": ["perzyna", "power", "norton", "chaboche", "python"],
                     "description": "the viscoplastic law (absent: perzyna): perzyna, the "
                                    "paper's G = -1/(2 lambda1) E (sigma - P sigma), Gk = "
                                    "2/(3 lambda2) ||sigma - P sigma||_VM; power, Perzyna with "
                                    "a power overstress: both rates times r^(n-1), r = "
-                                   "||sigma - P sigma||_VM / s_ref (n = 1: perzyna)"},
+                                   "||sigma - P sigma||_VM / s_ref (n = 1: perzyna); norton, "
+                                   "creep without a yield surface: eps_vp' = A sigma_eq^n N, "
+                                   "sigma_eq = ||sigma||_VM (2D plane stress: the paper's "
+                                   "norm, sigma_33 = 0), N = d sigma_eq / d sigma, kappa = p "
+                                   "the accumulated creep strain, p' = A sigma_eq^n; "
+                                   "chaboche, unified viscoplasticity with nonlinear "
+                                   "kinematic and isotropic hardening: f = ||sigma - X||_VM - "
+                                   "R - k, p' = <f/K>^n, eps_vp' = p' N(sigma - X), X' = 2/3 C "
+                                   "eps_vp' - gamma X p', R' = b (Q - R) p', kappa = (X, R, "
+                                   "p), m = 8, starting from 0; G = -E eps_vp' for both; in "
+                                   "2D plane strain both carry sigma_33 = nu (sigma_11 + "
+                                   "sigma_22) - E eps_vp33 in the 3D norm, eps_vp33 one more "
+                                   "internal variable (m = 2 and 9; an isotropic E, kappa0 0; "
+                                   "perzyna and power keep the paper's 2D norm there); "
+                                   "python, a law written by the user: the class named by "
+                                   "class in the module given with --law-module FILE.py"},
             "n": {"type": "number", "minimum": 1,
-                  "description": "law power: the exponent n of the overstress r^(n-1) "
-                                 "(dimensionless; absent: 1); not used with perzyna"},
+                  "description": "the exponent n >= 1 (dimensionless): law power, of the "
+                                 "overstress r^(n-1) (absent: 1); law norton, of sigma_eq^n "
+                                 "(required); law chaboche, of <f/K>^n (required); not used "
+                                 "with perzyna"},
+            "A": {**_pos, "description": "law norton (required there): the Norton coefficient "
+                                        "A of eps_vp' = A sigma_eq^n N [Pa^-n s^-1]"},
+            "k": {**_nonneg, "description": "law chaboche (required there): the initial yield "
+                                           "stress k of f = ||sigma - X||_VM - R - k [Pa]"},
+            "K": {**_pos, "description": "law chaboche (required there): the drag stress K "
+                                        "of p' = <f/K>^n [Pa]"},
+            "C": {**_nonneg, "description": "law chaboche (required there): the kinematic "
+                                           "hardening modulus C of X' = 2/3 C eps_vp' - gamma "
+                                           "X p' [Pa]"},
+            "gamma": {**_nonneg, "description": "law chaboche (required there): the dynamic "
+                                               "recovery gamma of X' = 2/3 C eps_vp' - gamma "
+                                               "X p' (dimensionless; 0: linear kinematic "
+                                               "hardening)"},
+            "Q": {"type": "number", "description": "law chaboche (required there): the "
+                                                   "saturated isotropic hardening Q of R' = "
+                                                   "b (Q - R) p' [Pa] (negative: softening, "
+                                                   "with k + Q >= 0)"},
+            "b": {**_nonneg, "description": "law chaboche (required there): the rate b of the "
+                                           "isotropic hardening R' = b (Q - R) p' "
+                                           "(dimensionless)"},
             "s_ref": {**_pos, "description": "law power (required there): the stress scale "
                                             "s_ref of the overstress r = ||sigma - P "
                                             "sigma||_VM / s_ref [N/m^2 = Pa]; not used with "
                                             "perzyna"},
-        }, required=["lambda1", "lambda2"],
-            description="viscoplastic law, Perzyna's or its power overstress variant "
-                        "(absent: elastic body, no history update)"),
+            "class": {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_]*$",
+                      "maxLength": 100,
+                      "description": "law python (required there): the name of the law's "
+                                     "class in the module of --law-module FILE.py (without "
+                                     "the option the case is refused: a case file alone "
+                                     "never runs code); built as Class(elasticity, "
+                                     "**params)"},
+            "params": {"type": "object", "additionalProperties": {"type": "number"},
+                       "propertyNames": {"pattern": r"^[A-Za-z_][A-Za-z0-9_]*$"},
+                       "maxProperties": 100,
+                       "description": "law python: the keyword arguments of the class's "
+                                      "constructor, numbers in the units the law expects "
+                                      "(absent: none)"},
+        }, description="viscoplastic law: Perzyna's, its power overstress variant, "
+                       "Norton's creep, Chaboche's or a class written by the user (absent: "
+                       "elastic body, no history update)"),
         "plane": {"enum": ["stress", "strain"], "default": "stress",
                   "description": "2D: plane stress (the paper's, a thin plate) or plane strain "
                                  "(a long body); not used in 3D"},
-    }, required=["E", "nu"], description="material"),
+    }, description="material: E and nu (isotropic), or elasticity"),
     "contact": _obj({
         "g": {"oneOf": [_nonneg, _expr],
               "description": "the initial gap to the rigid foundation, the bound u_nu <= g on "
@@ -146,10 +243,25 @@ SCHEMA = _obj({
                                      "unit normal of Gamma3 at each node; (0, -1) / (0, 0, -1) "
                                      "on the built-in bottom side)"},
         "normal_compliance": _obj({
-            "c_nu": {**_nonneg, "description": "stiffness of p(r) = c_nu r^+ [N/m^3]"},
-        }, required=["c_nu"], description="normal compliance (4.1)"),
+            "c_nu": {"oneOf": [_nonneg, _expr],
+                     "description": "stiffness of p(r) = c_nu (r^+)^m [N/m^(2+m)] (m = 1: "
+                                    "N/m^3): a number >= 0 or an expression in x, y, z, "
+                                    ">= 0 on Gamma3 (p(x, r))"},
+            "m": {"type": "number", "minimum": 1,
+                  "description": "exponent m >= 1 of p(r) = c_nu (r^+)^m (dimensionless; "
+                                 "absent: 1, the law (4.1)); only with c_nu"},
+            "table": {**_table, "minItems": 2,
+                      "description": "[[r, p], ...]: p(r) [N/m^2] piecewise linear in the "
+                                     "normal displacement r [m], nondecreasing, starting at "
+                                     "[0, 0], constant beyond the last point (instead of "
+                                     "c_nu)"},
+        }, description="normal compliance p(r): c_nu r^+ (4.1), c_nu (r^+)^m, or a table "
+                       "(give c_nu or table)"),
         "memory": _obj({
-            "b0": {**_nonneg, "description": "memory kernel amplitude b0 [N/(m^3 s)]"},
+            "b0": {"oneOf": [_nonneg, _expr],
+                   "description": "memory kernel amplitude b0 [N/(m^3 s)]: a number >= 0 or "
+                                  "an expression in x, y, z, >= 0 on Gamma3 (b(t, x) = "
+                                  "b0(x) times the kernel's shape)"},
             "beta": {**_nonneg, "default": 0.0,
                      "description": "decay rate of the exponential kernel b0 exp(-beta t) [1/s]"},
             "kernel": {"enum": ["exponential", "power", "table"], "default": "exponential",
@@ -168,15 +280,28 @@ SCHEMA = _obj({
             "c1": {**_nonneg, "description": "softening slope on 0 < |u_tau| < u1"},
             "c2": {**_nonneg, "description": "hardening slope on |u_tau| >= u1"},
             "u1": {**_pos, "description": "slip where softening turns into hardening [m]"},
+            "table": {**_table, "minItems": 2,
+                      "description": "[[rho, tau], ...]: the friction stress tau(rho) = "
+                                     "psi'(rho) [N/m^2] piecewise linear in the slip rho = "
+                                     "|u_tau| [m] (instead of b, c1, c2, u1): rho increasing "
+                                     "from 0, tau(0) > 0 the bound at zero slip, tau >= 0, "
+                                     "nonmonotone allowed (m_j of (2.6) is the largest "
+                                     "decreasing slope), extrapolated linearly beyond the "
+                                     "last point (its slope >= 0); psi its exact primitive"},
             "slip": _obj({
                 "theta_inf": {"type": "number", "minimum": 0, "maximum": 1,
                               "description": "limit of theta(s) for large accumulated slip"},
                 "s0": {**_pos, "description": "slip scale of theta(s) [m s]"},
-            }, required=["theta_inf", "s0"],
-                description="slip dependence j = theta(s) psi, theta(s) = theta_inf + "
-                            "(1 - theta_inf) exp(-s/s0), s = int_0^t |u_tau| (absent: none)"),
-        }, required=["b", "c1", "c2", "u1"],
-            description="nonmonotone friction law (4.2) (absent: frictionless)"),
+                "table": {**_table, "minItems": 2,
+                          "description": "[[s, theta], ...]: theta(s) piecewise linear in "
+                                         "the accumulated slip s [m s], s increasing from "
+                                         "0, theta in [0, 1] (dimensionless), constant "
+                                         "beyond the last point (instead of theta_inf, s0)"},
+            }, description="slip dependence j = theta(s) psi, theta(s) = theta_inf + "
+                           "(1 - theta_inf) exp(-s/s0) or a table, s = int_0^t |u_tau| "
+                           "(absent: none; give theta_inf and s0, or table)"),
+        }, description="nonmonotone friction law (4.2) of b, c1, c2, u1, or a friction "
+                       "table (absent: frictionless)"),
     }, description="contact on Gamma3 = boundaries.contact (built-in meshes: the bottom "
                    "side by default) with a rigid foundation (absent: Gamma3 is traction "
                    "free)"),
@@ -277,5 +402,18 @@ SCHEMA = _obj({
                                             "step to checkpoint.npz, for run --restart DIR "
                                             "(absent: no checkpoints)"},
     }, description="outputs", default={}),
-}, required=["mesh", "material", "loads", "time"])
+}, required=["mesh", "loads", "time"])
 SCHEMA["$schema"] = "http://json-schema.org/draft-07/schema#"
+# materials: the material section's own schema (the same dict) per physical group of cells,
+# listed after material
+_MATERIALS = {
+    "type": "object", "minProperties": 1, "maxProperties": 1000,
+    "additionalProperties": SCHEMA["properties"]["material"],
+    "description": "with mesh.file, instead of material: one material per physical group of "
+                   "cells of the body's dimension (its name, or its physical tag: an integer "
+                   ">= 0), each with every key of material (its viscoplastic law included; "
+                   "none: an elastic group); the groups must cover the body and have one "
+                   "material.plane; either material or materials"}
+_KEYS = list(SCHEMA["properties"].items())
+_AT = [key for key, _ in _KEYS].index("material") + 1
+SCHEMA["properties"] = dict(_KEYS[:_AT] + [("materials", _MATERIALS)] + _KEYS[_AT:])

@@ -45,6 +45,11 @@ def fill_defaults(data: dict, schema: dict = SCHEMA) -> None:
             data[key] = copy.deepcopy(sub["default"])
         if isinstance(data.get(key), dict) and sub.get("type") == "object":
             fill_defaults(data[key], sub)
+    entries = schema.get("additionalProperties")      # a map of sections (materials)
+    if isinstance(entries, dict) and "properties" in entries:
+        for key, value in data.items():
+            if key not in schema.get("properties", {}) and isinstance(value, dict):
+                fill_defaults(value, entries)
 
 
 def _key_path(err: jsonschema.ValidationError) -> str:
@@ -82,6 +87,13 @@ def _explain(err: jsonschema.ValidationError) -> str:
 def _schema_view(data: dict, source: str) -> dict:
     """The case with the keys of the group maps of loads as strings, for jsonschema (which
     names object keys by strings; YAML reads a physical tag as an integer key)."""
+    materials = data.get("materials")
+    if isinstance(materials, dict) and not all(isinstance(k, str) for k in materials):
+        both = [k for k in materials if not isinstance(k, str) and str(k) in materials]
+        if both:
+            raise CaseError(f"{source}: materials.{both[0]}: given twice, as the tag "
+                            f"{both[0]} and as the name '{both[0]}' (give one)")
+        data = {**data, "materials": {str(k): v for k, v in materials.items()}}
     loads = data.get("loads")
     if not isinstance(loads, dict):
         return data

@@ -14,6 +14,7 @@ import copy
 import dataclasses
 from pathlib import Path
 
+from vpcontact.case.materialrules import check_material_keys, check_planes
 from vpcontact.case.meshrules import (
     MAX_LENGTH,
     MIN_LENGTH,
@@ -62,10 +63,12 @@ def _validate(data: dict, source: str) -> Case:
     check_data(data, "", source, [MAX_CASE_SIZE])      # dicts built in code, not by load_raw
     data = copy.deepcopy(dict(data))
     check_schema(data, source)
+    check_material_keys(data, source)
     dim_given = "dim" in data["mesh"]
     mesh_file = check_given(data, source)
     fill_defaults(data)
     settle_defaults(data, mesh_file)
+    check_planes(data, source)
     if mesh_file is None:
         check_mesh(data["mesh"], source)
     try:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 from vpcontact.case import datacheck
+from vpcontact.case.materialrules import material_sections, section_errors
 from vpcontact.case.meshrules import DEFAULT_BOUNDARIES
 from vpcontact.case.model import Case
 from vpcontact.io.errors import CaseError
@@ -48,19 +49,30 @@ def check_values(case: Case, length: float | None = None, samples=None) -> float
                  for L in lengths]
         samples = datacheck.Samples(lengths, cells, time_grid.times, adaptive)
     geometric = "file" not in mesh and bounds == DEFAULT_BOUNDARIES
-    vp = data["material"].get("viscoplastic")
     try:
         loads = datacheck.check_loads(data["loads"], samples)
         moved = datacheck.check_displacement(data["loads"].get("displacement", {}), samples)
         datacheck.check_gap(g, bounds["contact"], samples)
-        u0, sigma0 = datacheck.check_initial(data.get("initial", {}),
-                                             vp["kappa0"] if vp else None, g, samples,
+        contact = data.get("contact", {})
+        datacheck.check_gap(contact.get("normal_compliance", {}).get("c_nu"),
+                            bounds["contact"], samples, "contact.normal_compliance.c_nu",
+                            "the compliance coefficient")
+        datacheck.check_gap((contact.get("memory") or {}).get("b0"), bounds["contact"],
+                            samples, "contact.memory.b0", "the memory kernel's amplitude")
+        u0, sigma0 = datacheck.check_initial(data.get("initial", {}), None, g, samples,
                                              data.get("contact", {}).get("direction"),
                                              geometric)
+        moduli = []                                       # E (or M_E) of each material
+        for path, section in material_sections(data):    # kappa0 of each material
+            vp = section.get("viscoplastic")
+            with section_errors(path, datacheck.DataError):
+                datacheck.check_initial({}, vp["kappa0"] if vp else None, None, samples)
+                moduli.append(datacheck.check_elasticity(section, samples))
     except datacheck.DataError as exc:
         raise CaseError(f"{case.source}: {exc}") from None
     length = body_length(data) if length is None else length
-    return max(loads, sigma0, case.material.E * max(u0, moved) / length)
+    E = max(moduli)
+    return max(loads, sigma0, E * max(u0, moved) / length)
 
 
 def check_values_on_mesh(case: Case, samples, length: float) -> float:

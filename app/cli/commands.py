@@ -39,12 +39,14 @@ def start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
     from mpi4py import MPI
 
     from vpcontact.case import load_raw, validate
+    from vpcontact.model.lawmodule import prepare_law_module
 
     comm = MPI.COMM_WORLD
     setup_logging(comm, args.quiet, getattr(args, "verbose", False))
     try:
         raw = load_raw(args.case, args.overrides)
         case = validate(raw, args.case)
+        prepare_law_module(case.raw, getattr(args, "law_module", None))
         if petsc_cli:
             from vpcontact.solvers.optioncheck import check_petsc_options
             check_petsc_options(petsc_cli, "command line", where="-", base=case.petsc)
@@ -486,10 +488,12 @@ def cmd_check(args) -> int:
 
     from vpcontact.case import load_raw, validate
     from vpcontact.cli.checkrun import report
+    from vpcontact.model.lawmodule import prepare_law_module
     comm = MPI.COMM_WORLD
     setup_logging(comm, False)
     try:
         case = validate(load_raw(args.case, args.overrides), args.case)
+        prepare_law_module(case.raw, args.law_module)
     except CaseError as exc:
         return error(str(exc), EXIT_BAD_INPUT)
     for line in report(case, comm):

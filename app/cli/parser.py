@@ -166,12 +166,22 @@ def _case_options(parser, what: str, default_out: str) -> None:
                              "PETSc monitors (-snes_monitor, -snes_converged_reason)")
 
 
+def _law_module_option(parser) -> None:
+    """--law-module: the Python module of a law written by the user (run and check)."""
+    parser.add_argument("--law-module", metavar="FILE.py", type=_path_arg,
+                        help="import FILE.py (on every MPI rank) for a case whose "
+                             "material.viscoplastic.law is python: its class (the case's "
+                             "material.viscoplastic.class) is the law; without this option "
+                             "such a case is refused (a case file alone never runs code)")
+
+
 def _add_run(sub) -> None:
     run = sub.add_parser("run", help="run a case file",
                          description="Run a case: solve every time step, write "
                                      "solution.xdmf, summary.json and contact.csv.")
     run.add_argument("case", help="YAML case file (see cases/)")
     _case_options(run, "run", "results/<case name>")
+    _law_module_option(run)
     run.add_argument("--restart", metavar="DIR", type=_path_arg,
                      help="continue from the newest DIR/checkpoint_*.npz (or a given "
                           "checkpoint file), written with output.checkpoint_every or when a "
@@ -208,6 +218,7 @@ def _add_plot_check_info(sub) -> None:
     check.add_argument("case", help="YAML case file")
     check.add_argument("--set", dest="overrides", action="append", default=[],
                        metavar="KEY=VALUE", help="override a case key (repeatable)")
+    _law_module_option(check)
 
     sub.add_parser("info", help="versions of dolfinx, PETSc, MPI, gmsh; JIT cache",
                    description="Print the versions of the numerical stack, PETSc's external "

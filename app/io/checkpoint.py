@@ -72,6 +72,8 @@ def case_fingerprint(case) -> str:
     raw = case.raw
     keys = ("mesh", "material", "contact", "loads", "initial", "boundaries")
     data = {k: raw.get(k) for k in keys}
+    if "materials" in raw:                 # one material per group of cells
+        data["materials"] = raw["materials"]
     data["times"] = list(case.time.times)
     data["scheme"] = case.time.scheme
     data["adaptive"] = case.time.adaptive
@@ -302,7 +304,7 @@ def _required(case) -> dict[str, int | None]:
     the law's number m of internal variables, checked when the field is restored)."""
     d = case.dim
     need = {"u": d, "sigma": d * d}
-    vp = case.material.viscoplastic
+    vp = next((m.viscoplastic for m in case.all_materials if m.viscoplastic), None)
     if vp is not None or case.initial.u0 is not None or case.initial.sigma0 is not None:
         need["H"] = d * d
     if vp is not None:          # the law's m columns, checked against the State's kappa

@@ -120,7 +120,8 @@ class ImplicitViscoplasticHistory:
         eps_t = problem.strain_voigt()
         s_tr = law.apply(eps_t) + law.to_voigt(self.state.H.x.array)
         try:
-            sigma, kappa, C = self.local.solve(s_tr, self.state.kappa_cells, k)
+            sigma, kappa, C = self.local.solve(s_tr, self.state.kappa_cells, k,
+                                               eps_t if self.law.uses_eps else None)
         except LocalFailure:
             return False
         problem.sigma.x.array[:] = law.from_voigt(sigma).reshape(-1)

@@ -53,16 +53,20 @@ class BackwardEuler:
         self.m = self.elasticity.m
         self.rtol, self.max_iter = rtol, max_iter
 
-    def _residual(self, z, s_tr, kappa_prev, k, eps):
-        """The law's residual; eps (the trial strain) only for a law that uses it."""
-        if eps is None:
-            return self.law.implicit_residual(z, s_tr, kappa_prev, k)
-        return self.law.implicit_residual(z, s_tr, kappa_prev, k, eps)
+    def _residual(self, z, s_tr, kappa_prev, k, eps, rows=None):
+        """The law's residual; eps (the trial strain) only for a law that uses it; ``rows``:
+        the cells of z's rows for an E per cell (CellElasticity.rows)."""
+        with self.elasticity.rows(rows):
+            if eps is None:
+                return self.law.implicit_residual(z, s_tr, kappa_prev, k)
+            return self.law.implicit_residual(z, s_tr, kappa_prev, k, eps)
 
-    def _jacobian(self, z, r0, s_tr, kappa_prev, k, scale, eps=None):
-        """The law's Jacobian of the residual where it gives one, else finite differences."""
-        J = self.law.implicit_jacobian(z, s_tr, kappa_prev, k) if eps is None else \
-            self.law.implicit_jacobian(z, s_tr, kappa_prev, k, eps)
+    def _jacobian(self, z, r0, s_tr, kappa_prev, k, scale, eps=None, rows=None):
+        """The law's Jacobian of the residual where it gives one, else finite differences
+        (``rows`` as for _residual)."""
+        with self.elasticity.rows(rows):
+            J = self.law.implicit_jacobian(z, s_tr, kappa_prev, k) if eps is None else \
+                self.law.implicit_jacobian(z, s_tr, kappa_prev, k, eps)
         if J is not None:
             return J
         n, m1 = z.shape
@@ -71,7 +75,8 @@ class BackwardEuler:
             h = 1e-7 * (np.abs(z[:, j]) + scale)
             zp = z.copy()
             zp[:, j] += h
-            J[:, :, j] = (self._residual(zp, s_tr, kappa_prev, k, eps) - r0) / h[:, None]
+            J[:, :, j] = (self._residual(zp, s_tr, kappa_prev, k, eps, rows) - r0) / \
+                h[:, None]
         return J
 
     def solve(self, s_tr, kappa_prev, k, eps=None):
@@ -102,12 +107,13 @@ class BackwardEuler:
         if not np.any(flow):
             return sigma, kappa, C
         st, kp = s_tr[flow], kappa_prev[flow]
+        cells = np.flatnonzero(flow)            # the rows of an E per cell
         ep = None if eps is None else eps[flow]
         scale = np.maximum(np.abs(st).max(axis=1), 1e-300)[:, None] * \
             np.ones((1, m + kp.shape[1]))
         scale[:, m:] = np.maximum(scale[:, :1], kp)
         z = np.column_stack([st, kp])
-        r = self._residual(z, st, kp, k, ep)
+        r = self._residual(z, st, kp, k, ep, cells)
         norm = np.linalg.norm(r / scale, axis=1)
         for _ in range(self.max_iter):
             active = norm > self.rtol
@@ -115,14 +121,14 @@ class BackwardEuler:
                 break
             epa = None if ep is None else ep[active]
             J = self._jacobian(z[active], r[active], st[active], kp[active], k,
-                               scale[active, 0], epa)
+                               scale[active, 0], epa, cells[active])
             dz = -_solve(J, r[active][:, :, None])[:, :, 0]
             step = np.ones(dz.shape[0])
             za, sa, ka, sca = z[active], st[active], kp[active], scale[active]
             new_norm = np.full(dz.shape[0], np.inf)
             for _ls in range(20):   # backtracking on the scaled residual norm
                 trial = za + step[:, None] * dz
-                rt = self._residual(trial, sa, ka, k, epa)
+                rt = self._residual(trial, sa, ka, k, epa, cells[active])
                 nt = np.linalg.norm(rt / sca, axis=1)
                 better = (nt < norm[active] * (1 - 1e-4 * step)) | (nt <= self.rtol)
                 accept = better & np.isinf(new_norm)
@@ -141,8 +147,9 @@ class BackwardEuler:
         if np.any(norm > self.rtol):
             raise LocalFailure(f"implicit Perzyna update did not converge at "
                                f"{int((norm > self.rtol).sum())} cell(s)")
-        J = self._jacobian(z, r, st, kp, k, scale[:, 0], ep)
+        J = self._jacobian(z, r, st, kp, k, scale[:, 0], ep, cells)
         Jinv = _solve(J, None)
         sigma[flow], kappa[flow] = z[:, :m], z[:, m:]
-        C[flow] = Jinv[:, :m, :m] @ self.elasticity.Cmat
+        with self.elasticity.rows(cells):
+            C[flow] = Jinv[:, :m, :m] @ self.elasticity.Cmat
         return sigma, kappa, C

@@ -96,10 +96,40 @@ class ViscoplasticLaw(ABC):
     """
 
     m: int = 1
+    name: str = "user law"
     uses_eps: bool = False     # rates and residual take the strain eps too (a user's law)
 
     def __init__(self, elasticity: Elasticity):
         self.elasticity = elasticity
+
+    def constants(self) -> dict[str, tuple[float, str]]:
+        """The law's constants with their units (``check`` and summary.json list them).
+
+        Returns:
+            name -> (value, unit); {} where the law declares none.
+        """
+        return {}
+
+    def describe(self) -> dict:
+        """The law's name, m and constants (summary.json's "laws", ``check``).
+
+        Returns:
+            {"name", "m", "constants": {name: [value, unit]}, "lipschitz_constant"}.
+        """
+        return {"name": self.name, "m": self.m,
+                "constants": {k: [v if isinstance(v, str) else float(v), u]
+                              for k, (v, u) in self.constants().items()},
+                "lipschitz_constant": self.lipschitz_constant()}
+
+    def lipschitz_constant(self) -> float | None:
+        """L_G of H(G): the Lipschitz constant of sigma -> G(sigma, kappa), uniform in kappa,
+        in the energy norm |tau|_E = (E tau : tau)^1/2.
+
+        Returns:
+            L_G [1/s], or None where the law does not know it (no bound: the stability
+            indicator is then estimated, app/post/diagnostics.py).
+        """
+        return None
 
     @abstractmethod
     def rates(self, t: np.ndarray, kappa: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -268,6 +298,14 @@ class ScalarLaw:
     """
 
     name = "contact law"
+
+    def constants(self) -> dict[str, tuple[object, str]]:
+        """The law's constants with their units (``check`` lists them).
+
+        Returns:
+            name -> (value, unit); {} where the law declares none.
+        """
+        return {}
 
     def energy(self, r):
         """The energy.

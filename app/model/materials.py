@@ -204,7 +204,8 @@ def material_groups(case: Case, body, Q) -> list[MaterialGroup]:
         seen[tag] = ref
         el = material_elasticity(material, dim, Q, f"materials.{ref}", source)
         groups.append(MaterialGroup(ref, tag, np.sort(rows[tags == tag]), material, el,
-                                    viscoplastic_law(material.viscoplastic, el)))
+                                    viscoplastic_law(material.viscoplastic, el,
+                                                     material.plane)))
     n_owned = Q.dofmap.index_map.size_local
     n_local = n_owned + Q.dofmap.index_map.num_ghosts
     covered = np.zeros(n_local, dtype=bool)

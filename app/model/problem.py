@@ -21,16 +21,19 @@ from petsc4py import PETSc
 
 from vpcontact.case import Case, CaseError
 from vpcontact.forms.contact import gamma3_measure
-from vpcontact.forms.elasticity import elasticity_operator, eps, plane_strain_moduli
+from vpcontact.forms.elasticity import eps, plane_strain_moduli
 from vpcontact.forms.step import BulkData, ContactData, build_step_forms
-from vpcontact.model.contact_laws import contact_law
+from vpcontact.model.contact_laws import contact_law, varies_in_space
 from vpcontact.model.discretisation import Discretisation
 from vpcontact.model.gamma3 import NodalField
 from vpcontact.model.history import ImplicitViscoplasticHistory
 from vpcontact.model.loads import TimeData
 from vpcontact.model.material import Elasticity
+from vpcontact.model.materials import body_materials
 from vpcontact.model.state import State
+from vpcontact.model.stiffness import case_elasticity, stress_operator
 from vpcontact.model.strain import StrainOperator
+from vpcontact.model.userlaw import as_viscoplastic_law
 from vpcontact.model.viscoplastic import viscoplastic_law
 
 
@@ -53,12 +56,16 @@ class ContactProblem:
         case: the validated case.
         body: the mesh with its facet tags and named boundary groups (meshes.RectangleMesh,
             BoxMesh or FileMesh).
+        law: a viscoplastic law that replaces the case's (a ViscoplasticLaw, a user's law
+            object, or a class / callable elasticity -> law; app/model/userlaw.py), or None.
 
     Attributes:
         disc: the Discretisation (app/model/discretisation.py); its spaces V, Q, Y, groups,
             Dirichlet data ``dirichlet``/``bcs``, Gamma3 nodes ``gamma3`` and ``frames``
             are read through the problem too.
-        elasticity: the Elasticity E of the case (app/model/material.py).
+        elasticity: the elasticity E of the case (app/model/material.py: Elasticity, or
+            MatrixElasticity / CellElasticity built by app/model/stiffness.py).
+        elastic_operator: tau -> E tau in UFL (forms.elasticity).
         law: the viscoplastic law (app/model/viscoplastic.py), or None (elastic body).
         state: the State (u, sigma, H, kappa, xi, s; app/model/state.py).
         u, sigma, sigma_vm: u_n, sigma_n and its von Mises norm (the State's).
@@ -70,16 +77,31 @@ class ContactProblem:
         implicit_update: the implicit scheme's local update (the residual hook's), or None.
     """
 
-    def __init__(self, case: Case, body):
+    def __init__(self, case: Case, body, law=None):
         self.case = case
         self.time_data = TimeData(body.mesh)
         self.disc = Discretisation(case, body, self.time_data)
         d = self.dim
-        self.E, self.nu = (plane_strain_moduli(case.material.E, case.material.nu)
-                           if d == 2 and case.material.plane == "strain"
-                           else (case.material.E, case.material.nu))
-        self.elasticity = Elasticity(self.E, self.nu, d)
-        self.law = viscoplastic_law(case.material.viscoplastic, self.elasticity)
+        # materials: one per group of cells (app/model/materials.py), E per cell, their laws
+        self.materials = body_materials(case, body, self.Q) if case.materials else None
+        try:     # E(x), orthotropic or voigt (app/model/stiffness.py); None: numbers E, nu
+            general = self.materials.elasticity if self.materials else \
+                case_elasticity(case.material, d, self.Q)
+        except ValueError as e:
+            raise CaseError(f"{case.source}: {e}") from None
+        if general is None:
+            self.E, self.nu = (plane_strain_moduli(case.material.E, case.material.nu)
+                               if d == 2 and case.material.plane == "strain"
+                               else (case.material.E, case.material.nu))
+            self.elasticity = Elasticity(self.E, self.nu, d)
+        else:
+            self.E = self.nu = None
+            self.elasticity = general
+        # a law object of the Python API replaces the case's (app/model/userlaw.py)
+        self.law = (self.materials.law if self.materials else
+                    viscoplastic_law(case.material.viscoplastic, self.elasticity,
+                                     case.material.plane)) \
+            if law is None else as_viscoplastic_law(law, self.elasticity)
         # H_n exists only with a history (viscoplastic law) or nonzero initial values.
         init = case.initial
         has_H = self.law is not None or init.u0 is not None or init.sigma0 is not None
@@ -107,8 +129,9 @@ class ContactProblem:
         self.bulk_form = fem.form(self.forms.bulk_residual)
         # sigma_n = E eps(u_n) + H_n per cell (exact: eps(u) is constant on cells),
         # app/model/strain.py
-        self._C = elasticity_operator(self.constants["E"], self.constants["nu"], d)
-        self.strain_operator = StrainOperator(self.V, self.Q, self.E, self.nu)
+        self.strain_operator = StrainOperator(
+            self.V, self.Q, self.E, self.nu,
+            None if isinstance(self.elasticity, Elasticity) else self.elastic_operator)
         # the implicit scheme's local update, run by the residual hook (before_residual)
         self.implicit_update = ImplicitViscoplasticHistory(self, self.law) \
             if self.implicit else None
@@ -156,7 +179,10 @@ class ContactProblem:
                                    case.numerics.gauss_degree) if c.active else None
         # Parameters enter the forms as Constants: one compiled form serves every value.
         const = self.constants = _Constants(msh)
-        E, nu = const("E", self.E), const("nu", self.nu)
+        E = const("E", self.E) if self.E is not None else None
+        nu = const("nu", self.nu) if self.nu is not None else None
+        # tau -> E tau in UFL (the initial H_0, the condensed solver's stiffness)
+        self.elastic_operator = stress_operator(self.elasticity, self.Q, E, nu)
         f0 = self.time_data.vector(case.loads.f0) if case.loads.f0 else None
         tractions = []
         for name, comps in case.loads.traction.items():
@@ -168,12 +194,15 @@ class ContactProblem:
             tractions.append((-self.time_data.scalar(p) * n_facet, self.tags[name]))
         bulk = BulkData(E, nu, d, H=None if self.implicit else self.H, f0=f0,
                         tractions=tractions, ds=ds,
-                        stress=self.sigma if self.implicit else None, tangent=self.C_alg)
+                        stress=self.sigma if self.implicit else None, tangent=self.C_alg,
+                        C=None if E is not None else self.elastic_operator)
         return build_step_forms(self.u, bulk, self._contact_data() if c.active else None)
 
     def _contact_data(self) -> ContactData:
         """The Gamma3 part of J_n: the normal field and the laws' parameters."""
-        law = contact_law(self.case.contact, self.case.numerics.delta, self.constants)
+        c = self.case.contact
+        law = contact_law(c, self.case.numerics.delta, self.constants,
+                          ufl.SpatialCoordinate(self.mesh) if varies_in_space(c) else None)
         return ContactData(
             self.ds_c, self._normal_ufl(), law=law,
             theta=self.theta.function if self.theta else None,
@@ -256,21 +285,39 @@ class ContactProblem:
             self.u.x.scatter_forward()
             self._check_initial_u()
         if self.H is not None:
-            H0 = -self._C(eps(self.u))
+            H0 = -self.elastic_operator(eps(self.u))
             if init.sigma0 is not None:
                 H0 = H0 + ufl.as_matrix([[scalar(c) for c in row]
                                          for row in init.sigma0])
             self._cell_average(H0, self.H)
             self._refuse(not np.isfinite(self.H.x.array).all(), "initial.sigma0",
                          "not a finite number in a cell of the mesh")
-        if kappa is not None:
-            k0 = self.case.material.viscoplastic.kappa0
+        if kappa is not None and self.materials:
+            self._group_kappa0()
+        elif kappa is not None:
+            vp = self.case.material.viscoplastic
+            k0 = vp.kappa0 if vp is not None else 0.0     # a law given to an elastic case
             if isinstance(k0, str):
                 self._cell_average(scalar(k0), kappa)
                 self._refuse(not (kappa.x.array >= 0).all(), "material.viscoplastic.kappa0",
                              "must be a finite number >= 0 everywhere")
             else:
                 kappa.x.array[:] = k0
+
+    def _group_kappa0(self) -> None:
+        """kappa = kappa0 of each group with a law on its cells (3.3), 0 elsewhere."""
+        cells, work = self.state.kappa_cells, None
+        for g in self.materials.groups:
+            if g.law is None:
+                continue
+            k0 = g.material.viscoplastic.kappa0
+            if isinstance(k0, str):
+                work = fem.Function(self.Y) if work is None else work
+                self._cell_average(self.time_data.scalar(k0), work)
+                k0 = work.x.array[g.rows][:, None]
+                self._refuse(not (k0 >= 0).all(), f"materials.{g.ref}.viscoplastic.kappa0",
+                             "must be a finite number >= 0 everywhere")
+            cells[g.rows, :g.law.m] = k0
 
     def _cell_average(self, expr, f) -> None:
         """f = P_{Q^h} expr, the L2 projection onto DG0 (cell averages)."""
@@ -357,11 +404,13 @@ class ContactProblem:
         local stress update.
 
         Returns:
-            False if the update failed (the residual is then NaN), else True.
+            False if the update failed on some rank (the residual is then NaN on every
+            rank, so that the assembly stays collective), else True.
         """
         if self.implicit_update is None:
             return True
-        return self.implicit_update.trial(self, self.k)
+        ok = self.implicit_update.trial(self, self.k)
+        return ok if self.comm.size == 1 else self.comm.allreduce(ok, op=MPI.LAND)
 
 
 # The discretisation's attributes, read through the step problem (its callers use both).

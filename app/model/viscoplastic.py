@@ -5,7 +5,9 @@ Perzyna's law of the paper's Section 4 (m = 1) uses its compiled update
 (app/kernels/perzyna.c) where a C compiler is available; PowerLaw, Perzyna's with a power
 overstress r^(n-1), uses the protocol's defaults; Norton's creep law and Chaboche's are in
 modules of their own (app/model/norton.py, app/model/chaboche.py).  ``viscoplastic_law``
-builds the law a case names.
+builds the law a case names.  In 2D plane strain Perzyna and PowerLaw keep the paper's 2D
+norm (sigma_33 = 0 in ||sigma||_VM, as in plane stress: the paper's results bit for bit);
+Norton and Chaboche carry sigma_33 there (app/model/planestrain.py).
 """
 from __future__ import annotations
 
@@ -35,11 +37,29 @@ class Perzyna(ViscoplasticLaw):
     """
 
     m = 1
+    name = "perzyna"
 
     def __init__(self, elasticity: Elasticity, lambda1: float, lambda2: float):
         super().__init__(elasticity)
         self.lambda1, self.lambda2 = lambda1, lambda2
         self._project = make_projection(elasticity)
+
+    def constants(self):
+        """Returns: lambda1 [N s/m^2], lambda2 [s] (as the case file's keys)."""
+        return {"lambda1": (self.lambda1, "N s/m^2"), "lambda2": (self.lambda2, "s")}
+
+    def lipschitz_constant(self) -> float:
+        """L_G = lambda_max(E) / (2 lambda1) in the energy norm |tau|_E = (E tau : tau)^1/2:
+        I - P_K(kappa) is nonexpansive in that norm for every kappa (P_K the projection onto
+        a closed convex set in its inner product), and E, self-adjoint in it, has
+        |E tau|_E <= lambda_max(E) |tau|_E.  In 2D the bound is attained at kappa = 0 (K(0) =
+        {0}, G = -E sigma / (2 lambda1)); in 3D, where P keeps the hydrostatic part, the
+        isotropic law's smallest constant is 2 mu / (2 lambda1) and this is a bound.
+
+        Returns:
+            L_G [1/s], equal to the relaxation rate r_max.
+        """
+        return self.relaxation_rate()
 
     def project(self, t: np.ndarray, kappa: np.ndarray) -> np.ndarray:
         """The projection P_K(kappa).
@@ -108,8 +128,7 @@ class Perzyna(ViscoplasticLaw):
         Returns:
             r_max = lambda_max(E) / (2 lambda1), E acting on symmetric tensors.
         """
-        return float(np.max(np.linalg.eigvals(self.elasticity.Cmat).real)) / \
-            (2.0 * self.lambda1)
+        return self.elasticity.bounds()[1] / (2.0 * self.lambda1)
 
     def explicit(self):
         """The explicit update (3.2)-(3.3) compiled (app/kernels/perzyna.c), or in numpy
@@ -118,8 +137,9 @@ class Perzyna(ViscoplasticLaw):
         Returns:
             A CompiledPerzynaUpdate or an ExplicitUpdate.
         """
-        module = kernels.load()
-        return ExplicitUpdate(self) if module is None else CompiledPerzynaUpdate(self, module)
+        module = kernels.load()   # the kernel takes one E: numpy for E per cell
+        return ExplicitUpdate(self) if module is None or not self.elasticity.homogeneous \
+            else CompiledPerzynaUpdate(self, module)
 
 
 class CompiledPerzynaUpdate:
@@ -171,12 +191,30 @@ class PowerLaw(ViscoplasticLaw):
     """
 
     m = 1
+    name = "power"
 
     def __init__(self, elasticity: Elasticity, lambda1: float, lambda2: float, n: float,
                  s_ref: float):
         super().__init__(elasticity)
         self.lambda1, self.lambda2, self.n, self.s_ref = lambda1, lambda2, n, s_ref
         self._project = make_projection(elasticity)
+
+    def constants(self):
+        """Returns: lambda1 [N s/m^2], lambda2 [s], n [-], s_ref [N/m^2]."""
+        return {"lambda1": (self.lambda1, "N s/m^2"), "lambda2": (self.lambda2, "s"),
+                "n": (self.n, "-"), "s_ref": (self.s_ref, "N/m^2")}
+
+    def lipschitz_constant(self) -> float | None:
+        """L_G: Perzyna's lambda_max(E) / (2 lambda1) for n = 1; for n > 1 the slope
+        r^(n-1) grows without bound with the overstress.
+
+        Returns:
+            L_G [1/s] for n = 1, else None.
+        """
+        if self.n != 1:
+            return None
+        return float(np.max(np.linalg.eigvals(self.elasticity.Cmat).real)) / \
+            (2.0 * self.lambda1)
 
     def rates(self, t, kappa):
         """G = -r^(n-1)/(2 lambda1) E (sigma - P sigma), Gk = 2 r^(n-1)/(3 lambda2)
@@ -198,15 +236,20 @@ class PowerLaw(ViscoplasticLaw):
             (((2.0 / (3.0 * self.lambda2)) * f) * vm)[:, None]
 
 
-def viscoplastic_law(vp, elasticity: Elasticity) -> ViscoplasticLaw | None:
+def viscoplastic_law(vp, elasticity: Elasticity, plane: str = "stress"
+                     ) -> ViscoplasticLaw | None:
     """The case's viscoplastic law.
 
     Args:
         vp: the case's ``material.viscoplastic`` section (or None: an elastic body); its
             ``law`` (absent: "perzyna") picks Perzyna, PowerLaw (with ``n``, ``s_ref``),
             Norton (``A``, ``n``; app/model/norton.py) or Chaboche (``k``, ``K``, ``n``,
-            ``C``, ``gamma``, ``Q``, ``b``; app/model/chaboche.py).
+            ``C``, ``gamma``, ``Q``, ``b``; app/model/chaboche.py) or a user's class
+            (``python``: ``cls``, ``params``; app/model/lawmodule.py).
         elasticity: the elasticity E.
+        plane: the 2D model, ``material.plane`` ("stress" or "strain"): Norton and
+            Chaboche carry sigma_33 in plane strain (app/model/planestrain.py); Perzyna and
+            PowerLaw keep the paper's 2D norm (sigma_33 = 0 in ||sigma||_VM) in both.
 
     Returns:
         The law, or None.
@@ -218,8 +261,11 @@ def viscoplastic_law(vp, elasticity: Elasticity) -> ViscoplasticLaw | None:
         return PowerLaw(elasticity, vp.lambda1, vp.lambda2, vp.n, vp.s_ref)
     if law == "norton":
         from vpcontact.model.norton import Norton
-        return Norton(elasticity, vp.A, vp.n)
+        return Norton(elasticity, vp.A, vp.n, plane)
     if law == "chaboche":
         from vpcontact.model.chaboche import Chaboche
-        return Chaboche(elasticity, vp.k, vp.K, vp.n, vp.C, vp.gamma, vp.Q, vp.b)
+        return Chaboche(elasticity, vp.k, vp.K, vp.n, vp.C, vp.gamma, vp.Q, vp.b, plane)
+    if law == "python":                 # the class of --law-module (app/model/lawmodule.py)
+        from vpcontact.model.lawmodule import python_law
+        return python_law(vp, elasticity)
     return Perzyna(elasticity, vp.lambda1, vp.lambda2)

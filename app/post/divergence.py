@@ -34,6 +34,7 @@ import math
 
 import numpy as np
 
+from vpcontact.model.userlaw import UserLaw
 from vpcontact.observers import Observer, StopRun
 from vpcontact.post.quantities import cell_max
 from vpcontact.records import HINT_DIVERGED, StepFailure
@@ -57,16 +58,20 @@ def contact_scale(case, E_max: float, length: float, gap: float | None = None) -
     c = case.contact
     g = gap if gap is not None else (c.g if c.g is not None else 0.0)
     values = [E_max * g / length]
-    if c.c_nu is not None:
-        values.append(c.c_nu * (g if c.g is not None else length))
+    r = g if c.g is not None else length
+    if isinstance(c.c_nu, float):       # p(r) = c_nu r^m (a field c_nu(x): not known here)
+        values.append(c.c_nu * r ** (c.compliance_m or 1.0))
+    if c.compliance_table is not None:
+        values.append(max(p for _, p in c.compliance_table))
     if c.memory is not None:
-        b = abs(c.memory.b0 or 0.0)
+        b = abs(c.memory.b0 or 0.0) if not isinstance(c.memory.b0, str) else 0.0
         if c.memory.table:
             b = max(b, float(np.max(np.abs(np.asarray(c.memory.table, dtype=float)[:, 1]))))
         values.append(b * case.time.T * (g if c.g is not None else length))
     if c.friction is not None:
         fr = c.friction
-        values += [abs(fr.b), abs(fr.c1 * fr.u1), abs(fr.c2 * fr.u1)]
+        values += [abs(tau) for _, tau in fr.table] if fr.table is not None else \
+            [abs(fr.b), abs(fr.c1 * fr.u1), abs(fr.c2 * fr.u1)]
     return max(values)
 
 
@@ -80,7 +85,7 @@ def stress_scale(case, problem) -> float:
     Returns:
         The scale (0 if the data has no stress at all).
     """
-    E_max = float(np.max(np.linalg.eigvals(problem.elasticity.Cmat).real))
+    E_max = problem.elasticity.bounds()[1]
     data = max(case.data_stress, contact_scale(case, E_max, problem.length_scale,
                                                problem.gap_scale))
     return max(data if math.isfinite(data) else 0.0, cell_max(problem, problem.sigma_vm))
@@ -131,12 +136,14 @@ class BlowUpMonitor(Observer):
             problem: the ContactProblem in its initial (or restarted) state.
             kappa0_max: max kappa of that state.
         """
-        vp = case.material.viscoplastic
+        laws = [m.viscoplastic for m in case.all_materials if m.viscoplastic]   # materials
         self.scale = stress_scale(case, problem)
         h = problem.body.h
         self.bound = BLOWUP_FACTOR * (problem.length_scale / h) * self.scale
-        self.kappa_bound = kappa0_max + (_kappa_growth(vp, case.time.T, self.bound)
-                                         if vp else 0.0)
+        self.kappa_bound = kappa0_max + max(
+            (_kappa_growth(vp, case.time.T, self.bound) for vp in laws), default=0.0)
+        if isinstance(problem.law, UserLaw):      # a user's law (also one given in Python)
+            self.kappa_bound = math.inf
 
     def start(self, sim) -> None:
         """Set the bounds from the run's state before its first step (collective).

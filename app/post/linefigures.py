@@ -123,12 +123,12 @@ def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None)
         ax.triplot(X[:, 0], X[:, 1], faces, color="tab:blue", lw=0.5)
     c = res.contact
     if c is not None and res.dim == 2:
-        c_nu = (res.case.get("contact", {}).get("normal_compliance") or {}).get("c_nu")
+        nc = res.case.get("contact", {}).get("normal_compliance")
         g = res.case.get("contact", {}).get("g")
         force = c["neg_sigma_nu"].copy()
         bound = c["state"] == "bound"
-        if c_nu is not None and g is not None:
-            force[bound] = c_nu * g              # the paper's Fig. 3 convention
+        if nc and isinstance(g, (int, float)) and not isinstance(nc.get("c_nu"), str):
+            force[bound] = _normal_law(nc, g, np.array([float(g)]))[0]   # the paper's Fig. 3
         scale = 0.15 * float(np.ptp(res.x[:, 1])) / max(np.abs(force).max(), 1e-300)
         xb = c["x"] + factor * c["u_x"]
         yb = c["y"] + factor * c["u_y"]
@@ -186,13 +186,23 @@ def fig4_tangential(res: Results, path: Path) -> None:
           f"Tangential displacement and friction stress along Gamma3 at t = {res.t:g}")
 
 
-def _normal_law(c_nu, g, r):
-    """-sigma_nu = p(u_nu) = c_nu u_nu^+ of (4.1) at u_nu = r <= g (c_nu None: 0) (Fig. 2a)."""
+def _normal_law(nc, g, r):
+    """-sigma_nu = p(u_nu) at u_nu = r <= g: c_nu u_nu^+ of (4.1), c_nu (u_nu^+)^m or the
+    table of contact.normal_compliance ``nc`` (None, or c_nu(x): 0) (Fig. 2a)."""
+    nc = nc or {}
+    if "table" in nc:
+        return contact_laws.TableCompliance(nc["table"]).derivative(r)
+    c_nu = nc.get("c_nu") if not isinstance(nc.get("c_nu"), str) else None
+    if "m" in nc:
+        return contact_laws.PowerCompliance(c_nu or 0.0, float(nc["m"])).derivative(r)
     return contact_laws.NormalCompliance(c_nu or 0.0).derivative(r)
 
 
 def _tangential_law(fr, rho):
-    """|sigma_tau| = psi'(rho) of (4.2) at slips rho = |u_tau| > 0; fr: b, c1, c2, u1 (Fig. 2b)."""
+    """|sigma_tau| = psi'(rho) of (4.2) or of the friction table at slips rho = |u_tau| > 0;
+    fr: b, c1, c2, u1 or table (Fig. 2b)."""
+    if "table" in fr:
+        return contact_laws.TableFriction(fr["table"]).derivative(rho)
     psi = contact_laws.PiecewiseLinearFriction(fr["b"], fr["c1"], fr["c2"], fr["u1"])
     return psi.derivative(rho)
 
@@ -211,14 +221,14 @@ def fig2_laws(res: Results, path: Path) -> None:
     if isinstance(g, str):          # a gap field: the law at its largest value on Gamma3
         c = res.contact
         g = float(c["g"].max()) if c is not None and "g" in c else None
-    c_nu = (contact.get("normal_compliance") or {}).get("c_nu")
+    nc = contact.get("normal_compliance")
     ax = axes[0]
-    if g is not None or c_nu is not None:
+    if g is not None or nc:
         top = g if g else 0.02
         r = np.linspace(-0.5 * top, top, 200)
-        ax.plot(r, _normal_law(c_nu, g, r), color="tab:blue", label="p(u_nu) = c_nu u_nu^+")
+        ax.plot(r, _normal_law(nc, g, r), color="tab:blue", label="p(u_nu)")
         if g is not None:
-            pg = _normal_law(c_nu, g, np.array([g]))[0]
+            pg = _normal_law(nc, g, np.array([g]))[0]
             ax.vlines(g, pg, pg + max(pg, 1.0), color="tab:red",
                       label="u_nu = g: -sigma_nu >= c_nu g (unilateral)")
             ax.axvline(g, color="tab:red", ls=":", lw=0.8)
@@ -230,7 +240,14 @@ def fig2_laws(res: Results, path: Path) -> None:
     ax.set_title("normal law (4.1)", fontsize=10)
     fr = contact.get("friction")
     ax = axes[1]
-    if fr:
+    if fr and "table" in fr:
+        rho = np.linspace(0, 1.5 * fr["table"][-1][0], 300)[1:]
+        ax.plot(rho, _tangential_law(fr, rho), color="tab:blue", label="tau(|u_tau|) (table)")
+        ax.vlines(0, 0, fr["table"][0][1], color="tab:blue", lw=3,
+                  label="|u_tau| = 0: [0, tau(0)] (stick)")
+        ax.legend(fontsize=8)
+        ax.set_ylim(bottom=0)
+    elif fr:
         rho = np.linspace(0, 3 * fr["u1"], 300)[1:]
         ax.plot(rho, _tangential_law(fr, rho), color="tab:blue", label="psi'(|u_tau|)")
         ax.vlines(0, 0, fr["b"], color="tab:blue", lw=3, label="|u_tau| = 0: [0, b] (stick)")

@@ -191,7 +191,8 @@ def color_range(values) -> tuple[float, float]:
 
 def fields_picture(grid, t: float, dim: int, path: Path) -> None:
     """fig5_vm_kappa.png: von Mises stress and kappa at time t on the undeformed body, side
-    by side (kappa only where the run has it); in 3D the body clipped at mid y.
+    by side (kappa only where the run has it; the laws norton and chaboche: their
+    accumulated strain p); in 3D the body clipped at mid y.
 
     Args:
         grid: solution.xdmf's dataset at t.
@@ -200,11 +201,12 @@ def fields_picture(grid, t: float, dim: int, path: Path) -> None:
         path: the PNG file.
     """
     pv = _pyvista()
-    names = [n for n in ("sigma_vm", "kappa") if n in grid.cell_data]
+    names = [n for n in ("sigma_vm", "kappa", "p") if n in grid.cell_data]   # p: norton, ...
     body = grid.clip(normal="y", origin=grid.center, invert=True) if dim == 3 else grid
     p = pv.Plotter(off_screen=True, window_size=(WINDOW[0], WINDOW[1] * 3 // 4),
                    shape=(1, len(names)))
-    titles = {"sigma_vm": "von Mises stress", "kappa": "kappa"}
+    titles = {"sigma_vm": "von Mises stress", "kappa": "kappa",
+              "p": "accumulated viscoplastic strain p"}
     for i, name in enumerate(names):
         p.subplot(0, i)
         p.set_background("white")

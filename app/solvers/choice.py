@@ -29,7 +29,7 @@ def condensed_eligible(case) -> tuple[bool, str]:
     Returns:
         (eligible, why not: "" when eligible).
     """
-    if case.time.scheme != "explicit" and case.material.viscoplastic is not None:
+    if case.time.scheme != "explicit" and any(m.viscoplastic for m in case.all_materials):
         return False, "the implicit history variant makes the bulk problem nonlinear"
     if case.numerics.quadrature != "vertex" and case.contact.active:
         return False, "the condensed solver needs the nodal (vertex) Gamma3 quadrature"

@@ -499,6 +499,8 @@ def matches_paper(raw: dict) -> bool:
         c = validate(raw, "paper-check")
     except CaseError:
         return False
+    if c.material is None:              # materials: one per group of cells, a mesh.file
+        return False
     fr = c.contact.friction
     vp = c.material.viscoplastic
     return (c.mesh.kind == "structured" and c.mesh.L1 == 1.0 and c.mesh.L2 == 1.0

@@ -193,7 +193,11 @@ def default_variants(raw: dict, finer: dict | None = None) -> list[Variant]:
                   {"contact.friction.c1": 300.0, "contact.friction.b": 3.0})]
     out += [V("loads", "tiny (x1e-6)", _loads_scaled(raw, 1e-6)),
             V("loads", "large (x100)", _loads_scaled(raw, 100.0)),
-            _pulling(raw),
+            _pulling(raw)]
+    # materials (one per group of cells), E or nu expressions, material.elasticity: none
+    if "material" in raw and all(isinstance(raw["material"].get(k), (int, float))
+                                 for k in ("E", "nu")):
+        out += [
             V("material", "nu=0", {"material.nu": 0.0}),
             V("material", "nu=0.499", {"material.nu": 0.499}),
             V("material", f"E scaled x1e-5 (E = {_short(raw['material']['E'] * 1e-5)})",

@@ -40,9 +40,11 @@ class Gamma3Problem:
         w: the nodal weights of the Gamma3 rule, in G order.
         case: the Case (contact law: c_nu, friction; numerics.delta).
         rtol: relative tolerance of the projected gradient.
+        points: the Gamma3 nodes' coordinates in G order (n, d), where a law's parameter
+            that varies in space (c_nu(x)) is evaluated; None: no such parameter.
     """
 
-    def __init__(self, comm, S, frames, w, case, rtol: float = 1e-13):
+    def __init__(self, comm, S, frames, w, case, rtol: float = 1e-13, points=None):
         self.comm, self.frames, self.w, self.rtol = comm, frames, w, rtol
         self.d = len(frames.normal)
         self.m = len(w) * self.d
@@ -54,7 +56,8 @@ class Gamma3Problem:
             return self._local_counts()
         self._counts = threads.root_call(comm, direction)
         self.contact = NodalContact(w, frames.normal,
-                                    contact_law(case.contact, case.numerics.delta),
+                                    contact_law(case.contact, case.numerics.delta,
+                                                x=points),
                                     kernels.load())
 
     def set_data(self, xi: np.ndarray | None, theta: np.ndarray | None) -> None:

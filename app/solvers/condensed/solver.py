@@ -19,12 +19,13 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from vpcontact.forms.elasticity import elasticity_operator, eps
+from vpcontact.forms.elasticity import eps
 from vpcontact.solvers.condensed.condensation import factorise
 from vpcontact.solvers.condensed.frames import work_frames
 from vpcontact.solvers.condensed.layout import Gamma3Layout
 from vpcontact.solvers.condensed.problem import Gamma3Problem
 from vpcontact.solvers.condensed.rhs import StepRightHandSide
+from vpcontact.solvers.nodal import gamma3_points
 from vpcontact.solvers.snesvi import StepSolveError
 
 log = logging.getLogger("vpcontact")
@@ -59,7 +60,7 @@ class CondensedStepSolver:
         self.options = options or {}
         self._snes = None
         V, d = problem.V, problem.dim
-        C = elasticity_operator(problem.constants["E"], problem.constants["nu"], d)
+        C = problem.elastic_operator
         du, v = ufl.TrialFunction(V), ufl.TestFunction(V)
         a = fem.form(ufl.inner(C(eps(du)), eps(v)) * ufl.dx)
         # serial: d x d blocks (BAIJ), the fastest PETSc back-substitution
@@ -79,7 +80,8 @@ class CondensedStepSolver:
         if self.gamma3:
             self.gamma3_problem = Gamma3Problem(self.comm, self.condensation.S,
                                                 work_frames(problem, self.layout),
-                                                self.layout.w, problem.case, rtol)
+                                                self.layout.w, problem.case, rtol,
+                                                gamma3_points(problem, self.layout))
 
     def _layout(self) -> Gamma3Layout | None:
         """The Gamma3 dofs, or None where there are none to condense (collective)."""
