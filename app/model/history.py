@@ -8,11 +8,60 @@ viscoplastic law has this history; an elastic case creates no history object at 
 fields live in the State (app/model/state.py); the
 history objects here are the stages of a step that update them, with the law's updates
 (app/model/viscoplastic.py) and no state of their own.
+
+Under MPI a law may fail in the cells of one rank only: the explicit update then fails on
+every rank alike (``collective_update``: one allreduce of a flag per step, the state
+unchanged on every rank), as the implicit update's trial does (problem.before_residual), so
+that no rank goes on into the collective solve.
 """
 from __future__ import annotations
 
+import numpy as np
+from mpi4py import MPI
+
 from vpcontact.model.implicit import LocalFailure
 from vpcontact.model.laws import ViscoplasticLaw
+
+# the numerical errors of a law's update that fail a step (as in Simulation.advance)
+UPDATE_ERRORS = (ArithmeticError, RuntimeError, np.linalg.LinAlgError)
+
+
+class HistoryUpdateFailure(RuntimeError):
+    """The explicit history update failed on some rank (raised on every rank)."""
+
+
+def collective_update(comm, update, sigma, H, kappa, k: float) -> None:
+    """The explicit update (3.2)-(3.3) on every rank, failing on all ranks if it fails on one.
+
+    Each rank runs ``update`` on its cells; one allreduce tells every rank the lowest rank
+    whose update failed; only then its message is broadcast and the ranks whose update
+    succeeded put their H_{n-1}, kappa_{n-1} back (the failing rank wrote nothing), so the
+    state is unchanged on every rank.
+
+    Args:
+        comm: the MPI communicator of the mesh (more than one rank).
+        update: the law's explicit update (``law.explicit()``).
+        sigma: sigma_{n-1} per cell, flat.
+        H: H_{n-1} per cell, flat; becomes H_n.
+        kappa: kappa_{n-1}, (ncells, m); becomes kappa_n.
+        k: the step k_n.
+
+    Raises:
+        HistoryUpdateFailure: the update failed on some rank; the message is that rank's,
+            with the rank named.
+    """
+    saved, error = (H.copy(), kappa.copy()), None
+    try:
+        update(sigma, H, kappa, k)
+    except UPDATE_ERRORS as exc:
+        error = exc
+    first = comm.allreduce(comm.rank if error is not None else comm.size, op=MPI.MIN)
+    if first == comm.size:
+        return
+    if error is None:
+        H[:], kappa[:] = saved
+    reason = comm.bcast(str(error) if comm.rank == first else None, root=first)
+    raise HistoryUpdateFailure(f"{reason} (on rank {first} of {comm.size})") from error
 
 
 class ViscoplasticHistory:
@@ -28,6 +77,7 @@ class ViscoplasticHistory:
     def __init__(self, problem, law: ViscoplasticLaw):
         self.law = law
         self.state = problem.state
+        self.comm = problem.comm
         self.update = law.explicit()         # compiled for Perzyna where it can be
 
     @property
@@ -61,16 +111,22 @@ class ViscoplasticHistory:
 
         The State's kappa holds kappa_{n-1} on entry and kappa_n on exit.  All local cells
         (owned and ghost) are updated with the same data, so ghosts stay consistent without
-        communication.
+        communication; under MPI a failure on one rank fails the step on all ranks
+        (``collective_update``).
 
         Args:
             sigma_prev: the DG0 function holding sigma_{n-1}.
             k: the step k_n.
 
         Raises:
-            RuntimeError: the law's update failed (the state is unchanged).
+            RuntimeError: the law's update failed (on some rank; the state is unchanged on
+                every rank).
         """
-        self.update(sigma_prev.x.array, self.state.H.x.array, self.state.kappa_cells, k)
+        args = (sigma_prev.x.array, self.state.H.x.array, self.state.kappa_cells, k)
+        if self.comm.size == 1:
+            self.update(*args)
+        else:
+            collective_update(self.comm, self.update, *args)
 
 
 class ImplicitViscoplasticHistory:
@@ -137,9 +193,13 @@ class ImplicitViscoplasticHistory:
             k: the step k_n.
 
         Raises:
-            LocalFailure: the local update failed at u_n.
+            LocalFailure: the local update failed at u_n (on some rank: on every rank, and
+                nothing is committed on any).
         """
-        if not self.trial(problem, k):   # at the converged u_n
+        ok = self.trial(problem, k)      # at the converged u_n
+        if problem.comm.size > 1:
+            ok = problem.comm.allreduce(ok, op=MPI.LAND)
+        if not ok:
             raise LocalFailure("implicit Perzyna update failed at the converged step")
         law = self.elasticity
         eps_t, sigma_t, kappa_t = self._trial
