@@ -147,6 +147,10 @@ class Simulation:
         law: a viscoplastic law that replaces the case's: a law written by the user (the
             protocol of app/model/laws.py) as a class or callable taking the case's
             Elasticity, or a law object; None: the case's law.
+        contact_laws: contact laws that replace parts of the case's: {"normal": P,
+            "friction": psi}, each a ScalarLaw written with ``backend(r)`` of
+            app/model/primitives.py (app/model/contact_laws.py: ``replace_laws``; the case
+            keeps the section of the part replaced); None: the case's laws.
 
     Attributes:
         problem: the ContactProblem (u, sigma, forms, norms).
@@ -162,9 +166,10 @@ class Simulation:
         last_checkpoint: the checkpoint written last (set by the Checkpointer).
     """
 
-    def __init__(self, case: Case, comm, outdir: Path | None = None, restart=None, law=None):
+    def __init__(self, case: Case, comm, outdir: Path | None = None, restart=None, law=None,
+                 contact_laws=None):
         self.case, self.comm, self.outdir, self.restart = case, comm, outdir, restart
-        self.law = law
+        self.law, self.contact_laws = law, contact_laws
         self.observers: list[Observer] = []
         self.domain = self.problem = self.history = self.gamma3_history = None
         self.solver = self.stepper = self.diagnostics = None
@@ -208,7 +213,8 @@ class Simulation:
             lo, hi = self.domain.bbox
             self.case = case = rescale_for_length(case, float(np.max(hi - lo)),
                                                   check_data_on_mesh(case, self.domain))
-        self.problem = problem = ContactProblem(case, self.domain, self.law)
+        self.problem = problem = ContactProblem(case, self.domain, self.law,
+                                                self.contact_laws)
         self.history = build_history(case, problem)
         problem.set_initial_values()
         self.gamma3_history = build_gamma3_history(case, problem)
@@ -556,7 +562,7 @@ class RunResult:
 
 
 def run(case: Case, comm, observers=(), *, outdir: Path | None = None, restart=None,
-        monitor: bool = True, law=None) -> RunResult:
+        monitor: bool = True, law=None, contact_laws=None) -> RunResult:
     """Run a case: a Simulation with the blow-up monitor (unless ``monitor`` is False) and
     the given observers.  Writes nothing unless an observer does.
 
@@ -568,13 +574,16 @@ def run(case: Case, comm, observers=(), *, outdir: Path | None = None, restart=N
         restart: an vpcontact.io.checkpoint.Checkpoint to continue from.
         monitor: stop a run whose norms blow up as "diverged" (app/post/divergence.py).
         law: a viscoplastic law that replaces the case's (see Simulation), or None.
+        contact_laws: contact laws that replace parts of the case's (see Simulation), or
+            None.
 
     Returns:
         The RunResult (status, summary dict, and the problem and histories at the end).
     """
     from vpcontact.post.divergence import BlowUpMonitor
 
-    sim = Simulation(case, comm, outdir=outdir, restart=restart, law=law)
+    sim = Simulation(case, comm, outdir=outdir, restart=restart, law=law,
+                     contact_laws=contact_laws)
     if monitor:
         sim.add(BlowUpMonitor())
     for obs in observers:

@@ -59,12 +59,15 @@ def latest(directory: Path) -> Path | None:
     return files[-1] if files else None
 
 
-def case_fingerprint(case) -> str:
+def case_fingerprint(case, laws: dict | None = None) -> str:
     """What must agree between the checkpointed run and the restart: mesh, material, contact,
-    loads, initial values, time grid and scheme (not solver or output settings).
+    loads, initial values, time grid and scheme (not solver or output settings), and the
+    laws given through the Python API (``api_laws``; added only when there are some, so a
+    case without them keeps its fingerprint).
 
     Args:
         case: the validated Case.
+        laws: ``api_laws`` of the run, or None.
 
     Returns:
         A SHA-256 hex digest of those sections.
@@ -79,7 +82,83 @@ def case_fingerprint(case) -> str:
     data["adaptive"] = case.time.adaptive
     if case.mesh.file is not None:           # the scene is the files' content, not their names
         data["mesh_file"] = _mesh_files_digest(case)
+    if laws:
+        data["api_laws"] = laws
     return hashlib.sha256(stable_json(data).encode()).hexdigest()
+
+
+def _plain(v):
+    """A value for a law's identity: numbers, text, booleans and None as they are, arrays
+    and sequences of them as lists, dicts of them; anything else None (not comparable)."""
+    if v is None or isinstance(v, (bool, str)):
+        return v
+    if isinstance(v, (int, float, np.integer, np.floating)):
+        return float(v)
+    if isinstance(v, np.ndarray) and v.dtype.kind in "biuf":
+        return v.astype(float).tolist()
+    if isinstance(v, (list, tuple)):
+        items = [_plain(x) for x in v]
+        return None if any(x is None and y is not None for x, y in zip(items, v)) else items
+    if isinstance(v, dict):
+        return {str(k): _plain(x) for k, x in v.items()}
+    return None
+
+
+def law_identity(law) -> dict:
+    """What identifies a law given through the Python API: its class (module and qualified
+    name), ``name``, ``constants()`` where it has them, and its attributes that are numbers,
+    text or arrays of numbers (a user's law that keeps its constants in attributes).  A
+    viscoplastic law in the user protocol is identified by the user's object, not by the
+    UserLaw around it (app/model/userlaw.py).
+
+    Args:
+        law: the law object the run uses.
+
+    Returns:
+        {"class", "name", "constants", "attributes"}.
+    """
+    user = getattr(law, "user", None)
+    obj = user if user is not None and callable(getattr(user, "G", None)) else law
+    kind = type(obj)
+    consts = obj.constants() if callable(getattr(obj, "constants", None)) else {}
+    attrs = {k: _plain(v) for k, v in sorted(vars(obj).items())
+             if not k.startswith("_")} if hasattr(obj, "__dict__") else {}
+    return {"class": f"{kind.__module__}.{kind.__qualname__}",
+            "name": str(getattr(obj, "name", kind.__name__)),
+            "constants": {str(k): _plain(v[0] if isinstance(v, tuple) else v)
+                          for k, v in consts.items()},
+            "attributes": {k: v for k, v in attrs.items() if v is not None}}
+
+
+def api_laws(sim) -> dict | None:
+    """The identities (``law_identity``) of the laws a Simulation was given through the
+    Python API: its viscoplastic law (``law=``) and its contact laws (``contact_laws=``).
+
+    Args:
+        sim: the Simulation (set up: its problem holds the laws built).
+
+    Returns:
+        {"viscoplastic": ..., "contact.normal": ..., "contact.friction": ...} with the laws
+        given, or None if none was.
+    """
+    laws = {}
+    if getattr(sim, "law", None) is not None:
+        laws["viscoplastic"] = law_identity(sim.problem.law)
+    for part, law in sorted((getattr(sim, "contact_laws", None) or {}).items()):
+        laws[f"contact.{part}"] = law_identity(law)
+    return laws or None
+
+
+def _laws_text(laws: dict | None) -> str:
+    """'viscoplastic: mod.Class (c = 1)' of each law of ``api_laws``, or 'none'."""
+    if not laws:
+        return "none"
+    out = []
+    for part, ident in laws.items():
+        consts = {**ident.get("attributes", {}), **ident.get("constants", {})}
+        text = ", ".join(f"{k} = {v}" for k, v in consts.items())
+        out.append(f"{part}: {ident.get('class')}" + (f" ({text})" if text else ""))
+    return "; ".join(out)
 
 
 def _mesh_files_digest(case) -> str | list[str]:
@@ -166,6 +245,7 @@ def save(outdir: Path, sim) -> Path:
     """
     comm, problem, state = sim.comm, sim.problem, sim.problem.state
     path = Path(outdir) / file_name(sim.n)
+    laws = api_laws(sim) if comm.rank == 0 else None
     arrays = {}
     for name, f in state.fields().items():
         x, v = _gather(comm, *_owned_rows(f))
@@ -177,11 +257,13 @@ def save(outdir: Path, sim) -> Path:
     if comm.rank == 0:
         st = sim.stepper.state()
         mem = g3["memory"] if g3 is not None else None
-        meta = {"n": sim.n, "t": sim.t, "fingerprint": case_fingerprint(sim.case),
+        meta = {"n": sim.n, "t": sim.t, "fingerprint": case_fingerprint(sim.case, laws),
                 "steps": sim.steps,
                 "stepper": {"adaptive": st["adaptive"], "n": st["n"], "k": st["k"],
                             "history": st["decisions"]},
                 "memory": None if mem is None else {"t_prev": mem["t_prev"], "k": mem["k"]}}
+        if laws:                          # the laws given through the Python API
+            meta["laws"] = laws
         arrays["meta"] = np.array(json.dumps(meta))
     on_rank0(comm, _write, path, arrays, outdir)    # OutputError on every rank if it fails
     return path
@@ -273,6 +355,8 @@ def _check_meta(meta) -> str | None:
         return f"meta: stepper.k = {st.get('k')!r} is not a positive step"
     if not st["adaptive"] and st.get("n") != n:
         return f"meta: stepper.n = {st.get('n')!r} is not the step number {n}"
+    if not isinstance(meta.get("laws", {}), dict):
+        return "meta: laws is not a mapping of the laws given through the Python API"
     mem = meta["memory"]
     if mem is not None and not (isinstance(mem, dict) and all(
             isinstance(mem.get(k), list) and all(_number(x) for x in mem[k])
@@ -367,6 +451,10 @@ class Checkpoint:
         Raises:
             CheckpointError: it does, but lacks what a restart of the case needs.
         """
+        if self.meta.get("laws"):
+            return (f"{self.path} was written with laws given through the Python API "
+                    f"({_laws_text(self.meta['laws'])}): continue it from the Python API "
+                    "with the same laws")
         if self.meta["fingerprint"] != case_fingerprint(case):
             return (f"{self.path} was written for a different case (mesh, material, contact, "
                     "loads, initial values or time grid differ)")
@@ -436,6 +524,7 @@ class Checkpoint:
         """
         problem = sim.problem
         comm = problem.comm
+        self.check_laws(sim)
         n_g3 = comm.allreduce(len(problem.gamma3.nodes) if problem.gamma3 is not None else 0)
         try:
             self._restore_fields(problem, problem.state, n_g3)
@@ -450,6 +539,28 @@ class Checkpoint:
                                 "k": st.get("k"), "decisions": st["history"]})
         problem.update_vm()
         return list(self.meta["steps"])
+
+    def check_laws(self, sim) -> None:
+        """The laws given through the Python API must be the checkpointed run's (the same
+        classes, names, constants and attributes: ``law_identity``); collective (rank 0
+        compares, so every rank refuses alike).
+
+        Args:
+            sim: the Simulation of the restart (set up).
+
+        Raises:
+            CaseError: on every rank, if they differ (the message names both).
+        """
+        why = None
+        if sim.comm.rank == 0:
+            stored, given = self.meta.get("laws"), api_laws(sim)
+            if stable_json(stored or {}) != stable_json(given or {}):
+                why = (f"restart from {self.path}: the laws given through the Python API "
+                       f"differ from the checkpointed run's (checkpoint: "
+                       f"{_laws_text(stored)}; this run: {_laws_text(given)})")
+        why = sim.comm.bcast(why, root=0)
+        if why:
+            raise CaseError(why)
 
     def _restore_fields(self, problem, state, n_g3: int) -> None:
         """The State's fields u, sigma, H, kappa and its Gamma3 history (local, no

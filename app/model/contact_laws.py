@@ -37,11 +37,14 @@ expression b0 of x) is summed by app/model/gamma3.py.
 and ``contact_law`` builds it from a case.  A new law (a user's superpotential) is a new
 class with the three methods; the condensed solver's nodal problem (app/solvers/nodal.py)
 and the forms use it as they are (the compiled kernel serves only the paper's laws with
-numbers; any other law takes its numpy path).
+numbers; any other law takes its numpy path).  A user's law replaces P or psi of the case's
+through the Python API (``Simulation(case, comm, contact_laws={"normal": P, "friction":
+psi})``, ``replace_laws``); ``ContactProblem.contact_law`` (app/model/problem.py) composes the
+run's laws in one place for the forms, the condensed solver and the reports.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -899,6 +902,46 @@ def contact_law(contact, delta, const=None, x=None) -> ContactLaw:
         normal=normal,
         memory=None if contact.memory is None else RegularisedPositivePart(d),
         friction=friction, norm=None if fr is None else RegularisedNorm(d))
+
+
+REPLACEABLE = {"normal": "contact.normal_compliance", "friction": "contact.friction"}
+
+
+def replace_laws(law: ContactLaw, replacements: dict | None) -> ContactLaw:
+    """The case's contact laws with some parts replaced by laws given through the Python API
+    (``Simulation(case, comm, contact_laws={"normal": P, "friction": psi})``): each a
+    ``ScalarLaw`` written with the primitives of ``backend(r)`` (numpy and UFL), replacing
+    the normal compliance P (4.1) or the friction potential psi (4.2) of
+    phi = P(r) + xi r^+_delta + theta psi(|tau|_delta).  The case keeps the section of the
+    part it replaces (its term, the regularisation delta and theta(s) stay the case's).
+
+    Args:
+        law: the case's ContactLaw.
+        replacements: {"normal" | "friction": ScalarLaw}, or None / {} (``law`` itself).
+
+    Returns:
+        The ContactLaw with the parts replaced.
+
+    Raises:
+        ValueError: an unknown part, a law without energy, derivative and
+            second_derivative, or a part the case does not have.
+    """
+    if not replacements:
+        return law
+    parts = {}
+    for part, user in replacements.items():
+        if part not in REPLACEABLE:
+            raise ValueError(f"contact_laws: {part!r} is not a replaceable part (one of "
+                             f"{', '.join(REPLACEABLE)})")
+        if not all(callable(getattr(user, f, None))
+                   for f in ("energy", "derivative", "second_derivative")):
+            raise ValueError(f"contact_laws[{part!r}]: {type(user).__name__} is not a "
+                             "ScalarLaw (energy, derivative, second_derivative)")
+        if getattr(law, part) is None:
+            raise ValueError(f"contact_laws[{part!r}]: the case has no {REPLACEABLE[part]} "
+                             "(the term a law replaces must be in the case)")
+        parts[part] = user
+    return replace(law, **parts)
 
 
 def friction_law(fr, const=None) -> ScalarLaw | None:

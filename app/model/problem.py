@@ -23,7 +23,7 @@ from vpcontact.case import Case, CaseError
 from vpcontact.forms.contact import gamma3_measure
 from vpcontact.forms.elasticity import eps, plane_strain_moduli
 from vpcontact.forms.step import BulkData, ContactData, build_step_forms
-from vpcontact.model.contact_laws import contact_law, varies_in_space
+from vpcontact.model.contact_laws import ContactLaw, contact_law, replace_laws, varies_in_space
 from vpcontact.model.discretisation import Discretisation
 from vpcontact.model.gamma3 import NodalField
 from vpcontact.model.history import ImplicitViscoplasticHistory
@@ -58,6 +58,9 @@ class ContactProblem:
             BoxMesh or FileMesh).
         law: a viscoplastic law that replaces the case's (a ViscoplasticLaw, a user's law
             object, or a class / callable elasticity -> law; app/model/userlaw.py), or None.
+        contact_laws: contact laws that replace parts of the case's, {"normal": P,
+            "friction": psi} (ScalarLaws; app/model/contact_laws.py: ``replace_laws``), or
+            None.
 
     Attributes:
         disc: the Discretisation (app/model/discretisation.py); its spaces V, Q, Y, groups,
@@ -67,6 +70,7 @@ class ContactProblem:
             MatrixElasticity / CellElasticity built by app/model/stiffness.py).
         elastic_operator: tau -> E tau in UFL (forms.elasticity).
         law: the viscoplastic law (app/model/viscoplastic.py), or None (elastic body).
+        contact_replacements: the contact laws given for parts of the case's ({} if none).
         state: the State (u, sigma, H, kappa, xi, s; app/model/state.py).
         u, sigma, sigma_vm: u_n, sigma_n and its von Mises norm (the State's).
         H: the pre-stress H_n of (3.2), or None without history and initial values.
@@ -77,8 +81,11 @@ class ContactProblem:
         implicit_update: the implicit scheme's local update (the residual hook's), or None.
     """
 
-    def __init__(self, case: Case, body, law=None):
+    def __init__(self, case: Case, body, law=None, contact_laws=None):
         self.case = case
+        self.contact_replacements = dict(contact_laws or {})
+        if self.contact_replacements and not case.contact.active:
+            raise CaseError(f"{case.source}: contact_laws: the case has no contact section")
         self.time_data = TimeData(body.mesh)
         self.disc = Discretisation(case, body, self.time_data)
         d = self.dim
@@ -198,11 +205,33 @@ class ContactProblem:
                         C=None if E is not None else self.elastic_operator)
         return build_step_forms(self.u, bulk, self._contact_data() if c.active else None)
 
+    def contact_law(self, const=None, x=None) -> ContactLaw:
+        """The contact laws of the run: the case's (app/model/contact_laws.py:
+        ``contact_law``) with the parts given to the problem replaced (``replace_laws``); the
+        forms, the condensed solver and the reports all read them here.
+
+        Args:
+            const: (name, value) -> the parameter (the forms' Constants); None: numbers.
+            x: where a parameter of x, y, z is evaluated (a UFL SpatialCoordinate or the
+                nodes' coordinates), or None.
+
+        Returns:
+            The ContactLaw.
+
+        Raises:
+            CaseError: a replacement the case's contact section cannot take.
+        """
+        law = contact_law(self.case.contact, self.case.numerics.delta, const, x)
+        try:
+            return replace_laws(law, self.contact_replacements)
+        except ValueError as e:
+            raise CaseError(f"{self.case.source}: {e}") from None
+
     def _contact_data(self) -> ContactData:
         """The Gamma3 part of J_n: the normal field and the laws' parameters."""
         c = self.case.contact
-        law = contact_law(c, self.case.numerics.delta, self.constants,
-                          ufl.SpatialCoordinate(self.mesh) if varies_in_space(c) else None)
+        law = self.contact_law(self.constants, ufl.SpatialCoordinate(self.mesh)
+                               if varies_in_space(c) else None)
         return ContactData(
             self.ds_c, self._normal_ufl(), law=law,
             theta=self.theta.function if self.theta else None,

@@ -411,7 +411,7 @@ def diagnose(problem, solver=None) -> Diagnostics:
         (k_max * estimate if estimate is not None else None)
     fr = case.contact.friction
     m_E = ellipticity(elasticity)
-    m_j = friction_constant(case) if fr else 0.0
+    m_j = friction_constant(case, problem.contact_law().friction) if fr else 0.0
     gamma2 = margin = unique = None
     is_bound = False
     if fr is not None:
@@ -467,16 +467,19 @@ def state_rate(problem, t: np.ndarray, eps: np.ndarray | None = None) -> float |
     return max((e for e in found if e is not None), default=None)
 
 
-def friction_constant(case) -> float:
+def friction_constant(case, friction=None) -> float:
     """m_j of (2.6): the friction law's ``m_j`` times the slip law's ``theta_max``.
 
     Args:
         case: the Case (its contact section has friction).
+        friction: the run's friction law (a law given through the Python API states its
+            ``m_j``; one that does not is taken at the case's), or None: the case's.
 
     Returns:
         m_j.
     """
     from vpcontact.model.contact_laws import friction_law, slip_law
-    friction = friction_law(case.contact.friction)
+    if getattr(friction, "m_j", None) is None:
+        friction = friction_law(case.contact.friction)
     slip = case.contact.friction.slip
     return friction.m_j * (1.0 if slip is None else slip_law(slip).theta_max)

@@ -45,7 +45,8 @@ def law_report(problem, gamma3_history=None) -> dict:
     """The laws of a case (summary.json's "laws").
 
     Args:
-        problem: the ContactProblem (its elasticity, viscoplastic law, case).
+        problem: the ContactProblem (its elasticity, viscoplastic law, contact laws,
+            case).
         gamma3_history: the Gamma3History (memory kernel, slip law), or None.
 
     Returns:
@@ -54,8 +55,6 @@ def law_report(problem, gamma3_history=None) -> dict:
         {name, constants} or None, and "g" the gap of u_nu <= g or None} ("contact" None
         without a contact section).
     """
-    from vpcontact.model.contact_laws import contact_law
-
     case, law = problem.case, problem.law
     out = {"elasticity": _elasticity(problem),
            "viscoplastic": None if law is None else law.describe(), "contact": None}
@@ -65,7 +64,7 @@ def law_report(problem, gamma3_history=None) -> dict:
         if kappa0 is not None:
             out["viscoplastic"]["kappa0"] = _value(kappa0)
     if case.contact.active:
-        laws = contact_law(case.contact, case.numerics.delta)
+        laws = problem.contact_law()        # the case's, with the API's replacements
         h = gamma3_history
         out["contact"] = {
             "normal": _entry(laws.normal), "memory": _entry(laws.memory),

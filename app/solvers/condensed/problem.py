@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from vpcontact import kernels
-from vpcontact.model.contact_laws import contact_law
+from vpcontact.model.contact_laws import ContactLaw
 from vpcontact.solvers import dense, threads
 from vpcontact.solvers.nodal import NodalContact
 from vpcontact.solvers.snesvi import StepSolveError
@@ -38,13 +38,13 @@ class Gamma3Problem:
         S: the Schur complement in the global coordinates, on GAMMA3_ROOT (None elsewhere).
         frames: the WorkFrames of the problem.
         w: the nodal weights of the Gamma3 rule, in G order.
-        case: the Case (contact law: c_nu, friction; numerics.delta).
+        law: the contact laws with numbers as parameters (``ContactProblem.contact_law``,
+            a parameter that varies in space (c_nu(x)) evaluated at the Gamma3 nodes in G
+            order).
         rtol: relative tolerance of the projected gradient.
-        points: the Gamma3 nodes' coordinates in G order (n, d), where a law's parameter
-            that varies in space (c_nu(x)) is evaluated; None: no such parameter.
     """
 
-    def __init__(self, comm, S, frames, w, case, rtol: float = 1e-13, points=None):
+    def __init__(self, comm, S, frames, w, law: ContactLaw, rtol: float = 1e-13):
         self.comm, self.frames, self.w, self.rtol = comm, frames, w, rtol
         self.d = len(frames.normal)
         self.m = len(w) * self.d
@@ -55,10 +55,7 @@ class Gamma3Problem:
             self._direction = dense.NewtonDirection(frames.work_matrix(S), self.d, dense.load())
             return self._local_counts()
         self._counts = threads.root_call(comm, direction)
-        self.contact = NodalContact(w, frames.normal,
-                                    contact_law(case.contact, case.numerics.delta,
-                                                x=points),
-                                    kernels.load())
+        self.contact = NodalContact(w, frames.normal, law, kernels.load())
 
     def set_data(self, xi: np.ndarray | None, theta: np.ndarray | None) -> None:
         """The step's memory term and slip factor at the Gamma3 nodes (G order).

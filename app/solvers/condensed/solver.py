@@ -80,8 +80,9 @@ class CondensedStepSolver:
         if self.gamma3:
             self.gamma3_problem = Gamma3Problem(self.comm, self.condensation.S,
                                                 work_frames(problem, self.layout),
-                                                self.layout.w, problem.case, rtol,
-                                                gamma3_points(problem, self.layout))
+                                                self.layout.w, problem.contact_law(
+                                                    x=gamma3_points(problem, self.layout)),
+                                                rtol)
 
     def _layout(self) -> Gamma3Layout | None:
         """The Gamma3 dofs, or None where there are none to condense (collective)."""
