@@ -213,8 +213,7 @@ class PowerLaw(ViscoplasticLaw):
         """
         if self.n != 1:
             return None
-        return float(np.max(np.linalg.eigvals(self.elasticity.Cmat).real)) / \
-            (2.0 * self.lambda1)
+        return self.elasticity.bounds()[1] / (2.0 * self.lambda1)
 
     def rates(self, t, kappa):
         """G = -r^(n-1)/(2 lambda1) E (sigma - P sigma), Gk = 2 r^(n-1)/(3 lambda2)

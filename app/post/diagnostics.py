@@ -18,6 +18,7 @@
 """
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -433,8 +434,9 @@ def _law_rate(problem) -> tuple:
     law = problem.law
     if law is None:
         return None, None, None, None
-    lipschitz = law.lipschitz_constant()
-    rate = law.relaxation_rate()        # the largest relaxation rate, None if unknown
+    # the largest over the ranks: with E per cell a law sees only this rank's cells
+    lipschitz = _largest_over_ranks(problem.comm, law.lipschitz_constant())
+    rate = _largest_over_ranks(problem.comm, law.relaxation_rate())   # None if unknown
     rate = lipschitz if rate is None else rate
     if rate is not None:
         return rate, lipschitz, None, "law"
@@ -442,6 +444,15 @@ def _law_rate(problem) -> tuple:
     eps = problem.strain_voigt()
     estimate = state_rate(problem, el.apply(eps) + el.to_voigt(H.x.array), eps)
     return None, None, estimate, "estimated" if estimate is not None else "unknown"
+
+
+def _largest_over_ranks(comm, value: float | None) -> float | None:
+    """The largest of a law's constant over the ranks (None stays None: the law's kind, the
+    same on every rank, decides it)."""
+    if value is None or comm.size == 1:
+        return value
+    from mpi4py import MPI
+    return comm.allreduce(value, op=MPI.MAX)
 
 
 def state_rate(problem, t: np.ndarray, eps: np.ndarray | None = None) -> float | None:
@@ -462,8 +473,11 @@ def state_rate(problem, t: np.ndarray, eps: np.ndarray | None = None) -> float |
         eps = problem.strain_voigt()
     parts = [(g.law, g.rows) for g in law.flowing] if hasattr(law, "flowing") else \
         [(law, slice(None))]
-    found = [estimated_rate(g, t[rows], kappa[rows, :g.m], None if eps is None else eps[rows],
-                            problem.comm) for g, rows in parts]
+    found = []
+    for g, rows in parts:          # a group's E per cell is the body's: select its rows
+        with nullcontext() if isinstance(rows, slice) else g.elasticity.rows(rows):
+            found.append(estimated_rate(g, t[rows], kappa[rows, :g.m],
+                                        None if eps is None else eps[rows], problem.comm))
     return max((e for e in found if e is not None), default=None)
 
 

@@ -119,3 +119,32 @@ def test_rates_on_the_selected_cells_and_the_estimated_rate():
         want = estimated_rate(g.law, t[[cell]], kappa[[cell]])
         assert want is not None
         assert estimated_rate(body, t, kappa) == pytest.approx(want, rel=1e-12)
+
+
+def test_state_rate_of_a_group_with_E_per_cell_takes_its_own_cells_E():
+    """The stability estimate of a body of several materials (diagnostics.state_rate) is the
+    largest of its groups' estimates, each at the group's most stressed cell with THAT cell's
+    E: the groups' laws share the body's per-cell elasticity, so a group's row i must select
+    the body's row rows[i] (not row i, another group's cell with another E)."""
+    from types import SimpleNamespace
+
+    from vpcontact.model.material import CellElasticity
+    from vpcontact.model.viscoplastic import PowerLaw
+    from vpcontact.post.diagnostics import estimated_rate, state_rate
+    el1, el2 = Elasticity(100.0, 0.3, 2), Elasticity(900.0, 0.2, 2)
+    rows = [np.array([0, 1, 2]), np.array([3, 4])]
+    body_el = CellElasticity.from_pieces(5, [(rows[0], el1), (rows[1], el2)], 2)
+    groups = [MaterialGroup("soft", 1, rows[0], None, body_el, None),
+              MaterialGroup("hard", 2, rows[1], None, body_el,
+                            PowerLaw(body_el, 1.0, 1.0, 3.0, 10.0))]
+    t = np.ones((5, 3))
+    t[4] = [50.0, -20.0, 10.0]             # the hard group's most stressed cell: body row 4
+    kappa = np.ones((5, 1))
+    problem = SimpleNamespace(law=GroupLaws(groups, body_el), comm=None,
+                              state=SimpleNamespace(kappa_cells=kappa))
+    want = estimated_rate(PowerLaw(el2, 1.0, 1.0, 3.0, 10.0), t[[4]], kappa[[4]])
+    other = estimated_rate(PowerLaw(el1, 1.0, 1.0, 3.0, 10.0), t[[4]], kappa[[4]])
+    assert want is not None and abs(want / other - 1.0) > 0.5       # the cell's E matters
+    # central differences of step 1e-6 |sigma|: round-off of ~1e-10 relative (the per-cell
+    # and the homogeneous E multiply in another order)
+    assert state_rate(problem, t) == pytest.approx(want, rel=1e-8)
