@@ -19,14 +19,8 @@ from __future__ import annotations
 import numpy as np
 from dolfinx import fem
 
-from vpcontact.model.contact_laws import (
-    FieldKernel,
-    MemoryKernel,
-    SlipWeakening,
-    memory_kernel,
-    slip_law,
-    space_field,
-)
+from vpcontact.model.contact_laws import SlipWeakening, slip_law, space_field
+from vpcontact.model.memory_kernels import FieldKernel, MemoryKernel, memory_kernel
 from vpcontact.model.primitives import NUMPY
 
 

@@ -9,6 +9,7 @@ import pytest
 import ufl
 
 from vpcontact.model import contact_laws as laws
+from vpcontact.model import memory_kernels
 from vpcontact.model.primitives import NUMPY, UFL, backend
 
 FR = (1.0, 60.0, 60.0, 0.01)                 # b, c1, c2, u1 of the paper's Sec. 4
@@ -118,20 +119,20 @@ def test_slip_weakening_theta():
 
 def test_memory_kernels_closed_forms():
     t = np.array([0.0, 0.3, 2.0])
-    exp = laws.memory_kernel("exponential", 3.0, beta=2.5)
+    exp = memory_kernels.memory_kernel("exponential", 3.0, beta=2.5)
     assert np.allclose(exp(t), 3.0 * np.exp(-2.5 * t), rtol=1e-15) and exp.recursive
     xi, r, k = np.array([1.0, 2.0]), np.array([0.5, 0.0]), 0.1
     assert np.allclose(exp.recursion(xi, r, k), np.exp(-0.25) * (xi + 0.3 * r), rtol=1e-15)
-    power = laws.memory_kernel("power", 2.0, alpha=0.7, tau=0.3)
+    power = memory_kernels.memory_kernel("power", 2.0, alpha=0.7, tau=0.3)
     assert np.allclose(power(t), 2.0 * (1.0 + t / 0.3) ** -0.7, rtol=1e-15)
-    table = laws.memory_kernel("table", 2.0, table=[[0, 1.0], [0.5, 0.2], [2, 0.0]])
+    table = memory_kernels.memory_kernel("table", 2.0, table=[[0, 1.0], [0.5, 0.2], [2, 0.0]])
     assert np.allclose(table(t), [2.0, 2.0 * (1.0 - 0.8 * 0.6), 0.0], rtol=1e-15)
     for kernel in (power, table):
         assert not kernel.recursive
         with pytest.raises(NotImplementedError, match="no exact recursion"):
             kernel.recursion(xi, r, k)
     with pytest.raises(ValueError, match="unknown kernel"):
-        laws.memory_kernel("bogus", 1.0)
+        memory_kernels.memory_kernel("bogus", 1.0)
 
 
 def _paper_law(memory=True, normal=True):

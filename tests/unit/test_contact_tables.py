@@ -16,6 +16,7 @@ from conftest import make_case, paper_raw
 from vpcontact import kernels
 from vpcontact.io.errors import CaseError
 from vpcontact.model import contact_laws as laws
+from vpcontact.model import memory_kernels
 from vpcontact.solvers.nodal import NodalContact, nodal_contact_numpy
 
 B, C1, C2, U1 = 1.0, 60.0, 60.0, 0.01                # law (4.2) of the paper's Sec. 4
@@ -127,8 +128,8 @@ def test_memory_sum_with_b0_of_x(kind):
     x = np.array([[0.0, 0.0], [0.3, 0.0], [1.0, 0.0]])
     b0 = laws.space_field("2 + 3 * x", x)
     assert b0.tolist() == [2.0, 2.9, 5.0]
-    kernel = laws.FieldKernel(laws.memory_kernel(kind, 1.0, beta=1.5, alpha=2.0, tau=0.5),
-                              "2 + 3 * x")
+    kernel = memory_kernels.FieldKernel(
+        memory_kernels.memory_kernel(kind, 1.0, beta=1.5, alpha=2.0, tau=0.5), "2 + 3 * x")
     assert kernel.constants()["b0"][0] == "2 + 3 * x"
     times = np.cumsum(np.concatenate([[0.0], rng.uniform(0.05, 0.2, 6)]))
     r = rng.uniform(0.0, 0.01, (6, 3))

@@ -4,8 +4,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from vpcontact.model.contact_laws import SlipWeakening, memory_kernel
+from vpcontact.model.contact_laws import SlipWeakening
 from vpcontact.model.gamma3 import MemorySum, SlipSum, build_gamma3_history
+from vpcontact.model.memory_kernels import memory_kernel
 
 
 def _steps(rng, n=40):

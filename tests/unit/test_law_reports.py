@@ -10,12 +10,12 @@ from mpi4py import MPI
 
 from conftest import ROOT, make_case, paper_raw
 from vpcontact.model.contact_laws import (
-    ExponentialKernel,
     NormalCompliance,
     PiecewiseLinearFriction,
     SlipWeakening,
 )
 from vpcontact.model.material import Elasticity
+from vpcontact.model.memory_kernels import ExponentialKernel
 from vpcontact.model.viscoplastic import Perzyna, PowerLaw
 from vpcontact.post.diagnostics import estimated_rate
 from vpcontact.records import RunSummary
