@@ -401,7 +401,7 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
                            f"{s['failure']['reason']} at step {s['failure']['step']}")
     rec = RunRecord(n, N, delta, grid, s["mesh"]["dofs"], np.array(case.time.times),
                     s["solve_s"], s["setup_s"], s["newton_iterations_total"], False,
-                    sampler.snaps, _gather_table(contact_table(result.problem), comm),
+                    sampler.snaps, _final_table(result.problem, comm),
                     s["steps"][-1] if s["steps"] else None)
     try:
         with signals_held():          # the finished run is logged and cached whole
@@ -424,6 +424,11 @@ def _keep(rec: RunRecord, what: str, path: Path | None, times, comm) -> None:
                            "newton": rec.newton, "n": rec.n, "N": rec.N, "delta": rec.delta})
         except OSError as exc:        # e.g. a full disk: the study goes on without the entry
             log.warning("run not cached (%s: %s)", path, exc.strerror or exc)
+
+
+def _final_table(problem, comm) -> dict | None:
+    """The contact table at T of all ranks on rank 0 (None elsewhere, or without Gamma3)."""
+    return None if problem.gamma3 is None else _gather_table(contact_table(problem), comm)
 
 
 def _gather_table(table: dict, comm) -> dict | None:

@@ -109,3 +109,14 @@ def test_convergence_figure_labels_both_log_axes(errors):
         ticks = getattr(ax, f"get_{axis}ticks")()
         shown = [t for t in ticks if lo <= t <= hi]
         assert 2 <= len(shown) <= 12, (axis, shown)
+
+
+def test_a_case_without_contact(tmp_path):
+    """A body without Gamma3 (Norton's relaxation bar: no contact group, no contact table at
+    T) is studied like any other: it crashed on the missing contact table before."""
+    proc = run_cli(["convergence", "cases/norton_relaxation.yaml", "--vary", "k", "--levels",
+                    "10", "20", "--reference", "40", "--out", tmp_path / "o", "--no-cache"])
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    rows = _rows(tmp_path / "o")
+    assert [r["N"] for r in rows] == ["10", "20"]
+    assert all(0 < float(r["e_kappa"]) < float(r["error"]) < 10 for r in rows)
