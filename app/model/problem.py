@@ -326,10 +326,13 @@ class ContactProblem:
         elif kappa is not None:
             vp = self.case.material.viscoplastic
             k0 = vp.kappa0 if vp is not None else 0.0     # a law given to an elastic case
-            if isinstance(k0, str):
-                self._cell_average(scalar(k0), kappa)
-                self._refuse(not (kappa.x.array >= 0).all(), "material.viscoplastic.kappa0",
+            if isinstance(k0, str):     # m > 1: every component starts at kappa0 (laws.py)
+                work = kappa if self.state.m == 1 else fem.Function(self.Y)
+                self._cell_average(scalar(k0), work)
+                self._refuse(not (work.x.array >= 0).all(), "material.viscoplastic.kappa0",
                              "must be a finite number >= 0 everywhere")
+                if work is not kappa:
+                    self.state.kappa_cells[:] = work.x.array[:, None]
             else:
                 kappa.x.array[:] = k0
 

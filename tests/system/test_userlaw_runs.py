@@ -137,3 +137,38 @@ def test_import_error_names_the_line(tmp_path, capsys):
     assert _main(["check", PAPER_CASE, *PYTHON_LAW, "--law-module", bad]) == 2
     err = capsys.readouterr().err
     assert f"--law-module {bad}: importing it raised ValueError: no constants (line 3)" in err
+
+
+class _Frozen:
+    """A user law with m = 2 that does not flow (G = 0, Gk = 0): kappa keeps kappa_0."""
+
+    m = 2
+
+    def __init__(self, elasticity):
+        self.elasticity = elasticity
+
+    def G(self, sigma, eps, kappa):
+        return np.zeros_like(sigma)
+
+    def Gk(self, sigma, eps, kappa):
+        return np.zeros_like(kappa)
+
+
+def test_kappa0_expression_starts_every_component_of_a_law_with_m_2():
+    """kappa0 = "1 + x" with a user law of m = 2: both components start at the cell average
+    of 1 + x, the centroid's value (exact for a linear function); it failed with a UFL shape
+    error before."""
+    from dolfinx.mesh import compute_midpoints
+    from mpi4py import MPI
+
+    from vpcontact.simulation import Simulation
+    raw = paper_raw()
+    raw["material"]["viscoplastic"]["kappa0"] = "1 + x"
+    sim = Simulation(make_case(raw, mesh={"n": 4}, time={"N": 1}), MPI.COMM_WORLD,
+                     law=_Frozen)
+    assert sim.run().status == "completed"
+    p = sim.problem
+    cells = np.arange(p.state.kappa_cells.shape[0], dtype=np.int32)
+    x = compute_midpoints(p.mesh, p.mesh.topology.dim, cells)[:, 0]
+    np.testing.assert_allclose(p.state.kappa_cells, np.column_stack([1 + x, 1 + x]),
+                               rtol=1e-12)
