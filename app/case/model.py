@@ -121,9 +121,19 @@ class Slip:
 
 
 @dataclass(frozen=True)
+class PythonLaw:
+    """A contact law written by the user (``law: python``): the class of --law-module and
+    its constructor's keyword arguments (app/model/lawmodule.py builds Class(**params))."""
+
+    cls: str
+    params: dict
+
+
+@dataclass(frozen=True)
 class Friction:
     """``contact.friction``: the parameters of law (4.2) and the slip dependence or None;
-    or the friction stress ``table`` [[rho, tau], ...] (then b, c1, c2, u1 are None)."""
+    or the friction stress ``table`` [[rho, tau], ...], or the user's law ``python`` (then
+    b, c1, c2, u1 are None)."""
 
     b: float | None
     c1: float | None
@@ -131,6 +141,7 @@ class Friction:
     u1: float | None
     slip: Slip | None = None
     table: tuple | None = None
+    python: PythonLaw | None = None
 
 
 @dataclass(frozen=True)
@@ -152,8 +163,8 @@ class Contact:
     """The ``contact`` section: gap g (a number, an expression in x, y, z, or None),
     normal compliance c_nu (4.1) (a number or an expression in x, y, z) with its exponent
     compliance_m (None: absent, the law (4.1)) or the compliance_table [[r, p], ...] (then
-    c_nu is None), friction, memory, and the fixed unit approach direction (None: the
-    outward normal of Gamma3)."""
+    c_nu is None) or the user's law compliance_python, friction, memory, and the fixed unit
+    approach direction (None: the outward normal of Gamma3)."""
 
     g: float | str | None
     c_nu: float | str | None
@@ -162,11 +173,13 @@ class Contact:
     direction: tuple | None = None
     compliance_m: float | None = None
     compliance_table: tuple | None = None
+    compliance_python: PythonLaw | None = None
 
     @property
     def compliance(self) -> bool:
-        """A normal compliance law is present (c_nu or a table)."""
-        return self.c_nu is not None or self.compliance_table is not None
+        """A normal compliance law is present (c_nu, a table or the user's law)."""
+        return self.c_nu is not None or self.compliance_table is not None \
+            or self.compliance_python is not None
 
     @property
     def active(self) -> bool:
@@ -288,14 +301,18 @@ class Case:
                          + (" (implicit, right end point)" if self.time.scheme == "implicit"
                             else " (explicit, as in the paper)"))
         if self.contact.compliance:
-            terms.append("normal compliance")
+            user = self.contact.compliance_python
+            terms.append("normal compliance" if user is None else
+                         f"normal compliance (the user's law {user.cls}, --law-module)")
         if self.contact.g is not None:
             terms.append("unilateral constraint u_nu <= g")
         if self.contact.memory is not None:
             terms.append(f"memory term xi_n ({self.contact.memory.kernel} kernel)")
         if self.contact.friction is not None:
-            terms.append("nonmonotone friction (4.2)" if self.contact.friction.table is None
-                         else "nonmonotone friction (table)")
+            fr = self.contact.friction
+            terms.append(f"friction (the user's law {fr.python.cls}, --law-module)"
+                         if fr.python is not None else "nonmonotone friction (4.2)"
+                         if fr.table is None else "nonmonotone friction (table)")
             if self.contact.friction.slip is not None:
                 terms.append("slip-dependent friction theta(s_n)")
         return terms
@@ -399,10 +416,19 @@ def _table(rows) -> tuple | None:
 
 
 def _compliance(nc: dict | None) -> tuple:
-    """(compliance_m, compliance_table) of contact.normal_compliance (absent: None, None)."""
+    """(compliance_m, compliance_table, compliance_python) of contact.normal_compliance
+    (absent: None, None, None)."""
     nc = nc or {}
     m = nc.get("m")
-    return (None if m is None else float(m)), _table(nc.get("table"))
+    return (None if m is None else float(m)), _table(nc.get("table")), _python_law(nc)
+
+
+def _python_law(section: dict) -> PythonLaw | None:
+    """The PythonLaw of a contact law section with ``law: python``, else None."""
+    if section.get("law") != "python":
+        return None
+    return PythonLaw(section["class"],
+                     {k: float(v) for k, v in section.get("params", {}).items()})
 
 
 def _friction(fr: dict, slip: dict | None) -> Friction:
@@ -412,7 +438,7 @@ def _friction(fr: dict, slip: dict | None) -> Friction:
         s = Slip(*(None if k not in slip else float(slip[k]) for k in ("theta_inf", "s0")),
                  _table(slip.get("table")))
     return Friction(*(None if k not in fr else float(fr[k]) for k in ("b", "c1", "c2", "u1")),
-                    s, _table(fr.get("table")))
+                    s, _table(fr.get("table")), _python_law(fr))
 
 
 def _material(material: dict) -> Material:

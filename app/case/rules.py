@@ -217,7 +217,7 @@ def _check_contact(contact: dict, dim: int, source: str) -> None:
     fr = contact.get("friction")
     if fr:
         _check_friction(fr, source)
-    if fr and "table" not in fr and fr["b"] - fr["c1"] * fr["u1"] < 0:
+    if fr and "table" not in fr and "law" not in fr and fr["b"] - fr["c1"] * fr["u1"] < 0:
         raise CaseError(f"{source}: contact.friction: b - c1 u1 must be >= 0 (the friction "
                         f"force of law (4.2) may not change sign), got "
                         f"{fr['b'] - fr['c1'] * fr['u1']:g}")
@@ -249,9 +249,34 @@ def _table_points(rows, path: str, source: str) -> tuple[list, list]:
     return xs, ys
 
 
+# the keys of the built-in contact laws, refused with law: python
+BUILTIN_CONTACT_KEYS = {"contact.normal_compliance": ("c_nu", "m", "table"),
+                        "contact.friction": ("b", "c1", "c2", "u1", "table")}
+
+
+def _python_contact_law(given: dict, path: str, source: str) -> bool:
+    """A contact law written by the user (``law: python``): class required, the built-in
+    law's keys refused; class and params only with law python.  Returns: law python."""
+    if given.get("law") != "python":
+        for key in ("class", "params"):
+            if key in given:
+                raise CaseError(f"{source}: {path}.{key}: only with law: python (a law "
+                                "written by the user)")
+        return False
+    builtin = [k for k in BUILTIN_CONTACT_KEYS[path] if k in given]
+    if builtin:
+        raise CaseError(f"{source}: {path}.{builtin[0]}: not with law: python (the user's "
+                        f"class gives the law; remove {', '.join(builtin)})")
+    if "class" not in given:
+        raise CaseError(f"{source}: {path}.class: required with law python (the name of the "
+                        "law's class in the module of --law-module FILE.py)")
+    return True
+
+
 def _check_compliance(nc: dict | None, dim: int, source: str) -> None:
-    """contact.normal_compliance: c_nu (with m) or a table, nondecreasing from [0, 0]."""
-    if nc is None:
+    """contact.normal_compliance: c_nu (with m) or a table, nondecreasing from [0, 0]; or a
+    law written by the user."""
+    if nc is None or _python_contact_law(nc, "contact.normal_compliance", source):
         return
     _either(nc, "contact.normal_compliance", ("c_nu",), "table", source)
     if "m" in nc and "c_nu" not in nc:
@@ -270,8 +295,9 @@ def _check_compliance(nc: dict | None, dim: int, source: str) -> None:
 
 def _check_friction(fr: dict, source: str) -> None:
     """contact.friction: b, c1, c2, u1 or a table (tau(0) > 0, tau >= 0, last slope >= 0);
-    its slip: theta_inf, s0 or a table in [0, 1]."""
-    _either(fr, "contact.friction", ("b", "c1", "c2", "u1"), "table", source)
+    or a law written by the user; its slip: theta_inf, s0 or a table in [0, 1]."""
+    if not _python_contact_law(fr, "contact.friction", source):
+        _either(fr, "contact.friction", ("b", "c1", "c2", "u1"), "table", source)
     if "table" in fr:
         path = "contact.friction.table"
         rho, tau = _table_points(fr["table"], path, source)

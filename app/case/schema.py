@@ -38,6 +38,31 @@ _groups = {"type": "array", "items": _group, "maxItems": 1000}
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]*$"
 
 
+def _python_law(part: str, what: str) -> dict:
+    """The keys law, class, params of a contact law written by the user (``law: python``):
+    part names the key in messages, what the function the class gives."""
+    return {
+        "law": {"enum": ["python"],
+                "description": f"python: {what} is a law written by the user, the class "
+                               "named by class in the module given with --law-module "
+                               "FILE.py (a case file alone never runs code: without the "
+                               f"option the case is refused); instead of the built-in "
+                               f"law's keys of {part} (absent: the built-in law)"},
+        "class": {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_]*$", "maxLength": 100,
+                  "description": "law python (required there): the name of the law's class "
+                                 "in the module of --law-module FILE.py, built as "
+                                 "Class(**params): a ScalarLaw (vpcontact.model.laws) or an "
+                                 "object with energy(x), derivative(x), second_derivative(x) "
+                                 "written with vpcontact.model.primitives.backend(x)"},
+        "params": {"type": "object", "additionalProperties": {"type": "number"},
+                   "propertyNames": {"pattern": r"^[A-Za-z_][A-Za-z0-9_]*$"},
+                   "maxProperties": 100,
+                   "description": "law python: the keyword arguments of the class's "
+                                  "constructor, numbers in the units the law expects (absent: "
+                                  "none)"},
+    }
+
+
 def _obj(props: dict, required: list | None = None, description: str = "",
          default=None) -> dict:
     out = {"type": "object", "additionalProperties": False, "properties": props,
@@ -255,8 +280,11 @@ SCHEMA = _obj({
                                      "normal displacement r [m], nondecreasing, starting at "
                                      "[0, 0], constant beyond the last point (instead of "
                                      "c_nu)"},
-        }, description="normal compliance p(r): c_nu r^+ (4.1), c_nu (r^+)^m, or a table "
-                       "(give c_nu or table)"),
+            **_python_law("contact.normal_compliance", "the normal compliance energy P(r) "
+                          "(p = P' against the normal displacement r = u_nu [m], P'' its "
+                          "slope)"),
+        }, description="normal compliance p(r): c_nu r^+ (4.1), c_nu (r^+)^m, a table, or "
+                       "a law written by the user (give c_nu, table or law: python)"),
         "memory": _obj({
             "b0": {"oneOf": [_nonneg, _expr],
                    "description": "memory kernel amplitude b0 [N/(m^3 s)]: a number >= 0 or "
@@ -300,8 +328,12 @@ SCHEMA = _obj({
             }, description="slip dependence j = theta(s) psi, theta(s) = theta_inf + "
                            "(1 - theta_inf) exp(-s/s0) or a table, s = int_0^t |u_tau| "
                            "(absent: none; give theta_inf and s0, or table)"),
-        }, description="nonmonotone friction law (4.2) of b, c1, c2, u1, or a friction "
-                       "table (absent: frictionless)"),
+            **_python_law("contact.friction", "the friction potential psi(rho) (the "
+                          "friction stress psi' against the slip rho = |u_tau|_delta [m]; "
+                          "an attribute m_j, the largest decreasing slope of psi', enters "
+                          "(2.6), else m_j is not stated; slip still applies)"),
+        }, description="nonmonotone friction law (4.2) of b, c1, c2, u1, a friction "
+                       "table, or a law written by the user (absent: frictionless)"),
     }, description="contact on Gamma3 = boundaries.contact (built-in meshes: the bottom "
                    "side by default) with a rigid foundation (absent: Gamma3 is traction "
                    "free)"),

@@ -61,9 +61,10 @@ def latest(directory: Path) -> Path | None:
 
 def case_fingerprint(case, laws: dict | None = None) -> str:
     """What must agree between the checkpointed run and the restart: mesh, material, contact,
-    loads, initial values, time grid and scheme (not solver or output settings), and the
-    laws given through the Python API (``api_laws``; added only when there are some, so a
-    case without them keeps its fingerprint).
+    loads, initial values, time grid and scheme (not solver or output settings), the laws
+    given through the Python API (``api_laws``) and, with a ``python`` law of the case, the
+    SHA-256 of the --law-module file's bytes (``law_module``); each added only when there
+    is one, so a case without them keeps its fingerprint.
 
     Args:
         case: the validated Case.
@@ -84,7 +85,24 @@ def case_fingerprint(case, laws: dict | None = None) -> str:
         data["mesh_file"] = _mesh_files_digest(case)
     if laws:
         data["api_laws"] = laws
+    module = law_module(case)
+    if module is not None:
+        data["law_module"] = module["sha256"]
     return hashlib.sha256(stable_json(data).encode()).hexdigest()
+
+
+def law_module(case) -> dict | None:
+    """The --law-module file of a case that names a ``python`` law (viscoplastic or contact).
+
+    Args:
+        case: the validated Case.
+
+    Returns:
+        {"path", "sha256"} of the loaded module (app/model/lawmodule.py), or None: the case
+        names no python law, or no module is loaded (laws given through the API instead).
+    """
+    from vpcontact.model.lawmodule import law_module_digest, python_law_classes
+    return law_module_digest() if python_law_classes(case.raw) else None
 
 
 def _plain(v):
@@ -264,6 +282,9 @@ def save(outdir: Path, sim) -> Path:
                 "memory": None if mem is None else {"t_prev": mem["t_prev"], "k": mem["k"]}}
         if laws:                          # the laws given through the Python API
             meta["laws"] = laws
+        module = law_module(sim.case)
+        if module is not None:            # the case's python laws: --law-module's file
+            meta["law_module"] = module
         arrays["meta"] = np.array(json.dumps(meta))
     on_rank0(comm, _write, path, arrays, outdir)    # OutputError on every rank if it fails
     return path
@@ -455,6 +476,12 @@ class Checkpoint:
             return (f"{self.path} was written with laws given through the Python API "
                     f"({_laws_text(self.meta['laws'])}): continue it from the Python API "
                     "with the same laws")
+        stored, given = self.meta.get("law_module"), law_module(case)
+        if stored is not None and given is not None and stored["sha256"] != given["sha256"]:
+            return (f"{self.path} was written with the law module {stored['path']} (SHA-256 "
+                    f"{stored['sha256'][:12]}...); --law-module {given['path']} differs "
+                    f"(SHA-256 {given['sha256'][:12]}...): an edited law module is another "
+                    "law; restart with the module the run was written with, or start anew")
         if self.meta["fingerprint"] != case_fingerprint(case):
             return (f"{self.path} was written for a different case (mesh, material, contact, "
                     "loads, initial values or time grid differ)")

@@ -40,7 +40,11 @@ and the forms use it as they are (the compiled kernel serves only the paper's la
 numbers; any other law takes its numpy path).  A user's law replaces P or psi of the case's
 through the Python API (``Simulation(case, comm, contact_laws={"normal": P, "friction":
 psi})``, ``replace_laws``); ``ContactProblem.contact_law`` (app/model/problem.py) composes the
-run's laws in one place for the forms, the condensed solver and the reports.
+run's laws in one place for the forms, the condensed solver and the reports.  A law written by
+the user named in the case file (``law: python`` of contact.normal_compliance or
+contact.friction, the class of ``--law-module FILE.py``) takes the same path: the case's
+part is a ``PythonLawSlot`` that ContactProblem replaces by the law built from the module
+(app/model/lawmodule.py: ``python_contact_laws``).
 """
 from __future__ import annotations
 
@@ -719,6 +723,34 @@ def replace_laws(law: ContactLaw, replacements: dict | None) -> ContactLaw:
     return replace(law, **parts)
 
 
+class PythonLawSlot(ScalarLaw):
+    """The place of a contact law written by the user (``law: python``) in the case's
+    ContactLaw: it names the class and must be replaced (``replace_laws``) by the law built
+    from --law-module before it is evaluated.
+
+    Args:
+        key: the case's key (contact.normal_compliance or contact.friction).
+        spec: the case's PythonLaw (class name, params).
+    """
+
+    m_j = None                         # stated by the user's law, not by its place
+
+    def __init__(self, key: str, spec):
+        self.key, self.cls, self.params = key, spec.cls, dict(spec.params)
+        self.name = f"the user's law {spec.cls}"
+
+    def constants(self):
+        """Returns: the params the class is built with (no units)."""
+        return {k: (v, "") for k, v in self.params.items()}
+
+    def _unbuilt(self, *_):
+        """Evaluating the place itself is an error of the caller."""
+        raise RuntimeError(f"{self.key}: the user's law {self.cls} is built from --law-module "
+                           "and replaces this place (ContactProblem.contact_law)")
+
+    energy = derivative = second_derivative = _unbuilt
+
+
 def friction_law(fr, const=None) -> ScalarLaw | None:
     """The friction potential psi of a case's ``contact.friction``.
 
@@ -728,11 +760,14 @@ def friction_law(fr, const=None) -> ScalarLaw | None:
             numbers themselves.
 
     Returns:
-        A PiecewiseLinearFriction or a TableFriction; None without friction.
+        A PiecewiseLinearFriction, a TableFriction or the PythonLawSlot of the user's law;
+        None without friction.
     """
     param = const if const is not None else (lambda name, value: value)
     if fr is None:
         return None
+    if getattr(fr, "python", None) is not None:
+        return PythonLawSlot("contact.friction", fr.python)
     if getattr(fr, "table", None) is not None:
         return TableFriction(fr.table)
     return PiecewiseLinearFriction(*(param(k, getattr(fr, k)) for k in ("b", "c1", "c2", "u1")))
@@ -740,7 +775,9 @@ def friction_law(fr, const=None) -> ScalarLaw | None:
 
 def _normal_law(contact, param, x):
     """The normal compliance of a contact section (None: none): (4.1) for a number c_nu
-    without m, else c_nu(x) (r^+)^m, or the table's law."""
+    without m, else c_nu(x) (r^+)^m, the table's law, or the user's law's place."""
+    if getattr(contact, "compliance_python", None) is not None:
+        return PythonLawSlot("contact.normal_compliance", contact.compliance_python)
     table = getattr(contact, "compliance_table", None)
     if table is not None:
         return TableCompliance(table)

@@ -1,10 +1,15 @@
 """The user's law module of the command line: ``--law-module FILE.py`` imports FILE.py (on
 every rank, once per process) and ``material.viscoplastic.law: python`` with ``class: Name``
-builds ``Name(elasticity, **params)`` from it (app/model/userlaw.py wraps it).  A case file
-alone never runs code: without the option a ``python`` law is refused.
+builds ``Name(elasticity, **params)`` from it, ``contact.normal_compliance`` or
+``contact.friction`` with ``law: python`` builds ``Name(**params)`` (app/model/userlaw.py
+wraps and checks them).  A case file alone never runs code: without the option a ``python``
+law is refused.  The SHA-256 of the module's bytes (``law_module_digest``) enters the
+checkpoints' fingerprint of a case with a python law, so a restart with an edited module is
+refused.
 """
 from __future__ import annotations
 
+import hashlib
 import importlib.util
 import sys
 import traceback
@@ -32,6 +37,7 @@ def load_law_module(path) -> object:
     path = Path(path)
     if path.suffix != ".py" or not path.is_file():
         raise CaseError(f"--law-module {path}: no such Python file (FILE.py)")
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
     name = f"vpcontact_law_module_{abs(hash(str(path.resolve())))}"
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
@@ -45,8 +51,19 @@ def load_law_module(path) -> object:
         at = f" (line {lines[-1]})" if lines else ""
         raise CaseError(f"--law-module {path}: importing it raised {type(exc).__name__}: "
                         f"{exc}{at}") from None
-    _loaded.update(path=path, module=module)
+    _loaded.update(path=path, module=module, sha256=digest)
     return module
+
+
+def law_module_digest() -> dict | None:
+    """The loaded law module's file and the SHA-256 of its bytes as imported.
+
+    Returns:
+        {"path", "sha256"}, or None if no module is loaded.
+    """
+    if "module" not in _loaded:
+        return None
+    return {"path": str(_loaded["path"]), "sha256": _loaded["sha256"]}
 
 
 def forget_law_module() -> None:
@@ -61,14 +78,20 @@ def python_law_classes(raw: dict) -> list[tuple[str, str]]:
         raw: the case mapping (Case.raw).
 
     Returns:
-        [(key path, class name)] of material.viscoplastic and of each materials group.
+        [(key path, class name)] of material.viscoplastic, of each materials group and of
+        contact.normal_compliance and contact.friction.
     """
     sections = [("material", raw.get("material"))]
     sections += [(f"materials.{group}", section)
                  for group, section in (raw.get("materials") or {}).items()]
-    return [(f"{path}.viscoplastic", sec["viscoplastic"]["class"]) for path, sec in sections
-            if isinstance(sec, dict) and isinstance(sec.get("viscoplastic"), dict)
-            and sec["viscoplastic"].get("law") == "python"]
+    out = [(f"{path}.viscoplastic", sec["viscoplastic"]["class"]) for path, sec in sections
+           if isinstance(sec, dict) and isinstance(sec.get("viscoplastic"), dict)
+           and sec["viscoplastic"].get("law") == "python"]
+    contact = raw.get("contact") or {}
+    return out + [(f"contact.{key}", contact[key]["class"])
+                  for key in ("normal_compliance", "friction")
+                  if isinstance(contact.get(key), dict)
+                  and contact[key].get("law") == "python"]
 
 
 def prepare_law_module(raw: dict, path) -> None:
@@ -132,3 +155,43 @@ def python_law(vp, elasticity: Elasticity, key: str = "material.viscoplastic"):
         raise CaseError(f"{where}: {vp.cls}(elasticity, **{key}.params) failed: {exc}") \
             from None
     return as_viscoplastic_law(obj, elasticity, where, params)
+
+
+def python_contact_laws(contact, skip=()) -> dict:
+    """The contact laws of a case written by the user (``law: python``): ``Name(**params)``
+    of the loaded module for contact.normal_compliance and contact.friction, checked and
+    wrapped (app/model/userlaw.py: UserContactLaw); they replace the case's parts like the
+    laws given through the Python API (app/model/contact_laws.py: ``replace_laws``).
+
+    Args:
+        contact: the case's Contact.
+        skip: the parts given through the Python API instead ("normal", "friction").
+
+    Returns:
+        {"normal" | "friction": the law} of the case's python laws ({} if none).
+
+    Raises:
+        CaseError: no module loaded, no such class, its constructor refused the params, or
+            the object is not a contact law.
+    """
+    fr = contact.friction
+    specs = {"normal": ("contact.normal_compliance", contact.compliance_python),
+             "friction": ("contact.friction", fr.python if fr is not None else None)}
+    return {part: _contact_law(spec, key, part) for part, (key, spec) in specs.items()
+            if spec is not None and part not in skip}
+
+
+def _contact_law(spec, key: str, part: str):
+    """``spec.cls(**spec.params)`` of the loaded module as a UserContactLaw."""
+    from vpcontact.model.userlaw import UserContactLaw
+    if "module" not in _loaded:
+        raise CaseError(f"{key}.law: python runs the class {spec.cls} of a Python module: "
+                        f"give the module with {OPTION} (a case file alone never runs code)")
+    path = _loaded["path"]
+    cls = _law_class(_loaded["module"], path, spec.cls, key)
+    where = f"--law-module {path}: class {spec.cls}"
+    try:
+        obj = cls(**spec.params)
+    except (TypeError, ValueError) as exc:
+        raise CaseError(f"{where}: {spec.cls}(**{key}.params) failed: {exc}") from None
+    return UserContactLaw(obj, where, part, spec.params)

@@ -27,6 +27,7 @@ from vpcontact.model.contact_laws import ContactLaw, contact_law, replace_laws, 
 from vpcontact.model.discretisation import Discretisation
 from vpcontact.model.gamma3 import NodalField
 from vpcontact.model.history import ImplicitViscoplasticHistory
+from vpcontact.model.lawmodule import python_contact_laws
 from vpcontact.model.loads import TimeData
 from vpcontact.model.material import Elasticity
 from vpcontact.model.materials import body_materials
@@ -70,7 +71,9 @@ class ContactProblem:
             MatrixElasticity / CellElasticity built by app/model/stiffness.py).
         elastic_operator: tau -> E tau in UFL (forms.elasticity).
         law: the viscoplastic law (app/model/viscoplastic.py), or None (elastic body).
-        contact_replacements: the contact laws given for parts of the case's ({} if none).
+        contact_replacements: the contact laws that replace parts of the case's: the case's
+            laws written by the user (``law: python``, app/model/lawmodule.py) and those
+            given through the API ({} if none).
         state: the State (u, sigma, H, kappa, xi, s; app/model/state.py).
         u, sigma, sigma_vm: u_n, sigma_n and its von Mises norm (the State's).
         H: the pre-stress H_n of (3.2), or None without history and initial values.
@@ -83,9 +86,12 @@ class ContactProblem:
 
     def __init__(self, case: Case, body, law=None, contact_laws=None):
         self.case = case
-        self.contact_replacements = dict(contact_laws or {})
-        if self.contact_replacements and not case.contact.active:
+        given = dict(contact_laws or {})
+        if given and not case.contact.active:
             raise CaseError(f"{case.source}: contact_laws: the case has no contact section")
+        # the case's contact laws written by the user (law: python, --law-module) replace
+        # their parts like the API's; a part given through the API takes precedence
+        self.contact_replacements = {**python_contact_laws(case.contact, skip=given), **given}
         self.time_data = TimeData(body.mesh)
         self.disc = Discretisation(case, body, self.time_data)
         d = self.dim

@@ -3,14 +3,17 @@
 ``rate_bound``), as a ViscoplasticLaw: ``UserLaw`` converts between the t-coordinates of the
 updates and the user's tensors (Elasticity.to_voigt / from_voigt), passes the strain eps
 (``uses_eps``) and checks what the law returns; ``as_viscoplastic_law`` takes a class, a
-factory or an object.
+factory or an object.  A contact law written by a user for the case file (``law: python``
+of contact.normal_compliance or contact.friction), duck-typed as a ScalarLaw (``energy``,
+``derivative``, ``second_derivative`` of one scalar, written with the primitives of
+``backend(x)``), is checked and described by ``UserContactLaw``.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from vpcontact.io.errors import CaseError
-from vpcontact.model.laws import ViscoplasticLaw, elastic_strain
+from vpcontact.model.laws import ScalarLaw, ViscoplasticLaw, elastic_strain
 from vpcontact.model.material import FLAT, FROM, Elasticity
 
 
@@ -251,3 +254,104 @@ def as_viscoplastic_law(law, elasticity: Elasticity, where: str | None = None,
     kind = type(law)
     return UserLaw(law, elasticity, where or f"law {kind.__module__}.{kind.__qualname__}",
                    params)
+
+
+# where a contact law written by the user is probed before the first step: the normal
+# displacement r (either sign) and the regularised slip rho > 0 [m]
+CONTACT_PROBES = {"normal": (-1e-3, 0.0, 1e-3), "friction": (1e-4, 1e-3, 1e-2)}
+SCALAR_METHODS = ("energy", "derivative", "second_derivative")
+
+
+class UserContactLaw(ScalarLaw):
+    """A contact law written by the user (contact.normal_compliance or contact.friction with
+    ``law: python``) as the run's ScalarLaw: the user's object is duck-typed (a ScalarLaw of
+    app/model/laws.py, or any object with ``energy``, ``derivative``, ``second_derivative``
+    written with ``backend(x)``: numpy at the nodes, UFL in the forms), its three methods
+    are called as they are (the same operations as the user's object), and it is checked
+    before the first step: the methods exist, numpy values at a few points have the
+    argument's shape and are finite, a friction law's ``m_j`` (of (2.6)), if stated, is a
+    number >= 0.
+
+    Args:
+        law: the user's object.
+        where: what to name in messages (the module file and class).
+        part: "normal" (P(r) of the normal displacement r) or "friction" (psi(rho) of the
+            regularised slip rho).
+        params: the constants the law was built with (``check``, summary.json).
+
+    Raises:
+        CaseError: the object is not a contact law (see above).
+    """
+
+    def __init__(self, law, where: str, part: str, params: dict | None = None):
+        missing = [f for f in SCALAR_METHODS if not callable(getattr(law, f, None))]
+        if missing:
+            raise CaseError(f"{where}: not a contact law: no method {missing[0]}(x) (a "
+                            "ScalarLaw of vpcontact.model.laws: energy, derivative, "
+                            "second_derivative)")
+        self.user, self.where, self.params = law, where, dict(params or {})
+        self.name = str(getattr(law, "name", type(law).__name__))
+        self.m_j = None
+        if part == "friction" and getattr(law, "m_j", None) is not None:
+            m_j = law.m_j
+            if isinstance(m_j, bool) or not isinstance(m_j, (int, float, np.number)) \
+                    or not (np.isfinite(m_j) and m_j >= 0):
+                raise CaseError(f"{where}: m_j = {m_j!r}: the largest decreasing slope of "
+                                "psi' (2.6) must be a number >= 0")
+            self.m_j = float(m_j)
+        self._probe(np.array(CONTACT_PROBES[part]))
+
+    def _probe(self, x: np.ndarray) -> None:
+        """The three methods at the points x (numpy): the shape of x, finite values."""
+        for method in SCALAR_METHODS:
+            try:
+                out = np.asarray(getattr(self.user, method)(x.copy()), dtype=float)
+            except Exception as exc:  # noqa: BLE001  (the user's code: report what it raised)
+                raise CaseError(f"{self.where}: {method}(x) at x = {x.tolist()} (a numpy "
+                                f"array) raised {type(exc).__name__}: {exc}") from None
+            if out.shape not in (x.shape, ()):
+                raise CaseError(f"{self.where}: {method}(x) returned an array of shape "
+                                f"{out.shape}, expected {x.shape} (the shape of x)")
+            if not np.isfinite(out).all():
+                raise CaseError(f"{self.where}: {method}(x) returned non-finite values "
+                                f"(NaN/Inf) at x = {x.tolist()}")
+
+    def constants(self) -> dict:
+        """Returns: the user's ``constants()`` where it gives some, else the numeric
+        ``params`` the law was built with (no units)."""
+        own = self.user.constants() if callable(getattr(self.user, "constants", None)) \
+            else {}
+        return dict(own) or {key: (value, "") for key, value in self.params.items()}
+
+    def energy(self, r):
+        """The user's energy.
+
+        Args:
+            r: the variable at the nodes (numpy) or a UFL expression.
+
+        Returns:
+            The energy, elementwise.
+        """
+        return self.user.energy(r)
+
+    def derivative(self, r):
+        """The user's derivative.
+
+        Args:
+            r: as for ``energy``.
+
+        Returns:
+            The derivative, elementwise.
+        """
+        return self.user.derivative(r)
+
+    def second_derivative(self, r):
+        """The user's second derivative.
+
+        Args:
+            r: as for ``energy``.
+
+        Returns:
+            The second derivative, elementwise.
+        """
+        return self.user.second_derivative(r)

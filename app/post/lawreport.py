@@ -77,8 +77,9 @@ def law_report(problem, gamma3_history=None) -> dict:
 
 def _constants_text(entry: dict) -> str:
     """'name: k = v unit, ...' of one entry."""
-    consts = ", ".join(f"{k} = {v:g}" + ("" if u == "-" else f" {u}") if isinstance(v, float)
-                       else f"{k} = {v}" + ("" if u == "-" else f" [{u}]")
+    consts = ", ".join(f"{k} = {v:g}" + ("" if u in ("-", "") else f" {u}")
+                       if isinstance(v, float)
+                       else f"{k} = {v}" + ("" if u in ("-", "") else f" [{u}]")
                        for k, (v, u) in entry["constants"].items())
     return entry["name"] + (f": {consts}" if consts else "")
 
@@ -122,7 +123,8 @@ def law_lines(report: dict, diagnostics=None) -> list[str]:
         if contact.get(key) is not None:
             text = _constants_text(contact[key])
             if key == "friction" and d is not None:
-                text += f"; m_j = {d.m_j:g} N/m^3"
+                text += f"; m_j = {d.m_j:g} N/m^3" if d.m_j is not None else \
+                    "; m_j: not stated by the law (no (2.6) margin)"
             lines.append(f"contact: {text}")
     g = contact.get("g")
     if g is not None:
