@@ -269,8 +269,8 @@ class UserContactLaw(ScalarLaw):
     written with ``backend(x)``: numpy at the nodes, UFL in the forms), its three methods
     are called as they are (the same operations as the user's object), and it is checked
     before the first step: the methods exist, numpy values at a few points have the
-    argument's shape and are finite, a friction law's ``m_j`` (of (2.6)), if stated, is a
-    number >= 0.
+    argument's shape and are finite, on a UFL symbol they give UFL expressions (the forms),
+    a friction law's ``m_j`` (of (2.6)), if stated, is a number >= 0.
 
     Args:
         law: the user's object.
@@ -300,6 +300,7 @@ class UserContactLaw(ScalarLaw):
                                 "psi' (2.6) must be a number >= 0")
             self.m_j = float(m_j)
         self._probe(np.array(CONTACT_PROBES[part]))
+        self._probe_ufl()
 
     def _probe(self, x: np.ndarray) -> None:
         """The three methods at the points x (numpy): the shape of x, finite values."""
@@ -315,6 +316,32 @@ class UserContactLaw(ScalarLaw):
             if not np.isfinite(out).all():
                 raise CaseError(f"{self.where}: {method}(x) returned non-finite values "
                                 f"(NaN/Inf) at x = {x.tolist()}")
+
+    def _probe_ufl(self) -> None:
+        """The three methods on a UFL symbol (SNES VI's forms): a UFL expression or a
+        number, else (numpy's functions on a UFL expression) CaseError naming the rule."""
+        import logging
+
+        import ufl
+        x = ufl.Constant(ufl.Mesh(ufl.VectorElement("Lagrange", ufl.triangle, 1)))
+        log = logging.getLogger("UFL")              # UFL logs its error before raising it
+        level = log.level
+        log.setLevel(logging.CRITICAL)
+        try:
+            for method in SCALAR_METHODS:
+                try:
+                    out = getattr(self.user, method)(x)
+                except Exception as exc:  # noqa: BLE001  (the user's code)
+                    out = exc
+                if not isinstance(out, (ufl.core.expr.Expr, int, float)):
+                    what = f"raised {type(out).__name__}: {str(out).rstrip('.')}" \
+                        if isinstance(out, Exception) else f"returned a {type(out).__name__}"
+                    raise CaseError(f"{self.where}: {method}(x) on a UFL expression (SNES VI's "
+                                    f"forms) {what}; write the law with the primitives of "
+                                    "vpcontact.model.primitives.backend(x), not numpy's "
+                                    "functions")
+        finally:
+            log.setLevel(level)
 
     def constants(self) -> dict:
         """Returns: the user's ``constants()`` where it gives some, else the numeric

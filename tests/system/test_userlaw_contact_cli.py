@@ -140,6 +140,29 @@ def test_duck_typed_law_runs():
     np.testing.assert_array_equal(law.derivative(r), [0.0, 0.0, 0.5])
 
 
+def test_python_api_without_the_module():
+    """From the Python API a case's python law needs the module loaded (refused, naming the
+    key); a law given through contact_laws for that part takes its place (no module)."""
+    from mpi4py import MPI
+
+    from conftest import make_case, paper_raw
+    from userlaws.paper_contact_laws import UserCompliance
+    from vpcontact.io.errors import CaseError
+    from vpcontact.model.problem import ContactProblem
+    from vpcontact.simulation import build_mesh
+    raw = paper_raw()
+    raw["contact"]["normal_compliance"] = {"law": "python", "class": "UserCompliance",
+                                           "params": {"c": 100.0}}
+    case = make_case(raw, mesh={"n": 4}, time={"N": 4})
+    body = build_mesh(case, MPI.COMM_WORLD)
+    with pytest.raises(CaseError, match="contact.normal_compliance.law: python runs the "
+                                        "class UserCompliance"):
+        ContactProblem(case, body)
+    law = UserCompliance(50.0)
+    problem = ContactProblem(case, body, contact_laws={"normal": law})
+    assert problem.contact_law().normal is law
+
+
 M = "--law-module {module}: class "
 
 
@@ -161,6 +184,10 @@ M = "--law-module {module}: class "
     (["--law-module", LAW_MODULE, "--set", NORMAL % "NotFinite"],
      M + "NotFinite: energy(x) returned non-finite values (NaN/Inf) at x = [-0.001, 0.0, "
          "0.001]"),
+    (["--law-module", LAW_MODULE, "--set", NORMAL % "NumpyOnly"],
+     M + "NumpyOnly: energy(x) on a UFL expression (SNES VI's forms) raised UFLException: "
+         "UFL conditions cannot be evaluated as bool in a Python context; write the law "
+         "with the primitives of vpcontact.model.primitives.backend(x)"),
     (["--law-module", LAW_MODULE, "--set", FRICTION % "NegativeMj"],
      M + "NegativeMj: m_j = -1.0: the largest decreasing slope of psi' (2.6) must be a "
          "number >= 0"),

@@ -2,8 +2,8 @@
 compliance (4.1) and nonmonotone friction (4.2) (Section 4) typed out from the paper's
 formulas as ScalarLaws with the primitives of backend(x) (numpy at the nodes, UFL in the
 forms), not the built-in classes; a compliance that is a duck-typed law (no ScalarLaw base);
-and objects that break the protocol (no second derivative, wrong shapes, NaN, a negative
-m_j)."""
+and objects that break the protocol (no second derivative, wrong shapes, NaN, numpy's
+functions, a negative m_j)."""
 import numpy as np
 
 from vpcontact.model.laws import ScalarLaw
@@ -105,6 +105,13 @@ class NotFinite(UserCompliance):
     def energy(self, r):
         with np.errstate(invalid="ignore", divide="ignore"):
             return 0.5 * self.c * r**3 / r
+
+
+class NumpyOnly(UserCompliance):
+    """(4.1) with numpy's functions: right on arrays, no UFL expression for the forms."""
+
+    def energy(self, r):
+        return 0.5 * self.c * np.maximum(r, 0.0) ** 2
 
 
 class NegativeMj(UserFriction):
