@@ -301,7 +301,7 @@ class Diagnostics:
         explicit_stable: the indicator is within the limit (None without viscoplasticity).
         m_E: the ellipticity constant of E.
         m_j: the relaxed-monotonicity constant of the friction law (its ``m_j``: c1 for
-            (4.2)) times theta_max.
+            (4.2)) times theta_max; None: a law written by the user that states none.
         c1_tilde: the growth constant c1~ of (2.6).
         gamma2: ||gamma||^2 (or its upper bound), None without friction.
         wellposedness_margin: m_E - max(sqrt(3) c1~, m_j) ||gamma||^2, None without friction.
@@ -321,7 +321,7 @@ class Diagnostics:
     stability_limit: float
     explicit_stable: bool | None
     m_E: float
-    m_j: float
+    m_j: float | None
     c1_tilde: float
     gamma2: float | None
     wellposedness_margin: float | None
@@ -415,7 +415,7 @@ def diagnose(problem, solver=None) -> Diagnostics:
     m_j = friction_constant(case, problem.contact_law().friction) if fr else 0.0
     gamma2 = margin = unique = None
     is_bound = False
-    if fr is not None:
+    if fr is not None and m_j is not None:     # None: a user's law that states no m_j
         bound = trace_constant_bound(problem, solver) if solver is not None else None
         if bound is not None and m_E - m_j * bound > 0:
             gamma2, is_bound = bound, True
@@ -481,7 +481,7 @@ def state_rate(problem, t: np.ndarray, eps: np.ndarray | None = None) -> float |
     return max((e for e in found if e is not None), default=None)
 
 
-def friction_constant(case, friction=None) -> float:
+def friction_constant(case, friction=None) -> float | None:
     """m_j of (2.6): the friction law's ``m_j`` times the slip law's ``theta_max``.
 
     Args:
@@ -490,10 +490,12 @@ def friction_constant(case, friction=None) -> float:
             ``m_j``; one that does not is taken at the case's), or None: the case's.
 
     Returns:
-        m_j.
+        m_j, or None: the case's friction law is written by the user and states none.
     """
     from vpcontact.model.contact_laws import friction_law, slip_law
     if getattr(friction, "m_j", None) is None:
         friction = friction_law(case.contact.friction)
+    if friction.m_j is None:            # a law written by the user that states no m_j
+        return None
     slip = case.contact.friction.slip
     return friction.m_j * (1.0 if slip is None else slip_law(slip).theta_max)

@@ -127,7 +127,8 @@ def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None)
         g = res.case.get("contact", {}).get("g")
         force = c["neg_sigma_nu"].copy()
         bound = c["state"] == "bound"
-        if nc and isinstance(g, (int, float)) and not isinstance(nc.get("c_nu"), str):
+        if nc and "law" not in nc and isinstance(g, (int, float)) \
+                and not isinstance(nc.get("c_nu"), str):
             force[bound] = _normal_law(nc, g, np.array([float(g)]))[0]   # the paper's Fig. 3
         scale = 0.15 * float(np.ptp(res.x[:, 1])) / max(np.abs(force).max(), 1e-300)
         xb = c["x"] + factor * c["u_x"]
@@ -223,7 +224,10 @@ def fig2_laws(res: Results, path: Path) -> None:
         g = float(c["g"].max()) if c is not None and "g" in c else None
     nc = contact.get("normal_compliance")
     ax = axes[0]
-    if g is not None or nc:
+    if nc and nc.get("law") == "python":        # the user's law: drawn by the user
+        ax.text(0.5, 0.5, f"the user's law {nc['class']}", ha="center",
+                transform=ax.transAxes)
+    elif g is not None or nc:
         top = g if g else 0.02
         r = np.linspace(-0.5 * top, top, 200)
         ax.plot(r, _normal_law(nc, g, r), color="tab:blue", label="p(u_nu)")
@@ -240,7 +244,10 @@ def fig2_laws(res: Results, path: Path) -> None:
     ax.set_title("normal law (4.1)", fontsize=10)
     fr = contact.get("friction")
     ax = axes[1]
-    if fr and "table" in fr:
+    if fr and fr.get("law") == "python":
+        ax.text(0.5, 0.5, f"the user's law {fr['class']}", ha="center",
+                transform=ax.transAxes)
+    elif fr and "table" in fr:
         rho = np.linspace(0, 1.5 * fr["table"][-1][0], 300)[1:]
         ax.plot(rho, _tangential_law(fr, rho), color="tab:blue", label="tau(|u_tau|) (table)")
         ax.vlines(0, 0, fr["table"][0][1], color="tab:blue", lw=3,
