@@ -167,12 +167,14 @@ def _case_options(parser, what: str, default_out: str) -> None:
 
 
 def _law_module_option(parser) -> None:
-    """--law-module: the Python module of a law written by the user (run and check)."""
+    """--law-module: the Python module of a law written by the user (run, check and the
+    studies)."""
     parser.add_argument("--law-module", metavar="FILE.py", type=_path_arg,
-                        help="import FILE.py (on every MPI rank) for a case whose "
-                             "material.viscoplastic.law is python: its class (the case's "
-                             "material.viscoplastic.class) is the law; without this option "
-                             "such a case is refused (a case file alone never runs code)")
+                        help="import FILE.py (on every MPI rank) for a case with a python "
+                             "law (law: python in material.viscoplastic, "
+                             "contact.normal_compliance or contact.friction): the class the "
+                             "case names (class:) is the law; without this option such a "
+                             "case is refused (a case file alone never runs code)")
 
 
 def _add_run(sub) -> None:
@@ -252,6 +254,7 @@ def _add_convergence(sub) -> None:
                       help="friction regularisation widths to study (default: the case's); "
                            "the reference uses the smallest of these and the case's")
     _case_options(conv, "study", "results/<case name>/convergence")
+    _law_module_option(conv)
     conv.add_argument("--cache-dir", metavar="DIR", type=_path_arg,
                       help=f"run cache (default: {CACHE_SEARCH})")
     conv.add_argument("--no-cache", action="store_true", help="recompute every run")
@@ -267,6 +270,7 @@ def _add_stability(sub) -> None:
                     "(stability.csv, stability.md).")
     stab.add_argument("case", help="YAML case file (a built-in mesh or a mesh.file)")
     _case_options(stab, "sweep", "results/<case name>/stability")
+    _law_module_option(stab)
     stab.add_argument("--n", type=int_range(1, MAX_CELLS),
                       help="cells per side of the coarse built-in mesh (default: 8; not with "
                            "mesh.file)")

@@ -4,7 +4,8 @@ mesh.file, at every step) in HDF5.
 The key is a hash of everything that determines the discrete solution: the validated case
 (physics, mesh, time grid, solver settings, PETSc options) and a format version; the case's
 name, description and output settings do not count, nor does the name of a mesh.file (its
-content does: a study's refined levels live in temporary files).  Files are written
+content does: a study's refined levels live in temporary files); a python law's --law-module
+file counts by its content.  Files are written
 atomically, with the signals held back while they are written (an interrupted study keeps
 every finished run whole); an entry that does not load (or does not fit its run) is
 recomputed and written again.
@@ -19,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from vpcontact.io.canonical import stable_json
+from vpcontact.io.checkpoint import law_module
 from vpcontact.studies.interrupts import signals_held
 
 FORMAT_VERSION = 1
@@ -43,13 +45,17 @@ def cache_key(case) -> str:
 
     Returns:
         24 hexadecimal digits of the SHA-256 of the case (without IGNORED; a mesh.file by
-        its content) and FORMAT_VERSION.
+        its content; with a python law, the SHA-256 of its --law-module file) and
+        FORMAT_VERSION.
     """
     content = {k: v for k, v in case.raw.items() if k not in IGNORED}
     content["petsc"] = case.petsc
     if case.mesh.file is not None:           # the scene is the file's content, not its name
         content["mesh"] = {k: v for k, v in content["mesh"].items() if k != "file"}
         content["mesh_file"] = hashlib.sha256(Path(case.mesh.file).read_bytes()).hexdigest()
+    module = law_module(case)
+    if module is not None:                   # a python law: its module's bytes count too
+        content["law_module"] = module["sha256"]
     text = stable_json({"version": FORMAT_VERSION, "case": content})
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 

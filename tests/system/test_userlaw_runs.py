@@ -172,3 +172,40 @@ def test_kappa0_expression_starts_every_component_of_a_law_with_m_2():
     x = compute_midpoints(p.mesh, p.mesh.topology.dim, cells)[:, 0]
     np.testing.assert_allclose(p.state.kappa_cells, np.column_stack([1 + x, 1 + x]),
                                rtol=1e-12)
+
+
+def test_convergence_study_of_a_python_law(tmp_path):
+    """`convergence --law-module`: Perzyna written as a user would gives the built-in's
+    errors (levels 4, 8 against 16); without the option the study is refused (exit 2)."""
+    common = [PAPER_CASE, "--levels", "4", "8", "--reference", "16", "--no-cache", "--quiet"]
+    assert _main(["convergence", *common, "--out", tmp_path / "b"]) == 0
+    assert _main(["convergence", *common, "--out", tmp_path / "p", "--law-module", LAW_MODULE,
+                  *PYTHON_LAW]) == 0
+    rows = {k: list(csv.DictReader(open(tmp_path / k / "convergence.csv"))) for k in "bp"}
+    assert [r["level"] for r in rows["p"]] == ["4", "8"]
+    for a, b in zip(rows["b"], rows["p"], strict=True):
+        assert float(b["error"]) == pytest.approx(float(a["error"]), rel=1e-10)
+    assert _main(["convergence", *common, "--out", tmp_path / "x", *PYTHON_LAW]) == 2
+
+
+def test_run_cache_key_follows_the_law_module(tmp_path):
+    """The run cache's key of a python-law case holds the SHA-256 of its module's bytes: an
+    edited module is another law (another key), the same bytes elsewhere the same key; a
+    case without a python law keeps the key of its sections alone."""
+    from vpcontact.case import load_raw, validate
+    from vpcontact.model.lawmodule import forget_law_module, prepare_law_module
+    from vpcontact.studies.runcache import cache_key
+    raw = load_raw(PAPER_CASE, ["mesh.n=4", "time.N=4"])
+    plain = cache_key(validate(raw, PAPER_CASE))
+    case = validate(load_raw(PAPER_CASE, ["mesh.n=4", "time.N=4", PYTHON_LAW[1]]), PAPER_CASE)
+    text = LAW_MODULE.read_text()
+    keys = []
+    for name, body in (("a.py", text), ("b.py", text), ("c.py", text + "\n# edited\n")):
+        (tmp_path / name).write_text(body)
+        try:
+            prepare_law_module(case.raw, tmp_path / name)
+            keys.append(cache_key(case))
+        finally:
+            forget_law_module()
+    assert keys[0] == keys[1] != keys[2] and plain not in keys
+    assert cache_key(validate(raw, PAPER_CASE)) == plain
