@@ -28,8 +28,9 @@ The general laws of the model (H(p), H(j_tau)), chosen by the case's keys:
   steepest softening;
 - ``TableSlip``: theta(s) piecewise linear, constant beyond its last point.
 
-The tables are ``PiecewiseLinear`` functions written as sums of ramps (r - r_k)^+, so their
-primitive and slope are exact and serve numpy and UFL alike.  b(t, x) = b0(x) b(t) (an
+The compliance and friction tables are ``PiecewiseLinear`` functions written as sums of ramps
+(r - r_k)^+, so their primitive and slope are exact and serve numpy and UFL alike; they live
+in app/model/contact_tables.py.  b(t, x) = b0(x) b(t) (an
 expression b0 of x) is summed by app/model/gamma3.py.
 
 ``ContactLaw`` composes them into the nodal energy density of (3.4),
@@ -53,6 +54,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from vpcontact.model.contact_tables import TableCompliance, TableFriction
 from vpcontact.model.laws import ScalarLaw
 from vpcontact.model.primitives import NUMPY, backend
 
@@ -159,132 +161,6 @@ class PowerCompliance(ScalarLaw):
         ops = backend(r)
         return ops.where(ops.gt(r, 0.0), self.m * self.c_nu * ops.pos(r) ** (self.m - 1.0),
                          0.0)
-
-
-class PiecewiseLinear:
-    """A continuous piecewise-linear function f of a table of points (x_0, f_0), ...,
-    (x_K, f_K), x increasing, as a sum of ramps,
-        f(x) = f_0 + s_0 (x - x_0) + sum_{k=1..K-1} (s_k - s_{k-1}) (x - x_k)^+,
-    s_k the slope on [x_k, x_{k+1}], continued beyond x_K with ``last_slope`` (s_{K-1}: linear
-    extrapolation; 0: constant), with its exact primitive F (F(x_0) = 0, piecewise quadratic)
-    and its derivative f' (piecewise constant), written with the primitives of
-    app/model/primitives.py (numpy and UFL alike).
-
-    Args:
-        table: the points [[x, f], ...], at least two, x increasing.
-        extrapolate: beyond x_K, "linear" (the last slope) or "constant".
-    """
-
-    def __init__(self, table, extrapolate: str = "linear"):
-        pts = np.asarray(table, dtype=float)
-        self.x, self.f = pts[:, 0], pts[:, 1]
-        self.slopes = np.diff(self.f) / np.diff(self.x)                # s_0 .. s_{K-1}
-        last = self.slopes[-1] if extrapolate == "linear" else 0.0
-        s = np.append(self.slopes, last)
-        # the kinks x_1 .. x_K and the slope changes there (a zero change is left out)
-        self.kinks = [(float(xk), float(dk)) for xk, dk in zip(self.x[1:], np.diff(s))
-                      if dk != 0.0]
-        self.x0, self.f0, self.s0 = float(self.x[0]), float(self.f[0]), float(s[0])
-
-    def value(self, x):
-        """f(x) (x >= x_0).
-
-        Args:
-            x: the argument (numpy array, number or UFL expression).
-
-        Returns:
-            f(x), elementwise.
-        """
-        ops = backend(x)
-        out = self.f0 + self.s0 * (x - self.x0)
-        for xk, dk in self.kinks:
-            out = out + dk * ops.pos(x - xk)
-        return out
-
-    def primitive(self, x):
-        """F(x) = int_{x_0}^x f, exact (x >= x_0).
-
-        Args:
-            x: the argument.
-
-        Returns:
-            F(x), elementwise.
-        """
-        ops = backend(x)
-        dx = x - self.x0
-        out = self.f0 * dx + 0.5 * self.s0 * dx**2
-        for xk, dk in self.kinks:
-            out = out + 0.5 * dk * ops.pos(x - xk) ** 2
-        return out
-
-    def slope(self, x):
-        """f'(x): the slope of the segment of x (the right one at a kink).
-
-        Args:
-            x: the argument.
-
-        Returns:
-            f'(x), elementwise.
-        """
-        ops = backend(x)
-        out = self.s0 + 0.0 * x
-        for xk, dk in self.kinks:
-            out = out + ops.where(ops.gt(x, xk), dk, 0.0)
-        return out
-
-
-class TableCompliance(ScalarLaw):
-    """Normal compliance from a table (H(p)): p(r) piecewise linear through the points
-    [[0, 0], [r_1, p_1], ...] (nondecreasing), constant beyond the last point, 0 for r <= 0;
-    P its exact primitive, p' its slope.
-
-    Args:
-        table: the points [[r, p], ...], starting at [0, 0].
-    """
-
-    name = "normal compliance"
-
-    def __init__(self, table):
-        self.p = PiecewiseLinear(table, "constant")
-
-    def constants(self):
-        """Returns: the table's points, r [m] against p [N/m^2]."""
-        return {"table": ([[float(a), float(b)] for a, b in zip(self.p.x, self.p.f)],
-                          "m, N/m^2")}
-
-    def energy(self, r):
-        """P(r) = int_0^r p.
-
-        Args:
-            r: normal displacements u_nu.
-
-        Returns:
-            P(r), elementwise.
-        """
-        return self.p.primitive(backend(r).pos(r))
-
-    def derivative(self, r):
-        """p(r).
-
-        Args:
-            r: normal displacements u_nu.
-
-        Returns:
-            p(r), elementwise.
-        """
-        return self.p.value(backend(r).pos(r))
-
-    def second_derivative(self, r):
-        """p'(r) (0 for r <= 0).
-
-        Args:
-            r: normal displacements u_nu.
-
-        Returns:
-            p'(r), elementwise.
-        """
-        ops = backend(r)
-        return ops.where(ops.gt(r, 0.0), self.p.slope(r), 0.0)
 
 
 @dataclass(frozen=True)
@@ -404,66 +280,6 @@ class PiecewiseLinearFriction(ScalarLaw):
         """
         ops = backend(rho)
         return ops.where(ops.le(rho, self.u1), -self.c1, self.c2)
-
-
-class TableFriction(ScalarLaw):
-    """Friction from a table (H(j_tau)): the friction stress tau(rho) = psi'(rho) of the slip
-    rho = |u_tau| piecewise linear through [[0, tau_0], [rho_1, tau_1], ...] (nonmonotone
-    allowed, tau_0 > 0 the bound at zero slip), extrapolated linearly beyond the last point;
-    psi its exact primitive (piecewise quadratic, psi(0) = 0), psi'' its slope.  The table
-    [[0, b], [u1, b - c1 u1], [2 u1, b - c1 u1 + c2 u1]] is law (4.2).
-
-    Args:
-        table: the points [[rho, tau], ...], rho increasing from 0.
-    """
-
-    name = "friction (regularised Clarke term)"
-
-    def __init__(self, table):
-        self.tau = PiecewiseLinear(table, "linear")
-
-    def constants(self):
-        """Returns: the table's points, rho [m] against tau [N/m^2]."""
-        return {"table": ([[float(a), float(b)] for a, b in zip(self.tau.x, self.tau.f)],
-                          "m, N/m^2")}
-
-    @property
-    def m_j(self) -> float:
-        """The largest decreasing slope of tau, the constant m_j of (2.6) (0 if none)."""
-        return float(max(0.0, -float(np.min(self.tau.slopes))))
-
-    def energy(self, rho):
-        """psi(rho) = int_0^rho tau.
-
-        Args:
-            rho: the (regularised) slip |u_tau| >= 0.
-
-        Returns:
-            psi(rho), elementwise.
-        """
-        return self.tau.primitive(rho)
-
-    def derivative(self, rho):
-        """psi'(rho) = tau(rho), the friction bound |sigma_tau| at slip rho > 0.
-
-        Args:
-            rho: the (regularised) slip.
-
-        Returns:
-            tau(rho), elementwise.
-        """
-        return self.tau.value(rho)
-
-    def second_derivative(self, rho):
-        """psi''(rho), the slope of tau (the right one at a kink).
-
-        Args:
-            rho: the (regularised) slip.
-
-        Returns:
-            psi''(rho), elementwise.
-        """
-        return self.tau.slope(rho)
 
 
 @dataclass(frozen=True)
