@@ -334,7 +334,8 @@ class Simulation:
                 g3.advance(self.t, t_new)           # xi_n, s_n from u_{n-1}
             t_g3 = time.perf_counter() - t_g3
             p.set_time(t_new, k)                    # f_n, prescribed displacements, k_n
-            its = self.solver.solve()               # u_n in U^h, (3.4)
+            # u_n in U^h, (3.4); with Coulomb friction a fixed point on p_n (Gamma3History)
+            its = g3.solve(self.solver) if g3 else self.solver.solve()
             # sigma_n (explicit: E eps(u_n) + H_n, (3.2))
             norms = history.after_solve(p, k) if history else p.update_sigma()
         except StepSolveError:

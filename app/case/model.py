@@ -130,6 +130,13 @@ class PythonLaw:
 
 
 @dataclass(frozen=True)
+class Coulomb:
+    """``contact.friction.coulomb``: the friction bound mu p_n (p_n the contact pressure)."""
+
+    mu: float
+
+
+@dataclass(frozen=True)
 class Friction:
     """``contact.friction``: the parameters of law (4.2) and the slip dependence or None;
     or the friction stress ``table`` [[rho, tau], ...], or the user's law ``python`` (then
@@ -142,6 +149,7 @@ class Friction:
     slip: Slip | None = None
     table: tuple | None = None
     python: PythonLaw | None = None
+    coulomb: Coulomb | None = None
 
 
 @dataclass(frozen=True)
@@ -311,7 +319,9 @@ class Case:
         if self.contact.friction is not None:
             fr = self.contact.friction
             terms.append(f"friction (the user's law {fr.python.cls}, --law-module)"
-                         if fr.python is not None else "nonmonotone friction (4.2)"
+                         if fr.python is not None else
+                         f"Coulomb friction mu p_n (mu = {fr.coulomb.mu:g})"
+                         if fr.coulomb is not None else "nonmonotone friction (4.2)"
                          if fr.table is None else "nonmonotone friction (table)")
             if self.contact.friction.slip is not None:
                 terms.append("slip-dependent friction theta(s_n)")
@@ -438,7 +448,8 @@ def _friction(fr: dict, slip: dict | None) -> Friction:
         s = Slip(*(None if k not in slip else float(slip[k]) for k in ("theta_inf", "s0")),
                  _table(slip.get("table")))
     return Friction(*(None if k not in fr else float(fr[k]) for k in ("b", "c1", "c2", "u1")),
-                    s, _table(fr.get("table")), _python_law(fr))
+                    s, _table(fr.get("table")), _python_law(fr),
+                    Coulomb(float(fr["coulomb"]["mu"])) if "coulomb" in fr else None)
 
 
 def _material(material: dict) -> Material:

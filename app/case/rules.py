@@ -217,7 +217,10 @@ def _check_contact(contact: dict, dim: int, source: str) -> None:
     fr = contact.get("friction")
     if fr:
         _check_friction(fr, source)
-    if fr and "table" not in fr and "law" not in fr and fr["b"] - fr["c1"] * fr["u1"] < 0:
+    if fr and "coulomb" in fr and "normal_compliance" not in contact and "g" not in contact:
+        raise CaseError(f"{source}: contact.friction.coulomb: needs a contact pressure p_n: "
+                        "give contact.normal_compliance or contact.g")
+    if fr and not {"table", "law", "coulomb"} & set(fr) and fr["b"] - fr["c1"] * fr["u1"] < 0:
         raise CaseError(f"{source}: contact.friction: b - c1 u1 must be >= 0 (the friction "
                         f"force of law (4.2) may not change sign), got "
                         f"{fr['b'] - fr['c1'] * fr['u1']:g}")
@@ -296,7 +299,9 @@ def _check_compliance(nc: dict | None, dim: int, source: str) -> None:
 def _check_friction(fr: dict, source: str) -> None:
     """contact.friction: b, c1, c2, u1 or a table (tau(0) > 0, tau >= 0, last slope >= 0);
     or a law written by the user; its slip: theta_inf, s0 or a table in [0, 1]."""
-    if not _python_contact_law(fr, "contact.friction", source):
+    if "coulomb" in fr:
+        _check_coulomb(fr, source)
+    elif not _python_contact_law(fr, "contact.friction", source):
         _either(fr, "contact.friction", ("b", "c1", "c2", "u1"), "table", source)
     if "table" in fr:
         path = "contact.friction.table"
@@ -316,6 +321,19 @@ def _check_friction(fr: dict, source: str) -> None:
         _, theta = _table_points(slip["table"], path, source)
         if any(not 0.0 <= v <= 1.0 for v in theta):
             raise CaseError(f"{source}: {path}: theta must be in [0, 1]")
+
+
+def _check_coulomb(fr: dict, source: str) -> None:
+    """contact.friction.coulomb: mu >= 0, not with another friction law's keys."""
+    other = [k for k in ("b", "c1", "c2", "u1", "table", "law", "class", "params")
+             if k in fr]
+    if other:
+        raise CaseError(f"{source}: contact.friction.{other[0]}: not with coulomb (the "
+                        f"Coulomb law mu p_n is the friction law; remove {', '.join(other)})")
+    mu = fr["coulomb"]["mu"]
+    if mu < 0:
+        raise CaseError(f"{source}: contact.friction.coulomb.mu: must be >= 0 (a friction "
+                        f"coefficient), got {mu:g}")
 
 
 # the keys of material.viscoplastic that only some laws use

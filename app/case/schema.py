@@ -328,6 +328,18 @@ SCHEMA = _obj({
             }, description="slip dependence j = theta(s) psi, theta(s) = theta_inf + "
                            "(1 - theta_inf) exp(-s/s0) or a table, s = int_0^t |u_tau| "
                            "(absent: none; give theta_inf and s0, or table)"),
+            "coulomb": _obj({
+                "mu": {"type": "number", "description": "the Coulomb friction coefficient "
+                                                         "(dimensionless, >= 0): the friction "
+                                                         "bound is mu p_n, p_n the contact "
+                                                         "pressure at the node [N/m^2] "
+                                                         "(compliance, memory and the bound's "
+                                                         "reaction); times theta(s) with slip"},
+            }, required=["mu"], description="Coulomb friction |sigma_tau| <= mu p_n (instead "
+                                             "of b, c1, c2, u1 or table): psi(rho) = mu p_n "
+                                             "rho, regularised with solver.delta; p_n by a "
+                                             "fixed point in each step (needs "
+                                             "normal_compliance or g)"),
             **_python_law("contact.friction", "the friction potential psi(rho) (the "
                           "friction stress psi' against the slip rho = |u_tau|_delta [m]; "
                           "an attribute m_j, the largest decreasing slope of psi', enters "

@@ -567,6 +567,11 @@ class PythonLawSlot(ScalarLaw):
     energy = derivative = second_derivative = _unbuilt
 
 
+# Coulomb friction: psi(rho) = rho (law (4.2) with b = 1, c1 = c2 = 0), the nodal factor
+# mu p_n (app/model/coulomb.py) multiplying it as theta(s_n) does
+COULOMB_PSI = {"b": 1.0, "c1": 0.0, "c2": 0.0, "u1": 1.0}
+
+
 def friction_law(fr, const=None) -> ScalarLaw | None:
     """The friction potential psi of a case's ``contact.friction``.
 
@@ -576,8 +581,8 @@ def friction_law(fr, const=None) -> ScalarLaw | None:
             numbers themselves.
 
     Returns:
-        A PiecewiseLinearFriction, a TableFriction or the PythonLawSlot of the user's law;
-        None without friction.
+        A PiecewiseLinearFriction (psi(rho) = rho for Coulomb), a TableFriction or the
+        PythonLawSlot of the user's law; None without friction.
     """
     param = const if const is not None else (lambda name, value: value)
     if fr is None:
@@ -586,6 +591,8 @@ def friction_law(fr, const=None) -> ScalarLaw | None:
         return PythonLawSlot("contact.friction", fr.python)
     if getattr(fr, "table", None) is not None:
         return TableFriction(fr.table)
+    if getattr(fr, "coulomb", None) is not None:    # psi(rho) = rho, its factor mu p_n
+        return PiecewiseLinearFriction(*(param(k, v) for k, v in COULOMB_PSI.items()))
     return PiecewiseLinearFriction(*(param(k, getattr(fr, k)) for k in ("b", "c1", "c2", "u1")))
 
 

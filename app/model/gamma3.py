@@ -20,6 +20,7 @@ import numpy as np
 from dolfinx import fem
 
 from vpcontact.model.contact_laws import SlipWeakening, slip_law, space_field
+from vpcontact.model.coulomb import CoulombPressure
 from vpcontact.model.memory_kernels import FieldKernel, MemoryKernel, memory_kernel
 from vpcontact.model.primitives import NUMPY
 
@@ -188,11 +189,13 @@ class Gamma3History:
             the recursion where the kernel has one (None).
         b0: b0(x) at the local Gamma3 nodes for a kernel b(t, x) = b0(x) b(t) whose own
             factor is 1 (xi_n sums k_j b(t_n - t_{j-1}) b0(x) u_{j-1,nu}^+), or None.
+        mu: the Coulomb friction coefficient (the factor theta is then mu p_n, times
+            theta(s_n) with slip; app/model/coulomb.py), or None.
     """
 
     def __init__(self, problem, kernel: MemoryKernel | None = None,
                  slip: SlipWeakening | None = None, recursion: bool | None = None,
-                 b0: np.ndarray | None = None):
+                 b0: np.ndarray | None = None, mu: float | None = None):
         self.b0 = b0
         self.u = problem.u
         self.nodes = problem.gamma3_local_nodes
@@ -208,6 +211,30 @@ class Gamma3History:
             self.slip = SlipSum(m, slip)
             self.theta = problem.theta
             self.theta.set(self.slip.theta())
+        self.coulomb = None
+        if mu is not None:
+            self.theta = problem.theta
+            self.coulomb = CoulombPressure(problem, mu, NodalField(problem.V, self.nodes,
+                                                                   "p_n"))
+            self._set_coulomb(mu * self.coulomb.p)
+
+    def _set_coulomb(self, mu_p: np.ndarray) -> None:
+        """theta = mu p_n (times theta(s_n) with slip) at the nodes."""
+        self.theta.set(mu_p if self.slip is None else mu_p * self.slip.theta())
+
+    def solve(self, solver) -> int:
+        """Step n's solve: the Coulomb fixed point on p_n (``CoulombPressure.solve``), else
+        the solver's own.
+
+        Args:
+            solver: the step solver.
+
+        Returns:
+            The step solver's iterations.
+        """
+        if self.coulomb is None:
+            return solver.solve()
+        return self.coulomb.solve(solver, self._set_coulomb)
 
     def state(self) -> dict:
         """The history at the local Gamma3 nodes (owned and ghost).
@@ -215,8 +242,11 @@ class Gamma3History:
         Returns:
             {"memory": MemorySum.state() or None, "slip": SlipSum.state() or None}.
         """
-        return {"memory": self.memory.state() if self.memory else None,
-                "slip": self.slip.state() if self.slip else None}
+        out = {"memory": self.memory.state() if self.memory else None,
+               "slip": self.slip.state() if self.slip else None}
+        if self.coulomb is not None:
+            out["coulomb"] = self.coulomb.state()
+        return out
 
     def load_state(self, state: dict) -> None:
         """Set the history from ``state()`` and the Functions xi, theta(s) from it.
@@ -230,6 +260,9 @@ class Gamma3History:
         if self.slip is not None:
             self.slip.load_state(state["slip"])
             self.theta.set(self.slip.theta())
+        if self.coulomb is not None:
+            self.coulomb.load_state(state.get("coulomb"))
+            self._set_coulomb(self.coulomb.mu * self.coulomb.p)
 
     def advance(self, t_prev: float, t_n: float) -> None:
         """xi_n, s_n from u_{n-1} (the current u), before solving step n.
@@ -250,7 +283,8 @@ class Gamma3History:
 
 
 def build_gamma3_history(case, problem) -> Gamma3History | None:
-    """The memory term xi_n and the accumulated slip s_n, only if the case enables them.
+    """The memory term xi_n, the accumulated slip s_n and the Coulomb pressure p_n, only if
+    the case enables them.
 
     Args:
         case: the validated Case (contact.memory, contact.friction.slip).
@@ -274,6 +308,8 @@ def build_gamma3_history(case, problem) -> Gamma3History | None:
         recursion = None if mk.sum == "auto" else mk.sum == "recursion"
     if c.friction is not None and c.friction.slip is not None:
         slip = slip_law(c.friction.slip)
-    if kernel is None and slip is None:
+    coulomb = getattr(c.friction, "coulomb", None)
+    mu = coulomb.mu if coulomb is not None else None
+    if kernel is None and slip is None and mu is None:
         return None
-    return Gamma3History(problem, kernel, slip, recursion, b0)
+    return Gamma3History(problem, kernel, slip, recursion, b0, mu)

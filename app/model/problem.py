@@ -77,7 +77,8 @@ class ContactProblem:
         state: the State (u, sigma, H, kappa, xi, s; app/model/state.py).
         u, sigma, sigma_vm: u_n, sigma_n and its von Mises norm (the State's).
         H: the pre-stress H_n of (3.2), or None without history and initial values.
-        xi, theta: the Gamma3 nodal fields xi_n (memory) and theta(s_n) (slip), or None.
+        xi, theta: the Gamma3 nodal fields xi_n (memory) and theta(s_n) (slip; times
+            mu p_n with Coulomb friction), or None.
         forms: the StepForms of J_n (forms/step.py); ``constants`` their Constants.
         time_data: the loads' time constants (app/model/loads.py).
         k: the step k_n given to ``set_time``.
@@ -135,7 +136,8 @@ class ContactProblem:
         if c.active:
             if c.memory is not None:
                 self.xi = NodalField(self.V, self.gamma3_local_nodes, "xi")
-            if c.friction is not None and c.friction.slip is not None:
+            if c.friction is not None and (c.friction.slip is not None
+                                           or getattr(c.friction, "coulomb", None) is not None):
                 self.theta = NodalField(self.V, self.gamma3_local_nodes, "theta")
                 self.theta.function.x.array[:] = 1.0
         self.forms = self._step_forms()

@@ -68,7 +68,9 @@ def contact_scale(case, E_max: float, length: float, gap: float | None = None) -
         if c.memory.table:
             b = max(b, float(np.max(np.abs(np.asarray(c.memory.table, dtype=float)[:, 1]))))
         values.append(b * case.time.T * (g if c.g is not None else length))
-    if c.friction is not None and c.friction.python is None:   # a user's law: not known
+    if c.friction is not None and c.friction.python is None and \
+            getattr(c.friction, "coulomb", None) is None:
+        # a user's law: not known; Coulomb's bound mu p_n: of the normal laws' scale
         fr = c.friction
         values += [abs(tau) for _, tau in fr.table] if fr.table is not None else \
             [abs(fr.b), abs(fr.c1 * fr.u1), abs(fr.c2 * fr.u1)]

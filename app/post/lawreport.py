@@ -72,6 +72,12 @@ def law_report(problem, gamma3_history=None) -> dict:
             "memory_kernel": _entry(h.memory.kernel) if h is not None and h.memory else None,
             "slip": _entry(h.slip.law) if h is not None and h.slip else None,
             "g": None if case.contact.g is None else _value(case.contact.g)}
+        fr = case.contact.friction
+        if getattr(fr, "coulomb", None) is not None and \
+                "friction" not in problem.contact_replacements:
+            out["contact"]["friction"] = {
+                "name": "Coulomb friction mu p_n |u_tau|_delta (p_n by a fixed point)",
+                "constants": {"mu": [fr.coulomb.mu, "-"]}}
     return out
 
 

@@ -247,6 +247,9 @@ def fig2_laws(res: Results, path: Path) -> None:
     if fr and fr.get("law") == "python":
         ax.text(0.5, 0.5, f"the user's law {fr['class']}", ha="center",
                 transform=ax.transAxes)
+    elif fr and "coulomb" in fr:
+        ax.text(0.5, 0.5, f"Coulomb: |sigma_tau| <= mu p_n, mu = {fr['coulomb']['mu']:g}",
+                ha="center", transform=ax.transAxes)
     elif fr and "table" in fr:
         rho = np.linspace(0, 1.5 * fr["table"][-1][0], 300)[1:]
         ax.plot(rho, _tangential_law(fr, rho), color="tab:blue", label="tau(|u_tau|) (table)")

@@ -86,10 +86,15 @@ def bulk_residual(problem, layer: bool = False) -> np.ndarray:
     return out
 
 
+# Coulomb friction: a node slips where |sigma_tau| >= (1 - SLIP_RATIO) mu p_n
+SLIP_RATIO = 1e-6
+
+
 def contact_table(problem, r: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Per owned Gamma3 node: coordinates, displacement, u_nu, tangential components in
     the nodal frame, and the contact force densities -sigma_nu, -sigma_tau (and xi,
-    theta(s), the gap where it varies).
+    theta(s), the gap where it varies; with Coulomb friction the bound mu p_n
+    (friction_bound) and slip_state: 1 slip, 0 stick).
 
     The force at node i is the bulk residual r_i = (sigma_n, eps(phi_i)) - f(phi_i)
     divided by the node's weight w_i = int phi_i ds: with the nodal rule this is exactly
@@ -124,8 +129,14 @@ def contact_table(problem, r: np.ndarray | None = None) -> dict[str, np.ndarray]
         table[f"neg_sigma_tau{sfx}"] = f_tau[:, k]
     if problem.xi is not None:
         table["xi"] = problem.xi.function.x.array[problem.xi.dofs[pos]]
-    if problem.theta is not None:
+    coulomb = getattr(problem.case.contact.friction, "coulomb", None) is not None
+    if problem.theta is not None and not coulomb:
         table["theta"] = problem.theta.function.x.array[problem.theta.dofs[pos]]
+    if coulomb:     # theta holds the bound mu p_n (theta(s_n)): slip where it is reached
+        bound = problem.theta.function.x.array[problem.theta.dofs[pos]]
+        table["friction_bound"] = bound
+        table["slip_state"] = (np.linalg.norm(f_tau, axis=1) >= (1 - SLIP_RATIO) * bound
+                               ).astype(float)
     if isinstance(problem.case.contact.g, str):
         table["g"] = fr.g[pos]
     # hidden (not a CSV column): the Dirichlet data prescribe u_nu here, so the force is

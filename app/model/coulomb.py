@@ -1,0 +1,106 @@
+"""Coulomb friction on Gamma3 against the rigid foundation: the friction term of (3.4) is
+theta_i psi(|u_tau|_delta) with psi(rho) = rho and the nodal factor
+
+    theta_i = mu p_n,i (times theta(s_n) of the slip dependence, if any),
+
+p_n,i the contact pressure at node i (normal compliance, memory term and the bound's
+reaction: -sigma_nu of the bulk residual, as in contact.csv).  The bound mu p_n depends on
+the solution: the step problem is quasi-variational.  ``CoulombPressure.solve`` solves it by
+a fixed point on p_n inside each step: start from the previous step's p_n, solve the step
+(either step solver: the factor is the nodal field theta they both read), recompute p_n,
+repeat until max|p^(i+1) - p^(i)| <= tol max p^(i+1), at most ``max_iterations`` solves.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from mpi4py import MPI
+
+from vpcontact.post.quantities import bulk_residual
+from vpcontact.solvers.snesvi import StepSolveError
+
+log = logging.getLogger("vpcontact")
+
+# the fixed point's relative tolerance on p_n and its largest number of step solves
+TOL = 1e-8
+MAX_ITERATIONS = 30
+
+
+class CoulombPressure:
+    """The contact pressure p_n at the local Gamma3 nodes (owned and ghost) and the fixed
+    point of the Coulomb bound mu p_n.
+
+    Args:
+        problem: the ContactProblem (u, the Gamma3 nodes, frames and weights).
+        mu: the friction coefficient.
+        field: a NodalField of the Gamma3 nodes (scratch: p_n's ghost values).
+    """
+
+    def __init__(self, problem, mu: float, field):
+        self.problem, self.mu, self.field = problem, mu, field
+        self.p = np.zeros(len(problem.gamma3_local_nodes))
+        self.owned = np.searchsorted(problem.gamma3_local_nodes, problem.gamma3.nodes)
+        self.iterations = 0
+
+    def measure(self) -> np.ndarray:
+        """p_n = (-sigma_nu)^+ at the current u: minus the normal component of the bulk
+        residual divided by the node's weight (0 where u_nu is prescribed); collective.
+
+        Returns:
+            p_n at the local Gamma3 nodes (owned and ghost), shape (m,).
+        """
+        p, gm, fr = self.problem, self.problem.gamma3, self.problem.frames
+        pos = np.searchsorted(fr.nodes, gm.nodes)
+        r = bulk_residual(p, layer=True)[gm.nodes]
+        pn = -np.einsum("ij,ij->i", r, fr.normal[pos]) / gm.weight
+        local = np.zeros(len(self.p))
+        local[self.owned] = np.where(fr.bounded[pos], np.maximum(pn, 0.0), 0.0)
+        self.field.set(local)
+        self.field.function.x.scatter_forward()
+        return self.field.function.x.array[self.field.dofs].copy()
+
+    def solve(self, solver, set_factor) -> int:
+        """The fixed point on p_n of one step: solve with mu p^(i), p^(i+1) from u; collective.
+
+        Args:
+            solver: the step solver (``solve()`` -> iterations).
+            set_factor: mu p -> None, sets the friction factor of the forms' nodal field.
+
+        Returns:
+            The step solver's iterations summed over the fixed point.
+
+        Raises:
+            StepSolveError: no convergence in MAX_ITERATIONS solves (p_n and u are the last
+                iterate's; the step is not accepted).
+        """
+        comm, its, change, scale = self.problem.comm, 0, np.inf, 0.0
+        for i in range(1, MAX_ITERATIONS + 1):
+            set_factor(self.mu * self.p)
+            its += solver.solve()
+            new = self.measure()
+            change = comm.allreduce(float(np.abs(new - self.p).max(initial=0.0)), op=MPI.MAX)
+            scale = comm.allreduce(float(new.max(initial=0.0)), op=MPI.MAX)
+            self.p = new
+            if change <= TOL * scale:
+                self.iterations = i
+                log.info("Coulomb friction: the fixed point on p_n converged in %d "
+                         "iteration(s) (max change %.2e, max p_n %.4g)", i, change, scale)
+                return its
+        raise StepSolveError(
+            f"Coulomb friction: the fixed point on the contact pressure p_n did not converge "
+            f"in {MAX_ITERATIONS} iterations (max|p^(i+1) - p^(i)| = {change:.3e} > "
+            f"{TOL:g} max p_n = {TOL * scale:.3e}; mu = {self.mu:g} may be too large for "
+            "the fixed point)")
+
+    def state(self) -> dict:
+        """Returns: {"p": a copy of p_n (m,)}."""
+        return {"p": self.p.copy()}
+
+    def load_state(self, state: dict | None) -> None:
+        """Set p_n from ``state()`` (None, e.g. a checkpoint's: start from 0).
+
+        Args:
+            state: {"p": array (m,)} or None.
+        """
+        self.p = np.zeros(len(self.p)) if state is None else np.array(state["p"], dtype=float)
