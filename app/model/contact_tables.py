@@ -180,7 +180,9 @@ class TableFriction(ScalarLaw):
         Returns:
             psi(rho), elementwise.
         """
-        return self.tau.primitive(rho)
+        # rho^+ (= rho: the regularised slip is > 0) keeps a conditional in the UFL form:
+        # FFCx 0.5 fails to generate the Jacobian of a table of one segment without it
+        return self.tau.primitive(backend(rho).pos(rho))
 
     def derivative(self, rho):
         """psi'(rho) = tau(rho), the friction bound |sigma_tau| at slip rho > 0.

@@ -140,3 +140,12 @@ def test_3d_friction_table_condensed_equals_snes_vi():
     diff = _difference(runs[1], runs[0])
     print(f"3D friction table: condensed vs SNES VI {diff:.2e}")
     assert diff <= 1e-8
+
+
+def test_a_friction_table_of_one_segment_with_snes_vi():
+    """A constant friction table [[0, 1], [0.01, 1]] is law (4.2) with b = 1, c1 = c2 = 0:
+    SNES VI gives its run to 1e-12 (its Jacobian form failed to compile in FFCx, 'LiteralFloat'
+    has no attribute 'args', before the table's energy kept a conditional)."""
+    flat = {"friction": {"table": [[0.0, 1.0], [0.01, 1.0]]}}
+    law42 = {"friction": {"b": 1.0, "c1": 0.0, "c2": 0.0, "u1": 0.01}}
+    assert _difference(_run("snes_vi", flat), _run("snes_vi", law42)) <= 1e-12
