@@ -38,6 +38,14 @@ _groups = {"type": "array", "items": _group, "maxItems": 1000}
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]*$"
 
 
+# the constants of a law written by the user (law: python), viscoplastic or contact
+_LAW_PARAMS = {"type": "object", "additionalProperties": {"type": "number"},
+               "propertyNames": {"pattern": r"^[A-Za-z_][A-Za-z0-9_]*$"},
+               "maxProperties": 100,
+               "description": "law python: the keyword arguments of the class's constructor, "
+                              "numbers in the units the law expects (absent: none)"}
+
+
 def _python_law(part: str, what: str) -> dict:
     """The keys law, class, params of a contact law written by the user (``law: python``):
     part names the key in messages, what the function the class gives."""
@@ -54,12 +62,7 @@ def _python_law(part: str, what: str) -> dict:
                                  "Class(**params): a ScalarLaw (vpcontact.model.laws) or an "
                                  "object with energy(x), derivative(x), second_derivative(x) "
                                  "written with vpcontact.model.primitives.backend(x)"},
-        "params": {"type": "object", "additionalProperties": {"type": "number"},
-                   "propertyNames": {"pattern": r"^[A-Za-z_][A-Za-z0-9_]*$"},
-                   "maxProperties": 100,
-                   "description": "law python: the keyword arguments of the class's "
-                                  "constructor, numbers in the units the law expects (absent: "
-                                  "none)"},
+        "params": _LAW_PARAMS,
     }
 
 
@@ -239,12 +242,7 @@ SCHEMA = _obj({
                                      "the option the case is refused: a case file alone "
                                      "never runs code); built as Class(elasticity, "
                                      "**params)"},
-            "params": {"type": "object", "additionalProperties": {"type": "number"},
-                       "propertyNames": {"pattern": r"^[A-Za-z_][A-Za-z0-9_]*$"},
-                       "maxProperties": 100,
-                       "description": "law python: the keyword arguments of the class's "
-                                      "constructor, numbers in the units the law expects "
-                                      "(absent: none)"},
+            "params": _LAW_PARAMS,
         }, description="viscoplastic law: Perzyna's, its power overstress variant, "
                        "Norton's creep, Chaboche's or a class written by the user (absent: "
                        "elastic body, no history update)"),
