@@ -99,6 +99,40 @@ def paper_run():
     return run_case(make_case())
 
 
+def cli_in_process(args) -> int:
+    """cli.main in this process; the 'vpcontact' logger (cli.main sets its own handler) and
+    the loaded --law-module are restored / forgotten afterwards.  Returns the exit code."""
+    import logging
+
+    import vpcontact.cli.main as cli
+    from vpcontact.model.lawmodule import forget_law_module
+    logger = logging.getLogger("vpcontact")
+    state = logger.handlers[:], logger.propagate, logger.level
+    try:
+        return cli.main([str(a) for a in args])
+    finally:
+        forget_law_module()
+        logger.handlers[:], logger.propagate = state[0], state[1]
+        logger.setLevel(state[2])
+
+
+def summary_steps(out) -> list:
+    """The per-step records of a run's summary.json."""
+    import json
+    return json.loads((Path(out) / "summary.json").read_text())["steps"]
+
+
+def contact_rows(out):
+    """A run's contact.csv: (the nodes' states, the other columns as an array)."""
+    import csv
+
+    import numpy as np
+    with open(Path(out) / "contact.csv") as f:
+        rows = list(csv.DictReader(f))
+    return [r.pop("state") for r in rows], np.array([[float(v) for v in r.values()]
+                                                     for r in rows])
+
+
 def validate_raw(raw: dict):
     from vpcontact.case import validate
     return validate(raw, "test-case")

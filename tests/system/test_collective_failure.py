@@ -10,7 +10,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from conftest import PAPER_CASE, ROOT, run_cli
+from conftest import PAPER_CASE, ROOT, cli_in_process, run_cli
 
 LAW_MODULE = ROOT / "tests" / "userlaws" / "failing_law.py"
 TINY = ["--set", "mesh.n=4", "--set", "time.N=4"]
@@ -43,21 +43,10 @@ def _failed_at_step_3(out) -> str:
 
 
 def test_serial_law_failure_is_a_failed_step(tmp_path, monkeypatch):
-    import logging
-
-    import vpcontact.cli.main as cli
-    from vpcontact.model.lawmodule import forget_law_module
-    logger = logging.getLogger("vpcontact")
-    state = logger.handlers[:], logger.propagate, logger.level
     monkeypatch.chdir(ROOT)
     out = tmp_path / "serial"
-    try:
-        code = cli.main(["run", str(PAPER_CASE), "--out", str(out), "--quiet", "--no-plots",
-                         *TINY, *_law(0)])
-    finally:
-        forget_law_module()
-        logger.handlers[:], logger.propagate = state[0], state[1]
-        logger.setLevel(state[2])
+    code = cli_in_process(["run", PAPER_CASE, "--out", out, "--quiet", "--no-plots", *TINY,
+                           *_law(0)])
     assert code == 1
     reason = _failed_at_step_3(out)
     assert NAN in reason and "on rank" not in reason

@@ -8,7 +8,6 @@ with SNES VI (UFL) and the condensed solver (numpy); the refusals exit 2 with on
 restart with an edited law module is refused, with the same module it is accepted; the
 fingerprint of a case without a python law is the sections' hash as before.  The runs are
 cli.main in this process, on the paper's case at h = k = 1/4."""
-import csv
 import json
 import re
 import shutil
@@ -16,7 +15,7 @@ import shutil
 import numpy as np
 import pytest
 
-from conftest import PAPER_CASE, ROOT
+from conftest import PAPER_CASE, ROOT, cli_in_process, contact_rows, summary_steps
 
 LAW_MODULE = ROOT / "tests" / "userlaws" / "paper_contact_laws.py"
 TINY = ["--set", "mesh.n=4", "--set", "time.N=4"]
@@ -27,25 +26,8 @@ USER = ["--set", NORMAL % "UserCompliance", "--set", FRICTION % "UserFriction"]
 KEYS = ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa")
 
 
-def _main(args) -> int:
-    """cli.main in this process, the 'vpcontact' logger and the loaded law module restored
-    afterwards."""
-    import logging
-
-    import vpcontact.cli.main as cli
-    from vpcontact.model.lawmodule import forget_law_module
-    logger = logging.getLogger("vpcontact")
-    state = logger.handlers[:], logger.propagate, logger.level
-    try:
-        return cli.main([str(a) for a in args])
-    finally:
-        forget_law_module()
-        logger.handlers[:], logger.propagate = state[0], state[1]
-        logger.setLevel(state[2])
-
-
 def _run(out, *extra) -> None:
-    code = _main(["run", PAPER_CASE, "--out", out, "--quiet", "--no-plots", "--overwrite",
+    code = cli_in_process(["run", PAPER_CASE, "--out", out, "--quiet", "--no-plots", "--overwrite",
                   *TINY, *extra])
     assert code == 0, extra
 
@@ -66,27 +48,16 @@ def runs(tmp_path_factory):
     return out
 
 
-def _steps(d):
-    return json.loads((d / "summary.json").read_text())["steps"]
-
-
-def _contact(d):
-    with open(d / "contact.csv") as f:
-        rows = list(csv.DictReader(f))
-    return [r.pop("state") for r in rows], np.array([[float(v) for v in r.values()]
-                                                     for r in rows])
-
-
 @pytest.mark.parametrize("method", ["snes_vi", "condensed"])
 def test_user_paper_laws_equal_the_builtin(runs, method):
-    ref, user = _steps(runs["builtin", method]), _steps(runs["user", method])
+    ref, user = summary_steps(runs["builtin", method]), summary_steps(runs["user", method])
     assert len(ref) == len(user) == 4
     for a, b in zip(ref, user):
         assert a["newton_iterations"] == b["newton_iterations"]
         for key in KEYS:
             assert b[key] == pytest.approx(a[key], rel=1e-12, abs=1e-300), key
     assert ref[-1]["max_kappa"] > 0
-    (s0, c0), (s1, c1) = _contact(runs["builtin", method]), _contact(runs["user", method])
+    (s0, c0), (s1, c1) = contact_rows(runs["builtin", method]), contact_rows(runs["user", method])
     assert s0 == s1 and c0.shape == c1.shape
     assert "compliance" in s0                                    # the compliance law acted
     assert np.all(np.abs(c1 - c0) <= 1e-12 * np.abs(c0).max(axis=0))
@@ -98,19 +69,20 @@ def test_user_paper_laws_equal_the_builtin(runs, method):
 
 def test_the_case_law_takes_effect(runs):
     """The user's compliance with c = 200 (the built-in friction kept) moves the run."""
-    ref, other = _steps(runs["builtin", "condensed"]), _steps(runs["c200", "condensed"])
+    ref = summary_steps(runs["builtin", "condensed"])
+    other = summary_steps(runs["c200", "condensed"])
     assert abs(other[-1]["norm_u_V"] / ref[-1]["norm_u_V"] - 1) > 1e-6
 
 
 def test_check_lists_the_user_laws(capsys):
     """check names the laws, their params and m_j (the law's own, or not stated)."""
-    assert _main(["check", PAPER_CASE, *TINY, "--law-module", LAW_MODULE, *USER]) == 0
+    assert cli_in_process(["check", PAPER_CASE, *TINY, "--law-module", LAW_MODULE, *USER]) == 0
     out = capsys.readouterr().out
     assert "contact: user compliance (4.1): c = 100\n" in out
     assert "contact: user friction (4.2): b = 1, c1 = 60, c2 = 60, u1 = 0.01; m_j = 60 " \
            "N/m^3" in out
     assert "friction (the user's law UserFriction, --law-module)" in out
-    assert _main(["check", PAPER_CASE, *TINY, "--law-module", LAW_MODULE,
+    assert cli_in_process(["check", PAPER_CASE, *TINY, "--law-module", LAW_MODULE,
                   "--set", FRICTION % "UnstatedFriction"]) == 0
     out = capsys.readouterr().out
     assert "m_j: not stated by the law (no (2.6) margin)" in out
@@ -203,7 +175,7 @@ def test_refusals(extra, message, tmp_path, capsys):
     """One line, exit 2, before any step; nothing of the module runs without the option."""
     args = ["run", PAPER_CASE, *TINY, *extra, "--out", tmp_path / "out", "--quiet",
             "--no-plots"]
-    assert _main(args) == 2
+    assert cli_in_process(args) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
     err = re.sub(r" \(line \d+\)", "", err)          # where the case file gives the key
@@ -223,12 +195,12 @@ def test_restart_with_an_edited_module_is_refused(tmp_path, capsys):
     import hashlib
     assert meta["law_module"]["sha256"] == hashlib.sha256(module.read_bytes()).hexdigest()
     _run(tmp_path / "b", *laws, "--restart", checkpoint)
-    np.testing.assert_allclose([s["norm_u_V"] for s in _steps(tmp_path / "b")],
-                               [s["norm_u_V"] for s in _steps(tmp_path / "a")], rtol=1e-12)
+    np.testing.assert_allclose([s["norm_u_V"] for s in summary_steps(tmp_path / "b")],
+                               [s["norm_u_V"] for s in summary_steps(tmp_path / "a")], rtol=1e-12)
     module.write_text(module.read_text().replace("0.5 * self.c * backend", "0.25 * self.c * "
                                                  "backend"))
     capsys.readouterr()
-    assert _main(["run", PAPER_CASE, *TINY, *laws, "--restart", checkpoint, "--out",
+    assert cli_in_process(["run", PAPER_CASE, *TINY, *laws, "--restart", checkpoint, "--out",
                   tmp_path / "c", "--quiet", "--no-plots"]) == 2
     err = capsys.readouterr().err
     assert f"was written with the law module {module} (SHA-256" in err

@@ -12,30 +12,21 @@ import json
 import numpy as np
 import pytest
 
-from conftest import PAPER_CASE, ROOT, make_case, paper_raw
+from conftest import (
+    PAPER_CASE,
+    ROOT,
+    cli_in_process,
+    contact_rows,
+    make_case,
+    paper_raw,
+    summary_steps,
+)
 
 LAW_MODULE = ROOT / "tests" / "userlaws" / "perzyna_law.py"
 TINY = ["--set", "mesh.n=4", "--set", "time.N=4"]
 PYTHON_LAW = ["--set", "material.viscoplastic={law: python, class: UserPerzyna, params: "
                        "{lambda1: 100.0, lambda2: 100.0}}"]
 KEYS = ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa")
-
-
-def _main(args) -> int:
-    """cli.main in this process, the 'vpcontact' logger and the loaded law module restored
-    afterwards."""
-    import logging
-
-    import vpcontact.cli.main as cli
-    from vpcontact.model.lawmodule import forget_law_module
-    logger = logging.getLogger("vpcontact")
-    state = logger.handlers[:], logger.propagate, logger.level
-    try:
-        return cli.main([str(a) for a in args])
-    finally:
-        forget_law_module()
-        logger.handlers[:], logger.propagate = state[0], state[1]
-        logger.setLevel(state[2])
 
 
 @pytest.fixture(scope="module")
@@ -46,35 +37,25 @@ def runs(tmp_path_factory):
         for law, extra in (("perzyna", []), ("python", ["--law-module", LAW_MODULE,
                                                         *PYTHON_LAW])):
             d = tmp_path_factory.mktemp(f"{law}_{scheme}")
-            code = _main(["run", PAPER_CASE, "--out", d, "--quiet", "--no-plots", "--overwrite",
-                          *TINY, "--set", f"time.scheme={scheme}", *extra])
+            code = cli_in_process(["run", PAPER_CASE, "--out", d, "--quiet", "--no-plots",
+                                   "--overwrite", *TINY, "--set", f"time.scheme={scheme}",
+                                   *extra])
             assert code == 0, (law, scheme)
             out[law, scheme] = d
     return out
 
 
-def _steps(d):
-    return json.loads((d / "summary.json").read_text())["steps"]
-
-
-def _contact(d):
-    with open(d / "contact.csv") as f:
-        rows = list(csv.DictReader(f))
-    return [r.pop("state") for r in rows], np.array([[float(v) for v in r.values()]
-                                                     for r in rows])
-
-
 @pytest.mark.parametrize("scheme", ["explicit", "implicit"])
 def test_python_perzyna_equals_the_builtin(runs, scheme):
-    ref, user = _steps(runs["perzyna", scheme]), _steps(runs["python", scheme])
+    ref, user = summary_steps(runs["perzyna", scheme]), summary_steps(runs["python", scheme])
     assert len(ref) == len(user) == 4
     for a, b in zip(ref, user):
         assert a["newton_iterations"] == b["newton_iterations"]
         for key in KEYS:
             assert b[key] == pytest.approx(a[key], rel=1e-12, abs=1e-300), key
     assert ref[-1]["max_kappa"] > 0                       # the law flowed
-    (state0, c0), (state1, c1) = _contact(runs["perzyna", scheme]), \
-        _contact(runs["python", scheme])
+    (state0, c0), (state1, c1) = contact_rows(runs["perzyna", scheme]), \
+        contact_rows(runs["python", scheme])
     assert state0 == state1 and c0.shape == c1.shape
     scale = np.abs(c0).max(axis=0)
     assert np.all(np.abs(c1 - c0) <= 1e-12 * scale)
@@ -94,7 +75,7 @@ def test_api_law_equals_the_builtin(runs):
                      law=functools.partial(UserPerzyna, lambda1=100.0, lambda2=100.0))
     assert sim.run().status == "completed"
     assert type(sim.problem.law).__name__ == "UserLaw"
-    for a, b in zip(_steps(runs["perzyna", "explicit"]), sim.steps):
+    for a, b in zip(summary_steps(runs["perzyna", "explicit"]), sim.steps):
         for key in KEYS:
             assert b[key] == pytest.approx(a[key], rel=1e-12, abs=1e-300), key
 
@@ -124,7 +105,7 @@ def test_refusals(command, extra, message, tmp_path, capsys):
     args = [command, PAPER_CASE, *TINY, *PYTHON_LAW, *extra]
     if command == "run":
         args += ["--out", tmp_path / "out", "--quiet", "--no-plots"]
-    assert _main(args) == 2
+    assert cli_in_process(args) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
     assert message.format(root=ROOT, module=LAW_MODULE) in err, err
@@ -134,7 +115,7 @@ def test_refusals(command, extra, message, tmp_path, capsys):
 def test_import_error_names_the_line(tmp_path, capsys):
     bad = tmp_path / "bad_law.py"
     bad.write_text("import numpy\n\nraise ValueError('no constants')\n")
-    assert _main(["check", PAPER_CASE, *PYTHON_LAW, "--law-module", bad]) == 2
+    assert cli_in_process(["check", PAPER_CASE, *PYTHON_LAW, "--law-module", bad]) == 2
     err = capsys.readouterr().err
     assert f"--law-module {bad}: importing it raised ValueError: no constants (line 3)" in err
 
@@ -178,14 +159,14 @@ def test_convergence_study_of_a_python_law(tmp_path):
     """`convergence --law-module`: Perzyna written as a user would gives the built-in's
     errors (levels 4, 8 against 16); without the option the study is refused (exit 2)."""
     common = [PAPER_CASE, "--levels", "4", "8", "--reference", "16", "--no-cache", "--quiet"]
-    assert _main(["convergence", *common, "--out", tmp_path / "b"]) == 0
-    assert _main(["convergence", *common, "--out", tmp_path / "p", "--law-module", LAW_MODULE,
-                  *PYTHON_LAW]) == 0
+    assert cli_in_process(["convergence", *common, "--out", tmp_path / "b"]) == 0
+    assert cli_in_process(["convergence", *common, "--out", tmp_path / "p", "--law-module",
+                           LAW_MODULE, *PYTHON_LAW]) == 0
     rows = {k: list(csv.DictReader(open(tmp_path / k / "convergence.csv"))) for k in "bp"}
     assert [r["level"] for r in rows["p"]] == ["4", "8"]
     for a, b in zip(rows["b"], rows["p"], strict=True):
         assert float(b["error"]) == pytest.approx(float(a["error"]), rel=1e-10)
-    assert _main(["convergence", *common, "--out", tmp_path / "x", *PYTHON_LAW]) == 2
+    assert cli_in_process(["convergence", *common, "--out", tmp_path / "x", *PYTHON_LAW]) == 2
 
 
 def test_run_cache_key_follows_the_law_module(tmp_path):
