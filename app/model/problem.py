@@ -330,34 +330,24 @@ class ContactProblem:
             self._refuse(not np.isfinite(self.H.x.array).all(), "initial.sigma0",
                          "not a finite number in a cell of the mesh")
         if kappa is not None and self.materials:
-            self._group_kappa0()
+            for g in self.materials.groups:
+                if g.law is not None:
+                    self._set_kappa0(g.material.viscoplastic.kappa0, g.rows, g.law.m,
+                                     f"materials.{g.ref}.viscoplastic.kappa0")
         elif kappa is not None:
             vp = self.case.material.viscoplastic
             k0 = vp.kappa0 if vp is not None else 0.0     # a law given to an elastic case
-            if isinstance(k0, str):     # m > 1: every component starts at kappa0 (laws.py)
-                work = kappa if self.state.m == 1 else fem.Function(self.Y)
-                self._cell_average(scalar(k0), work)
-                self._refuse(not (work.x.array >= 0).all(), "material.viscoplastic.kappa0",
-                             "must be a finite number >= 0 everywhere")
-                if work is not kappa:
-                    self.state.kappa_cells[:] = work.x.array[:, None]
-            else:
-                kappa.x.array[:] = k0
+            self._set_kappa0(k0, slice(None), self.state.m, "material.viscoplastic.kappa0")
 
-    def _group_kappa0(self) -> None:
-        """kappa = kappa0 of each group with a law on its cells (3.3), 0 elsewhere."""
-        cells, work = self.state.kappa_cells, None
-        for g in self.materials.groups:
-            if g.law is None:
-                continue
-            k0 = g.material.viscoplastic.kappa0
-            if isinstance(k0, str):
-                work = fem.Function(self.Y) if work is None else work
-                self._cell_average(self.time_data.scalar(k0), work)
-                k0 = work.x.array[g.rows][:, None]
-                self._refuse(not (k0 >= 0).all(), f"materials.{g.ref}.viscoplastic.kappa0",
-                             "must be a finite number >= 0 everywhere")
-            cells[g.rows, :g.law.m] = k0
+    def _set_kappa0(self, k0, rows, m: int, key: str) -> None:
+        """kappa = kappa0 (3.3) on the cells ``rows``, in each of the law's m components (a
+        number, or the cell averages of an expression of x, y, z, refused if negative)."""
+        if isinstance(k0, str):
+            work = fem.Function(self.Y)
+            self._cell_average(self.time_data.scalar(k0), work)
+            k0 = work.x.array[rows][:, None]
+            self._refuse(not (k0 >= 0).all(), key, "must be a finite number >= 0 everywhere")
+        self.state.kappa_cells[rows, :m] = k0
 
     def _cell_average(self, expr, f) -> None:
         """f = P_{Q^h} expr, the L2 projection onto DG0 (cell averages)."""
