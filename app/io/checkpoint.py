@@ -5,7 +5,8 @@ stored under the key "history" of the file's meta data), the step records, and e
 the next step reads: u_n (P1), sigma_n, H_n (DG0 tensors), kappa_n (DG0, the law's m
 columns: 8 for Chaboche's (X, R, p)), and the active Gamma3 history terms as their
 ``state()`` gives them (memory term: xi_n, and for the direct sum the stored u_nu^+ history;
-slip: s_n).  Values are stored with the coordinates of their
+slip: s_n; Coulomb friction: the contact pressure p_n its next fixed point starts from).
+Values are stored with the coordinates of their
 nodes / cell midpoints, gathered on rank 0 into one ``checkpoint.npz`` (written
 atomically), so a run can restart on any number of MPI ranks: each rank matches its own
 nodes and cells by coordinates (within 1e-6 of the smallest distance between two of them,
@@ -291,8 +292,9 @@ def save(outdir: Path, sim) -> Path:
 
 
 def _gamma3_arrays(comm, problem, g3: dict, arrays: dict) -> None:
-    """The Gamma3 history's nodal values (xi_n, the direct sum's u_nu^+ history, s_n) at
-    the owned Gamma3 nodes, with their coordinates, gathered into ``arrays`` on rank 0."""
+    """The Gamma3 history's nodal values (xi_n, the direct sum's u_nu^+ history, s_n, the
+    Coulomb p_n) at the owned Gamma3 nodes, with their coordinates, gathered into ``arrays``
+    on rank 0."""
     own = problem.gamma3.nodes                       # owned Gamma3 nodes (local index)
     pos = np.searchsorted(problem.gamma3_local_nodes, own)
     xg = problem.V.tabulate_dof_coordinates()[own]
@@ -304,6 +306,8 @@ def _gamma3_arrays(comm, problem, g3: dict, arrays: dict) -> None:
             cols["mem_r"] = np.asarray(mem["r"])[:, pos].T
     if slip is not None:
         cols["slip_s"] = slip["s"][pos][:, None]
+    if g3.get("coulomb") is not None:
+        cols["coulomb_p"] = g3["coulomb"]["p"][pos][:, None]
     for name, v in cols.items():
         x, vv = _gather(comm, xg, v)
         if comm.rank == 0:
@@ -417,8 +421,12 @@ def _required(case) -> dict[str, int | None]:
     c = case.contact
     if c.memory is not None:
         need["g3_xi"] = 1
-    if c.friction is not None and c.friction.slip is not None:
+    coulomb = getattr(c.friction, "coulomb", None)
+    if c.friction is not None and (c.friction.slip is not None
+                                   or coulomb is not None and coulomb.mu_k is not None):
         need["g3_slip_s"] = 1
+    if coulomb is not None:
+        need["g3_coulomb_p"] = 1
     return need
 
 
@@ -614,4 +622,6 @@ class Checkpoint:
                                                           for j in range(r.shape[1])]}
         if g3.slip is not None:
             state["slip"] = {"s": self._lookup("g3_slip_s", xg, n_g3)[:, 0].copy()}
+        if g3.coulomb is not None:
+            state["coulomb"] = {"p": self._lookup("g3_coulomb_p", xg, n_g3)[:, 0].copy()}
         g3.load_state(state)

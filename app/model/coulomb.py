@@ -9,6 +9,11 @@ the solution: the step problem is quasi-variational.  ``CoulombPressure.solve`` 
 a fixed point on p_n inside each step: start from the previous step's p_n, solve the step
 (either step solver: the factor is the nodal field theta they both read), recompute p_n,
 repeat until max|p^(i+1) - p^(i)| <= tol max p^(i+1), at most ``max_iterations`` solves.
+The static/kinetic law mu(s) = mu_s - (mu_s - mu_k) min(s_n / L, 1) is mu = mu_s times the
+slip dependence theta(s_n) = 1 - (1 - mu_k / mu_s) min(s_n / L, 1)
+(``contact_laws.StaticKineticSlip``, summed by the Gamma3 slip machinery).  p_n is part of
+the state a checkpoint stores: a restarted step starts its fixed point where the
+uninterrupted run's does.
 """
 from __future__ import annotations
 
@@ -33,7 +38,7 @@ class CoulombPressure:
 
     Args:
         problem: the ContactProblem (u, the Gamma3 nodes, frames and weights).
-        mu: the friction coefficient.
+        mu: the friction coefficient (mu_s of the static/kinetic law).
         field: a NodalField of the Gamma3 nodes (scratch: p_n's ghost values).
     """
 
@@ -98,7 +103,7 @@ class CoulombPressure:
         return {"p": self.p.copy()}
 
     def load_state(self, state: dict | None) -> None:
-        """Set p_n from ``state()`` (None, e.g. a checkpoint's: start from 0).
+        """Set p_n from ``state()`` or a checkpoint's copy of it (None: start from 0).
 
         Args:
             state: {"p": array (m,)} or None.

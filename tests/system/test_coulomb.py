@@ -11,18 +11,30 @@ p_n by a fixed point in each step) on an elastic block (h = 1/4, nu = 0, normal 
 - law (4.2) with b = mu P, c1 = c2 = 0 (the constant friction stress tau = mu P) gives the
   stick run (p_n = P at every node);
 - the condensed solver equals SNES VI on the slide run (p_n varies along Gamma3);
-- the refusals, and a fixed point that does not converge fails the step.
+- the refusals, and a fixed point that does not converge fails the step;
+- static/kinetic (mu_s, mu_k, slip_length L): the slide run over 6 steps, every contact node's
+  friction stress is mu(s_n) p_n with mu(s) = mu_s - (mu_s - mu_k) min(s / L, 1) and s_n =
+  sum_{j<=n} k |u_{j-1,tau}| summed here from the recorded u_tau (mu_s p_n at the first
+  step, s = 0; between and beyond L later); mu_s = mu_k is {mu} bit for bit; the run
+  restarted from its step-3 checkpoint (p_n and s_n stored) is the uninterrupted run to
+  1e-12; check names the law; the refusals of the pair.
 """
 import copy
+import json
 import re
 
 import numpy as np
 import pytest
+import yaml
+from mpi4py import MPI
 
-from conftest import make_case, paper_raw, run_case
+from conftest import cli_in_process, make_case, paper_raw, run_case
+from vpcontact.io.checkpoint import Checkpoint
 from vpcontact.io.errors import CaseError
 from vpcontact.model.coulomb import MAX_ITERATIONS, CoulombPressure
+from vpcontact.observers import Checkpointer, Observer
 from vpcontact.post.quantities import contact_table
+from vpcontact.simulation import run
 from vpcontact.solvers.snesvi import StepSolveError
 
 P, MU, E, C_NU, DELTA = 8.0, 0.3, 1000.0, 100.0, 1e-7
@@ -145,3 +157,123 @@ def test_fixed_point_that_does_not_converge_fails_the_step():
     with pytest.raises(StepSolveError, match="Coulomb friction: the fixed point"):
         fp.solve(Solver(), lambda mu_p: None)
     assert Solver.calls == MAX_ITERATIONS
+
+
+# ------------------------------------------------------------------ static/kinetic Coulomb
+MU_S, MU_K, L_SLIP, N_SK = 0.5, 0.3, 0.01, 6
+STATIC_KINETIC = {"coulomb": {"mu_s": MU_S, "mu_k": MU_K, "slip_length": L_SLIP}}
+
+
+class _Tables(Observer):
+    """contact_table after every accepted step."""
+
+    def __init__(self):
+        self.tables = []
+
+    def step(self, sim, record):
+        self.tables.append(contact_table(sim.problem))
+
+
+def _mu(s):
+    """mu(s) = mu_s - (mu_s - mu_k) min(s / L, 1)."""
+    return MU_S - (MU_S - MU_K) * np.minimum(s / L_SLIP, 1.0)
+
+
+@pytest.fixture(scope="module")
+def static_kinetic(tmp_path_factory):
+    """The slide run with mu_s, mu_k over 6 steps (checkpoint at step 3), each step's
+    contact table, and the run restarted from the checkpoint."""
+    out = tmp_path_factory.mktemp("static_kinetic")
+    case = make_case(_raw("slide", STATIC_KINETIC), mesh={"n": 4}, time={"N": N_SK},
+                     output={"checkpoint_every": 3})
+    rec = _Tables()
+    full = run(case, MPI.COMM_WORLD, [rec, Checkpointer()], outdir=out)
+    assert full.status == "completed"
+    ck = Checkpoint(out / "checkpoint_000003.npz")
+    assert ck.check(case) is None
+    again = _Tables()
+    restarted = run(case, MPI.COMM_WORLD, [again], restart=ck)
+    assert restarted.status == "completed"
+    return case, rec.tables, full, restarted, again.tables
+
+
+def test_static_kinetic_bound_follows_the_slip(static_kinetic):
+    """|sigma_tau| = friction_bound = mu(s_n) p_n at every sliding node of every step, s_n
+    summed from the recorded u_tau (left rectangle rule of (3.4)); s_n spans 0, (0, L) and
+    beyond L."""
+    case, tables = static_kinetic[:2]
+    k = case.time.T / N_SK
+    s = np.zeros(len(tables[0]["x"]))
+    seen = []
+    for tab in tables:
+        free = ~tab["_prescribed"]
+        pn = tab["neg_sigma_nu"][free]
+        bound = _mu(s[free]) * pn
+        assert np.abs(tab["friction_bound"][free] - bound).max() <= 1e-7 * MU_S * P
+        assert np.abs(np.abs(tab["neg_sigma_tau"][free]) - bound).max() <= 1e-7 * MU_S * P
+        assert np.all(tab["slip_state"][free] == 1.0)
+        seen.append(s[free].copy())
+        s = s + k * np.abs(tab["u_tau"])            # s_{n+1} = s_n + k |u_{n,tau}|
+    assert np.all(seen[0] == 0.0)                   # first slip: mu_s p_n
+    between = np.concatenate(seen)
+    assert np.any((between > 0.1 * L_SLIP) & (between < 0.9 * L_SLIP))
+    assert np.any(between > 1.1 * L_SLIP)
+
+
+def test_static_kinetic_restart_equals_uninterrupted(static_kinetic):
+    """The run restarted from its step-3 checkpoint (u, s_n and p_n restored) is the
+    uninterrupted run to 1e-12: u and the friction bound at steps 4 to 6 (at step 4 a fixed
+    point restarted from p_n = 0 stops elsewhere within its tolerance, ~1e-8), and u at the
+    end."""
+    _, tables, full, restarted, again = static_kinetic
+    assert len(again) == N_SK - 3
+    for ta, tb in zip(tables[3:], again):
+        for col in ("u_x", "u_y", "friction_bound"):
+            assert np.abs(ta[col] - tb[col]).max() <= 1e-12 * np.abs(ta[col]).max(), col
+    a, b = full.problem.u.x.array, restarted.problem.u.x.array
+    assert np.abs(a - b).max() <= 1e-12 * np.abs(a).max()
+
+
+def test_equal_coefficients_are_coulomb_mu(runs):
+    """mu_s = mu_k = mu: the run is the {mu} run bit for bit (theta(s) = 1 exactly)."""
+    same = _run("slide", friction={"coulomb": {"mu_s": MU, "mu_k": MU, "slip_length": 1e-3}})
+    assert np.array_equal(same.problem.u.x.array, runs["slide"].problem.u.x.array)
+
+
+def _case_file(tmp_path, friction: dict) -> str:
+    raw = _raw("slide", friction)
+    raw["mesh"]["n"], raw["time"]["N"] = 4, 2
+    path = tmp_path / "case.yaml"
+    path.write_text(yaml.safe_dump(json.loads(json.dumps(raw))))
+    return str(path)
+
+
+def test_check_names_the_static_kinetic_law(tmp_path, capsys):
+    """check lists the term and the law with mu_s, mu_k and the slip length."""
+    assert cli_in_process(["check", _case_file(tmp_path, STATIC_KINETIC)]) == 0
+    out = capsys.readouterr().out
+    assert "Coulomb friction mu(s) p_n (mu_s = 0.5, mu_k = 0.3 over slip length 0.01 m s)" \
+        in out
+    assert "mu_s = 0.5, mu_k = 0.3, slip_length = 0.01 m s" in out
+
+
+@pytest.mark.parametrize("coulomb, slip, key", [
+    ({"mu": 0.3, "mu_s": 0.5, "mu_k": 0.3, "slip_length": L_SLIP}, False,
+     "contact.friction.coulomb.mu_s"),
+    ({"mu_s": 0.5, "mu_k": 0.3}, False, "contact.friction.coulomb.slip_length"),
+    ({"mu_s": 0.3, "mu_k": 0.5, "slip_length": L_SLIP}, False,
+     "contact.friction.coulomb.mu_s"),
+    ({"mu_s": 0.5, "mu_k": -0.1, "slip_length": L_SLIP}, False,
+     "contact.friction.coulomb.mu_k"),
+    ({"mu_s": 0.5, "mu_k": 0.3, "slip_length": 0.0}, False,
+     "contact.friction.coulomb.slip_length"),
+    ({"mu_s": 0.5, "mu_k": 0.3, "slip_length": L_SLIP}, True, "contact.friction.slip"),
+    ({}, False, "contact.friction.coulomb.mu"),
+])
+def test_static_kinetic_refusals(coulomb, slip, key, tmp_path, capsys):
+    """check refuses with one line naming the key (exit code 2), before computing."""
+    friction = {"coulomb": coulomb, **({"slip": {"theta_inf": 0.5, "s0": 0.01}} if slip
+                                       else {})}
+    assert cli_in_process(["check", _case_file(tmp_path, friction)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and re.search(rf"{re.escape(key)}( \(line \d+\))?:", err[0]), err
