@@ -1,0 +1,1 @@
+"""Closed-form references the tests compare the code with (nothing here calls vpcontact)."""
