@@ -122,6 +122,26 @@ def build_step_forms(u, bulk: BulkData, gamma3: ContactData | None = None) -> St
     return _implicit_forms(u, bulk, loads, boundary, terms + boundary_terms, dx)
 
 
+def build_boundary_forms(w, gamma3: ContactData):
+    """The Gamma3 terms of J_n alone, on a displacement w of their own (two bodies: w at a
+    Gamma3 node is the relative displacement less the initial distance, app/model/pairs.py).
+
+    Args:
+        w: the P1 Function the Gamma3 terms are evaluated on.
+        gamma3: the Gamma3 terms.
+
+    Returns:
+        (residual, jacobian, term names): d/dw and d^2/dw^2 of the boundary energy, or
+        (None, None, []) without terms.
+    """
+    boundary, terms = _boundary_energy(w, gamma3)
+    if boundary is None:
+        return None, None, []
+    V = w.function_space
+    residual = ufl.derivative(boundary, w, ufl.TestFunction(V))
+    return residual, ufl.derivative(residual, w, ufl.TrialFunction(V)), terms
+
+
 def _loads(u, bulk: BulkData, dx):
     """f_n(u) = (f0, u) + sum of (traction, u)_Gamma2-part, or None; the term names."""
     parts, terms = [], []

@@ -131,9 +131,22 @@ class PythonLaw:
 
 @dataclass(frozen=True)
 class Coulomb:
-    """``contact.friction.coulomb``: the friction bound mu p_n (p_n the contact pressure)."""
+    """``contact.friction.coulomb``: the friction bound mu p_n (p_n the contact pressure);
+    with the static/kinetic pair (mu_k and slip_length given) mu is mu_s and the bound is
+    mu(s) p_n, mu(s) = mu_s - (mu_s - mu_k) min(s / slip_length, 1)."""
 
     mu: float
+    mu_k: float | None = None
+    slip_length: float | None = None
+
+    @property
+    def title(self) -> str:
+        """The law in words: 'Coulomb friction mu p_n (mu = ..)' or, static/kinetic,
+        'Coulomb friction mu(s) p_n (mu_s = .., mu_k = .. over slip length ..)'."""
+        if self.mu_k is None:
+            return f"Coulomb friction mu p_n (mu = {self.mu:g})"
+        return (f"Coulomb friction mu(s) p_n (mu_s = {self.mu:g}, mu_k = {self.mu_k:g} over "
+                f"slip length {self.slip_length:g} m s)")
 
 
 @dataclass(frozen=True)
@@ -167,12 +180,26 @@ class Memory:
 
 
 @dataclass(frozen=True)
+class ContactPair:
+    """One entry of ``contact.pairs``: the group ``surface`` whose nodes are projected onto
+    the group ``target`` of another body, the extra gap g [m] of the bound
+    u_nu <= d + g (d the measured initial distance) and the coupling rule ("mortar" or
+    "node_to_segment", app/model/pairs.py)."""
+
+    surface: str | int
+    target: str | int
+    g: float = 0.0
+    rule: str = "mortar"
+
+
+@dataclass(frozen=True)
 class Contact:
     """The ``contact`` section: gap g (a number, an expression in x, y, z, or None),
     normal compliance c_nu (4.1) (a number or an expression in x, y, z) with its exponent
     compliance_m (None: absent, the law (4.1)) or the compliance_table [[r, p], ...] (then
     c_nu is None) or the user's law compliance_python, friction, memory, and the fixed unit
-    approach direction (None: the outward normal of Gamma3)."""
+    approach direction (None: the outward normal of Gamma3), and the pairs of two bodies
+    (``ContactPair``; empty: one body against the rigid foundation)."""
 
     g: float | str | None
     c_nu: float | str | None
@@ -182,6 +209,7 @@ class Contact:
     compliance_m: float | None = None
     compliance_table: tuple | None = None
     compliance_python: PythonLaw | None = None
+    pairs: tuple = ()
 
     @property
     def compliance(self) -> bool:
@@ -191,9 +219,9 @@ class Contact:
 
     @property
     def active(self) -> bool:
-        """Any Gamma3 term present."""
-        return self.compliance or any(x is not None for x in (self.g, self.friction,
-                                                               self.memory))
+        """Any Gamma3 term present (or a pair of bodies: its bound u_nu <= d + g)."""
+        return bool(self.pairs) or self.compliance or any(
+            x is not None for x in (self.g, self.friction, self.memory))
 
 
 @dataclass(frozen=True)
@@ -312,6 +340,10 @@ class Case:
             user = self.contact.compliance_python
             terms.append("normal compliance" if user is None else
                          f"normal compliance (the user's law {user.cls}, --law-module)")
+        if self.contact.pairs:
+            terms.append(f"{len(self.contact.pairs)} contact pair(s) of two bodies "
+                         "([u]_nu <= d + g; " + ", ".join(dict.fromkeys(
+                             p.rule.replace("_", "-") for p in self.contact.pairs)) + ")")
         if self.contact.g is not None:
             terms.append("unilateral constraint u_nu <= g")
         if self.contact.memory is not None:
@@ -320,7 +352,7 @@ class Case:
             fr = self.contact.friction
             terms.append(f"friction (the user's law {fr.python.cls}, --law-module)"
                          if fr.python is not None else
-                         f"Coulomb friction mu p_n (mu = {fr.coulomb.mu:g})"
+                         fr.coulomb.title
                          if fr.coulomb is not None else "nonmonotone friction (4.2)"
                          if fr.table is None else "nonmonotone friction (table)")
             if self.contact.friction.slip is not None:
@@ -338,7 +370,7 @@ class Case:
             out.append("viscoplastic history (elastic body)")
         if not self.contact.compliance:
             out.append("normal compliance")
-        if self.contact.g is None:
+        if self.contact.g is None and not self.contact.pairs:
             out.append("unilateral constraint")
         if self.contact.memory is None:
             out.append("memory term")
@@ -398,7 +430,10 @@ def build_case(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Cas
                    tuple(map(tuple, mem["table"])) if "table" in mem else None,
                    mem["sum"]) if mem else None,
             tuple(float(x) / math.hypot(*d) for x in d) if d is not None else None,
-            *_compliance(contact.get("normal_compliance"))),
+            *_compliance(contact.get("normal_compliance")),
+            tuple(ContactPair(p["surface"], p["target"], float(p.get("g", 0.0)),
+                              p.get("rule", "mortar"))
+                  for p in contact.get("pairs", ()))),
         loads=Loads(tuple(loads["f0"]) if "f0" in loads else None,
                     {k: tuple(v) for k, v in loads.get("traction", {}).items()},
                     dict(loads.get("pressure", {})),
@@ -449,7 +484,14 @@ def _friction(fr: dict, slip: dict | None) -> Friction:
                  _table(slip.get("table")))
     return Friction(*(None if k not in fr else float(fr[k]) for k in ("b", "c1", "c2", "u1")),
                     s, _table(fr.get("table")), _python_law(fr),
-                    Coulomb(float(fr["coulomb"]["mu"])) if "coulomb" in fr else None)
+                    _coulomb(fr["coulomb"]) if "coulomb" in fr else None)
+
+
+def _coulomb(c: dict) -> Coulomb:
+    """The Coulomb of contact.friction.coulomb: mu, or mu_s, mu_k and slip_length."""
+    if "mu" in c:
+        return Coulomb(float(c["mu"]))
+    return Coulomb(float(c["mu_s"]), float(c["mu_k"]), float(c["slip_length"]))
 
 
 def _material(material: dict) -> Material:

@@ -68,9 +68,10 @@ def check_structure(data: dict, source: str) -> None:
     _check_loads(data, source)
     if "f0" in loads:
         _check_components(loads["f0"], "loads.f0", dim, source)
-    if contact and not any(k in contact for k in ("g", "normal_compliance", "friction", "memory")):
+    if contact and not any(k in contact for k in ("g", "normal_compliance", "friction", "memory",
+                                                  "pairs")):
         raise CaseError(f"{source}: contact: give at least one of g, normal_compliance, "
-                        "memory, friction")
+                        "memory, friction (or pairs)")
     for path, section in material_sections(data):    # material, or each of materials
         with section_errors(path):
             _check_material(section, dim, source)
@@ -324,16 +325,45 @@ def _check_friction(fr: dict, source: str) -> None:
 
 
 def _check_coulomb(fr: dict, source: str) -> None:
-    """contact.friction.coulomb: mu >= 0, not with another friction law's keys."""
+    """contact.friction.coulomb: mu >= 0, or mu_s, mu_k, slip_length; not with another
+    friction law's keys."""
     other = [k for k in ("b", "c1", "c2", "u1", "table", "law", "class", "params")
              if k in fr]
     if other:
         raise CaseError(f"{source}: contact.friction.{other[0]}: not with coulomb (the "
                         f"Coulomb law mu p_n is the friction law; remove {', '.join(other)})")
-    mu = fr["coulomb"]["mu"]
-    if mu < 0:
-        raise CaseError(f"{source}: contact.friction.coulomb.mu: must be >= 0 (a friction "
-                        f"coefficient), got {mu:g}")
+    c, path = fr["coulomb"], "contact.friction.coulomb"
+    pair = [k for k in ("mu_s", "mu_k", "slip_length") if k in c]
+    if "mu" in c and pair:
+        raise CaseError(f"{source}: {path}.{pair[0]}: not with mu (give mu, or mu_s, mu_k "
+                        "and slip_length; not both)")
+    if "mu" not in c and len(pair) < 3:
+        missing = next(k for k in ("mu_s", "mu_k", "slip_length") if k not in c)
+        raise CaseError(f"{source}: {path}.{'mu' if not pair else missing}: required (give "
+                        "mu, or mu_s, mu_k and slip_length)")
+    if pair:
+        _check_static_kinetic(fr, source)
+    elif c["mu"] < 0:
+        raise CaseError(f"{source}: {path}.mu: must be >= 0 (a friction coefficient), got "
+                        f"{c['mu']:g}")
+
+
+def _check_static_kinetic(fr: dict, source: str) -> None:
+    """contact.friction.coulomb: mu_s >= mu_k >= 0, slip_length > 0, not with slip."""
+    c, path = fr["coulomb"], "contact.friction.coulomb"
+    if c["mu_k"] < 0:
+        raise CaseError(f"{source}: {path}.mu_k: must be >= 0 (a friction coefficient), got "
+                        f"{c['mu_k']:g}")
+    if c["mu_s"] < c["mu_k"]:
+        raise CaseError(f"{source}: {path}.mu_s: must be >= mu_k = {c['mu_k']:g} (the static "
+                        f"coefficient is the larger), got {c['mu_s']:g}")
+    if c["slip_length"] <= 0:
+        raise CaseError(f"{source}: {path}.slip_length: must be > 0 (the accumulated slip "
+                        f"[m s] over which mu falls from mu_s to mu_k), got "
+                        f"{c['slip_length']:g}")
+    if "slip" in fr:
+        raise CaseError(f"{source}: contact.friction.slip: not with coulomb mu_s, mu_k (the "
+                        "static/kinetic pair is the slip dependence; give one of them)")
 
 
 # the keys of material.viscoplastic that only some laws use

@@ -333,11 +333,23 @@ SCHEMA = _obj({
                                                          "pressure at the node [N/m^2] "
                                                          "(compliance, memory and the bound's "
                                                          "reaction); times theta(s) with slip"},
-            }, required=["mu"], description="Coulomb friction |sigma_tau| <= mu p_n (instead "
-                                             "of b, c1, c2, u1 or table): psi(rho) = mu p_n "
-                                             "rho, regularised with solver.delta; p_n by a "
-                                             "fixed point in each step (needs "
-                                             "normal_compliance or g)"),
+                "mu_s": {"type": "number", "description": "the static coefficient "
+                                                           "(dimensionless, >= mu_k): the "
+                                                           "bound mu(s) p_n at s = 0 (instead "
+                                                           "of mu; with mu_k and slip_length)"},
+                "mu_k": {"type": "number", "description": "the kinetic coefficient "
+                                                           "(dimensionless, 0 <= mu_k <= "
+                                                           "mu_s): mu(s) for s >= slip_length"},
+                "slip_length": {"type": "number", "description": "the accumulated slip "
+                                                                 "s = int_0^t |u_tau| [m s] "
+                                                                 "(> 0) over which mu(s) falls "
+                                                                 "linearly from mu_s to mu_k"},
+            }, description="Coulomb friction |sigma_tau| <= mu p_n (instead of b, c1, c2, u1 "
+                           "or table): psi(rho) = mu p_n rho, regularised with solver.delta; "
+                           "p_n by a fixed point in each step (needs normal_compliance or g); "
+                           "give mu, or the static/kinetic pair mu_s, mu_k, slip_length: "
+                           "mu(s) = mu_s - (mu_s - mu_k) min(s / slip_length, 1) (not with "
+                           "slip)"),
             **_python_law("contact.friction", "the friction potential psi(rho) (the "
                           "friction stress psi' against the slip rho = |u_tau|_delta [m]; "
                           "an attribute m_j, the largest decreasing slope of psi', enters "
@@ -456,6 +468,33 @@ _MATERIALS = {
                    ">= 0), each with every key of material (its viscoplastic law included; "
                    "none: an elastic group); the groups must cover the body and have one "
                    "material.plane; either material or materials"}
+# contact.pairs: two bodies of one mesh.file in contact; a pair's laws are the contact
+# section's own schema (the same dicts), given in the pair or once in contact
+_CONTACT = SCHEMA["properties"]["contact"]["properties"]
+_CONTACT["pairs"] = {
+    "type": "array", "minItems": 1, "maxItems": 100,
+    "items": _obj({
+        "surface": {**_group, "description": "the group of facets of one body whose nodes "
+                                             "are projected (Gamma3 of the pair)"},
+        "target": {**_group, "description": "the group of facets of the other body they "
+                                            "are projected onto"},
+        "g": {**_nonneg, "description": "an extra gap added to the measured initial "
+                                        "distance: the bound u_nu <= d + g [m] (the thickness "
+                                        "of a compliant interface layer; default 0: hard "
+                                        "contact)"},
+        "rule": {"enum": ["mortar", "node_to_segment"],
+                 "description": "how a surface node's relative displacement is taken: "
+                                "mortar (default: the phi_i-weighted mean of the jump over "
+                                "the node's facets; passes the contact patch test) or "
+                                "node_to_segment (at the node's closest point)"},
+        **{key: _CONTACT[key] for key in ("normal_compliance", "memory", "friction")},
+    }, required=["surface", "target"]),
+    "description": "two deformable bodies of one mesh.file in contact (node to segment, "
+                   "small sliding): each node of surface is projected once onto target; "
+                   "u_nu = (u(x) - u(pi(x))) . nu with nu the target's inward normal at "
+                   "pi(x), the initial distance d measured from the mesh; the laws act on "
+                   "u_nu - d and the relative tangential displacement.  Not with g, "
+                   "direction or boundaries.contact (the pairs' surfaces are Gamma3)"}
 _KEYS = list(SCHEMA["properties"].items())
 _AT = [key for key, _ in _KEYS].index("material") + 1
 SCHEMA["properties"] = dict(_KEYS[:_AT] + [("materials", _MATERIALS)] + _KEYS[_AT:])

@@ -24,6 +24,7 @@ from vpcontact.case.meshrules import (
     settle_defaults,
 )
 from vpcontact.case.model import Case, build_case
+from vpcontact.case.pairrules import settle_pairs
 from vpcontact.case.reading import MAX_CASE_SIZE, check_data, load_raw, with_lines
 from vpcontact.case.rules import check_name, check_structure
 from vpcontact.case.schemacheck import check_schema, fill_defaults
@@ -66,6 +67,7 @@ def _validate(data: dict, source: str) -> Case:
     check_material_keys(data, source)
     dim_given = "dim" in data["mesh"]
     mesh_file = check_given(data, source)
+    settle_pairs(data, source)
     fill_defaults(data)
     settle_defaults(data, mesh_file)
     check_planes(data, source)

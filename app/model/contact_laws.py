@@ -378,6 +378,48 @@ class TableSlip:
         return np.interp(s, self._s, self._theta)
 
 
+class StaticKineticSlip:
+    """The static/kinetic Coulomb coefficient as a slip dependence: the bound mu(s) p_n with
+    mu(s) = mu_s - (mu_s - mu_k) min(s / L, 1) is mu_s theta(s) p_n with
+
+        theta(s) = 1 - (1 - mu_k / mu_s) min(s / L, 1)
+
+    (theta = 1 for mu_s = 0), s the accumulated slip of (3.4) and L the slip length.
+
+    Args:
+        mu_s: the static coefficient (mu(0)).
+        mu_k: the kinetic coefficient (mu(s) for s >= L), 0 <= mu_k <= mu_s.
+        slip_length: L > 0 [m s].
+    """
+
+    name = "static/kinetic Coulomb slip dependence theta(s) = 1 - (1 - mu_k/mu_s) min(s/L, 1)"
+
+    def __init__(self, mu_s: float, mu_k: float, slip_length: float):
+        self.mu_s, self.mu_k, self.slip_length = mu_s, mu_k, slip_length
+        self._drop = 1.0 - mu_k / mu_s if mu_s > 0 else 0.0
+
+    def constants(self):
+        """Returns: mu_s [-], mu_k [-], slip_length L [m s]."""
+        return {"mu_s": (self.mu_s, "-"), "mu_k": (self.mu_k, "-"),
+                "slip_length": (self.slip_length, "m s")}
+
+    @property
+    def theta_max(self) -> float:
+        """The largest theta(s), theta(0) = 1."""
+        return 1.0
+
+    def theta(self, s):
+        """theta(s) = mu(s) / mu_s.
+
+        Args:
+            s: accumulated slips s_n at the nodes (numpy).
+
+        Returns:
+            theta(s), elementwise.
+        """
+        return 1.0 - self._drop * np.minimum(s / self.slip_length, 1.0)
+
+
 def slip_law(slip):
     """theta(s) of a case's ``contact.friction.slip``.
 

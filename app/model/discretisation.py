@@ -24,6 +24,7 @@ from vpcontact.meshes.bodycheck import interior_role
 from vpcontact.model.dirichlet import build_dirichlet, check_rigid_motions
 from vpcontact.model.frames import ContactFrames, build_frames, facet_normals, gap_values
 from vpcontact.model.loads import TimeData
+from vpcontact.model.pairs import project_pairs
 
 
 @dataclass
@@ -53,6 +54,8 @@ class Discretisation:
         gamma3: the owned Gamma3 nodes and their weights, or None without contact.
         gamma3_local_nodes: the local (owned and ghost) Gamma3 nodes carrying contact.
         frames: the nodal normals, frames and gaps of Gamma3 (owned and ghost nodes), or None.
+        pairs: the projection of the Gamma3 nodes onto their targets (two bodies,
+            app/model/pairs.py), or None.
 
     Raises:
         CaseError: a group the mesh lacks, a role on the wrong group, no support.
@@ -67,10 +70,13 @@ class Discretisation:
         self.Q = fem.TensorFunctionSpace(msh, ("DG", 0))
         self.Y = fem.FunctionSpace(msh, ("DG", 0))
         self._setup_boundaries()
-        self.gamma3 = self.frames = None
+        self.gamma3 = self.frames = self.pairs = None
         self.gamma3_local_nodes = None
         if case.contact.active:
             self.gamma3 = self._gamma3_nodes()
+            if case.contact.pairs:      # two bodies: app/model/pairs.py
+                nodes = self.gamma3_local_nodes
+                self.pairs = project_pairs(self, nodes, self.facet_normals[nodes])
             self.frames = self._frames()
 
     def group_tag(self, ref, key: str) -> int:
@@ -114,7 +120,8 @@ class Discretisation:
             [(r, "boundaries.contact") for r in b.contact] + \
             [(r, f"loads.traction.{r}") for r in loads.traction] + \
             [(r, f"loads.pressure.{r}") for r in loads.pressure] + \
-            [(r, f"loads.displacement.{r}") for r in loads.displacement]
+            [(r, f"loads.displacement.{r}") for r in loads.displacement] + \
+            [(p.target, f"contact.pairs[{i}].target") for i, p in enumerate(case.contact.pairs)]
         self.tags = {ref: self.group_tag(ref, key) for ref, key in keys}
         self._check_roles()
         for ref, key in keys:                   # a role on an embedded curve: refused
@@ -213,9 +220,12 @@ class Discretisation:
     def _frames(self) -> ContactFrames:
         """Normals, frames and gaps at the Gamma3 nodes (app/model/frames.py)."""
         c, nodes = self.case.contact, self.gamma3_local_nodes
-        frames = build_frames(self.V, nodes, self.facet_normals[nodes],
-                              self.dirichlet.fixed[nodes], c.direction, self.case.source)
-        if c.g is not None:
+        raw = self.facet_normals[nodes] if self.pairs is None else self.pairs.normal
+        frames = build_frames(self.V, nodes, raw, self.dirichlet.fixed[nodes], c.direction,
+                              self.case.source)
+        if self.pairs is not None:        # the bound w_nu = [u]_nu - d <= g of each pair
+            frames.g = self.pairs.g.copy()
+        elif c.g is not None:
             x = self.V.tabulate_dof_coordinates()[nodes, :self.dim]
             frames.g = gap_values(c.g, x, self.case.source, self.comm)
         return frames

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from dolfinx import fem
 
-from vpcontact.model.contact_laws import SlipWeakening, slip_law, space_field
+from vpcontact.model.contact_laws import SlipWeakening, StaticKineticSlip, slip_law, space_field
 from vpcontact.model.coulomb import CoulombPressure
 from vpcontact.model.memory_kernels import FieldKernel, MemoryKernel, memory_kernel
 from vpcontact.model.primitives import NUMPY
@@ -197,7 +197,7 @@ class Gamma3History:
                  slip: SlipWeakening | None = None, recursion: bool | None = None,
                  b0: np.ndarray | None = None, mu: float | None = None):
         self.b0 = b0
-        self.u = problem.u
+        self.problem = problem
         self.nodes = problem.gamma3_local_nodes
         self.normal = problem.frames.normal          # (m, d): nu_i at the nodes
         self.dim = problem.dim
@@ -271,7 +271,7 @@ class Gamma3History:
             t_prev: t_{n-1}.
             t_n: t_n.
         """
-        u = self.u.x.array.reshape(-1, self.dim)[self.nodes]
+        u = self.problem.contact_u()      # u, or w = [u] - d nu of two bodies
         u_nu = np.einsum("ij,ij->i", u, self.normal)
         if self.memory is not None:
             r_plus = NUMPY.pos(u_nu) if self.b0 is None else self.b0 * NUMPY.pos(u_nu)
@@ -287,7 +287,7 @@ def build_gamma3_history(case, problem) -> Gamma3History | None:
     the case enables them.
 
     Args:
-        case: the validated Case (contact.memory, contact.friction.slip).
+        case: the validated Case (contact.memory, contact.friction.slip and coulomb).
         problem: the ContactProblem.
 
     Returns:
@@ -310,6 +310,8 @@ def build_gamma3_history(case, problem) -> Gamma3History | None:
         slip = slip_law(c.friction.slip)
     coulomb = getattr(c.friction, "coulomb", None)
     mu = coulomb.mu if coulomb is not None else None
+    if coulomb is not None and coulomb.mu_k is not None:    # mu(s) = mu_s theta(s)
+        slip = StaticKineticSlip(coulomb.mu, coulomb.mu_k, coulomb.slip_length)
     if kernel is None and slip is None and mu is None:
         return None
     return Gamma3History(problem, kernel, slip, recursion, b0, mu)

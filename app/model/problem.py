@@ -22,7 +22,12 @@ from petsc4py import PETSc
 from vpcontact.case import Case, CaseError
 from vpcontact.forms.contact import gamma3_measure
 from vpcontact.forms.elasticity import eps, plane_strain_moduli
-from vpcontact.forms.step import BulkData, ContactData, build_step_forms
+from vpcontact.forms.step import (
+    BulkData,
+    ContactData,
+    build_boundary_forms,
+    build_step_forms,
+)
 from vpcontact.model.contact_laws import ContactLaw, contact_law, replace_laws, varies_in_space
 from vpcontact.model.discretisation import Discretisation
 from vpcontact.model.gamma3 import NodalField
@@ -31,6 +36,7 @@ from vpcontact.model.lawmodule import python_contact_laws
 from vpcontact.model.loads import TimeData
 from vpcontact.model.material import Elasticity
 from vpcontact.model.materials import body_materials
+from vpcontact.model.pairs import PairOperators
 from vpcontact.model.state import State
 from vpcontact.model.stiffness import case_elasticity, stress_operator
 from vpcontact.model.strain import StrainOperator
@@ -140,6 +146,10 @@ class ContactProblem:
                                            or getattr(c.friction, "coulomb", None) is not None):
                 self.theta = NodalField(self.V, self.gamma3_local_nodes, "theta")
                 self.theta.function.x.array[:] = 1.0
+        # two bodies: the Gamma3 terms act on w, the relative displacement less the
+        # initial distance at the Gamma3 nodes (app/model/pairs.py)
+        self.w = fem.Function(self.V, name="w") if self.disc.pairs is not None else None
+        self.pair_forms = None
         self.forms = self._step_forms()
         self.bulk_form = fem.form(self.forms.bulk_residual)
         # sigma_n = E eps(u_n) + H_n per cell (exact: eps(u) is constant on cells),
@@ -211,7 +221,32 @@ class ContactProblem:
                         tractions=tractions, ds=ds,
                         stress=self.sigma if self.implicit else None, tangent=self.C_alg,
                         C=None if E is not None else self.elastic_operator)
-        return build_step_forms(self.u, bulk, self._contact_data() if c.active else None)
+        if self.w is None:
+            return build_step_forms(self.u, bulk, self._contact_data() if c.active else None)
+        forms = build_step_forms(self.u, bulk, None)
+        *self.pair_forms, terms = build_boundary_forms(self.w, self._contact_data())
+        forms.terms += terms
+        return forms
+
+    @cached_property
+    def pair_operators(self):
+        """The jump B, the normal coupling S and the offsets of the pairs (two bodies,
+        app/model/pairs.py: ``PairOperators``); built when first used."""
+        return PairOperators(self)
+
+    def contact_u(self) -> np.ndarray:
+        """The displacement the Gamma3 terms act on, at the local Gamma3 nodes (owned and
+        ghost): u (one body), or w = [u] - d nu (two bodies: the relative displacement less
+        the initial distance; also stored in the Function ``w``); collective with pairs.
+
+        Returns:
+            (m, d) values in ``gamma3_local_nodes`` order.
+        """
+        if self.w is None:
+            return self.u.x.array.reshape(-1, self.dim)[self.gamma3_local_nodes]
+        self.pair_operators.jump(self.u.vector, self.w.vector)
+        self.w.x.scatter_forward()
+        return self.w.x.array.reshape(-1, self.dim)[self.gamma3_local_nodes]
 
     def contact_law(self, const=None, x=None) -> ContactLaw:
         """The contact laws of the run: the case's (app/model/contact_laws.py:
@@ -448,7 +483,7 @@ _FROM_DISCRETISATION = (
     "mesh", "comm", "dim", "body", "V", "Q", "Y", "tags", "dirichlet", "bcs", "gamma3",
     "gamma3_local_nodes", "frames", "gamma3_tags", "group_tag", "gamma3_facet_coordinates",
     "gamma3_exact_measure", "num_cells", "num_vertices", "num_dofs", "num_gamma3_nodes",
-    "num_owned_cells", "length_scale", "gap_scale", "cell_volumes", "reduce")
+    "num_owned_cells", "length_scale", "gap_scale", "cell_volumes", "reduce", "pairs")
 
 
 def _discretisation_attribute(name: str) -> property:

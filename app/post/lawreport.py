@@ -75,10 +75,19 @@ def law_report(problem, gamma3_history=None) -> dict:
         fr = case.contact.friction
         if getattr(fr, "coulomb", None) is not None and \
                 "friction" not in problem.contact_replacements:
-            out["contact"]["friction"] = {
-                "name": "Coulomb friction mu p_n |u_tau|_delta (p_n by a fixed point)",
-                "constants": {"mu": [fr.coulomb.mu, "-"]}}
+            out["contact"]["friction"] = _coulomb_entry(fr.coulomb)
     return out
+
+
+def _coulomb_entry(c) -> dict:
+    """{"name", "constants"} of Coulomb friction: mu, or mu_s, mu_k over slip_length."""
+    if c.mu_k is None:
+        return {"name": "Coulomb friction mu p_n |u_tau|_delta (p_n by a fixed point)",
+                "constants": {"mu": [c.mu, "-"]}}
+    return {"name": "Coulomb friction mu(s) p_n |u_tau|_delta, mu(s) = mu_s - (mu_s - mu_k) "
+                    "min(s/slip_length, 1) (p_n by a fixed point)",
+            "constants": {"mu_s": [c.mu, "-"], "mu_k": [c.mu_k, "-"],
+                          "slip_length": [c.slip_length, "m s"]}}
 
 
 def _constants_text(entry: dict) -> str:

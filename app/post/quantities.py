@@ -112,12 +112,13 @@ def contact_table(problem, r: np.ndarray | None = None) -> dict[str, np.ndarray]
     rr = (bulk_residual(problem, layer=True) if r is None else r)[gm.nodes]
     uu = problem.u.x.array.reshape(-1, d)[gm.nodes]
     pos = np.searchsorted(fr.nodes, gm.nodes)
+    ww = uu if problem.pairs is None else problem.contact_u()[pos]   # two bodies: [u] - d nu
     nu, tau = fr.normal[pos], fr.tangents[pos]
     axes = "xyz"[:d]
     table = {a: gm.x[:, i] for i, a in enumerate(axes)}
     table.update({f"u_{a}": uu[:, i] for i, a in enumerate(axes)})
-    table["u_nu"] = np.einsum("ij,ij->i", uu, nu)
-    u_tau = np.einsum("ij,ikj->ik", uu, tau)
+    table["u_nu"] = np.einsum("ij,ij->i", ww, nu)
+    u_tau = np.einsum("ij,ikj->ik", ww, tau)
     f_tau = -np.einsum("ij,ikj->ik", rr, tau) / gm.weight[:, None]
     suffix = [""] if d == 2 else ["1", "2"]
     for k, sfx in enumerate(suffix):
@@ -137,8 +138,11 @@ def contact_table(problem, r: np.ndarray | None = None) -> dict[str, np.ndarray]
         table["friction_bound"] = bound
         table["slip_state"] = (np.linalg.norm(f_tau, axis=1) >= (1 - SLIP_RATIO) * bound
                                ).astype(float)
-    if isinstance(problem.case.contact.g, str):
+    if isinstance(problem.case.contact.g, str) or problem.pairs is not None:
         table["g"] = fr.g[pos]
+    if problem.pairs is not None:      # two bodies: the pair and the initial distance d
+        table["pair"] = problem.pairs.pair[pos].astype(float)
+        table["d"] = problem.pairs.distance[pos]
     # hidden (not a CSV column): the Dirichlet data prescribe u_nu here, so the force is
     # a support's reaction, not a contact pressure
     table["_prescribed"] = ~fr.bounded[pos]

@@ -33,6 +33,8 @@ def condensed_eligible(case) -> tuple[bool, str]:
         return False, "the implicit history variant makes the bulk problem nonlinear"
     if case.numerics.quadrature != "vertex" and case.contact.active:
         return False, "the condensed solver needs the nodal (vertex) Gamma3 quadrature"
+    if case.contact.pairs:
+        return False, "contact.pairs (two bodies) are solved by SNES VI only, so far"
     return True, ""
 
 

@@ -17,6 +17,7 @@ from petsc4py import PETSc
 
 from vpcontact.solvers.amg import InactiveSetAMG, rigid_body_modes
 from vpcontact.solvers.options import PREFIX, push_options, remove_options
+from vpcontact.solvers.pairmap import PairMap
 from vpcontact.solvers.rotation import FrameMap
 
 log = logging.getLogger("vpcontact")
@@ -206,11 +207,16 @@ class SNESVISolver:
         self.u = problem.u
         self.b = fem.petsc.create_vector(problem.F_form)
         self.A = fem.petsc.create_matrix(problem.J_form)
-        self._setup_jacobian_reuse(problem)
+        # two bodies: SNES solves for x of app/solvers/pairmap.py (the pairs' bound a box)
+        self.pairs = PairMap(problem) if problem.pairs is not None else None
+        if self.pairs is None:
+            self._setup_jacobian_reuse(problem)
+        else:
+            self.K = self.B = None
         self.x = self.u.vector.copy()
         # curved Gamma3: SNES solves for x = R^T u in the nodal frames (app/solvers/rotation.py)
         self.frames = None
-        if problem.frames is not None and problem.frames.rotated:
+        if problem.frames is not None and problem.frames.rotated and self.pairs is None:
             self.frames = FrameMap(problem, self.u.vector)
             self.b_frames = self.b.duplicate()
             if self.K is None:                   # the pattern of J for the first PtAP
@@ -231,7 +237,10 @@ class SNESVISolver:
         setFromOptions only)."""
         snes = PETSc.SNES().create(self.problem.comm)
         snes.setOptionsPrefix(self.prefix)
-        if self.frames is None:
+        if self.pairs is not None:
+            snes.setFunction(self._F_pairs, self.b)
+            snes.setJacobian(self._J_pairs, self.pairs.A, self.pairs.A)
+        elif self.frames is None:
             snes.setFunction(self._F, self.b)
             snes.setJacobian(self._J, self.A, self.A)
         else:
@@ -271,6 +280,8 @@ class SNESVISolver:
             (owned dofs, modes) array.
         """
         Z = rigid_body_modes(self.problem.V)
+        if self.pairs is not None:
+            return self.pairs.modes(Z)
         if self.frames is None:
             return Z
         z, zr = self.A_frames.createVecs()
@@ -313,6 +324,17 @@ class SNESVISolver:
         fem.petsc.apply_lifting(b, [self.problem.J_form], [self.problem.bcs], x0=[x], scale=-1.0)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         fem.petsc.set_bc(b, self.problem.bcs, x, -1.0)
+
+    def _F_pairs(self, snes, x, b):
+        """The residual of two bodies in x (app/solvers/pairmap.py)."""
+        x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        if not self.pairs.residual(x, b):
+            with b.localForm() as bl:   # the local stress update failed: let SNES see NaN
+                bl.set(np.nan)
+
+    def _J_pairs(self, snes, x, A, P):
+        """The Jacobian of two bodies in x (at the w of the last residual)."""
+        self.pairs.jacobian()
 
     def _F_frames(self, snes, x, b):
         """The residual in the nodal frames: R^T F(R x)."""
@@ -366,7 +388,9 @@ class SNESVISolver:
     def _snes_solve(self, snes) -> None:
         """SNES from the current u (our options are in the database while it runs: PCs set
         up their parts, e.g. multigrid levels, from it when the inactive set changes)."""
-        if self.frames is None:
+        if self.pairs is not None:
+            self.pairs.to_x(self.u.vector, self.x)
+        elif self.frames is None:
             self.u.vector.copy(self.x)
         else:
             self.frames.to_frames(self.u.vector, self.x)
@@ -410,7 +434,9 @@ class SNESVISolver:
         if reason <= 0:
             raise StepSolveError(f"SNES did not converge: {reason_name(reason)} ({reason}) "
                                  f"after {its} Newton iterations", reason)
-        if self.frames is None:
+        if self.pairs is not None:
+            self.pairs.to_u(self.x, self.u)
+        elif self.frames is None:
             self.x.copy(self.u.vector)
         else:
             self.frames.from_frames(self.x, self.u.vector)
@@ -487,3 +513,5 @@ class SNESVISolver:
         if self.frames is not None:
             for obj in (self.frames, self.b_frames, self.A_frames):
                 obj.destroy()
+        if self.pairs is not None:
+            self.pairs.destroy()

@@ -107,10 +107,12 @@ class _Field:
 
 
 def _problem(u_nodes, normal):
-    """The attributes of the problem Gamma3History reads: u, the Gamma3 nodes and normals,
+    """What Gamma3History reads of the problem: u (contact_u), the Gamma3 nodes and normals,
     the nodal fields xi and theta."""
     u = SimpleNamespace(x=SimpleNamespace(array=np.asarray(u_nodes, dtype=float).ravel()))
-    return SimpleNamespace(u=u, gamma3_local_nodes=np.arange(len(u_nodes)),
+    values = np.asarray(u_nodes, dtype=float).reshape(len(u_nodes), -1)
+    return SimpleNamespace(u=u, contact_u=lambda: values,
+                           gamma3_local_nodes=np.arange(len(u_nodes)),
                            frames=SimpleNamespace(normal=np.asarray(normal, dtype=float)),
                            dim=2, xi=_Field(), theta=_Field())
 

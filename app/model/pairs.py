@@ -1,0 +1,388 @@
+"""Two bodies in contact (``contact.pairs``): the node-to-segment kinematics of small sliding.
+
+Each local node x_i of a pair's ``surface`` (Gamma3 of the pair) is projected once, in the
+reference configuration, onto the pair's ``target`` facets (app/model/pairgeometry.py):
+pi(x_i) = sum_k N_ik x_k on one target facet, with the target's outward unit normal n_i
+there.  The pair's normal is nu_i = -n_i (from the surface toward the target) and the
+measured initial distance d_i = (pi(x_i) - x_i) . nu_i >= 0.  The relative displacement
+
+    [u]_i = u(x_i) - u(pi(x_i)) = u_i - sum_k N_ik u_k
+
+is a fixed linear combination of dofs (the rows of the jump matrix B), and the contact laws
+of the rigid-foundation case act on
+
+    w_i = [u]_i - d_i nu_i:    w_i . nu_i = [u]_nu - d_i  (the interpenetration when > 0),
+                               w_i - (w_i . nu_i) nu_i = [u]_tau,
+
+with the bound w_i . nu_i <= g (the pair's g).  So the forms of the Gamma3 terms (4.1)-(4.2),
+the memory and slip sums and the Coulomb pressure are those of one body against the
+foundation, evaluated on w (a P1 Function whose values at the Gamma3 nodes are w_i); the step
+solver maps them back to u (app/solvers/pairmap.py).
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+from dolfinx import cpp as dcpp
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from vpcontact.io.errors import CaseError
+from vpcontact.model.mortar import mortar_triplets
+from vpcontact.model.pairgeometry import facet_normals, project_points
+
+log = logging.getLogger("vpcontact")
+
+# a node with the surface's outward normal under FACING_MIN to the pair's normal is refused
+# (the surfaces do not face each other there); an initial overlap beyond PENETRATION_TOL
+# times the body's size is refused, below it is round-off (clipped to 0)
+FACING_MIN = 0.0
+PENETRATION_TOL = 1e-8
+
+
+@dataclass
+class PairGeometry:
+    """The projection of the local Gamma3 nodes (owned and ghost, in
+    ``gamma3_local_nodes`` order) onto their pairs' targets, and the coupling of the owned
+    ones.
+
+    Attributes:
+        pair: (m,) the index of each node's pair in contact.pairs.
+        normal: (m, d) nu_i, the pair's unit normal (the target's inward normal at pi(x_i)).
+        distance: (m,) d_i >= 0, the initial distance along nu_i (owned nodes: of the
+            coupling, nu_i . (sum_k c_ik x_k - x_i); ghosts: of the projection).
+        g: (m,) the pair's extra gap g at each node.
+        rows, cols, coef: the coupling [u]_i = u_i - sum_k c_ik u_k of the owned nodes:
+            the node's position in ``gamma3_local_nodes``, the target's global node k,
+            c_ik (each row sums to 1).
+    """
+
+    pair: np.ndarray
+    normal: np.ndarray
+    distance: np.ndarray
+    g: np.ndarray
+    rows: np.ndarray = None
+    cols: np.ndarray = None
+    coef: np.ndarray = None
+
+
+def vertex_nodes(V) -> np.ndarray:
+    """The node (block dof) of V at each local vertex of the mesh (P1 on simplices: a
+    cell's dofs follow its vertices).
+
+    Args:
+        V: the P1 vector space.
+
+    Returns:
+        (vertices,) node indices.
+    """
+    msh = V.mesh
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim, 0)
+    c2v = msh.topology.connectivity(tdim, 0).array
+    out = np.empty(msh.topology.index_map(0).size_local
+                   + msh.topology.index_map(0).num_ghosts, dtype=np.int64)
+    out[c2v] = V.dofmap.list.array
+    return out
+
+
+def local_facets(disc, ref, owned: bool = False) -> tuple:
+    """This rank's facets of a group: vertex coordinates, a point inside the adjacent cell
+    and the vertices' global nodes.
+
+    Args:
+        disc: the Discretisation (its mesh, V and ``facets`` of the group).
+        ref: the group.
+        owned: only the facets this rank owns (each facet on one rank).
+
+    Returns:
+        (coordinates (nf, nv, d), interior points (nf, d), global nodes (nf, nv)).
+    """
+    msh, V, d = disc.mesh, disc.V, disc.dim
+    fdim = d - 1
+    facets = np.asarray(disc.facets[ref], dtype=np.int32)
+    msh.topology.create_connectivity(fdim, 0)
+    msh.topology.create_connectivity(fdim, d)
+    if owned:
+        facets = facets[facets < msh.topology.index_map(fdim).size_local]
+    f2v, f2c = msh.topology.connectivity(fdim, 0), msh.topology.connectivity(fdim, d)
+    verts = np.array([f2v.links(f) for f in facets], dtype=np.int64).reshape(len(facets), d)
+    local = vertex_nodes(V)[verts]
+    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
+    cpp_mesh = getattr(msh, "_mesh", msh)
+    geo = dcpp.mesh.entities_to_geometry(cpp_mesh, d, cells, False)
+    interior = msh.geometry.x[geo][:, :, :d].mean(axis=1) if len(cells) else np.zeros((0, d))
+    glob = np.asarray(V.dofmap.index_map.local_to_global(local.reshape(-1).astype(np.int32)),
+                      dtype=np.int64).reshape(local.shape)
+    return V.tabulate_dof_coordinates()[local][:, :, :d], interior, glob
+
+
+def target_facets(disc, ref) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The facets of a target group over all ranks, each once: their vertex coordinates,
+    the target body's outward normals and the vertices' global nodes.
+
+    Args:
+        disc: the Discretisation.
+        ref: the target group.
+
+    Returns:
+        (coordinates (nf, nv, d), outward normals (nf, d), global nodes (nf, nv)).
+    """
+    d = disc.dim
+    parts = disc.comm.allgather(local_facets(disc, ref))
+    coords = np.concatenate([p[0] for p in parts]).reshape(-1, d, d)
+    inner = np.concatenate([p[1] for p in parts]).reshape(-1, d)
+    glob = np.concatenate([p[2] for p in parts]).reshape(-1, d)
+    _, first = np.unique(np.sort(glob, axis=1), axis=0, return_index=True)
+    first = np.sort(first)
+    return coords[first], facet_normals(coords[first], inner[first]), glob[first]
+
+
+def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
+    """Project the local Gamma3 nodes onto their pairs' targets, check the pairs and
+    couple the owned nodes to the targets (each pair's ``rule``).
+
+    Args:
+        disc: the Discretisation (case, V, facets of the groups).
+        nodes: the local Gamma3 nodes (owned and ghost, sorted).
+        outward: (m, d) the surface's outward unit normals at those nodes.
+
+    Returns:
+        The PairGeometry.
+
+    Raises:
+        CaseError: a node in two pairs' surfaces, a node projecting outside its target,
+            surfaces that do not face each other, an initial interpenetration (on every
+            rank).
+    """
+    case, d = disc.case, disc.dim
+    x = disc.V.tabulate_dof_coordinates()[nodes, :d]
+    m = len(nodes)
+    pair = np.full(m, -1)
+    for i, p in enumerate(case.contact.pairs):
+        mine = np.isin(nodes, surface_nodes(disc, p.surface))
+        _refuse(disc, (mine & (pair >= 0)).any(), f"contact.pairs[{i}].surface",
+                "shares a node with another pair's surface")
+        pair[mine] = i
+    geo = PairGeometry(pair, np.zeros((m, d)), np.zeros(m), np.zeros(m))
+    couplings, targets = [], []
+    for i, p in enumerate(case.contact.pairs):
+        sel = pair == i
+        target = target_facets(disc, p.target)
+        targets.append(target)
+        _refuse(disc, sel.any() and len(target[0]) == 0, f"contact.pairs[{i}].target",
+                f"the group {p.target!r} has no facets")
+        proj = project_points(x[sel], target[0], target[1]) if sel.any() else None
+        inside = proj.inside if proj is not None else np.ones(0, bool)
+        _refuse_count(disc, ~inside, x[sel], f"contact.pairs[{i}]",
+                      f"node(s) of {p.surface!r} project outside the target {p.target!r} "
+                      "(past its free edge): make the surface group cover only the part "
+                      "that faces the target, or the target larger")
+        if proj is not None:
+            geo.normal[sel] = -proj.normal
+            geo.distance[sel] = proj.distance
+            geo.g[sel] = p.g
+            _check_facing(disc, i, p, outward[sel], -proj.normal, x[sel])
+        couplings.append(_coupling(disc, p, nodes, np.flatnonzero(sel), proj, target))
+    geo.rows, geo.cols, geo.coef = (np.concatenate([c[k] for c in couplings])
+                                    for k in range(3))
+    _coupled_distance(geo, x, targets)
+    for i, p in enumerate(case.contact.pairs):
+        _check_distance(disc, i, p, geo, pair == i, x[pair == i])
+    return geo
+
+
+def _coupling(disc, p, nodes, sel, proj, target) -> tuple:
+    """(rows, cols, coef) of one pair's owned nodes (positions ``sel`` in ``nodes``)."""
+    n_owned = disc.V.dofmap.index_map.size_local
+    owned = nodes[sel] < n_owned
+    if p.rule == "node_to_segment":
+        if proj is None:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        nv = proj.weights.shape[1]
+        return (np.repeat(sel[owned], nv), target[2][proj.facet[owned]].ravel(),
+                proj.weights[owned].ravel())
+    rows, cols, vals = mortar_triplets(*local_facets(disc, p.surface, owned=True)[::2],
+                                       *target)
+    parts = disc.comm.allgather((rows, cols, vals))
+    rows, cols, vals = (np.concatenate([q[k] for q in parts]) for k in range(3))
+    start = disc.V.dofmap.index_map.local_range[0]
+    mine = (rows >= start) & (rows < start + n_owned)
+    local = rows[mine] - start
+    at = np.searchsorted(nodes, local)
+    ok = (at < len(nodes)) & (nodes[np.minimum(at, len(nodes) - 1)] == local)
+    rows, cols, vals = at[ok], cols[mine][ok], vals[mine][ok]
+    rows = np.where(np.isin(rows, sel), rows, -1)      # another pair's node: not this one
+    rows, cols, vals = rows[rows >= 0], cols[rows >= 0], vals[rows >= 0]
+    total = np.bincount(rows, weights=vals, minlength=len(nodes))
+    return rows, cols, vals / total[rows]
+
+
+def _coupled_distance(geo, x, targets) -> None:
+    """d_i = nu_i . (sum_k c_ik x_k - x_i) at the owned nodes (the coupling's own gap),
+    x_k from the targets' facets (coordinates, normals, global nodes)."""
+    d = x.shape[1]
+    glob = np.concatenate([t[2].ravel() for t in targets])
+    coords = np.concatenate([t[0].reshape(-1, d) for t in targets])
+    order = np.argsort(glob, kind="stable")
+    at = order[np.searchsorted(glob[order], geo.cols)]
+    mean = np.zeros_like(x)
+    np.add.at(mean, geo.rows, geo.coef[:, None] * coords[at])
+    owned = np.unique(geo.rows)
+    geo.distance[owned] = np.einsum("ij,ij->i", mean[owned] - x[owned], geo.normal[owned])
+
+
+def surface_nodes(disc, ref) -> np.ndarray:
+    """The local nodes on the facets of a group.
+
+    Args:
+        disc: the Discretisation.
+        ref: the group.
+
+    Returns:
+        Sorted local node indices.
+    """
+    msh, fdim = disc.mesh, disc.dim - 1
+    msh.topology.create_connectivity(fdim, 0)
+    f2v = msh.topology.connectivity(fdim, 0)
+    verts = [f2v.links(f) for f in disc.facets[ref]]
+    if not verts:
+        return np.zeros(0, np.int64)
+    return np.unique(vertex_nodes(disc.V)[np.concatenate(verts)])
+
+
+def _check_facing(disc, i, p, outward, nu, x) -> None:
+    """Refuse a pair whose surface does not face its target at some node."""
+    cos = np.einsum("ij,ij->i", outward, nu)
+    _refuse_count(disc, cos <= FACING_MIN, x, f"contact.pairs[{i}]",
+                  f"node(s) of {p.surface!r} whose outward normal points away from the "
+                  f"target {p.target!r} (the surfaces do not face each other there)")
+
+
+def _check_distance(disc, i, p, geo, sel, x) -> None:
+    """Refuse an initial interpenetration beyond round-off; clip the round-off to 0."""
+    tol = PENETRATION_TOL * disc.length_scale
+    d = geo.distance[sel]
+    _refuse_count(disc, d < -tol, x, f"contact.pairs[{i}]",
+                  f"node(s) of {p.surface!r} start inside the target body {p.target!r} "
+                  f"(initial interpenetration, largest {-d.min(initial=0.0):.3g} m)")
+    geo.distance[sel] = np.maximum(d, 0.0)
+
+
+def _refuse(disc, bad: bool, key: str, why: str) -> None:
+    """Raise CaseError on every rank if ``bad`` on any."""
+    if disc.comm.allreduce(bool(bad), op=MPI.LOR):
+        raise CaseError(f"{disc.case.source}: {key}: {why}")
+
+
+def _refuse_count(disc, bad: np.ndarray, x: np.ndarray, key: str, what: str) -> None:
+    """Raise CaseError on every rank naming how many nodes are ``bad`` and the first."""
+    count = disc.comm.allreduce(int(bad.sum()), op=MPI.SUM)
+    if not count:
+        return
+    found = [pt for pt in disc.comm.allgather(
+        tuple(float(v) + 0.0 for v in np.round(x[bad][0], 6)) if bad.any() else None) if pt]
+    raise CaseError(f"{disc.case.source}: {key}: {count} {what} (e.g. at {found[0]})")
+
+
+def csr_matrix(comm, n_local: int, rows: np.ndarray, cols: np.ndarray,
+               vals: np.ndarray) -> PETSc.Mat:
+    """A square AIJ matrix with ``n_local`` owned rows from (local row, global column, value)
+    triplets (duplicates summed).
+
+    Args:
+        comm: the communicator.
+        n_local: the owned rows (and columns) on this rank.
+        rows: local row indices.
+        cols: global column indices.
+        vals: the values.
+
+    Returns:
+        The assembled matrix.
+    """
+    order = np.lexsort((cols, rows))
+    rows, cols, vals = rows[order], cols[order], vals[order]
+    key = np.stack([rows, cols])
+    keep = np.ones(len(rows), bool)
+    keep[1:] = (np.diff(key, axis=1) != 0).any(axis=0)
+    starts = np.flatnonzero(keep)
+    vals = np.add.reduceat(vals, starts) if len(vals) else vals
+    rows, cols = rows[starts], cols[starts]
+    indptr = np.zeros(n_local + 1, dtype=PETSc.IntType)
+    np.add.at(indptr, rows + 1, 1)
+    indptr = np.cumsum(indptr).astype(PETSc.IntType)
+    A = PETSc.Mat().createAIJ(size=((n_local, PETSc.DECIDE), (n_local, PETSc.DECIDE)),
+                              csr=(indptr, cols.astype(PETSc.IntType), vals), comm=comm)
+    A.assemble()
+    return A
+
+
+def _joined(*parts) -> tuple:
+    """(rows, cols, vals) of several triplet lists, concatenated."""
+    return tuple(np.concatenate([np.asarray(p[k]) for p in parts]) for k in range(3))
+
+
+class PairOperators:
+    """The linear maps of the pairs on V's dofs (owned rows, PETSc):
+
+    - B, the jump: (B u)_i = u_i - sum_k N_ik u_k at the Gamma3 nodes, u elsewhere;
+    - I + S (``lift``) and its inverse I - S (``unlift``; S S = 0: S maps target dofs to
+      Gamma3 slot dofs): row (i, slot_i) of S holds sign_i N_ik nu_i[a] at column (k, a),
+      so that in the nodal frames the slot dof of node i becomes sign_i ([u]_nu - d_i)
+      (app/solvers/pairmap.py);
+    - c_w = d_i nu_i at the Gamma3 nodes: w = B u - c_w.
+
+    Args:
+        problem: the ContactProblem (V, frames, pairs' geometry, Gamma3 nodes).
+    """
+
+    def __init__(self, problem):
+        V, d, fr, geo = problem.V, problem.dim, problem.frames, problem.disc.pairs
+        self.comm, self.dim = problem.comm, d
+        imap = V.dofmap.index_map
+        n = imap.size_local
+        self.n_local = n * d
+        start = imap.local_range[0] * d
+        dofs = np.arange(n * d)
+        ident = (dofs, dofs + start, np.ones(n * d))
+        comp = np.arange(d)
+        # B = I - c at the Gamma3 rows (each component against the same component)
+        node = fr.nodes[geo.rows]
+        b = ((d * node[:, None] + comp).ravel(), (d * geo.cols[:, None] + comp).ravel(),
+             np.repeat(-geo.coef, d))
+        self.B = csr_matrix(self.comm, self.n_local, *_joined(ident, b))
+        # S: the slot rows of the bounded nodes
+        on = fr.bounded[geo.rows]
+        r = geo.rows[on]
+        srow = np.repeat(d * fr.nodes[r] + fr.slot[r], d)
+        scol = (d * geo.cols[on][:, None] + comp).ravel()
+        sval = ((fr.sign[r] * geo.coef[on])[:, None] * fr.normal[r]).ravel()
+        self.lift = csr_matrix(self.comm, self.n_local, *_joined(ident, (srow, scol, sval)))
+        self.unlift = csr_matrix(self.comm, self.n_local,
+                                 *_joined(ident, (srow, scol, -sval)))
+        owned = np.flatnonzero(fr.nodes < n)
+        self.c_w = self.B.createVecLeft()
+        self.c_w.array[(d * fr.nodes[owned][:, None] + comp).ravel()] = \
+            (geo.distance[owned][:, None] * fr.normal[owned]).ravel()
+        # the affine part of u = P x + c: d_i nu_i at the bounded nodes
+        self.c = self.B.createVecLeft()
+        bnd = owned[fr.bounded[owned]]
+        self.c.array[(d * fr.nodes[bnd][:, None] + comp).ravel()] = \
+            (geo.distance[bnd][:, None] * fr.normal[bnd]).ravel()
+
+    def jump(self, u: PETSc.Vec, w: PETSc.Vec) -> None:
+        """w = B u - c_w (owned entries; the caller updates the ghosts).
+
+        Args:
+            u: the displacement.
+            w: output.
+        """
+        self.B.mult(u, w)
+        w.axpy(-1.0, self.c_w)
+
+    def destroy(self) -> None:
+        """Free the PETSc objects."""
+        for obj in (self.B, self.lift, self.unlift, self.c_w, self.c):
+            obj.destroy()
