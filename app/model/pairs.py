@@ -184,7 +184,7 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
             geo.normal[sel] = -proj.normal
             geo.distance[sel] = proj.distance
             geo.g[sel] = p.g
-            _check_facing(disc, i, p, outward[sel], -proj.normal, x[sel])
+        _check_facing(disc, i, p, outward[sel], geo.normal[sel], x[sel])   # collective
         couplings.append(_coupling(disc, p, nodes, np.flatnonzero(sel), proj, target))
     geo.rows, geo.cols, geo.coef = (np.concatenate([c[k] for c in couplings])
                                     for k in range(3))

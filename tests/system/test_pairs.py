@@ -10,7 +10,8 @@
 - the contact patch test: two stacked blocks of non-matching meshes (cells 1/7 and 1/4)
   under a uniform compression: the mortar rule gives the uniform interface pressure
   E' eps (plane strain, sigma_xx = 0) to 1e-9 with the finer side as the surface and to
-  5e-4 with the coarser one; the node-to-segment rule misses it by more than 2 %;
+  5e-4 with the coarser one (3D, cells 1/5 and 1/3: 5e-4); the node-to-segment rule misses
+  it by more than 2 %;
 - the refusals of contact.pairs.
 """
 import numpy as np
@@ -192,24 +193,31 @@ def test_stiff_lower_body_is_the_rigid_foundation(tmp_path):
     assert worst <= 1e-5 * scale
 
 
-def _patch(surface: str, target: str, rule: str):
+def _patch(surface: str, target: str, rule: str, dim: int = 2):
+    """The interface pressure of the patch test relative to E' eps, minus 1, per node."""
     from pathlib import Path
-    mesh = str(Path(__file__).parents[1] / "data" / "patch2d.geo")
-    raw = _raw(mesh, 2, {"upper": {}, "lower": {}},
+    mesh = str(Path(__file__).parents[1] / "data" / f"patch{dim}d.geo")
+    free = [None] * dim
+    hold = {f"{body}_left": [0.0] + free[1:] for body in ("lower", "upper")}
+    if dim == 3:
+        hold.update({f"{body}_front": [None, 0.0, None] for body in ("lower", "upper")})
+    raw = _raw(mesh, dim, {"upper": {}, "lower": {}},
                {"pairs": [{"surface": surface, "target": target, "rule": rule}]},
-               {"displacement": {"lower_bottom": [None, 0.0], "lower_left": [0.0, None],
-                                 "upper_left": [0.0, None],
-                                 "upper_top": [None, "-0.01 * t"]}})
+               {"displacement": {"lower_bottom": free[1:] + [0.0], **hold,
+                                 "upper_top": free[1:] + ["-0.01 * t"]}})
     result = run_case(make_case(raw))
     assert result.status == "completed"
     tab = contact_table(result.problem)
     assert (tab["u_nu"] > -1e-12).all()                 # every node on the bound
-    return tab["neg_sigma_nu"] / (E_PLANE * 0.005) - 1.0
+    return tab["neg_sigma_nu"] / ((E_PLANE if dim == 2 else E) * 0.005) - 1.0
 
 
 def test_contact_patch_test():
     """Uniform compression of two stacked blocks of non-matching meshes: the interface
-    pressure is E' eps everywhere (eps = 0.01 / 2)."""
+    pressure is E' eps everywhere (eps = 0.01 / 2; E' = E / (1 - nu^2) in plane strain,
+    E in 3D, the lateral sides free)."""
     assert np.abs(_patch("lower_top", "upper_bottom", "mortar")).max() <= 1e-9
     assert np.abs(_patch("upper_bottom", "lower_top", "mortar")).max() <= 5e-4
     assert np.abs(_patch("upper_bottom", "lower_top", "node_to_segment")).max() >= 0.02
+    # 3D: the composite rule is not exact inside the surface triangles (2.1e-4 measured)
+    assert np.abs(_patch("lower_top", "upper_bottom", "mortar", dim=3)).max() <= 5e-4
