@@ -24,6 +24,7 @@ def report(case, comm) -> list[str]:
     from vpcontact.model.problem import ContactProblem
     from vpcontact.post.diagnostics import diagnose
     from vpcontact.post.lawreport import law_lines, law_report
+    from vpcontact.post.pairreport import pair_lines
     from vpcontact.simulation import build_mesh
     from vpcontact.solvers import choose_method, condensed_eligible, gamma3_dofs
 
@@ -46,11 +47,13 @@ def report(case, comm) -> list[str]:
     groups = ", ".join(f"{name} ({tag})" for name, tag in sorted(body.groups.items(),
                                                                  key=lambda kv: kv[1]))
     b = case.boundaries
+    pairs = ", ".join(f"{p.surface} -> {p.target}" for p in case.contact.pairs)
     lines = [
         f"case {case.name} ({case.source}): valid",
         f"mesh: {m.dim}D, {mesh}, {problem.num_cells} cells, {problem.num_vertices} vertices",
         f"boundary groups: {groups or 'none'}; clamped: {', '.join(map(str, b.clamped)) or '-'}"
-        f"; contact: {', '.join(map(str, b.contact)) or '-'}"
+        + (f"; contact pairs: {pairs}" if pairs
+           else f"; contact: {', '.join(map(str, b.contact)) or '-'}")
         + (f"; displacement: {', '.join(map(str, case.loads.displacement))}"
            if case.loads.displacement else ""),
         f"dofs: {problem.num_dofs} (P1 displacement), Gamma3 nodes: {n_g}",
@@ -67,6 +70,7 @@ def report(case, comm) -> list[str]:
         counts = problem.materials.cell_counts(problem.num_owned_cells, problem.comm)
         lines.insert(4, "cell groups (materials): " + ", ".join(
             f"{ref} (tag {tag}, {n} cells)" for ref, tag, n in counts))
+    lines += pair_lines(problem)         # two bodies: each pair (app/post/pairreport.py)
     diag = diagnose(problem)
     lines += law_lines(law_report(problem, build_gamma3_history(case, problem)), diag)
     lines += [text for _, text in diag.messages()]
