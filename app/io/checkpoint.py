@@ -193,13 +193,31 @@ def _mesh_files_digest(case) -> str | list[str]:
     return digests[0] if len(digests) == 1 else digests
 
 
-def _owned_rows(function):
+def points(problem, V) -> np.ndarray:
+    """The coordinates that identify V's local dofs (owned and ghost) in a checkpoint.  With
+    contact pairs the bodies may touch at the start, their interface nodes coinciding: a
+    fourth column, the node's pair label (1 surface, 2 target, 0 neither;
+    app/model/pairs.py ``node_labels``) times the body's size, tells them apart.
+
+    Args:
+        problem: the ContactProblem.
+        V: the space of a State field (P1 or DG0).
+
+    Returns:
+        (local dofs, 3 or 4) coordinates.
+    """
+    x = V.tabulate_dof_coordinates()
+    if getattr(problem, "pairs", None) is None or V.ufl_element().degree() != 1:
+        return x
+    return np.column_stack([x, problem.pair_node_labels * problem.length_scale])
+
+
+def _owned_rows(problem, function):
     """(coordinates, values) of the owned nodes / cells of a P1 or DG0 Function."""
     V = function.function_space
     n = V.dofmap.index_map.size_local
     bs = V.dofmap.index_map_bs
-    x = V.tabulate_dof_coordinates()[:n]
-    return x, function.x.array[:n * bs].reshape(n, bs)
+    return points(problem, V)[:n], function.x.array[:n * bs].reshape(n, bs)
 
 
 def match_points(stored: np.ndarray, wanted: np.ndarray) -> np.ndarray:
@@ -267,7 +285,7 @@ def save(outdir: Path, sim) -> Path:
     laws = api_laws(sim) if comm.rank == 0 else None
     arrays = {}
     for name, f in state.fields().items():
-        x, v = _gather(comm, *_owned_rows(f))
+        x, v = _gather(comm, *_owned_rows(problem, f))
         if comm.rank == 0:
             arrays[f"{name}_x"], arrays[f"{name}_v"] = x, v
     g3 = state.gamma3.state() if state.gamma3 is not None else None
@@ -603,7 +621,7 @@ class Checkpoint:
         g3 = state.gamma3
         for name, f in state.fields().items():
             V = f.function_space
-            x = V.tabulate_dof_coordinates()           # owned and ghost: no scatter needed
+            x = points(problem, V)                     # owned and ghost: no scatter needed
             values = self._lookup(name, x, V.dofmap.index_map.size_global)
             if values.size != f.x.array.size:
                 raise CheckpointError(self.path, f"'{name}_v' has {values.shape[1]} values "

@@ -253,6 +253,35 @@ def surface_nodes(disc, ref) -> np.ndarray:
     return np.unique(vertex_nodes(disc.V)[np.concatenate(verts)])
 
 
+def node_labels(disc) -> np.ndarray:
+    """Which pair group each local node of V lies on: 1 a pair's surface, 2 its target, 0
+    neither (2 where both), the same on every rank and for every partition (the largest
+    over the group's facets on all ranks).  Two bodies touching at the start have
+    coincident interface nodes; the label tells them apart (checkpoints).
+
+    Args:
+        disc: the Discretisation with contact pairs.
+
+    Returns:
+        (local nodes,) labels, owned and ghost.
+    """
+    from dolfinx import fem
+
+    V = disc.V
+    W, parent = V.sub(0).collapse()
+    bs = V.dofmap.index_map_bs
+    node_to_w = np.empty(len(parent), dtype=np.int64)
+    node_to_w[np.asarray(parent) // bs] = np.arange(len(parent))
+    f = fem.Function(W)
+    for p in disc.case.contact.pairs:
+        for label, ref in ((1.0, p.surface), (2.0, p.target)):
+            at = node_to_w[surface_nodes(disc, ref)]
+            f.x.array[at] = np.maximum(f.x.array[at], label)
+    f.vector.ghostUpdate(addv=PETSc.InsertMode.MAX_VALUES, mode=PETSc.ScatterMode.REVERSE)
+    f.x.scatter_forward()
+    return f.x.array[node_to_w].copy()
+
+
 def _check_facing(disc, i, p, outward, nu, x) -> None:
     """Refuse a pair whose surface does not face its target at some node."""
     cos = np.einsum("ij,ij->i", outward, nu)

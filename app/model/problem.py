@@ -36,7 +36,7 @@ from vpcontact.model.lawmodule import python_contact_laws
 from vpcontact.model.loads import TimeData
 from vpcontact.model.material import Elasticity
 from vpcontact.model.materials import body_materials
-from vpcontact.model.pairs import PairOperators
+from vpcontact.model.pairs import PairOperators, node_labels
 from vpcontact.model.state import State
 from vpcontact.model.stiffness import case_elasticity, stress_operator
 from vpcontact.model.strain import StrainOperator
@@ -227,6 +227,12 @@ class ContactProblem:
         *self.pair_forms, terms = build_boundary_forms(self.w, self._contact_data())
         forms.terms += terms
         return forms
+
+    @cached_property
+    def pair_node_labels(self) -> np.ndarray:
+        """The local nodes' pair labels (1 surface, 2 target, 0 neither; app/model/pairs.py
+        ``node_labels``), for checkpoints; collective when first used."""
+        return node_labels(self.disc)
 
     @cached_property
     def pair_operators(self):

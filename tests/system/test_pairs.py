@@ -221,3 +221,41 @@ def test_contact_patch_test():
     assert np.abs(_patch("upper_bottom", "lower_top", "node_to_segment")).max() >= 0.02
     # 3D: the composite rule is not exact inside the surface triangles (2.1e-4 measured)
     assert np.abs(_patch("lower_top", "upper_bottom", "mortar", dim=3)).max() <= 5e-4
+
+
+def test_restart_of_touching_bodies(tmp_path):
+    """Two bodies touching at the start share interface coordinates: a checkpoint tells
+    their nodes apart (the pair label), and a run restarted from step 2 (memory, slip
+    friction, a viscoplastic upper block: every history) equals the uninterrupted run."""
+    import shutil
+    from pathlib import Path
+
+    import yaml
+
+    from conftest import cli_in_process, contact_rows
+    raw = {"name": "touching",
+           "mesh": {"file": str(Path(__file__).parents[1] / "data" / "patch2d.geo"),
+                    "dim": 2},
+           "materials": {"lower": {"E": E, "nu": NU, "plane": "strain"},
+                         "upper": {"E": E, "nu": NU, "plane": "strain", "viscoplastic":
+                                   {"lambda1": 50.0, "lambda2": 50.0, "kappa0": 0.5}}},
+           "boundaries": {"clamped": ["lower_bottom"]},
+           "contact": {"pairs": [{"surface": "lower_top", "target": "upper_bottom",
+                                  "g": 0.002}],
+                       "normal_compliance": {"c_nu": 2000.0}, "memory": {"b0": 100.0},
+                       "friction": {"b": 0.5, "c1": 20.0, "c2": 20.0, "u1": 0.001,
+                                    "slip": {"theta_inf": 0.5, "s0": 0.001}}},
+           "loads": {"displacement": {"upper_left": [0.0, None], "upper_top": [
+               "0.004 * t", "-0.01 * t"]}},
+           "time": {"T": 1.0, "N": 4}, "output": {"checkpoint_every": 2}}
+    case = tmp_path / "touching.yaml"
+    case.write_text(yaml.safe_dump(raw))
+    full, again = tmp_path / "full", tmp_path / "again"
+    assert cli_in_process(["run", case, "--out", full, "--no-plots"]) == 0
+    first = tmp_path / "first"
+    shutil.copytree(full, first)
+    (first / "checkpoint_000004.npz").unlink()
+    assert cli_in_process(["run", case, "--restart", first, "--out", again,
+                           "--no-plots"]) == 0
+    (s1, a), (s2, b) = contact_rows(full), contact_rows(again)
+    assert s1 == s2 and np.abs(a - b).max() <= 1e-12 * np.abs(a).max()
