@@ -116,6 +116,7 @@ CASE_RULES = [  # (change of the case, the key the message names, words it holds
     (lambda r: r["contact"]["pairs"][0].update(normal_compliance={"c_nu": 500.0}),
      "contact.pairs[*].normal_compliance", "also given in contact.normal_compliance"),
     (lambda r: r.update(solver={"quadrature": "gauss"}), "solver.quadrature", "vertex"),
+    (lambda r: r.update(solver={"method": "condensed"}), "solver.method", "SNES VI only"),
     (lambda r: r["contact"]["pairs"][0].update(target="upper_middle"),
      "contact.pairs[0].target",
      "names: lower_bottom, lower_left, lower_right, lower_top, upper_bottom"),
