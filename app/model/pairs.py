@@ -28,6 +28,7 @@ import numpy as np
 from dolfinx import cpp as dcpp
 from mpi4py import MPI
 from petsc4py import PETSc
+from scipy.sparse import coo_matrix
 
 from vpcontact.io.errors import CaseError
 from vpcontact.model.mortar import mortar_triplets
@@ -216,8 +217,13 @@ def _coupling(disc, p, nodes, sel, proj, target) -> tuple:
     rows, cols, vals = at[ok], cols[mine][ok], vals[mine][ok]
     rows = np.where(np.isin(rows, sel), rows, -1)      # another pair's node: not this one
     rows, cols, vals = rows[rows >= 0], cols[rows >= 0], vals[rows >= 0]
-    total = np.bincount(rows, weights=vals, minlength=len(nodes))
-    return rows, cols, vals / total[rows]
+    # sum the quadrature points' contributions to each (node, target node) entry
+    M = coo_matrix((vals, (rows, cols)), shape=(len(nodes), int(cols.max(initial=-1)) + 1))
+    M = M.tocsr()
+    M.sum_duplicates()
+    rows = np.repeat(np.arange(M.shape[0]), np.diff(M.indptr))
+    total = np.bincount(rows, weights=M.data, minlength=len(nodes))
+    return rows, M.indices.astype(np.int64), M.data / total[rows]
 
 
 def _coupled_distance(geo, x, targets) -> None:
