@@ -22,24 +22,28 @@ from vpcontact.io.output import csv_text, on_rank0
 STATES = ("bound", "compliance", "separated", "prescribed")
 
 
-def history_columns(dim: int, groups: list[str], contact: bool) -> list[str]:
+def history_columns(dim: int, groups: list[str], contact: bool,
+                    pairs: list[tuple[str, str]] = ()) -> list[str]:
     """The columns of history.csv.
 
     Args:
         dim: the body's dimension.
         groups: the Dirichlet groups' names (their reaction resultants).
         contact: the case has Gamma3 (contact force and node counts).
+        pairs: (surface, target) of each contact pair (two bodies), or none.
 
     Returns:
         n, t, k, the norms of u_n, sigma_n, kappa_n, max von Mises and kappa, the contact
-        force on the body (contact_force_x, ...), the reaction on each group
-        (reaction_<group>_x, ...), the Gamma3 node counts (nodes_bound, ...), Newton and
-        linear iterations, the step's wall time.
+        force on the body (contact_force_x, ...; with pairs, on the surfaces) and, per
+        pair, on its surface's and its target's body (pair<i>_<group>_x, ...), the reaction
+        on each group (reaction_<group>_x, ...), the Gamma3 node counts (nodes_bound, ...),
+        Newton and linear iterations, the step's wall time.
     """
     axes = "xyz"[:dim]
     cols = ["n", "t", "k", "norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa"]
     if contact:
         cols += [f"contact_force_{a}" for a in axes]
+    cols += [f"pair{i}_{g}_{a}" for i, pair in enumerate(pairs) for g in pair for a in axes]
     cols += [f"reaction_{g}_{a}" for g in groups for a in axes]
     if contact:
         cols += [f"nodes_{s}" for s in STATES]
@@ -63,6 +67,9 @@ def history_row(record: dict, dim: int) -> dict:
             row[f"contact_force_{a}"] = record["contact_force"][i]
         for g, force in record.get("reactions", {}).items():
             row[f"reaction_{g}_{a}"] = force[i]
+    for i, pair in enumerate(record.get("pair_forces", ())):
+        for g, key in ((pair["surface"], "on_surface"), (pair["target"], "on_target")):
+            row.update({f"pair{i}_{g}_{a}": pair[key][j] for j, a in enumerate(axes)})
     states = record.get("contact_states")
     if states is not None:
         row.update({f"nodes_{s}": states.get(s, 0) for s in STATES})

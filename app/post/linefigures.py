@@ -123,32 +123,65 @@ def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None)
         ax.triplot(X[:, 0], X[:, 1], faces, color="tab:blue", lw=0.5)
     c = res.contact
     if c is not None and res.dim == 2:
-        nc = res.case.get("contact", {}).get("normal_compliance")
-        g = res.case.get("contact", {}).get("g")
-        force = c["neg_sigma_nu"].copy()
-        bound = c["state"] == "bound"
-        if nc and "law" not in nc and isinstance(g, (int, float)) \
-                and not isinstance(nc.get("c_nu"), str):
-            force[bound] = _normal_law(nc, g, np.array([float(g)]))[0]   # the paper's Fig. 3
-        scale = 0.15 * float(np.ptp(res.x[:, 1])) / max(np.abs(force).max(), 1e-300)
-        xb = c["x"] + factor * c["u_x"]
-        yb = c["y"] + factor * c["u_y"]
-        for state, colour in (("bound", "tab:red"), ("compliance", "tab:green"),
-                              ("separated", "0.5")):
-            m = c["state"] == state
-            if m.any():
-                ax.vlines(xb[m], yb[m] - scale * force[m], yb[m], colors=colour, lw=2,
-                          label=f"-sigma_nu, {state} ({int(m.sum())} nodes)")
-        if ax.get_legend_handles_labels()[0]:
-            ax.legend(loc="upper right", fontsize=8)
-        ax.set_ylim(min(yb.min() - scale * max(force.max(), 0) - 0.05, -0.3), None)
+        _pressure_bars(ax, res, c, factor)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]" if res.dim == 2 else "y [m] (Gamma3 seen along z)")
-    ax.set_title(f"Deformed configuration at t = {res.t:g} (displacement x {factor:g}); "
-                 "contact forces on Gamma3", fontsize=10)
+    if res.pairs:
+        scale = "true scale" if factor == 1 else f"displacement x {factor:g}"
+        title = (f"Deformed configuration at t = {res.t:g} ({scale}); contact pressure on "
+                 f"the surface\n{pair_label(res)}")
+    else:
+        title = (f"Deformed configuration at t = {res.t:g} (displacement x {factor:g}); "
+                 "contact forces on Gamma3")
+    ax.set_title(title, fontsize=10)
     _save(plt, fig, path)
     return factor
+
+
+def pair_label(res: Results) -> str:
+    """The contact pairs as "pair 0: surface -> target; ..." ("" without pairs).
+
+    Args:
+        res: the run's data.
+
+    Returns:
+        The label.
+    """
+    return "; ".join(f"pair {i}: {p['surface']} -> {p['target']}"
+                     for i, p in enumerate(res.pairs))
+
+
+def _pressure_bars(ax, res: Results, c: dict, factor: float) -> None:
+    """fig3's bars -sigma_nu at the deformed Gamma3 nodes (2D), coloured by state; with
+    contact pairs the view is the surfaces' neighbourhood (the bars scaled to it)."""
+    nc = res.case.get("contact", {}).get("normal_compliance")
+    g = res.case.get("contact", {}).get("g")
+    force = c["neg_sigma_nu"].copy()
+    bound = c["state"] == "bound"
+    if nc and "law" not in nc and isinstance(g, (int, float)) \
+            and not isinstance(nc.get("c_nu"), str):
+        force[bound] = _normal_law(nc, g, np.array([float(g)]))[0]   # the paper's Fig. 3
+    xb = c["x"] + factor * c["u_x"]
+    yb = c["y"] + factor * c["u_y"]
+    if res.pairs:          # the surfaces and the bars below them, a margin around
+        size = max(float(np.ptp(xb)), float(np.ptp(yb)), 1e-300)
+        scale = 0.3 * size / max(np.abs(force).max(), 1e-300)
+        ax.set_xlim(xb.min() - 0.2 * size, xb.max() + 0.2 * size)
+        ax.set_ylim(yb.min() - 0.45 * size, yb.max() + 0.3 * size)
+    else:
+        scale = 0.15 * float(np.ptp(res.x[:, 1])) / max(np.abs(force).max(), 1e-300)
+    states = {"bound": "touching" if res.pairs else "bound"}
+    for state, colour in (("bound", "tab:red"), ("compliance", "tab:green"),
+                          ("separated", "0.5")):
+        m = c["state"] == state
+        if m.any():
+            ax.vlines(xb[m], yb[m] - scale * force[m], yb[m], colors=colour, lw=2,
+                      label=f"-sigma_nu, {states.get(state, state)} ({int(m.sum())} nodes)")
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper right", fontsize=8)
+    if not res.pairs:
+        ax.set_ylim(min(yb.min() - scale * max(force.max(), 0) - 0.05, -0.3), None)
 
 
 def fig4_tangential(res: Results, path: Path) -> None:
@@ -169,12 +202,14 @@ def fig4_tangential(res: Results, path: Path) -> None:
         skey = "neg_sigma_tau" if "neg_sigma_tau" in c else "neg_sigma_tau1"
         order = np.argsort(c["x"])
         x = c["x"][order]
-        axes[0].plot(x, c[key][order], "o-", ms=3, label="u_tau . tau")
+        pairs = bool(res.pairs)     # two bodies: the relative displacement on the surface
+        u_label = "[u]_tau . tau (relative)" if pairs else "u_tau . tau"
+        axes[0].plot(x, c[key][order], "o-", ms=3, label=u_label)
         if u1:
             for s in (-u1, u1):
                 axes[0].axhline(s, color="tab:red", ls="--", lw=1)
             axes[0].text(x.min(), -u1, " -u1", color="tab:red", va="bottom", fontsize=8)
-        axes[0].set_ylabel("u_tau . tau [m]")
+        axes[0].set_ylabel(f"{u_label} [m]")
         axes[0].legend(fontsize=8)
         axes[1].plot(x, c[skey][order], "o-", ms=3, color="tab:orange",
                      label="-sigma_tau . tau")
@@ -182,9 +217,10 @@ def fig4_tangential(res: Results, path: Path) -> None:
         axes[1].legend(fontsize=8)
         if res.dim == 3:
             axes[0].set_title("3D: first tangential component, all Gamma3 nodes", fontsize=9)
-    axes[1].set_xlabel("x on Gamma3 [m]")
+    where = f"the surface ({pair_label(res)})" if res.pairs else "Gamma3"
+    axes[1].set_xlabel(f"x on {'the surface' if res.pairs else 'Gamma3'} [m]")
     _save(plt, fig, path,
-          f"Tangential displacement and friction stress along Gamma3 at t = {res.t:g}")
+          f"Tangential displacement and friction stress along {where} at t = {res.t:g}")
 
 
 def _normal_law(nc, g, r):
@@ -222,6 +258,8 @@ def fig2_laws(res: Results, path: Path) -> None:
     if isinstance(g, str):          # a gap field: the law at its largest value on Gamma3
         c = res.contact
         g = float(c["g"].max()) if c is not None and "g" in c else None
+    if res.pairs and g is None:     # two bodies: the bound [u]_nu - d <= g of the first pair
+        g = float(res.pairs[0].get("g", 0.0))
     nc = contact.get("normal_compliance")
     ax = axes[0]
     if nc and nc.get("law") == "python":        # the user's law: drawn by the user
@@ -233,13 +271,15 @@ def fig2_laws(res: Results, path: Path) -> None:
         ax.plot(r, _normal_law(nc, g, r), color="tab:blue", label="p(u_nu)")
         if g is not None:
             pg = _normal_law(nc, g, np.array([g]))[0]
+            at = "[u]_nu - d = g" if res.pairs else "u_nu = g"
             ax.vlines(g, pg, pg + max(pg, 1.0), color="tab:red",
-                      label="u_nu = g: -sigma_nu >= c_nu g (unilateral)")
+                      label=f"{at}: -sigma_nu >= c_nu g (unilateral)")
             ax.axvline(g, color="tab:red", ls=":", lw=0.8)
         ax.legend(fontsize=8)
     else:
         ax.text(0.5, 0.5, "no normal contact law", ha="center", transform=ax.transAxes)
-    ax.set_xlabel("u_nu [m]")
+    ax.set_xlabel("[u]_nu - d [m] (relative normal displacement)" if res.pairs else
+                  "u_nu [m]")
     ax.set_ylabel("-sigma_nu [N/m^2]")
     ax.set_title("normal law (4.1)", fontsize=10)
     fr = contact.get("friction")
@@ -267,10 +307,12 @@ def fig2_laws(res: Results, path: Path) -> None:
         ax.set_ylim(bottom=0)
     else:
         ax.text(0.5, 0.5, "frictionless", ha="center", transform=ax.transAxes)
-    ax.set_xlabel("|u_tau| [m]")
+    ax.set_xlabel("|[u]_tau| [m] (relative)" if res.pairs else "|u_tau| [m]")
     ax.set_ylabel("|sigma_tau| [N/m^2]")
     ax.set_title("nonmonotone friction law (4.2)", fontsize=10)
-    _save(plt, fig, path, f"Contact laws of case {res.summary.get('case')} (the paper's Fig. 2)")
+    on = f", {pair_label(res)}" if res.pairs else ""
+    _save(plt, fig, path,
+          f"Contact laws of case {res.summary.get('case')}{on} (the paper's Fig. 2)")
 
 
 def history(res: Results, path: Path) -> None:
@@ -312,9 +354,10 @@ def history(res: Results, path: Path) -> None:
 
 
 def forces(res: Results, path: Path) -> None:
-    """The force resultants on the body against time: the foundation's (contact_force) and
-    each Dirichlet group's reaction, per component (a held indentation shows the contact
-    force relaxing).
+    """The force resultants on the body against time: the foundation's (contact_force; two
+    bodies: each pair's on its surface's and its target's body, pair_forces) and each
+    Dirichlet group's reaction, per component (a held indentation shows the contact force
+    relaxing).
 
     Args:
         res: the run's data.
@@ -326,7 +369,12 @@ def forces(res: Results, path: Path) -> None:
     fig, axes = plt.subplots(1, dim, figsize=(5 * dim, 4.2), sharex=True)
     t = np.array([s["t"] for s in steps])
     series = {}
-    if any("contact_force" in s for s in steps):
+    if any("pair_forces" in s for s in steps):      # two bodies: the force on each
+        for i, pair in enumerate(steps[-1]["pair_forces"]):
+            for side in ("surface", "target"):
+                series[f"contact on {pair[side]} (pair {i} {side})"] = [
+                    s["pair_forces"][i][f"on_{side}"] for s in steps]
+    elif any("contact_force" in s for s in steps):
         series["contact (foundation)"] = [s.get("contact_force", [0.0] * dim) for s in steps]
     for name in (steps[-1]["reactions"] if steps else {}):
         series[f"reaction on {name}"] = [s["reactions"][name] for s in steps]
@@ -341,7 +389,8 @@ def forces(res: Results, path: Path) -> None:
     else:
         axes[0].text(0.5, 0.5, "no supports or contact", ha="center",
                      transform=axes[0].transAxes)
-    _save(plt, fig, path, f"Forces on the body, run {res.summary.get('case')}")
+    bodies = "bodies" if res.pairs else "body"
+    _save(plt, fig, path, f"Forces on the {bodies}, run {res.summary.get('case')}")
 
 
 def draw_line_figures(outdir: Path, names, factor: float, res=None) -> list[Path]:

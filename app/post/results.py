@@ -143,13 +143,21 @@ class Results:
         """The displacement at the vertices, (vertices, d)."""
         return self.fields["u"][:, :self.dim]
 
+    @property
+    def pairs(self) -> list[dict]:
+        """The case's contact pairs (two bodies: surface, target, ...), or []."""
+        return list((self.case.get("contact") or {}).get("pairs") or [])
+
     def magnification(self) -> float:
         """The factor of the deformed views.
 
         Returns:
             1, 2 or 5 x 10^k making the largest displacement about 25% of the body size (1
-            without displacement).
+            without displacement, and with contact pairs: two bodies drawn with a magnified
+            displacement overlap where they approach each other).
         """
+        if self.pairs:
+            return 1.0
         size = float(np.ptp(self.x, axis=0).max())
         umax = float(np.abs(self.u).max())
         if umax <= 0:
