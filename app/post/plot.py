@@ -56,7 +56,9 @@ def plot_all(outdir: Path, log=None, animate: bool = False, painter=None) -> lis
     finally:
         painter.cancel()
     if log:
-        log(f"fig3_deformed_contact.png, body.png: displacement magnified x {factor:g}")
+        log("fig3_deformed_contact.png, body.png: " + (
+            "true scale (two bodies: magnified, they would overlap)" if res.pairs
+            else f"displacement magnified x {factor:g}"))
         if result["frames"] is not None:
             log(f"{ANIMATION}: {result['frames']} frames")
     return [Path(f) for f in result["files"]]
