@@ -11,6 +11,7 @@ held would otherwise pass): the step matrix would be singular.
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,6 +20,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from vpcontact.io.errors import CaseError
+
+log = logging.getLogger("vpcontact")
 
 
 @dataclass
@@ -277,14 +280,56 @@ def free_motions(V, fixed: np.ndarray, parts: BodyParts) -> list[np.ndarray]:
     return free
 
 
-def check_rigid_motions(V, fixed: np.ndarray, source: str) -> None:
+def _pair_parts(V, parts: BodyParts, pairs: list) -> list[tuple[set, set]]:
+    """(the parts carrying the surface, the parts carrying the target) of each pair, on
+    every rank alike (collective)."""
+    fdim = V.mesh.topology.dim - 1
+    out = []
+    for groups in pairs:
+        sides = []
+        for facets in groups:
+            nodes = fem.locate_dofs_topological(V, fdim, np.asarray(facets, dtype=np.int32))
+            mine = np.unique(parts.label[nodes]).tolist()
+            sides.append(set().union(*V.mesh.comm.allgather(mine)))
+        out.append(tuple(sides))
+    return out
+
+
+def _held_by_pairs(free: list, links: list) -> dict:
+    """part -> the pair (0-based) through which a chain of pairs ties it to a part that the
+    Dirichlet data hold, for the parts with free motions that have such a chain."""
+    held = {k for k, f in enumerate(free) if f.shape[1] == 0}
+    via, grown = {}, True
+    while grown:
+        grown = False
+        for i, (surface, target) in enumerate(links):
+            for mine, other in ((surface, target), (target, surface)):
+                if other & held:
+                    for k in mine - held:
+                        held.add(k)
+                        via[k] = i
+                        grown = True
+    return via
+
+
+def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = ()) -> None:
     """Refuse Dirichlet data that leave a rigid motion of the body, or of one of its
     connected parts, free (collective): the step matrix would be singular.
+
+    A part carrying a contact pair's surface or target group may leave rigid motions free
+    when the pair ties it to a part that the Dirichlet data hold (directly, or through a
+    chain of pairs and such parts): the contact holds them (a punch loaded by a pressure on
+    its top, pressed onto a clamped substrate).  This is logged at INFO, naming the part, the
+    free motions and the pair; the motions are then held only where the contact is active
+    (a free normal motion needs the bound or the compliance active somewhere, a free
+    tangential one friction with p_n > 0): otherwise the step's Newton matrix is singular.
 
     Args:
         V: the P1 vector space.
         fixed: bool (local nodes, d): prescribed components.
         source: the case file, for the message.
+        pairs: for each contact pair, (its surface's local facets, its target's local
+            facets); none for a case without pairs.
 
     Raises:
         CaseError: naming boundaries.clamped / loads.displacement, the free motions and, for
@@ -293,6 +338,7 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str) -> None:
     d = V.dofmap.index_map_bs
     parts = body_parts(V)
     free = free_motions(V, fixed, parts)
+    via = _held_by_pairs(free, _pair_parts(V, parts, list(pairs))) if len(pairs) else {}
     names = ["translation x", "translation y", "translation z"][:d] + \
         (["rotation"] if d == 2 else ["rotation about z", "rotation about x",
                                        "rotation about y"])
@@ -307,6 +353,10 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str) -> None:
                               for c in parts.point[k])
             where = (f"part {k + 1} of the body's {len(free)} disconnected parts "
                      f"({parts.cells[k]} cells, through the point ({point}))")
+        if k in via:
+            log.info("%s: %d rigid motion(s) of %s (like %s) held only by contact pair %d "
+                     "(contact.pairs[%d])", source, f.shape[1], where, what, via[k], via[k])
+            continue
         raise CaseError(f"{source}: boundaries.clamped / loads.displacement: the prescribed "
                         f"displacements leave {f.shape[1]} rigid motion(s) of {where} free "
                         f"(like {what}); clamp a group {'on that part ' if len(free) > 1 else ''}"
