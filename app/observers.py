@@ -226,7 +226,8 @@ class HistoryOutput(Observer):
         """
         p = sim.problem
         groups = [str(g.name) for g in p.dirichlet.groups]
-        columns = history_columns(p.dim, groups, p.gamma3 is not None)
+        columns = history_columns(p.dim, groups, p.gamma3 is not None,
+                                  [(str(q.surface), str(q.target)) for q in sim.case.contact.pairs])
         self.writer = HistoryWriter(sim.comm, Path(sim.outdir) / "history.csv", columns,
                                     p.dim, sim.steps)
 

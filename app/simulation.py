@@ -41,6 +41,7 @@ from vpcontact.observers import Observer, StopRun
 from vpcontact.post import quantities
 from vpcontact.post.diagnostics import diagnose
 from vpcontact.post.lawreport import law_report
+from vpcontact.post.pairreport import pair_lines
 from vpcontact.post.ratewatch import RateWatch, needs_watch
 from vpcontact.records import HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
 from vpcontact.solvers import select_solver, threads
@@ -250,7 +251,10 @@ class Simulation:
         if case.time.adaptive is not None:
             log.info("adaptive time steps: starting from k = %g to T = %g", ks[0], case.time.T)
         log.info("active terms: %s", ", ".join(case.active_terms()))
-        if p.frames is not None:
+        if case.contact.pairs:       # two bodies: each pair (app/post/pairreport.py)
+            for line in pair_lines(p):
+                log.info("%s", line)
+        elif p.frames is not None:
             d = case.contact.direction
             log.info("Gamma3 (%s): %d nodes, normal %s%s",
                      ", ".join(map(str, case.boundaries.contact)), p.num_gamma3_nodes,
@@ -438,6 +442,8 @@ class Simulation:
         record["reactions"] = forces["reactions"]
         if forces["contact_force"] is not None:
             record["contact_force"] = forces["contact_force"]
+        if forces["pair_forces"] is not None:
+            record["pair_forces"] = forces["pair_forces"]
         if self.gamma3_history:
             record["gamma3_history_s"] = t_g3       # memory term / slip update of this step
         if self.solver.fallback:

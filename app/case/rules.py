@@ -218,9 +218,10 @@ def _check_contact(contact: dict, dim: int, source: str) -> None:
     fr = contact.get("friction")
     if fr:
         _check_friction(fr, source)
-    if fr and "coulomb" in fr and "normal_compliance" not in contact and "g" not in contact:
+    if fr and "coulomb" in fr and not {"normal_compliance", "g", "pairs"} & set(contact):
         raise CaseError(f"{source}: contact.friction.coulomb: needs a contact pressure p_n: "
-                        "give contact.normal_compliance or contact.g")
+                        "give contact.normal_compliance or contact.g (a pair's bound is "
+                        "always there)")
     if fr and not {"table", "law", "coulomb"} & set(fr) and fr["b"] - fr["c1"] * fr["u1"] < 0:
         raise CaseError(f"{source}: contact.friction: b - c1 u1 must be >= 0 (the friction "
                         f"force of law (4.2) may not change sign), got "

@@ -179,7 +179,11 @@ def report_run(comm, s: dict, outdir: Path, no_plots: bool) -> int:
                      "a kept factor; BLAS threads for factorisations of >= 1000 dofs: %d",
                      g3["dofs"], g3["factorisations"], g3["cg_iterations"], g3["threads"])
         if "contact_states" in s:
-            log.info("Gamma3 nodes at T: %s", s["contact_states"])
+            states = dict(s["contact_states"])
+            pairs = states.pop("pairs", [])         # several contact pairs: each one
+            log.info("Gamma3 nodes at T: %s", states)
+            for i, counts in enumerate(pairs):
+                log.info("  contact pair %d: %s", i, counts)
         log.info("outputs: %s/{solution.xdmf, summary.json, contact.csv%s}", outdir,
                  "" if no_plots else ", *.png")
         return 0

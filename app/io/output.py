@@ -416,12 +416,16 @@ def state_counts(data: dict) -> dict:
         data: the table with its ``state`` column.
 
     Returns:
-        {"bound", "compliance", "separated"(, "prescribed" where some are), "nodes"}.
+        {"bound", "compliance", "separated"(, "prescribed" where some are), "nodes"(,
+        "pairs": the counts of each contact pair, where there are several)}.
     """
     counts = {s: int(np.sum(data["state"] == s)) for s in ("bound", "compliance", "separated")}
     if "_prescribed" in data and np.any(data["_prescribed"]):
         counts["prescribed"] = int(np.sum(data["state"] == "prescribed"))
     counts["nodes"] = int(len(data["state"]))
+    if "pair" in data and len(np.unique(data["pair"])) > 1:     # two bodies, several pairs
+        counts["pairs"] = [state_counts({k: v[data["pair"] == i] for k, v in data.items()})
+                           for i in range(int(data["pair"].max()) + 1)]
     return counts
 
 

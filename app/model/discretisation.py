@@ -116,13 +116,21 @@ class Discretisation:
         """Facets of the named groups, the Dirichlet data and the rigid-motion check."""
         case, ft = self.case, self.body.facet_tags
         b, loads = case.boundaries, case.loads
-        keys = [(r, "boundaries.clamped") for r in b.clamped] + \
-            [(r, "boundaries.contact") for r in b.contact] + \
+        pairs = case.contact.pairs        # two bodies: Gamma3 is the pairs' surfaces
+        contact = [(p.surface, f"contact.pairs[{i}].surface") for i, p in enumerate(pairs)] \
+            if pairs else [(r, "boundaries.contact") for r in b.contact]
+        keys = [(r, "boundaries.clamped") for r in b.clamped] + contact + \
             [(r, f"loads.traction.{r}") for r in loads.traction] + \
             [(r, f"loads.pressure.{r}") for r in loads.pressure] + \
             [(r, f"loads.displacement.{r}") for r in loads.displacement] + \
-            [(p.target, f"contact.pairs[{i}].target") for i, p in enumerate(case.contact.pairs)]
+            [(p.target, f"contact.pairs[{i}].target") for i, p in enumerate(pairs)]
         self.tags = {ref: self.group_tag(ref, key) for ref, key in keys}
+        for i, p in enumerate(pairs):
+            if self.tags[p.surface] == self.tags[p.target]:
+                raise CaseError(f"{case.source}: contact.pairs[{i}]: surface {p.surface!r} and "
+                                f"target {p.target!r} are the same group (physical tag "
+                                f"{self.tags[p.target]}); a pair is two surfaces facing "
+                                "each other")
         self._check_roles()
         for ref, key in keys:                   # a role on an embedded curve: refused
             if (why := interior_role(self.body, key, ref, self.tags[ref])) is not None:
@@ -131,7 +139,9 @@ class Discretisation:
         self.dirichlet = build_dirichlet(self.V, self.facets, list(b.clamped),
                                          dict(loads.displacement), self.time_data)
         self.bcs = self.dirichlet.bcs
-        check_rigid_motions(self.V, self.dirichlet.fixed, case.source)
+        check_rigid_motions(self.V, self.dirichlet.fixed, case.source,
+                            [(self.facets[p.surface], self.facets[p.target])
+                             for p in case.contact.pairs])
         self.clamped_nodes = self.dirichlet.clamped_nodes
 
     def _check_roles(self) -> None:

@@ -327,11 +327,13 @@ class ContactProblem:
 
     @cached_property
     def boundary_residual_form(self):
-        """The bulk residual on the cells that touch a vertex of a Dirichlet group or of
-        Gamma3 (exact at those nodes, a thin layer of the mesh: the step records' forces
-        cost a fraction of a full assembly); compiled when first used."""
+        """The bulk residual on the cells that touch a vertex of a Dirichlet group, of
+        Gamma3 or of a pair's target (exact at those nodes, a thin layer of the mesh: the
+        step records' forces cost a fraction of a full assembly); compiled when first
+        used."""
         msh, tdim = self.mesh, self.dim
-        refs = [g.name for g in self.dirichlet.groups] + list(self.case.boundaries.contact)
+        refs = [g.name for g in self.dirichlet.groups] + list(self.case.boundaries.contact) \
+            + [q.target for q in self.case.contact.pairs]      # two bodies: the targets
         facets = np.unique(np.concatenate([self.disc.facets[r] for r in refs] or
                                           [np.zeros(0, np.int32)])).astype(np.int32)
         msh.topology.create_connectivity(tdim - 1, 0)

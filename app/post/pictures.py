@@ -165,10 +165,23 @@ def body_picture(outdir: Path, grid, t: float, factor: float, dim: int, path: Pa
     """
     body = _deformed(grid, factor)
     gamma3 = _contact_last(outdir, factor)
-    title = f"t = {t:g}: von Mises stress, displacement x {factor:g}, Gamma3 in black"
+    title = (f"t = {t:g}: von Mises stress, displacement x {factor:g}, "
+             f"{_gamma3_name(outdir)} in black")
     p = _body_plotter(body, gamma3, dim, color_range(body.cell_data["sigma_vm"]), title)
     _save(p, path)
     p.close()
+
+
+def _gamma3_name(outdir: Path) -> str:
+    """Gamma3 as the titles name it: "Gamma3", or with contact pairs the surfaces."""
+    try:
+        case = json.loads((outdir / "summary.json").read_text()).get("case_data", {})
+    except (OSError, ValueError):
+        return "Gamma3"
+    pairs = (case.get("contact") or {}).get("pairs") or []
+    if not pairs:
+        return "Gamma3"
+    return "contact surface " + ", ".join(f"{q['surface']} (on {q['target']})" for q in pairs)
 
 
 def color_range(values) -> tuple[float, float]:

@@ -72,8 +72,8 @@ def bulk_residual(problem, layer: bool = False) -> np.ndarray:
 
     Args:
         problem: the ContactProblem.
-        layer: assemble only the cells touching Dirichlet and Gamma3 vertices (exact
-            there, not elsewhere).
+        layer: assemble only the cells touching Dirichlet, Gamma3 and pair target
+            vertices (exact there, not elsewhere).
 
     Returns:
         (owned nodes, d) nodal forces.
@@ -160,7 +160,8 @@ def forces(problem, r: np.ndarray | None = None) -> dict:
 
     Returns:
         {"reactions": {group: [F_x, F_y(, F_z)]}, "contact_force": [...] (Gamma3 dofs
-        that no Dirichlet condition prescribes) or None without contact}.
+        that no Dirichlet condition prescribes) or None without contact, "pair_forces":
+        pair_forces() or None without contact pairs}.
     """
     r = (bulk_residual(problem, layer=True) if r is None else r).ravel()
     d = problem.dim
@@ -174,4 +175,43 @@ def forces(problem, r: np.ndarray | None = None) -> dict:
         free = ~problem.dirichlet.fixed[nodes]
         local = (r.reshape(-1, d)[nodes] * free).sum(axis=0)
         contact = [float(v) for v in problem.comm.allreduce(local)]
-    return {"reactions": reactions, "contact_force": contact}
+    return {"reactions": reactions, "contact_force": contact,
+            "pair_forces": pair_forces(problem, r) if problem.pairs is not None else None}
+
+
+def pair_forces(problem, r: np.ndarray) -> list[dict]:
+    """The contact force resultant on each body of each pair (collective): the sum of the
+    bulk residual r_i = (sigma_n, eps(phi_i)) - f_n(phi_i) over the dofs of the pair's
+    surface nodes and over those of its target nodes that no Dirichlet condition
+    prescribes (at a prescribed dof r_i is in that group's reaction).  r_i at a free dof
+    is the force the other body exerts there (loads are in f_n), so each body's reactions,
+    its contact force and its loads sum to zero up to the solver's tolerance.  The
+    coupling's rows sum to 1, so on_target = -on_surface but for the contact force at the
+    target's prescribed dofs (e.g. a symmetry roller's), which is in that group's reaction.
+
+    Args:
+        problem: the ContactProblem with contact pairs.
+        r: the bulk residual (bulk_residual(), the layer's is exact at the surface and
+            target nodes).
+
+    Returns:
+        Per pair {"surface": group, "target": group, "on_surface": [F_x, ...],
+        "on_target": [...]}.
+    """
+    from vpcontact.model.pairs import surface_nodes
+    d = problem.dim
+    r = r.reshape(-1, d)
+    fixed = problem.dirichlet.fixed
+    n_owned = problem.V.dofmap.index_map.size_local
+    pos = np.searchsorted(problem.frames.nodes, problem.gamma3.nodes)
+    out = []
+    for i, p in enumerate(problem.case.contact.pairs):
+        surface = problem.gamma3.nodes[problem.pairs.pair[pos] == i]
+        target = surface_nodes(problem.disc, p.target)
+        target = target[target < n_owned]
+        local = [(r[nodes] * ~fixed[nodes]).sum(axis=0) for nodes in (surface, target)]
+        on_surface, on_target = (problem.comm.allreduce(v) for v in local)
+        out.append({"surface": str(p.surface), "target": str(p.target),
+                    "on_surface": [float(v) for v in on_surface],
+                    "on_target": [float(v) for v in on_target]})
+    return out
