@@ -34,6 +34,12 @@ INDEFINITE_KSP = {"ksp_type": "gmres", "ksp_gmres_restart": 100}
 # || |J| |u| || (> snes_atol 1e-11); on the paper's case the floor is 5.4e-13, 1/18 of its
 # snes_atol (the same results as without it)
 ROUNDOFF_FACTOR = 1.0
+# an iterate with |x| beyond BLOWUP times the body's size has run away (small strains):
+# the floor is not raised there, and a failure says why
+BLOWUP = 1e3
+RUNAWAY_HINT = ("the Newton iterate ran away (|u| beyond 1000 times the body's size): the "
+                "Newton matrix is (nearly) singular, e.g. a body free in a rigid motion that "
+                "only a contact not yet active holds")
 
 
 class StepSolveError(RuntimeError):
@@ -202,6 +208,7 @@ class SNESVISolver:
                  roundoff_floor: bool = True):
         self.problem = problem
         self.floor = RoundoffFloor() if roundoff_floor else None
+        self.ran_away = False
         self.linear = linear
         self.linear_iterations = 0
         self.u = problem.u
@@ -269,9 +276,18 @@ class SNESVISolver:
 
     def _raise_atol(self, snes, atol: float) -> None:
         """Before SNES's convergence test of an iteration (PETSc calls the monitors first):
-        its absolute tolerance becomes max(atol, the round-off floor at the iterate)."""
+        its absolute tolerance becomes max(atol, the round-off floor at the iterate) -- not
+        at an iterate that has run away (|x| beyond BLOWUP times the body's size: a
+        (nearly) singular Newton matrix, e.g. a body free in a rigid motion that only an
+        inactive contact would hold), whose floor would grow with it and stop SNES at a
+        residual of the order of the loads."""
+        x = snes.getSolution()
+        if x.norm(PETSc.NormType.NORM_INFINITY) > BLOWUP * self.problem.length_scale:
+            self.ran_away = True
+            snes.setTolerances(atol=atol)
+            return
         J = snes.getJacobian()[0]
-        snes.setTolerances(atol=max(atol, self.floor(J, snes.getSolution())))
+        snes.setTolerances(atol=max(atol, self.floor(J, x)))
 
     def _rigid_body_modes(self) -> np.ndarray:
         """The rigid body modes in the dofs SNES solves for: Z, or R^T Z in the nodal frames.
@@ -422,6 +438,7 @@ class SNESVISolver:
         return True
 
     def _solve_once(self, snes) -> int:
+        self.ran_away = False
         self._snes_solve(snes)
         wasted = 0
         if self._met_negative_curvature(snes):
@@ -432,8 +449,9 @@ class SNESVISolver:
         its = snes.getIterationNumber() + wasted
         self.linear_iterations += snes.getLinearSolveIterations()
         if reason <= 0:
+            hint = f" ({RUNAWAY_HINT})" if self.ran_away else ""
             raise StepSolveError(f"SNES did not converge: {reason_name(reason)} ({reason}) "
-                                 f"after {its} Newton iterations", reason)
+                                 f"after {its} Newton iterations{hint}", reason)
         if self.pairs is not None:
             self.pairs.to_u(self.x, self.u)
         elif self.frames is None:

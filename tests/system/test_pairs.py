@@ -259,3 +259,29 @@ def test_restart_of_touching_bodies(tmp_path):
                            "--no-plots"]) == 0
     (s1, a), (s2, b) = contact_rows(full), contact_rows(again)
     assert s1 == s2 and np.abs(a - b).max() <= 1e-12 * np.abs(a).max()
+
+
+def test_a_runaway_iterate_is_not_converged():
+    """The punch of punch_on_substrate without its symmetry roller: sideways only friction
+    holds it, and with p_n = 0 in Coulomb's first iterate the Newton matrix is singular, so
+    an iterate runs away (|u| ~ 1e10).  The residual's round-off floor, which grows with
+    |x|, must not call that converged (it did: the run completed with |u_x| = 6.7e10 and
+    half the load carried); the step goes on to the equilibrium: the contact force equals
+    the pressure times the punch's half-width plus its weight (both in the case file)."""
+    from pathlib import Path
+
+    import yaml
+    path = Path(__file__).parents[2] / "cases" / "punch_on_substrate.yaml"
+    raw = yaml.safe_load(path.read_text())
+    raw["mesh"]["file"] = str(path.parent / raw["mesh"]["file"])
+    raw["mesh"]["size"] = 4.0
+    raw["time"] = {"T": 0.1, "N": 2}
+    raw["loads"]["displacement"] = {"substrate_sym": [0.0, None]}
+    result = run_case(make_case(raw))
+    assert result.status == "completed"
+    u = result.problem.u.x.array
+    assert np.abs(u).max() < 1e-2
+    # the punch 0.5 x 0.5 less its corner under the fillet of radius 0.05, rho g = 0.01
+    weight = 0.01 * (0.25 - (1 - np.pi / 4) * 0.05 ** 2)
+    for step, pressure in zip(result.summary["steps"], (1.0, 2.0)):    # ramp to 2 Pa at 0.1
+        assert abs(step["contact_force"][1] - (0.5 * pressure + weight)) < 1e-6
