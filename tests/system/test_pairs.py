@@ -285,3 +285,14 @@ def test_a_runaway_iterate_is_not_converged():
     weight = 0.01 * (0.25 - (1 - np.pi / 4) * 0.05 ** 2)
     for step, pressure in zip(result.summary["steps"], (1.0, 2.0)):    # ramp to 2 Pa at 0.1
         assert abs(step["contact_force"][1] - (0.5 * pressure + weight)) < 1e-6
+
+
+@pytest.mark.parametrize("name", ["two_cylinders", "mindlin", "punch_on_substrate"])
+def test_shipped_pair_cases_validate_to_themselves(name):
+    """The studies re-validate case.raw: a case whose pairs' laws were lifted into the
+    contact section and whose boundaries.contact lists the surfaces is the same case."""
+    from pathlib import Path
+
+    from vpcontact.case import load_case, validate
+    case = load_case(Path(__file__).parents[2] / "cases" / f"{name}.yaml")
+    assert case.contact.pairs and validate(case.raw, case.source) == case
