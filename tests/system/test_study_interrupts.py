@@ -59,24 +59,32 @@ def _cache_entries(cache):
     return files
 
 
-@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
-def test_signal_during_a_convergence_run_ends_the_study(tmp_path, sig):
+def test_signal_during_a_convergence_run_ends_the_study(tmp_path):
     """The signal in step 1 of the third run (r = 1) stopped that run after its step 2 (the
     time loop acts on a signal when it accepts a step) and the study said "run failed" with
     exit 1; now exit 3, one line, the two finished runs in the cache, and the same command
-    continues from them."""
-    cache, out = tmp_path / "cache", tmp_path / "o"
-    args = [*HERTZ_STUDY, "--out", out, "--cache-dir", cache]
-    proc = _signal_at_step(9, sig, args)       # steps: 4 (reference) + 4 (r = 0) + 1
-    assert proc.returncode == 3, proc.stderr
-    assert _one_line(proc.stdout, proc.stderr) == (
-        f"vpcontact: convergence study interrupted by {sig} during the run r = 1, N = 4, "
-        f"delta = 1e-07 (after its step 2); the 2 run(s) that finished are in the run cache "
-        f"{cache} (the same command continues from them); no report was written to {out}")
-    assert len(_cache_entries(cache)) == 2 and not (out / "convergence.csv").exists()
-    again = run_cli([*args, "--overwrite"])
-    assert again.returncode == 0, again.stderr
-    assert again.stdout.count("from the cache") == 2
+    continues from them.  SIGINT and SIGTERM side by side, each in its own directories."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    def interrupted_then_continued(sig):
+        cache, out = tmp_path / sig / "cache", tmp_path / sig / "o"
+        args = [*HERTZ_STUDY, "--out", out, "--cache-dir", cache]
+        proc = _signal_at_step(9, sig, args)       # steps: 4 (reference) + 4 (r = 0) + 1
+        assert proc.returncode == 3, proc.stderr
+        assert _one_line(proc.stdout, proc.stderr) == (
+            f"vpcontact: convergence study interrupted by {sig} during the run r = 1, N = 4, "
+            f"delta = 1e-07 (after its step 2); the 2 run(s) that finished are in the run "
+            f"cache {cache} (the same command continues from them); no report was written "
+            f"to {out}")
+        assert len(_cache_entries(cache)) == 2 and not (out / "convergence.csv").exists()
+        again = run_cli([*args, "--overwrite"])
+        assert again.returncode == 0, again.stderr
+        assert again.stdout.count("from the cache") == 2
+        return sig
+
+    with ThreadPoolExecutor(2) as pool:    # an assertion in either is raised here
+        assert list(pool.map(interrupted_then_continued, ["SIGINT", "SIGTERM"])) == \
+            ["SIGINT", "SIGTERM"]
 
 
 @pytest.mark.parametrize("step, where", [(4, "the run r = 2, N = 4"), (8, "the run r = 0, N = 4")])
