@@ -67,11 +67,14 @@ def test_every_demo_is_tested():
 
 @pytest.mark.parametrize("name", DEMOS)
 def test_demo_equals_the_cli(name, serial, tmp_path):
-    norms, _ = serial(name)
+    from concurrent.futures import ThreadPoolExecutor
     case, overrides, *options = CLI_EQUIVALENT[name]
     sets = [arg for item in overrides for arg in ("--set", item)]
-    proc = run_cli(["run", case, "--out", tmp_path / "cli", "--quiet", *sets,
-                    *(options[0] if options else [])])
+    with ThreadPoolExecutor(1) as pool:       # the command line's run beside the demo's
+        cli = pool.submit(run_cli, ["run", case, "--out", tmp_path / "cli", "--quiet", *sets,
+                                    *(options[0] if options else [])])
+        norms, _ = serial(name)
+        proc = cli.result()
     assert proc.returncode == 0, proc.stdout + proc.stderr
     last = json.loads((tmp_path / "cli" / "summary.json").read_text())["steps"][-1]
     assert norms == pytest.approx((last["norm_u_V"], last["norm_sigma_Q"]), rel=1e-12)
