@@ -165,18 +165,14 @@ def test_wellposedness_warning_exactly_when_margin_negative(tmp_path, c1, b, war
 
 
 @pytest.mark.slow
-def test_stability_sweep_cli(tmp_path, capfd):
+def test_stability_sweep_cli(tmp_path):
     """The default sweep on a tiny mesh: every variant converges or stops with a reason, no
-    traceback; the stiff explicit variants are flagged unbounded, the implicit ones not.
-    The command runs in this process (no MPI here; its forms already loaded)."""
+    traceback; the stiff explicit variants are flagged unbounded, the implicit ones not."""
     import csv
-
-    from conftest import cli_in_process
     out = tmp_path / "stab"
-    code = cli_in_process(["stability", PAPER_CASE, "--out", out, "--n", "4", "--steps", "4"])
-    captured = capfd.readouterr()
-    assert code == 0, captured.err
-    assert "Traceback" not in captured.err + captured.out
+    proc = run_cli(["stability", PAPER_CASE, "--out", out, "--n", "4", "--steps", "4"])
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr + proc.stdout
     rows = list(csv.DictReader(open(out / "stability.csv")))
     assert len(rows) >= 40
     for r in rows:
