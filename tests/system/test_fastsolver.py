@@ -58,20 +58,37 @@ def test_condensed_equals_snes_vi_in_3d():
     assert du < 1e-9 and dn < 1e-10
 
 
+def _box3d_n12() -> dict:
+    from vpcontact.case import load_raw
+    raw = load_raw(ROOT / "cases" / "box3d.yaml")
+    raw["mesh"]["n"] = 12
+    return raw
+
+
+@pytest.fixture(scope="module")
+def box3d_n12_snes_vi():
+    """box3d at n = 12 with SNES VI, run once: the reference of both condensed paths (the
+    kept factor is the condensed solver's; SNES VI does not use it)."""
+    raw = _box3d_n12()
+    raw.setdefault("solver", {})["method"] = "snes_vi"
+    return run_case(validate_raw(raw))
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("kept_factor", [False, True])
-def test_box3d_n12_iterations_bounded_and_solvers_agree(monkeypatch, kept_factor):
+def test_box3d_n12_iterations_bounded_and_solvers_agree(monkeypatch, kept_factor,
+                                                        box3d_n12_snes_vi):
     """box3d at n = 12 (8 steps): every step of both solvers within 20 iterations (the
     Gamma3 problem's line search once stalled for 160-200 iterations at the energy's round-off
     in 3D), and the two agree to 1e-8; also with the Gamma3 Newton systems solved by CG with
     a kept factor (the large-m path, here forced at m = 468)."""
-    from vpcontact.case import load_raw
     from vpcontact.solvers import dense
     if kept_factor:
         monkeypatch.setattr(dense, "PCG_MIN", 0)
-    raw = load_raw(ROOT / "cases" / "box3d.yaml")
-    raw["mesh"]["n"] = 12
-    a, b = _pair(raw)
+    raw = _box3d_n12()
+    raw.setdefault("solver", {})["method"] = "condensed"
+    a, b = box3d_n12_snes_vi, run_case(validate_raw(raw))
+    assert b.summary["solver"]["used"] == "condensed" and a.summary["solver"]["used"] == "snes_vi"
     for run in (a, b):
         its = [st["newton_iterations"] for st in run.summary["steps"]]
         assert len(its) == 8 and max(its) <= 20, its
