@@ -421,7 +421,9 @@ def diagnose(problem, solver=None) -> Diagnostics:
             gamma2, is_bound = bound, True
         else:
             gamma2, _ = trace_constant(problem, linear=getattr(solver, "linear", "direct"))
-        margin = m_E - max(np.sqrt(3) * 0.0, m_j) * gamma2
+        # m_j = 0 (no softening, e.g. Coulomb's): m_E, also where gamma2 is infinite (a
+        # body held only by a contact: 0 * inf)
+        margin = m_E - max(np.sqrt(3) * 0.0, m_j) * gamma2 if m_j else m_E
         unique = margin > 0
     return Diagnostics(case.time.scheme, k_max, rate, indicator, STABILITY_LIMIT,
                        None if indicator is None else indicator <= STABILITY_LIMIT,
