@@ -96,14 +96,24 @@ def _history(out):
         return list(csv.DictReader(fh))
 
 
+MPI_RESTART_OPTS = ["--set", "time.N=8", "--set", "output.checkpoint_every=4"]
+
+
+@pytest.fixture(scope="module")
+def serial_reference(tmp_path_factory):
+    """The uninterrupted serial run the restarts under mpirun are compared with (run once)."""
+    ref = tmp_path_factory.mktemp("restart_ref") / "ref"
+    assert run_cli(["run", CASES["memory_slip"], "--out", ref, *MPI_RESTART_OPTS]).returncode == 0
+    return ref
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("ranks", [(2, 2), (1, 2), (2, 1)])
-def test_restart_under_mpi(ranks, tmp_path):
+def test_restart_under_mpi(ranks, tmp_path, serial_reference):
     """Checkpoint written on r1 ranks, restarted on r2 ranks: the same result."""
     r1, r2 = ranks
-    ref, full, re_ = tmp_path / "ref", tmp_path / "full", tmp_path / "re"
-    opts = ["--set", "time.N=8", "--set", "output.checkpoint_every=4"]
-    assert run_cli(["run", CASES["memory_slip"], "--out", ref, *opts]).returncode == 0
+    ref, full, re_ = serial_reference, tmp_path / "full", tmp_path / "re"
+    opts = MPI_RESTART_OPTS
     assert run_cli(["run", CASES["memory_slip"], "--out", full, *opts], nprocs=r1).returncode == 0
     proc = run_cli(["run", CASES["memory_slip"], "--out", re_, *opts, "--restart", full],
                    nprocs=r2)
