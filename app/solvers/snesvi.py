@@ -37,6 +37,10 @@ ROUNDOFF_FACTOR = 1.0
 # an iterate with |x| beyond BLOWUP times the body's size has run away (small strains):
 # the floor is not raised there, and a failure says why
 BLOWUP = 1e3
+# a SNES whose smallest residual has not fallen by 1 % in its last 5 iterations has
+# stagnated (cycling, or creeping): it is stopped, and the next fallback takes over
+# (_watch_stagnation)
+STAGNATION = (5, 1e-2)
 RUNAWAY_HINT = ("the Newton iterate ran away (|u| beyond 1000 times the body's size): the "
                 "Newton matrix is (nearly) singular, e.g. a body free in a rigid motion that "
                 "only a contact not yet active holds")
@@ -208,7 +212,8 @@ class SNESVISolver:
                  roundoff_floor: bool = True):
         self.problem = problem
         self.floor = RoundoffFloor() if roundoff_floor else None
-        self.ran_away = False
+        self.ran_away = self.stagnated = False
+        self._fnorms: list[float] = []
         self.linear = linear
         self.linear_iterations = 0
         self.u = problem.u
@@ -268,11 +273,31 @@ class SNESVISolver:
         if self.floor is not None:
             atol = snes.getTolerances()[1]
             snes.setMonitor(lambda s, its, fnorm: self._raise_atol(s, atol))
+        max_funcs = snes.getMaxFunctionEvaluations()
+        snes.setMonitor(lambda s, its, fnorm: self._watch_stagnation(s, its, fnorm,
+                                                                     max_funcs))
         if self.linear == "amg":
             pc = snes.getKSP().getPC()
             pc.setType("python")
             pc.setPythonContext(InactiveSetAMG(snes, self._rigid_body_modes(), self.prefix))
         return snes
+
+    def _watch_stagnation(self, snes, its: int, fnorm: float, max_funcs: int) -> None:
+        """Stop a SNES whose residual has stagnated (STAGNATION: its smallest value has not
+        fallen by a fraction in several iterations: Newton cycling between iterates at a
+        nearly nonsmooth point of the friction or memory term), so that the
+        next fallback starts at once instead of after snes_max_it iterations.  SNES stops
+        with DIVERGED_FUNCTION_COUNT at its convergence test (the residual evaluations
+        allowed are lowered to those done; restored at the start of the next solve)."""
+        if its == 0:
+            self._fnorms = []
+            snes.setMaxFunctionEvaluations(max_funcs)
+        self._fnorms.append(fnorm)
+        count, ratio = STAGNATION
+        before, recent = self._fnorms[:-count], self._fnorms[-count:]
+        if before and min(recent) >= (1 - ratio) * min(before):
+            self.stagnated = True
+            snes.setMaxFunctionEvaluations(snes.getFunctionEvaluations())
 
     def _raise_atol(self, snes, atol: float) -> None:
         """Before SNES's convergence test of an iteration (PETSc calls the monitors first):
@@ -438,7 +463,7 @@ class SNESVISolver:
         return True
 
     def _solve_once(self, snes) -> int:
-        self.ran_away = False
+        self.ran_away = self.stagnated = False
         self._snes_solve(snes)
         wasted = 0
         if self._met_negative_curvature(snes):
@@ -449,7 +474,9 @@ class SNESVISolver:
         its = snes.getIterationNumber() + wasted
         self.linear_iterations += snes.getLinearSolveIterations()
         if reason <= 0:
-            hint = f" ({RUNAWAY_HINT})" if self.ran_away else ""
+            hint = f" ({RUNAWAY_HINT})" if self.ran_away else \
+                " (stagnated: the smallest residual did not fall by 1 % in 5 " \
+                "iterations)" if self.stagnated else ""
             raise StepSolveError(f"SNES did not converge: {reason_name(reason)} ({reason}) "
                                  f"after {its} Newton iterations{hint}", reason)
         if self.pairs is not None:
