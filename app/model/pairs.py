@@ -21,20 +21,14 @@ solver maps them back to u (app/solvers/pairmap.py).
 """
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass
 
 import numpy as np
 from dolfinx import cpp as dcpp
 from mpi4py import MPI
 from petsc4py import PETSc
-from scipy.sparse import coo_matrix
 
 from vpcontact.io.errors import CaseError
-from vpcontact.model.mortar import mortar_triplets
-from vpcontact.model.pairgeometry import facet_normals, project_points
-
-log = logging.getLogger("vpcontact")
 
 # a node with the surface's outward normal under FACING_MIN to the pair's normal is refused
 # (the surfaces do not face each other there); an initial overlap beyond PENETRATION_TOL
@@ -131,6 +125,8 @@ def target_facets(disc, ref) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Returns:
         (coordinates (nf, nv, d), outward normals (nf, d), global nodes (nf, nv)).
     """
+    from vpcontact.model.pairgeometry import facet_normals  # scipy: only with pairs
+
     d = disc.dim
     parts = disc.comm.allgather(local_facets(disc, ref))
     coords = np.concatenate([p[0] for p in parts]).reshape(-1, d, d)
@@ -158,6 +154,8 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
             surfaces that do not face each other, an initial interpenetration (on every
             rank).
     """
+    from vpcontact.model.pairgeometry import project_points  # scipy: only with pairs
+
     case, d = disc.case, disc.dim
     x = disc.V.tabulate_dof_coordinates()[nodes, :d]
     m = len(nodes)
@@ -197,6 +195,9 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
 
 def _coupling(disc, p, nodes, sel, proj, target) -> tuple:
     """(rows, cols, coef) of one pair's owned nodes (positions ``sel`` in ``nodes``)."""
+    from scipy.sparse import coo_matrix
+
+    from vpcontact.model.mortar import mortar_triplets
     n_owned = disc.V.dofmap.index_map.size_local
     owned = nodes[sel] < n_owned
     if p.rule == "node_to_segment":
@@ -375,7 +376,7 @@ class PairOperators:
 
     def __init__(self, problem):
         V, d, fr, geo = problem.V, problem.dim, problem.frames, problem.disc.pairs
-        self.comm, self.dim = problem.comm, d
+        self.comm = problem.comm
         imap = V.dofmap.index_map
         n = imap.size_local
         self.n_local = n * d

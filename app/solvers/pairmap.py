@@ -57,7 +57,7 @@ class PairMap:
             self.J_form = fem.form(problem.pair_forms[1])
             self.b_w = fem.petsc.create_vector(self.F_form)
             self.J_w = fem.petsc.create_matrix(self.J_form)
-        self.x_work = self.c.duplicate()
+        self.x_work, self.y_work = self.c.duplicate(), self.c.duplicate()
         imap = problem.V.dofmap.index_map
         n = imap.size_local * problem.dim
         dofs = np.unique(np.concatenate([bc.dof_indices()[0] for bc in problem.bcs]
@@ -108,10 +108,8 @@ class PairMap:
         """
         u.copy(self.x_work)
         self.x_work.axpy(-1.0, self.c)
-        y = self.x_work.duplicate()
-        self.R.multTranspose(self.x_work, y)
-        self.unlift.mult(y, x)
-        y.destroy()
+        self.R.multTranspose(self.x_work, self.y_work)
+        self.unlift.mult(self.y_work, x)
         fem.petsc.set_bc(x, self.problem.bcs)
 
     def modes(self, Z: np.ndarray) -> np.ndarray:
@@ -196,6 +194,6 @@ class PairMap:
     def destroy(self) -> None:
         """Free the PETSc objects."""
         for obj in (self.R, self.P, self.C, self.b_u, self.b_w, self.J_w,
-                    self.x_work, self.K, self.J_wx, self.A):
+                    self.x_work, self.y_work, self.K, self.J_wx, self.A):
             if obj is not None:
                 obj.destroy()
