@@ -37,10 +37,10 @@ ROUNDOFF_FACTOR = 1.0
 # an iterate with |x| beyond BLOWUP times the body's size has run away (small strains):
 # the floor is not raised there, and a failure says why
 BLOWUP = 1e3
-# a SNES whose smallest residual has not fallen by 1 % in its last 5 iterations has
-# stagnated (cycling, or creeping): it is stopped, and the next fallback takes over
-# (_watch_stagnation)
-STAGNATION = (5, 1e-2)
+# a SNES whose residual repeats itself (equal to 1e-6 to that of two iterations before, in
+# 4 iterations in a row: Newton cycling between one or two iterates) has stagnated: it is
+# stopped, and the next fallback takes over (_watch_stagnation)
+STAGNATION = (4, 1e-6)
 RUNAWAY_HINT = ("the Newton iterate ran away (|u| beyond 1000 times the body's size): the "
                 "Newton matrix is (nearly) singular, e.g. a body free in a rigid motion that "
                 "only a contact not yet active holds")
@@ -283,9 +283,9 @@ class SNESVISolver:
         return snes
 
     def _watch_stagnation(self, snes, its: int, fnorm: float, max_funcs: int) -> None:
-        """Stop a SNES whose residual has stagnated (STAGNATION: its smallest value has not
-        fallen by a fraction in several iterations: Newton cycling between iterates at a
-        nearly nonsmooth point of the friction or memory term), so that the
+        """Stop a SNES whose residual has stagnated (STAGNATION: it repeats itself, Newton
+        cycling between one or two iterates at a nearly nonsmooth point of the friction or
+        memory term; iterates that still move, however wildly, go on), so that the
         next fallback starts at once instead of after snes_max_it iterations.  SNES stops
         with DIVERGED_FUNCTION_COUNT at its convergence test (the residual evaluations
         allowed are lowered to those done; restored at the start of the next solve)."""
@@ -293,9 +293,10 @@ class SNESVISolver:
             self._fnorms = []
             snes.setMaxFunctionEvaluations(max_funcs)
         self._fnorms.append(fnorm)
-        count, ratio = STAGNATION
-        before, recent = self._fnorms[:-count], self._fnorms[-count:]
-        if before and min(recent) >= (1 - ratio) * min(before):
+        count, tol = STAGNATION
+        f = self._fnorms
+        if len(f) >= count + 2 and all(abs(f[k] - f[k - 2]) <= tol * f[k]
+                                       for k in range(len(f) - count, len(f))):
             self.stagnated = True
             snes.setMaxFunctionEvaluations(snes.getFunctionEvaluations())
 
@@ -475,8 +476,8 @@ class SNESVISolver:
         self.linear_iterations += snes.getLinearSolveIterations()
         if reason <= 0:
             hint = f" ({RUNAWAY_HINT})" if self.ran_away else \
-                " (stagnated: the smallest residual did not fall by 1 % in 5 " \
-                "iterations)" if self.stagnated else ""
+                " (stagnated: Newton cycled, its residual repeating itself)" \
+                if self.stagnated else ""
             raise StepSolveError(f"SNES did not converge: {reason_name(reason)} ({reason}) "
                                  f"after {its} Newton iterations{hint}", reason)
         if self.pairs is not None:

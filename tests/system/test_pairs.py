@@ -185,8 +185,8 @@ def test_stiff_lower_body_is_the_rigid_foundation(tmp_path):
     two, one = run_case(make_case(pair)), run_case(make_case(plane))
     assert two.status == one.status == "completed"
     # Coulomb's second fixed-point solve cycles in plain Newton (between 0.42 and 0.50):
-    # stopped after 5 iterations without progress, not 50 (214 iterations before, 133 now)
-    assert sum(s["newton_iterations"] for s in two.summary["steps"]) <= 160
+    # stopped once the residual repeats itself, not after 50 (214 iterations before, 171)
+    assert sum(s["newton_iterations"] for s in two.summary["steps"]) <= 190
     tab = contact_table(one.problem)
     assert (tab["slip_state"] == 1).any() and (np.abs(tab["u_tau"]) > 1e-4).any()
     ref, got = _upper_u(one, 2), _upper_u(two, 2)
