@@ -137,9 +137,17 @@ def _mirror_pair_and_plane(tmp_path, dim):
     return pair, plane
 
 
-@pytest.mark.parametrize("dim", [2, 3])
-def test_mirror_pair_equals_rigid_plane(tmp_path, dim):
+@pytest.mark.parametrize("dim, scheme", [(2, None), (3, None), (2, "implicit")])
+def test_mirror_pair_equals_rigid_plane(tmp_path, dim, scheme):
+    """(2D implicit: both blocks Perzyna, the right-end-point scheme: the pair's Newton
+    matrix is P^T J P with the algorithmic tangent J assembled at every iteration.)"""
     pair, plane = _mirror_pair_and_plane(tmp_path, dim)
+    if scheme is not None:
+        law = {"viscoplastic": {"lambda1": 100.0, "lambda2": 100.0, "kappa0": 2.0}}
+        for raw in (pair, plane):
+            raw["time"].update(scheme=scheme, N=3)
+            for m in raw["materials"].values():
+                m.update(law)
     two = run_case(make_case(pair))
     one = run_case(make_case(plane))
     assert two.status == one.status == "completed"
