@@ -242,7 +242,9 @@ def _coupled_distance(geo, x, targets) -> None:
 
 
 def surface_nodes(disc, ref) -> np.ndarray:
-    """The local nodes on the facets of a group.
+    """The local nodes on the facets of a group (dolfinx's locate_dofs_topological, as
+    Gamma3's nodes are found: also a node whose facet of the group is on another rank);
+    collective.
 
     Args:
         disc: the Discretisation.
@@ -251,13 +253,10 @@ def surface_nodes(disc, ref) -> np.ndarray:
     Returns:
         Sorted local node indices.
     """
-    msh, fdim = disc.mesh, disc.dim - 1
-    msh.topology.create_connectivity(fdim, 0)
-    f2v = msh.topology.connectivity(fdim, 0)
-    verts = [f2v.links(f) for f in disc.facets[ref]]
-    if not verts:
-        return np.zeros(0, np.int64)
-    return np.unique(vertex_nodes(disc.V)[np.concatenate(verts)])
+    from dolfinx import fem
+
+    facets = np.asarray(disc.facets[ref], dtype=np.int32)
+    return np.sort(fem.locate_dofs_topological(disc.V, disc.dim - 1, facets))
 
 
 def node_labels(disc) -> np.ndarray:
