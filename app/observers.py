@@ -171,7 +171,7 @@ class ContactOutput(Observer):
         c = sim.case.contact
         table = quantities.contact_table(sim.problem, sim.boundary_residual)   # None: assembled
         return gather_contact_table(sim.comm, table, c.g,
-                                    compliance=c.compliance)
+                                    compliance=c.compliances)
 
     def start(self, sim) -> None:
         """Write the facet mesh and the table at the start time.
@@ -306,7 +306,7 @@ class RunFiles(Observer):
             if sim.problem.gamma3 is not None and steps:
                 summary.contact_states = write_contact_csv(
                     sim.comm, outdir / "contact.csv", quantities.contact_table(sim.problem),
-                    sim.case.contact.g, compliance=sim.case.contact.compliance)
+                    sim.case.contact.g, compliance=sim.case.contact.compliances)
         except OutputError as exc:
             summary.fail(StepFailure.output(summary.last_good_step, steps[-1]["t"], exc))
         try:

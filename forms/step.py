@@ -122,19 +122,25 @@ def build_step_forms(u, bulk: BulkData, gamma3: ContactData | None = None) -> St
     return _implicit_forms(u, bulk, loads, boundary, terms + boundary_terms, dx)
 
 
-def build_boundary_forms(w, gamma3: ContactData):
+def build_boundary_forms(w, parts: list[ContactData]):
     """The Gamma3 terms of J_n alone, on a displacement w of their own (two bodies: w at a
     Gamma3 node is the relative displacement less the initial distance, app/model/pairs.py).
 
     Args:
         w: the P1 Function the Gamma3 terms are evaluated on.
-        gamma3: the Gamma3 terms.
+        parts: the Gamma3 terms: one ContactData, or one per pair (laws per pair, each on
+            its surface's measure); their energies are summed.
 
     Returns:
         (residual, jacobian, term names): d/dw and d^2/dw^2 of the boundary energy, or
         (None, None, []) without terms.
     """
-    boundary, terms = _boundary_energy(w, gamma3)
+    boundary, terms = None, []
+    for i, gamma3 in enumerate(parts):
+        energy, named = _boundary_energy(w, gamma3)
+        if energy is not None:
+            boundary = energy if boundary is None else boundary + energy
+            terms += named if len(parts) == 1 else [f"pair {i}: {t}" for t in named]
     if boundary is None:
         return None, None, []
     V = w.function_space

@@ -49,29 +49,32 @@ def material_sections(data: dict) -> list[tuple[str, dict]]:
     return [("material", data["material"])]
 
 
-def renamed(message: str, path: str) -> str:
-    """A message of the rules of ``material`` naming the section at ``path`` instead.
+def renamed(message: str, path: str, section: str = "material") -> str:
+    """A message of the rules of ``section`` naming the section at ``path`` instead.
 
     Args:
-        message: the message (its key paths begin with ``material``).
-        path: the section's key path, e.g. "materials.steel".
+        message: the message (its key paths begin with ``section``).
+        path: the section's key path, e.g. "materials.steel" (or "contact.pairs[1]" for
+            the section "contact").
+        section: the section the rules name.
 
     Returns:
-        The message with its key paths ``material.``/``material:`` (at its start, after
+        The message with its key paths ``section.``/``section:`` (at its start, after
         ": " or "(") starting with ``path``.
     """
-    if path == "material":
+    if path == section:
         return message
-    return re.sub(r"(^|: |\()material(?=[.:])", lambda mt: mt.group(1) + path, message)
+    return re.sub(rf"(^|: |\(){section}(?=[.:])", lambda mt: mt.group(1) + path, message)
 
 
 @contextmanager
-def section_errors(path: str, *errors: type):
+def section_errors(path: str, *errors: type, section: str = "material"):
     """Raise the CaseError (or one of ``errors``) of the block with ``renamed`` messages.
 
     Args:
         path: the section's key path.
         errors: further exception classes (one-argument messages) to rename.
+        section: the section the block's messages name ("material" or "contact").
 
     Yields:
         None.
@@ -79,7 +82,7 @@ def section_errors(path: str, *errors: type):
     try:
         yield
     except (CaseError, *errors) as exc:
-        raise type(exc)(renamed(str(exc), path)) from None
+        raise type(exc)(renamed(str(exc), path, section)) from None
 
 
 def check_planes(data: dict, source: str) -> None:

@@ -184,12 +184,15 @@ class ContactPair:
     """One entry of ``contact.pairs``: the group ``surface`` whose nodes are projected onto
     the group ``target`` of another body, the extra gap g [m] of the bound
     u_nu <= d + g (d the measured initial distance) and the coupling rule ("mortar" or
-    "node_to_segment", app/model/pairs.py)."""
+    "node_to_segment", app/model/pairs.py); ``laws``: the pair's own contact laws (a
+    Contact without g, direction and pairs) where the pairs' laws differ, else None (the
+    contact section's laws serve every pair)."""
 
     surface: str | int
     target: str | int
     g: float = 0.0
     rule: str = "mortar"
+    laws: Contact | None = None
 
 
 @dataclass(frozen=True)
@@ -216,6 +219,22 @@ class Contact:
         """A normal compliance law is present (c_nu, a table or the user's law)."""
         return self.c_nu is not None or self.compliance_table is not None \
             or self.compliance_python is not None
+
+    @property
+    def sections(self) -> tuple:
+        """The sets of laws on Gamma3: (this section,) where one set serves all of Gamma3,
+        else each pair's own (``ContactPair.laws``, in the pairs' order)."""
+        if self.pairs and self.pairs[0].laws is not None:
+            return tuple(p.laws for p in self.pairs)
+        return (self,)
+
+    @property
+    def compliances(self) -> bool | tuple:
+        """A normal compliance law is present: one bool, or with laws per pair one per pair
+        (app/io/output.py: ``classify``)."""
+        sections = self.sections
+        return sections[0].compliance if len(sections) == 1 else \
+            tuple(c.compliance for c in sections)
 
     @property
     def active(self) -> bool:
@@ -336,28 +355,18 @@ class Case:
             terms.append(f"{name} viscoplastic history H_n, kappa_n"
                          + (" (implicit, right end point)" if self.time.scheme == "implicit"
                             else " (explicit, as in the paper)"))
-        if self.contact.compliance:
-            user = self.contact.compliance_python
-            terms.append("normal compliance" if user is None else
-                         f"normal compliance (the user's law {user.cls}, --law-module)")
+        laws = list(dict.fromkeys(t for c in self.contact.sections for t in _law_terms(c)))
+        normal = [t for t in laws if t.startswith("normal compliance")]
+        terms += normal
         if self.contact.pairs:
             terms.append(f"{len(self.contact.pairs)} contact pair(s) of two bodies "
                          "([u]_nu <= d + g; " + ", ".join(dict.fromkeys(
                              p.rule.replace("_", "-") for p in self.contact.pairs)) + ")")
+            if len(self.contact.sections) > 1:
+                terms.append("laws per pair")
         if self.contact.g is not None:
             terms.append("unilateral constraint u_nu <= g")
-        if self.contact.memory is not None:
-            terms.append(f"memory term xi_n ({self.contact.memory.kernel} kernel)")
-        if self.contact.friction is not None:
-            fr = self.contact.friction
-            terms.append(f"friction (the user's law {fr.python.cls}, --law-module)"
-                         if fr.python is not None else
-                         fr.coulomb.title
-                         if fr.coulomb is not None else "nonmonotone friction (4.2)"
-                         if fr.table is None else "nonmonotone friction (table)")
-            if self.contact.friction.slip is not None:
-                terms.append("slip-dependent friction theta(s_n)")
-        return terms
+        return terms + [t for t in laws if t not in normal]
 
     def omitted_terms(self) -> list[str]:
         """The model's terms this case leaves out (nothing is allocated or computed for them).
@@ -368,17 +377,39 @@ class Case:
         out = []
         if not any(m.viscoplastic for m in self.all_materials):
             out.append("viscoplastic history (elastic body)")
-        if not self.contact.compliance:
+        sections = self.contact.sections
+        if not any(c.compliance for c in sections):
             out.append("normal compliance")
         if self.contact.g is None and not self.contact.pairs:
             out.append("unilateral constraint")
-        if self.contact.memory is None:
+        if all(c.memory is None for c in sections):
             out.append("memory term")
-        if self.contact.friction is None:
+        if all(c.friction is None for c in sections):
             out.append("friction")
-        elif self.contact.friction.slip is None:
+        elif all(c.friction is None or c.friction.slip is None for c in sections):
             out.append("slip dependence")
         return out
+
+
+def _law_terms(c: Contact) -> list[str]:
+    """The names of the contact laws of one set of laws (Contact.sections)."""
+    terms = []
+    if c.compliance:
+        user = c.compliance_python
+        terms.append("normal compliance" if user is None else
+                     f"normal compliance (the user's law {user.cls}, --law-module)")
+    if c.memory is not None:
+        terms.append(f"memory term xi_n ({c.memory.kernel} kernel)")
+    if c.friction is not None:
+        fr = c.friction
+        terms.append(f"friction (the user's law {fr.python.cls}, --law-module)"
+                     if fr.python is not None else
+                     fr.coulomb.title
+                     if fr.coulomb is not None else "nonmonotone friction (4.2)"
+                     if fr.table is None else "nonmonotone friction (table)")
+        if fr.slip is not None:
+            terms.append("slip-dependent friction theta(s_n)")
+    return terms
 
 
 def case_name(data: dict, source: str) -> str:
@@ -409,11 +440,8 @@ def build_case(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Cas
     """
     mesh, contact, loads = data["mesh"], data.get("contact", {}), data["loads"]
     init = data.get("initial", {})
-    fr, mem = contact.get("friction"), contact.get("memory")
-    slip = fr.get("slip") if fr else None
     name = case_name(data, source)
     method = METHOD_NAMES.get(data["solver"]["method"], data["solver"]["method"])
-    g, d = contact.get("g"), contact.get("direction")
     return Case(
         name=name,
         source=source,
@@ -421,19 +449,7 @@ def build_case(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Cas
         material=_material(data["material"]) if "material" in data else None,
         materials={group: _material(m) for group, m in data["materials"].items()}
         if "materials" in data else None,
-        contact=Contact(
-            g if isinstance(g, str) else float(g) if g is not None else None,
-            _number_or_expression(contact.get("normal_compliance", {}).get("c_nu")),
-            _friction(fr, slip) if fr else None,
-            Memory(_number_or_expression(mem["b0"]), float(mem["beta"]), mem["kernel"],
-                   mem.get("alpha"), mem.get("tau"),
-                   tuple(map(tuple, mem["table"])) if "table" in mem else None,
-                   mem["sum"]) if mem else None,
-            tuple(float(x) / math.hypot(*d) for x in d) if d is not None else None,
-            *_compliance(contact.get("normal_compliance")),
-            tuple(ContactPair(p["surface"], p["target"], float(p.get("g", 0.0)),
-                              p.get("rule", "mortar"))
-                  for p in contact.get("pairs", ()))),
+        contact=_contact(contact),
         loads=Loads(tuple(loads["f0"]) if "f0" in loads else None,
                     {k: tuple(v) for k, v in loads.get("traction", {}).items()},
                     dict(loads.get("pressure", {})),
@@ -448,6 +464,29 @@ def build_case(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Cas
         output=OutputSpec(**data["output"]),
         raw=data,
     )
+
+
+def _contact(contact: dict) -> Contact:
+    """The Contact of a contact section (or of a pair's own laws: no g, direction, pairs)."""
+    fr, mem = contact.get("friction"), contact.get("memory")
+    g, d = contact.get("g"), contact.get("direction")
+    pairs = contact.get("pairs", ())
+    laws = ("normal_compliance", "memory", "friction")
+    own = any(key in p for p in pairs for key in laws)
+    return Contact(
+        g if isinstance(g, str) else float(g) if g is not None else None,
+        _number_or_expression(contact.get("normal_compliance", {}).get("c_nu")),
+        _friction(fr, fr.get("slip")) if fr else None,
+        Memory(_number_or_expression(mem["b0"]), float(mem["beta"]), mem["kernel"],
+               mem.get("alpha"), mem.get("tau"),
+               tuple(map(tuple, mem["table"])) if "table" in mem else None,
+               mem["sum"]) if mem else None,
+        tuple(float(x) / math.hypot(*d) for x in d) if d is not None else None,
+        *_compliance(contact.get("normal_compliance")),
+        tuple(ContactPair(p["surface"], p["target"], float(p.get("g", 0.0)),
+                          p.get("rule", "mortar"),
+                          _contact({k: p[k] for k in laws if k in p}) if own else None)
+              for p in pairs))
 
 
 def _number_or_expression(value):

@@ -1,19 +1,26 @@
 """The rules of ``contact.pairs`` (two bodies of one mesh.file in contact), on the case as
-given, before the schema's defaults are filled: the pairs' laws are lifted into the contact
-section (one set of laws for every pair), the pairs' surfaces become Gamma3
-(``boundaries.contact``), and what a pair cannot take is refused with the key named.
+given, before the schema's defaults are filled: the pairs' laws are settled (``settle_laws``:
+a law of the contact section serves every pair that does not give its own; one set of laws
+for all pairs moves to the contact section, different laws stay in the pairs, each pair with
+all of its laws), the pairs' surfaces become Gamma3 (``boundaries.contact``), and what a
+pair cannot take is refused with the key named.
 
 The result validates to the same case again (the studies validate ``case.raw`` with changed
-keys): a case whose laws were lifted and whose boundaries.contact lists the surfaces is
+keys): a case whose laws were settled and whose boundaries.contact lists the surfaces is
 accepted as it is.
 """
 from __future__ import annotations
 
 from vpcontact.case.reading import GROUP_MAPS
+from vpcontact.case.schema import SCHEMA
+from vpcontact.case.schemacheck import fill_defaults
 from vpcontact.io.errors import CaseError
 
 # the contact laws a pair may carry (the contact section's own keys)
 LAW_KEYS = ("normal_compliance", "memory", "friction")
+# the memory kernel's keys that pairs with different laws share (b0 may differ: the
+# Gamma3 history sums b0(x_i) u_nu^+ with one kernel shape, app/model/gamma3.py)
+MEMORY_SHAPE = ("kernel", "beta", "alpha", "tau", "table", "sum")
 
 
 def settle_pairs(data: dict, source: str) -> None:
@@ -26,8 +33,8 @@ def settle_pairs(data: dict, source: str) -> None:
     Raises:
         CaseError: pairs without a mesh.file, with contact.g or contact.direction, with a
             boundaries.contact other than the surfaces, a surface that is its own target or
-            another pair's target or surface, a clamped or loaded pair group, different
-            laws in different pairs.
+            another pair's target or surface, a clamped or loaded pair group, pairs with
+            different laws of which one is written in Python.
     """
     contact = data.get("contact") or {}
     pairs = contact.get("pairs")
@@ -44,7 +51,7 @@ def settle_pairs(data: dict, source: str) -> None:
     if data.get("solver", {}).get("quadrature") == "gauss":
         raise CaseError(f"{source}: solver.quadrature: 'gauss' is not possible with "
                         "contact.pairs (the node-to-segment rule is nodal; allowed: vertex)")
-    _lift_laws(contact, pairs, source)
+    settle_laws(contact, pairs, source)
     _check_groups(data, pairs, source)
     surfaces = [p["surface"] for p in pairs]
     bounds = data.setdefault("boundaries", {})
@@ -55,23 +62,63 @@ def settle_pairs(data: dict, source: str) -> None:
     bounds["contact"] = surfaces
 
 
-def _lift_laws(contact: dict, pairs: list, source: str) -> None:
-    """A law given in the pairs moves to the contact section: the same in every pair, and
-    not also given there."""
-    for key in LAW_KEYS:
-        given = [p[key] for p in pairs if key in p]
-        if not given:
-            continue
-        if key in contact:
-            raise CaseError(f"{source}: contact.pairs[*].{key}: also given in contact.{key}; "
-                            "give it once (in the pairs or in the contact section)")
-        if len(given) != len(pairs) or any(v != given[0] for v in given):
-            raise CaseError(f"{source}: contact.pairs[*].{key}: the pairs have different "
-                            f"{key} laws; one set of laws serves every pair: give the same "
-                            f"{key} in each pair, or once in contact.{key}")
-        contact[key] = given[0]
-        for p in pairs:
-            del p[key]
+def settle_laws(contact: dict, pairs: list, source: str) -> None:
+    """Each pair's laws: its own keys, else the contact section's.  The same in every pair:
+    given once in the contact section (the pairs carry none); else each pair carries all of
+    its laws and the contact section none (``ContactPair.laws``).
+
+    Args:
+        contact: the contact section (changed in place).
+        pairs: its pairs (changed in place).
+        source: the case file, for messages.
+
+    Raises:
+        CaseError: a law written in Python (``law: python``) in pairs whose laws differ.
+    """
+    defaults = {key: contact.pop(key) for key in LAW_KEYS if key in contact}
+    laws = [{key: p.get(key, defaults.get(key)) for key in LAW_KEYS
+             if key in p or key in defaults} for p in pairs]
+    for p in pairs:
+        for key in LAW_KEYS:
+            p.pop(key, None)
+    if all(law == laws[0] for law in laws):
+        contact.update(laws[0])
+        return
+    for i, (p, law) in enumerate(zip(pairs, laws)):
+        for key, value in law.items():
+            if isinstance(value, dict) and value.get("law") == "python":
+                raise CaseError(f"{source}: contact.pairs[{i}].{key}: law: python serves "
+                                "every pair or none: the pairs' laws differ here, so give "
+                                f"the law once in contact.{key} and the same in every pair")
+        p.update(law)
+
+
+def fill_pair_defaults(data: dict, source: str) -> None:
+    """The schema's defaults in the laws of pairs with different laws (``settle_laws``),
+    and their memory kernels of one shape.
+
+    Args:
+        data: the case mapping with its defaults filled (changed in place).
+        source: the case file, for messages.
+
+    Raises:
+        CaseError: two pairs whose memory kernels differ in more than b0.
+    """
+    schema = SCHEMA["properties"]["contact"]["properties"]["pairs"]["items"]
+    pairs = (data.get("contact") or {}).get("pairs") or []
+    shapes = {}
+    for i, p in enumerate(pairs):
+        fill_defaults(p, schema)
+        if "memory" in p:
+            shapes[i] = {k: p["memory"].get(k) for k in MEMORY_SHAPE}
+    first = next(iter(shapes.items()), None)
+    for i, shape in shapes.items():
+        key = next((k for k in MEMORY_SHAPE if shape[k] != first[1][k]), None)
+        if key is not None:
+            raise CaseError(f"{source}: contact.pairs[{i}].memory.{key}: "
+                            f"{shape[key]!r}, but contact.pairs[{first[0]}].memory.{key}: "
+                            f"{first[1][key]!r}: the pairs' memory terms share the kernel "
+                            "(kernel, beta, alpha, tau, table, sum); b0 may differ")
 
 
 def _check_groups(data: dict, pairs: list, source: str) -> None:

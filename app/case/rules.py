@@ -76,6 +76,11 @@ def check_structure(data: dict, source: str) -> None:
         with section_errors(path):
             _check_material(section, dim, source)
     _check_contact(contact, dim, source)
+    for i, pair in enumerate(contact.get("pairs") or []):   # a pair's own laws
+        laws = {k: pair[k] for k in ("normal_compliance", "memory", "friction") if k in pair}
+        if laws:
+            with section_errors(f"contact.pairs[{i}]", section="contact"):
+                _check_contact({**laws, "pairs": True}, dim, source)
     init = data.get("initial", {})
     if "u0" in init:
         _check_components(init["u0"], "initial.u0", dim, source, in_time=False)

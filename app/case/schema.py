@@ -469,7 +469,8 @@ _MATERIALS = {
                    "none: an elastic group); the groups must cover the body and have one "
                    "material.plane; either material or materials"}
 # contact.pairs: two bodies of one mesh.file in contact; a pair's laws are the contact
-# section's own schema (the same dicts), given in the pair or once in contact
+# section's own schema (the same dicts): a law of the contact section serves every pair
+# that does not give its own (app/case/pairrules.py)
 _CONTACT = SCHEMA["properties"]["contact"]["properties"]
 _CONTACT["pairs"] = {
     "type": "array", "minItems": 1, "maxItems": 100,
@@ -493,7 +494,10 @@ _CONTACT["pairs"] = {
                    "small sliding): each node of surface is projected once onto target; "
                    "u_nu = (u(x) - u(pi(x))) . nu with nu the target's inward normal at "
                    "pi(x), the initial distance d measured from the mesh; the laws act on "
-                   "u_nu - d and the relative tangential displacement.  Not with g, "
+                   "u_nu - d and the relative tangential displacement.  A pair's "
+                   "normal_compliance, memory or friction replaces the contact section's "
+                   "for that pair (which serves the pairs that give none); pairs with "
+                   "different memory terms share the kernel (b0 may differ).  Not with g, "
                    "direction or boundaries.contact (the pairs' surfaces are Gamma3)"}
 _KEYS = list(SCHEMA["properties"].items())
 _AT = [key for key, _ in _KEYS].index("material") + 1

@@ -24,7 +24,7 @@ from vpcontact.case.meshrules import (
     settle_defaults,
 )
 from vpcontact.case.model import Case, build_case
-from vpcontact.case.pairrules import settle_pairs
+from vpcontact.case.pairrules import fill_pair_defaults, settle_pairs
 from vpcontact.case.reading import MAX_CASE_SIZE, check_data, load_raw, with_lines
 from vpcontact.case.rules import check_name, check_structure
 from vpcontact.case.schemacheck import check_schema, fill_defaults
@@ -69,6 +69,7 @@ def _validate(data: dict, source: str) -> Case:
     mesh_file = check_given(data, source)
     settle_pairs(data, source)
     fill_defaults(data)
+    fill_pair_defaults(data, source)
     settle_defaults(data, mesh_file)
     check_planes(data, source)
     if mesh_file is None:

@@ -54,11 +54,14 @@ def check_values(case: Case, length: float | None = None, samples=None) -> float
         moved = datacheck.check_displacement(data["loads"].get("displacement", {}), samples)
         datacheck.check_gap(g, bounds["contact"], samples)
         contact = data.get("contact", {})
-        datacheck.check_gap(contact.get("normal_compliance", {}).get("c_nu"),
-                            bounds["contact"], samples, "contact.normal_compliance.c_nu",
-                            "the compliance coefficient")
-        datacheck.check_gap((contact.get("memory") or {}).get("b0"), bounds["contact"],
-                            samples, "contact.memory.b0", "the memory kernel's amplitude")
+        sections = [("contact", contact)] + [(f"contact.pairs[{i}]", p) for i, p in
+                                             enumerate(contact.get("pairs") or [])]
+        for path, section in sections:       # the contact section, a pair's own laws
+            datacheck.check_gap(section.get("normal_compliance", {}).get("c_nu"),
+                                bounds["contact"], samples,
+                                f"{path}.normal_compliance.c_nu", "the compliance coefficient")
+            datacheck.check_gap((section.get("memory") or {}).get("b0"), bounds["contact"],
+                                samples, f"{path}.memory.b0", "the memory kernel's amplitude")
         u0, sigma0 = datacheck.check_initial(data.get("initial", {}), None, g, samples,
                                              data.get("contact", {}).get("direction"),
                                              geometric)

@@ -436,15 +436,15 @@ def _required(case) -> dict[str, int | None]:
         need["H"] = d * d
     if vp is not None:          # the law's m columns, checked against the State's kappa
         need["kappa"] = None    # when it is restored (_restore_fields)
-    c = case.contact
-    if c.memory is not None:
-        need["g3_xi"] = 1
-    coulomb = getattr(c.friction, "coulomb", None)
-    if c.friction is not None and (c.friction.slip is not None
-                                   or coulomb is not None and coulomb.mu_k is not None):
-        need["g3_slip_s"] = 1
-    if coulomb is not None:
-        need["g3_coulomb_p"] = 1
+    for c in case.contact.sections:        # the contact section, or each pair's laws
+        if c.memory is not None:
+            need["g3_xi"] = 1
+        coulomb = getattr(c.friction, "coulomb", None)
+        if c.friction is not None and (c.friction.slip is not None
+                                       or coulomb is not None and coulomb.mu_k is not None):
+            need["g3_slip_s"] = 1
+        if coulomb is not None:
+            need["g3_coulomb_p"] = 1
     return need
 
 
@@ -520,7 +520,7 @@ class Checkpoint:
                                                  f"not {cols}")
         self._check_time(case)
         mem = self.meta["memory"]
-        if (mem is None) != (case.contact.memory is None):
+        if (mem is None) != all(c.memory is None for c in case.contact.sections):
             raise CheckpointError(self.path, "meta: memory does not match the case's memory term")
         stored = self.arrays["g3_mem_r_v"].shape[1] if "g3_mem_r_v" in self.arrays else 0
         if mem is not None and stored != len(mem["t_prev"]):

@@ -342,7 +342,7 @@ class FieldWriter:
         self.comm.barrier()
 
 
-def classify(data: dict, g: float | None, compliance: bool = True) -> np.ndarray:
+def classify(data: dict, g: float | None, compliance: bool | tuple = True) -> np.ndarray:
     """Node state from the columns of the contact table: 'bound' (u_nu = g), 'compliance'
     (0 < u_nu < g), 'separated' (u_nu <= 0), 'prescribed' (the Dirichlet data fix u_nu).
 
@@ -358,11 +358,14 @@ def classify(data: dict, g: float | None, compliance: bool = True) -> np.ndarray
         g: the bound of the unilateral constraint (None: no bound; an expression: the
             table's column g).
         compliance: the foundation has a normal compliance (else a node below its bound is
-            'separated': the unilateral bound alone, Signorini contact).
+            'separated': the unilateral bound alone, Signorini contact); with laws per
+            pair, one per pair (a tuple, read through the table's column ``pair``).
 
     Returns:
         The state of each node (an object array of strings).
     """
+    if isinstance(compliance, tuple):      # laws per pair
+        compliance = np.asarray(compliance, dtype=bool)[np.asarray(data["pair"], dtype=int)]
     u_nu = data["u_nu"]
     u_cols = [v for k, v in data.items() if k.startswith("u_") and k not in ("u_nu",)]
     u_scale = max((float(np.abs(v).max(initial=0.0)) for v in u_cols), default=0.0)

@@ -38,7 +38,8 @@ class CoulombPressure:
 
     Args:
         problem: the ContactProblem (u, the Gamma3 nodes, frames and weights).
-        mu: the friction coefficient (mu_s of the static/kinetic law).
+        mu: the friction coefficient (mu_s of the static/kinetic law); with laws per pair,
+            its value at each local Gamma3 node (0 at the nodes of pairs without Coulomb).
         field: a NodalField of the Gamma3 nodes (scratch: p_n's ghost values).
     """
 
@@ -95,8 +96,8 @@ class CoulombPressure:
         raise StepSolveError(
             f"Coulomb friction: the fixed point on the contact pressure p_n did not converge "
             f"in {MAX_ITERATIONS} iterations (max|p^(i+1) - p^(i)| = {change:.3e} > "
-            f"{TOL:g} max p_n = {TOL * scale:.3e}; mu = {self.mu:g} may be too large for "
-            "the fixed point)")
+            f"{TOL:g} max p_n = {TOL * scale:.3e}; mu = {np.max(self.mu):g} may be too "
+            "large for the fixed point)")
 
     def state(self) -> dict:
         """Returns: {"p": a copy of p_n (m,)}."""

@@ -147,6 +147,39 @@ class SlipSum:
         return self.law.theta(self.s)
 
 
+class NodewiseSlip:
+    """theta(s) of pairs with different laws: each pair's slip law on its nodes, 1 on the
+    nodes of pairs without one.
+
+    Args:
+        m: the number of nodes.
+        parts: (rows, law) per pair with a slip law (a boolean mask over the m nodes, and
+            its ``SlipWeakening``, ``TableSlip`` or ``StaticKineticSlip``).
+    """
+
+    def __init__(self, m: int, parts: list):
+        self.m, self.parts = m, parts
+
+    @property
+    def theta_max(self) -> float:
+        """The largest theta of the pairs' laws (1 on the nodes of pairs without one)."""
+        return max([1.0] + [law.theta_max for _, law in self.parts])
+
+    def theta(self, s):
+        """theta(s) node by node.
+
+        Args:
+            s: the accumulated slip s_n at the m nodes.
+
+        Returns:
+            theta(s_n), shape (m,).
+        """
+        out = np.ones(self.m)
+        for rows, law in self.parts:
+            out[rows] = law.theta(np.asarray(s)[rows])
+        return out
+
+
 # ----------------------------------------------------------------------------- wiring
 class NodalField:
     """A P1 scalar Function whose values at the Gamma3 nodes (given as nodes of the vector
@@ -190,13 +223,17 @@ class Gamma3History:
         b0: b0(x) at the local Gamma3 nodes for a kernel b(t, x) = b0(x) b(t) whose own
             factor is 1 (xi_n sums k_j b(t_n - t_{j-1}) b0(x) u_{j-1,nu}^+), or None.
         mu: the Coulomb friction coefficient (the factor theta is then mu p_n, times
-            theta(s_n) with slip; app/model/coulomb.py), or None.
+            theta(s_n) with slip; app/model/coulomb.py), or None; with laws per pair, mu
+            at the local Gamma3 nodes.
+        coulomb_rows: with laws per pair, the nodes whose pair has Coulomb friction (a
+            boolean mask; theta is theta(s_n) or 1 at the others), or None: all.
     """
 
     def __init__(self, problem, kernel: MemoryKernel | None = None,
                  slip: SlipWeakening | None = None, recursion: bool | None = None,
-                 b0: np.ndarray | None = None, mu: float | None = None):
-        self.b0 = b0
+                 b0: np.ndarray | None = None, mu: float | np.ndarray | None = None,
+                 coulomb_rows: np.ndarray | None = None):
+        self.b0, self.coulomb_rows = b0, coulomb_rows
         self.problem = problem
         self.nodes = problem.gamma3_local_nodes
         self.normal = problem.frames.normal          # (m, d): nu_i at the nodes
@@ -219,8 +256,13 @@ class Gamma3History:
             self._set_coulomb(mu * self.coulomb.p)
 
     def _set_coulomb(self, mu_p: np.ndarray) -> None:
-        """theta = mu p_n (times theta(s_n) with slip) at the nodes."""
-        self.theta.set(mu_p if self.slip is None else mu_p * self.slip.theta())
+        """theta = mu p_n (times theta(s_n) with slip) at the nodes (with laws per pair:
+        at the nodes of Coulomb's pairs; theta(s_n) or 1 at the others)."""
+        theta = None if self.slip is None else self.slip.theta()
+        bound = mu_p if theta is None else mu_p * theta
+        if self.coulomb_rows is not None:
+            bound = np.where(self.coulomb_rows, bound, 1.0 if theta is None else theta)
+        self.theta.set(bound)
 
     def solve(self, solver) -> int:
         """Step n's solve: the Coulomb fixed point on p_n (``CoulombPressure.solve``), else
@@ -294,24 +336,83 @@ def build_gamma3_history(case, problem) -> Gamma3History | None:
         A Gamma3History, or None.
     """
     c = case.contact
-    kernel = slip = recursion = b0 = None
+    if len(c.sections) > 1:
+        return _pair_history(c, problem)
+    kernel = recursion = b0 = None
     if c.memory is not None:
         mk = c.memory
         if isinstance(mk.b0, str):          # b(t, x) = b0(x) times the kernel of factor 1
             x = problem.V.tabulate_dof_coordinates()[problem.gamma3_local_nodes,
                                                      :problem.dim]
             b0 = space_field(mk.b0, x)
-        kernel = memory_kernel(mk.kernel, 1.0 if b0 is not None else mk.b0, beta=mk.beta,
-                               alpha=mk.alpha or 1.0, tau=mk.tau or 1.0, table=mk.table)
-        if b0 is not None:
-            kernel = FieldKernel(kernel, mk.b0)
+        kernel = section_kernel(mk)
         recursion = None if mk.sum == "auto" else mk.sum == "recursion"
-    if c.friction is not None and c.friction.slip is not None:
-        slip = slip_law(c.friction.slip)
+    slip = section_slip(c.friction)
     coulomb = getattr(c.friction, "coulomb", None)
     mu = coulomb.mu if coulomb is not None else None
-    if coulomb is not None and coulomb.mu_k is not None:    # mu(s) = mu_s theta(s)
-        slip = StaticKineticSlip(coulomb.mu, coulomb.mu_k, coulomb.slip_length)
     if kernel is None and slip is None and mu is None:
         return None
     return Gamma3History(problem, kernel, slip, recursion, b0, mu)
+
+
+def section_kernel(mk) -> MemoryKernel:
+    """The kernel b(t) of a memory section: b0 b(t), or for b0(x) the kernel of factor 1
+    describing itself with the expression (``FieldKernel``).
+
+    Args:
+        mk: the case's Memory (contact.memory, or a pair's).
+
+    Returns:
+        The kernel.
+    """
+    field = isinstance(mk.b0, str)
+    kernel = memory_kernel(mk.kernel, 1.0 if field else mk.b0, beta=mk.beta,
+                           alpha=mk.alpha or 1.0, tau=mk.tau or 1.0, table=mk.table)
+    return FieldKernel(kernel, mk.b0) if field else kernel
+
+
+def section_slip(fr):
+    """theta(s) of a friction section: its slip law, mu(s) / mu_s of Coulomb's
+    static/kinetic law, or None.
+
+    Args:
+        fr: the case's Friction (contact.friction, or a pair's), or None.
+
+    Returns:
+        A SlipWeakening, TableSlip or StaticKineticSlip, or None.
+    """
+    coulomb = getattr(fr, "coulomb", None)
+    if coulomb is not None and coulomb.mu_k is not None:    # mu(s) = mu_s theta(s)
+        return StaticKineticSlip(coulomb.mu, coulomb.mu_k, coulomb.slip_length)
+    if fr is not None and fr.slip is not None:
+        return slip_law(fr.slip)
+    return None
+
+
+def _pair_history(c, problem) -> Gamma3History | None:
+    """The history terms of pairs with different laws (``Contact.sections``), node by node:
+    xi_n with one kernel of factor 1 and b0 of each pair's memory term at its nodes (0
+    without), theta(s_n) of each pair's slip law (``NodewiseSlip``), mu of each pair's
+    Coulomb friction (mu_s of the static/kinetic law)."""
+    pair = problem.pairs.pair                  # the pair of each local Gamma3 node
+    m = len(pair)
+    x = problem.V.tabulate_dof_coordinates()[problem.gamma3_local_nodes, :problem.dim]
+    kernel = recursion = None
+    b0, mu, coulomb_rows, slips = np.zeros(m), np.zeros(m), np.zeros(m, dtype=bool), []
+    for i, section in enumerate(c.sections):
+        rows = pair == i
+        mk, fr = section.memory, section.friction
+        if mk is not None:
+            b0[rows] = space_field(mk.b0, x[rows]) if isinstance(mk.b0, str) else mk.b0
+            kernel = memory_kernel(mk.kernel, 1.0, beta=mk.beta, alpha=mk.alpha or 1.0,
+                                   tau=mk.tau or 1.0, table=mk.table)
+            recursion = None if mk.sum == "auto" else mk.sum == "recursion"
+        if fr is not None and fr.coulomb is not None:
+            mu[rows], coulomb_rows[rows] = fr.coulomb.mu, True
+        if section_slip(fr) is not None:
+            slips.append((rows, section_slip(fr)))
+    slip = NodewiseSlip(m, slips) if slips else None
+    if kernel is None and slip is None and not coulomb_rows.any():
+        return None
+    return Gamma3History(problem, kernel, slip, recursion, b0 if kernel is not None else None,
+                         mu if coulomb_rows.any() else None, coulomb_rows)

@@ -140,10 +140,10 @@ class ContactProblem:
         self.xi = self.theta = None
         c = case.contact
         if c.active:
-            if c.memory is not None:
+            if any(s.memory is not None for s in c.sections):
                 self.xi = NodalField(self.V, self.gamma3_local_nodes, "xi")
-            if c.friction is not None and (c.friction.slip is not None
-                                           or getattr(c.friction, "coulomb", None) is not None):
+            if any(s.friction is not None and (s.friction.slip is not None or s.friction.coulomb
+                                               is not None) for s in c.sections):
                 self.theta = NodalField(self.V, self.gamma3_local_nodes, "theta")
                 self.theta.function.x.array[:] = 1.0
         # two bodies: the Gamma3 terms act on w, the relative displacement less the
@@ -224,7 +224,7 @@ class ContactProblem:
         if self.w is None:
             return build_step_forms(self.u, bulk, self._contact_data() if c.active else None)
         forms = build_step_forms(self.u, bulk, None)
-        *self.pair_forms, terms = build_boundary_forms(self.w, self._contact_data())
+        *self.pair_forms, terms = build_boundary_forms(self.w, self._pair_contact_data())
         forms.terms += terms
         return forms
 
@@ -276,6 +276,34 @@ class ContactProblem:
         except ValueError as e:
             raise CaseError(f"{self.case.source}: {e}") from None
 
+    def section_laws(self, const=None, x=None) -> list[ContactLaw]:
+        """The contact laws of each set of laws of the run (``Contact.sections``: one, or
+        one per pair where the pairs' laws differ), as ``contact_law`` builds them.
+
+        Args:
+            const: (name, value) -> the parameter (the forms' Constants; a pair's are
+                named "pairs[i].<name>", delta is shared); None: numbers.
+            x: where a parameter of x, y, z is evaluated, or None.
+
+        Returns:
+            The ContactLaws in the order of ``Contact.sections``.
+
+        Raises:
+            CaseError: a replacement the case's contact section cannot take.
+        """
+        sections = self.case.contact.sections
+        if len(sections) == 1:
+            return [self.contact_law(const, x)]
+        out = []
+        for i, section in enumerate(sections):
+            named = None if const is None else (
+                lambda name, value, i=i: _shared_delta(const, name, value) if name == "delta"
+                else const(f"pairs[{i}].{name}", value))
+            out.append(replace_laws(contact_law(section, self.case.numerics.delta, named,
+                                                x if varies_in_space(section) else None),
+                                    self.contact_replacements))
+        return out
+
     def _contact_data(self) -> ContactData:
         """The Gamma3 part of J_n: the normal field and the laws' parameters."""
         c = self.case.contact
@@ -285,6 +313,27 @@ class ContactProblem:
             self.ds_c, self._normal_ufl(), law=law,
             theta=self.theta.function if self.theta else None,
             xi=self.xi.function if self.xi else None)
+
+    def _pair_contact_data(self) -> list[ContactData]:
+        """The Gamma3 part of J_n of two bodies: one ContactData, or with laws per pair one
+        per pair on its surface's facets (the factors xi, theta only where its laws have
+        them)."""
+        sections = self.case.contact.sections
+        if len(sections) == 1:
+            return [self._contact_data()]
+        c, ft, nu = self.case.numerics, self.body.facet_tags, self._normal_ufl()
+        x = ufl.SpatialCoordinate(self.mesh)
+        out = []
+        for pair, section, law in zip(self.case.contact.pairs, sections,
+                                      self.section_laws(self.constants, x)):
+            fr = section.friction
+            out.append(ContactData(
+                gamma3_measure(self.mesh, ft, (self.tags[pair.surface],), c.quadrature,
+                               c.gauss_degree), nu, law=law,
+                theta=self.theta.function if fr is not None and (
+                    fr.slip is not None or fr.coulomb is not None) else None,
+                xi=self.xi.function if section.memory is not None else None))
+        return out
 
     def _normal_ufl(self):
         """nu in the forms: a constant vector where every Gamma3 node has the same normal
@@ -484,6 +533,12 @@ class ContactProblem:
             return True
         ok = self.implicit_update.trial(self, self.k)
         return ok if self.comm.size == 1 else self.comm.allreduce(ok, op=MPI.LAND)
+
+
+def _shared_delta(const, name: str, value):
+    """The one Constant delta of every pair's laws (the delta continuation of SNES VI
+    changes it: app/solvers/snesvi.py)."""
+    return const[name] if name in const else const(name, value)
 
 
 # The discretisation's attributes, read through the step problem (its callers use both).

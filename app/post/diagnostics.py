@@ -410,12 +410,14 @@ def diagnose(problem, solver=None) -> Diagnostics:
     rate, lipschitz, estimate, source = _law_rate(problem)
     indicator = k_max * rate if rate is not None else \
         (k_max * estimate if estimate is not None else None)
-    fr = case.contact.friction
     m_E = ellipticity(elasticity)
-    m_j = friction_constant(case, problem.contact_law().friction) if fr else 0.0
+    # m_j: the largest of the laws' (one set, or one per pair)
+    fr = [friction_constant(case, law.friction, c) for c, law in
+          zip(case.contact.sections, problem.section_laws()) if c.friction is not None]
+    m_j = None if None in fr else max(fr, default=0.0)
     gamma2 = margin = unique = None
     is_bound = False
-    if fr is not None and m_j is not None:     # None: a user's law that states no m_j
+    if fr and m_j is not None:     # None: a user's law that states no m_j
         bound = trace_constant_bound(problem, solver) if solver is not None else None
         if bound is not None and m_E - m_j * bound > 0:
             gamma2, is_bound = bound, True
@@ -483,21 +485,24 @@ def state_rate(problem, t: np.ndarray, eps: np.ndarray | None = None) -> float |
     return max((e for e in found if e is not None), default=None)
 
 
-def friction_constant(case, friction=None) -> float | None:
+def friction_constant(case, friction=None, section=None) -> float | None:
     """m_j of (2.6): the friction law's ``m_j`` times the slip law's ``theta_max``.
 
     Args:
         case: the Case (its contact section has friction).
         friction: the run's friction law (a law given through the Python API states its
             ``m_j``; one that does not is taken at the case's), or None: the case's.
+        section: the set of laws (``Contact.sections``: a pair's own), or None: the
+            case's contact section.
 
     Returns:
         m_j, or None: the case's friction law is written by the user and states none.
     """
     from vpcontact.model.contact_laws import friction_law, slip_law
+    section = case.contact if section is None else section
     if getattr(friction, "m_j", None) is None:
-        friction = friction_law(case.contact.friction)
+        friction = friction_law(section.friction)
     if friction.m_j is None:            # a law written by the user that states no m_j
         return None
-    slip = case.contact.friction.slip
+    slip = section.friction.slip
     return friction.m_j * (1.0 if slip is None else slip_law(slip).theta_max)

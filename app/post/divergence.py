@@ -55,10 +55,19 @@ def contact_scale(case, E_max: float, length: float, gap: float | None = None) -
     Returns:
         The largest of these levels.
     """
-    c = case.contact
-    g = gap if gap is not None else (c.g if c.g is not None else 0.0)
+    top = case.contact
+    g = gap if gap is not None else (top.g if top.g is not None else 0.0)
     values = [E_max * g / length]
-    r = g if c.g is not None else length
+    r = g if top.g is not None else length
+    for c in top.sections:          # the contact section, or each pair's laws
+        values += _law_levels(c, case.time.T, r)
+    return max(values)
+
+
+def _law_levels(c, T: float, r: float) -> list[float]:
+    """The stress levels of one set of contact laws (``contact_scale``) at the normal
+    displacement r (the gap, or the length without one)."""
+    values = []
     if isinstance(c.c_nu, float):       # p(r) = c_nu r^m (a field c_nu(x): not known here)
         values.append(c.c_nu * r ** (c.compliance_m or 1.0))
     if c.compliance_table is not None:
@@ -67,14 +76,14 @@ def contact_scale(case, E_max: float, length: float, gap: float | None = None) -
         b = abs(c.memory.b0 or 0.0) if not isinstance(c.memory.b0, str) else 0.0
         if c.memory.table:
             b = max(b, float(np.max(np.abs(np.asarray(c.memory.table, dtype=float)[:, 1]))))
-        values.append(b * case.time.T * (g if c.g is not None else length))
+        values.append(b * T * r)
     if c.friction is not None and c.friction.python is None and \
             getattr(c.friction, "coulomb", None) is None:
         # a user's law: not known; Coulomb's bound mu p_n: of the normal laws' scale
         fr = c.friction
         values += [abs(tau) for _, tau in fr.table] if fr.table is not None else \
             [abs(fr.b), abs(fr.c1 * fr.u1), abs(fr.c2 * fr.u1)]
-    return max(values)
+    return values
 
 
 def stress_scale(case, problem) -> float:

@@ -63,19 +63,35 @@ def law_report(problem, gamma3_history=None) -> dict:
         kappa0 = getattr(vp, "kappa0", None) if vp is not None else None
         if kappa0 is not None:
             out["viscoplastic"]["kappa0"] = _value(kappa0)
-    if case.contact.active:
-        laws = problem.contact_law()        # the case's, with the API's replacements
-        h = gamma3_history
-        out["contact"] = {
-            "normal": _entry(laws.normal), "memory": _entry(laws.memory),
-            "friction": _entry(laws.friction),
-            "memory_kernel": _entry(h.memory.kernel) if h is not None and h.memory else None,
-            "slip": _entry(h.slip.law) if h is not None and h.slip else None,
-            "g": None if case.contact.g is None else _value(case.contact.g)}
-        fr = case.contact.friction
-        if getattr(fr, "coulomb", None) is not None and \
-                "friction" not in problem.contact_replacements:
-            out["contact"]["friction"] = _coulomb_entry(fr.coulomb)
+    if not case.contact.active:
+        return out
+    sections = case.contact.sections
+    laws = problem.section_laws()       # the case's, with the API's replacements
+    if len(sections) == 1:
+        out["contact"] = _contact_entry(problem, sections[0], laws[0], gamma3_history)
+        out["contact"]["g"] = None if case.contact.g is None else _value(case.contact.g)
+    else:                               # laws per pair
+        out["contact"] = {"g": None, "pairs": [_contact_entry(problem, c, law, None)
+                                               for c, law in zip(sections, laws)]}
+    return out
+
+
+def _contact_entry(problem, section, laws, h) -> dict:
+    """{"normal", "memory", "friction", "memory_kernel", "slip"} of one set of contact
+    laws; the kernel and theta(s) are the Gamma3 history's ``h`` (None: the section's)."""
+    from vpcontact.model.gamma3 import section_kernel, section_slip
+    mk = section.memory
+    kernel = h.memory.kernel if h is not None and h.memory else \
+        section_kernel(mk) if h is None and mk is not None else None
+    slip = h.slip.law if h is not None and h.slip else \
+        section_slip(section.friction) if h is None else None
+    out = {"normal": _entry(laws.normal), "memory": _entry(laws.memory),
+           "friction": _entry(laws.friction), "memory_kernel": _entry(kernel),
+           "slip": _entry(slip)}
+    fr = section.friction
+    if getattr(fr, "coulomb", None) is not None and \
+            "friction" not in problem.contact_replacements:
+        out["friction"] = _coulomb_entry(fr.coulomb)
     return out
 
 
@@ -134,13 +150,18 @@ def law_lines(report: dict, diagnostics=None) -> list[str]:
     if contact is None:
         lines.append("contact laws: none (no contact section)")
         return lines
-    for key in ("normal", "memory", "memory_kernel", "friction", "slip"):
-        if contact.get(key) is not None:
-            text = _constants_text(contact[key])
-            if key == "friction" and d is not None:
-                text += f"; m_j = {d.m_j:g} N/m^3" if d.m_j is not None else \
-                    "; m_j: not stated by the law (no (2.6) margin)"
-            lines.append(f"contact: {text}")
+    pairs = contact.get("pairs")
+    for where, entry in ([("contact", contact)] if pairs is None else
+                         [(f"contact pair {i}", e) for i, e in enumerate(pairs)]):
+        for key in ("normal", "memory", "memory_kernel", "friction", "slip"):
+            if entry.get(key) is not None:
+                text = _constants_text(entry[key])
+                if key == "friction" and d is not None:
+                    text += f"; m_j = {d.m_j:g} N/m^3" if d.m_j is not None else \
+                        "; m_j: not stated by the law (no (2.6) margin)"
+                lines.append(f"{where}: {text}")
+        if pairs is not None and not any(entry.get(k) for k in ("normal", "friction")):
+            lines.append(f"{where}: hard contact [u]_nu <= d + g, frictionless")
     g = contact.get("g")
     if g is not None:
         lines.append("contact: unilateral constraint u_nu <= g, g = "

@@ -130,14 +130,15 @@ def contact_table(problem, r: np.ndarray | None = None) -> dict[str, np.ndarray]
         table[f"neg_sigma_tau{sfx}"] = f_tau[:, k]
     if problem.xi is not None:
         table["xi"] = problem.xi.function.x.array[problem.xi.dofs[pos]]
-    coulomb = getattr(problem.case.contact.friction, "coulomb", None) is not None
-    if problem.theta is not None and not coulomb:
-        table["theta"] = problem.theta.function.x.array[problem.theta.dofs[pos]]
-    if coulomb:     # theta holds the bound mu p_n (theta(s_n)): slip where it is reached
-        bound = problem.theta.function.x.array[problem.theta.dofs[pos]]
-        table["friction_bound"] = bound
-        table["slip_state"] = (np.linalg.norm(f_tau, axis=1) >= (1 - SLIP_RATIO) * bound
-                               ).astype(float)
+    coulomb = coulomb_nodes(problem, pos)
+    theta = None if problem.theta is None else \
+        problem.theta.function.x.array[problem.theta.dofs[pos]]
+    if theta is not None and not coulomb.all():     # (laws per pair: not at Coulomb's nodes)
+        table["theta"] = np.where(coulomb, np.nan, theta)
+    if coulomb.any():  # theta holds the bound mu p_n (theta(s_n)): slip where it is reached
+        table["friction_bound"] = np.where(coulomb, theta, np.nan)
+        slip = np.linalg.norm(f_tau, axis=1) >= (1 - SLIP_RATIO) * theta
+        table["slip_state"] = np.where(coulomb, slip.astype(float), np.nan)
     if isinstance(problem.case.contact.g, str) or problem.pairs is not None:
         table["g"] = fr.g[pos]
     if problem.pairs is not None:      # two bodies: the pair and the initial distance d
@@ -147,6 +148,24 @@ def contact_table(problem, r: np.ndarray | None = None) -> dict[str, np.ndarray]
     # a support's reaction, not a contact pressure
     table["_prescribed"] = ~fr.bounded[pos]
     return table
+
+
+def coulomb_nodes(problem, pos: np.ndarray) -> np.ndarray:
+    """Which Gamma3 nodes have Coulomb friction (every node or none, but with laws per
+    pair: the nodes of the pairs whose laws have it).
+
+    Args:
+        problem: the ContactProblem.
+        pos: the nodes' positions in the frames' order.
+
+    Returns:
+        A boolean mask, shape (len(pos),).
+    """
+    has = [s.friction is not None and s.friction.coulomb is not None
+           for s in problem.case.contact.sections]
+    if len(has) == 1:
+        return np.full(len(pos), has[0])
+    return np.asarray(has)[problem.pairs.pair[pos]]
 
 
 def forces(problem, r: np.ndarray | None = None) -> dict:

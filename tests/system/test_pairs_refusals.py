@@ -4,8 +4,9 @@ bodies share no node):
 
 - the case-level rules (app/case/pairrules.py): the built-in mesh, contact.g,
   contact.direction, boundaries.contact, surface = target, a group that is another pair's
-  surface, clamped or loaded pair groups, different laws in two pairs, laws in a pair and
-  in the contact section, quadrature gauss, a target group the mesh lacks;
+  surface, clamped or loaded pair groups, different laws in two pairs of which one is
+  written in Python, memory kernels of two shapes, a pair's own law that breaks a rule of
+  the contact section (named in the pair), quadrature gauss, a target group the mesh lacks;
 - the mesh-level ones (app/model/pairs.py, built by check): nodes projecting outside the
   target, surfaces that do not face each other, an initial interpenetration;
 - the report of a valid pair: nodes, target facets, d, g, nodes touching.
@@ -72,11 +73,11 @@ def _second_pair(raw, **laws):
     raw["contact"]["pairs"].append({"surface": "upper_right", "target": "lower_right", **laws})
 
 
-def _laws_in_pairs(raw, c1, c2):
+def _laws_in_pairs(raw, c1: dict, c2: dict):
     """Normal compliance c1 in the first pair, c2 in a second one, none in contact."""
     raw["contact"].pop("normal_compliance")
-    raw["contact"]["pairs"][0]["normal_compliance"] = {"c_nu": c1}
-    _second_pair(raw, normal_compliance={"c_nu": c2})
+    raw["contact"]["pairs"][0]["normal_compliance"] = c1
+    _second_pair(raw, normal_compliance=c2)
 
 
 def _surface_lower_bottom(raw):
@@ -85,6 +86,12 @@ def _surface_lower_bottom(raw):
     raw["contact"]["pairs"][0]["surface"] = "lower_bottom"
     raw["boundaries"]["clamped"] = ["lower_left"]
     raw["loads"]["displacement"].pop("lower_left")
+
+
+def _held_by_contact(raw):
+    """The upper block pressed by a pressure on its top: held vertically by the pair only."""
+    raw["loads"]["displacement"].pop("upper_top")
+    raw["loads"]["pressure"] = {"upper_top": 1.0}
 
 
 def _builtin_mesh(raw):
@@ -111,12 +118,16 @@ CASE_RULES = [  # (change of the case, the key the message names, words it holds
      "boundaries.clamped"),
     (lambda r: r["loads"]["displacement"].update(lower_top=[0.0, None]),
      "contact.pairs[0].surface", "carries a load"),
-    (lambda r: _laws_in_pairs(r, 500.0, 100.0), "contact.pairs[*].normal_compliance",
-     "different normal_compliance laws"),
-    (lambda r: r["contact"]["pairs"][0].update(normal_compliance={"c_nu": 500.0}),
-     "contact.pairs[*].normal_compliance", "also given in contact.normal_compliance"),
+    (lambda r: _laws_in_pairs(r, {"law": "python", "class": "P"}, {"c_nu": 100.0}),
+     "contact.pairs[0].normal_compliance", "law: python serves every pair or none"),
+    (lambda r: _second_pair(r, memory={"b0": 1.0, "beta": 2.0}) or
+     r["contact"]["pairs"][0].update(memory={"b0": 2.0, "beta": 1.0}),
+     "contact.pairs[1].memory.beta", "share the kernel"),
+    (lambda r: _second_pair(r, friction={"b": 0.1, "c1": 1.0, "c2": 1.0, "u1": 1.0}),
+     "contact.pairs[1].friction", "b - c1 u1 must be >= 0"),
     (lambda r: r.update(solver={"quadrature": "gauss"}), "solver.quadrature", "vertex"),
-    (lambda r: r.update(solver={"method": "condensed"}), "solver.method", "SNES VI only"),
+    (lambda r: _held_by_contact(r) or r.update(solver={"method": "condensed"}),
+     "solver.method", "a body's rigid motion is held only by a contact pair"),
     (lambda r: r["contact"]["pairs"][0].update(target="upper_middle"),
      "contact.pairs[0].target",
      "names: lower_bottom, lower_left, lower_right, lower_top, upper_bottom"),

@@ -4,8 +4,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from vpcontact.model.contact_laws import SlipWeakening
-from vpcontact.model.gamma3 import MemorySum, SlipSum, build_gamma3_history
+from vpcontact.model.contact_laws import SlipWeakening, StaticKineticSlip
+from vpcontact.model.gamma3 import MemorySum, NodewiseSlip, SlipSum, build_gamma3_history
 from vpcontact.model.memory_kernels import memory_kernel
 
 
@@ -119,7 +119,9 @@ def _problem(u_nodes, normal):
 
 def _case(memory=None, slip=None):
     friction = SimpleNamespace(b=1.0, c1=60.0, c2=60.0, u1=0.01, slip=slip)
-    return SimpleNamespace(contact=SimpleNamespace(memory=memory, friction=friction))
+    contact = SimpleNamespace(memory=memory, friction=friction)
+    contact.sections = (contact,)            # one set of laws (Contact.sections)
+    return SimpleNamespace(contact=contact)
 
 
 def test_history_built_from_the_case_laws():
@@ -144,3 +146,18 @@ def test_history_built_from_the_case_laws():
     memory.sum, memory.kernel = "direct", "exponential"
     direct = build_gamma3_history(_case(memory, None), _problem(u, [[0.0, -1.0]] * 2))
     assert not direct.memory.recursion and direct.slip is None
+
+
+def test_nodewise_slip_of_pairs_with_different_laws():
+    """Laws per pair: theta(s) of each pair's law on its nodes, 1 on the nodes of a pair
+    without one; theta_max the largest (closed forms of the two laws)."""
+    s = np.array([0.0, 0.02, 0.5, 0.1, 3.0])
+    first = np.array([True, True, False, False, False])
+    second = np.array([False, False, True, True, False])
+    theta = NodewiseSlip(5, [(first, SlipWeakening(0.4, 0.01)),
+                             (second, StaticKineticSlip(0.5, 0.3, 0.2))]).theta(s)
+    expected = [1.0, 0.4 + 0.6 * np.exp(-2.0),       # theta_inf + (1 - theta_inf) e^(-s/s0)
+                0.3 / 0.5, 1.0 - (1.0 - 0.3 / 0.5) * 0.5,   # mu(s) / mu_s, past and within L
+                1.0]                                 # no slip law
+    assert np.allclose(theta, expected, rtol=1e-14)
+    assert NodewiseSlip(5, [(first, SlipWeakening(0.4, 0.01))]).theta_max == 1.0
