@@ -186,3 +186,21 @@ def test_restart_with_laws_per_pair(tmp_path):
     (s1, a), (s2, b) = contact_rows(full), contact_rows(again)
     assert s1 == s2 and np.isnan(a).any()          # NaN: columns of the other pair's laws
     assert np.allclose(a, b, rtol=0.0, atol=1e-12 * np.nanmax(np.abs(a)), equal_nan=True)
+
+
+def test_mpirun_equals_serial_with_laws_per_pair(tmp_path):
+    """mpirun -n 2 equals the serial run (contact.csv, 1e-10 of its largest value): the
+    pairs' laws at the ranks' nodes (owned and ghost) by the node's pair."""
+    import yaml
+
+    from conftest import cli_in_process, contact_rows, run_cli
+    case = tmp_path / "laws.yaml"
+    case.write_text(yaml.safe_dump(_stack({"friction": {"coulomb": {"mu": 0.2}}},
+                                          {"friction": {"coulomb": {"mu": 0.4}}}, N=3)))
+    serial, parallel = tmp_path / "serial", tmp_path / "parallel"
+    assert cli_in_process(["run", case, "--out", serial, "--no-plots"]) == 0
+    proc = run_cli(["run", case, "--out", parallel, "--quiet"], nprocs=2)
+    assert proc.returncode == 0, proc.stderr
+    (s1, a), (s2, b) = contact_rows(serial), contact_rows(parallel)
+    assert s1 == s2
+    assert np.allclose(a, b, rtol=0.0, atol=1e-10 * np.nanmax(np.abs(a)), equal_nan=True)
