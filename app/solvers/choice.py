@@ -2,10 +2,11 @@
 at import time, so case validation can ask ``condensed_eligible``.
 
 ``condensed_eligible`` is the rule of the condensed solver (app/solvers/condensed/): the bulk
-problem of a step must be linear (explicit history scheme) and every Gamma3 term a sum of
-nodal energies (vertex quadrature).  ``choose_method`` resolves ``solver.method`` (the Case
-holds ``condensed`` where a file gives ``fast``, its former name: app/case/model.py),
-``choose_linear`` SNES VI's ``solver.linear``.
+problem of a step must be linear (explicit history scheme), every Gamma3 term a sum of
+nodal energies (vertex quadrature), and with two bodies (contact pairs) every rigid motion
+held by Dirichlet data (the bulk stiffness it factorises has no contact term).
+``choose_method`` resolves ``solver.method`` (the Case holds ``condensed`` where a file gives
+``fast``, its former name: app/case/model.py), ``choose_linear`` SNES VI's ``solver.linear``.
 """
 from __future__ import annotations
 
@@ -20,11 +21,14 @@ AUTO_FAST_MAX_GAMMA3_DOFS = 6000
 AUTO_AMG_MIN_DOFS = 20_000
 
 
-def condensed_eligible(case) -> tuple[bool, str]:
+def condensed_eligible(case, problem=None) -> tuple[bool, str]:
     """Can the condensed step solver solve this case?
 
     Args:
         case: the case.
+        problem: its ContactProblem, or None: the case's rules only.  With it, also the
+            rule of the mesh: two bodies need every rigid motion held by Dirichlet data
+            (``held_by_contact``).
 
     Returns:
         (eligible, why not: "" when eligible).
@@ -33,29 +37,78 @@ def condensed_eligible(case) -> tuple[bool, str]:
         return False, "the implicit history variant makes the bulk problem nonlinear"
     if case.numerics.quadrature != "vertex" and case.contact.active:
         return False, "the condensed solver needs the nodal (vertex) Gamma3 quadrature"
-    if case.contact.pairs:
-        return False, "contact.pairs (two bodies) are solved by SNES VI only, so far"
+    if problem is not None and case.contact.pairs and held_by_contact(problem):
+        return False, ("a body's rigid motion is held only by a contact pair (the condensed "
+                       "solver factorises the bulk stiffness without the contact: singular)")
     return True, ""
 
 
-def choose_method(case, n_gamma3_dofs: int) -> str:
+def held_by_contact(problem) -> bool:
+    """Whether the Dirichlet data leave a rigid motion of a part of the body free (held
+    only by a contact pair: app/model/dirichlet.py ``check_rigid_motions``); collective.
+
+    Args:
+        problem: the ContactProblem.
+
+    Returns:
+        True if some part has a free rigid motion.
+    """
+    from vpcontact.model.dirichlet import body_parts, free_motions
+    free = free_motions(problem.V, problem.dirichlet.fixed, body_parts(problem.V))
+    return any(f.shape[1] > 0 for f in free)
+
+
+def choose_method(case, n_gamma3_dofs: int, problem=None) -> str:
     """The step solver a case runs with: ``solver.method``, and for ``auto`` the condensed
     solver where it applies (``condensed_eligible``) and its Gamma3 problem has at most
-    AUTO_FAST_MAX_GAMMA3_DOFS dofs, else SNES VI.  (``condensed`` where it does not apply
-    is refused when the case is validated.)
+    AUTO_FAST_MAX_GAMMA3_DOFS dofs (two bodies: those of G, ``condensed_dofs``), else
+    SNES VI.  (``condensed`` where the case's rules refuse it is refused when the case is
+    validated; where the mesh's rule does, here.)
 
     Args:
         case: the validated Case.
         n_gamma3_dofs: the global number of Gamma3 dofs (nodes times dimension).
+        problem: the ContactProblem (collective then), or None: the case's rules only.
 
     Returns:
         "condensed" or "snes_vi".
+
+    Raises:
+        CaseError: ``condensed`` given for a case whose mesh rule refuses it.
     """
     method = case.numerics.method
-    if method != "auto":
+    if method == "snes_vi":
         return method
-    ok, _ = condensed_eligible(case)
+    ok, why = condensed_eligible(case, problem)
+    if method == "condensed":
+        if not ok:
+            from vpcontact.io.errors import CaseError
+            raise CaseError(f"{case.source}: solver.method: 'condensed' is not possible here: "
+                            f"{why} (allowed: snes_vi, auto)")
+        return method
+    if ok and problem is not None and case.contact.pairs:
+        n_gamma3_dofs = condensed_dofs(problem)
     return "condensed" if ok and n_gamma3_dofs <= AUTO_FAST_MAX_GAMMA3_DOFS else "snes_vi"
+
+
+def condensed_dofs(problem) -> int:
+    """The dofs of the condensed solver's G (collective): the Gamma3 dofs, and with two
+    bodies also those of the target nodes coupled to the surface nodes.
+
+    Args:
+        problem: the ContactProblem.
+
+    Returns:
+        The global number of G's nodes times the dimension.
+    """
+    import numpy as np
+    if problem.pairs is None:
+        return gamma3_dofs(problem)
+    imap = problem.V.dofmap.index_map
+    mine = np.concatenate([imap.local_to_global(problem.gamma3.nodes.astype(np.int32)),
+                           problem.pairs.cols]).astype(np.int64)
+    nodes = np.unique(np.concatenate(problem.comm.allgather(np.unique(mine))))
+    return len(nodes) * problem.dim
 
 
 def choose_linear(case, n_dofs: int) -> str:

@@ -32,12 +32,18 @@ from vpcontact.solvers.rotation import rotation_matrix
 _SUBSET = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
 
 
-class PairMap:
-    """The residual and Jacobian of the step problem of two bodies in x (module docstring).
+class PairVariables:
+    """The change of variables of two bodies (module docstring): u = P x + c, w = C x, the
+    Dirichlet dofs of x (those of u) and the bulk stiffness P^T K P.  Shared by SNES VI
+    (``PairMap``) and the condensed solver (app/solvers/condensed/pairs.py).
 
     Args:
-        problem: the ContactProblem with contact pairs (its ``pair_operators``, ``w`` and
-            ``pair_forms``).
+        problem: the ContactProblem with contact pairs (its ``pair_operators``).
+
+    Attributes:
+        R, P, C, unlift, c: the nodal rotation, P = R (I + S), C = B P, I - S and the
+            offset c (PETSc).
+        dirichlet, dirichlet_global: the owned Dirichlet dofs (local, global indices).
     """
 
     def __init__(self, problem):
@@ -48,15 +54,6 @@ class PairMap:
         self.C = ops.B.matMult(self.P)
         self.unlift = ops.unlift
         self.c = ops.c
-        self.F_bulk = fem.form(problem.forms.bulk_residual)
-        self.b_u = fem.petsc.create_vector(self.F_bulk)
-        # the Gamma3 terms on w (none with the bound alone: hard contact)
-        self.F_form = self.J_form = self.b_w = self.J_w = self.J_wx = None
-        if problem.pair_forms[0] is not None:
-            self.F_form = fem.form(problem.pair_forms[0])
-            self.J_form = fem.form(problem.pair_forms[1])
-            self.b_w = fem.petsc.create_vector(self.F_form)
-            self.J_w = fem.petsc.create_matrix(self.J_form)
         self.x_work, self.y_work = self.c.duplicate(), self.c.duplicate()
         imap = problem.V.dofmap.index_map
         n = imap.size_local * problem.dim
@@ -65,39 +62,18 @@ class PairMap:
         self.dirichlet = dofs[dofs < n].astype(PETSc.IntType)
         self.dirichlet_global = (self.dirichlet + imap.local_range[0] * problem.dim
                                  ).astype(PETSc.IntType)
-        self.K = None if problem.implicit else self._bulk_stiffness()
-        if self.J_form is not None:
-            self.J_wx = self._boundary_jacobian()
-        self.A = self._pattern()
 
-    def _bulk_stiffness(self) -> PETSc.Mat:
-        """P^T K P of the constant bulk matrix (explicit scheme), once."""
+    def bulk_stiffness(self) -> PETSc.Mat:
+        """P^T K P of the constant bulk matrix K (explicit scheme; no Dirichlet rows).
+
+        Returns:
+            A new AIJ matrix with x's layout.
+        """
         K = fem.petsc.assemble_matrix(fem.form(self.problem.forms.bulk_jacobian))
         K.assemble()
         Kx = K.PtAP(self.P)
         K.destroy()
         return Kx
-
-    def _boundary_jacobian(self, result: PETSc.Mat | None = None) -> PETSc.Mat:
-        """C^T J_w C at the current w."""
-        self.J_w.zeroEntries()
-        fem.petsc.assemble_matrix(self.J_w, self.J_form)
-        self.J_w.assemble()
-        return self.J_w.PtAP(self.C, result=result)
-
-    def _pattern(self) -> PETSc.Mat:
-        """The Newton matrix with the union of the bulk's and the contact's patterns."""
-        if self.K is not None:
-            A = self.K.copy()
-        else:
-            Ju = fem.petsc.assemble_matrix(self.problem.J_form)
-            Ju.assemble()
-            A = Ju.PtAP(self.P)
-            Ju.destroy()
-        if self.J_wx is not None:
-            A.axpy(1.0, self.J_wx, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
-        return A
 
     def to_x(self, u: PETSc.Vec, x: PETSc.Vec) -> None:
         """x = (I - S) R^T (u - c), then the Dirichlet values at their dofs.
@@ -142,6 +118,57 @@ class PairMap:
         self.P.mult(x, u.vector)
         u.vector.axpy(1.0, self.c)
         u.x.scatter_forward()
+
+    def destroy(self) -> None:
+        """Free the PETSc objects."""
+        for obj in (self.R, self.P, self.C, self.x_work, self.y_work):
+            obj.destroy()
+
+
+class PairMap(PairVariables):
+    """The residual and Jacobian of the step problem of two bodies in x (module docstring).
+
+    Args:
+        problem: the ContactProblem with contact pairs (its ``pair_operators``, ``w`` and
+            ``pair_forms``).
+    """
+
+    def __init__(self, problem):
+        super().__init__(problem)
+        self.F_bulk = fem.form(problem.forms.bulk_residual)
+        self.b_u = fem.petsc.create_vector(self.F_bulk)
+        # the Gamma3 terms on w (none with the bound alone: hard contact)
+        self.F_form = self.J_form = self.b_w = self.J_w = self.J_wx = None
+        if problem.pair_forms[0] is not None:
+            self.F_form = fem.form(problem.pair_forms[0])
+            self.J_form = fem.form(problem.pair_forms[1])
+            self.b_w = fem.petsc.create_vector(self.F_form)
+            self.J_w = fem.petsc.create_matrix(self.J_form)
+        self.K = None if problem.implicit else self.bulk_stiffness()
+        if self.J_form is not None:
+            self.J_wx = self._boundary_jacobian()
+        self.A = self._pattern()
+
+    def _boundary_jacobian(self, result: PETSc.Mat | None = None) -> PETSc.Mat:
+        """C^T J_w C at the current w."""
+        self.J_w.zeroEntries()
+        fem.petsc.assemble_matrix(self.J_w, self.J_form)
+        self.J_w.assemble()
+        return self.J_w.PtAP(self.C, result=result)
+
+    def _pattern(self) -> PETSc.Mat:
+        """The Newton matrix with the union of the bulk's and the contact's patterns."""
+        if self.K is not None:
+            A = self.K.copy()
+        else:
+            Ju = fem.petsc.assemble_matrix(self.problem.J_form)
+            Ju.assemble()
+            A = Ju.PtAP(self.P)
+            Ju.destroy()
+        if self.J_wx is not None:
+            A.axpy(1.0, self.J_wx, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+        return A
 
     def residual(self, x: PETSc.Vec, b: PETSc.Vec) -> bool:
         """F(x) = P^T F_bulk(P x + c) + C^T F_w(C x), zero at the Dirichlet dofs.
@@ -193,7 +220,7 @@ class PairMap:
 
     def destroy(self) -> None:
         """Free the PETSc objects."""
-        for obj in (self.R, self.P, self.C, self.b_u, self.b_w, self.J_w,
-                    self.x_work, self.y_work, self.K, self.J_wx, self.A):
+        super().destroy()
+        for obj in (self.b_u, self.b_w, self.J_w, self.K, self.J_wx, self.A):
             if obj is not None:
                 obj.destroy()

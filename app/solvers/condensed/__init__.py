@@ -12,6 +12,9 @@ under mpirun), and its solution y is expanded to the whole body.  Modules:
     frames.py        WorkFrames: the Gamma3 problem's coordinates and bounds
     layout.py        Gamma3Layout: the Gamma3 dofs over the ranks
     rhs.py           StepRightHandSide: F_n
+    pairs.py         two bodies (contact.pairs): the problem in x of app/solvers/pairmap.py,
+                     G = the surface nodes and the target nodes coupled to them, the
+                     coupling C_G of the contact energy (PairLayout, PairCoupling, ...)
 """
 from __future__ import annotations
 

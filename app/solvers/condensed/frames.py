@@ -70,6 +70,25 @@ class WorkFrames:
                          self.T).reshape(n * d, n * d)
 
 
+def normal_first(fr, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The nodal frames with the normal first, T_i = (nu_i, the tangents): the columns of
+    Q_i in the order (slot, the others ascending), the slot's times sign_i.
+
+    Args:
+        fr: the ContactFrames (app/model/frames.py).
+        pos: the nodes' positions in ``fr.nodes``.
+
+    Returns:
+        (T (n, d, d), the column order (n, d)).
+    """
+    Q, slot, sign = fr.Q[pos], fr.slot[pos], fr.sign[pos]
+    d = Q.shape[1]
+    order = np.argsort(np.arange(d)[None, :] != slot[:, None], axis=1, kind="stable")
+    T = np.take_along_axis(Q, order[:, None, :], axis=2)
+    T[:, :, 0] *= sign[:, None]                   # T_i = (nu_i, the tangents)
+    return T, order
+
+
 def work_frames(problem, layout) -> WorkFrames:
     """The coordinates of the Gamma3 problem, from the problem's nodal frames (collective).
 
@@ -88,10 +107,7 @@ def work_frames(problem, layout) -> WorkFrames:
     fr, n = p.frames, len(layout.g_nodes)
     pos = np.searchsorted(fr.nodes, p.gamma3.nodes)
     Q, slot, sign = fr.Q[pos], fr.slot[pos], fr.sign[pos]
-    # normal first: the columns of Q in the order (slot, the others ascending)
-    order = np.argsort(np.arange(d)[None, :] != slot[:, None], axis=1, kind="stable")
-    T = np.take_along_axis(Q, order[:, None, :], axis=2)
-    T[:, :, 0] *= sign[:, None]                   # T_i = (nu_i, the tangents)
+    T, order = normal_first(fr, pos)
     axis = np.abs(Q).max(axis=1) == 1.0            # (nodes, d): column is +-e_a
     col_axis = np.argmax(np.abs(Q), axis=1)
     fixed_nodes = p.dirichlet.fixed[p.gamma3.nodes]

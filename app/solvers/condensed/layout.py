@@ -27,15 +27,19 @@ class Gamma3Layout:
     Args:
         problem: the ContactProblem (V, gamma3: its owned nodes and weights).
         row_start: the first global row of K this rank owns.
+        nodes: this rank's owned nodes of G (None: its Gamma3 nodes; two bodies: also the
+            target nodes coupled to them, app/solvers/condensed/pairs.py).
+        weight: their nodal weights (None: those of the Gamma3 rule).
     """
 
-    def __init__(self, problem, row_start: int):
+    def __init__(self, problem, row_start: int, nodes=None, weight=None):
         self.comm, d = problem.comm, problem.dim
         self.d = d
         imap = problem.V.dofmap.index_map
-        owned_nodes = problem.gamma3.nodes
+        owned_nodes = problem.gamma3.nodes if nodes is None else nodes
         glob_nodes = imap.local_to_global(owned_nodes.astype(np.int32))
-        parts = self.comm.allgather((glob_nodes, problem.gamma3.weight))
+        parts = self.comm.allgather((glob_nodes, problem.gamma3.weight if weight is None
+                                     else weight))
         gn = np.concatenate([a for a, _ in parts])
         w = np.concatenate([b for _, b in parts])
         order = np.argsort(gn)

@@ -42,20 +42,26 @@ class Gamma3Problem:
             a parameter that varies in space (c_nu(x)) evaluated at the Gamma3 nodes in G
             order).
         rtol: relative tolerance of the projected gradient.
+        coupling: two bodies: the PairCoupling (app/solvers/condensed/pairs.py): the
+            nodal energy acts on w = C_G y at the surface nodes (``w`` their weights), y
+            the values of G; None: on y itself (one body).
     """
 
-    def __init__(self, comm, S, frames, w, law: ContactLaw, rtol: float = 1e-13):
+    def __init__(self, comm, S, frames, w, law: ContactLaw, rtol: float = 1e-13,
+                 coupling=None):
         self.comm, self.frames, self.w, self.rtol = comm, frames, w, rtol
         self.d = len(frames.normal)
-        self.m = len(w) * self.d
+        self.m = len(w) * self.d if coupling is None else coupling.m
         self._y_prev = []               # (t, y) of the last two steps (_start)
         self._direction = None
 
         def direction():                # the dense Newton matrices, on the root
-            self._direction = dense.NewtonDirection(frames.work_matrix(S), self.d, dense.load())
+            self._direction = dense.NewtonDirection(frames.work_matrix(S), self.d, dense.load()) \
+                if coupling is None else coupling.direction(S)
             return self._local_counts()
         self._counts = threads.root_call(comm, direction)
-        self.contact = NodalContact(w, frames.normal, law, kernels.load())
+        self.contact = NodalContact(w, frames.normal, law, kernels.load()) if coupling is None \
+            else coupling.contact(w, frames.normal, law)
 
     def set_data(self, xi: np.ndarray | None, theta: np.ndarray | None) -> None:
         """The step's memory term and slip factor at the Gamma3 nodes (G order).

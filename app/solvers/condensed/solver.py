@@ -8,7 +8,9 @@ elasticity matrix and F_n = f_n - B^T H_n (rhs.py).  ``CondensedStepSolver`` com
     the Gamma3Problem on the condensed dofs (problem.py, in the WorkFrames of frames.py),
 and solves a step as y0 = condense(F_n); y = the Gamma3 problem from y0; u = expand(y).
 It solves the same discrete problem as SNESVISolver, which takes over a step whose Gamma3
-problem fails.
+problem fails.  Two bodies (contact pairs): the same in the unknown x of
+app/solvers/pairmap.py (u = P x + c), with K_x = P^T K P, F_x and G of
+app/solvers/condensed/pairs.py.
 """
 from __future__ import annotations
 
@@ -23,9 +25,17 @@ from vpcontact.forms.elasticity import eps
 from vpcontact.solvers.condensed.condensation import factorise
 from vpcontact.solvers.condensed.frames import work_frames
 from vpcontact.solvers.condensed.layout import Gamma3Layout
+from vpcontact.solvers.condensed.pairs import (
+    PairLayout,
+    PairRightHandSide,
+    pair_frames,
+    pair_sections,
+    pair_stiffness,
+)
 from vpcontact.solvers.condensed.problem import Gamma3Problem
 from vpcontact.solvers.condensed.rhs import StepRightHandSide
 from vpcontact.solvers.nodal import gamma3_points
+from vpcontact.solvers.pairmap import PairVariables
 from vpcontact.solvers.snesvi import StepSolveError
 
 log = logging.getLogger("vpcontact")
@@ -33,13 +43,14 @@ log = logging.getLogger("vpcontact")
 
 class CondensedStepSolver:
     """Solves one step of (3.4) by condensation onto the Gamma3 dofs, for eligible cases
-    (explicit history scheme, nodal Gamma3 rule: solvers/choice.py).  A StepSolver
-    (app/solvers/__init__.py).
+    (explicit history scheme, nodal Gamma3 rule, two bodies held by Dirichlet data:
+    solvers/choice.py).  A StepSolver (app/solvers/__init__.py).
 
     Attributes:
         gamma3: whether there is a Gamma3 problem (Gamma3 dofs not all prescribed).
-        m: the number of Gamma3 dofs.
-        layout: the Gamma3Layout (None without Gamma3).
+        m: the number of Gamma3 dofs (two bodies: of G, with the coupled target nodes).
+        layout: the Gamma3Layout (a PairLayout with pairs; None without Gamma3).
+        pairs: the PairVariables of two bodies (app/solvers/pairmap.py), or None.
         condensation: the Condensation of K (its S and C on GAMMA3_ROOT).
 
     Args:
@@ -59,36 +70,52 @@ class CondensedStepSolver:
         self.roundoff_floor = roundoff_floor
         self.options = options or {}
         self._snes = None
-        V, d = problem.V, problem.dim
-        C = problem.elastic_operator
-        du, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-        a = fem.form(ufl.inner(C(eps(du)), eps(v)) * ufl.dx)
-        # serial: d x d blocks (BAIJ), the fastest PETSc back-substitution
-        K = fem.petsc.create_matrix(a, "baij" if self.comm.size == 1 else None)
-        fem.petsc.assemble_matrix(K, a, bcs=problem.bcs)
-        K.assemble()
-        self.K = K
-        self.rhs = StepRightHandSide(problem, a)
-        self.b, self.x = K.createVecRight(), K.createVecRight()
+        # two bodies: the problem in x of app/solvers/pairmap.py (condensed/pairs.py)
+        self.pairs = None if problem.pairs is None else PairVariables(problem)
+        self.K, self.rhs = self._stiffness()
+        self.b, self.x = self.K.createVecRight(), self.K.createVecRight()
         self.layout = self._layout()
         self.gamma3 = self.layout is not None
         self.m = self.layout.m if self.gamma3 else 0
         G_rows = self.layout.global_rows() if self.gamma3 else np.zeros(0, dtype=np.int32)
-        self.condensation = factorise(K, G_rows, d, self.layout, self.options, self.comm)
+        self.condensation = factorise(self.K, G_rows, problem.dim, self.layout, self.options,
+                                      self.comm)
         self.factorisations = self.condensation.factorisations
-        self.gamma3_problem = None
-        if self.gamma3:
-            self.gamma3_problem = Gamma3Problem(self.comm, self.condensation.S,
-                                                work_frames(problem, self.layout),
-                                                self.layout.w, problem.contact_law(
-                                                    x=gamma3_points(problem, self.layout)),
-                                                rtol)
+        self.gamma3_problem = self._gamma3_problem(rtol) if self.gamma3 else None
+
+    def _stiffness(self):
+        """(K, the StepRightHandSide): the elasticity matrix with the Dirichlet rows and
+        columns the identity; two bodies: K_x and F_x of condensed/pairs.py."""
+        p = self.problem
+        if self.pairs is not None:
+            return pair_stiffness(self.pairs), PairRightHandSide(p, self.pairs)
+        C = p.elastic_operator
+        du, v = ufl.TrialFunction(p.V), ufl.TestFunction(p.V)
+        a = fem.form(ufl.inner(C(eps(du)), eps(v)) * ufl.dx)
+        # serial: d x d blocks (BAIJ), the fastest PETSc back-substitution
+        K = fem.petsc.create_matrix(a, "baij" if self.comm.size == 1 else None)
+        fem.petsc.assemble_matrix(K, a, bcs=p.bcs)
+        K.assemble()
+        return K, StepRightHandSide(p, a)
+
+    def _gamma3_problem(self, rtol: float) -> Gamma3Problem:
+        """The Gamma3 problem on the condensed dofs (collective)."""
+        p, layout = self.problem, self.layout
+        if self.pairs is None:
+            return Gamma3Problem(self.comm, self.condensation.S, work_frames(p, layout),
+                                 layout.w, p.contact_law(x=gamma3_points(p, layout)), rtol)
+        surface = layout.surface            # the nodal energy's nodes and weights
+        law = pair_sections(p, surface) or p.contact_law(x=gamma3_points(p, surface))
+        return Gamma3Problem(self.comm, self.condensation.S, pair_frames(p, layout),
+                             surface.w, law, rtol, coupling=layout.coupling)
 
     def _layout(self) -> Gamma3Layout | None:
         """The Gamma3 dofs, or None where there are none to condense (collective)."""
         if self.problem.gamma3 is None:
             return None
-        layout = Gamma3Layout(self.problem, self.K.getOwnershipRange()[0])
+        start = self.K.getOwnershipRange()[0]
+        layout = Gamma3Layout(self.problem, start) if self.pairs is None else \
+            PairLayout(self.problem, self.pairs, start)
         if layout.m == 0:
             # every Gamma3 node is fully prescribed (problem._gamma3_nodes drops those): a
             # Gamma3 problem of size 0, nothing to condense -- u = K^-1 F_n, as SNES VI
@@ -112,10 +139,12 @@ class CondensedStepSolver:
 
         Returns:
             'condensed (one factorisation, <m> Gamma3 dofs)', or without the count if there
-            is no Gamma3 problem.
+            is no Gamma3 problem; ', two bodies' added with contact pairs (m counts G: the
+            surface nodes and the target nodes coupled to them).
         """
-        return (f"condensed (one factorisation, {self.m} Gamma3 dofs)" if self.gamma3
-                else "condensed (one factorisation)")
+        bodies = ", two bodies" if self.pairs is not None else ""
+        return (f"condensed (one factorisation, {self.m} Gamma3 dofs{bodies})" if self.gamma3
+                else f"condensed (one factorisation{bodies})")
 
     def gamma3_stats(self) -> dict | None:
         """The Gamma3 problem's linear algebra so far (summary.json: solver.gamma3), the
@@ -132,8 +161,13 @@ class CondensedStepSolver:
 
     def warm_start(self) -> None:
         """Start the next Gamma3 problem from the current u (after a restart)."""
-        if self.gamma3:
-            self.gamma3_problem.warm_start(self.layout.gather_vector(self.u.vector))
+        if not self.gamma3:
+            return
+        if self.pairs is not None:              # y = the values of G in x
+            self.pairs.to_x(self.u.vector, self.x)
+            self.gamma3_problem.warm_start(self.layout.gather_vector(self.x))
+            return
+        self.gamma3_problem.warm_start(self.layout.gather_vector(self.u.vector))
 
     def solve(self) -> int:
         """Solve step (3.4) from u_{n-1}; on success u holds u_n.  If the Gamma3 problem
@@ -175,21 +209,27 @@ class CondensedStepSolver:
 
     def _gamma3_inputs(self) -> None:
         """The step's memory term xi_n and slip factor theta(s_n) at the Gamma3 nodes."""
-        p, layout = self.problem, self.layout
+        p = self.problem
+        layout = self.layout if self.pairs is None else self.layout.surface
         self.gamma3_problem.set_data(
             None if p.xi is None else layout.gather_nodal(p, p.xi),
             None if p.theta is None else layout.gather_nodal(p, p.theta))
 
     def _set_u(self) -> None:
-        """u = x, unless x is not finite anywhere (then StepSolveError on every rank)."""
+        """u = x (two bodies: u = P x + c), unless x is not finite anywhere (then
+        StepSolveError on every rank)."""
         if self.comm.allreduce(not np.all(np.isfinite(self.x.array_r)), op=MPI.LOR):
             raise StepSolveError("condensed solver: non-finite solution")
+        if self.pairs is not None:
+            self.pairs.to_u(self.x, self.u)
+            return
         self.u.vector.array[:self.x.getLocalSize()] = self.x.array_r
         self.u.x.scatter_forward()
 
     def destroy(self) -> None:
         """Free the PETSc objects (and those of the SNES VI fallback, if it was created)."""
-        for obj in (self.K, self.b, self.x, self.rhs, self.condensation):
-            obj.destroy()
+        for obj in (self.K, self.b, self.x, self.rhs, self.condensation, self.pairs):
+            if obj is not None:
+                obj.destroy()
         if self._snes is not None:
             self._snes.destroy()
