@@ -37,9 +37,12 @@ def condensed_eligible(case, problem=None) -> tuple[bool, str]:
         return False, "the implicit history variant makes the bulk problem nonlinear"
     if case.numerics.quadrature != "vertex" and case.contact.active:
         return False, "the condensed solver needs the nodal (vertex) Gamma3 quadrature"
-    if problem is not None and case.contact.pairs and held_by_contact(problem):
-        return False, ("a body's rigid motion is held only by a contact pair (the condensed "
-                       "solver factorises the bulk stiffness without the contact: singular)")
+    if problem is not None and case.contact.pairs and (
+            problem.comm.size > 1 or any(str(k).startswith("fast_") for k in case.petsc)) \
+            and held_by_contact(problem):
+        return False, ("a body's rigid motion is held only by a contact pair: the condensed "
+                       "solver takes it serially with its CHOLMOD back end only (not under "
+                       "mpirun, nor with fast_* PETSc options)")
     return True, ""
 
 

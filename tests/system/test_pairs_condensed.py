@@ -15,8 +15,12 @@ handed to the SNES VI fallback:
 - 3D: the stacked cubes of tests/data/patch3d.geo, hard contact;
 - mpirun -n 2 (MUMPS with Schur variables, G over both ranks) equals the serial condensed
   run, with Coulomb friction;
-- the rules: a body held only by a contact pair is refused (``condensed``: by name;
-  ``auto``: SNES VI), and ``auto`` picks the condensed solver for pairs otherwise.
+- a body held only by the contact pair (the viscoplastic punch of
+  cases/punch_on_substrate.yaml, coarse): K is singular, the Gamma3 problem is solved in
+  the reduced right-hand side r = S y0 (S semidefinite);
+- the rules: a body held only by a contact pair is refused with fast_* PETSc options and
+  under mpirun (``condensed``: by name; ``auto``: SNES VI), and ``auto`` picks the
+  condensed solver for pairs otherwise.
 """
 import h5py
 import numpy as np
@@ -178,32 +182,46 @@ def test_mpirun_equals_serial(tmp_path):
 
 
 def _punch_raw(method: str) -> dict:
+    """cases/punch_on_substrate.yaml coarse (mesh.size 3), the ramp and two creep steps."""
     import yaml
     raw = yaml.safe_load((ROOT / "cases" / "punch_on_substrate.yaml").read_text())
     raw["mesh"].update(file=str(ROOT / "cases" / raw["mesh"]["file"]), size=3.0)
-    raw["time"].update(T=0.1, N=1)
+    raw["time"].update(T=0.24, N=3)
     raw["solver"] = {"method": method}
     return raw
 
 
+def test_body_held_only_by_the_contact():
+    """The viscoplastic punch on its substrate, its vertical translation held only by the
+    contact pair (K singular, S semidefinite: the Gamma3 problem in r = S y0), Coulomb
+    friction: condensed == SNES VI."""
+    snes, cond = _both(_punch_raw("snes_vi"))
+    tab = _assert_same(snes, cond)
+    assert (tab["neg_sigma_nu"] > 1.0).any() and (tab["slip_state"] == 1).any()
+
+
 def test_rules():
-    """A body held only by the contact (the punch): ``condensed`` refused naming the
-    reason, ``auto`` runs SNES VI; a pair whose bodies are held runs condensed by auto."""
+    """A body held only by the contact with fast_* options (or under mpirun): ``condensed``
+    refused naming the reason, ``auto`` SNES VI; serially without them, and for a pair
+    whose bodies are held, auto picks the condensed solver."""
     from mpi4py import MPI
 
     from vpcontact.model.problem import ContactProblem
     from vpcontact.simulation import build_mesh
     from vpcontact.solvers import choose_method, condensed_eligible, gamma3_dofs
-    case = make_case(_punch_raw("condensed"))
+    raw = _punch_raw("condensed")
+    raw["petsc"] = {"fast_pc_factor_mat_solver_type": "mumps"}
+    case = make_case(raw)
     problem = ContactProblem(case, build_mesh(case, MPI.COMM_WORLD))
     assert condensed_eligible(case)[0]                 # the case's rules alone: eligible
     ok, why = condensed_eligible(case, problem)
-    assert not ok and "held only by a contact pair" in why
+    assert not ok and "held only by a contact pair" in why and "mpirun" in why
     with pytest.raises(CaseError, match="'condensed' is not possible here: a body's rigid"):
         choose_method(case, gamma3_dofs(problem), problem)
-    auto = make_case(_punch_raw("auto"))
-    assert choose_method(auto, gamma3_dofs(problem), problem) == "snes_vi"
+    raw["solver"]["method"] = "auto"
+    assert choose_method(make_case(raw), gamma3_dofs(problem), problem) == "snes_vi"
+    assert choose_method(make_case(_punch_raw("auto")), gamma3_dofs(problem),
+                         problem) == "condensed"
     held = make_case(_blocks({}, {"upper_top": [None, "-0.01 * t"]}))
     assert held.numerics.method == "auto"
-    result = run_case(held)
-    assert result.summary["solver"]["used"] == "condensed"
+    assert run_case(held).summary["solver"]["used"] == "condensed"

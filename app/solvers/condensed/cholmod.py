@@ -15,6 +15,7 @@ from vpcontact import kernels
 from vpcontact.solvers import threads
 from vpcontact.solvers.schur import (
     GLastLDL,
+    GLastLU,
     cholesky_solve,
     g_last_factor,
     gather_csr,
@@ -36,17 +37,24 @@ class CholmodCondensation:
         d: the dofs per node.
         module: the compiled kernels (kernels.load()).
         comm: the (one-rank) communicator.
+        semidefinite: K is singular in rigid motions that G holds (a body held only by a
+            contact pair): SuperLU's G-last L U (CHOLMOD refuses the vanishing pivots), S
+            positive semidefinite and C None where it has no Cholesky factor (``reduce``
+            serves then, ``condense`` does not).
     """
 
-    def __init__(self, K, G_rows: np.ndarray, d: int, module, comm):
+    def __init__(self, K, G_rows: np.ndarray, d: int, module, comm,
+                 semidefinite: bool = False):
         A = gather_csr(K, comm)
         with threads.blas_threads(large=A.n >= THREADED_FACTOR_MIN):
-            factor = g_last_factor(A, G_rows, d)
+            # K singular in a motion G holds: its last pivots vanish, which CHOLMOD refuses
+            factor = GLastLU(A, G_rows, d) if semidefinite else g_last_factor(A, G_rows, d)
         self._split = kernels.GLastSolve(factor, module, d)
         self.factorisations = 1
         log.info("  condensed solver: one %s factorisation (Gamma3 last), compiled sweeps",
                  "CHOLMOD L D L^T" if isinstance(factor, GLastLDL) else "SuperLU L U")
-        self.S, self.C = schur_pair(factor) if len(G_rows) else (None, None)
+        self.S, self.C = (schur_pair(factor) if not semidefinite else
+                          _semidefinite_schur(factor)) if len(G_rows) else (None, None)
 
     def condense(self, b) -> np.ndarray | None:
         """y0 = S^-1 r with r = b_G - K_GI K_II^-1 b_I from the forward sweep.
@@ -60,6 +68,18 @@ class CholmodCondensation:
         r = self._split.forward(b.array_r)
         return None if self.C is None else cholesky_solve(self.C, r)
 
+    def reduce(self, b) -> np.ndarray | None:
+        """r = b_G - K_GI K_II^-1 b_I from the forward sweep (S y0 = r).
+
+        Args:
+            b: the right-hand side.
+
+        Returns:
+            r in G order, None without Gamma3.
+        """
+        r = self._split.forward(b.array_r)
+        return None if self.S is None else r
+
     def expand(self, y: np.ndarray, x) -> None:
         """The backward sweep with x_G = y.
 
@@ -71,3 +91,14 @@ class CholmodCondensation:
 
     def destroy(self) -> None:
         """Nothing to free: the factor goes with this object."""
+
+
+def _semidefinite_schur(factor) -> tuple[np.ndarray, np.ndarray | None]:
+    """(S, C) of ``schur_pair``, or (S, None) where S is only positive semidefinite (a body
+    whose rigid motion the contact holds: K is singular in it, K_II is not)."""
+    try:
+        return schur_pair(factor)
+    except np.linalg.LinAlgError:
+        L_GG, U_GG = factor.trailing()
+        S = L_GG @ U_GG
+        return 0.5 * (S + S.T), None

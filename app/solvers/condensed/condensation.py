@@ -48,6 +48,17 @@ class Condensation(Protocol):
             y0 on GAMMA3_ROOT (None without Gamma3, and on the other ranks).
         """
 
+    def reduce(self, b: PETSc.Vec) -> np.ndarray | None:
+        """r = b_G - K_GI K_II^-1 b_I = S y0 in G order, for S only positive semidefinite too
+        (collective; two bodies: app/solvers/condensed/pairs.py).
+
+        Args:
+            b: the right-hand side (K's row layout); kept until ``expand``.
+
+        Returns:
+            r on GAMMA3_ROOT (None without Gamma3, and on the other ranks).
+        """
+
     def expand(self, y: np.ndarray, x: PETSc.Vec) -> None:
         """x = K^-1 (b + E_G lambda) with x_G = y, for the b of the last ``condense``
         (collective).
@@ -62,7 +73,7 @@ class Condensation(Protocol):
 
 
 def factorise(K: PETSc.Mat, G_rows: np.ndarray, d: int, layout, options: dict,
-              comm) -> Condensation:
+              comm, semidefinite: bool = False) -> Condensation:
     """Factorise K once with the back end that applies (collective).
 
     Args:
@@ -72,17 +83,28 @@ def factorise(K: PETSc.Mat, G_rows: np.ndarray, d: int, layout, options: dict,
         layout: the Gamma3Layout (None without Gamma3).
         options: the case's PETSc options; any named fast_* selects PetscCondensation.
         comm: the run's communicator.
+        semidefinite: K is singular in rigid motions that G holds (a body held only by a
+            contact pair): S is positive semidefinite, C may be None; only the serial
+            CHOLMOD back end takes it.
 
     Returns:
         CholmodCondensation (serial, with the compiled kernels), MumpsCondensation (mpirun,
         with Gamma3 dofs and the MUMPS wrapper), else PetscCondensation.
+
+    Raises:
+        CaseError: ``semidefinite`` where the CHOLMOD back end does not serve.
     """
     from vpcontact import kernels
     petsc_options = any(str(k).startswith(OPTIONS) for k in options)
     module = kernels.load() if comm.size == 1 and not petsc_options else None
     if module is not None:
         from vpcontact.solvers.condensed.cholmod import CholmodCondensation
-        return CholmodCondensation(K, G_rows, d, module, comm)
+        return CholmodCondensation(K, G_rows, d, module, comm, semidefinite)
+    if semidefinite:
+        from vpcontact.io.errors import CaseError
+        raise CaseError("solver.method: the condensed solver takes a body held only by a "
+                        "contact pair serially with its compiled kernels only, without "
+                        "fast_* options (allowed here: snes_vi)")
     if comm.size > 1 and not petsc_options and len(G_rows):
         from vpcontact.solvers.condensed.mumps import MumpsCondensation
         condensation = MumpsCondensation.build(K, G_rows, d, comm)

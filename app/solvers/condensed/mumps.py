@@ -66,6 +66,17 @@ class MumpsCondensation:
         r = self._mumps.forward(b.array_r)
         return cholesky_solve(self.C, r) if r is not None else None
 
+    def reduce(self, b) -> np.ndarray | None:
+        """MUMPS's condensed right-hand side r = b_G - K_GI K_II^-1 b_I (collective).
+
+        Args:
+            b: the right-hand side (distributed).
+
+        Returns:
+            r in G order on rank 0; None on the others.
+        """
+        return self._mumps.forward(b.array_r)
+
     def expand(self, y: np.ndarray, x) -> None:
         """MUMPS's solution with x_G = y (collective).
 

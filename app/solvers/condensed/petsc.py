@@ -64,6 +64,20 @@ class PetscCondensation:
         self._y0 = self.layout.gather_vector(self._free) if self._gamma3() else None
         return self._y0
 
+    def reduce(self, b) -> np.ndarray | None:
+        """r = S y0, y0 of ``condense`` (collective; K positive definite here).
+
+        Args:
+            b: the right-hand side; ``expand`` adds the Gamma3 forces to it.
+
+        Returns:
+            r in G order on GAMMA3_ROOT; None elsewhere and without Gamma3.
+        """
+        y0 = self.condense(b)
+        if y0 is None or self.comm.rank != threads.GAMMA3_ROOT:
+            return None
+        return self.S @ y0
+
     def _gamma3(self) -> bool:
         """Whether there is a Gamma3 problem (S lives on the root only)."""
         return self.layout is not None and self.layout.m > 0

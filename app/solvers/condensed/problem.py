@@ -52,6 +52,7 @@ class Gamma3Problem:
         self.comm, self.frames, self.w, self.rtol = comm, frames, w, rtol
         self.d = len(frames.normal)
         self.m = len(w) * self.d if coupling is None else coupling.m
+        self.reduced = coupling is not None     # solve() takes r = S y0 for y0
         self._y_prev = []               # (t, y) of the last two steps (_start)
         self._direction = None
 
@@ -99,7 +100,8 @@ class Gamma3Problem:
         """The Gamma3 problem in its coordinates, on this rank.
 
         Args:
-            y0_global: y0 in the global coordinates.
+            y0_global: y0 in the global coordinates (``reduced``: r = S y0; its values at
+                the prescribed dofs are theirs, S being the identity there).
             t: the step's time t_n.
 
         Returns:
@@ -116,9 +118,14 @@ class Gamma3Problem:
         return fr.from_work(y), its
 
     def _projected_newton(self, y0, lb, ub, t) -> tuple[np.ndarray, int]:
-        """Projected Newton for min 1/2 (y-y0)^T S (y-y0) + sum w phi(y_i), lb <= y <= ub."""
+        """Projected Newton for min 1/2 (y-y0)^T S (y-y0) + sum w phi(y_i), lb <= y <= ub
+        (two bodies: y0 is r = S y0, ``reduced``)."""
         S, d = self._direction.product, self.d
         y = np.clip(self._start(y0, t), lb, ub)
+        if self.reduced:      # the start: the solver's warm start, never r itself
+            y = y if self._y_prev else np.clip(np.zeros_like(y0), lb, ub)
+            return self._iterate(self._reduced_energy(y0), y, lb, ub, t,
+                                 max(np.abs(y0).max(), np.abs(self.w).max(), 1e-300))
         scale = max(np.abs(S(y0)).max(), np.abs(self.w).max(), 1e-300)
 
         def energy_grad(yv, hess=True):
@@ -126,7 +133,22 @@ class Gamma3Problem:
             dy = yv - y0
             Sdy = S(dy)
             return 0.5 * dy @ Sdy + e, Sdy + g.ravel(), H
+        return self._iterate(energy_grad, y, lb, ub, t, scale)
 
+    def _reduced_energy(self, r):
+        """1/2 y^T S y - r^T y + sum w phi, its gradient and nodal Hessians: the energy of
+        the reduced right-hand side r, which needs no S^-1 (S only semidefinite where the
+        contact holds a body's rigid motion)."""
+        S, d = self._direction.product, self.d
+
+        def energy_grad(yv, hess=True):
+            e, g, H = self.contact.evaluate(yv.reshape(-1, d), hess)
+            Sy = S(yv)
+            return 0.5 * yv @ Sy - r @ yv + e, Sy - r + g.ravel(), H
+        return energy_grad
+
+    def _iterate(self, energy_grad, y, lb, ub, t, scale) -> tuple[np.ndarray, int]:
+        """The projected Newton iteration from y with the energy ``energy_grad``."""
         E, g, Hn = energy_grad(y)
         lo, hi = lb + 1e-14 * scale, ub - 1e-14 * scale
         for it in range(1, MAX_ITERATIONS):

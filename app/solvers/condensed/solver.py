@@ -22,6 +22,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from vpcontact.forms.elasticity import eps
+from vpcontact.solvers.choice import held_by_contact
 from vpcontact.solvers.condensed.condensation import factorise
 from vpcontact.solvers.condensed.frames import work_frames
 from vpcontact.solvers.condensed.layout import Gamma3Layout
@@ -78,10 +79,14 @@ class CondensedStepSolver:
         self.gamma3 = self.layout is not None
         self.m = self.layout.m if self.gamma3 else 0
         G_rows = self.layout.global_rows() if self.gamma3 else np.zeros(0, dtype=np.int32)
+        # two bodies: a rigid motion held only by the contact leaves S semidefinite
+        semidefinite = self.pairs is not None and held_by_contact(problem)
         self.condensation = factorise(self.K, G_rows, problem.dim, self.layout, self.options,
-                                      self.comm)
+                                      self.comm, semidefinite)
         self.factorisations = self.condensation.factorisations
         self.gamma3_problem = self._gamma3_problem(rtol) if self.gamma3 else None
+        if self.pairs is not None:
+            self.warm_start()           # the reduced Gamma3 problem starts from u_0
 
     def _stiffness(self):
         """(K, the StepRightHandSide): the elasticity matrix with the Dirichlet rows and
@@ -126,12 +131,19 @@ class CondensedStepSolver:
 
     @property
     def S(self) -> np.ndarray | None:
-        """The Schur complement on GAMMA3_ROOT (None elsewhere, or without Gamma3)."""
+        """The Schur complement on GAMMA3_ROOT (None elsewhere, or without Gamma3).  One
+        body only: with two bodies there is no Schur complement of u on Gamma3 (the
+        condensation's S is x's on G), and the attribute is absent (AttributeError), so
+        that the trace bound of app/post/diagnostics.py is not taken from it."""
+        if self.pairs is not None:
+            raise AttributeError("S: two bodies condense x onto G (condensation.S)")
         return self.condensation.S
 
     @property
     def C(self) -> np.ndarray | None:
-        """S's lower Cholesky factor where S is."""
+        """S's lower Cholesky factor where S is (one body only, as ``S``)."""
+        if self.pairs is not None:
+            raise AttributeError("C: two bodies condense x onto G (condensation.C)")
         return self.condensation.C
 
     def describe(self) -> str:
@@ -197,7 +209,8 @@ class CondensedStepSolver:
     def _solve_condensed(self) -> int:
         """y0 = condense(F_n), the Gamma3 problem, u = expand(y)."""
         self.rhs.assemble(self.b)
-        y0 = self.condensation.condense(self.b)
+        y0 = self.condensation.condense(self.b) if self.pairs is None else \
+            self.condensation.reduce(self.b)          # r = S y0 (Gamma3Problem.reduced)
         its, y = 0, np.zeros(0)
         if self.gamma3:
             self._gamma3_inputs()
