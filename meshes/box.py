@@ -11,9 +11,12 @@ size h and come from gmsh.
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 from mpi4py import MPI
 
 from .extent import mesh_extent
+from .meshcache import cache_key
 from .rectangle import (
     BOUNDARY_TAGS,
     DOMAIN_TAG,
@@ -88,8 +91,9 @@ def build_box(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, L3: float = 1.0,
         msh, ct, ft = dolfinx_structured(comm, L, n)
     else:
         s = max(L)      # gmsh sees the box scaled to unit size (its tolerances are absolute)
-        msh, ct, ft = gmsh_mesh(comm, 3, lambda: _gmsh_model(tuple(x / s for x in L), n,
-                                                             None if h is None else h / s), s)
+        args = (tuple(x / s for x in L), n, None if h is None else h / s)
+        msh, ct, ft = gmsh_mesh(comm, 3, lambda: _gmsh_model(*args), s,
+                                cache_key("box", args, Path(__file__)))
         if n is not None:
             snap_to_grid(msh, L, n)
     h_min, _, bbox = mesh_extent(msh)

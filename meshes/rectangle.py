@@ -12,17 +12,21 @@ mesh by default (its vertices then put exactly on the grid (L / n) i) or, with
 ``engine="dolfinx"``, by dolfinx's ``create_rectangle``: the same triangles and bitwise the
 same coordinates (tests/unit/test_mesh.py checks both), without the cost of importing gmsh
 (about 0.4 s) and of its meshing.
-Unstructured meshes always come from gmsh, which runs on one rank only; dolfinx's
-``gmshio.model_to_mesh`` distributes the mesh.
+Unstructured meshes always come from gmsh, which runs on one rank only; the mesh is
+distributed as dolfinx's ``gmshio.model_to_mesh`` does.  A mesh gmsh built is kept in the
+mesh cache (meshes/meshcache.py), so that a later run with the same rectangle neither imports
+gmsh nor meshes it again (the same mesh, bit for bit).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
 from .extent import mesh_extent
+from .meshcache import cache_key
 
 BOUNDARY_TAGS = {"left": 1, "bottom": 2, "right": 3, "top": 4, "front": 5, "back": 6}
 # 2D uses left/bottom/right/top; the 3D box (meshes/box.py) adds front {y = 0}, back {y = L2}.
@@ -190,9 +194,9 @@ def build_rectangle(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, *, n: int 
     else:
         # gmsh sees the rectangle scaled to unit size (its tolerances are absolute)
         s = max(L1, L2)
-        msh, ct, ft = gmsh_mesh(comm, 2, lambda: _gmsh_model(L1 / s, L2 / s, n,
-                                                             None if h is None else h / s,
-                                                             diagonal), s)
+        args = (L1 / s, L2 / s, n, None if h is None else h / s, diagonal)
+        msh, ct, ft = gmsh_mesh(comm, 2, lambda: _gmsh_model(*args), s,
+                                cache_key("rectangle", args, Path(__file__)))
         if n is not None:
             snap_to_grid(msh, (L1, L2), n)
     h_min, _, bbox = mesh_extent(msh)
@@ -218,35 +222,49 @@ def snap_to_grid(msh, L, n: int) -> None:
         x[:, a] = step * np.rint(x[:, a] / step)
 
 
-def gmsh_mesh(comm: MPI.Comm, gdim: int, build, scale: float):
+def gmsh_mesh(comm: MPI.Comm, gdim: int, build, scale: float, key: str | None = None):
     """The dolfinx mesh of a gmsh model built on rank 0; collective on ``comm``.
 
     Gmsh's geometric tolerances are absolute, so models are built at unit size and scaled
-    afterwards.
+    afterwards.  With a ``key`` the model's arrays come from the mesh cache when it has
+    them (meshes/meshcache.py: gmsh is then not even imported) and are stored there after
+    gmsh built them.
 
     Args:
         comm: the communicator the mesh is distributed over.
         gdim: the geometric dimension.
         build: called on rank 0 (gmsh initialised) to create the model and generate its mesh.
         scale: the factor applied to the coordinates.
+        key: the mesh cache's key of the model (``meshcache.cache_key``), or None: no cache.
 
     Returns:
         (mesh, cell tags, facet tags).
     """
+    from . import meshcache
+    arrays = meshcache.load(key) if key is not None and comm.rank == 0 else None
+    if not comm.bcast(arrays is not None, root=0):
+        arrays = _gmsh_arrays(comm, build)
+        if key is not None and comm.rank == 0:
+            meshcache.store(key, arrays)
+    msh, ct, ft = meshcache.to_mesh(comm, arrays, gdim)
+    if scale != 1.0:
+        msh.geometry.x[:, :gdim] *= scale
+    return msh, ct, ft
+
+
+def _gmsh_arrays(comm: MPI.Comm, build) -> dict | None:
+    """gmsh's model built on rank 0 and read as meshcache.model_arrays (None elsewhere)."""
+    from . import meshcache
     from .gmshfile import _interruptible, import_gmsh, on_root
     gmsh = import_gmsh()              # before gmshio, whose import of gmsh resets SIGINT
-    from dolfinx.io import gmshio
     # SIGINT/SIGTERM stop the wait for gmsh at once (_interruptible); rank 0 raises build's
     # own error, the other ranks a RuntimeError
     on_root(comm, lambda _: _interruptible(build),
             lambda err: f"rank 0 could not build the mesh: {type(err).__name__}: {err}",
             keep=True, share=False, error=RuntimeError, reraise=True)
+    if comm.rank != 0:
+        return None
     try:
-        msh, ct, ft = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0,
-                                           gdim=gdim)
+        return meshcache.model_arrays(gmsh.model)
     finally:
-        if comm.rank == 0:
-            gmsh.finalize()
-    if scale != 1.0:
-        msh.geometry.x[:, :gdim] *= scale
-    return msh, ct, ft
+        gmsh.finalize()

@@ -44,7 +44,7 @@ def test_every_import_of_gmsh_goes_through_import_gmsh():
     assert not found, found
 
 
-def test_the_sigint_handler_is_kept_while_the_builtin_meshes_are_built():
+def test_the_sigint_handler_is_kept_while_the_builtin_meshes_are_built(tmp_path):
     script = """
 import signal, sys
 from mpi4py import MPI
@@ -63,13 +63,14 @@ def watch(module, name):
 watch(rectangle, "_gmsh_model")
 watch(box, "_gmsh_model")
 rectangle.build_rectangle(MPI.COMM_SELF, n=2)
-from dolfinx.io import gmshio
-watch(gmshio, "model_to_mesh")
+from vpcontact.meshes import meshcache
+watch(meshcache, "model_arrays")
 box.build_box(MPI.COMM_SELF, n=2)
 rectangle.build_rectangle(MPI.COMM_SELF, h=0.5)
 seen.append(signal.getsignal(signal.SIGINT) is ours)
 print(seen)
 """
     proc = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True,
-                          text=True, timeout=120, env={**os.environ, "PYTHONPATH": str(ROOT)})
+                          text=True, timeout=120, env={**os.environ, "PYTHONPATH": str(ROOT),
+                                                       "VPCONTACT_CACHE": str(tmp_path)})
     assert proc.stdout.strip() == str([True] * 6), proc.stdout + proc.stderr[-2000:]
