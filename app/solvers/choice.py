@@ -3,8 +3,9 @@ at import time, so case validation can ask ``condensed_eligible``.
 
 ``condensed_eligible`` is the rule of the condensed solver (app/solvers/condensed/): the bulk
 problem of a step must be linear (explicit history scheme), every Gamma3 term a sum of
-nodal energies (vertex quadrature), and with two bodies (contact pairs) every rigid motion
-held by Dirichlet data (the bulk stiffness it factorises has no contact term).
+nodal energies (vertex quadrature), and with two bodies (contact pairs) a rigid motion held
+only by a pair (the bulk stiffness it factorises, without the contact, is singular in it)
+only in a serial run with its compiled back end.
 ``choose_method`` resolves ``solver.method`` (the Case holds ``condensed`` where a file gives
 ``fast``, its former name: app/case/model.py), ``choose_linear`` SNES VI's ``solver.linear``.
 """
@@ -27,8 +28,8 @@ def condensed_eligible(case, problem=None) -> tuple[bool, str]:
     Args:
         case: the case.
         problem: its ContactProblem, or None: the case's rules only.  With it, also the
-            rule of the mesh: two bodies need every rigid motion held by Dirichlet data
-            (``held_by_contact``).
+            rule of the mesh: a body whose rigid motion only a contact pair holds
+            (``held_by_contact``) is refused under mpirun and with fast_* PETSc options.
 
     Returns:
         (eligible, why not: "" when eligible).
@@ -41,7 +42,7 @@ def condensed_eligible(case, problem=None) -> tuple[bool, str]:
             problem.comm.size > 1 or any(str(k).startswith("fast_") for k in case.petsc)) \
             and held_by_contact(problem):
         return False, ("a body's rigid motion is held only by a contact pair: the condensed "
-                       "solver takes it serially with its CHOLMOD back end only (not under "
+                       "solver takes it serially with its compiled back end only (not under "
                        "mpirun, nor with fast_* PETSc options)")
     return True, ""
 

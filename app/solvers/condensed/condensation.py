@@ -85,7 +85,7 @@ def factorise(K: PETSc.Mat, G_rows: np.ndarray, d: int, layout, options: dict,
         comm: the run's communicator.
         semidefinite: K is singular in rigid motions that G holds (a body held only by a
             contact pair): S is positive semidefinite, C may be None; only the serial
-            CHOLMOD back end takes it.
+            back end with the compiled kernels takes it (CholmodCondensation).
 
     Returns:
         CholmodCondensation (serial, with the compiled kernels), MumpsCondensation (mpirun,
