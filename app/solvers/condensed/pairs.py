@@ -26,9 +26,16 @@ from petsc4py import PETSc
 
 from vpcontact.solvers.condensed.frames import WorkFrames, normal_first
 from vpcontact.solvers.condensed.layout import Gamma3Layout
-from vpcontact.solvers.dense import symmetric_product
+from vpcontact.solvers.dense import (  # the kept factor and CG of the one-body direction
+    PCG_MAX_CHANGED,
+    PCG_MAX_ITERATIONS,
+    PCG_MIN,
+    _cg,
+    _Kept,
+    symmetric_product,
+)
 from vpcontact.solvers.nodal import NodalContact
-from vpcontact.solvers.threads import GAMMA3_ROOT
+from vpcontact.solvers.threads import GAMMA3_ROOT, blas_threads
 
 
 class PairRightHandSide:
@@ -318,8 +325,10 @@ class PairContact:
 
 
 class PairNewtonDirection:
-    """p = -(S + C_G^T W C_G)_ff^-1 g_f on the free dofs, 0 on the binding ones (dense
-    Cholesky, LAPACK; a new factorisation per iteration), for a fixed S.  The interface of
+    """p = -(S + C_G^T W C_G)_ff^-1 g_f on the free dofs, 0 on the binding ones, for a fixed
+    S: dense Cholesky (LAPACK), and from PCG_MIN dofs, as dense.NewtonDirection, CG
+    preconditioned by the kept factor of an earlier iteration while it converges within
+    PCG_MAX_ITERATIONS and few dofs changed their binding state.  The interface of
     dense.NewtonDirection.
 
     Args:
@@ -336,7 +345,12 @@ class PairNewtonDirection:
         n = Cw.shape[0] // d
         self._blocks = lambda W: bsr_matrix((np.asarray(W, dtype=float), np.arange(n),
                                              np.arange(n + 1)), shape=(n * d, n * d))
+        self._kept = None
         self.factorisations = self.cg_iterations = 0
+
+    def _coupled(self, W: np.ndarray):
+        """C_G^T W C_G (scipy sparse, m x m)."""
+        return (self.Cw.T @ (self._blocks(W) @ self.Cw)).tocsr()
 
     def matrix(self, W: np.ndarray) -> np.ndarray:
         """S + C_G^T W C_G.
@@ -347,33 +361,79 @@ class PairNewtonDirection:
         Returns:
             The Newton matrix (a new m x m array).
         """
-        CWC = (self.Cw.T @ (self._blocks(W) @ self.Cw)).tocoo()
+        CWC = self._coupled(W).tocoo()
         H = self.S.copy()
         np.add.at(H, (CWC.row, CWC.col), CWC.data)
         return H
 
     def __call__(self, W: np.ndarray, g: np.ndarray, binding: np.ndarray,
                  rtol: float = 0.0) -> np.ndarray | None:
-        """The projected Newton direction (by a factorisation; ``rtol`` is not used).
+        """The projected Newton direction.
 
         Args:
             W: the surface nodes' Hessian blocks (n_s, d, d).
             g: the gradient (m).
             binding: True at the dofs held at their bound (p = 0 there).
-            rtol: the relative residual asked for (a factorisation is exact).
+            rtol: the relative residual the direction needs (0: exact, by a
+                factorisation); with m >= PCG_MIN, CG with the kept factor is tried first.
 
         Returns:
             The direction, or None if the free block is not positive definite.
         """
-        from scipy.linalg.lapack import dpotrf, dpotrs
         free = np.flatnonzero(~binding)
+        with blas_threads(large=len(free) >= PCG_MIN):
+            if rtol > 0 and self._kept is not None:
+                p = self._pcg(W, g, free, rtol)
+                if p is not None:
+                    return p
+            return self._factorise(W, g, free)
+
+    def _factorise(self, W, g, free):
+        """The direction by a new Cholesky factorisation (kept where m >= PCG_MIN)."""
+        from scipy.linalg.lapack import dpotrf, dpotrs
         self.factorisations += 1
+        self._kept = None
         L, info = dpotrf(self.matrix(W)[np.ix_(free, free)], lower=1, clean=1)
         if info != 0:
             return None
         p = np.zeros(self.m)
         p[free] = -dpotrs(L, g[free], lower=1)[0]
+        if self.m >= PCG_MIN:
+            self._kept = _Kept(L, free, self.m)
         return p
+
+    def _pcg(self, W, g, free, rtol):
+        """CG on (S + C_G^T W C_G)_ff p_f = -g_f preconditioned by the kept factor (on the
+        dofs free then and now; the diagonal on those free only now), as
+        dense.NewtonDirection._pcg; None where it does not converge."""
+        from scipy.linalg.lapack import spotrs
+        kept, m = self._kept, self.m
+        pos = kept.pos[free]
+        both = pos >= 0
+        if (len(free) - both.sum()) + (len(kept.free) - both.sum()) > PCG_MAX_CHANGED:
+            return None
+        CWC = self._coupled(W)
+        diag = self.S[free, free] + CWC.diagonal()[free]
+        q = np.zeros(len(kept.free), dtype=np.float32)
+
+        def precondition(r):
+            q[:] = 0.0
+            q[pos[both]] = r[both]
+            z = r / diag
+            z[both] = spotrs(kept.L, q, lower=1)[0][pos[both]]
+            return z
+
+        def product(x):
+            xm = np.zeros(m)
+            xm[free] = x
+            return (self.product(xm) + CWC @ xm)[free]
+        x, its = _cg(product, precondition, -g[free], rtol, PCG_MAX_ITERATIONS)
+        self.cg_iterations += abs(its)
+        if its < 0:
+            return None
+        out = np.zeros(m)
+        out[free] = x
+        return out
 
 
 def pair_frames(problem, layout: PairLayout) -> WorkFrames:
