@@ -36,8 +36,8 @@ def report(case, comm) -> list[str]:
     ks = np.diff(case.time.times)
     n_dofs = gamma3_dofs(problem)
     n_g = n_dofs // problem.dim
-    ok, why = condensed_eligible(case)
-    method = choose_method(case, n_dofs)
+    ok, why = condensed_eligible(case, problem)
+    method = choose_method(case, n_dofs, problem)
     m = case.mesh
     if m.file is not None:
         mesh = f"{m.file}, h = {body.h_min:.3g}..{body.h:.3g}"

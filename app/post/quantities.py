@@ -130,12 +130,14 @@ def contact_table(problem, r: np.ndarray | None = None) -> dict[str, np.ndarray]
         table[f"neg_sigma_tau{sfx}"] = f_tau[:, k]
     if problem.xi is not None:
         table["xi"] = problem.xi.function.x.array[problem.xi.dofs[pos]]
+    # the columns by the case's laws (the same on every rank), the values node by node
+    has = coulomb_sections(problem)
     coulomb = coulomb_nodes(problem, pos)
     theta = None if problem.theta is None else \
         problem.theta.function.x.array[problem.theta.dofs[pos]]
-    if theta is not None and not coulomb.all():     # (laws per pair: not at Coulomb's nodes)
+    if theta is not None and not all(has):     # (laws per pair: not at Coulomb's nodes)
         table["theta"] = np.where(coulomb, np.nan, theta)
-    if coulomb.any():  # theta holds the bound mu p_n (theta(s_n)): slip where it is reached
+    if any(has):  # theta holds the bound mu p_n (theta(s_n)): slip where it is reached
         table["friction_bound"] = np.where(coulomb, theta, np.nan)
         slip = np.linalg.norm(f_tau, axis=1) >= (1 - SLIP_RATIO) * theta
         table["slip_state"] = np.where(coulomb, slip.astype(float), np.nan)
@@ -150,6 +152,19 @@ def contact_table(problem, r: np.ndarray | None = None) -> dict[str, np.ndarray]
     return table
 
 
+def coulomb_sections(problem) -> list[bool]:
+    """Which sets of laws (``Contact.sections``: one, or one per pair) have Coulomb friction.
+
+    Args:
+        problem: the ContactProblem.
+
+    Returns:
+        One bool per set of laws.
+    """
+    return [c.friction is not None and c.friction.coulomb is not None
+            for c in problem.case.contact.sections]
+
+
 def coulomb_nodes(problem, pos: np.ndarray) -> np.ndarray:
     """Which Gamma3 nodes have Coulomb friction (every node or none, but with laws per
     pair: the nodes of the pairs whose laws have it).
@@ -161,8 +176,7 @@ def coulomb_nodes(problem, pos: np.ndarray) -> np.ndarray:
     Returns:
         A boolean mask, shape (len(pos),).
     """
-    has = [s.friction is not None and s.friction.coulomb is not None
-           for s in problem.case.contact.sections]
+    has = coulomb_sections(problem)
     if len(has) == 1:
         return np.full(len(pos), has[0])
     return np.asarray(has)[problem.pairs.pair[pos]]

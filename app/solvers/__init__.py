@@ -76,7 +76,7 @@ def select_solver(case, problem) -> StepSolver:
     """
     # the default snes_atol is raised to the residual's round-off floor; a given one is kept
     default_atol = case.petsc.get("snes_atol") == case.petsc_defaults.get("snes_atol")
-    if choose_method(case, gamma3_dofs(problem)) == "condensed":
+    if choose_method(case, gamma3_dofs(problem), problem) == "condensed":
         from vpcontact.solvers.condensed import CondensedStepSolver
         return CondensedStepSolver(problem, case.petsc, roundoff_floor=default_atol)
     from vpcontact.solvers.options import snes_vi_options

@@ -89,9 +89,12 @@ def _surface_lower_bottom(raw):
 
 
 def _held_by_contact(raw):
-    """The upper block pressed by a pressure on its top: held vertically by the pair only."""
+    """The upper block pressed by a pressure on its top: held vertically by the pair only
+    (the condensed solver takes it serially with its compiled back end only: not with a
+    fast_* PETSc option)."""
     raw["loads"]["displacement"].pop("upper_top")
     raw["loads"]["pressure"] = {"upper_top": 1.0}
+    raw["petsc"] = {"fast_pc_factor_mat_solver_type": "mumps"}
 
 
 def _builtin_mesh(raw):
