@@ -372,6 +372,9 @@ class Diagnostics:
             else:
                 out.append(("info", text + ("" if self.scheme == "explicit" else
                                             "; the implicit scheme has no such limit")))
+        if self.gamma2 is None and self.wellposedness_margin is not None:
+            out.append(("info", f"well-posedness (2.6): m_j = 0 (the friction law does not "
+                                f"soften): margin m_E = {self.m_E:.4g}"))
         if self.gamma2 is not None:
             rel = "<=" if self.gamma2_is_bound else "="
             text = (f"well-posedness (2.6): m_E = {self.m_E:.4g} vs max(sqrt(3) c1~, m_j) "
@@ -417,15 +420,15 @@ def diagnose(problem, solver=None) -> Diagnostics:
     m_j = None if None in fr else max(fr, default=0.0)
     gamma2 = margin = unique = None
     is_bound = False
-    if fr and m_j is not None:     # None: a user's law that states no m_j
+    if fr and m_j == 0:     # no softening (Coulomb's bound, a monotone law): the margin is
+        margin, unique = m_E, m_E > 0       # m_E, ||gamma||^2 is not needed (nor computed)
+    elif fr and m_j is not None:     # None: a user's law that states no m_j
         bound = trace_constant_bound(problem, solver) if solver is not None else None
         if bound is not None and m_E - m_j * bound > 0:
             gamma2, is_bound = bound, True
         else:
             gamma2, _ = trace_constant(problem, linear=getattr(solver, "linear", "direct"))
-        # m_j = 0 (no softening, e.g. Coulomb's): m_E, also where gamma2 is infinite (a
-        # body held only by a contact: 0 * inf)
-        margin = m_E - max(np.sqrt(3) * 0.0, m_j) * gamma2 if m_j else m_E
+        margin = m_E - max(np.sqrt(3) * 0.0, m_j) * gamma2
         unique = margin > 0
     return Diagnostics(case.time.scheme, k_max, rate, indicator, STABILITY_LIMIT,
                        None if indicator is None else indicator <= STABILITY_LIMIT,

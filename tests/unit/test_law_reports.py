@@ -218,3 +218,26 @@ def test_check_lists_each_material():
               f"{vp['lambda2']:g} s (m = 1)" if vp else "none (elastic)"
         assert f"viscoplastic law ({group}): {law}" in text
         assert f"{group} (E = {mat['E']}, nu = {mat['nu']}" in text
+
+
+def test_no_trace_constant_without_softening(monkeypatch):
+    """Coulomb friction (m_j = 0): the (2.6) margin is m_E and ||gamma||^2 is neither needed
+    nor computed (it costs a generalised eigenproblem: seconds in 3D); with the paper's
+    softening law it is computed."""
+    import vpcontact.post.diagnostics as diagnostics
+    from vpcontact.model.problem import ContactProblem
+    from vpcontact.simulation import build_mesh
+    calls = []
+    real = diagnostics.trace_constant
+    monkeypatch.setattr(diagnostics, "trace_constant",
+                        lambda *a, **k: calls.append(1) or real(*a, **k))
+    for friction, computed in (({"coulomb": {"mu": 0.3}}, False), (None, True)):
+        contact = dict(paper_raw()["contact"])
+        if friction is not None:
+            contact["friction"] = friction
+        case = make_case(mesh={"n": 4}, time={"T": 1.0, "N": 2}, contact=contact)
+        diag = diagnostics.diagnose(ContactProblem(case, build_mesh(case, MPI.COMM_SELF)))
+        assert bool(calls) == computed and diag.unique
+        if not computed:
+            assert diag.gamma2 is None and diag.wellposedness_margin == diag.m_E
+            assert "m_j = 0" in diag.messages()[-1][1]
