@@ -29,7 +29,7 @@ def condensed_eligible(case, problem=None) -> tuple[bool, str]:
         case: the case.
         problem: its ContactProblem, or None: the case's rules only.  With it, also the
             rule of the mesh: a body whose rigid motion only a contact pair holds
-            (``held_by_contact``) is refused under mpirun and with fast_* PETSc options.
+            (``held_by_contact``) is refused with fast_* PETSc options.
 
     Returns:
         (eligible, why not: "" when eligible).
@@ -38,12 +38,11 @@ def condensed_eligible(case, problem=None) -> tuple[bool, str]:
         return False, "the implicit history variant makes the bulk problem nonlinear"
     if case.numerics.quadrature != "vertex" and case.contact.active:
         return False, "the condensed solver needs the nodal (vertex) Gamma3 quadrature"
-    if problem is not None and case.contact.pairs and (
-            problem.comm.size > 1 or any(str(k).startswith("fast_") for k in case.petsc)) \
-            and held_by_contact(problem):
+    if problem is not None and case.contact.pairs and \
+            any(str(k).startswith("fast_") for k in case.petsc) and held_by_contact(problem):
         return False, ("a body's rigid motion is held only by a contact pair: the condensed "
-                       "solver takes it serially with its compiled back end only (not under "
-                       "mpirun, nor with fast_* PETSc options)")
+                       "solver takes it with its compiled back end (serially) or MUMPS "
+                       "(under mpirun) only, not with fast_* PETSc options")
     return True, ""
 
 

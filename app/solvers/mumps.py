@@ -88,13 +88,17 @@ class SchurMumps:
         G: the global rows of the Gamma3 dofs, shape (m,), on every rank.
         bs: the dofs per node (the order keeps a node's dofs together).
         comm: K's communicator (mpi4py).
+        semidefinite: K is singular in rigid motions that G holds (a body held only by a
+            contact pair: K_II stays definite, S is positive semidefinite): C is None.
 
     Raises:
         MumpsError: MUMPS failed (on every rank).
     """
 
-    def __init__(self, module, K: PETSc.Mat, G: np.ndarray, bs: int, comm):
+    def __init__(self, module, K: PETSc.Mat, G: np.ndarray, bs: int, comm,
+                 semidefinite: bool = False):
         self.ffi, self.lib, self.comm = module.ffi, module.lib, comm
+        self.semidefinite = semidefinite
         self.m = len(G)
         status = self.ffi.new("int *")
         h = self.lib.ms_init(comm.py2f(), status)
@@ -124,6 +128,8 @@ class SchurMumps:
         self._check(self.lib.ms_factor(h, buf(S)), "factorisation")
         self.S = schur_from_buffer(S) if comm.rank == 0 else None
         self.C = None
+        if self.semidefinite:                # no factor of S: the Gamma3 problem uses S y0
+            return
 
         def cholesky():                      # on rank 0, MUMPS's host and threads.GAMMA3_ROOT
             self.C = spd_cholesky(self.S)

@@ -18,9 +18,11 @@ handed to the SNES VI fallback:
 - a body held only by the contact pair (the viscoplastic punch of
   cases/punch_on_substrate.yaml, coarse): K is singular, the Gamma3 problem is solved in
   the reduced right-hand side r = S y0 (S semidefinite);
-- the rules: a body held only by a contact pair is refused with fast_* PETSc options and
-  under mpirun (``condensed``: by name; ``auto``: SNES VI), and ``auto`` picks the
-  condensed solver for pairs otherwise.
+- the same punch under mpirun -n 2 (MUMPS's Schur complement, semidefinite, no factor of
+  it) equals the serial condensed run;
+- the rules: a body held only by a contact pair is refused with fast_* PETSc options
+  (``condensed``: by name; ``auto``: SNES VI), and ``auto`` picks the condensed solver for
+  pairs otherwise.
 """
 import h5py
 import numpy as np
@@ -200,8 +202,32 @@ def test_body_held_only_by_the_contact():
     assert (tab["neg_sigma_nu"] > 1.0).any() and (tab["slip_state"] == 1).any()
 
 
+def test_body_held_only_by_the_contact_under_mpirun(tmp_path):
+    """The punch under mpirun -n 2 (MUMPS, S semidefinite) equals the serial condensed run:
+    contact.csv to 1e-9 of each column's largest value (the stick/slip state where the node
+    carries a friction bound)."""
+    import csv
+
+    import yaml
+    case = tmp_path / "punch.yaml"
+    case.write_text(yaml.safe_dump(_punch_raw("condensed")))
+    rows = []
+    for nprocs in (1, 2):
+        out = tmp_path / f"np{nprocs}"
+        proc = run_cli(["run", case, "--out", out, "--quiet"], nprocs=nprocs)
+        assert proc.returncode == 0, proc.stderr
+        with open(out / "contact.csv") as f:
+            rows.append(list(csv.DictReader(f)))
+    one, two = ({k: np.array([float(r[k]) for r in rs]) for k in rs[0] if k != "state"}
+                for rs in rows)
+    carried = one["friction_bound"] > 1e-6 * one["friction_bound"].max()
+    np.testing.assert_array_equal(two["slip_state"][carried], one["slip_state"][carried])
+    for key in (k for k in one if k != "slip_state"):
+        assert np.abs(two[key] - one[key]).max() <= 1e-9 * np.abs(one[key]).max(), key
+
+
 def test_rules():
-    """A body held only by the contact with fast_* options (or under mpirun): ``condensed``
+    """A body held only by the contact with fast_* options: ``condensed``
     refused naming the reason, ``auto`` SNES VI; serially without them, and for a pair
     whose bodies are held, auto picks the condensed solver."""
     from mpi4py import MPI
@@ -215,7 +241,7 @@ def test_rules():
     problem = ContactProblem(case, build_mesh(case, MPI.COMM_WORLD))
     assert condensed_eligible(case)[0]                 # the case's rules alone: eligible
     ok, why = condensed_eligible(case, problem)
-    assert not ok and "held only by a contact pair" in why and "mpirun" in why
+    assert not ok and "held only by a contact pair" in why and "fast_*" in why
     with pytest.raises(CaseError, match="'condensed' is not possible here: a body's rigid"):
         choose_method(case, gamma3_dofs(problem), problem)
     raw["solver"]["method"] = "auto"

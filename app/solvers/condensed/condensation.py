@@ -84,8 +84,8 @@ def factorise(K: PETSc.Mat, G_rows: np.ndarray, d: int, layout, options: dict,
         options: the case's PETSc options; any named fast_* selects PetscCondensation.
         comm: the run's communicator.
         semidefinite: K is singular in rigid motions that G holds (a body held only by a
-            contact pair): S is positive semidefinite, C may be None; only the serial
-            back end with the compiled kernels takes it (CholmodCondensation).
+            contact pair): S is positive semidefinite, C may be None; the serial back end
+            with the compiled kernels (CholmodCondensation) and MUMPS under mpirun take it.
 
     Returns:
         CholmodCondensation (serial, with the compiled kernels), MumpsCondensation (mpirun,
@@ -100,15 +100,15 @@ def factorise(K: PETSc.Mat, G_rows: np.ndarray, d: int, layout, options: dict,
     if module is not None:
         from vpcontact.solvers.condensed.cholmod import CholmodCondensation
         return CholmodCondensation(K, G_rows, d, module, comm, semidefinite)
+    if comm.size > 1 and not petsc_options and len(G_rows):
+        from vpcontact.solvers.condensed.mumps import MumpsCondensation
+        condensation = MumpsCondensation.build(K, G_rows, d, comm, semidefinite)
+        if condensation is not None:
+            return condensation
     if semidefinite:
         from vpcontact.io.errors import CaseError
         raise CaseError("solver.method: the condensed solver takes a body held only by a "
-                        "contact pair serially with its compiled kernels only, without "
-                        "fast_* options (allowed here: snes_vi)")
-    if comm.size > 1 and not petsc_options and len(G_rows):
-        from vpcontact.solvers.condensed.mumps import MumpsCondensation
-        condensation = MumpsCondensation.build(K, G_rows, d, comm)
-        if condensation is not None:
-            return condensation
+                        "contact pair with its compiled kernels (serially) or MUMPS (under "
+                        "mpirun) only, without fast_* options (allowed here: snes_vi)")
     from vpcontact.solvers.condensed.petsc import PetscCondensation
     return PetscCondensation(K, G_rows, layout, options, comm)

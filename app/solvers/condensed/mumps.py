@@ -30,7 +30,8 @@ class MumpsCondensation:
                  "variables")
 
     @classmethod
-    def build(cls, K, G_rows: np.ndarray, d: int, comm) -> MumpsCondensation | None:
+    def build(cls, K, G_rows: np.ndarray, d: int, comm,
+              semidefinite: bool = False) -> MumpsCondensation | None:
         """Factorise K with MUMPS (collective).
 
         Args:
@@ -38,6 +39,8 @@ class MumpsCondensation:
             G_rows: the global rows of the Gamma3 dofs in G order, shape (m,), m > 0.
             d: the dofs per node.
             comm: the run's communicator.
+            semidefinite: K singular in motions G holds: S semidefinite, no C (``reduce``
+                only).
 
         Returns:
             The condensation, or None (the same on every rank) where the wrapper cannot be
@@ -48,7 +51,7 @@ class MumpsCondensation:
         if not comm.allreduce(module is not None, op=MPI.LAND):
             return None
         try:
-            schur = mumps.SchurMumps(module, K, G_rows, d, comm)
+            schur = mumps.SchurMumps(module, K, G_rows, d, comm, semidefinite)
         except mumps.MumpsError as exc:
             log.warning("  condensed solver: %s; factorising twice instead", exc)
             return None
