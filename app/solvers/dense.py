@@ -78,7 +78,74 @@ class _Kept:
         self.pos[free] = np.arange(len(free))
 
 
-class NewtonDirection:
+class ProjectedDirection:
+    """p = -(S + the contact Hessian)_ff^-1 g_f on the free dofs, 0 on the binding ones, for
+    a fixed S: a new factorisation (``_factorise``, the subclass's), and from PCG_MIN dofs CG
+    preconditioned by the kept factor while it converges within PCG_MAX_ITERATIONS and few
+    dofs changed their binding state.  A subclass gives ``_factorise`` and the contact
+    Hessian's diagonal and product (``_contact``); it sets S, m, product (x -> S x), _kept
+    and the counts ``factorisations`` and ``cg_iterations``.
+    """
+
+    def __call__(self, W: np.ndarray, g: np.ndarray, binding: np.ndarray,
+                 rtol: float = 0.0) -> np.ndarray | None:
+        """The projected Newton direction.
+
+        Args:
+            W: the nodal Hessian blocks of the contact energy (nodes, d, d).
+            g: the gradient (m).
+            binding: True at the dofs held at their bound (p = 0 there).
+            rtol: the relative residual the direction needs (0: exact, by a factorisation);
+                with m >= PCG_MIN, CG with the kept factor is tried first.
+
+        Returns:
+            The direction (a new array), or None if the free block of the Newton matrix is
+            not positive definite.
+        """
+        free = np.flatnonzero(~binding).astype(np.intc)
+        with blas_threads(large=len(free) >= PCG_MIN):
+            if rtol > 0 and self._kept is not None:
+                p = self._pcg(W, g, free, rtol)
+                if p is not None:
+                    return p
+            return self._factorise(W, g, free)
+
+    def _pcg(self, W, g, free, rtol):
+        """CG on the free block p_f = -g_f preconditioned by the kept factor (on the dofs
+        free then and now; the diagonal on those free only now); None where it does not
+        converge within PCG_MAX_ITERATIONS or the matrix is not positive definite there."""
+        from scipy.linalg.lapack import spotrs
+        kept, m = self._kept, self.m
+        pos = kept.pos[free]
+        both = pos >= 0
+        if (len(free) - both.sum()) + (len(kept.free) - both.sum()) > PCG_MAX_CHANGED:
+            return None
+        w_diagonal, w_product = self._contact(W)
+        diag = self.S[free, free] + w_diagonal(free)
+        q = np.zeros(len(kept.free), dtype=np.float32)
+
+        def precondition(r):
+            q[:] = 0.0
+            q[pos[both]] = r[both]
+            z = r / diag
+            z[both] = spotrs(kept.L, q, lower=1)[0][pos[both]]
+            return z
+
+        def product(x):
+            xm = np.zeros(m)
+            xm[free] = x
+            y = self.product(xm) + w_product(xm)
+            return y[free]
+        x, its = _cg(product, precondition, -g[free], rtol, PCG_MAX_ITERATIONS)
+        self.cg_iterations += abs(its)
+        if its < 0:
+            return None
+        out = np.zeros(m)
+        out[free] = x
+        return out
+
+
+class NewtonDirection(ProjectedDirection):
     """p = -(S + W)_ff^-1 g_f on the free dofs, 0 on the binding ones, for a fixed S.
 
     Args:
@@ -106,28 +173,6 @@ class NewtonDirection:
             self._S, self._p, self._work = (kernels.buf(module.ffi, x)
                                             for x in (self.S, self.p, self.work))
 
-    def __call__(self, W: np.ndarray, g: np.ndarray, binding: np.ndarray,
-                 rtol: float = 0.0) -> np.ndarray | None:
-        """The projected Newton direction.
-
-        Args:
-            W: the nodal Hessian blocks of the contact energy (m / d, d, d).
-            g: the gradient (m).
-            binding: True at the dofs held at their bound (p = 0 there).
-            rtol: the relative residual the direction needs (0: exact, by a factorisation);
-                with m >= PCG_MIN, CG with the kept factor is tried first.
-
-        Returns:
-            The direction (a new array), or None if (S + W)_ff is not positive definite.
-        """
-        free = np.flatnonzero(~binding).astype(np.intc)
-        with blas_threads(large=len(free) >= PCG_MIN):
-            if rtol > 0 and self._kept is not None:
-                p = self._pcg(W, g, free, rtol)
-                if p is not None:
-                    return p
-            return self._factorise(W, g, free)
-
     def _factorise(self, W, g, free):
         """The direction by a new Cholesky factorisation (kept where m >= PCG_MIN)."""
         self.factorisations += 1
@@ -146,40 +191,12 @@ class NewtonDirection:
             self._kept = _Kept(self.work[:nf * nf].reshape(nf, nf).T, free, self.m)
         return self.p.copy()
 
-    def _pcg(self, W, g, free, rtol):
-        """CG on (S + W)_ff p_f = -g_f preconditioned by the kept factor (on the dofs free
-        then and now; the diagonal on those free only now); None where it does not
-        converge within PCG_MAX_ITERATIONS or the matrix is not positive definite there."""
-        from scipy.linalg.lapack import spotrs
-        kept, m = self._kept, self.m
-        pos = kept.pos[free]
-        both = pos >= 0
-        if (len(free) - both.sum()) + (len(kept.free) - both.sum()) > PCG_MAX_CHANGED:
-            return None
+    def _contact(self, W):
+        """(free -> W's diagonal there, x -> W x) of the nodal blocks W."""
         Wd = np.asarray(W, dtype=float)
-        diag = self.S[free, free] + Wd.reshape(-1, self.d * self.d)[
-            free // self.d, (free % self.d) * (self.d + 1)]
-        q = np.zeros(len(kept.free), dtype=np.float32)
-
-        def precondition(r):
-            q[:] = 0.0
-            q[pos[both]] = r[both]
-            z = r / diag
-            z[both] = spotrs(kept.L, q, lower=1)[0][pos[both]]
-            return z
-
-        def product(x):
-            xm = np.zeros(m)
-            xm[free] = x
-            y = self.product(xm) + np.einsum("nij,nj->ni", Wd, xm.reshape(-1, self.d)).ravel()
-            return y[free]
-        x, its = _cg(product, precondition, -g[free], rtol, PCG_MAX_ITERATIONS)
-        self.cg_iterations += abs(its)
-        if its < 0:
-            return None
-        out = np.zeros(m)
-        out[free] = x
-        return out
+        return (lambda free: Wd.reshape(-1, self.d * self.d)[
+            free // self.d, (free % self.d) * (self.d + 1)],
+            lambda x: np.einsum("nij,nj->ni", Wd, x.reshape(-1, self.d)).ravel())
 
     def matrix(self, W: np.ndarray) -> np.ndarray:
         """S + W.

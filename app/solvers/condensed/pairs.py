@@ -26,16 +26,14 @@ from petsc4py import PETSc
 
 from vpcontact.solvers.condensed.frames import WorkFrames, normal_first
 from vpcontact.solvers.condensed.layout import Gamma3Layout
-from vpcontact.solvers.dense import (  # the kept factor and CG of the one-body direction
-    PCG_MAX_CHANGED,
-    PCG_MAX_ITERATIONS,
+from vpcontact.solvers.dense import (  # the one-body direction's kept factor and CG
     PCG_MIN,
-    _cg,
+    ProjectedDirection,
     _Kept,
     symmetric_product,
 )
 from vpcontact.solvers.nodal import NodalContact
-from vpcontact.solvers.threads import GAMMA3_ROOT, blas_threads
+from vpcontact.solvers.threads import GAMMA3_ROOT
 
 
 class PairRightHandSide:
@@ -324,12 +322,10 @@ class PairContact:
         return e, (self.Cw.T @ g.ravel()).reshape(-1, self.d), H
 
 
-class PairNewtonDirection:
+class PairNewtonDirection(ProjectedDirection):
     """p = -(S + C_G^T W C_G)_ff^-1 g_f on the free dofs, 0 on the binding ones, for a fixed
-    S: dense Cholesky (LAPACK), and from PCG_MIN dofs, as dense.NewtonDirection, CG
-    preconditioned by the kept factor of an earlier iteration while it converges within
-    PCG_MAX_ITERATIONS and few dofs changed their binding state.  The interface of
-    dense.NewtonDirection.
+    S: dense Cholesky (LAPACK), and from PCG_MIN dofs CG preconditioned by the kept factor
+    (dense.ProjectedDirection, as the one-body dense.NewtonDirection).
 
     Args:
         S: the Schur complement (m x m, symmetric).
@@ -366,28 +362,6 @@ class PairNewtonDirection:
         np.add.at(H, (CWC.row, CWC.col), CWC.data)
         return H
 
-    def __call__(self, W: np.ndarray, g: np.ndarray, binding: np.ndarray,
-                 rtol: float = 0.0) -> np.ndarray | None:
-        """The projected Newton direction.
-
-        Args:
-            W: the surface nodes' Hessian blocks (n_s, d, d).
-            g: the gradient (m).
-            binding: True at the dofs held at their bound (p = 0 there).
-            rtol: the relative residual the direction needs (0: exact, by a
-                factorisation); with m >= PCG_MIN, CG with the kept factor is tried first.
-
-        Returns:
-            The direction, or None if the free block is not positive definite.
-        """
-        free = np.flatnonzero(~binding)
-        with blas_threads(large=len(free) >= PCG_MIN):
-            if rtol > 0 and self._kept is not None:
-                p = self._pcg(W, g, free, rtol)
-                if p is not None:
-                    return p
-            return self._factorise(W, g, free)
-
     def _factorise(self, W, g, free):
         """The direction by a new Cholesky factorisation (kept where m >= PCG_MIN)."""
         from scipy.linalg.lapack import dpotrf, dpotrs
@@ -402,38 +376,10 @@ class PairNewtonDirection:
             self._kept = _Kept(L, free, self.m)
         return p
 
-    def _pcg(self, W, g, free, rtol):
-        """CG on (S + C_G^T W C_G)_ff p_f = -g_f preconditioned by the kept factor (on the
-        dofs free then and now; the diagonal on those free only now), as
-        dense.NewtonDirection._pcg; None where it does not converge."""
-        from scipy.linalg.lapack import spotrs
-        kept, m = self._kept, self.m
-        pos = kept.pos[free]
-        both = pos >= 0
-        if (len(free) - both.sum()) + (len(kept.free) - both.sum()) > PCG_MAX_CHANGED:
-            return None
+    def _contact(self, W):
+        """(free -> C_G^T W C_G's diagonal there, x -> C_G^T W C_G x)."""
         CWC = self._coupled(W)
-        diag = self.S[free, free] + CWC.diagonal()[free]
-        q = np.zeros(len(kept.free), dtype=np.float32)
-
-        def precondition(r):
-            q[:] = 0.0
-            q[pos[both]] = r[both]
-            z = r / diag
-            z[both] = spotrs(kept.L, q, lower=1)[0][pos[both]]
-            return z
-
-        def product(x):
-            xm = np.zeros(m)
-            xm[free] = x
-            return (self.product(xm) + CWC @ xm)[free]
-        x, its = _cg(product, precondition, -g[free], rtol, PCG_MAX_ITERATIONS)
-        self.cg_iterations += abs(its)
-        if its < 0:
-            return None
-        out = np.zeros(m)
-        out[free] = x
-        return out
+        return (lambda free: CWC.diagonal()[free], lambda x: CWC @ x)
 
 
 def pair_frames(problem, layout: PairLayout) -> WorkFrames:
