@@ -103,18 +103,52 @@ def safe_load(text: str):
     return yaml.load(text, Loader=CaseLoader)
 
 
+_INDEXED = re.compile(r"(.+)\[([0-9]{1,6})\]")     # a list entry: contact.pairs[1].g
+
+
 def _set_path(data: dict, dotted: str, value) -> None:
+    """data at the key path ``dotted`` (sections by name, list entries as name[i]) =
+    value; missing sections are created, a list entry must exist."""
     keys = dotted.split(".")
     node = data
     for key in keys[:-1]:
-        if not isinstance(node.get(key, {}), dict):
-            raise CaseError(f"--set {dotted}: '{key}' is not a section")
-        node = node.setdefault(key, {})
+        node = _entry(node, key, dotted)
     last = keys[-1]
     if keys[:-1] in (["loads", kind] for kind in GROUP_MAPS) and \
             re.fullmatch(rf"[0-9]{{1,{MAX_INT_DIGITS}}}", last):
         last = int(last)                  # a physical tag, as YAML reads the key 3:
+    indexed = _INDEXED.fullmatch(last)
+    if indexed:
+        entries, i = _list(node, indexed.group(1), int(indexed.group(2)), dotted)
+        entries[i] = value
+        return
     node[last] = value
+
+
+def _entry(node: dict, key: str, dotted: str) -> dict:
+    """The section ``key`` of node (created if missing), or the list entry key = name[i]."""
+    indexed = _INDEXED.fullmatch(key)
+    if indexed:
+        entries, i = _list(node, indexed.group(1), int(indexed.group(2)), dotted)
+        if not isinstance(entries[i], dict):
+            raise CaseError(f"--set {dotted}: '{key}' is not a section")
+        return entries[i]
+    if not isinstance(node.get(key, {}), dict):
+        raise CaseError(f"--set {dotted}: '{key}' is not a section")
+    return node.setdefault(key, {})
+
+
+def _list(node: dict, name: str, i: int, dotted: str) -> tuple[list, int]:
+    """(the list ``name`` of node, i), i an existing entry."""
+    entries = node.get(name)
+    if not isinstance(entries, list):
+        raise CaseError(f"--set {dotted}: '{name}' is not a list (name[i] selects an entry "
+                        "of a list)")
+    if i >= len(entries):
+        raise CaseError(f"--set {dotted}: '{name}' has {len(entries)} entries "
+                        f"(allowed: {name}[0] to {name}[{len(entries) - 1}])"
+                        if entries else f"--set {dotted}: '{name}' has no entries")
+    return entries, i
 
 
 def parse_override(text: str) -> tuple[str, object]:

@@ -155,7 +155,8 @@ def _case_options(parser, what: str, default_out: str) -> None:
                         help=f"output directory (default: {default_out})")
     parser.add_argument("--set", dest="overrides", action="append", default=[],
                         metavar="KEY=VALUE",
-                        help="override a case key, e.g. --set mesh.n=32 --set time.N=32 "
+                        help="override a case key, e.g. --set mesh.n=32 --set time.N=32, "
+                             "a list entry by name[i]: --set contact.pairs[1].g=0.01 "
                              "(repeatable)")
     parser.add_argument("--overwrite", action="store_true",
                         help=f"replace the outputs of an earlier {what} in the output directory")
@@ -219,7 +220,8 @@ def _add_plot_check_info(sub) -> None:
                                        "well-posedness margin. Nothing is solved or written.")
     check.add_argument("case", help="YAML case file")
     check.add_argument("--set", dest="overrides", action="append", default=[],
-                       metavar="KEY=VALUE", help="override a case key (repeatable)")
+                       metavar="KEY=VALUE", help="override a case key (repeatable; a list "
+                                                 "entry by name[i], e.g. contact.pairs[1].g)")
     _law_module_option(check)
 
     sub.add_parser("info", help="versions of dolfinx, PETSc, MPI, gmsh; JIT cache",

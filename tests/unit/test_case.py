@@ -33,6 +33,25 @@ def test_overrides_and_yaml_floats():
     assert parse_override("loads.traction.top=[0, -4]") == ("loads.traction.top", [0, -4])
 
 
+def test_overrides_of_list_entries(tmp_path):
+    """--set name[i]: an entry of a list (a contact pair's laws), existing entries only."""
+    from vpcontact.case import load_raw
+    path = tmp_path / "pairs.yaml"
+    path.write_text("contact:\n  pairs:\n    - {surface: a, target: b}\n"
+                    "    - {surface: c, target: d, g: 0.5}\n")
+    raw = load_raw(path, ["contact.pairs[1].g=0.01", "contact.pairs[0].friction.coulomb.mu=0.3",
+                          "contact.pairs[1]={surface: e, target: f}"])
+    assert raw["contact"]["pairs"] == [
+        {"surface": "a", "target": "b", "friction": {"coulomb": {"mu": 0.3}}},
+        {"surface": "e", "target": "f"}]
+    for item, words in (("contact.pairs[2].g=1", "'pairs' has 2 entries (allowed: pairs[0] "
+                                                 "to pairs[1])"),
+                        ("contact[0].g=1", "'contact' is not a list"),
+                        ("contact.pairs[0].surface.x=1", "'surface' is not a section")):
+        with pytest.raises(CaseError, match=re.escape(f"--set {item.split('=')[0]}: {words}")):
+            load_raw(path, [item])
+
+
 def test_unknown_key_is_named_with_suggestion():
     raw = paper_raw()
     raw["material"]["lamda1"] = 3.0
