@@ -91,6 +91,8 @@ class RunSummary:
         laws: the case's laws and materials with their constants and units
             (app/post/lawreport.py: elasticity, viscoplastic law, contact laws; None: not
             recorded).
+        phases: where the loop's time went (app/post/phases.py: the stages of the steps and
+            PETSc's events in the solves; None: not timed).
     """
 
     case: str
@@ -112,6 +114,7 @@ class RunSummary:
     contact_states: dict | None = None
     summary_error: str | None = None
     laws: dict | None = None
+    phases: dict | None = None
 
     @property
     def last_good_step(self) -> int:
@@ -140,6 +143,8 @@ class RunSummary:
              "newton_iterations_total": sum(s["newton_iterations"] for s in self.steps),
              "solve_s": sum(s["wall_s"] for s in self.steps),
              "setup_s": self.setup_s, "loop_s": self.loop_s, "wall_s": self.wall_s}
+        if self.phases is not None:
+            d["phases"] = self.phases
         if self.step_history is not None:
             d["step_history"] = self.step_history
         if self.failure is not None:

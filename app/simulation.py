@@ -20,6 +20,7 @@ from __future__ import annotations
 import logging
 import os
 import time
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -42,6 +43,7 @@ from vpcontact.post import quantities
 from vpcontact.post.diagnostics import diagnose
 from vpcontact.post.lawreport import law_report
 from vpcontact.post.pairreport import pair_lines
+from vpcontact.post.phases import PhaseClock
 from vpcontact.post.ratewatch import RateWatch, needs_watch
 from vpcontact.records import HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
 from vpcontact.solvers import select_solver, threads
@@ -173,6 +175,7 @@ class Simulation:
         self.law, self.contact_laws = law, contact_laws
         self.observers: list[Observer] = []
         self.domain = self.problem = self.history = self.gamma3_history = None
+        self.clock = None                       # the loop's PhaseClock, from ``start``
         self.solver = self.stepper = self.diagnostics = None
         self.n, self.t, self.steps = 0, 0.0, []
         self.status, self.failure = "completed", None
@@ -308,9 +311,14 @@ class Simulation:
         wall = time.perf_counter() - t0
         self.n, self.t = self.n + 1, t_new
         self.stepper.accept(k, self._relative_change(before))
-        record = self._record(its, wall, norms, k, t_g3)
+        with self._stage("records"):
+            record = self._record(its, wall, norms, k, t_g3)
         self._accept(record)
         return record
+
+    def _stage(self, name: str):
+        """The PhaseClock's timer of the loop's stage ``name`` (none before ``start``)."""
+        return self.clock.stage(name) if self.clock is not None else nullcontext()
 
     def advance(self, k: float, t_new: float):
         """The scheme's step from t_{n-1} = ``self.t`` to t_n = ``t_new``: H_n, kappa_n
@@ -329,19 +337,23 @@ class Simulation:
                 error of the history update (von Mises projection, implicit Perzyna update)
                 is reported alike.
         """
-        p, history, g3 = self.problem, self.history, self.gamma3_history
+        p, history, g3, stage = self.problem, self.history, self.gamma3_history, self._stage
         try:
             if history:
-                history.before_solve(p, k)          # explicit: H_n, kappa_n from step n-1
+                with stage("viscoplastic history"):
+                    history.before_solve(p, k)      # explicit: H_n, kappa_n from step n-1
             t_g3 = time.perf_counter()
             if g3:
-                g3.advance(self.t, t_new)           # xi_n, s_n from u_{n-1}
+                with stage("contact history"):
+                    g3.advance(self.t, t_new)       # xi_n, s_n from u_{n-1}
             t_g3 = time.perf_counter() - t_g3
             p.set_time(t_new, k)                    # f_n, prescribed displacements, k_n
             # u_n in U^h, (3.4); with Coulomb friction a fixed point on p_n (Gamma3History)
-            its = g3.solve(self.solver) if g3 else self.solver.solve()
+            with stage("solve"):
+                its = g3.solve(self.solver) if g3 else self.solver.solve()
             # sigma_n (explicit: E eps(u_n) + H_n, (3.2))
-            norms = history.after_solve(p, k) if history else p.update_sigma()
+            with stage("stress update"):
+                norms = history.after_solve(p, k) if history else p.update_sigma()
         except StepSolveError:
             raise
         except PETSc.Error as exc:                  # e.g. -ksp_error_if_not_converged
@@ -470,8 +482,9 @@ class Simulation:
         signalled = self.stop_signal is not None
         self.interrupted = self.comm.allreduce(signalled, op=MPI.LOR)   # all ranks agree
         try:
-            for obs in self.observers:
-                obs.step(self, record)
+            with self._stage("outputs"):
+                for obs in self.observers:
+                    obs.step(self, record)
         except OutputError as exc:
             # step n was computed but not (fully) written: the last good step is n - 1
             record["written"] = False
@@ -508,6 +521,7 @@ class Simulation:
             raise StopRun("failed", StepFailure.output(self.n, self.t, exc)) from None
         finally:
             self._clock["loop_start"] = time.perf_counter()
+            self.clock = PhaseClock(self.comm)
 
     def finish(self) -> RunSummary:
         """End the run: the RunSummary, the observers' ``end`` (which may amend it and
@@ -546,7 +560,8 @@ class Simulation:
             loop_s=self._clock.get("loop", 0.0),
             wall_s=time.perf_counter() - self._clock["start"],
             step_history=stepper.decisions if stepper.adaptive else None,
-            failure=self.failure, laws=law_report(p, self.gamma3_history))
+            failure=self.failure, laws=law_report(p, self.gamma3_history),
+            phases=self.clock.report() if self.clock is not None else None)
 
 
 @dataclass

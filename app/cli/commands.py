@@ -173,6 +173,10 @@ def report_run(comm, s: dict, outdir: Path, no_plots: bool) -> int:
         log.info("done: %d steps, %d Newton iterations, wall %.2f s (set-up %.2f s, steps %.2f s)",
                  len(s["steps"]), s["newton_iterations_total"], s["wall_s"], s["setup_s"],
                  s["loop_s"])
+        if "phases" in s:
+            from vpcontact.post.phases import phase_lines  # PETSc: imported by the run
+            for line in phase_lines(s["phases"]):
+                log.info("%s", line)
         g3 = s["solver"].get("gamma3")
         if g3:
             log.info("Gamma3 problem (%d dofs): %d dense factorisations, %d CG iterations with "

@@ -160,7 +160,8 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "condensed"), nprocs=(
                              "setup_s": s["setup_s"], "loop_s": s["loop_s"],
                              "step_min_s": min(steps), "step_median_s": statistics.median(steps),
                              "newton_total": s["newton_iterations_total"],
-                             "factorisations": s["solver"].get("factorisations")})
+                             "factorisations": s["solver"].get("factorisations"),
+                             "phases": s.get("phases")})
                 rows[-1]["final"] = [s["steps"][-1][k] for k in ("norm_u_V", "norm_sigma_Q",
                                                                    "norm_kappa_Y")]
                 finals[(method, np_)] = rows[-1]

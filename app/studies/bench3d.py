@@ -46,7 +46,7 @@ def _row(label: str, n: int, N: int, nprocs: int, run: tuple) -> dict:
             "iterations": its, "max_iterations": max(its), "newton_total": sum(its),
             "gamma3_dofs": g3.get("dofs"), "gamma3_factorisations": g3.get("factorisations"),
             "gamma3_cg_iterations": g3.get("cg_iterations"),
-            "final_norm_u_V": s["steps"][-1]["norm_u_V"]}
+            "final_norm_u_V": s["steps"][-1]["norm_u_V"], "phases": s.get("phases")}
 
 
 _warmed: set = set()
