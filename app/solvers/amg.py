@@ -24,7 +24,13 @@ AMG_PREFIX = "amg_"
 # (Newton then contracts at least by ksp_rtol per iteration near the solution).  Unsmoothed
 # aggregation (agg_nsmooths 0): the set-up, repeated whenever the inactive set changes,
 # costs a third of the smoothed one; CG needs more iterations, box3d n = 24 costs 30% less.
+# Inexact Newton (Eisenstat-Walker forcing, snes_ksp_ew): the Krylov tolerance follows
+# Newton's progress, loose far from the solution.  box3d, 8 steps, SNES VI with CG + GAMG,
+# back to back on the idle machine: n = 24 solves 23.9 -> 19.9 s, n = 32 72.3 -> 51.8 s
+# (Krylov 51.2 -> 16.6 s; Newton iterations 43 -> 76, so GAMG is set up more often:
+# 17 -> 28 s); the solution the same to 3e-12 (SNES's own tolerances decide it).
 AMG_PETSC = {
+    "snes_ksp_ew": True,
     "ksp_type": "cg",
     "ksp_norm_type": "unpreconditioned",
     "ksp_rtol": 1.0e-8,
