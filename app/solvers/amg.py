@@ -28,7 +28,8 @@ AMG_PREFIX = "amg_"
 # Newton's progress, loose far from the solution.  box3d, 8 steps, SNES VI with CG + GAMG,
 # back to back on the idle machine: n = 24 solves 23.9 -> 19.9 s, n = 32 72.3 -> 51.8 s
 # (Krylov 51.2 -> 16.6 s; Newton iterations 43 -> 76, so GAMG is set up more often:
-# 17 -> 28 s); the solution the same to 3e-12 (SNES's own tolerances decide it).
+# 17 -> 28 s), n = 64 1030 -> 685 s whole process (peak 5.44 -> 5.99 GB); the solution the
+# same to 3e-12 (n = 32), 4e-11 (n = 64): SNES's own tolerances decide it.
 AMG_PETSC = {
     "snes_ksp_ew": True,
     "ksp_type": "cg",
