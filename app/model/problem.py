@@ -254,7 +254,7 @@ class ContactProblem:
         self.w.x.scatter_forward()
         return self.w.x.array.reshape(-1, self.dim)[self.gamma3_local_nodes]
 
-    def contact_law(self, const=None, x=None) -> ContactLaw:
+    def contact_law(self, const=None, x=None, section=None) -> ContactLaw:
         """The contact laws of the run: the case's (app/model/contact_laws.py:
         ``contact_law``) with the parts given to the problem replaced (``replace_laws``); the
         forms, the condensed solver and the reports all read them here.
@@ -263,6 +263,8 @@ class ContactProblem:
             const: (name, value) -> the parameter (the forms' Constants); None: numbers.
             x: where a parameter of x, y, z is evaluated (a UFL SpatialCoordinate or the
                 nodes' coordinates), or None.
+            section: the set of laws (``Contact.sections``: a pair's own), or None: the
+                case's contact section.
 
         Returns:
             The ContactLaw.
@@ -270,7 +272,8 @@ class ContactProblem:
         Raises:
             CaseError: a replacement the case's contact section cannot take.
         """
-        law = contact_law(self.case.contact, self.case.numerics.delta, const, x)
+        section = self.case.contact if section is None else section
+        law = contact_law(section, self.case.numerics.delta, const, x)
         try:
             return replace_laws(law, self.contact_replacements)
         except ValueError as e:
@@ -299,9 +302,8 @@ class ContactProblem:
             named = None if const is None else (
                 lambda name, value, i=i: _shared_delta(const, name, value) if name == "delta"
                 else const(f"pairs[{i}].{name}", value))
-            out.append(replace_laws(contact_law(section, self.case.numerics.delta, named,
-                                                x if varies_in_space(section) else None),
-                                    self.contact_replacements))
+            out.append(self.contact_law(named, x if varies_in_space(section) else None,
+                                        section))
         return out
 
     def _contact_data(self) -> ContactData:
