@@ -409,8 +409,9 @@ def _pair_history(c, problem) -> Gamma3History | None:
             recursion = None if mk.sum == "auto" else mk.sum == "recursion"
         if fr is not None and fr.coulomb is not None:
             mu[rows], coulomb_rows[rows] = fr.coulomb.mu, True
-        if section_slip(fr) is not None:
-            slips.append((rows, section_slip(fr)))
+        slip = section_slip(fr)
+        if slip is not None:
+            slips.append((rows, slip))
     slip = NodewiseSlip(m, slips) if slips else None
     if kernel is None and slip is None and not coulomb_rows.any():
         return None
