@@ -88,6 +88,16 @@ int ms_solve(void *handle, int phase)
     return ms_job(id, 3);
 }
 
+int ms_icntl(void *handle, int i)
+{
+    return ICNTL((DMUMPS_STRUC_C *)handle, i);
+}
+
+void ms_set_icntl(void *handle, int i, int value)
+{
+    ICNTL((DMUMPS_STRUC_C *)handle, i) = value;
+}
+
 int ms_infog(void *handle, int i)
 {
     return ((DMUMPS_STRUC_C *)handle)->infog[i - 1];

@@ -29,6 +29,11 @@ void ms_set_solve(void *handle, int nloc, int *irhs_loc, double *rhs_loc, double
    the Schur variables' values in redrhs). Returns INFOG(1). */
 int ms_solve(void *handle, int phase);
 
+/* ICNTL(i) (1-based) and its setter: the factorisation is repeated with a larger
+   workspace (ICNTL(14)) where MUMPS's estimate was too small (INFOG(1) = -8, -9). */
+int ms_icntl(void *handle, int i);
+void ms_set_icntl(void *handle, int i, int value);
+
 /* INFOG(i) (1-based). */
 int ms_infog(void *handle, int i);
 

@@ -14,6 +14,8 @@ condensed solver factorises twice (PETSc's MUMPS and a G-last factorisation on r
 """
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 from petsc4py import PETSc
 
@@ -25,6 +27,8 @@ from vpcontact.solvers.schur import (
     spd_cholesky,
 )
 from vpcontact.solvers.threads import root_call
+
+log = logging.getLogger("vpcontact")
 
 MUMPS = kernels.Library("_vpcontact_mumps", ("mumps_schur",),
                         "MUMPS with Gamma3 Schur variables (factorising twice under mpirun)",
@@ -38,6 +42,12 @@ def load():
         The cffi module (``.lib``, ``.ffi``), or None if it cannot be built here.
     """
     return MUMPS.load()
+
+
+# INFOG(1) of a workspace estimate too small (integer, real): MUMPS's remedy is a larger
+# ICNTL(14), doubled at most this many times (20 % -> 1280 %)
+WORKSPACE_ERRORS = (-8, -9)
+WORKSPACE_RETRIES = 6
 
 
 class MumpsError(RuntimeError):
@@ -125,7 +135,7 @@ class SchurMumps:
         self._check(self.lib.ms_analyse(h, n, len(a), buf(irn), buf(jcn), buf(a), buf(perm_in),
                                         self.m, buf(listvar)), "analysis")
         S = np.zeros((self.m, self.m)) if comm.rank == 0 else None
-        self._check(self.lib.ms_factor(h, buf(S)), "factorisation")
+        self._factor(S)
         self.S = schur_from_buffer(S) if comm.rank == 0 else None
         self.C = None
         if self.semidefinite:                # no factor of S: the Gamma3 problem uses S y0
@@ -136,6 +146,27 @@ class SchurMumps:
             return self.C is not None
         if not root_call(comm, cholesky):
             raise MumpsError("the Schur complement from MUMPS is not positive definite")
+
+    def _factor(self, S: np.ndarray | None) -> None:
+        """The numerical factorisation (JOB = 2), repeated with the workspace margin ICNTL(14)
+        doubled while MUMPS reports its workspace estimate too small (INFOG(1) = -8, -9:
+        the remedy its user guide names).  Measured: the punch under mpirun -n 2 met -9 in
+        3 of 20 runs at the default margin (20 %), as the partition varies."""
+        h, lib = self._h, self.lib
+        lib.ms_set_icntl(h, 1, 0)                   # no MUMPS message for a retried attempt
+        try:
+            for attempt in range(WORKSPACE_RETRIES + 1):
+                status = lib.ms_factor(h, self._buf(S))
+                if status not in WORKSPACE_ERRORS or attempt == WORKSPACE_RETRIES:
+                    break
+                margin = lib.ms_icntl(h, 14)
+                lib.ms_set_icntl(h, 14, 2 * max(margin, 10))
+                log.info("  MUMPS: workspace estimate too small (INFOG(1) = %d, INFOG(2) = %d): "
+                         "factorising again with ICNTL(14) = %d %%", status,
+                         lib.ms_infog(h, 2), lib.ms_icntl(h, 14))
+        finally:
+            lib.ms_set_icntl(h, 1, 6)
+        self._check(status, "factorisation")
 
     def _buf(self, a: np.ndarray | None):
         return kernels.buf(self.ffi, a)

@@ -231,3 +231,50 @@ def test_mumps_schur_variables_give_the_pair_and_the_split_solve():
     lam[G] = M.S @ (y - y0)
     assert np.abs(x - np.linalg.solve(Ad, b + lam)).max() <= 1e-11 * np.abs(x).max()
     M.destroy()
+
+
+class _SmallWorkspace:
+    """The MUMPS wrapper with ICNTL(14) = -50 % set after the analysis: the workspace
+    estimate of the factorisation is too small (INFOG(1) = -9) on the first attempt."""
+
+    def __init__(self, lib):
+        self._lib, self.factorisations = lib, []
+
+    def __getattr__(self, name):
+        return getattr(self._lib, name)
+
+    def ms_analyse(self, h, *args):
+        status = self._lib.ms_analyse(h, *args)
+        self._lib.ms_set_icntl(h, 14, -50)
+        return status
+
+    def ms_factor(self, h, S):
+        status = self._lib.ms_factor(h, S)
+        self.factorisations.append((status, self._lib.ms_icntl(h, 14)))
+        return status
+
+
+def test_mumps_workspace_too_small_is_factorised_again(caplog):
+    """MUMPS's workspace estimate too small (-9, met under mpirun as the partition varies):
+    the factorisation is repeated with ICNTL(14) raised, logged, and gives S = (K^-1)_GG^-1;
+    MUMPS's own messages are restored afterwards (ICNTL(1) = 6)."""
+    from types import SimpleNamespace
+
+    from vpcontact.solvers import mumps
+    module = mumps.load()
+    if module is None:
+        pytest.skip("the MUMPS wrapper cannot be built here")
+    A = _spd(400, seed=5)
+    G = np.arange(0, 800, 7)
+    K = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType),
+                                            A.indices.astype(PETSc.IntType), A.data),
+                              comm=MPI.COMM_SELF)
+    lib = _SmallWorkspace(module.lib)
+    with caplog.at_level("INFO", logger="vpcontact"):
+        M = mumps.SchurMumps(SimpleNamespace(ffi=module.ffi, lib=lib), K, G, 2, MPI.COMM_SELF)
+    assert lib.factorisations == [(-9, -50), (0, 20)]
+    assert "INFOG(1) = -9" in caplog.text and "ICNTL(14) = 20 %" in caplog.text
+    assert module.lib.ms_icntl(M._h, 1) == 6
+    Zd = np.linalg.inv(A.toarray())[np.ix_(G, G)]
+    assert np.abs(M.S @ Zd - np.eye(len(G))).max() <= 1e-10
+    M.destroy()

@@ -53,7 +53,9 @@ class MumpsCondensation:
         try:
             schur = mumps.SchurMumps(module, K, G_rows, d, comm, semidefinite)
         except mumps.MumpsError as exc:
-            log.warning("  condensed solver: %s; factorising twice instead", exc)
+            log.warning("  condensed solver: %s; %s", exc,
+                        "no other back end takes a body held only by the contact"
+                        if semidefinite else "factorising twice instead")
             return None
         return cls(schur)
 
