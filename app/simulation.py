@@ -553,6 +553,7 @@ class Simulation:
             solver={"method": case.numerics.method, "used": self.solver.name,
                     "factorisations": self.solver.factorisations,
                     "gamma3": getattr(self.solver, "gamma3_stats", lambda: None)(),
+                    "amg": getattr(self.solver, "amg_stats", lambda: None)(),
                     "linear": getattr(self.solver, "linear", None),
                     "delta": case.numerics.delta, "quadrature": case.numerics.quadrature,
                     "petsc_options": dict(getattr(self.solver, "options", case.petsc))},

@@ -182,6 +182,10 @@ def report_run(comm, s: dict, outdir: Path, no_plots: bool) -> int:
             log.info("Gamma3 problem (%d dofs): %d dense factorisations, %d CG iterations with "
                      "a kept factor; BLAS threads for factorisations of >= 1000 dofs: %d",
                      g3["dofs"], g3["factorisations"], g3["cg_iterations"], g3["threads"])
+        amg = s["solver"].get("amg")
+        if amg:
+            log.info("CG + GAMG: %d set-ups (one interpolation, kept), the PC kept in %d Newton "
+                     "iterations", amg["setups"], amg["kept"])
         if "contact_states" in s:
             states = dict(s["contact_states"])
             pairs = states.pop("pairs", [])         # several contact pairs: each one

@@ -13,6 +13,7 @@ import logging
 
 import numpy as np
 from dolfinx import fem
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from vpcontact.solvers.amg import InactiveSetAMG, rigid_body_modes
@@ -224,7 +225,7 @@ class SNESVISolver:
         if self.pairs is None:
             self._setup_jacobian_reuse(problem)
         else:
-            self.K = self.B = None
+            self.K = None
         self.x = self.u.vector.copy()
         # curved Gamma3: SNES solves for x = R^T u in the nodal frames (app/solvers/rotation.py)
         self.frames = None
@@ -237,11 +238,13 @@ class SNESVISolver:
             self.A_frames = self.A.PtAP(self.frames.R)
         self.options, self.prefix = dict(options), prefix
         push_options(self.options, prefix)      # in the database while the solver lives
+        self._lb = self._ub = None               # the bounds (set with the first VI SNES)
         self.snes = self._create()
         self._robust = None
         self.continuation_stages = 0
         self.fallback = None
         self.sticky_robust = False
+        self._past: list[tuple[float, np.ndarray]] = []   # (t, x) of the last two solves
 
     def _create(self, robust: bool = False):
         """A SNES reading this solver's options; ``robust``: with ROBUST on top (the
@@ -270,6 +273,7 @@ class SNESVISolver:
         if snes.getType().startswith("vi"):
             lb, ub = self.problem.bounds()
             snes.setVariableBounds(lb, ub)
+            self._lb, self._ub = lb, ub
         if self.floor is not None:
             atol = snes.getTolerances()[1]
             snes.setMonitor(lambda s, its, fnorm: self._raise_atol(s, atol))
@@ -342,8 +346,48 @@ class SNESVISolver:
         linear = ", CG + GAMG with the rigid body modes" if self.linear == "amg" else ""
         return f"SNES {self.snes.getType()}{linear}"
 
+    def amg_stats(self) -> dict | None:
+        """The iterative path's multigrid work so far (summary.json solver.amg).
+
+        Returns:
+            {"setups": GAMG set-ups (Galerkin products on the kept interpolation after the
+            first), "kept": Newton iterations that kept the PC}, over this solver's SNESes;
+            None on the direct path.
+        """
+        if self.linear != "amg":
+            return None
+        pcs = [s.getKSP().getPC().getPythonContext() for s in (self.snes, self._robust)
+               if s is not None]
+        return {"setups": sum(pc.setups for pc in pcs), "kept": sum(pc.reuses for pc in pcs)}
+
     def warm_start(self) -> None:
-        """Nothing to do: every solve starts from the current u (after a restart: u_n)."""
+        """Start the next solve from the current u (after a restart: u_n), not from an
+        extrapolation of solutions before it."""
+        self._past = []
+
+    def _remember(self) -> None:
+        """Keep this solve's solution x_n and t_n for the next start (a second solve at
+        the same t_n, Coulomb's fixed point, replaces it)."""
+        t = float(self.problem.time_data.t.value)
+        past = [p for p in self._past if p[0] != t][-1:]
+        self._past = [*past, (t, self.x.array_r.copy())]
+
+    def _extrapolate(self) -> None:
+        """The Newton iteration's start x (holding u_{n-1}): the linear extrapolation in
+        time x_{n-1} + (t_n - t_{n-1}) / (t_{n-1} - t_{n-2}) (x_{n-1} - x_{n-2}) of the
+        last two solutions, put into the bounds (SNES VI starts from a feasible point).
+        Unchanged where they are not the last two steps of this run (first step, a
+        restart, a rejected or repeated step).  The step problems change smoothly in t:
+        box3d n = 24, 8 steps, CG + GAMG: Newton iterations 70 -> 60 (measured)."""
+        t = float(self.problem.time_data.t.value)
+        x = self.x.array
+        ok = len(self._past) == 2 and t > self._past[1][0] > self._past[0][0] \
+            and np.array_equal(x, self._past[1][1])
+        if not self.problem.comm.allreduce(ok, op=MPI.LAND):
+            return
+        (t0, x0), (t1, x1) = self._past
+        x += (t - t1) / (t1 - t0) * (x1 - x0)
+        np.clip(x, self._lb.array_r, self._ub.array_r, out=x)
 
     @property
     def robust(self):
@@ -393,14 +437,15 @@ class SNESVISolver:
     def _setup_jacobian_reuse(self, problem) -> None:
         """Explicit scheme: the bulk Jacobian (E eps(du), eps(v)) is the same in every Newton
         iteration of every step.  Assemble it once (K) and per iteration only the Gamma3
-        terms (B, a few facets): J = K + B with the same sparsity pattern, so the direct
-        solver keeps its symbolic factorisation and only refactorises numerically."""
-        self.K = self.B = self._boundary_form = None
+        terms (a few facets), added into a copy of K: J = K + B with the same sparsity
+        pattern, so the direct solver keeps its symbolic factorisation and only
+        refactorises numerically."""
+        self.K = self._boundary_form = None
         forms = problem.forms
         if problem.implicit or forms.bulk_jacobian is None:
             return
-        # A and B get the full pattern of J once (assembly drops unused preallocated entries,
-        # and J = K + B needs the same pattern in all three)
+        # A and K get the full pattern of J once (assembly drops unused preallocated entries,
+        # and J = K + B needs the same pattern in both)
         fem.petsc.assemble_matrix(self.A, problem.J_form, problem.bcs)
         self.A.assemble()
         self.K = self.A.duplicate()
@@ -409,7 +454,6 @@ class SNESVISolver:
         self.K.assemble()
         if forms.boundary_jacobian is not None:
             self._boundary_form = fem.form(forms.boundary_jacobian)
-            self.B = self.A.duplicate()
 
     def _J(self, snes, x, A, P):
         if self.K is None:                       # implicit scheme: the tangent changes
@@ -418,24 +462,24 @@ class SNESVISolver:
             A.assemble()
             return
         self.K.copy(A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        if self._boundary_form is not None:
+            # added to K's values in A (no third matrix: box3d n = 64 has 0.8 GB each);
+            # Dirichlet rows/columns: skipped, their diagonal set to K's 1 again
+            fem.petsc.assemble_matrix(A, self._boundary_form, self.problem.bcs, diagonal=1.0)
         A.assemble()                             # (a never-assembled A stays flagged so)
-        if self.B is not None:
-            self.B.zeroEntries()
-            # Dirichlet rows/columns: zero here (their 1 on the diagonal is in K)
-            fem.petsc.assemble_matrix(self.B, self._boundary_form, self.problem.bcs,
-                                      diagonal=0.0)
-            self.B.assemble()
-            A.axpy(1.0, self.B, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
 
-    def _snes_solve(self, snes) -> None:
-        """SNES from the current u (our options are in the database while it runs: PCs set
-        up their parts, e.g. multigrid levels, from it when the inactive set changes)."""
+    def _snes_solve(self, snes, extrapolate: bool = False) -> None:
+        """SNES from the current u, or with ``extrapolate`` from the extrapolation of the
+        last steps (our options are in the database while it runs: PCs set up their parts,
+        e.g. multigrid levels, from it when the inactive set changes)."""
         if self.pairs is not None:
             self.pairs.to_x(self.u.vector, self.x)
         elif self.frames is None:
             self.u.vector.copy(self.x)
         else:
             self.frames.to_frames(self.u.vector, self.x)
+        if extrapolate and self._lb is not None:
+            self._extrapolate()
         snes.solve(None, self.x)
 
     def _met_negative_curvature(self, snes) -> bool:
@@ -463,9 +507,9 @@ class SNESVISolver:
                 other.getKSP().setGMRESRestart(INDEFINITE_KSP["ksp_gmres_restart"])
         return True
 
-    def _solve_once(self, snes) -> int:
+    def _solve_once(self, snes, extrapolate: bool = False) -> int:
         self.ran_away = self.stagnated = False
-        self._snes_solve(snes)
+        self._snes_solve(snes, extrapolate)
         wasted = 0
         if self._met_negative_curvature(snes):
             wasted = snes.getIterationNumber()
@@ -487,6 +531,7 @@ class SNESVISolver:
         else:
             self.frames.from_frames(self.x, self.u.vector)
         self.u.x.scatter_forward()
+        self._remember()
         return its
 
     def solve(self) -> int:
@@ -511,7 +556,7 @@ class SNESVISolver:
         its = 0
         if not self.sticky_robust:
             try:
-                return self._solve_once(self.snes)
+                return self._solve_once(self.snes, extrapolate=True)
             except StepSolveError as exc:
                 first = exc
             its = self.snes.getIterationNumber()
@@ -519,7 +564,7 @@ class SNESVISolver:
         else:
             first = StepSolveError("(basic Newton skipped after an earlier failure)")
         try:
-            its += self._solve_once(self.robust)
+            its += self._solve_once(self.robust, extrapolate=self.sticky_robust)
             if not self.sticky_robust:
                 self.fallback = "backtracking"
                 self.sticky_robust = True  # the basic iteration cycles here: skip it from now on
@@ -552,7 +597,7 @@ class SNESVISolver:
         """Free the PETSc objects (SNES, matrices, vectors) and take the options out of
         PETSc's database."""
         remove_options(self.options, self.prefix)
-        for obj in (self.snes, self._robust, self.A, self.b, self.x, self.K, self.B,
+        for obj in (self.snes, self._robust, self.A, self.b, self.x, self.K,
                     self.floor):
             if obj is not None:
                 obj.destroy()
