@@ -28,6 +28,9 @@ def test_fast_and_snes_vi_take_the_same_adaptive_grid(adaptive):
     for method in ("snes_vi", "fast"):
         raw = _adaptive(adaptive)
         raw["solver"]["method"] = method
+        if method == "snes_vi":   # both start from the extrapolation of the last steps and
+            # iterate alike; the semismooth Newton method takes other iterations
+            raw["petsc"] = {"snes_type": "vinewtonssls"}
         runs[method] = run_case(validate_raw(raw))
         assert runs[method].status == "completed"
     a, b = runs["snes_vi"], runs["fast"]
