@@ -184,8 +184,9 @@ def report_run(comm, s: dict, outdir: Path, no_plots: bool) -> int:
                      g3["dofs"], g3["factorisations"], g3["cg_iterations"], g3["threads"])
         amg = s["solver"].get("amg")
         if amg:
-            log.info("CG + GAMG: %d set-ups (one interpolation, kept), the PC kept in %d Newton "
-                     "iterations", amg["setups"], amg["kept"])
+            log.info("CG + GAMG: %d set-ups (%d building the interpolation, the others "
+                     "keeping it), the PC kept in %d Newton iterations", amg["setups"],
+                     amg["interpolations"], amg["kept"])
         if "contact_states" in s:
             states = dict(s["contact_states"])
             pairs = states.pop("pairs", [])         # several contact pairs: each one

@@ -8,7 +8,7 @@ scalar unknown per dof and only the constant vector, and its size changes with t
 set, so GAMG would start anew at every change.  ``InactiveSetAMG`` is a PETSc python PC
 around a GAMG PC on J's own layout: J with the active rows and columns replaced by the
 identity, the rigid body modes Z (in the dofs SNES solves for: R^T Z in the nodal frames on a
-curved Gamma3) as near-nullspace, the interpolation built once and kept.
+curved Gamma3) as near-nullspace, the interpolation built once per step and kept.
 The options of the inner PC have the prefix ``<prefix>amg_`` (e.g.
 -vpcontact_amg_pc_gamg_threshold 0.02; -vpcontact_amg_pc_type hypre works too, but BoomerAMG
 sees no modes: box3d n = 16 took 99 s of steps against 4 s with GAMG).
@@ -121,13 +121,14 @@ class InactiveSetAMG:
     (Jt = J_II plus the identity, J's size and block size, the rigid body modes Z of all
     dofs as near-nullspace), applied to the residual extended by zeros.
 
-    GAMG's interpolation is built once, at the first set-up, and kept
+    GAMG's interpolation is built at the first Newton iteration of a step (from that
+    Jacobian, with the contact terms of the last step) and kept for the step
     (``pc_gamg_reuse_interpolation``): Jt keeps its size and nonzero pattern whatever the
-    inactive set, so a new set-up only copies J, replaces the active rows and recomputes
-    the Galerkin products and smoothers.  Restricting the modes to the inactive set and
-    building GAMG on J_II anew at every change of the inactive set cost 3.3 times more
-    set-up time (box3d n = 24, 8 steps: 9.7 s against 2.9 s; the Krylov iterations grew
-    from 854 to 1120; the steps 19.6 -> 16.1 s, measured back to back).
+    inactive set, so a later set-up only copies J, replaces the active rows and recomputes
+    the Galerkin products and smoothers.  box3d n = 24, 8 steps, against GAMG on J_II
+    built anew at every change of the inactive set: set-up 9.7 -> 3.0 s, the same Krylov
+    iterations (854 -> 833); with one interpolation for the whole run (from the first
+    Jacobian, without contact) the Krylov iterations grew to 1012-1120 (measured).
 
     When the inactive set is the one of the previous set-up, the PC is kept (built on an
     earlier Jacobian: they differ by the Gamma3 terms only) while the Krylov iterations of
@@ -148,7 +149,7 @@ class InactiveSetAMG:
         self.snes, self.Z, self.prefix = snes, Z, prefix
         self.inner = self.Jt = self.xt = self.yt = None
         self.rows = None
-        self.setups = self.reuses = 0
+        self.setups = self.reuses = self.interpolations = 0
         self.fresh_its = None           # Krylov iterations of the first solve with the PC
 
     def _rows(self, P: PETSc.Mat) -> np.ndarray | None:
@@ -183,8 +184,12 @@ class InactiveSetAMG:
             self.reuses += 1
             return
         self.fresh_its = None
+        if self.snes.getIterationNumber() == 0 and self.inner is not None:
+            self.inner.destroy()                    # a new step: a new interpolation
+            self.inner = None
         self._embed(self.snes.getJacobian()[0], rows)
         if self.inner is None:
+            self.interpolations += 1
             self.inner = PETSc.PC().create(pc.getComm())
             self.inner.setOptionsPrefix(self.prefix + AMG_PREFIX)
             self.inner.setType("gamg")

@@ -350,15 +350,16 @@ class SNESVISolver:
         """The iterative path's multigrid work so far (summary.json solver.amg).
 
         Returns:
-            {"setups": GAMG set-ups (Galerkin products on the kept interpolation after the
-            first), "kept": Newton iterations that kept the PC}, over this solver's SNESes;
-            None on the direct path.
+            {"setups": GAMG set-ups, "interpolations": those that built the interpolation
+            (the others: Galerkin products on the kept one), "kept": Newton iterations that
+            kept the PC}, over this solver's SNESes; None on the direct path.
         """
         if self.linear != "amg":
             return None
         pcs = [s.getKSP().getPC().getPythonContext() for s in (self.snes, self._robust)
                if s is not None]
-        return {"setups": sum(pc.setups for pc in pcs), "kept": sum(pc.reuses for pc in pcs)}
+        return {"setups": sum(pc.setups for pc in pcs), "kept": sum(pc.reuses for pc in pcs),
+                "interpolations": sum(pc.interpolations for pc in pcs)}
 
     def warm_start(self) -> None:
         """Start the next solve from the current u (after a restart: u_n), not from an
