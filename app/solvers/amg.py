@@ -18,6 +18,8 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
+from vpcontact.solvers.matrices import share_pattern
+
 AMG_PREFIX = "amg_"
 
 # The iterative path's PETSc options (under the solver's prefix); the case's petsc section
@@ -203,11 +205,10 @@ class InactiveSetAMG:
         """Jt = J with the rows and columns of the dofs not in ``rows`` (the active set)
         set to those of the identity (the first time: Jt created, with the modes)."""
         if self.Jt is None:
-            self.Jt = J.duplicate(copy=True)
+            self.Jt = J.duplicate(copy=share_pattern(J))
             self.Jt.setNearNullSpace(near_nullspace(self.Z, self.Jt))
             self.xt, self.yt = self.Jt.createVecs()
-        else:
-            J.copy(self.Jt, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        J.copy(self.Jt, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         lo, hi = J.getOwnershipRange()
         active = np.zeros(hi - lo, dtype=bool)
         if rows is not None:

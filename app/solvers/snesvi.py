@@ -17,6 +17,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from vpcontact.solvers.amg import InactiveSetAMG, rigid_body_modes
+from vpcontact.solvers.matrices import share_pattern
 from vpcontact.solvers.options import PREFIX, push_options, remove_options
 from vpcontact.solvers.pairmap import PairMap
 from vpcontact.solvers.rotation import FrameMap
@@ -168,8 +169,9 @@ class RoundoffFloor:
             if not J.assembled:
                 return 0.0
             ai, aj, av = J.getValuesCSR()
-            self.abs_J = PETSc.Mat().createAIJ(J.getSizes(), csr=(ai, aj, np.abs(av)),
-                                               comm=J.comm)
+            self.abs_J = J.duplicate(copy=share_pattern(J))
+            self.abs_J.setValuesCSR(ai, aj, np.abs(av))
+            self.abs_J.assemble()
             self.abs_x, self.y = self.abs_J.createVecs()
         self.abs_x.array[:] = np.abs(x.array_r)
         self.abs_J.mult(self.abs_x, self.y)
@@ -449,7 +451,7 @@ class SNESVISolver:
         # and J = K + B needs the same pattern in both)
         fem.petsc.assemble_matrix(self.A, problem.J_form, problem.bcs)
         self.A.assemble()
-        self.K = self.A.duplicate()
+        self.K = self.A.duplicate(copy=share_pattern(self.A))
         self.K.zeroEntries()
         fem.petsc.assemble_matrix(self.K, fem.form(forms.bulk_jacobian), problem.bcs)
         self.K.assemble()
