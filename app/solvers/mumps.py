@@ -153,6 +153,7 @@ class SchurMumps:
         the remedy its user guide names).  Measured: the punch under mpirun -n 2 met -9 in
         3 of 20 runs at the default margin (20 %), as the partition varies."""
         h, lib = self._h, self.lib
+        messages = lib.ms_icntl(h, 1)
         lib.ms_set_icntl(h, 1, 0)                   # no MUMPS message for a retried attempt
         try:
             for attempt in range(WORKSPACE_RETRIES + 1):
@@ -165,7 +166,7 @@ class SchurMumps:
                          "factorising again with ICNTL(14) = %d %%", status,
                          lib.ms_infog(h, 2), lib.ms_icntl(h, 14))
         finally:
-            lib.ms_set_icntl(h, 1, 6)
+            lib.ms_set_icntl(h, 1, messages)
         self._check(status, "factorisation")
 
     def _buf(self, a: np.ndarray | None):
