@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+from dolfinx import cpp as _cpp
 from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -24,6 +25,9 @@ from vpcontact.solvers.rotation import FrameMap
 
 log = logging.getLogger("vpcontact")
 
+SUBSET = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
+# SNES types that rewrite the Jacobian matrix in place (vinewtonssls: D_b J + D_a)
+REWRITES_J = ("vinewtonssls",)
 _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
 _KSP_REASONS = {v: k for k, v in vars(PETSc.KSP.ConvergedReason).items() if isinstance(v, int)}
 # CG's stops on negative curvature, and the Krylov method that replaces it then
@@ -138,6 +142,20 @@ def continuation_deltas(target: float, length: float) -> list[float]:
     return [target * 10.0 ** k for k in range(n, 0, -1)] + [target] if n > 0 else [target]
 
 
+def _assemble_without_diagonal(A: PETSc.Mat, form, bcs) -> None:
+    """Add a bilinear form into A with the Dirichlet rows and columns left out, as
+    dolfinx's assemble_matrix does, but without its diagonal at every Dirichlet row (outside
+    the pattern of a form on a part of the boundary).
+
+    Args:
+        A: the matrix (not final: call A.assemble()).
+        form: the compiled bilinear form.
+        bcs: the Dirichlet conditions.
+    """
+    _cpp.fem.petsc.assemble_matrix(A, form, _cpp.fem.pack_constants(form),
+                                   _cpp.fem.pack_coefficients(form), bcs)
+
+
 class RoundoffFloor:
     """The residual norm that Newton's method cannot go below in floating point: the
     residual F(x) = J x - f + ... is summed from terms as large as |J| |x| (entrywise
@@ -227,14 +245,14 @@ class SNESVISolver:
         if self.pairs is None:
             self._setup_jacobian_reuse(problem)
         else:
-            self.K = None
+            self.reuse, self.K, self.B = False, None, None
         self.x = self.u.vector.copy()
         # curved Gamma3: SNES solves for x = R^T u in the nodal frames (app/solvers/rotation.py)
         self.frames = None
         if problem.frames is not None and problem.frames.rotated and self.pairs is None:
             self.frames = FrameMap(problem, self.u.vector)
             self.b_frames = self.b.duplicate()
-            if self.K is None:                   # the pattern of J for the first PtAP
+            if not self.reuse:                   # the pattern of J for the first PtAP
                 fem.petsc.assemble_matrix(self.A, problem.J_form, problem.bcs)
                 self.A.assemble()
             self.A_frames = self.A.PtAP(self.frames.R)
@@ -242,6 +260,7 @@ class SNESVISolver:
         push_options(self.options, prefix)      # in the database while the solver lives
         self._lb = self._ub = None               # the bounds (set with the first VI SNES)
         self.snes = self._create()
+        self._keep_bulk()
         self._robust = None
         self.continuation_stages = 0
         self.fallback = None
@@ -438,37 +457,57 @@ class SNESVISolver:
         self.A.PtAP(self.frames.R, result=A)
 
     def _setup_jacobian_reuse(self, problem) -> None:
-        """Explicit scheme: the bulk Jacobian (E eps(du), eps(v)) is the same in every Newton
-        iteration of every step.  Assemble it once (K) and per iteration only the Gamma3
-        terms (a few facets), added into a copy of K: J = K + B with the same sparsity
-        pattern, so the direct solver keeps its symbolic factorisation and only
-        refactorises numerically."""
-        self.K = self._boundary_form = None
+        """Explicit scheme: the bulk Jacobian K = (E eps(du), eps(v)) is the same in every
+        Newton iteration of every step.  Assemble it once, into A; per iteration only the
+        Gamma3 terms change.  They are kept in B, a matrix with the pattern of the Gamma3
+        facets' dofs only, and A <- A - B_old + B_new: J = K + B in A with J's sparsity
+        pattern throughout (the direct solver keeps its symbolic factorisation and only
+        refactorises numerically) and no copy of K (box3d n = 64: 0.3 GB).  The subtraction
+        leaves round-off of eps |B| per iteration in the Gamma3 rows.  A SNES that rewrites
+        J in place (REWRITES_J: vinewtonssls scales its rows and shifts its diagonal) gets
+        A from a copy of K instead (``_keep_bulk``)."""
+        self.reuse = False
+        self.K = self.B = self._boundary_form = None
         forms = problem.forms
         if problem.implicit or forms.bulk_jacobian is None:
             return
-        # A and K get the full pattern of J once (assembly drops unused preallocated entries,
-        # and J = K + B needs the same pattern in both)
+        # A gets the full pattern of J once (assembly drops unused preallocated entries, and
+        # J = K + B needs the pattern of both)
         fem.petsc.assemble_matrix(self.A, problem.J_form, problem.bcs)
         self.A.assemble()
-        self.K = self.A.duplicate(copy=share_pattern(self.A))
-        self.K.zeroEntries()
-        fem.petsc.assemble_matrix(self.K, fem.form(forms.bulk_jacobian), problem.bcs)
-        self.K.assemble()
+        self.A.zeroEntries()
+        fem.petsc.assemble_matrix(self.A, fem.form(forms.bulk_jacobian), problem.bcs)
+        self.A.assemble()
+        self.reuse = True
         if forms.boundary_jacobian is not None:
             self._boundary_form = fem.form(forms.boundary_jacobian)
+            self.B = fem.petsc.create_matrix(self._boundary_form)
+        self._B_in_A = False
+
+    def _keep_bulk(self) -> None:
+        """A copy K of the bulk Jacobian in A (before any Gamma3 term is added) when the SNES
+        rewrites its Jacobian in place (see _setup_jacobian_reuse)."""
+        if self.reuse and self.snes.getType() in REWRITES_J:
+            self.K = self.A.duplicate(copy=share_pattern(self.A))
+            self.A.copy(self.K, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
 
     def _J(self, snes, x, A, P):
-        if self.K is None:                       # implicit scheme: the tangent changes
+        if not self.reuse:                       # implicit scheme: the tangent changes
             A.zeroEntries()
             fem.petsc.assemble_matrix(A, self.problem.J_form, self.problem.bcs)
             A.assemble()
             return
-        self.K.copy(A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-        if self._boundary_form is not None:
-            # added to K's values in A (no third matrix: box3d n = 64 has 0.8 GB each);
-            # Dirichlet rows/columns: skipped, their diagonal set to K's 1 again
-            fem.petsc.assemble_matrix(A, self._boundary_form, self.problem.bcs, diagonal=1.0)
+        if self.K is not None:
+            self.K.copy(A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        elif self._B_in_A:
+            A.axpy(-1.0, self.B, structure=SUBSET)
+        if self.B is not None:
+            # Dirichlet rows/columns: skipped (their diagonal: K's 1 in A)
+            self.B.zeroEntries()
+            _assemble_without_diagonal(self.B, self._boundary_form, self.problem.bcs)
+            self.B.assemble()
+            A.axpy(1.0, self.B, structure=SUBSET)
+            self._B_in_A = True
         A.assemble()                             # (a never-assembled A stays flagged so)
 
     def _snes_solve(self, snes, extrapolate: bool = False) -> None:
@@ -600,7 +639,7 @@ class SNESVISolver:
         """Free the PETSc objects (SNES, matrices, vectors) and take the options out of
         PETSc's database."""
         remove_options(self.options, self.prefix)
-        for obj in (self.snes, self._robust, self.A, self.b, self.x, self.K,
+        for obj in (self.snes, self._robust, self.A, self.b, self.x, self.K, self.B,
                     self.floor):
             if obj is not None:
                 obj.destroy()
