@@ -156,6 +156,40 @@ def _assemble_without_diagonal(A: PETSc.Mat, form, bcs) -> None:
                                    _cpp.fem.pack_coefficients(form), bcs)
 
 
+class GammaEntries:
+    """K's values at the entries of the Gamma3 matrix B (B's owned rows, in CSR order), read
+    from A while A holds K alone; ``insert`` sets A's entries there to K + B (exactly:
+    INSERT_VALUES, so a B many orders above K does not leave its round-off in A).
+
+    Args:
+        A: the Jacobian matrix, holding the bulk stiffness K only.
+        B: the Gamma3 matrix, assembled once (its pattern is fixed from then on).
+    """
+
+    def __init__(self, A: PETSc.Mat, B: PETSc.Mat):
+        ai, aj, _ = B.getValuesCSR()
+        counts = np.diff(ai)
+        self.rows = (B.getOwnershipRange()[0] + np.flatnonzero(counts)).astype(PETSc.IntType)
+        self.ptr = np.concatenate([[0], np.cumsum(counts[counts > 0])]).astype(PETSc.IntType)
+        self.cols = aj.astype(PETSc.IntType)
+        self.values = np.concatenate(
+            [A.getValues([r], self.cols[self.ptr[k]:self.ptr[k + 1]]).ravel()
+             for k, r in enumerate(self.rows)]) if len(self.rows) else np.zeros(0)
+
+    def insert(self, A: PETSc.Mat, B: PETSc.Mat) -> None:
+        """A's entries at B's set to K + B (A to be assembled after).
+
+        Args:
+            A: the Jacobian matrix.
+            B: the Gamma3 matrix, assembled, with the pattern it had at construction.
+        """
+        _, aj, av = B.getValuesCSR()
+        if len(aj) != len(self.cols):
+            raise RuntimeError("the Gamma3 matrix changed its pattern")
+        A.setValuesIJV(self.ptr, self.cols, self.values + av, rowmap=self.rows,
+                       addv=PETSc.InsertMode.INSERT_VALUES)
+
+
 class RoundoffFloor:
     """The residual norm that Newton's method cannot go below in floating point: the
     residual F(x) = J x - f + ... is summed from terms as large as |J| |x| (entrywise
@@ -459,11 +493,12 @@ class SNESVISolver:
     def _setup_jacobian_reuse(self, problem) -> None:
         """Explicit scheme: the bulk Jacobian K = (E eps(du), eps(v)) is the same in every
         Newton iteration of every step.  Assemble it once, into A; per iteration only the
-        Gamma3 terms change.  They are kept in B, a matrix with the pattern of the Gamma3
-        facets' dofs only, and A <- A - B_old + B_new: J = K + B in A with J's sparsity
-        pattern throughout (the direct solver keeps its symbolic factorisation and only
-        refactorises numerically) and no copy of K (box3d n = 64: 0.3 GB).  The subtraction
-        leaves round-off of eps |B| per iteration in the Gamma3 rows.  A SNES that rewrites
+        Gamma3 terms change.  They are assembled into B, a matrix with the pattern of the
+        Gamma3 facets' dofs only, and A's entries there are set to K's values (kept,
+        GammaEntries) plus B's: J = K + B in A with J's sparsity pattern throughout (the
+        direct solver keeps its symbolic factorisation and only refactorises numerically)
+        and no copy of K (box3d n = 64: 0.3 GB).  (Not A <- A - B_old + B_new: a stiff
+        compliance, B ~ 1e20 K, loses K's digits in the subtraction.)  A SNES that rewrites
         J in place (REWRITES_J: vinewtonssls scales its rows and shifts its diagonal) gets
         A from a copy of K instead (``_keep_bulk``)."""
         self.reuse = False
@@ -482,7 +517,7 @@ class SNESVISolver:
         if forms.boundary_jacobian is not None:
             self._boundary_form = fem.form(forms.boundary_jacobian)
             self.B = fem.petsc.create_matrix(self._boundary_form)
-        self._B_in_A = False
+        self._K_at_B = None
 
     def _keep_bulk(self) -> None:
         """A copy K of the bulk Jacobian in A (before any Gamma3 term is added) when the SNES
@@ -499,15 +534,17 @@ class SNESVISolver:
             return
         if self.K is not None:
             self.K.copy(A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-        elif self._B_in_A:
-            A.axpy(-1.0, self.B, structure=SUBSET)
         if self.B is not None:
             # Dirichlet rows/columns: skipped (their diagonal: K's 1 in A)
             self.B.zeroEntries()
             _assemble_without_diagonal(self.B, self._boundary_form, self.problem.bcs)
             self.B.assemble()
-            A.axpy(1.0, self.B, structure=SUBSET)
-            self._B_in_A = True
+            if self.K is not None:
+                A.axpy(1.0, self.B, structure=SUBSET)
+            else:
+                if self._K_at_B is None:         # A holds K alone: its values at B's entries
+                    self._K_at_B = GammaEntries(A, self.B)
+                self._K_at_B.insert(A, self.B)
         A.assemble()                             # (a never-assembled A stays flagged so)
 
     def _snes_solve(self, snes, extrapolate: bool = False) -> None:

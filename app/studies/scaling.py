@@ -131,7 +131,7 @@ def first_to_stop(model: dict, dofs: int, max_ranks: int = 4096) -> tuple[str, i
 
 def main(argv: list[str]) -> None:
     """Print the model fitted to run directories (each with summary.json) and its
-    predictions: ``python -m vpcontact.studies.scaling DOFS P1,P2,... RUN_DIR...``.
+    predictions: ``.venv/bin/python -m vpcontact.studies.scaling DOFS P1,P2,... RUN_DIR...``.
 
     Args:
         argv: the dofs to predict for, the rank counts, then the run directories.
