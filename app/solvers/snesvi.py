@@ -25,7 +25,6 @@ from vpcontact.solvers.rotation import FrameMap
 
 log = logging.getLogger("vpcontact")
 
-SUBSET = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
 # SNES types that rewrite the Jacobian matrix in place (vinewtonssls: D_b J + D_a)
 REWRITES_J = ("vinewtonssls",)
 _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
@@ -539,12 +538,9 @@ class SNESVISolver:
             self.B.zeroEntries()
             _assemble_without_diagonal(self.B, self._boundary_form, self.problem.bcs)
             self.B.assemble()
-            if self.K is not None:
-                A.axpy(1.0, self.B, structure=SUBSET)
-            else:
-                if self._K_at_B is None:         # A holds K alone: its values at B's entries
-                    self._K_at_B = GammaEntries(A, self.B)
-                self._K_at_B.insert(A, self.B)
+            if self._K_at_B is None:             # A holds K alone: its values at B's entries
+                self._K_at_B = GammaEntries(A, self.B)
+            self._K_at_B.insert(A, self.B)
         A.assemble()                             # (a never-assembled A stays flagged so)
 
     def _snes_solve(self, snes, extrapolate: bool = False) -> None:
