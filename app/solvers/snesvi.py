@@ -497,9 +497,9 @@ class SNESVISolver:
         GammaEntries) plus B's: J = K + B in A with J's sparsity pattern throughout (the
         direct solver keeps its symbolic factorisation and only refactorises numerically)
         and no copy of K (box3d n = 64: 0.3 GB).  (Not A <- A - B_old + B_new: a stiff
-        compliance, B ~ 1e20 K, loses K's digits in the subtraction.)  A SNES that rewrites
-        J in place (REWRITES_J: vinewtonssls scales its rows and shifts its diagonal) gets
-        A from a copy of K instead (``_keep_bulk``)."""
+        compliance, c_nu = 1e20 with B about 1e16 K, loses K's digits in the subtraction.)
+        A SNES that rewrites J in place (REWRITES_J: vinewtonssls scales its rows and shifts
+        its diagonal) gets A from a kept copy of K first (``_keep_bulk``)."""
         self.reuse = False
         self.K = self.B = self._boundary_form = None
         forms = problem.forms
