@@ -34,16 +34,16 @@ from vpcontact.solvers.snesvi import PREFIX, direct_solver
 
 STABILITY_LIMIT = 2.0
 TRACE_PREFIX = PREFIX + "trace_"        # the iterative K^-1 of trace_constant
-# Lanczos (the iterative path of trace_constant) stops at a Ritz residual bound of
-# LANCZOS_RTOL times the value; the value's error is about the square of that over the gap
-# to the next eigenvalue.  Its CG solves stop at TRACE_CG_RTOL.  box3d n = 24: 7 Lanczos
-# iterations, the value 1.2e-8 from the one of 1e-8 / 1e-12 (11 iterations of 60 CG
-# iterations each); n = 64: 71 s instead of about 285 s of an 18 min run (measured).
-LANCZOS_RTOL, TRACE_CG_RTOL = 1e-4, 1e-6
-# Its GAMG is set up once for several solves: smoothed aggregation, whose set-up costs more
-# and whose CG iterations are fewer (box3d n = 32: 18 instead of 40 per solve; the trace
-# constant in 5.6 s instead of 7.0 s, and 6.4 s instead of 7.7 s in a second pair of runs;
-# the value the same to 1.5e-8; measured).
+# LOBPCG (the iterative path of trace_constant) stops at a residual of EIGEN_RTOL times the
+# value in the norm of the preconditioner (about K^-1's); the value's error is about the
+# square of that over the gap to the next eigenvalue.  It replaced Lanczos on K^-1 M, whose
+# every iteration was a CG solve to 1e-6 (box3d n = 16: 17 preconditioner applications
+# instead of 7 solves of about 18 CG iterations each; 0.41 s instead of 1.22 s, n = 32:
+# 2.5 s instead of 6.6 s; the value the same to 1e-8; measured).
+EIGEN_RTOL = 1e-4
+# Its GAMG, set up once: smoothed aggregation, whose set-up costs more and whose iterations
+# are fewer and do not grow with the mesh (box3d n = 16 and 32: 17 and 18 iterations,
+# against 28 and 45 with the unsmoothed aggregation of SNES VI's path; measured).
 TRACE_GAMG = {"pc_gamg_agg_nsmooths": 1}
 
 
@@ -105,10 +105,9 @@ def _gamma3_mass(problem) -> PETSc.Mat:
 
 
 def _stiffness_solver(K: PETSc.Mat, problem, linear: str) -> PETSc.KSP:
-    """A KSP applying K^-1: LU, or for ``linear="amg"`` CG (relative tolerance TRACE_CG_RTOL) with
-    GAMG as SNES VI's iterative path sets it up (app/solvers/amg.AMG_PETSC) but with smoothed
-    aggregation (TRACE_GAMG) and the rigid body modes as near-nullspace (box3d n = 32: the
-    whole trace constant in 5.6 s; LU's set-up alone took 7 s).
+    """A KSP applying K^-1 (LU), or for ``linear="amg"`` one V-cycle of GAMG (``preonly``) as
+    SNES VI's iterative path sets it up (app/solvers/amg.AMG_PETSC) but with smoothed
+    aggregation (TRACE_GAMG) and the rigid body modes as near-nullspace.
 
     Args:
         K: the stiffness (eps(u), eps(v)) with the Dirichlet rows and columns set.
@@ -124,9 +123,7 @@ def _stiffness_solver(K: PETSc.Mat, problem, linear: str) -> PETSc.KSP:
     ksp = PETSc.KSP().create(problem.comm)
     ksp.setOptionsPrefix(TRACE_PREFIX)
     ksp.setOperators(K)
-    ksp.setType("cg")
-    ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
-    ksp.setTolerances(rtol=TRACE_CG_RTOL, atol=0.0, max_it=2000)
+    ksp.setType("preonly")
     ksp.getPC().setType("gamg")
     options = {**{k[len(AMG_PREFIX):]: v for k, v in AMG_PETSC.items()
                   if k.startswith(AMG_PREFIX)}, **TRACE_GAMG}
@@ -146,16 +143,15 @@ def trace_constant(problem, rtol: float = 1e-8, max_iter: int = 500,
     ||gamma||^2 is the largest eigenvalue of M v = lam K v, M = (v, w)_{L2(Gamma3)},
     K = (eps(v), eps(w)) on V^h with v = 0 on Gamma1.  With LU: power iteration
     x <- K^-1 M x until the Rayleigh quotient (a lower bound of lam converging at twice the
-    rate of the vector) changes by less than rtol.  With the iterative solver (every K^-1
-    costs a Krylov solve): Lanczos on K^-1 M in the K inner product, which needs far fewer
-    solves, until the largest Ritz value's residual bound is below LANCZOS_RTOL times the
-    value.
+    rate of the vector) changes by less than rtol.  With the iterative solver: LOBPCG
+    preconditioned by GAMG (one V-cycle per iteration, no inner solves) until the residual
+    is below EIGEN_RTOL times the value (``_lobpcg``).
 
     Args:
         problem: the ContactProblem.
         rtol: the relative change of the power iteration that stops it (see above).
         max_iter: iterations allowed.
-        linear: how K^-1 is applied: "direct" (LU) or "amg" (CG + GAMG).
+        linear: "direct" (LU and the power iteration) or "amg" (GAMG and LOBPCG).
 
     Returns:
         (||gamma||^2, the iterations used).
@@ -171,9 +167,9 @@ def trace_constant(problem, rtol: float = 1e-8, max_iter: int = 500,
     x = K.createVecRight()
     x.setRandom(PETSc.Random().create(comm))
     fem.petsc.set_bc(x, problem.bcs, scale=0.0)
-    iterate = _lanczos if linear == "amg" else _power_iteration
+    iterate = _lobpcg if linear == "amg" else _power_iteration
     try:
-        return iterate(K, M, ksp, x, problem.bcs, rtol if linear != "amg" else LANCZOS_RTOL,
+        return iterate(K, M, ksp, x, problem.bcs, rtol if linear != "amg" else EIGEN_RTOL,
                        max_iter)
     finally:
         for obj in (K, M, ksp, x):
@@ -200,34 +196,70 @@ def _power_iteration(K, M, ksp, x, bcs, rtol: float, max_iter: int) -> tuple[flo
     return float(lam), its
 
 
-def _lanczos(K, M, ksp, x, bcs, rtol: float, max_iter: int) -> tuple[float, int]:
-    """lam_max(M v = lam K v) by Lanczos on K^-1 M (self-adjoint in the K inner product)
-    from x, with full reorthogonalisation (see trace_constant)."""
-    q = [x.copy()]
-    q[0].scale(1.0 / np.sqrt(_adot(K, q[0])))
-    alpha, beta = [], []
-    w, Mq, Kw = K.createVecRight(), K.createVecRight(), K.createVecRight()
-    lam, its = 0.0, 0
+def _lobpcg(K, M, ksp, x, bcs, rtol: float, max_iter: int) -> tuple[float, int]:
+    """lam_max(M v = lam K v) by LOBPCG (Knyazev 2001, block size one) from x: the Rayleigh
+    quotient x.Mx / x.Kx maximised over span{x, w, p} in every iteration, w = T r the
+    preconditioned residual r = M x - lam K x (T: ksp's PC, one V-cycle, about K^-1) and p
+    the last change of x.  Stops when sqrt(r.Tr) (the residual's K^-1 norm, about) is at
+    most rtol lam.  Every vector is carried with its products by K and M (one product by each
+    per iteration)."""
+    X = _with_products(K, M, x, bcs)
+    s = 1.0 / np.sqrt(X[0].dot(X[1]))
+    for v in X:
+        v.scale(s)
+    lam, P = X[0].dot(X[2]), None
+    r, w = K.createVecLeft(), K.createVecLeft()
     for its in range(1, max_iter + 1):  # noqa: B007  (its, the count, is returned)
-        M.mult(q[-1], Mq)
-        fem.petsc.set_bc(Mq, bcs, scale=0.0)           # v = 0 on Gamma1: K^-1 keeps it 0
-        w.set(0.0)
-        ksp.solve(Mq, w)
-        alpha.append(q[-1].dot(Mq))
-        for _ in range(2):                             # Gram-Schmidt twice, K inner product
-            K.mult(w, Kw)
-            w.maxpy([-qi.dot(Kw) for qi in q], q)
-        beta.append(np.sqrt(max(_adot(K, w), 0.0)))
-        T = np.diag(alpha) + np.diag(beta[:-1], 1) + np.diag(beta[:-1], -1)
-        theta, S = np.linalg.eigh(T)
-        lam = float(theta[-1])
-        if beta[-1] * abs(S[-1, -1]) <= rtol * abs(lam) or beta[-1] <= 1e-300:
+        X[2].copy(r)
+        r.axpy(-lam, X[1])
+        fem.petsc.set_bc(r, bcs, scale=0.0)            # v = 0 on Gamma1
+        ksp.getPC().apply(r, w)
+        if np.sqrt(max(r.dot(w), 0.0)) <= rtol * lam:
             break
-        q.append(w.copy())
-        q[-1].scale(1.0 / beta[-1])
-    for obj in [w, Mq, Kw] + q:
-        obj.destroy()
-    return lam, its
+        W = _with_products(K, M, w, bcs)
+        lam, c = _rayleigh_ritz([X, W] if P is None else [X, W, P])
+        step = [v.copy() for v in W]                   # c1 w + c2 p, and its products
+        for k in range(3):
+            step[k].scale(c[1])
+            if P is not None:
+                step[k].axpy(c[2], P[k])
+            X[k].aypx(c[0], step[k])                   # x <- c0 x + c1 w + c2 p
+        for v in W + (P or []):
+            v.destroy()
+        P = step
+    for v in X + (P or []) + [r, w]:
+        v.destroy()
+    return float(lam), its
+
+
+def _with_products(K, M, v, bcs) -> list:
+    """[v, K v, M v] (copies; M v zero at the Dirichlet dofs, as v and K v are)."""
+    v = v.copy()
+    fem.petsc.set_bc(v, bcs, scale=0.0)
+    Kv, Mv = K.createVecLeft(), K.createVecLeft()
+    K.mult(v, Kv)
+    M.mult(v, Mv)
+    fem.petsc.set_bc(Mv, bcs, scale=0.0)
+    return [v, Kv, Mv]
+
+
+def _rayleigh_ritz(S: list) -> tuple[float, np.ndarray]:
+    """The largest Ritz pair of M v = lam K v on span S (vectors with their products): the
+    Gram matrices scaled to a unit diagonal of K's; p is dropped if it has become dependent
+    on x and w (K's Gram matrix no longer positive definite)."""
+    from scipy.linalg import LinAlgError, eigh
+    GK = np.array([[a[0].dot(b[1]) for b in S] for a in S])
+    GM = np.array([[a[0].dot(b[2]) for b in S] for a in S])
+    d = 1.0 / np.sqrt(np.diag(GK))
+    GK, GM = 0.5 * (GK + GK.T) * np.outer(d, d), 0.5 * (GM + GM.T) * np.outer(d, d)
+    try:
+        theta, C = eigh(GM, GK)
+    except LinAlgError:
+        theta, C = eigh(GM[:2, :2], GK[:2, :2])
+        d = d[:2]
+    c = np.zeros(len(S))
+    c[:len(d)] = C[:, -1] * d
+    return float(theta[-1]), c
 
 
 def trace_constant_bound(problem, solver) -> float | None:
