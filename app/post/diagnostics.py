@@ -14,7 +14,9 @@
   monotonicity) times the slip law's ``theta_max`` (1 for theta <= 1), c1~ = 0 (theta is
   bounded: the friction bound does not grow with the slip)
   and ||gamma||^2 = max_v ||v||^2_{L2(Gamma3)} / ||eps(v)||^2_{L2} on the discrete space,
-  computed by power iteration with the factorised stiffness.
+  computed by power iteration with the factorised stiffness (LU), or by LOBPCG
+  preconditioned with GAMG on the iterative path, or bounded from the condensed solver's
+  Schur complement.
 """
 from __future__ import annotations
 
