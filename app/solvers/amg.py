@@ -8,7 +8,9 @@ scalar unknown per dof and only the constant vector, and its size changes with t
 set, so GAMG would start anew at every change.  ``InactiveSetAMG`` is a PETSc python PC
 around a GAMG PC on J's own layout: J with the active rows and columns replaced by the
 identity, the rigid body modes Z (in the dofs SNES solves for: R^T Z in the nodal frames on a
-curved Gamma3) as near-nullspace, the interpolation built once per step and kept.
+curved Gamma3) as near-nullspace, the interpolation built once per step and kept; on one
+rank the levels are then kept by app/solvers/levels.py (the finest product formed from the
+rows that change, the finest level applied in the SBAIJ format).
 The options of the inner PC have the prefix ``<prefix>amg_`` (e.g.
 -vpcontact_amg_pc_gamg_threshold 0.02; -vpcontact_amg_pc_type hypre works too, but BoomerAMG
 sees no modes: box3d n = 16 took 99 s of steps against 4 s with GAMG).
@@ -18,9 +20,12 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
+from vpcontact.solvers.levels import GalerkinLevels, SymmetricCopy
 from vpcontact.solvers.matrices import share_pattern
 
 AMG_PREFIX = "amg_"
+# Jt counts as symmetric (its SBAIJ copy applies it) when |Jt - Jt^T| <= this times its norm.
+SYMMETRY_RTOL = 1e-12
 
 # The iterative path's PETSc options (under the solver's prefix); the case's petsc section
 # overrides them.  The KSP tolerance is relative to the true residual of the Newton system
@@ -140,7 +145,12 @@ class InactiveSetAMG:
     Jacobian, with the contact terms of the last step) and kept for the step
     (``pc_gamg_reuse_interpolation``): Jt keeps its size and nonzero pattern whatever the
     inactive set, so a later set-up only copies J, replaces the active rows and recomputes
-    the Galerkin products and smoothers.  box3d n = 24, 8 steps, against GAMG on J_II
+    the Galerkin products and smoothers (GAMG's re-set-up under MPI; on one rank
+    ``GalerkinLevels``: the finest product from the rows that change only, unless
+    ``<prefix>amg_incremental`` is false, and the finest level applied by Jt's SBAIJ copy
+    when Jt is symmetric, unless ``<prefix>amg_fine_sbaij`` is false; box3d n = 64, 8 steps:
+    the set-ups 95 -> 62 s and the Krylov solves 178 -> 112 s, docs/performance.md).
+    box3d n = 24, 8 steps, against GAMG on J_II
     built anew at every change of the inactive set: set-up 9.7 -> 3.0 s, the same Krylov
     iterations (854 -> 833); with one interpolation for the whole run (from the first
     Jacobian, without contact) the Krylov iterations grew to 1012-1120 (measured).
@@ -156,13 +166,19 @@ class InactiveSetAMG:
             setUp).
         Z: (owned dofs, modes) array: the rigid body modes in the dofs SNES solves for.
         prefix: the SNES's options prefix; the inner PC reads ``<prefix>amg_``.
+        changing: returns the local rows of J that may change between the Newton
+            iterations of a step, every active dof among them
+            (app/solvers/levels.FineProduct), or None (asked at GAMG's first set-up).
     """
 
     REUSE_GROWTH = 1.5
 
-    def __init__(self, snes: PETSc.SNES, Z: np.ndarray, prefix: str):
+    def __init__(self, snes: PETSc.SNES, Z: np.ndarray, prefix: str,
+                 changing=None):
         self.snes, self.Z, self.prefix = snes, Z, prefix
+        self.changing_rows, self.changing = changing, None
         self.inner = self.Jt = self.xt = self.yt = None
+        self.levels = self.copy = None
         self.rows = None
         self.setups = self.reuses = self.interpolations = 0
         self.fresh_its = None           # Krylov iterations of the first solve with the PC
@@ -200,23 +216,73 @@ class InactiveSetAMG:
             return
         self.fresh_its = None
         if self.snes.getIterationNumber() == 0 and self.inner is not None:
-            self.inner.destroy()                    # a new step: a new interpolation
-            self.inner = None
-        self._embed(self.snes.getJacobian()[0], rows)
+            self._drop_inner()                      # a new step: a new interpolation
+        active = self._embed(self.snes.getJacobian()[0], rows)
         if self.inner is None:
-            self.interpolations += 1
-            self.inner = PETSc.PC().create(pc.getComm())
-            self.inner.setOptionsPrefix(self.prefix + AMG_PREFIX)
-            self.inner.setType("gamg")
-            self.inner.setFromOptions()
-            self.inner.setOperators(self.Jt, self.Jt)
-        self.inner.setUp()
+            self._build(pc.getComm())
+        elif self.levels is None:
+            self.inner.setUp()                      # GAMG's own re-set-up (under MPI)
+        else:
+            if self.levels.product is not None and not np.all(np.isin(active, self.changing)):
+                self.levels.forget_product()        # (not expected: a changing row missed)
+            if self.levels.fine.handle != self.Jt.handle:
+                self.copy.update(self.Jt)
+            self.levels.update(self.Jt)
         self.rows = rows
         self.setups += 1
 
-    def _embed(self, J: PETSc.Mat, rows: np.ndarray | None) -> None:
+    def _build(self, comm: PETSc.Comm) -> None:
+        """GAMG set up on Jt (a new interpolation); on one rank its levels kept by
+        GalerkinLevels, with the finest level in SBAIJ and its product incremental where
+        they apply (app/solvers/levels.py)."""
+        self.interpolations += 1
+        self.inner = PETSc.PC().create(comm)
+        self.inner.setOptionsPrefix(self.prefix + AMG_PREFIX)
+        self.inner.setType("gamg")
+        self.inner.setFromOptions()
+        self.inner.setOperators(self.Jt, self.Jt)
+        self.inner.setUp()
+        if comm.getSize() == 1:
+            if self.changing is None and self.changing_rows is not None:
+                self.changing = self.changing_rows()
+            incremental = self._option("incremental") and self.changing is not None
+            self.levels = GalerkinLevels(self.inner, self._fine(),
+                                         self.changing if incremental else None)
+
+    def _drop_inner(self) -> None:
+        """Free GAMG and its kept levels."""
+        if self.levels is not None:
+            self.levels.destroy()
+        if self.inner is not None:
+            self.inner.destroy()
+        self.inner = self.levels = None
+
+    def _fine(self) -> PETSc.Mat:
+        """The operator of the finest smoother and residual for this step (one rank): Jt's
+        SBAIJ copy (app/solvers/levels.py) when Jt is symmetric, else Jt."""
+        if not self._option("fine_sbaij"):
+            return self.Jt
+        scale = self.Jt.norm(PETSc.NormType.INFINITY)
+        if not self.Jt.isSymmetric(SYMMETRY_RTOL * scale):
+            return self.Jt
+        if self.copy is None:
+            try:
+                self.copy = SymmetricCopy(self.Jt)
+            except ValueError:                      # a pattern without whole blocks
+                self.copy = False
+        elif self.copy:
+            self.copy.update(self.Jt)
+        return self.copy.mat if self.copy else self.Jt
+
+    def _option(self, name: str) -> bool:
+        """``<prefix>amg_<name>`` (default true): ``fine_sbaij`` false keeps the finest
+        level in AIJ, ``incremental`` false forms the finest Galerkin product in full."""
+        return PETSc.Options(self.prefix + AMG_PREFIX).getBool(name, True)
+
+    def _embed(self, J: PETSc.Mat, rows: np.ndarray | None) -> np.ndarray:
         """Jt = J with the rows and columns of the dofs not in ``rows`` (the active set)
-        set to those of the identity (the first time: Jt created, with the modes)."""
+        set to those of the identity (the first time: Jt created, with the modes); returns
+        the active set (local rows)."""
         if self.Jt is None:
             self.Jt = J.duplicate(copy=share_pattern(J))
             self.Jt.setNearNullSpace(near_nullspace(self.Z, self.Jt))
@@ -227,7 +293,9 @@ class InactiveSetAMG:
         if rows is not None:
             active[:] = True
             active[rows] = False
-        self.Jt.zeroRowsColumns((lo + np.flatnonzero(active)).astype(PETSc.IntType), 1.0)
+        active = np.flatnonzero(active)
+        self.Jt.zeroRowsColumns((lo + active).astype(PETSc.IntType), 1.0)
+        return active
 
     def apply(self, pc: PETSc.PC, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """One multigrid cycle on Jt, for the residual on the inactive dofs.
@@ -261,10 +329,11 @@ class InactiveSetAMG:
         Args:
             pc: the python PC (unused).
         """
-        for obj in (self.inner, self.Jt, self.xt, self.yt):
-            if obj is not None:
+        self._drop_inner()
+        for obj in (self.Jt, self.copy, self.xt, self.yt):
+            if obj:
                 obj.destroy()
-        self.inner = self.Jt = self.xt = self.yt = None
+        self.inner = self.Jt = self.copy = self.xt = self.yt = None
 
 
 def _land():
