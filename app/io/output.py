@@ -17,6 +17,7 @@ from dolfinx import io as dio
 
 from vpcontact.io.files import atomic_write
 from vpcontact.io.xdmf import TemporalXdmf, XdmfLayoutError, dolfinx_layout, dolfinx_time_key
+from vpcontact.native import loaded_libraries
 
 OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv", "contact.xdmf",
                 "contact.h5", "history.csv")
@@ -117,14 +118,10 @@ _HDF5_QUIET = False
 def _parallel_hdf5() -> list:
     """The parallel HDF5 libraries this process has loaded (ctypes), none where unknown."""
     import ctypes
-    try:
-        maps = Path("/proc/self/maps").read_text()
-    except OSError:
-        return []
     libs = []
-    for path in {line.split()[-1] for line in maps.splitlines() if "/libhdf5" in line}:
+    for path in loaded_libraries("libhdf5"):
         name = Path(path).name
-        if not name.startswith("libhdf5") or "_hl" in name or "_cpp" in name:
+        if "_hl" in name or "_cpp" in name:
             continue
         try:
             lib = ctypes.CDLL(path)

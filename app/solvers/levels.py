@@ -22,6 +22,8 @@ from contextlib import contextmanager
 import numpy as np
 from petsc4py import PETSc
 
+from vpcontact.native import loaded_libraries
+
 _LIB = None
 
 
@@ -34,10 +36,10 @@ def libpetsc() -> ctypes.CDLL:
     """
     global _LIB
     if _LIB is None:
-        with open("/proc/self/maps") as maps:
-            path = next(line.split()[-1] for line in maps if "libpetsc" in line
-                        and line.split()[-1].startswith("/"))
-        _LIB = ctypes.CDLL(path)
+        paths = loaded_libraries("libpetsc")
+        if not paths:
+            raise RuntimeError("the PETSc library is not in this process's memory map")
+        _LIB = ctypes.CDLL(paths[0])
     return _LIB
 
 
