@@ -35,6 +35,10 @@ class StepForms:
         bulk_jacobian: (E eps(du), eps(v)), constant in time (explicit variant only).
         boundary_jacobian: the Gamma3 terms' Jacobian alone (explicit variant, None without
             Gamma3 terms).
+        boundary_residual: the Gamma3 terms' residual alone (explicit variant, None without
+            Gamma3 terms).
+        bulk_load: the bulk residual at u = 0, (H_n, eps(v)) - f_n(v) (explicit variant, None
+            without H_n and loads): bulk_residual = bulk_jacobian u + bulk_load.
     """
 
     residual: ufl.Form
@@ -44,6 +48,8 @@ class StepForms:
     loads: ufl.Form | None = None
     bulk_jacobian: ufl.Form | None = None
     boundary_jacobian: ufl.Form | None = None
+    boundary_residual: ufl.Form | None = None
+    bulk_load: ufl.Form | None = None
 
 
 @dataclass
@@ -180,22 +186,29 @@ def _explicit_forms(u, bulk: BulkData, loads, boundary, terms, dx) -> StepForms:
     C = elasticity_operator(bulk.E, bulk.nu, bulk.dim) if bulk.C is None else bulk.C
     energy = 0.5 * ufl.inner(C(eps(u)), eps(u)) * dx
     named = ["elasticity"]
+    linear = []                                   # the energy's terms linear in u
     if bulk.H is not None:
-        energy += ufl.inner(bulk.H, eps(u)) * dx
+        linear.append(ufl.inner(bulk.H, eps(u)) * dx)
         named.append("pre-stress H_n")
     if loads is not None:
-        energy -= loads
+        linear.append(-loads)
+    for term in linear:
+        energy += term
     bulk_residual = ufl.derivative(energy, u, v)
+    boundary_residual = None
     if boundary is not None:
         energy = energy + boundary
+        boundary_residual = ufl.derivative(boundary, u, v)
     residual = ufl.derivative(energy, u, v)
     return StepForms(
         residual=residual, jacobian=ufl.derivative(residual, u, du),
         bulk_residual=bulk_residual, terms=named + terms,
         loads=ufl.derivative(loads, u, v) if loads is not None else None,
         bulk_jacobian=ufl.inner(C(eps(du)), eps(v)) * dx,
-        boundary_jacobian=(ufl.derivative(ufl.derivative(boundary, u, v), u, du)
-                           if boundary is not None else None))
+        boundary_jacobian=(ufl.derivative(boundary_residual, u, du)
+                           if boundary is not None else None),
+        boundary_residual=boundary_residual,
+        bulk_load=ufl.derivative(sum(linear[1:], linear[0]), u, v) if linear else None)
 
 
 def _implicit_forms(u, bulk: BulkData, loads, boundary, terms, dx) -> StepForms:

@@ -18,6 +18,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from vpcontact.solvers.amg import InactiveSetAMG, rigid_body_modes
+from vpcontact.solvers.bulkresidual import BulkProductResidual
 from vpcontact.solvers.matrices import share_pattern
 from vpcontact.solvers.options import PREFIX, push_options, remove_options
 from vpcontact.solvers.pairmap import PairMap
@@ -471,6 +472,9 @@ class SNESVISolver:
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         x.copy(self.u.vector)
         self.u.x.scatter_forward()
+        if self._residual is not None:           # explicit scheme: K x + c_n + Gamma3 terms
+            self._residual(self.K if self.K is not None else self.A, x, b)
+            return
         with b.localForm() as bl:
             bl.set(0.0)
         if not self.problem.before_residual():
@@ -518,7 +522,7 @@ class SNESVISolver:
         A SNES that rewrites J in place (REWRITES_J: vinewtonssls scales its rows and shifts
         its diagonal) gets A from a kept copy of K first (``_keep_bulk``)."""
         self.reuse = False
-        self.K = self.B = self._boundary_form = None
+        self.K = self.B = self._boundary_form = self._residual = None
         forms = problem.forms
         if problem.implicit or forms.bulk_jacobian is None:
             return
@@ -527,13 +531,15 @@ class SNESVISolver:
         fem.petsc.assemble_matrix(self.A, problem.J_form, problem.bcs)
         self.A.assemble()
         self.A.zeroEntries()
-        fem.petsc.assemble_matrix(self.A, fem.form(forms.bulk_jacobian), problem.bcs)
+        bulk_form = fem.form(forms.bulk_jacobian)
+        fem.petsc.assemble_matrix(self.A, bulk_form, problem.bcs)
         self.A.assemble()
         self.reuse = True
         if forms.boundary_jacobian is not None:
             self._boundary_form = fem.form(forms.boundary_jacobian)
             self.B = fem.petsc.create_matrix(self._boundary_form)
         self._K_at_B = None
+        self._residual = BulkProductResidual(problem, bulk_form, self._boundary_form, self.b)
 
     def _keep_bulk(self) -> None:
         """A copy K of the bulk Jacobian in A (before any Gamma3 term is added) when the SNES
@@ -567,6 +573,8 @@ class SNESVISolver:
             self.B.assemble()
             if self._K_at_B is None:             # A holds K alone: its values at B's entries
                 self._K_at_B = GammaEntries(A, self.B)
+                if self.K is None and self._residual is not None:   # K x's rows R from K
+                    self._residual.keep_rows(A, self._K_at_B.rows)
             self._K_at_B.insert(A, self.B)
         A.assemble()                             # (a never-assembled A stays flagged so)
 
@@ -582,6 +590,8 @@ class SNESVISolver:
             self.frames.to_frames(self.u.vector, self.x)
         if extrapolate and self._lb is not None:
             self._extrapolate()
+        if self._residual is not None:
+            self._residual.new_solve()
         snes.solve(None, self.x)
 
     def _met_negative_curvature(self, snes) -> bool:
@@ -700,7 +710,7 @@ class SNESVISolver:
         PETSc's database."""
         remove_options(self.options, self.prefix)
         for obj in (self.snes, self._robust, self.A, self.b, self.x, self.K, self.B,
-                    self.floor):
+                    self.floor, self._residual):
             if obj is not None:
                 obj.destroy()
         if self.frames is not None:
