@@ -152,6 +152,31 @@ def model_arrays(model) -> dict:
     return out
 
 
+def _cell_tags(mesh, cells: np.ndarray, a: dict):
+    """The cell tags of gmsh's physical volumes (surfaces in 2D).  One volume (the built-in
+    rectangle and box): every local cell, owned and ghost, carries its tag, which is what
+    distributing the cells' data finds (``_distributed_tags``) without its search of the
+    cells by their vertices (box3d n = 48: 1.1 s of the mesh's 3.9 s; measured)."""
+    tdim = mesh.topology.dim
+    if a["one_cell_value"] is None:
+        ct = _distributed_tags(mesh, tdim, cells, a["cell_values"])
+    else:
+        imap = mesh.topology.index_map(tdim)
+        n = imap.size_local + imap.num_ghosts
+        ct = meshtags(mesh, tdim, np.arange(n, dtype=np.int32),
+                      np.full(n, a["one_cell_value"], dtype=np.int32))
+    ct.name = "Cell tags"
+    return ct
+
+
+def _distributed_tags(mesh, dim: int, entities: np.ndarray, values: np.ndarray):
+    """The tags of rank 0's entities (vertex lists in the input numbering) on the ranks that
+    hold them: gmshio.model_to_mesh's distribution of the entity data."""
+    local, local_values = _cpp.io.distribute_entity_data(mesh._mesh, dim, entities, values)
+    return meshtags_from_entities(mesh, dim, _cpp.graph.AdjacencyList_int32(local),
+                                  local_values.astype(np.int32))
+
+
 def _ufl_domain(cell_id: int, gdim: int) -> ufl.Mesh:
     """gmshio.ufl_mesh: the UFL mesh of a gmsh cell type."""
     shape, degree = _GMSH_CELLS[cell_id]
@@ -165,9 +190,11 @@ def _shared(comm, arrays: dict | None, gdim: int) -> dict:
     model_to_mesh broadcasts the cell types and keeps the entities on rank 0)."""
     head = None
     if comm.rank == 0:
+        values = np.unique(arrays["cell_values"])
         head = {"cell_id": int(arrays["cell_id"]), "num_nodes": int(arrays["num_nodes"]),
                 "num_facet_nodes": int(arrays["num_facet_nodes"])
-                if "facets" in arrays else None}
+                if "facets" in arrays else None,
+                "one_cell_value": int(values[0]) if len(values) == 1 else None}
     head = comm.bcast(head, root=0)
     if comm.rank == 0:
         return {**arrays, **head}
@@ -197,11 +224,8 @@ def to_mesh(comm, arrays: dict | None, gdim: int):
     cells = a["cells"][:, _cpp.io.perm_gmsh(cell_type, a["num_nodes"])]
     mesh = create_mesh(comm, cells, a["x"][:, :gdim], domain)
     tdim = mesh.topology.dim
-    entities, values = _cpp.io.distribute_entity_data(mesh._mesh, tdim, cells, a["cell_values"])
     mesh.topology.create_connectivity(tdim, 0)
-    ct = meshtags_from_entities(mesh, tdim, _cpp.graph.AdjacencyList_int32(entities),
-                                values.astype(np.int32))
-    ct.name = "Cell tags"
+    ct = _cell_tags(mesh, cells, a)
     if a["num_facet_nodes"] is None:
         ft = meshtags(mesh, tdim - 1, np.empty(0, dtype=np.int32), np.empty(0, dtype=np.int32))
         return mesh, ct, ft
@@ -209,10 +233,7 @@ def to_mesh(comm, arrays: dict | None, gdim: int):
         raise RuntimeError(f"Unsupported cell type {mesh.topology.cell_type}")
     facet_type = _cpp.mesh.cell_entity_type(cell_type, tdim - 1, 0)
     facets = a["facets"][:, _cpp.io.perm_gmsh(facet_type, a["num_facet_nodes"])]
-    entities, values = _cpp.io.distribute_entity_data(mesh._mesh, tdim - 1, facets,
-                                                      a["facet_values"])
     mesh.topology.create_connectivity(tdim - 1, tdim)
-    ft = meshtags_from_entities(mesh, tdim - 1, _cpp.graph.AdjacencyList_int32(entities),
-                                values.astype(np.int32))
+    ft = _distributed_tags(mesh, tdim - 1, facets, a["facet_values"])
     ft.name = "Facet tags"
     return mesh, ct, ft

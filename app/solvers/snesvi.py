@@ -526,11 +526,8 @@ class SNESVISolver:
         forms = problem.forms
         if problem.implicit or forms.bulk_jacobian is None:
             return
-        # A gets the full pattern of J once (assembly drops unused preallocated entries, and
-        # J = K + B needs the pattern of both)
-        fem.petsc.assemble_matrix(self.A, problem.J_form, problem.bcs)
-        self.A.assemble()
-        self.A.zeroEntries()
+        # K's assembly sets every entry of every cell's dofs (zeros included), so A keeps
+        # the whole pattern of J = K + B: B couples the dofs of a Gamma3 facet's cell only
         bulk_form = fem.form(forms.bulk_jacobian)
         fem.petsc.assemble_matrix(self.A, bulk_form, problem.bcs)
         self.A.assemble()

@@ -78,3 +78,22 @@ def test_a_run_with_a_cached_mesh_does_not_import_gmsh(tmp_path):
     seen = [subprocess.run([sys.executable, "-c", script], cwd=ROOT, env=env, text=True,
                            capture_output=True, timeout=120).stdout.strip() for _ in range(2)]
     assert seen == ["True", "False"]
+
+
+@pytest.mark.parametrize("build", [
+    lambda: build_rectangle(MPI.COMM_WORLD, 2.0, 1.0, n=8, diagonal="left"),
+    lambda: build_box(MPI.COMM_WORLD, 1.0, 0.5, 0.5, n=3)])
+def test_one_volume_tags_every_cell_as_the_distributed_data_does(build):
+    """The cell tags of a one-volume mesh (every local cell, without distributing the cells'
+    data) equal those that distributing gmsh's cell data gives."""
+    body = build()
+    mesh, tdim = body.mesh, body.mesh.topology.dim
+    value = int(body.cell_tags.values[0])
+    cells = mesh.geometry.dofmap.array.reshape(-1, tdim + 1)
+    original = np.asarray(mesh.geometry.input_global_indices, dtype=np.int64)[cells]
+    everywhere = meshcache._distributed_tags(mesh, tdim, original,
+                                             np.full(len(cells), value, dtype=np.int32))
+    imap = mesh.topology.index_map(tdim)
+    assert len(body.cell_tags.indices) == imap.size_local + imap.num_ghosts
+    assert np.array_equal(body.cell_tags.indices, everywhere.indices)
+    assert np.array_equal(body.cell_tags.values, everywhere.values)
