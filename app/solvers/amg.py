@@ -242,7 +242,7 @@ class InactiveSetAMG:
         self.inner.setFromOptions()
         self.inner.setOperators(self.Jt, self.Jt)
         self.inner.setUp()
-        if comm.getSize() == 1:
+        if comm.getSize() == 1 and self._option("keep_levels"):
             if self.changing is None and self.changing_rows is not None:
                 self.changing = self.changing_rows()
             incremental = self._option("incremental") and self.changing is not None
@@ -275,8 +275,10 @@ class InactiveSetAMG:
         return self.copy.mat if self.copy else self.Jt
 
     def _option(self, name: str) -> bool:
-        """``<prefix>amg_<name>`` (default true): ``fine_sbaij`` false keeps the finest
-        level in AIJ, ``incremental`` false forms the finest Galerkin product in full."""
+        """``<prefix>amg_<name>`` (default true): ``keep_levels`` false lets GAMG set
+        itself up again between its interpolations as under MPI (neither of the next two
+        then), ``fine_sbaij`` false keeps the finest level in AIJ, ``incremental`` false
+        forms the finest Galerkin product in full."""
         return PETSc.Options(self.prefix + AMG_PREFIX).getBool(name, True)
 
     def _embed(self, J: PETSc.Mat, rows: np.ndarray | None) -> np.ndarray:

@@ -15,6 +15,12 @@ from __future__ import annotations
 # box3d n = 32 (m = 3267), 8 steps: condensed 25.9 s whole process, 2.4 GB; SNES VI (fresh LU
 # every Newton iteration) 622 s (measured); m = 6000 keeps the dense matrices near 1.5 GB.
 AUTO_FAST_MAX_GAMMA3_DOFS = 6000
+# bytes per entry of m x m that the condensed solver's Gamma3 problem holds at once on the
+# rank that solves it (S, its Cholesky factor, the Newton matrix's work, the kept factor in
+# single precision, the (2.6) diagnostic's Gamma3 mass matrix and its symmetric part): an
+# upper estimate.  A solver whose dense matrices would not fit in the memory available is
+# not chosen by auto, and refused when asked for (``dense_fits``).
+DENSE_BYTES_PER_ENTRY = 48
 # auto: SNES VI's Newton systems by CG + GAMG (app/solvers/amg.py) in 3D above this many dofs
 # (LU's fill grows like dofs^(4/3) in 3D).  box3d, 8 steps, whole process: n = 16 (14,739
 # dofs) LU 15.3 s, CG + GAMG 7.2 s; n = 24 (46,875) 130 s against 40 s (docs/performance.md).
@@ -64,9 +70,10 @@ def held_by_contact(problem) -> bool:
 def choose_method(case, n_gamma3_dofs: int, problem=None) -> str:
     """The step solver a case runs with: ``solver.method``, and for ``auto`` the condensed
     solver where it applies (``condensed_eligible``) and its Gamma3 problem has at most
-    AUTO_FAST_MAX_GAMMA3_DOFS dofs (two bodies: those of G, ``condensed_dofs``), else
-    SNES VI.  (``condensed`` where the case's rules refuse it is refused when the case is
-    validated; where the mesh's rule does, here.)
+    AUTO_FAST_MAX_GAMMA3_DOFS dofs (two bodies: those of G, ``condensed_dofs``) and its
+    dense matrices fit in the memory available (``dense_fits``), else SNES VI.
+    (``condensed`` where the case's rules refuse it is refused when the case is validated;
+    where the mesh's rule or the memory does, here.)
 
     Args:
         case: the validated Case.
@@ -77,21 +84,47 @@ def choose_method(case, n_gamma3_dofs: int, problem=None) -> str:
         "condensed" or "snes_vi".
 
     Raises:
-        CaseError: ``condensed`` given for a case whose mesh rule refuses it.
+        CaseError: ``condensed`` given for a case whose mesh rule refuses it, or whose
+            dense Gamma3 matrices do not fit in the memory available.
     """
     method = case.numerics.method
     if method == "snes_vi":
         return method
     ok, why = condensed_eligible(case, problem)
+    if ok and problem is not None:
+        if case.contact.pairs:
+            n_gamma3_dofs = condensed_dofs(problem)
+        ok, why = dense_fits(n_gamma3_dofs, problem.comm)
     if method == "condensed":
         if not ok:
             from vpcontact.io.errors import CaseError
             raise CaseError(f"{case.source}: solver.method: 'condensed' is not possible here: "
                             f"{why} (allowed: snes_vi, auto)")
         return method
-    if ok and problem is not None and case.contact.pairs:
-        n_gamma3_dofs = condensed_dofs(problem)
     return "condensed" if ok and n_gamma3_dofs <= AUTO_FAST_MAX_GAMMA3_DOFS else "snes_vi"
+
+
+def dense_fits(m: int, comm, memory: float | None = None) -> tuple[bool, str]:
+    """Whether the condensed solver's dense m x m Gamma3 matrices fit in the memory the
+    machine still has (MemAvailable on the rank that solves the Gamma3 problem, rank 0);
+    collective.
+
+    Args:
+        m: the dofs of the Gamma3 problem.
+        comm: the run's communicator (mpi4py).
+        memory: the available memory in bytes (None: read on rank 0).
+
+    Returns:
+        (True, "") or (False, the reason, with the sizes).
+    """
+    from vpcontact.meshes.refine import available_memory
+    if memory is None:
+        memory = comm.bcast(available_memory() if comm.rank == 0 else None, root=0)
+    need = DENSE_BYTES_PER_ENTRY * float(m) ** 2
+    if memory is None or need <= memory:
+        return True, ""
+    return False, (f"its Gamma3 problem ({m} dofs) needs about {need / 1e9:.1f} GB of dense "
+                   f"matrices on one rank, more than the {memory / 1e9:.1f} GB available")
 
 
 def condensed_dofs(problem) -> int:

@@ -125,7 +125,7 @@ def test_box_amg_equals_lu():
     from vpcontact.case import load_raw
     runs = {}
     for name, linear, petsc in (("lu", "direct", {}), ("exact", "amg", {"snes_ksp_ew": False}),
-                                ("ew", "amg", {})):
+                                ("ew", "amg", {}), ("own", "amg", {"amg_keep_levels": False})):
         raw = load_raw(BOX)
         raw["mesh"]["n"] = 6
         raw["time"]["N"] = 3
@@ -136,7 +136,11 @@ def test_box_amg_equals_lu():
         steps = res.summary["steps"]
         assert res.summary["solver"]["linear"] == linear
         amg = res.summary["solver"]["amg"]
-        if linear == "amg":
+        if name == "own":          # GAMG's own re-set-ups, as under MPI: no kept levels
+            events = {k: v - before[k] for k, v in _gamg_events().items()}
+            assert events["vpcontact Galerkin"] == 0
+            assert events["PCGAMG Gal l00"] == amg["setups"] + 1
+        elif linear == "amg":
             events = {k: v - before[k] for k, v in _gamg_events().items()}
             # GAMG sets itself up (aggregation, the Galerkin product of level 0) once per
             # interpolation (and once for the trace constant); the other set-ups recompute
@@ -149,6 +153,7 @@ def test_box_amg_equals_lu():
             assert amg is None
         runs[name] = (res.problem.u.x.array.copy(), steps)
     (u_lu, lu), (u_amg, amg), (u_ew, ew) = runs["lu"], runs["exact"], runs["ew"]
+    assert np.linalg.norm(runs["own"][0] - u_lu) <= 1e-8 * np.linalg.norm(u_lu)
     assert [s["newton_iterations"] for s in amg] == [s["newton_iterations"] for s in lu]
     assert np.linalg.norm(u_amg - u_lu) <= 1e-8 * np.linalg.norm(u_lu)
     assert all(s["linear_iterations"] > s["newton_iterations"] for s in amg)
