@@ -279,7 +279,7 @@ class SNESVISolver:
         if self.pairs is None:
             self._setup_jacobian_reuse(problem)
         else:
-            self.reuse, self.K, self.B = False, None, None
+            self.reuse, self.K, self.B, self._residual = False, None, None, None
         self.x = self.u.vector.copy()
         # curved Gamma3: SNES solves for x = R^T u in the nodal frames (app/solvers/rotation.py)
         self.frames = None
