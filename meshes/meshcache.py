@@ -156,7 +156,7 @@ def _cell_tags(mesh, cells: np.ndarray, a: dict):
     """The cell tags of gmsh's physical volumes (surfaces in 2D).  One volume (the built-in
     rectangle and box): every local cell, owned and ghost, carries its tag, which is what
     distributing the cells' data finds (``_distributed_tags``) without its search of the
-    cells by their vertices (box3d n = 48: 1.1 s of the mesh's 3.9 s; measured)."""
+    cells by their vertices (box3d n = 48, the mesh from the cache: 3.9 -> 2.65 s; measured)."""
     tdim = mesh.topology.dim
     if a["one_cell_value"] is None:
         ct = _distributed_tags(mesh, tdim, cells, a["cell_values"])
