@@ -1,6 +1,8 @@
 /* The split solve of the condensed solver: K = L D L^T ordered interior first, Gamma3 last, with
    the interior columns of L in node blocks (kernels/sweeps.py: GLastSolve, and its numpy
    reference split_solve_numpy). */
+#include <pthread.h>
+
 #include "ldl_blocks.h"
 
 /* One solve with K = L D L^T (L unit lower, D diagonal), ordered interior first, G last
@@ -51,10 +53,10 @@ int ldl_blocks(int bs, int nbc, const int *Lp, const int *Li, const double *Lx, 
 
 /* forward over the interior: x_I <- L_II^-1 b_I, x_G <- b_G - L_GI x_I (= r) */
 #define LDL_FORWARD(BS)                                                                    \
-static void ldl_forward_##BS(int nbc, const int *Bp, const int *Bi, const double *Bx,     \
-                             const double *Ld, double *x)                                  \
+static void ldl_forward_##BS(int J0, int J1, const int *Bp, const int *Bi,                \
+                             const double *Bx, const double *Ld, double *x)                \
 {                                                                                          \
-    for (int J = 0; J < nbc; ++J) {                                                        \
+    for (int J = J0; J < J1; ++J) {                                                        \
         double *xJ = x + BS * J, t[BS];                                                    \
         const double *l = Ld + (long)J * BS * BS;                                          \
         for (int a = 0; a < BS; ++a) {                                                     \
@@ -77,10 +79,11 @@ static void ldl_forward_##BS(int nbc, const int *Bp, const int *Bi, const double
    last to first): 1.9 against 2.4 ms per sweep at h = 1/128 with the blocks of a column read
    forwards (measured), as the prefetchers follow a single direction. */
 #define LDL_BACKWARD(BS)                                                                   \
-static void ldl_backward_##BS(int nbc, const int *Bp, const int *Bi, const double *Bx,    \
-                              const double *Ld, const double *dinv, double *x)            \
+static void ldl_backward_##BS(int J0, int J1, const int *Bp, const int *Bi,               \
+                              const double *Bx, const double *Ld, const double *dinv,     \
+                              double *x)                                                   \
 {                                                                                          \
-    for (int J = nbc - 1; J >= 0; --J) {                                                   \
+    for (int J = J1 - 1; J >= J0; --J) {                                                   \
         double *xJ = x + BS * J, t[BS], s[BS][BS];                                         \
         for (int a = 0; a < BS; ++a) {                                                     \
             t[a] = xJ[a] * dinv[BS * J + a];                                               \
@@ -103,21 +106,96 @@ static void ldl_backward_##BS(int nbc, const int *Bp, const int *Bi, const doubl
 LDL_FORWARD(1) LDL_FORWARD(2) LDL_FORWARD(3)
 LDL_BACKWARD(1) LDL_BACKWARD(2) LDL_BACKWARD(3)
 
+/* the forward sweep over the block columns J0..J1-1 */
+static void forward_range(int bs, int J0, int J1, const int *Bp, const int *Bi,
+                          const double *Bx, const double *Ld, double *x)
+{
+    if (bs == 2) ldl_forward_2(J0, J1, Bp, Bi, Bx, Ld, x);
+    else if (bs == 3) ldl_forward_3(J0, J1, Bp, Bi, Bx, Ld, x);
+    else ldl_forward_1(J0, J1, Bp, Bi, Bx, Ld, x);
+}
+
+/* the backward sweep over the block columns J1-1 down to J0 */
+static void backward_range(int bs, int J0, int J1, const int *Bp, const int *Bi,
+                           const double *Bx, const double *Ld, const double *dinv, double *x)
+{
+    if (bs == 2) ldl_backward_2(J0, J1, Bp, Bi, Bx, Ld, dinv, x);
+    else if (bs == 3) ldl_backward_3(J0, J1, Bp, Bi, Bx, Ld, dinv, x);
+    else ldl_backward_1(J0, J1, Bp, Bi, Bx, Ld, dinv, x);
+}
+
 /* x_I <- L_II^-1 x_I, x_G <- x_G - L_GI x_I with blocks of size bs (1, 2 or 3). */
 void ldl_forward_interior(int bs, int nbc, const int *Bp, const int *Bi, const double *Bx,
                           const double *Ld, double *x)
 {
-    if (bs == 2) ldl_forward_2(nbc, Bp, Bi, Bx, Ld, x);
-    else if (bs == 3) ldl_forward_3(nbc, Bp, Bi, Bx, Ld, x);
-    else ldl_forward_1(nbc, Bp, Bi, Bx, Ld, x);
+    forward_range(bs, 0, nbc, Bp, Bi, Bx, Ld, x);
 }
 
 /* x_I <- L_II^-T (D_I^-1 x_I - L_GI^T x_G) with blocks of size bs (1, 2 or 3). */
 void ldl_backward_given_tail(int bs, int nbc, const int *Bp, const int *Bi, const double *Bx,
                              const double *Ld, const double *dinv, double *x)
 {
-    if (bs == 2) ldl_backward_2(nbc, Bp, Bi, Bx, Ld, dinv, x);
-    else if (bs == 3) ldl_backward_3(nbc, Bp, Bi, Bx, Ld, dinv, x);
-    else ldl_backward_1(nbc, Bp, Bi, Bx, Ld, dinv, x);
+    backward_range(bs, 0, nbc, Bp, Bi, Bx, Ld, dinv, x);
 }
 
+/* One of the two independent subtrees of a split sweep, run by a second thread. */
+struct part {
+    int bs, J0, J1;
+    const int *Bp, *Bi;
+    const double *Bx, *Ld, *dinv;
+    double *x;
+};
+
+static void *forward_part(void *arg)
+{
+    const struct part *p = arg;
+    forward_range(p->bs, p->J0, p->J1, p->Bp, p->Bi, p->Bx, p->Ld, p->x);
+    return NULL;
+}
+
+static void *backward_part(void *arg)
+{
+    const struct part *p = arg;
+    backward_range(p->bs, p->J0, p->J1, p->Bp, p->Bi, p->Bx, p->Ld, p->dinv, p->x);
+    return NULL;
+}
+
+/* run(part) on a second thread while the caller runs mine; both done on return (the second
+   part on the caller's thread after its own where no thread can be started). */
+static void run_two(void *(*run)(void *), struct part *mine, struct part *other)
+{
+    pthread_t thread;
+    const int started = pthread_create(&thread, NULL, run, other) == 0;
+    run(mine);
+    if (started) pthread_join(thread, NULL);
+    else run(other);
+}
+
+/* ldl_forward_interior with the block columns 0..s1-1 and s1..s2-1 two subtrees of the
+   elimination tree (no block of one in the other's rows): they are swept at once, the
+   second on y (n values: its rows copied from x, the rows from s2 on zeroed, then its
+   updates of those rows added to x), then s2..nbc-1 on x. */
+void ldl_forward_split(int bs, int nbc, int s1, int s2, int n, const int *Bp, const int *Bi,
+                       const double *Bx, const double *Ld, double *x, double *y)
+{
+    const long a = (long)bs * s1, b = (long)bs * s2;
+    for (long i = a; i < b; ++i) y[i] = x[i];
+    for (long i = b; i < n; ++i) y[i] = 0.0;
+    struct part mine = {bs, 0, s1, Bp, Bi, Bx, Ld, NULL, x};
+    struct part other = {bs, s1, s2, Bp, Bi, Bx, Ld, NULL, y};
+    run_two(forward_part, &mine, &other);
+    for (long i = a; i < b; ++i) x[i] = y[i];
+    for (long i = b; i < n; ++i) x[i] += y[i];
+    forward_range(bs, s2, nbc, Bp, Bi, Bx, Ld, x);
+}
+
+/* ldl_backward_given_tail with the two subtrees of ldl_forward_split: s2..nbc-1 first, then
+   the subtrees at once (each reads only its own rows and those from s2 on). */
+void ldl_backward_split(int bs, int nbc, int s1, int s2, const int *Bp, const int *Bi,
+                        const double *Bx, const double *Ld, const double *dinv, double *x)
+{
+    backward_range(bs, s2, nbc, Bp, Bi, Bx, Ld, dinv, x);
+    struct part mine = {bs, 0, s1, Bp, Bi, Bx, Ld, dinv, x};
+    struct part other = {bs, s1, s2, Bp, Bi, Bx, Ld, dinv, x};
+    run_two(backward_part, &mine, &other);
+}

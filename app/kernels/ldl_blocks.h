@@ -17,4 +17,11 @@ void ldl_forward_interior(int bs, int nbc, const int *Bp, const int *Bi, const d
 void ldl_backward_given_tail(int bs, int nbc, const int *Bp, const int *Bi, const double *Bx,
                              const double *Ld, const double *dinv, double *x);
 
+/* The two sweeps with the block columns 0..s1-1 and s1..s2-1 two independent subtrees of
+   the elimination tree, swept by two threads at once (y: n work values). */
+void ldl_forward_split(int bs, int nbc, int s1, int s2, int n, const int *Bp, const int *Bi,
+                       const double *Bx, const double *Ld, double *x, double *y);
+void ldl_backward_split(int bs, int nbc, int s1, int s2, const int *Bp, const int *Bi,
+                        const double *Bx, const double *Ld, const double *dinv, double *x);
+
 #endif

@@ -81,11 +81,14 @@ class SymmetricCopy:
 
     Args:
         Jt: the sequential AIJ matrix, symmetric, with block size d and whole blocks.
+        absolute: hold the absolute values of Jt's entries (|Jt|, app/solvers/snesvi.py's
+            round-off floor) instead of the values.
     """
 
     CHUNK = 1 << 16
 
-    def __init__(self, Jt: PETSc.Mat):
+    def __init__(self, Jt: PETSc.Mat, absolute: bool = False):
+        self.absolute = absolute
         self.bs = bs = Jt.getBlockSize()
         t = np.arange(bs * bs)
         self.row, self.col = t % bs, t // bs             # SBAIJ blocks are column-major
@@ -141,7 +144,10 @@ class SymmetricCopy:
             for c in range(0, self.start.size, self.CHUNK):
                 start = self.start[c:c + self.CHUNK, None].astype(np.int64)
                 pos = start + self.length[c:c + self.CHUNK, None] * self.row + self.col
-                np.take(a, pos, out=s[d * c:d * (c + pos.shape[0])].reshape(pos.shape))
+                chunk = s[d * c:d * (c + pos.shape[0])].reshape(pos.shape)
+                np.take(a, pos, out=chunk)
+                if self.absolute:
+                    np.abs(chunk, out=chunk)
         finally:
             lib.MatSeqSBAIJRestoreArray(ctypes.c_void_p(self.mat.handle), ctypes.byref(sptr))
             lib.MatSeqAIJRestoreArrayRead(ctypes.c_void_p(Jt.handle), ctypes.byref(aptr))

@@ -74,3 +74,43 @@ def test_a_given_snes_atol_is_kept():
     raw["petsc"] = {"snes_atol": 2e-11}
     result = run_case(validate_raw(raw))
     assert result.status == "failed"
+
+
+def _abs_reference(A, x) -> float:
+    """eps || |A| |x| ||_2 from A's CSR arrays (numpy), the floor's definition."""
+    ai, aj, av = A.getValuesCSR()
+    rows = np.repeat(np.arange(len(ai) - 1), np.diff(ai))
+    y = np.bincount(rows, weights=np.abs(av) * np.abs(x.array_r[aj]), minlength=len(ai) - 1)
+    return np.finfo(float).eps * np.linalg.norm(y)
+
+
+def test_the_floor_keeps_abs_J_in_the_symmetric_block_format_where_J_is_symmetric():
+    """|J| is kept in SBAIJ (half the values) where J is symmetric with whole blocks, in AIJ
+    otherwise; both give eps || |J| |x| || as the CSR arrays do (the SBAIJ product sums in
+    another order: to 1e-13)."""
+    from dolfinx import fem
+    from petsc4py import PETSc
+
+    from vpcontact.solvers.snesvi import ROUNDOFF_FACTOR, RoundoffFloor
+    raw = paper_raw()
+    raw["time"]["N"] = 2
+    result = run_case(validate_raw(raw))
+    u = result.problem.u.vector
+    A = fem.petsc.assemble_matrix(fem.form(result.problem.forms.bulk_jacobian))
+    A.assemble()
+    assert A.getBlockSize() == 2
+    for symmetric in (True, False):
+        if not symmetric:                      # one entry of the upper triangle changed
+            ai, aj, _ = A.getValuesCSR()
+            row = 4
+            col = int(aj[ai[row + 1] - 1])
+            assert col > row
+            A.setValue(row, col, 2.0, addv=PETSc.InsertMode.ADD_VALUES)
+            A.assemble()
+        floor = RoundoffFloor()
+        value = floor(A, u) / ROUNDOFF_FACTOR
+        assert floor.abs_J.getType() == ("seqsbaij" if symmetric else "seqaij")
+        reference = _abs_reference(A, u)
+        assert abs(value - reference) <= 1e-13 * reference, (symmetric, value, reference)
+        floor.destroy()
+    A.destroy()

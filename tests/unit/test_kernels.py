@@ -209,6 +209,60 @@ def test_split_solve_equals_numpy(kind, bs):
     assert kernels.split_solve_numpy(L, D, f.perm, 4, b)[1] is None
 
 
+def _grid_laplacian(k: int, bs: int):
+    """The 5-point Laplacian of a k x k grid plus the identity, each node bs dofs (CSR)."""
+    import scipy.sparse as sp
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(k, k))
+    A = sp.kron(T, sp.eye(k)) + sp.kron(sp.eye(k), T) + sp.eye(k * k)
+    return sp.csr_matrix(sp.kron(A, np.eye(bs) + 0.1 * (1 - np.eye(bs))))
+
+
+def test_subtree_split_of_small_trees():
+    """Two chains under a common top are swept at once; a single chain is not split."""
+    from vpcontact.kernels.sweeps import subtree_split
+    # columns 0 -> 1 -> 4 and 2 -> 3 -> 4, 4 -> row 5 (G); Bi the rows below the diagonal
+    Bp, Bi = np.array([0, 2, 3, 5, 6, 7]), np.array([1, 4, 4, 3, 4, 4, 5])
+    assert subtree_split(Bp, Bi, 5) == (2, 4)
+    Bp, Bi = np.array([0, 1, 2, 3, 4]), np.array([1, 2, 3, 4])        # 0 -> 1 -> 2 -> 3
+    assert subtree_split(Bp, Bi, 4) is None
+
+
+@needs_c
+@pytest.mark.parametrize("bs", [1, 2])
+def test_two_thread_sweeps_equal_one_thread_and_numpy(bs, monkeypatch):
+    """GLastSolve with two threads (the parts of subtree_split swept at once) equals the
+    one-thread sweeps to round-off and split_solve_numpy to 1e-12, on a grid Laplacian
+    ordered by CHOLMOD's nested dissection with one side of the grid as Gamma3."""
+    from vpcontact.kernels import sweeps
+    from vpcontact.solvers.schur import CSR, GLastLDL
+    if ldl.load() is None:
+        pytest.skip("CHOLMOD not available")
+    monkeypatch.setattr(sweeps, "SPLIT_MIN_BLOCKS", 0)
+    k = 24
+    S = _grid_laplacian(k, bs)
+    G = (bs * np.arange(k)[:, None] + np.arange(bs)).ravel()          # the grid's row 0
+    f = GLastLDL(CSR(S.indptr, S.indices, S.data), G, bs, ldl.load())
+    one, two = (kernels.GLastSolve(f, module, bs, threads=t) for t in (1, 2))
+    assert one.split is None and two.split is not None
+    s1, s2 = two.split
+    assert 0 < s1 < s2 <= two.nbc
+    rng = np.random.default_rng(5)
+    n, m = S.shape[0], len(G)
+    b, y = rng.normal(size=n), rng.normal(size=m)
+    out = {}
+    for name, solve in (("one", one), ("two", two)):
+        r = solve.forward(b).copy()
+        u = np.empty(n)
+        solve.backward(y, u)
+        out[name] = r, u
+    for a, c in zip(out["one"], out["two"]):
+        assert np.abs(a - c).max() <= 1e-14 * np.abs(a).max()
+    L, D = ldl.ldl_numpy(S.toarray(), f.perm)
+    r_ref, u_ref = kernels.split_solve_numpy(L, D, f.perm, m, b, y)
+    assert np.abs(out["two"][0] - r_ref).max() <= 1e-12 * np.abs(r_ref).max()
+    assert np.abs(out["two"][1] - u_ref).max() <= 1e-12 * np.abs(u_ref).max()
+
+
 def test_cholmod_factor_equals_numpy():
     """ldl.Factor's D and L_GG against ldl_numpy (dense Cholesky) in the same order."""
     module_c = ldl.load()

@@ -49,10 +49,14 @@ class CholmodCondensation:
         with threads.blas_threads(large=A.n >= THREADED_FACTOR_MIN):
             # K singular in a motion G holds: its last pivots vanish, which CHOLMOD refuses
             factor = GLastLU(A, G_rows, d) if semidefinite else g_last_factor(A, G_rows, d)
-        self._split = kernels.GLastSolve(factor, module, d)
+        self._split = kernels.GLastSolve(factor, module, d, threads=threads.cores())
         self.factorisations = 1
-        log.info("  condensed solver: one %s factorisation (Gamma3 last), compiled sweeps",
-                 "CHOLMOD L D L^T" if isinstance(factor, GLastLDL) else "SuperLU L U")
+        split = self._split.split
+        log.info("  condensed solver: one %s factorisation (Gamma3 last), compiled sweeps%s",
+                 "CHOLMOD L D L^T" if isinstance(factor, GLastLDL) else "SuperLU L U",
+                 "" if split is None else
+                 f" (two threads: block columns 0-{split[0] - 1} and {split[0]}-{split[1] - 1}"
+                 f" at once, then {split[1]}-{self._split.nbc - 1})")
         self.S, self.C = (schur_pair(factor) if not semidefinite else
                           _semidefinite_schur(factor)) if len(G_rows) else (None, None)
 
