@@ -19,16 +19,21 @@ def _pair(m=40, seed=0):
     return V @ V.T, B @ B.T + m * np.eye(m)
 
 
+@pytest.mark.parametrize("sparse", [False, True], ids=["dense_A", "sparse_A"])
 @pytest.mark.parametrize("arpack", [True, False], ids=["lanczos", "dense_reduction"])
-def test_reduced_eigenvalue_equals_the_generalised_one(monkeypatch, arpack):
+def test_reduced_eigenvalue_equals_the_generalised_one(monkeypatch, arpack, sparse):
+    """A dense or scipy sparse (as M_G from PCG_MIN Gamma3 dofs on)."""
     import scipy.sparse.linalg as sla
+    from scipy.sparse import csr_matrix
     A, S = _pair()
     C = np.asfortranarray(np.linalg.cholesky(S))
+    ref = scipy.linalg.eigh(A, S, eigvals_only=True)[-1]
+    if sparse:
+        A = csr_matrix(A)
     if not arpack:                                  # ARPACK fails: the dense reduction
         def refuse(*args, **kwargs):
             raise sla.ArpackNoConvergence("refused", np.zeros(0), np.zeros((0, 0)))
         monkeypatch.setattr(sla, "eigsh", refuse)
-    ref = scipy.linalg.eigh(A, S, eigvals_only=True)[-1]
     assert diagnostics._largest_generalised_eigenvalue(A, C) == pytest.approx(ref, rel=1e-10)
 
 
