@@ -33,6 +33,7 @@ from vpcontact.solvers.dense import (  # the one-body direction's kept factor an
     symmetric_product,
 )
 from vpcontact.solvers.nodal import NodalContact
+from vpcontact.solvers.schur import cholesky_solve
 from vpcontact.solvers.threads import GAMMA3_ROOT
 
 
@@ -364,14 +365,14 @@ class PairNewtonDirection(ProjectedDirection):
 
     def _factorise(self, W, g, free):
         """The direction by a new Cholesky factorisation (kept where m >= PCG_MIN)."""
-        from scipy.linalg.lapack import dpotrf, dpotrs
+        from scipy.linalg.lapack import dpotrf
         self.factorisations += 1
         self._kept = None
         L, info = dpotrf(self.matrix(W)[np.ix_(free, free)], lower=1, clean=1)
         if info != 0:
             return None
         p = np.zeros(self.m)
-        p[free] = -dpotrs(L, g[free], lower=1)[0]
+        p[free] = -cholesky_solve(L, g[free])
         if self.m >= PCG_MIN:
             self._kept = _Kept(L, free, self.m)
         return p
