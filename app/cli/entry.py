@@ -54,12 +54,18 @@ def prepare_process() -> None:
     """Set up the command line's process, before numpy, MPI, ufl or dolfinx are imported.
 
     One BLAS thread (multithreaded OpenBLAS makes the small dense per-cell algebra 30-100x
-    slower), a usable TMPDIR, MPI initialised (a light singleton without a launcher), every
-    cache writable or replaced (before dolfinx reads its JIT cache directory), the stand-in
-    for ``pkg_resources`` (app/startup.py) and usable standard streams.
+    slower; the large operations widen it, app/solvers/threads.py), OpenBLAS's idle threads
+    asleep after 2^20 cycles instead of 2^28 (OPENBLAS_THREAD_TIMEOUT), a usable TMPDIR, MPI
+    initialised (a light singleton without a launcher), every cache writable or replaced
+    (before dolfinx reads its JIT cache directory), the stand-in for ``pkg_resources``
+    (app/startup.py) and usable standard streams.
     """
     for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
         os.environ.setdefault(var, "1")
+    # a thread of the Gamma3 work's BLAS spinning on after it (~0.1 s) took a core from the
+    # two-thread sweeps; with 20 the steps' solves of box3d n = 32 with 32 steps took
+    # 5.4-5.9 s against 6.3-6.4 s, the dense work as fast (measured); 4 made it slower
+    os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "20")
     _usable_tmpdir()
     MPI = _init_mpi()
     from vpcontact.io.cachedirs import start

@@ -26,6 +26,18 @@ def test_user_settings_win():
     assert out == "self,vader"
 
 
+def test_openblas_thread_timeout_default_and_user_value():
+    """OpenBLAS's idle threads sleep after 2^20 cycles unless the user says otherwise."""
+    code = "import os; " + PREP + "print(os.environ['OPENBLAS_THREAD_TIMEOUT'])"
+    for given, expected in ((None, "20"), ("28", "28")):
+        env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_THREAD_TIMEOUT"}
+        if given is not None:
+            env["OPENBLAS_THREAD_TIMEOUT"] = given
+        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                             text=True, check=True).stdout.strip()
+        assert out == expected
+
+
 def test_pkg_resources_stand_in():
     """ufl/ffcx get their versions without the real pkg_resources; any other use of it
     loads the real module (app/startup.py)."""
