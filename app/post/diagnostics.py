@@ -305,8 +305,9 @@ def _gamma3_block(M: PETSc.Mat, layout):
     starts, lengths = ai[local], ai[local + 1] - ai[local]
     idx = np.repeat(starts - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())
     rows = np.repeat(layout.owned_positions, lengths)
-    k = np.minimum(np.searchsorted(g_rows[order], aj[idx]), len(g_rows) - 1)
-    in_G = g_rows[order][k] == aj[idx]
+    sorted_rows, cols = g_rows[order], aj[idx]
+    k = np.minimum(np.searchsorted(sorted_rows, cols), len(g_rows) - 1)
+    in_G = sorted_rows[k] == cols
     parts = layout.comm.gather((rows[in_G], order[k[in_G]], av[idx][in_G]),
                                root=threads.GAMMA3_ROOT)
     if parts is None:
@@ -318,10 +319,9 @@ def _gamma3_block(M: PETSc.Mat, layout):
 def _largest_generalised_eigenvalue(A, C: np.ndarray) -> float:
     """lam_max of A x = lam S x (A symmetric positive semidefinite, dense or scipy sparse;
     S = C C^T symmetric positive definite with its Cholesky factor C at hand), as lam_max of
-    C^-1 A C^-T: Lanczos
-    (ARPACK) with O(m^2) products and triangular solves, or the dense reduction if ARPACK
-    does not converge.  (The dense reduction alone cost 7.9 s of a 31 s run at box3d n = 32,
-    m = 3267; measured.)"""
+    C^-1 A C^-T: Lanczos (ARPACK) with O(m^2) products and triangular solves, or the dense
+    reduction if ARPACK does not converge.  (The dense reduction alone cost 7.9 s of a 31 s
+    run at box3d n = 32, m = 3267; measured.)"""
     from scipy.linalg.lapack import dtrtrs
     from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigsh
     m = len(C)

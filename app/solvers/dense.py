@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from vpcontact import kernels
+from vpcontact.solvers.schur import cholesky_solve
 from vpcontact.solvers.threads import blas_threads
 
 PCG_MIN = 1000              # Gamma3 dofs from which the factor is kept and reused by CG
@@ -71,11 +72,11 @@ class _Kept:
     Fortran order), the free dofs f and every dof's position in f (-1 if binding).  It only
     preconditions CG, and its triangular solves are bound by memory traffic: in single
     precision they take half the time (2.9 ms against 5.4 ms at nf = 2700; measured), and
-    as two BLAS strsv rather than LAPACK's spotrs (which goes through the matrix-matrix
-    strsm) 0.9-1.0 ms against 3.7-4.7 ms (nf = 2700, one or two threads; measured)."""
+    by BLAS strsv (schur.cholesky_solve) rather than LAPACK's spotrs 0.9-1.0 ms against
+    3.7-4.7 ms (nf = 2700, one or two threads; measured)."""
 
     def __init__(self, L: np.ndarray, free: np.ndarray, m: int):
-        # only the lower triangle is L (strsv with lower=1 reads no other); the compiled
+        # only the lower triangle is L (cholesky_solve reads no other); the compiled
         # kernel leaves its work in the strict upper one, whose values may not fit a float32
         with np.errstate(over="ignore"):
             self.L = np.asfortranarray(L, dtype=np.float32)
@@ -120,7 +121,6 @@ class ProjectedDirection:
         """CG on the free block p_f = -g_f preconditioned by the kept factor (on the dofs
         free then and now; the diagonal on those free only now); None where it does not
         converge within PCG_MAX_ITERATIONS or the matrix is not positive definite there."""
-        from scipy.linalg.blas import strsv
         kept, m = self._kept, self.m
         pos = kept.pos[free]
         both = pos >= 0
@@ -134,8 +134,7 @@ class ProjectedDirection:
             q[:] = 0.0
             q[pos[both]] = r[both]
             z = r / diag
-            y = strsv(kept.L, q, lower=1, overwrite_x=1)           # L y = q
-            z[both] = strsv(kept.L, y, lower=1, trans=1, overwrite_x=1)[pos[both]]
+            z[both] = cholesky_solve(kept.L, q)[pos[both]]
             return z
 
         def product(x):

@@ -355,20 +355,22 @@ def spd_cholesky(S: np.ndarray) -> np.ndarray | None:
 
 
 def cholesky_solve(C: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """S^-1 r from S's Cholesky factor C: two triangular solves by BLAS dtrsv (LAPACK's
-    dpotrs, which goes through the matrix-matrix dtrsm, took 9.1 against 4.4 ms at
-    m = 3168; measured).
+    """S^-1 r from S's Cholesky factor C: two triangular solves by BLAS trsv in C's precision
+    (LAPACK's potrs goes through the matrix-matrix trsm: 9.1 against 4.4 ms at m = 3168 in
+    double, 4.2-4.7 against 0.93 ms at 2700 in single precision; measured).
 
     Args:
-        C: lower triangular (m, m), Fortran order.
+        C: lower triangular (m, m), Fortran order, float64 or float32 (only the lower
+            triangle is read).
         r: the right-hand side (m,).
 
     Returns:
-        S^-1 r (a new array).
+        S^-1 r (a new array, C's dtype).
     """
-    from scipy.linalg.blas import dtrsv
-    y = dtrsv(C, np.array(r, dtype=float), lower=1, overwrite_x=1)      # C y = r
-    return dtrsv(C, y, lower=1, trans=1, overwrite_x=1)               # C^T x = y
+    from scipy.linalg.blas import get_blas_funcs
+    trsv = get_blas_funcs("trsv", (C,))
+    y = trsv(C, np.array(r, dtype=C.dtype), lower=1, overwrite_x=1)      # C y = r
+    return trsv(C, y, lower=1, trans=1, overwrite_x=1)                 # C^T x = y
 
 
 def _symmetric_from_triangle(T: np.ndarray) -> np.ndarray:

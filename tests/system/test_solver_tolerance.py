@@ -38,6 +38,17 @@ def _agreement(a, b) -> tuple[float, float]:
     return du, dn
 
 
+def _paper_state_and_jacobian(N: int):
+    """u at T of the paper case run with N steps, and the bulk Jacobian (assembled)."""
+    from dolfinx import fem
+    raw = paper_raw()
+    raw["time"]["N"] = N
+    result = run_case(validate_raw(raw))
+    A = fem.petsc.assemble_matrix(fem.form(result.problem.forms.bulk_jacobian))
+    A.assemble()
+    return result.problem.u.vector, A
+
+
 @pytest.mark.parametrize("viscoplastic", [False, True])   # True: completed before too
 def test_nearly_incompressible_plane_strain_both_solvers_complete_and_agree(viscoplastic):
     a, b = _both(_incompressible(viscoplastic, N=4 if not viscoplastic else 8))
@@ -49,15 +60,8 @@ def test_the_floor_is_below_the_default_tolerance_on_the_paper_case():
     """Where the residual can reach the force-scaled snes_atol, the floor does not raise it:
     on the paper case ROUNDOFF_FACTOR eps || |J| |u| || at T (5.4e-13) stays well below 1e-11; the
     floor bounds ROUNDOFF_FACTOR eps || J u || from above (|J| |u| >= |J u| entrywise)."""
-    from dolfinx import fem
-
     from vpcontact.solvers.snesvi import ROUNDOFF_FACTOR, RoundoffFloor
-    raw = paper_raw()
-    raw["time"]["N"] = 4
-    result = run_case(validate_raw(raw))
-    u = result.problem.u.vector
-    A = fem.petsc.assemble_matrix(fem.form(result.problem.forms.bulk_jacobian))
-    A.assemble()
+    u, A = _paper_state_and_jacobian(N=4)
     floor = RoundoffFloor()
     value = floor(A, u)
     y = u.duplicate()
@@ -88,16 +92,10 @@ def test_the_floor_keeps_abs_J_in_the_symmetric_block_format_where_J_is_symmetri
     """|J| is kept in SBAIJ (half the values) where J is symmetric with whole blocks, in AIJ
     otherwise; both give eps || |J| |x| || as the CSR arrays do (the SBAIJ product sums in
     another order: to 1e-13)."""
-    from dolfinx import fem
     from petsc4py import PETSc
 
     from vpcontact.solvers.snesvi import ROUNDOFF_FACTOR, RoundoffFloor
-    raw = paper_raw()
-    raw["time"]["N"] = 2
-    result = run_case(validate_raw(raw))
-    u = result.problem.u.vector
-    A = fem.petsc.assemble_matrix(fem.form(result.problem.forms.bulk_jacobian))
-    A.assemble()
+    u, A = _paper_state_and_jacobian(N=2)
     assert A.getBlockSize() == 2
     for symmetric in (True, False):
         if not symmetric:                      # one entry of the upper triangle changed
