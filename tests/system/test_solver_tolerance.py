@@ -38,15 +38,16 @@ def _agreement(a, b) -> tuple[float, float]:
     return du, dn
 
 
-def _paper_state_and_jacobian(N: int):
-    """u at T of the paper case run with N steps, and the bulk Jacobian (assembled)."""
+def _paper_run_and_jacobian(N: int):
+    """The paper case run with N steps (its RunResult, which owns u: keep it while u is
+    used) and the bulk Jacobian (assembled)."""
     from dolfinx import fem
     raw = paper_raw()
     raw["time"]["N"] = N
     result = run_case(validate_raw(raw))
     A = fem.petsc.assemble_matrix(fem.form(result.problem.forms.bulk_jacobian))
     A.assemble()
-    return result.problem.u.vector, A
+    return result, A
 
 
 @pytest.mark.parametrize("viscoplastic", [False, True])   # True: completed before too
@@ -61,7 +62,8 @@ def test_the_floor_is_below_the_default_tolerance_on_the_paper_case():
     on the paper case ROUNDOFF_FACTOR eps || |J| |u| || at T (5.4e-13) stays well below 1e-11; the
     floor bounds ROUNDOFF_FACTOR eps || J u || from above (|J| |u| >= |J u| entrywise)."""
     from vpcontact.solvers.snesvi import ROUNDOFF_FACTOR, RoundoffFloor
-    u, A = _paper_state_and_jacobian(N=4)
+    result, A = _paper_run_and_jacobian(N=4)
+    u = result.problem.u.vector
     floor = RoundoffFloor()
     value = floor(A, u)
     y = u.duplicate()
@@ -95,7 +97,8 @@ def test_the_floor_keeps_abs_J_in_the_symmetric_block_format_where_J_is_symmetri
     from petsc4py import PETSc
 
     from vpcontact.solvers.snesvi import ROUNDOFF_FACTOR, RoundoffFloor
-    u, A = _paper_state_and_jacobian(N=2)
+    result, A = _paper_run_and_jacobian(N=2)
+    u = result.problem.u.vector
     assert A.getBlockSize() == 2
     for symmetric in (True, False):
         if not symmetric:                      # one entry of the upper triangle changed
