@@ -20,12 +20,10 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-from vpcontact.solvers.levels import GalerkinLevels, SymmetricCopy
+from vpcontact.solvers.levels import GalerkinLevels, SymmetricCopy, is_symmetric
 from vpcontact.solvers.matrices import share_pattern
 
 AMG_PREFIX = "amg_"
-# Jt counts as symmetric (its SBAIJ copy applies it) when |Jt - Jt^T| <= this times its norm.
-SYMMETRY_RTOL = 1e-12
 
 # The iterative path's PETSc options (under the solver's prefix); the case's petsc section
 # overrides them.  The KSP tolerance is relative to the true residual of the Newton system
@@ -262,8 +260,7 @@ class InactiveSetAMG:
         SBAIJ copy (app/solvers/levels.py) when Jt is symmetric, else Jt."""
         if not self._option("fine_sbaij"):
             return self.Jt
-        scale = self.Jt.norm(PETSc.NormType.INFINITY)
-        if not self.Jt.isSymmetric(SYMMETRY_RTOL * scale):
+        if not is_symmetric(self.Jt):
             return self.Jt
         if self.copy is None:
             try:

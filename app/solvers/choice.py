@@ -17,9 +17,10 @@ from __future__ import annotations
 AUTO_FAST_MAX_GAMMA3_DOFS = 6000
 # bytes per entry of m x m that the condensed solver's Gamma3 problem holds at once on the
 # rank that solves it (S, its Cholesky factor, the Newton matrix's work, the kept factor in
-# single precision, the (2.6) diagnostic's Gamma3 mass matrix and its symmetric part): an
-# upper estimate.  A solver whose dense matrices would not fit in the memory available is
-# not chosen by auto, and refused when asked for (``dense_fits``).
+# single precision): an upper estimate, which also counted the (2.6) diagnostic's dense
+# Gamma3 mass matrix and its symmetric part (16 bytes, now sparse) and keeps that margin.
+# A solver whose dense matrices would not fit in the memory available is not chosen by
+# auto, and refused when asked for (``dense_fits``).
 DENSE_BYTES_PER_ENTRY = 48
 # auto: SNES VI's Newton systems by CG + GAMG (app/solvers/amg.py) in 3D above this many dofs
 # (LU's fill grows like dofs^(4/3) in 3D).  box3d, 8 steps, whole process: n = 16 (14,739

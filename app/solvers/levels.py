@@ -71,6 +71,22 @@ def _row_ij(mat: PETSc.Mat):
         lib.MatRestoreRowIJ(*args)
 
 
+# a matrix A counts as symmetric (an SBAIJ copy may apply it) when |A - A^T| <= this times |A|
+SYMMETRY_RTOL = 1e-12
+
+
+def is_symmetric(A: PETSc.Mat) -> bool:
+    """Whether |A - A^T| <= SYMMETRY_RTOL |A| (infinity norms; PETSc's MatIsSymmetric).
+
+    Args:
+        A: the matrix.
+
+    Returns:
+        True where A counts as symmetric.
+    """
+    return A.isSymmetric(SYMMETRY_RTOL * A.norm(PETSc.NormType.INFINITY))
+
+
 class SymmetricCopy:
     """Jt in the SBAIJ format with d x d blocks, its values gathered from the AIJ Jt.
 

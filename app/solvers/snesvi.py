@@ -17,9 +17,9 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from vpcontact.solvers.amg import SYMMETRY_RTOL, InactiveSetAMG, rigid_body_modes
+from vpcontact.solvers.amg import InactiveSetAMG, rigid_body_modes
 from vpcontact.solvers.bulkresidual import BulkProductResidual
-from vpcontact.solvers.levels import SymmetricCopy
+from vpcontact.solvers.levels import SymmetricCopy, is_symmetric
 from vpcontact.solvers.matrices import share_pattern
 from vpcontact.solvers.options import PREFIX, push_options, remove_options
 from vpcontact.solvers.pairmap import PairMap
@@ -239,14 +239,13 @@ class RoundoffFloor:
 
 
 def _absolute(J: PETSc.Mat) -> PETSc.Mat:
-    """|J|, entrywise: in SBAIJ where J is sequential, symmetric (to SYMMETRY_RTOL of its
-    norm) and made of whole blocks, else AIJ with J's pattern shared."""
-    if J.getComm().size == 1 and J.getBlockSize() > 1:
-        if J.isSymmetric(SYMMETRY_RTOL * J.norm(PETSc.NormType.INFINITY)):
-            try:
-                return SymmetricCopy(J, absolute=True).mat
-            except ValueError:                  # a pattern without whole blocks
-                pass
+    """|J|, entrywise: in SBAIJ where J is sequential, symmetric (levels.is_symmetric) and
+    made of whole blocks, else AIJ with J's pattern shared."""
+    if J.getComm().size == 1 and J.getBlockSize() > 1 and is_symmetric(J):
+        try:
+            return SymmetricCopy(J, absolute=True).mat
+        except ValueError:                      # a pattern without whole blocks
+            pass
     ai, aj, av = J.getValuesCSR()
     abs_J = J.duplicate(copy=share_pattern(J))
     abs_J.setValuesCSR(ai, aj, np.abs(av))
