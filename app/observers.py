@@ -202,8 +202,9 @@ class ContactOutput(Observer):
         if self.writer is None:
             return
         data = self._table(sim)
-        record["contact_states"] = sim.comm.bcast(
-            state_counts(data) if sim.comm.rank == 0 else None, root=0)
+        counts = state_counts(data) if sim.comm.rank == 0 else None
+        record["contact_states"] = sim.comm.bcast(counts, root=0) if sim.comm.size > 1 \
+            else counts
         if is_output_step(sim):
             self.writer.write(sim.t, data)
 

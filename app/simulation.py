@@ -449,7 +449,7 @@ class Simulation:
             "k": k,
         }
         # the nodal forces of the boundary layer: the forces and the contact table
-        self.boundary_residual = quantities.bulk_residual(p, layer=True)
+        self.boundary_residual = quantities.bulk_residual(p)
         forces = quantities.forces(p, self.boundary_residual)   # on the body: supports, ...
         record["reactions"] = forces["reactions"]
         if forces["contact_force"] is not None:

@@ -30,8 +30,7 @@ class StepForms:
         jacobian: dF/du.
         bulk_residual: the residual without the Gamma3 terms.
         terms: names of the terms present, for logs and tests.
-        loads: f_n(v) alone (body force and tractions); None without loads or in the implicit
-            variant.
+        loads: f_n(v) alone (body force and tractions); None without loads.
         bulk_jacobian: (E eps(du), eps(v)), constant in time (explicit variant only).
         boundary_jacobian: the Gamma3 terms' Jacobian alone (explicit variant, None without
             Gamma3 terms).
@@ -123,9 +122,11 @@ def build_step_forms(u, bulk: BulkData, gamma3: ContactData | None = None) -> St
     dx = ufl.dx(domain=u.function_space.mesh)
     loads, terms = _loads(u, bulk, dx)
     boundary, boundary_terms = _boundary_energy(u, gamma3)
-    if bulk.stress is None:
-        return _explicit_forms(u, bulk, loads, boundary, terms + boundary_terms, dx)
-    return _implicit_forms(u, bulk, loads, boundary, terms + boundary_terms, dx)
+    build = _explicit_forms if bulk.stress is None else _implicit_forms
+    forms = build(u, bulk, loads, boundary, terms + boundary_terms, dx)
+    # f_n(v) written in v (the same form as d/du f_n(u), without a derivative to expand)
+    forms.loads = _loads(ufl.TestFunction(u.function_space), bulk, dx)[0]
+    return forms
 
 
 def build_boundary_forms(w, parts: list[ContactData]):
@@ -203,7 +204,6 @@ def _explicit_forms(u, bulk: BulkData, loads, boundary, terms, dx) -> StepForms:
     return StepForms(
         residual=residual, jacobian=ufl.derivative(residual, u, du),
         bulk_residual=bulk_residual, terms=named + terms,
-        loads=ufl.derivative(loads, u, v) if loads is not None else None,
         bulk_jacobian=ufl.inner(C(eps(du)), eps(v)) * dx,
         boundary_jacobian=(ufl.derivative(boundary_residual, u, du)
                            if boundary is not None else None),

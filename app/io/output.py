@@ -396,7 +396,7 @@ def gather_contact_table(comm, table: dict, g: float | None,
         On rank 0: column -> values, the table's columns then ``state``; None elsewhere.
     """
     local = {k: np.asarray(v) for k, v in table.items()}
-    parts = comm.gather(local, root=0)
+    parts = comm.gather(local, root=0) if comm.size > 1 else [local]     # no pickling
     if comm.rank != 0:
         return None
     data = {k: np.concatenate([p[k] for p in parts]) for k in local}

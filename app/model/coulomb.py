@@ -58,7 +58,8 @@ class CoulombPressure:
         """
         p, gm, fr = self.problem, self.problem.gamma3, self.problem.frames
         pos = np.searchsorted(fr.nodes, gm.nodes)
-        r = bulk_residual(p, layer=True)[gm.nodes]
+        p.current_stress()
+        r = bulk_residual(p)[gm.nodes]
         pn = -np.einsum("ij,ij->i", r, fr.normal[pos]) / gm.weight
         local = np.zeros(len(self.p))
         local[self.owned] = np.where(fr.bounded[pos], np.maximum(pn, 0.0), 0.0)

@@ -310,4 +310,6 @@ class Discretisation:
         Returns:
             The reduced value.
         """
+        if self.comm.size == 1:
+            return value
         return self.comm.allreduce(value, op=getattr(MPI, op))

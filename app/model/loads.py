@@ -99,6 +99,20 @@ class TimeData:
             return None
         return ufl.as_vector([self.scalar(c) for c in components])
 
+    def depends_on_time(self, form) -> bool:
+        """Whether a form changes with t: it holds t or a table's Constant, or a Function
+        (whose values the run may change; conservatively so).
+
+        Args:
+            form: a UFL form built with this TimeData (no derivative left to expand: the
+                Function it is taken with would count).
+
+        Returns:
+            False if assembling it at one time serves every time.
+        """
+        timed = {id(self.t)} | {id(c) for c, _, _ in self._tables}
+        return bool(form.coefficients()) or any(id(c) in timed for c in form.constants())
+
     def set_time(self, t: float) -> None:
         """Set t and the tables' Constants to their values at t (t_n of the step).
 

@@ -15,7 +15,6 @@ from functools import cached_property
 import numpy as np
 import ufl
 from dolfinx import fem
-from dolfinx import mesh as dmesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -33,7 +32,9 @@ from vpcontact.model.discretisation import Discretisation
 from vpcontact.model.gamma3 import NodalField
 from vpcontact.model.history import ImplicitViscoplasticHistory
 from vpcontact.model.lawmodule import python_contact_laws
+from vpcontact.model.layer import BoundaryLayer
 from vpcontact.model.loads import TimeData
+from vpcontact.model.loadvector import LoadVector
 from vpcontact.model.material import Elasticity
 from vpcontact.model.materials import body_materials
 from vpcontact.model.pairs import PairOperators, node_labels
@@ -151,7 +152,6 @@ class ContactProblem:
         self.w = fem.Function(self.V, name="w") if self.disc.pairs is not None else None
         self.pair_forms = None
         self.forms = self._step_forms()
-        self.bulk_form = fem.form(self.forms.bulk_residual)
         # sigma_n = E eps(u_n) + H_n per cell (exact: eps(u) is constant on cells),
         # app/model/strain.py
         self.strain_operator = StrainOperator(
@@ -377,27 +377,19 @@ class ContactProblem:
         return fem.Expression(eps(self.u), self.Q.element.interpolation_points())
 
     @cached_property
-    def boundary_residual_form(self):
-        """The bulk residual on the cells that touch a vertex of a Dirichlet group, of
-        Gamma3 or of a pair's target (exact at those nodes, a thin layer of the mesh: the
-        step records' forces cost a fraction of a full assembly); compiled when first
-        used."""
-        msh, tdim = self.mesh, self.dim
+    def boundary_layer(self) -> BoundaryLayer:
+        """The nodal forces at the nodes of the Dirichlet groups, of Gamma3 and of the pairs'
+        targets (app/model/layer.py); built when first used (collective)."""
         refs = [g.name for g in self.dirichlet.groups] + list(self.case.boundaries.contact) \
             + [q.target for q in self.case.contact.pairs]      # two bodies: the targets
-        facets = np.unique(np.concatenate([self.disc.facets[r] for r in refs] or
-                                          [np.zeros(0, np.int32)])).astype(np.int32)
-        msh.topology.create_connectivity(tdim - 1, 0)
-        msh.topology.create_connectivity(0, tdim)
-        verts = dmesh.compute_incident_entities(msh, facets, tdim - 1, 0)
-        cells = np.unique(dmesh.compute_incident_entities(msh, verts, 0, tdim)).astype(np.int32)
-        tags = dmesh.meshtags(msh, tdim, cells, np.ones(len(cells), dtype=np.int32))
-        layer = []
-        for itg in self.forms.bulk_residual.integrals():
-            if itg.integral_type() == "cell":
-                itg = itg.reconstruct(subdomain_id=1, subdomain_data=tags)
-            layer.append(itg)
-        return fem.form(ufl.Form(layer))
+        return BoundaryLayer(self, refs)
+
+    @cached_property
+    def load_vector(self) -> LoadVector | None:
+        """f_n at the nodes (app/model/loadvector.py), or None without loads; built when
+        first used (collective)."""
+        return LoadVector(self.forms.loads, self.time_data) if self.forms.loads is not None \
+            else None
 
     # ------------------------------------------------------------------ initial values
     def set_initial_values(self) -> None:
@@ -506,6 +498,13 @@ class ContactProblem:
             self.update_vm()
             return None
         return float(np.sqrt(max(sums[0], 0.0))), float(np.sqrt(max(sums[1], 0.0)))
+
+    def current_stress(self) -> None:
+        """Make sigma the stress of the current u inside a step (Coulomb's fixed point reads
+        the nodal forces between solves): E eps(u) + H_n (3.2); the implicit variant's
+        residual hook has set it at the solver's last residual already."""
+        if not self.implicit:
+            self.update_sigma()
 
     def update_vm(self) -> None:
         """sigma_vm = ||sigma||_VM per cell, from sigma."""

@@ -203,6 +203,41 @@ class StrainOperator:
         flat = cell_tensors.reshape(len(self.vol), -1)
         return float(self.vol @ np.einsum("ij,ij->i", flat, flat))
 
+    def stress_load(self, sigma, rows: np.ndarray | None = None) -> PETSc.Vec:
+        """D^T sigma = (sigma, eps(v)) for all v, from the owned cells ``rows`` (Q's order;
+        None: all): exact at the nodes whose cells are all among them; collective.
+
+        Args:
+            sigma: a DG0 tensor Function (a stress).
+            rows: the owned cells to sum over, or None for every cell.
+
+        Returns:
+            A work vector of V (owned entries valid; overwritten by the next call).
+        """
+        if self._cells is None:                   # the assembled D: every cell
+            self.D.multTranspose(sigma.vector, self._b)
+            return self._b
+        ffi, w, dd = self.mod.ffi, self._work, self.d * self.d
+        vertices, G = self._cells if rows is None else self._subset(rows)
+        values = sigma.x.array[:self.n_owned * dd] if rows is None else \
+            sigma.x.array.reshape(-1, dd)[rows]
+        w.x.array[:] = 0.0
+        self.mod.lib.cell_load(len(vertices), self.d, kernels.buf(ffi, vertices),
+                               kernels.buf(ffi, G), kernels.buf(ffi, np.ascontiguousarray(values)),
+                               kernels.buf(ffi, w.x.array))
+        w.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        return w.vector
+
+    def _subset(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The compiled pass's (vertices, G) of the owned cells ``rows``, kept for the last
+        rows asked."""
+        key = getattr(self, "_subset_key", None)
+        if key is None or key[0] is not rows:
+            vertices, G = self._cells
+            self._subset_key = (rows, np.ascontiguousarray(vertices[rows]),
+                                np.ascontiguousarray(G[rows]))
+        return self._subset_key[1], self._subset_key[2]
+
     def pre_stress_load(self, H, b: PETSc.Vec) -> None:
         """b -= D^T H = (H, eps(v)) for all v, the pre-stress term of the load of (3.4).
 

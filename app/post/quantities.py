@@ -7,8 +7,7 @@ collective where they reduce over ranks, as their docstrings say.
 from __future__ import annotations
 
 import numpy as np
-from dolfinx import fem
-from petsc4py import PETSc
+from mpi4py import MPI
 
 
 def norm(problem, which: str) -> float:
@@ -43,10 +42,8 @@ def cell_norm(problem, f) -> float:
     n = problem.num_owned_cells
     vol = problem.cell_volumes()[:n]
     bs = f.function_space.dofmap.index_map_bs
-    if bs == 1:
-        local = float(np.sum(vol * f.x.array[:n] ** 2))
-    else:
-        local = float(np.sum(vol * (f.x.array[:n * bs].reshape(n, bs) ** 2).sum(axis=1)))
+    a = f.x.array[:n * bs].reshape(n, bs)
+    local = float(vol @ np.einsum("ij,ij->i", a, a))
     return float(np.sqrt(problem.reduce(local, "SUM")))
 
 
@@ -66,24 +63,19 @@ def cell_max(problem, f) -> float:
     return float(problem.reduce(local, "MAX"))
 
 
-def bulk_residual(problem, layer: bool = False) -> np.ndarray:
-    """The bulk residual r = (sigma_n, eps(phi_i)) - f_n(phi_i) at the owned nodes: the
-    force the boundary (supports, contact) exerts on the body at each node.
+def bulk_residual(problem) -> np.ndarray:
+    """The bulk residual r = (sigma_n, eps(phi_i)) - f_n(phi_i) at the owned nodes, exact at
+    the nodes of the Dirichlet groups, of Gamma3 and of the pairs' targets: the force the
+    boundary (supports, contact) exerts on the body there (app/model/layer.py; the problem's
+    sigma must be the stress of its u); collective.
 
     Args:
         problem: the ContactProblem.
-        layer: assemble only the cells touching Dirichlet, Gamma3 and pair target
-            vertices (exact there, not elsewhere).
 
     Returns:
         (owned nodes, d) nodal forces.
     """
-    r = fem.petsc.assemble_vector(problem.boundary_residual_form if layer
-                                  else problem.bulk_form)
-    r.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    out = r.array_r.reshape(-1, problem.dim).copy()
-    r.destroy()
-    return out
+    return problem.boundary_layer.residual()
 
 
 # Coulomb friction: a node slips where |sigma_tau| >= (1 - SLIP_RATIO) mu p_n
@@ -109,7 +101,7 @@ def contact_table(problem, r: np.ndarray | None = None) -> dict[str, np.ndarray]
         Column name -> values of the owned Gamma3 nodes (sorted by coordinates).
     """
     gm, d, fr = problem.gamma3, problem.dim, problem.frames
-    rr = (bulk_residual(problem, layer=True) if r is None else r)[gm.nodes]
+    rr = (bulk_residual(problem) if r is None else r)[gm.nodes]
     uu = problem.u.x.array.reshape(-1, d)[gm.nodes]
     pos = np.searchsorted(fr.nodes, gm.nodes)
     ww = uu if problem.pairs is None else problem.contact_u()[pos]   # two bodies: [u] - d nu
@@ -182,6 +174,23 @@ def coulomb_nodes(problem, pos: np.ndarray) -> np.ndarray:
     return np.asarray(has)[problem.pairs.pair[pos]]
 
 
+def summed(comm, local: np.ndarray) -> np.ndarray:
+    """The sum over the ranks of a float array, by a buffer reduction (no pickling; none
+    in a serial run); collective.
+
+    Args:
+        comm: the communicator.
+        local: this rank's part.
+
+    Returns:
+        A new array of the sums.
+    """
+    out = np.array(local, dtype=float)
+    if comm.size > 1:
+        comm.Allreduce(MPI.IN_PLACE, out, op=MPI.SUM)
+    return out
+
+
 def forces(problem, r: np.ndarray | None = None) -> dict:
     """The reaction force resultant on each Dirichlet group and the total contact
     force, both exerted on the body (collective).  With the loads they sum to zero
@@ -196,18 +205,16 @@ def forces(problem, r: np.ndarray | None = None) -> dict:
         that no Dirichlet condition prescribes) or None without contact, "pair_forces":
         pair_forces() or None without contact pairs}.
     """
-    r = (bulk_residual(problem, layer=True) if r is None else r).ravel()
-    d = problem.dim
-    reactions = {}
-    for grp in problem.dirichlet.groups:
-        local = np.bincount(grp.dofs % d, weights=r[grp.dofs], minlength=d)
-        reactions[str(grp.name)] = [float(v) for v in problem.comm.allreduce(local)]
-    contact = None
+    r = (bulk_residual(problem) if r is None else r).ravel()
+    d, groups = problem.dim, problem.dirichlet.groups
+    rows = [np.bincount(grp.dofs % d, weights=r[grp.dofs], minlength=d) for grp in groups]
     if problem.gamma3 is not None:
         nodes = problem.gamma3.nodes
         free = ~problem.dirichlet.fixed[nodes]
-        local = (r.reshape(-1, d)[nodes] * free).sum(axis=0)
-        contact = [float(v) for v in problem.comm.allreduce(local)]
+        rows.append((r.reshape(-1, d)[nodes] * free).sum(axis=0))
+    total = summed(problem.comm, np.reshape(rows, (-1, d))).tolist()   # one reduction
+    reactions = {str(grp.name): total[i] for i, grp in enumerate(groups)}
+    contact = total[-1] if problem.gamma3 is not None else None
     return {"reactions": reactions, "contact_force": contact,
             "pair_forces": pair_forces(problem, r) if problem.pairs is not None else None}
 
@@ -243,7 +250,7 @@ def pair_forces(problem, r: np.ndarray) -> list[dict]:
         target = surface_nodes(problem.disc, p.target)
         target = target[target < n_owned]
         local = [(r[nodes] * ~fixed[nodes]).sum(axis=0) for nodes in (surface, target)]
-        on_surface, on_target = (problem.comm.allreduce(v) for v in local)
+        on_surface, on_target = summed(problem.comm, np.array(local))
         out.append({"surface": str(p.surface), "target": str(p.target),
                     "on_surface": [float(v) for v in on_surface],
                     "on_target": [float(v) for v in on_target]})

@@ -14,15 +14,12 @@ class StepRightHandSide:
     """Assembles F_n for the current time data and history (collective).
 
     Args:
-        problem: the ContactProblem (forms.loads, H, strain_operator, Dirichlet data).
+        problem: the ContactProblem (load_vector, H, strain_operator, Dirichlet data).
         a: the compiled bilinear form of K (for the lifting).
     """
 
     def __init__(self, problem, a):
         self.problem, self.a = problem, a
-        self.loads_form = fem.form(problem.forms.loads) if problem.forms.loads is not None \
-            else None
-        self._loads = fem.petsc.create_vector(self.loads_form) if self.loads_form else None
         self._lift = None if problem.dirichlet.homogeneous else problem.u.vector.duplicate()
 
     def assemble(self, b: PETSc.Vec) -> None:
@@ -32,13 +29,10 @@ class StepRightHandSide:
             b: a vector of K's row layout, overwritten.
         """
         p = self.problem
-        b.set(0.0)
-        if self._loads is not None:
-            with self._loads.localForm() as bl:   # ghosted: dolfinx assembles the local form
-                bl.set(0.0)
-            fem.petsc.assemble_vector(self._loads, self.loads_form)
-            self._loads.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            b.array[:] = self._loads.array_r
+        if p.load_vector is not None:        # assembled once if the loads do not change
+            b.array[:] = p.load_vector.at_current_time().array_r
+        else:
+            b.set(0.0)
         if p.H is not None:
             p.strain_operator.pre_stress_load(p.H, b)        # b -= B^T H_n
         if p.dirichlet.homogeneous:
@@ -54,6 +48,5 @@ class StepRightHandSide:
 
     def destroy(self) -> None:
         """Free the PETSc vectors."""
-        for obj in (self._loads, self._lift):
-            if obj is not None:
-                obj.destroy()
+        if self._lift is not None:
+            self._lift.destroy()
