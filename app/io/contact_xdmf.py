@@ -61,10 +61,17 @@ def node_index(points: np.ndarray, x: np.ndarray) -> np.ndarray:
     Raises:
         ValueError: a row has no node within 1e-8 of the body's size.
     """
-    from scipy.spatial import cKDTree
     d = x.shape[1]
-    dist, idx = cKDTree(points[:, :d]).query(x)
     scale = max(float(np.abs(points).max(initial=0.0)), 1e-300)
+    if len(points):           # both sorted by their rounded x, y, z: a binary search
+        key = np.dtype([(f"c{i}", float) for i in range(d)])
+        keys = [np.ascontiguousarray(np.round(a / scale, 9)).view(key).ravel()
+                for a in (points[:, :d], x)]
+        idx = np.minimum(np.searchsorted(keys[0], keys[1]), len(points) - 1)
+        if np.abs(points[idx, :d] - x).max(initial=0.0) <= 1e-8 * scale:
+            return idx
+    from scipy.spatial import cKDTree  # rounding put a row elsewhere: the nearest node
+    dist, idx = cKDTree(points[:, :d]).query(x)
     if len(dist) and dist.max() > 1e-8 * scale:
         raise ValueError("a contact table node is not a vertex of the Gamma3 facets")
     return idx

@@ -43,7 +43,8 @@ def cache_dir() -> Path:
     return caches().kernels
 
 
-_CTYPES = {np.dtype(np.float64): "double[]", np.dtype(np.intc): "int[]"}
+_CTYPES = {np.dtype(np.float64): "double[]", np.dtype(np.float32): "float[]",
+           np.dtype(np.intc): "int[]"}
 
 
 def buf(ffi, a: np.ndarray | None):
@@ -51,7 +52,7 @@ def buf(ffi, a: np.ndarray | None):
 
     Args:
         ffi: the compiled module's ``ffi``.
-        a: a contiguous float64 or intc array (kept alive by the result), or None.
+        a: a contiguous float64, float32 or intc array (kept alive by the result), or None.
 
     Returns:
         A C array of doubles or ints viewing ``a``; NULL for None.
@@ -62,7 +63,7 @@ def buf(ffi, a: np.ndarray | None):
     if a is None:
         return ffi.NULL
     if a.dtype not in _CTYPES:
-        raise TypeError(f"kernel arrays must be float64 or intc, not {a.dtype}")
+        raise TypeError(f"kernel arrays must be float64, float32 or intc, not {a.dtype}")
     return ffi.from_buffer(_CTYPES[a.dtype], a)        # refuses non-contiguous arrays
 
 

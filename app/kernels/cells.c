@@ -91,3 +91,35 @@ void cell_load(int ncells, int d, const int *nodes, const double *G, const doubl
     if (d == 2) cell_load_2(ncells, nodes, G, H, b);
     else cell_load_3(ncells, nodes, G, H, b);
 }
+
+/* The root of node i, halving the path on the way. */
+static int root_of(int *parent, int i)
+{
+    while (parent[i] != i) {
+        parent[i] = parent[parent[i]];
+        i = parent[i];
+    }
+    return i;
+}
+
+/* cell_components (cells.h): union-find that links the higher root to the lower, so that a
+   component's root is its lowest node and every parent is lower than its node (path halving
+   keeps that); then the components are numbered in the order of their roots. */
+int cell_components(int n, int ncells, int nv, const int *nodes, int *label)
+{
+    for (int i = 0; i < n; ++i) label[i] = i;
+    for (int c = 0; c < ncells; ++c) {
+        const int *nc = nodes + (long)c * nv;
+        int r = root_of(label, nc[0]);
+        for (int a = 1; a < nv; ++a) {
+            int q = root_of(label, nc[a]);
+            if (q < r) { label[r] = q; r = q; }
+            else if (q > r) label[q] = r;
+        }
+    }
+    /* every parent is lower than its node: in ascending order a node's parent holds its
+       component's number already when the node is reached */
+    int count = 0;
+    for (int i = 0; i < n; ++i) label[i] = label[i] == i ? count++ : label[label[i]];
+    return count;
+}

@@ -12,4 +12,8 @@ double cell_pass(int ncells, int d, const int *nodes, const double *G, const dou
 void cell_load(int ncells, int d, const int *nodes, const double *G, const double *H,
                double *b);
 
+/* The connected components of the cells' graph (nodes joined by a cell): label[i] = the
+   component of node i (0 .. count - 1, numbered by their lowest node); returns the count. */
+int cell_components(int n, int ncells, int nv, const int *nodes, int *label);
+
 #endif

@@ -68,7 +68,8 @@ double *ldl_values(void *handle)
 }
 
 /* The L D L^T form of the supernodal L L^T (L_ldl = L D^-1/2, D = diag(L)^2): D (n), the
-   dense unit lower L_GG of the last m columns (row-major), and the first nbc block columns
+   dense unit lower L_GG of the last m columns (column-major: a column's rows are written
+   one after the other), and the first nbc block columns
    (bs columns each) in the block form of ldl_blocks (ldl_blocks.c) (Bp, Bi, Bx, Ld; exact zeros,
    e.g. of CHOLMOD's relaxed supernodes, skipped).  Supernode sn holds the columns
    super[sn] .. super[sn+1]-1 as a dense column-major panel of nsrow = pi[sn+1] - pi[sn]
@@ -103,7 +104,7 @@ int ldl_blocks_super(void *handle, int bs, int nbc, int m, int *Bp, int *Bi, dou
             D[j] = ljj * ljj;
             if (j >= ni)
                 for (int q = off; q < nsrow; ++q)
-                    LGG[(size_t)(s[pi[sn] + q] - ni) * m + (j - ni)] = q == off ? 1.0
+                    LGG[(size_t)(j - ni) * m + (s[pi[sn] + q] - ni)] = q == off ? 1.0
                                                                        : v[q] / ljj;
         }
         long out = 0;

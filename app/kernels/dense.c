@@ -9,6 +9,28 @@ void dpotrf_(const char *uplo, const int *n, double *a, const int *lda, int *inf
 void dpotrs_(const char *uplo, const int *n, const int *nrhs, const double *a, const int *lda,
              double *b, const int *ldb, int *info, size_t);
 
+/* BLAS's triangular solves (Fortran calling convention). */
+void dtrsv_(const char *uplo, const char *trans, const char *diag, const int *n,
+            const double *a, const int *lda, double *x, const int *incx, size_t, size_t,
+            size_t);
+void strsv_(const char *uplo, const char *trans, const char *diag, const int *n,
+            const float *a, const int *lda, float *x, const int *incx, size_t, size_t, size_t);
+
+/* cholesky_solve_d, cholesky_solve_s (dense.h): C y = x, then C^T x = y. */
+void cholesky_solve_d(int m, const double *C, double *x)
+{
+    const int one = 1;
+    dtrsv_("L", "N", "N", &m, C, &m, x, &one, 1, 1, 1);
+    dtrsv_("L", "T", "N", &m, C, &m, x, &one, 1, 1, 1);
+}
+
+void cholesky_solve_s(int m, const float *C, float *x)
+{
+    const int one = 1;
+    strsv_("L", "N", "N", &m, C, &m, x, &one, 1, 1, 1);
+    strsv_("L", "T", "N", &m, C, &m, x, &one, 1, 1, 1);
+}
+
 /* p = 0, then p_f = -(S + W)_ff^-1 g_f for the nf free dofs free_ (ascending; S: m x m,
    symmetric; W: the nodal blocks, W[(i/d) d^2 + (i%d) d + j%d] couples dofs i, j of one
    node).  The lower triangle of the free block is gathered into work (nf x nf, column

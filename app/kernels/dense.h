@@ -8,4 +8,10 @@
 int newton_direction(int m, int d, const double *S, const double *W, const int *free_,
                      int nf, const double *g, double *p, double *work);
 
+/* x = S^-1 x in place from S's Cholesky factor C (S = C C^T; C lower triangular, m x m,
+   column major; only its lower triangle is read): BLAS trsv with C, then with C^T; in double
+   (cholesky_solve_d) or single precision (cholesky_solve_s). */
+void cholesky_solve_d(int m, const double *C, double *x);
+void cholesky_solve_s(int m, const float *C, float *x);
+
 #endif

@@ -32,6 +32,7 @@ from vpcontact.forms.elasticity import eps
 from vpcontact.solvers import dense, threads
 from vpcontact.solvers.amg import AMG_PETSC, AMG_PREFIX, near_nullspace, rigid_body_modes
 from vpcontact.solvers.options import push_options, remove_options
+from vpcontact.solvers.schur import LAPACK_MIN
 from vpcontact.solvers.snesvi import PREFIX, direct_solver
 
 STABILITY_LIMIT = 2.0
@@ -293,11 +294,11 @@ def trace_constant_bound(problem, solver) -> float | None:
 
 
 def _gamma3_block(M: PETSc.Mat, layout):
-    """M's block on the Gamma3 dofs, G order, as a scipy CSR matrix on GAMMA3_ROOT (None on
-    the other ranks; collective).  Sparse: the dense m x m block (box3d n = 32, m = 3168)
+    """M's block on the Gamma3 dofs, G order, on GAMMA3_ROOT (None on the other ranks;
+    collective): a scipy CSR matrix, or below LAPACK_MIN dofs a dense array (no scipy import,
+    0.05 s of a 2D run's start-up).  Sparse: the dense m x m block (box3d n = 32, m = 3168)
     took 0.45 s to extract, gather and symmetrise and half of each Lanczos step's time
     (measured)."""
-    from scipy.sparse import csr_matrix
     g_rows = layout.global_rows()                    # collective
     order = np.argsort(g_rows)
     ai, aj, av = M.getValuesCSR()
@@ -313,6 +314,11 @@ def _gamma3_block(M: PETSc.Mat, layout):
     if parts is None:
         return None
     r, c, v = (np.concatenate(x) for x in zip(*parts))
+    if layout.m < LAPACK_MIN:
+        A = np.zeros((layout.m, layout.m))
+        A[r, c] = v                                  # each entry from its row's owner once
+        return A
+    from scipy.sparse import csr_matrix
     return csr_matrix((v, (r, c)), shape=(layout.m, layout.m))
 
 
@@ -321,7 +327,12 @@ def _largest_generalised_eigenvalue(A, C: np.ndarray) -> float:
     S = C C^T symmetric positive definite with its Cholesky factor C at hand), as lam_max of
     C^-1 A C^-T: Lanczos (ARPACK) with O(m^2) products and triangular solves, or the dense
     reduction if ARPACK does not converge.  (The dense reduction alone cost 7.9 s of a 31 s
-    run at box3d n = 32, m = 3267; measured.)"""
+    run at box3d n = 32, m = 3267; measured.)  Below LAPACK_MIN dofs the dense reduction by
+    numpy (the 2D runs: m = 256 at h = 1/128, a few ms, no scipy import)."""
+    if len(C) < LAPACK_MIN:
+        A = A.toarray() if hasattr(A, "toarray") else A
+        B = np.linalg.solve(C, np.linalg.solve(C, A).T)          # C^-1 A C^-T, A symmetric
+        return float(np.linalg.eigvalsh(0.5 * (B + B.T))[-1])
     from scipy.linalg.lapack import dtrtrs
     from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigsh
     m = len(C)

@@ -104,11 +104,14 @@ class Factor:
         ni = n - m
         bs = kernels.block_size(bs, ni)
         nbc, nbr = ni // bs, -(-n // bs)
-        self.D, self.L_GG = np.empty(n), np.zeros((m, m))
+        # L_GG in Fortran order: the kernel writes each column's rows in turn (C is then
+        # L_GG D_G^1/2 without a transposing copy, schur._schur_pair_cholesky)
+        self.D, self.L_GG = np.empty(n), np.zeros((m, m), order="F")
+        LGG_buffer = self.L_GG.T                          # C-contiguous: the same memory
         Bp = np.zeros(nbc + 1, dtype=i)
         mark, slot = np.full(nbr, -1, dtype=i), np.empty(nbr, dtype=i)
         safe = lib.ldl_blocks_super(h, bs, nbc, m, buf(ffi, Bp), ffi.NULL, ffi.NULL, ffi.NULL,
-                                    buf(ffi, self.D), buf(ffi, self.L_GG), buf(ffi, mark),
+                                    buf(ffi, self.D), buf(ffi, LGG_buffer), buf(ffi, mark),
                                     buf(ffi, slot))
         if safe < 0:
             raise MemoryError("CHOLMOD factor: out of memory")
@@ -126,7 +129,7 @@ class Factor:
             Bx = np.empty(max(nnzb, 1) * b2)
         mark.fill(-1)
         if lib.ldl_blocks_super(h, bs, nbc, m, buf(ffi, Bp), buf(ffi, Bi), buf(ffi, Bx),
-                                buf(ffi, Ld), buf(ffi, self.D), buf(ffi, self.L_GG),
+                                buf(ffi, Ld), buf(ffi, self.D), buf(ffi, LGG_buffer),
                                 buf(ffi, mark), buf(ffi, slot)) < 0:
             raise MemoryError("CHOLMOD factor: out of memory")
         self.in_place = bool(in_place)

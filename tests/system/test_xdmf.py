@@ -191,3 +191,19 @@ def test_user_guide_pyvista_snippet_runs_verbatim(tmp_path):
                           text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "vm.png").stat().st_size > 10_000
+
+
+def test_node_index_by_coordinates():
+    """The table rows' nodes: a binary search where both are sorted by their rounded
+    coordinates (as facet_mesh and gather_contact_table sort them), the nearest node
+    otherwise; a row off every node is refused."""
+    from vpcontact.io.contact_xdmf import node_index
+    rng = np.random.default_rng(3)
+    points = np.column_stack([np.sort(rng.random(20)), rng.random(20), np.zeros(20)])
+    assert np.array_equal(node_index(points, points[:, :2]), np.arange(20))
+    some = np.sort(rng.permutation(20)[:12])
+    assert np.array_equal(node_index(points, points[some, :2]), some)
+    rows = rng.permutation(20)[:12]                  # not sorted: the nearest nodes
+    assert np.array_equal(node_index(points, points[rows, :2] * (1 + 1e-12)), rows)
+    with pytest.raises(ValueError, match="not a vertex"):
+        node_index(points, points[rows, :2] + 1e-3)

@@ -217,6 +217,29 @@ def _grid_laplacian(k: int, bs: int):
     return sp.csr_matrix(sp.kron(A, np.eye(bs) + 0.1 * (1 - np.eye(bs))))
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_cell_components_partition_as_scipy(seed):
+    """The union-find gives scipy's partition of the nodes (labels may differ), numbered by
+    their lowest nodes; isolated nodes are parts of their own."""
+    from vpcontact.model.dirichlet import components_scipy
+    mod = kernels.load()
+    if mod is None:
+        pytest.skip("no compiled kernels")
+    rng = np.random.default_rng(seed)
+    n, nv = 400, 3
+    cells = rng.integers(0, n, size=(60 + 40 * seed, nv)).astype(np.intc)
+    label = np.empty(n, dtype=np.intc)
+    count = mod.lib.cell_components(n, len(cells), nv, kernels.buf(mod.ffi, cells),
+                                    kernels.buf(mod.ffi, label))
+    ref = components_scipy(n, cells)
+    assert count == ref.max() + 1 == label.max() + 1
+    pairs = set(zip(label.tolist(), ref.tolist()))
+    assert len(pairs) == count                      # one scipy part per label, and back
+    first = [int(np.flatnonzero(label == k)[0]) for k in range(count)]
+    assert first == sorted(first)                   # numbered by their lowest node
+    assert all(np.all(label[c] == label[c[0]]) for c in cells)
+
+
 def test_subtree_split_of_small_trees():
     """Two chains under a common top are swept at once; a single chain is not split."""
     from vpcontact.kernels.sweeps import subtree_split

@@ -44,7 +44,7 @@ def test_schur_complement_equals_the_inverse_of_the_dense_flexibility():
 def test_schur_pair_by_triangular_products(monkeypatch, lapack):
     """S = K_GG - K_GI K_II^-1 K_IG and its Cholesky factor from CHOLMOD's trailing blocks,
     by the general products and by LAPACK's dlauum (chosen above LAPACK_MIN dofs)."""
-    from vpcontact.solvers import schur
+    from vpcontact.solvers import dense, schur
     monkeypatch.setattr(schur, "LAPACK_MIN", 0 if lapack else 10**9)
     A = _spd(80, seed=4)
     G = np.array([3, 9, 40, 41, 42, 43, 100, 159, 12])
@@ -58,7 +58,7 @@ def test_schur_pair_by_triangular_products(monkeypatch, lapack):
     assert np.array_equal(S, S.T)
     _check_cholesky(C, S)
     r = np.arange(len(G), dtype=float)
-    assert np.abs(Sd @ schur.cholesky_solve(C, r) - r).max() <= 1e-12 * np.abs(r).max()
+    assert np.abs(Sd @ dense.cholesky_solve(C, r) - r).max() <= 1e-12 * np.abs(r).max()
 
 
 def test_g_last_factors_reproduce_the_matrix():
@@ -131,7 +131,8 @@ def test_split_solve_with_given_gamma3_values(bs, kind):
     equations exactly, and u_G = y0 is the unconstrained solution K^-1 b; with scalar and
     2 x 2 block storage of L (G is two whole nodes, so the nodal ordering applies)."""
     from vpcontact import kernels
-    from vpcontact.solvers.schur import cholesky_solve, schur_pair
+    from vpcontact.solvers.dense import cholesky_solve
+    from vpcontact.solvers.schur import schur_pair
     module = kernels.load()
     if module is None:
         pytest.skip("no C compiler")
@@ -206,7 +207,7 @@ def test_mumps_schur_variables_give_the_pair_and_the_split_solve():
     condensation / expansion cycle r = b_G - K_GI K_II^-1 b_I, u = K^-1 (b + E_G lambda) with
     u_G = y."""
     from vpcontact.solvers import mumps
-    from vpcontact.solvers.schur import cholesky_solve
+    from vpcontact.solvers.dense import cholesky_solve
     module = mumps.load()
     if module is None:
         pytest.skip("the MUMPS wrapper cannot be built here")
@@ -278,3 +279,25 @@ def test_mumps_workspace_too_small_is_factorised_again(caplog):
     Zd = np.linalg.inv(A.toarray())[np.ix_(G, G)]
     assert np.abs(M.S @ Zd - np.eye(len(G))).max() <= 1e-10
     M.destroy()
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_cholesky_solve_compiled_equals_scipy(monkeypatch, dtype):
+    """S^-1 r by the compiled trsv pair and by scipy's, in either precision; only C's lower
+    triangle is read (the upper holds garbage, as the kept factor's may)."""
+    from vpcontact.solvers import dense
+    if dense.load() is None:
+        pytest.skip("no compiled kernels")
+    rng = np.random.default_rng(5)
+    m = 40
+    L = np.tril(rng.random((m, m))) + m * np.eye(m)
+    S = L @ L.T
+    C = np.asfortranarray(L + np.triu(rng.random((m, m)) * 1e30, 1), dtype=dtype)
+    r = rng.random(m)
+    compiled = dense.cholesky_solve(C, r)
+    monkeypatch.setattr(dense, "load", lambda: None)
+    reference = dense.cholesky_solve(C, r)
+    assert compiled.dtype == reference.dtype == dtype
+    tol = 1e-12 if dtype == np.float64 else 1e-5
+    assert np.abs(compiled - reference).max() <= tol * np.abs(reference).max()
+    assert np.abs(S @ compiled - r).max() <= tol * np.abs(r).max() * m

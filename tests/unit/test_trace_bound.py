@@ -20,9 +20,10 @@ def _pair(m=40, seed=0):
 
 
 @pytest.mark.parametrize("sparse", [False, True], ids=["dense_A", "sparse_A"])
-@pytest.mark.parametrize("arpack", [True, False], ids=["lanczos", "dense_reduction"])
-def test_reduced_eigenvalue_equals_the_generalised_one(monkeypatch, arpack, sparse):
-    """A dense or scipy sparse (as M_G from PCG_MIN Gamma3 dofs on)."""
+@pytest.mark.parametrize("path", ["lanczos", "dense_reduction", "numpy"])
+def test_reduced_eigenvalue_equals_the_generalised_one(monkeypatch, path, sparse):
+    """A dense or scipy sparse (as M_G from PCG_MIN Gamma3 dofs on); ARPACK, the dense
+    reduction where it fails, and numpy's below LAPACK_MIN dofs."""
     import scipy.sparse.linalg as sla
     from scipy.sparse import csr_matrix
     A, S = _pair()
@@ -30,7 +31,9 @@ def test_reduced_eigenvalue_equals_the_generalised_one(monkeypatch, arpack, spar
     ref = scipy.linalg.eigh(A, S, eigvals_only=True)[-1]
     if sparse:
         A = csr_matrix(A)
-    if not arpack:                                  # ARPACK fails: the dense reduction
+    if path != "numpy":                             # the scipy paths, at any size
+        monkeypatch.setattr(diagnostics, "LAPACK_MIN", 0)
+    if path == "dense_reduction":                   # ARPACK fails: the dense reduction
         def refuse(*args, **kwargs):
             raise sla.ArpackNoConvergence("refused", np.zeros(0), np.zeros((0, 0)))
         monkeypatch.setattr(sla, "eigsh", refuse)

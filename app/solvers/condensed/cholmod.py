@@ -13,10 +13,10 @@ import numpy as np
 
 from vpcontact import kernels
 from vpcontact.solvers import threads
+from vpcontact.solvers.dense import cholesky_solve
 from vpcontact.solvers.schur import (
     GLastLDL,
     GLastLU,
-    cholesky_solve,
     g_last_factor,
     gather_csr,
     schur_pair,

@@ -10,7 +10,7 @@ import logging
 import numpy as np
 from mpi4py import MPI
 
-from vpcontact.solvers.schur import cholesky_solve
+from vpcontact.solvers.dense import cholesky_solve
 
 log = logging.getLogger("vpcontact")
 

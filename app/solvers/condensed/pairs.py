@@ -30,10 +30,10 @@ from vpcontact.solvers.dense import (  # the one-body direction's kept factor an
     PCG_MIN,
     ProjectedDirection,
     _Kept,
+    cholesky_solve,
     symmetric_product,
 )
 from vpcontact.solvers.nodal import NodalContact
-from vpcontact.solvers.schur import cholesky_solve
 from vpcontact.solvers.threads import GAMMA3_ROOT
 
 
