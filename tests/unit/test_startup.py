@@ -5,6 +5,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 PREP = "from vpcontact.cli.entry import prepare_process; prepare_process(); "
 
 
@@ -65,3 +67,18 @@ def test_quick_exit_flushes_and_finalises(tmp_path):
     assert p.returncode == 3, p.stderr
     assert p.stdout.startswith("buffered") and "atexit ran" in p.stdout
     assert "PETSc Performance Summary" in p.stdout
+
+
+@pytest.mark.parametrize("name", ["fenics-ufl", "fenics_ffcx", "numpy", "PyYAML", "jsonschema",
+                                  "no-such-distribution-x"])
+def test_installed_version_reads_the_metadata_importlib_reads(name):
+    """The stand-in's own reader gives importlib.metadata's answer (None where it finds
+    nothing: importlib.metadata answers then)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    from vpcontact.startup import installed_version
+    try:
+        expected = version(name)
+    except PackageNotFoundError:
+        expected = None
+    assert installed_version(name) == expected
