@@ -22,6 +22,7 @@ from vpcontact.model.material import (
     VonMisesProjection,
     make_projection,
 )
+from vpcontact.solvers import threads
 
 
 class Perzyna(ViscoplasticLaw):
@@ -168,7 +169,7 @@ class CompiledPerzynaUpdate:
         Raises:
             RuntimeError: the secular equation of the projection did not converge.
         """
-        if self.kernel.advance(sigma, H, kappa.reshape(-1), k):
+        if self.kernel.advance(sigma, H, kappa.reshape(-1), k, threads.own_cores()):
             raise RuntimeError("von Mises projection: secular equation did not converge")
 
 

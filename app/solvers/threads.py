@@ -114,6 +114,16 @@ def cores() -> int:
     return _cores
 
 
+def own_cores() -> int:
+    """The threads of this rank's work while every rank computes: ``cores()`` of a serial
+    run, 1 under mpirun (the cores GAMMA3_ROOT borrows are its sleeping neighbours').
+
+    Returns:
+        The number of threads.
+    """
+    return _cores if _lent is None else 1
+
+
 def blas_threads(large: bool):
     """A context in which BLAS may use the run's cores (``configure``) if ``large``.
 

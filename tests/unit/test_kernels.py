@@ -40,8 +40,9 @@ def _kernel(law, l1, l2, **kw):
 
 
 @needs_c
+@pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("dim", [2, 3])
-def test_kernel_equals_numpy(dim):
+def test_kernel_equals_numpy(dim, threads, monkeypatch):
     rng = np.random.default_rng(dim)
     law = Elasticity(1000.0, 0.4 if dim == 2 else 0.3, dim)
     n = 4000
@@ -56,9 +57,14 @@ def test_kernel_equals_numpy(dim):
     H0 = rng.normal(size=n * dim * dim)
     H0 = from_voigt(to_voigt(H0, dim), dim).reshape(-1).copy()   # symmetric
     H_ref, kappa_ref = _reference(law, sigma, H0, kappa, 0.01, 100.0, 50.0)
+    monkeypatch.setattr(kernels.perzyna, "SPLIT_MIN_CELLS", 0)
     kern = _kernel(law, 100.0, 50.0)
     H, kap = H0.copy(), kappa.copy()
-    assert kern.advance(sigma, H, kap, 0.01) == 0
+    assert kern.advance(sigma, H, kap, 0.01, threads) == 0
+    if threads == 2:                        # each cell alone: one thread's results exactly
+        H1, kap1 = H0.copy(), kappa.copy()
+        assert _kernel(law, 100.0, 50.0).advance(sigma, H1, kap1, 0.01, 1) == 0
+        assert np.array_equal(H, H1) and np.array_equal(kap, kap1)
     # round-off of the excess t - P t is relative to |t|: the update's scale k/(2 l1) E |t|
     scale = np.abs(H0).reshape(n, -1).max(axis=1) + 0.01 / 200.0 * 1000.0 * np.abs(t).max(axis=1)
     err = np.abs(H - H_ref).reshape(n, -1).max(axis=1) / scale
@@ -125,6 +131,29 @@ def test_kernel_failure_writes_nothing():
     kern = _kernel(law, 1.0, 1.0, max_iter=1)
     assert kern.advance(sigma, H, kappa, 0.1) > 0
     assert np.array_equal(H, H0) and np.array_equal(kappa, kappa0)
+
+
+@needs_c
+def test_two_threads_write_nothing_if_one_half_fails(monkeypatch):
+    """The first half of the cells converges at once (started from its roots), the second
+    does not within one sweep: neither half is written."""
+    monkeypatch.setattr(kernels.perzyna, "SPLIT_MIN_CELLS", 0)
+    rng = np.random.default_rng(4)
+    law = Elasticity(1000.0, 0.4, 2)
+    t = rng.normal(size=(60, law.m))
+    sigma = from_voigt(t, 2).reshape(-1).copy()
+    kappa = law.von_mises(t) * 0.5                  # all outside
+    kern = _kernel(law, 1.0, 1.0)
+    assert kern.advance(sigma, np.zeros(240), kappa.copy(), 0.1, 2) == 0   # the roots
+    kern.max_iter = 1
+    sigma[120:] *= 3.0                              # the second half's roots move
+    H, kap = rng.normal(size=240), kappa.copy()
+    H0 = H.copy()
+    assert kern.advance(sigma, H, kap, 0.1, 2) > 0
+    assert np.array_equal(H, H0) and np.array_equal(kap, kappa)
+    kern.max_iter = 100                             # and with them all: both halves move
+    assert kern.advance(sigma, H, kap, 0.1, 2) == 0
+    assert not np.array_equal(H[:120], H0[:120]) and not np.array_equal(H[120:], H0[120:])
 
 
 # ------------------------------------------------------------------ cell passes
