@@ -1,6 +1,7 @@
 /* The cell-strain operator of P1 displacements cell by cell (app/model/strain.py; wrappers
    and numpy references in kernels/cells.py). */
 #include <math.h>
+#include <pthread.h>
 
 #include "cells.h"
 
@@ -50,13 +51,49 @@ static double cell_pass_##D(int ncells, const int *nodes, const double *G,      
 }
 CELL_PASS(2) CELL_PASS(3)
 
-/* cell_pass_2 or cell_pass_3 for the dimension d. */
+/* One thread's share of cell_pass: the cells c0..c1-1, their sums in se and ss. */
+struct pass_job {
+    int c0, c1, d;
+    const int *nodes;
+    const double *G, *vol;
+    double lmbda, two_mu;
+    const double *u, *H;
+    double *sigma, *vm;
+    double se, ss;
+};
+
+static void *pass_run(void *arg)
+{
+    struct pass_job *j = arg;
+    const long c0 = j->c0, nv = j->d + 1, dd = (long)j->d * j->d;
+    const int n = j->c1 - j->c0;
+    const int *nodes = j->nodes + c0 * nv;
+    const double *G = j->G + c0 * nv * j->d, *vol = j->vol + c0, *H = j->H ? j->H + c0 * dd : 0;
+    double *sigma = j->sigma ? j->sigma + c0 * dd : 0, *vm = j->vm ? j->vm + c0 : 0;
+    j->ss = 0.0;
+    j->se = j->d == 2
+        ? cell_pass_2(n, nodes, G, vol, j->lmbda, j->two_mu, j->u, H, sigma, vm, &j->ss)
+        : cell_pass_3(n, nodes, G, vol, j->lmbda, j->two_mu, j->u, H, sigma, vm, &j->ss);
+    return NULL;
+}
+
+/* cell_pass_2 or cell_pass_3 for the dimension d, on nthreads threads (1 or 2: each half of
+   the cells; the cells are independent, only the two sums are added). */
 double cell_pass(int ncells, int d, const int *nodes, const double *G, const double *vol,
                  double lmbda, double two_mu, const double *u, const double *H, double *sigma,
-                 double *vm, double *ss)
+                 double *vm, double *ss, int nthreads)
 {
-    return d == 2 ? cell_pass_2(ncells, nodes, G, vol, lmbda, two_mu, u, H, sigma, vm, ss)
-                  : cell_pass_3(ncells, nodes, G, vol, lmbda, two_mu, u, H, sigma, vm, ss);
+    const int half = nthreads >= 2 ? ncells / 2 : ncells;
+    struct pass_job jobs[2] = {
+        {0, half, d, nodes, G, vol, lmbda, two_mu, u, H, sigma, vm, 0.0, 0.0},
+        {half, ncells, d, nodes, G, vol, lmbda, two_mu, u, H, sigma, vm, 0.0, 0.0}};
+    pthread_t thread;
+    const int started = half < ncells && pthread_create(&thread, NULL, pass_run, &jobs[1]) == 0;
+    pass_run(&jobs[0]);
+    if (started) pthread_join(thread, NULL);
+    else if (half < ncells) pass_run(&jobs[1]);
+    if (ss) *ss = jobs[0].ss + jobs[1].ss;
+    return jobs[0].se + jobs[1].se;
 }
 
 /* b[dofs_c] += D_c^T H_c for every cell: b = D^T H = (H, eps(v)) for all v (local dofs);

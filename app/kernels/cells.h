@@ -3,10 +3,11 @@
 #define VPCONTACT_CELLS_H
 
 /* eps_c(u) of every cell; returns sum_c |c| eps_c : eps_c (||u||_V^2).  If sigma != NULL also
-   sigma_c = E eps_c + H_c (3.2), vm_c = ||sigma_c||_VM and *ss = ||sigma||_Q^2. */
+   sigma_c = E eps_c + H_c (3.2), vm_c = ||sigma_c||_VM and *ss = ||sigma||_Q^2.  On nthreads
+   threads (1 or 2). */
 double cell_pass(int ncells, int d, const int *nodes, const double *G, const double *vol,
                  double lmbda, double two_mu, const double *u, const double *H, double *sigma,
-                 double *vm, double *ss);
+                 double *vm, double *ss, int nthreads);
 
 /* b += D^T H = (H, eps(v)) for all v: the pre-stress term of the step's load (3.4). */
 void cell_load(int ncells, int d, const int *nodes, const double *G, const double *H,

@@ -14,9 +14,15 @@ import numpy as np
 
 from vpcontact.kernels.build import buf
 
+# cells from which two threads share a pass over the cells (cell_pass, the Perzyna update):
+# the cells are independent (measured in whole runs, one machine state: the Perzyna update
+# of box3d n = 32, 196,608 cells, 15 against 21-25 ms per step; h = 1/128, 32,768 cells,
+# 1.0 against 1.1 ms)
+SPLIT_MIN_CELLS = 10000
+
 
 def cell_pass(module, nodes, G, vol, lmbda, two_mu, u, H=None, sigma=None,
-              vm=None) -> tuple[float, float]:
+              vm=None, threads: int = 1) -> tuple[float, float]:
     """The C cell_pass over the cells of ``nodes``.
 
     Args:
@@ -30,6 +36,8 @@ def cell_pass(module, nodes, G, vol, lmbda, two_mu, u, H=None, sigma=None,
         H: the history tensor per cell, flat (ncells * d * d), or None (0).
         sigma: where sigma = E eps(u) + H goes (ncells * d * d), or None (not computed).
         vm: where ||sigma||_VM goes (ncells); required with sigma.
+        threads: 2 splits the cells between two threads from SPLIT_MIN_CELLS cells (the
+            same sigma; the sums added in another order).
 
     Returns:
         (sum_c |c| eps_c : eps_c, sum_c |c| sigma_c : sigma_c (0 without sigma)).
@@ -41,7 +49,8 @@ def cell_pass(module, nodes, G, vol, lmbda, two_mu, u, H=None, sigma=None,
     d = G.shape[-1]
     e2 = module.lib.cell_pass(len(nodes), d, buf(ffi, nodes), buf(ffi, G), buf(ffi, vol),
                               lmbda, two_mu, buf(ffi, u), buf(ffi, H), buf(ffi, sigma),
-                              buf(ffi, vm), ss)
+                              buf(ffi, vm), ss,
+                              2 if threads >= 2 and len(nodes) >= SPLIT_MIN_CELLS else 1)
     return e2, ss[0]
 
 

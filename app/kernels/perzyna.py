@@ -17,11 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from vpcontact.kernels.build import buf
-
-# cells from which two threads share the update (measured in whole runs, one machine state:
-# box3d n = 32, 196,608 cells, 15 against 21-25 ms per step; h = 1/128, 32,768 cells, 1.0
-# against 1.1 ms)
-SPLIT_MIN_CELLS = 10000
+from vpcontact.kernels.cells import SPLIT_MIN_CELLS
 
 
 class PerzynaKernel:

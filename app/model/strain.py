@@ -29,6 +29,7 @@ from petsc4py import PETSc
 
 from vpcontact import kernels
 from vpcontact.forms.elasticity import elasticity_operator, eps, lame_constants
+from vpcontact.solvers import threads
 
 
 def _inverse(J: np.ndarray) -> np.ndarray:
@@ -140,16 +141,13 @@ class StrainOperator:
     def _cell_pass(self, u, H=None, sigma=None, vm=None) -> tuple[float, float]:
         """kernels.cell_pass on the owned cells; returns this rank's ||eps(u)||^2 and (with
         sigma) ||sigma||_Q^2 (else 0)."""
-        ffi, n, dd = self.mod.ffi, self.n_owned, self.d * self.d
+        n, dd = self.n_owned, self.d * self.d
         vertices, G = self._cells
-        ss = ffi.new("double *")
-        e2 = self.mod.lib.cell_pass(
-            n, self.d, kernels.buf(ffi, vertices), kernels.buf(ffi, G), kernels.buf(ffi, self.vol),
-            self.lmbda, self.two_mu, kernels.buf(ffi, u.x.array),
-            kernels.buf(ffi, None if H is None else H.x.array[:n * dd]),
-            kernels.buf(ffi, None if sigma is None else sigma.x.array[:n * dd]),
-            kernels.buf(ffi, None if vm is None else vm.x.array[:n]), ss)
-        return e2, ss[0]
+        return kernels.cell_pass(
+            self.mod, vertices, G, self.vol, self.lmbda, self.two_mu, u.x.array,
+            None if H is None else H.x.array[:n * dd],
+            None if sigma is None else sigma.x.array[:n * dd],
+            None if vm is None else vm.x.array[:n], threads.own_cores())
 
     def update_sigma(self, u, H, sigma, vm=None) -> tuple[float, float] | None:
         """sigma = E eps(u) + H (3.2) on the owned cells, ghosts by scatter; collective.

@@ -169,16 +169,20 @@ def _cells(dim, n_cells=300, n_nodes=120, seed=0):
 
 
 @needs_c
+@pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("dim", [2, 3])
 @pytest.mark.parametrize("with_H", [False, True])
-def test_cell_pass_equals_numpy(dim, with_H):
+def test_cell_pass_equals_numpy(dim, with_H, threads, monkeypatch):
     """cell_pass: the same sums, sigma and von Mises norm as the numpy reference (sums in
-    another order: 1e-13 relative)."""
+    another order: 1e-13 relative); on two threads sigma and vm exactly those of one."""
+    monkeypatch.setattr(kernels.cells, "SPLIT_MIN_CELLS", 0)
     nodes, G, vol, u, H = _cells(dim, seed=dim)
     H = H if with_H else None
     n = len(nodes)
-    out = [(np.empty(n * dim * dim), np.empty(n)) for _ in range(2)]
-    e2, s2 = kernels.cell_pass(module, nodes, G, vol, 0.7, 1.3, u, H, *out[0])
+    out = [(np.empty(n * dim * dim), np.empty(n)) for _ in range(3)]
+    e2, s2 = kernels.cell_pass(module, nodes, G, vol, 0.7, 1.3, u, H, *out[0], threads=threads)
+    kernels.cell_pass(module, nodes, G, vol, 0.7, 1.3, u, H, *out[2], threads=1)
+    assert all(np.array_equal(a, b) for a, b in zip(out[0], out[2]))
     e2r, s2r = kernels.cell_pass_numpy(nodes, G, vol, 0.7, 1.3, u, H, *out[1])
     assert e2 == pytest.approx(e2r, rel=1e-13) and s2 == pytest.approx(s2r, rel=1e-13)
     for a, b in zip(out[0], out[1]):
