@@ -262,6 +262,17 @@ class GLastLDL:
         """
         return self.L_GG, self.D[self.n - self.m:, None] * self.L_GG.T
 
+    def release_L_GG(self) -> np.ndarray:
+        """L_GG's memory for the caller to overwrite (the Schur pair's work array: pages
+        touched already, where a fresh m x m array costs its page faults, 80 MB at
+        m = 3168); L_GG and ``trailing`` are gone afterwards.
+
+        Returns:
+            L_GG, dense (m, m), Fortran order.
+        """
+        L, self._factor.L_GG = self._factor.L_GG, None
+        return L
+
 
 def g_last_factor(A: CSR, G: np.ndarray, bs: int = 1, blocks: bool = True):
     """Factorise K with G last: CHOLMOD's L D L^T if it is available here (and succeeds),
@@ -318,7 +329,8 @@ def _schur_pair_cholesky(factor: GLastLDL) -> tuple[np.ndarray, np.ndarray] | No
     m = 3168: about 0.3 s; measured).
 
     Returns:
-        (S, C), or None if a pivot of D_G is not positive (K not positive definite there).
+        (S, C), or None if a pivot of D_G is not positive (K not positive definite there;
+        the factor's L_GG is then untouched, else it is consumed).
     """
     from scipy.linalg.lapack import dlauum
 
@@ -327,12 +339,15 @@ def _schur_pair_cholesky(factor: GLastLDL) -> tuple[np.ndarray, np.ndarray] | No
     if not np.all(D_G > 0):
         return None
     C = np.multiply(factor.L_GG, np.sqrt(D_G)[None, :], order="F")     # L_GG: Fortran
+    # C C^T = J (U U^T) J with U = J C J upper triangular, J the reversal, written over
+    # L_GG (no longer needed); LAPACK writes one triangle and leaves the other as given
+    # (zero here)
+    U = factor.release_L_GG()
+    np.copyto(U, C[::-1, ::-1])
     with blas_threads(large=True):
-        # C C^T = J (U U^T) J with U = J C J upper triangular, J the reversal; LAPACK
-        # writes one triangle and leaves the other as given (zero here)
-        U, info = dlauum(np.asfortranarray(C[::-1, ::-1]), lower=0, overwrite_c=1)
-    if info != 0:
-        return None
+        U, info = dlauum(U, lower=0, overwrite_c=1)
+    if info != 0:                   # an illegal argument: LAPACK's only failure here
+        raise RuntimeError(f"LAPACK dlauum: info {info}")
     return _symmetric_from_triangle(U[::-1, ::-1]), C
 
 
