@@ -38,6 +38,7 @@ def layer_cells(problem, groups: list[str]) -> np.ndarray:
     cells = cells[cells < msh.topology.index_map(tdim).size_local]
     return np.sort(problem.Q.dofmap.list.array[cells])    # DG0: one block per cell
 
+
 class BoundaryLayer:
     """r = (sigma_n, eps(phi_i)) - f_n(phi_i) at the owned nodes, exact at the layer's nodes.
 
@@ -49,7 +50,7 @@ class BoundaryLayer:
 
     def __init__(self, problem, groups: list[str]):
         self.problem = problem
-        self.rows = layer_cells(problem, groups)
+        self.cells = problem.strain_operator.subset(layer_cells(problem, groups))
 
     def residual(self) -> np.ndarray:
         """r at the owned nodes (exact at the layer's; collective).
@@ -59,7 +60,7 @@ class BoundaryLayer:
         """
         p = self.problem
         owned = p.V.dofmap.index_map.size_local * p.dim
-        r = p.strain_operator.stress_load(p.sigma, self.rows).array_r[:owned].copy()
+        r = p.strain_operator.stress_load(p.sigma, self.cells).array_r[:owned].copy()
         if p.load_vector is not None:
             r -= p.load_vector.at_current_time().array_r[:owned]
         return r.reshape(-1, p.dim)

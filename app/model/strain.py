@@ -19,6 +19,7 @@ about 6 ms).  The PETSc products of the assembled D stay the reference
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
@@ -46,6 +47,21 @@ def _inverse(J: np.ndarray) -> np.ndarray:
         rows = np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], 1)
         det = np.einsum("ij,ij->i", c0, rows[:, 0])
     return rows / det[:, None, None]
+
+
+@dataclass
+class CellSubset:
+    """Some owned cells for a StrainOperator pass.
+
+    Attributes:
+        rows: the cells, rows of Q's owned blocks.
+        vertices: their vertices (the compiled pass's), or None.
+        G: their |c| grad phi_a (the compiled pass's), or None.
+    """
+
+    rows: np.ndarray
+    vertices: np.ndarray | None
+    G: np.ndarray | None
 
 
 class StrainOperator:
@@ -201,13 +217,27 @@ class StrainOperator:
         flat = cell_tensors.reshape(len(self.vol), -1)
         return float(self.vol @ np.einsum("ij,ij->i", flat, flat))
 
-    def stress_load(self, sigma, rows: np.ndarray | None = None) -> PETSc.Vec:
-        """D^T sigma = (sigma, eps(v)) for all v, from the owned cells ``rows`` (Q's order;
-        None: all): exact at the nodes whose cells are all among them; collective.
+    def subset(self, rows: np.ndarray) -> CellSubset:
+        """The owned cells ``rows`` (Q's order) with their compiled pass's data.
+
+        Args:
+            rows: owned cells.
+
+        Returns:
+            The CellSubset (without the compiled data where the assembled D serves).
+        """
+        if self._cells is None:
+            return CellSubset(rows, None, None)
+        vertices, G = self._cells
+        return CellSubset(rows, np.ascontiguousarray(vertices[rows]), np.ascontiguousarray(G[rows]))
+
+    def stress_load(self, sigma, cells: CellSubset | None = None) -> PETSc.Vec:
+        """D^T sigma = (sigma, eps(v)) for all v, from the owned cells of ``cells`` (None:
+        all): exact at the nodes whose cells are all among them; collective.
 
         Args:
             sigma: a DG0 tensor Function (a stress).
-            rows: the owned cells to sum over, or None for every cell.
+            cells: a ``subset`` of the owned cells, or None for every cell.
 
         Returns:
             A work vector of V (owned entries valid; overwritten by the next call).
@@ -216,25 +246,17 @@ class StrainOperator:
             self.D.multTranspose(sigma.vector, self._b)
             return self._b
         ffi, w, dd = self.mod.ffi, self._work, self.d * self.d
-        vertices, G = self._cells if rows is None else self._subset(rows)
-        values = sigma.x.array[:self.n_owned * dd] if rows is None else \
-            sigma.x.array.reshape(-1, dd)[rows]
+        if cells is None:
+            (vertices, G), values = self._cells, sigma.x.array[:self.n_owned * dd]
+        else:
+            vertices, G = cells.vertices, cells.G
+            values = np.ascontiguousarray(sigma.x.array.reshape(-1, dd)[cells.rows])
         w.x.array[:] = 0.0
         self.mod.lib.cell_load(len(vertices), self.d, kernels.buf(ffi, vertices),
-                               kernels.buf(ffi, G), kernels.buf(ffi, np.ascontiguousarray(values)),
+                               kernels.buf(ffi, G), kernels.buf(ffi, values),
                                kernels.buf(ffi, w.x.array))
         w.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         return w.vector
-
-    def _subset(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The compiled pass's (vertices, G) of the owned cells ``rows``, kept for the last
-        rows asked."""
-        key = getattr(self, "_subset_key", None)
-        if key is None or key[0] is not rows:
-            vertices, G = self._cells
-            self._subset_key = (rows, np.ascontiguousarray(vertices[rows]),
-                                np.ascontiguousarray(G[rows]))
-        return self._subset_key[1], self._subset_key[2]
 
     def pre_stress_load(self, H, b: PETSc.Vec) -> None:
         """b -= D^T H = (H, eps(v)) for all v, the pre-stress term of the load of (3.4).
