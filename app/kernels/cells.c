@@ -51,6 +51,16 @@ static double cell_pass_##D(int ncells, const int *nodes, const double *G,      
 }
 CELL_PASS(2) CELL_PASS(3)
 
+/* run_two (cells.h). */
+void run_two(void *(*run)(void *), void *mine, void *other)
+{
+    pthread_t thread;
+    const int started = pthread_create(&thread, NULL, run, other) == 0;
+    run(mine);
+    if (started) pthread_join(thread, NULL);
+    else run(other);
+}
+
 /* One thread's share of cell_pass: the cells c0..c1-1, their sums in se and ss. */
 struct pass_job {
     int c0, c1, d;
@@ -87,11 +97,8 @@ double cell_pass(int ncells, int d, const int *nodes, const double *G, const dou
     struct pass_job jobs[2] = {
         {0, half, d, nodes, G, vol, lmbda, two_mu, u, H, sigma, vm, 0.0, 0.0},
         {half, ncells, d, nodes, G, vol, lmbda, two_mu, u, H, sigma, vm, 0.0, 0.0}};
-    pthread_t thread;
-    const int started = half < ncells && pthread_create(&thread, NULL, pass_run, &jobs[1]) == 0;
-    pass_run(&jobs[0]);
-    if (started) pthread_join(thread, NULL);
-    else if (half < ncells) pass_run(&jobs[1]);
+    if (half < ncells) run_two(pass_run, &jobs[0], &jobs[1]);
+    else pass_run(&jobs[0]);
     if (ss) *ss = jobs[0].ss + jobs[1].ss;
     return jobs[0].se + jobs[1].se;
 }

@@ -17,4 +17,9 @@ void cell_load(int ncells, int d, const int *nodes, const double *G, const doubl
    component of node i (0 .. count - 1, numbered by their lowest node); returns the count. */
 int cell_components(int n, int ncells, int nv, const int *nodes, int *label);
 
+/* run(mine) on this thread and run(other) on a second one; both done on return (other on
+   this thread after mine where no thread can be started).  The kernels' two-thread passes
+   (cell_pass, perzyna_advance, the split sweeps of ldl_blocks.c) share it. */
+void run_two(void *(*run)(void *), void *mine, void *other);
+
 #endif

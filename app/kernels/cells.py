@@ -21,6 +21,20 @@ from vpcontact.kernels.build import buf
 SPLIT_MIN_CELLS = 10000
 
 
+def split_threads(threads: int, ncells: int) -> int:
+    """The threads a pass over ``ncells`` cells runs on: 2 if ``threads`` allows two and
+    there are SPLIT_MIN_CELLS cells, else 1.
+
+    Args:
+        threads: the threads the caller may use.
+        ncells: the cells of the pass.
+
+    Returns:
+        1 or 2.
+    """
+    return 2 if threads >= 2 and ncells >= SPLIT_MIN_CELLS else 1
+
+
 def cell_pass(module, nodes, G, vol, lmbda, two_mu, u, H=None, sigma=None,
               vm=None, threads: int = 1) -> tuple[float, float]:
     """The C cell_pass over the cells of ``nodes``.
@@ -49,8 +63,7 @@ def cell_pass(module, nodes, G, vol, lmbda, two_mu, u, H=None, sigma=None,
     d = G.shape[-1]
     e2 = module.lib.cell_pass(len(nodes), d, buf(ffi, nodes), buf(ffi, G), buf(ffi, vol),
                               lmbda, two_mu, buf(ffi, u), buf(ffi, H), buf(ffi, sigma),
-                              buf(ffi, vm), ss,
-                              2 if threads >= 2 and len(nodes) >= SPLIT_MIN_CELLS else 1)
+                              buf(ffi, vm), ss, split_threads(threads, len(nodes)))
     return e2, ss[0]
 
 

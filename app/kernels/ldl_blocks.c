@@ -1,8 +1,8 @@
 /* The split solve of the condensed solver: K = L D L^T ordered interior first, Gamma3 last, with
    the interior columns of L in node blocks (kernels/sweeps.py: GLastSolve, and its numpy
    reference split_solve_numpy). */
-#include <pthread.h>
 
+#include "cells.h"
 #include "ldl_blocks.h"
 
 /* One solve with K = L D L^T (L unit lower, D diagonal), ordered interior first, G last
@@ -158,17 +158,6 @@ static void *backward_part(void *arg)
     const struct part *p = arg;
     backward_range(p->bs, p->J0, p->J1, p->Bp, p->Bi, p->Bx, p->Ld, p->dinv, p->x);
     return NULL;
-}
-
-/* run(part) on a second thread while the caller runs mine; both done on return (the second
-   part on the caller's thread after its own where no thread can be started). */
-static void run_two(void *(*run)(void *), struct part *mine, struct part *other)
-{
-    pthread_t thread;
-    const int started = pthread_create(&thread, NULL, run, other) == 0;
-    run(mine);
-    if (started) pthread_join(thread, NULL);
-    else run(other);
 }
 
 /* ldl_forward_interior with the block columns 0..s1-1 and s1..s2-1 two subtrees of the

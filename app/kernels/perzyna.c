@@ -2,9 +2,9 @@
    The numpy reference is app/model/viscoplastic.py (ExplicitUpdate of Perzyna.rates, with
    material.VonMisesProjection); tests/unit/test_kernels.py compares them. */
 #include <math.h>
-#include <pthread.h>
 #include <stddef.h>
 
+#include "cells.h"
 #include "perzyna.h"
 
 /* The explicit Perzyna update (3.2)-(3.3) of every cell c, in the coordinates t of
@@ -249,12 +249,8 @@ static int perzyna_run(const struct perzyna_args *a, int nthreads)
         return left > 0 ? left : perzyna_part(0, n, 2, a);
     }
     for (int phase = 1; phase <= 2; ++phase) {
-        pthread_t thread;
         jobs[0].phase = jobs[1].phase = phase;
-        const int started = pthread_create(&thread, NULL, perzyna_job_run, &jobs[1]) == 0;
-        perzyna_job_run(&jobs[0]);
-        if (started) pthread_join(thread, NULL);
-        else perzyna_job_run(&jobs[1]);
+        run_two(perzyna_job_run, &jobs[0], &jobs[1]);
         if (phase == 1 && jobs[0].result + jobs[1].result > 0)
             return jobs[0].result + jobs[1].result;
     }

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from vpcontact.kernels.build import buf
-from vpcontact.kernels.cells import SPLIT_MIN_CELLS
+from vpcontact.kernels.cells import split_threads
 
 
 class PerzynaKernel:
@@ -66,7 +66,7 @@ class PerzynaKernel:
             H: the history tensor per cell, same layout, updated.
             kappa: the hardening variable per cell (ncells), updated.
             k: the time step.
-            threads: 2 splits the cells between two threads from SPLIT_MIN_CELLS cells (the
+            threads: 2 splits the cells between two threads (``split_threads``; the
                 same results: a cell's update does not depend on the others).
 
         Returns:
@@ -92,5 +92,4 @@ class PerzynaKernel:
             self.l2, buf(ffi, self.C), buf(ffi, self.M), buf(ffi, self.AV), buf(ffi, self.V),
             buf(ffi, self.lam), buf(ffi, self.flat), buf(ffi, self.from_), self.rtol,
             self.max_iter, len(self.glam), buf(ffi, self.glam), buf(ffi, self.GM),
-            buf(ffi, self._work), buf(ffi, self.mu),
-            2 if threads >= 2 and n >= SPLIT_MIN_CELLS else 1)
+            buf(ffi, self._work), buf(ffi, self.mu), split_threads(threads, n))

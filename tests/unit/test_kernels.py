@@ -57,7 +57,7 @@ def test_kernel_equals_numpy(dim, threads, monkeypatch):
     H0 = rng.normal(size=n * dim * dim)
     H0 = from_voigt(to_voigt(H0, dim), dim).reshape(-1).copy()   # symmetric
     H_ref, kappa_ref = _reference(law, sigma, H0, kappa, 0.01, 100.0, 50.0)
-    monkeypatch.setattr(kernels.perzyna, "SPLIT_MIN_CELLS", 0)
+    monkeypatch.setattr(kernels.cells, "SPLIT_MIN_CELLS", 0)
     kern = _kernel(law, 100.0, 50.0)
     H, kap = H0.copy(), kappa.copy()
     assert kern.advance(sigma, H, kap, 0.01, threads) == 0
@@ -137,7 +137,7 @@ def test_kernel_failure_writes_nothing():
 def test_two_threads_write_nothing_if_one_half_fails(monkeypatch):
     """The first half of the cells converges at once (started from its roots), the second
     does not within one sweep: neither half is written."""
-    monkeypatch.setattr(kernels.perzyna, "SPLIT_MIN_CELLS", 0)
+    monkeypatch.setattr(kernels.cells, "SPLIT_MIN_CELLS", 0)
     rng = np.random.default_rng(4)
     law = Elasticity(1000.0, 0.4, 2)
     t = rng.normal(size=(60, law.m))
