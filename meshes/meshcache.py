@@ -30,6 +30,8 @@ import ufl
 from dolfinx import cpp as _cpp
 from dolfinx.mesh import CellType, create_mesh, meshtags, meshtags_from_entities
 
+from .partition import cell_partitioner
+
 log = logging.getLogger("vpcontact")
 
 # gmsh's element types of the built-in meshes -> (the UFL cell, the degree): gmshio's table
@@ -222,7 +224,8 @@ def to_mesh(comm, arrays: dict | None, gdim: int):
     domain = _ufl_domain(a["cell_id"], gdim)
     cell_type = _cpp.mesh.to_type(str(domain.ufl_cell()))
     cells = a["cells"][:, _cpp.io.perm_gmsh(cell_type, a["num_nodes"])]
-    mesh = create_mesh(comm, cells, a["x"][:, :gdim], domain)
+    mesh = create_mesh(comm, cells, a["x"][:, :gdim], domain,
+                       partitioner=cell_partitioner(comm))
     tdim = mesh.topology.dim
     mesh.topology.create_connectivity(tdim, 0)
     ct = _cell_tags(mesh, cells, a)

@@ -27,6 +27,7 @@ from mpi4py import MPI
 
 from .extent import mesh_extent
 from .meshcache import cache_key
+from .partition import cell_partitioner
 
 BOUNDARY_TAGS = {"left": 1, "bottom": 2, "right": 3, "top": 4, "front": 5, "back": 6}
 # 2D uses left/bottom/right/top; the 3D box (meshes/box.py) adds front {y = 0}, back {y = L2}.
@@ -138,9 +139,11 @@ def dolfinx_structured(comm: MPI.Comm, L, n: int, diagonal: str | None = None):
     corners = [np.zeros(d), np.array(L, dtype=float)]
     if d == 2:
         msh = dmesh.create_rectangle(comm, corners, [n, n], dmesh.CellType.triangle,
+                                     partitioner=cell_partitioner(comm),
                                      diagonal=getattr(dmesh.DiagonalType, diagonal))
     else:
-        msh = dmesh.create_box(comm, corners, [n, n, n], dmesh.CellType.tetrahedron)
+        msh = dmesh.create_box(comm, corners, [n, n, n], dmesh.CellType.tetrahedron,
+                               partitioner=cell_partitioner(comm))
     tdim = msh.topology.dim
     # the axis and the end of each side; vertex coordinates along an axis carry round-off
     # relative to that axis' length
