@@ -78,11 +78,11 @@ def gather_csr(K: PETSc.Mat, comm) -> CSR | None:
         On rank 0, the CSR of the whole matrix (rows in global order); None elsewhere.
     """
     indptr, indices, data = K.getValuesCSR()
+    if comm.size == 1:          # no gather: it pickles the arrays (0.15 s at 108k dofs)
+        return CSR(indptr, indices, data)
     parts = comm.gather((indptr, indices, data), root=0)
     if comm.rank != 0:
         return None
-    if len(parts) == 1:
-        return CSR(indptr, indices, data)
     ptr = [np.zeros(1, dtype=np.int64)]
     offset = 0
     for p, _, _ in parts:
