@@ -93,8 +93,16 @@ int ldl_blocks_super(void *handle, int bs, int nbc, int m, int *Bp, int *Bi, dou
         for (int j = super[sn]; j < super[sn + 1]; ++j) sn_of[j] = sn;
         if (pi[sn + 1] - pi[sn] > maxrow) maxrow = pi[sn + 1] - pi[sn];
     }
+    /* the block row of each row of the current supernode: one division per row and
+       supernode instead of one per entry (a supernode's columns share its rows) */
+    int *rI = malloc((size_t)(maxrow > 0 ? maxrow : 1) * sizeof(int)), rI_sn = -1;
+    if (!rI) { free(sn_of); return -1; }
 #define COLUMN(j, sn, off, nsrow) const int sn = sn_of[j], off = (j) - super[sn],         \
-    nsrow = pi[sn + 1] - pi[sn]
+    nsrow = pi[sn + 1] - pi[sn];                                                           \
+    if (sn != rI_sn) {                                                                     \
+        for (int q_ = 0; q_ < nsrow; ++q_) rI[q_] = s[pi[sn] + q_] / bs;                   \
+        rI_sn = sn;                                                                        \
+    }
     int in_place = 1;
     if (!Bi) {
         for (int j = 0; j < n; ++j) {                       /* D, L_GG */
@@ -115,7 +123,7 @@ int ldl_blocks_super(void *handle, int bs, int nbc, int m, int *Bp, int *Bi, dou
                 COLUMN(j, sn, off, nsrow);
                 const double *v = x + px[sn] + (size_t)off * nsrow;
                 for (int q = off + 1; q < nsrow; ++q) {
-                    const int I = s[pi[sn] + q] / bs;
+                    const int I = rI[q];
                     if (I == J || v[q] == 0.0 || mark[I] == J) continue;
                     mark[I] = J;
                     ++count;
@@ -129,13 +137,14 @@ int ldl_blocks_super(void *handle, int bs, int nbc, int m, int *Bp, int *Bi, dou
                 in_place &= out <= (long)px[sn] + (long)off * nsrow;
             }
         }
-        free(sn_of);
+        free(sn_of); free(rI);
         return in_place;
     }
     /* fill: each block column's values are copied out first (they may be overwritten) */
     double *tv = malloc((size_t)bs * maxrow * sizeof(double)), tl[3];
     int *tr = malloc((size_t)bs * maxrow * sizeof(int)), tn[3];
-    if (!tv || !tr) { free(sn_of); free(tv); free(tr); return -1; }
+    int *tI = malloc((size_t)bs * maxrow * sizeof(int));
+    if (!tv || !tr || !tI) { free(sn_of); free(rI); free(tv); free(tr); free(tI); return -1; }
     for (int J = 0; J < nbc; ++J) {
         for (int a = 0; a < bs; ++a) {
             const int j = bs * J + a;
@@ -145,6 +154,7 @@ int ldl_blocks_super(void *handle, int bs, int nbc, int m, int *Bp, int *Bi, dou
             tn[a] = nsrow - off - 1;
             for (int q = off + 1; q < nsrow; ++q) {
                 tr[a * maxrow + q - off - 1] = s[pi[sn] + q];
+                tI[a * maxrow + q - off - 1] = rI[q];
                 tv[a * maxrow + q - off - 1] = v[q];
             }
         }
@@ -152,7 +162,7 @@ int ldl_blocks_super(void *handle, int bs, int nbc, int m, int *Bp, int *Bi, dou
         int count = 0;
         for (int a = 0; a < bs; ++a)
             for (int q = 0; q < tn[a]; ++q) {
-                const int i = tr[a * maxrow + q], I = i / bs, b = i - bs * I;
+                const int i = tr[a * maxrow + q], I = tI[a * maxrow + q], b = i - bs * I;
                 const double raw = tv[a * maxrow + q], val = raw / tl[a];
                 if (I == J) {                       /* the diagonal block: b > a */
                     Ld[(size_t)J * b2 + a * bs + b] = val;
@@ -169,7 +179,7 @@ int ldl_blocks_super(void *handle, int bs, int nbc, int m, int *Bp, int *Bi, dou
             }
     }
 #undef COLUMN
-    free(sn_of); free(tv); free(tr);
+    free(sn_of); free(rI); free(tv); free(tr); free(tI);
     return 0;
 }
 
