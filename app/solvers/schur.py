@@ -348,7 +348,7 @@ def _schur_pair_cholesky(factor: GLastLDL) -> tuple[np.ndarray, np.ndarray] | No
         U, info = dlauum(U, lower=0, overwrite_c=1)
     if info != 0:                   # an illegal argument: LAPACK's only failure here
         raise RuntimeError(f"LAPACK dlauum: info {info}")
-    return _symmetric_from_triangle(U[::-1, ::-1]), C
+    return symmetric_in_place(U), C
 
 
 def spd_cholesky(S: np.ndarray) -> np.ndarray | None:
@@ -367,6 +367,42 @@ def spd_cholesky(S: np.ndarray) -> np.ndarray | None:
     with blas_threads(large=len(S) > LAPACK_MIN):
         C, info = dpotrf(S, lower=1, clean=1)
     return C if info == 0 else None
+
+
+def symmetric_in_place(U: np.ndarray, block: int = 256, chunk: int = 1 << 16) -> np.ndarray:
+    """J (U + U^T - diag U) J, J the reversal, in U's own memory: the S of
+    ``_schur_pair_cholesky`` from dlauum's upper triangle without a new m x m array (whose
+    first touch, 85 MB at m = 3267, cost 0.06-0.23 s of page faults in a run; measured).
+
+    U's lower triangle is filled from its upper one block by block (each block transposed in
+    cache), and then the reversed matrix is U's memory read backwards: for a symmetric A in
+    Fortran order, (J A J)[i, j] = A[m-1-j, m-1-i] lies at position m^2 - 1 - (i m + j), so
+    reversing the m^2 values in place, chunk by chunk, gives J A J in C order.
+
+    Args:
+        U: (m, m), Fortran order, the upper triangle given (the lower one is overwritten).
+        block: the order of the transposed blocks.
+        chunk: the values swapped per step of the reversal.
+
+    Returns:
+        The symmetric matrix, C order, a view of U's memory (U is consumed).
+    """
+    m = len(U)
+    for i in range(0, m, block):
+        diag = U[i:i + block, i:i + block]
+        lower = np.tril_indices(len(diag), -1)
+        diag[lower] = diag.T[lower]
+        for j in range(i + block, m, block):
+            U[j:j + block, i:i + block] = U[i:i + block, j:j + block].T
+    flat = U.reshape(-1, order="F")                   # a view: U is Fortran-contiguous
+    n, tmp = len(flat), np.empty(min(chunk, len(flat) // 2 + 1))
+    for i in range(0, n // 2, chunk):
+        k = min(chunk, n // 2 - i)
+        t = tmp[:k]
+        t[:] = flat[i:i + k]
+        flat[i:i + k] = flat[n - i - k:n - i][::-1]
+        flat[n - i - k:n - i] = t[::-1]
+    return flat.reshape(m, m)
 
 
 def _symmetric_from_triangle(T: np.ndarray) -> np.ndarray:

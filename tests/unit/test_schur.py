@@ -61,6 +61,20 @@ def test_schur_pair_by_triangular_products(monkeypatch, lapack):
     assert np.abs(Sd @ dense.cholesky_solve(C, r) - r).max() <= 1e-12 * np.abs(r).max()
 
 
+@pytest.mark.parametrize("m, block, chunk", [(1, 4, 3), (2, 1, 1), (13, 4, 5), (40, 7, 64),
+                                            (40, 256, 1 << 16)])
+def test_symmetric_in_place_is_the_reversed_symmetric_matrix(m, block, chunk):
+    """symmetric_in_place(U) = J (U + U^T - diag U) J (J the reversal) bit for bit, C order,
+    in U's memory: blocks and chunks that do and do not divide m, odd and even m^2."""
+    from vpcontact.solvers.schur import symmetric_in_place
+    rng = np.random.default_rng(m)
+    U = np.asfortranarray(np.triu(rng.standard_normal((m, m))))
+    expected = (U + U.T - np.diag(np.diag(U)))[::-1, ::-1]
+    S = symmetric_in_place(U, block, chunk)
+    assert S.flags.c_contiguous and np.shares_memory(S, U)
+    assert np.array_equal(S, expected)
+
+
 def test_g_last_factors_reproduce_the_matrix():
     A = _spd(40, seed=1)
     G = np.array([5, 6, 70])
