@@ -35,7 +35,6 @@ from .extent import mesh_extent
 from .geomesh import memory_budget as _memory_budget
 from .geomesh import refusal, run_child
 from .geoscan import GeoScanError, mesh_files
-from .partition import cell_partitioner
 
 SUFFIXES = (".msh", ".geo")
 # the linear simplex gmsh element type of each dimension (gmsh's MSH numbering)
@@ -229,7 +228,7 @@ def load_mesh_file(comm: MPI.Comm, path, dim: int, size: float = 1.0,
                     file_failure(path, "load"), keep=True)
     try:
         msh, ct, ft = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0,
-                                           gdim=dim, partitioner=cell_partitioner(comm))
+                                           gdim=dim)
     finally:
         if comm.rank == 0:
             gmsh.finalize()

@@ -21,7 +21,8 @@ def _all_on_this_rank(comm, nparts, tdim, cells, ghost_mode):
 
 
 def cell_partitioner(comm):
-    """The partitioner ``create_mesh`` (and the functions built on it) should use on ``comm``.
+    """The partitioner for ``create_mesh``, ``create_rectangle`` and ``create_box`` on ``comm``
+    (gmshio.model_to_mesh of dolfinx 0.5.2 takes none: a user's mesh file keeps the default).
 
     Args:
         comm: the communicator the mesh is built on.
