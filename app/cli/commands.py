@@ -17,6 +17,7 @@ from vpcontact.cli.logs import log, setup_logging
 from vpcontact.cli.outdir import CONVERGENCE_FILES, STABILITY_FILES
 from vpcontact.io.errors import CaseError
 from vpcontact.io.messages import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED, error, interrupted
+from vpcontact.startup import resume_collector
 
 
 def start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
@@ -111,6 +112,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
     from vpcontact.cli.progress import ProgressBar
     from vpcontact.observers import (
         Checkpointer,
+        CollectorAfterSetUp,
         ContactOutput,
         FieldOutput,
         HistoryOutput,
@@ -126,8 +128,8 @@ def cmd_run(args, petsc_cli: dict) -> int:
     log.info("vpcontact %s: case %s -> %s (%d MPI rank%s)", __version__, args.case, outdir,
              comm.size, "s" if comm.size > 1 else "")
     progress = [ProgressBar()] if not args.quiet and not args.verbose else []
-    observers = [FieldOutput(), ContactOutput(), HistoryOutput(), Checkpointer(), *progress,
-                 StepLog(), RunFiles()]
+    observers = [CollectorAfterSetUp(), FieldOutput(), ContactOutput(), HistoryOutput(),
+                 Checkpointer(), *progress, StepLog(), RunFiles()]
     threads.request(args.threads)
     painter = _early_painter(comm, args.no_plots)
     try:
@@ -137,6 +139,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
             if plots(outdir, painter=painter) == "interrupted":
                 return EXIT_INTERRUPTED
     finally:
+        resume_collector()             # also where the run stopped before its start
         if painter is not None:
             painter.cancel()
     return report_run(comm, s, outdir, args.no_plots)

@@ -12,6 +12,7 @@ from vpcontact.cli import commands
 from vpcontact.cli.parser import build_parser, split_petsc_args
 from vpcontact.io.errors import CaseError
 from vpcontact.io.messages import EXIT_BAD_INPUT, EXIT_FAILED, error, internal_error, interrupted
+from vpcontact.startup import resume_collector
 
 # command -> (function, takes the command line's PETSc options)
 COMMANDS = {
@@ -60,6 +61,8 @@ def dispatch(args, petsc_cli: dict) -> int:
         The command's exit code.
     """
     command, takes_petsc = COMMANDS[args.command]
+    if args.command != "run":          # run: once set up (observers.CollectorAfterSetUp)
+        resume_collector()
     return command(args, petsc_cli) if takes_petsc else command(args)
 
 
