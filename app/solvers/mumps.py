@@ -21,9 +21,9 @@ from petsc4py import PETSc
 
 from vpcontact import kernels
 from vpcontact.solvers.schur import (
-    _symmetric_from_triangle,
     gather_csr,
     interior_last_ordering,
+    mirror_upper,
     spd_cholesky,
 )
 from vpcontact.solvers.threads import root_call
@@ -72,16 +72,18 @@ def lower_triplets(K: PETSc.Mat) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def schur_from_buffer(buffer: np.ndarray) -> np.ndarray:
-    """The symmetric S from MUMPS's centralised Schur buffer.
+    """The symmetric S from MUMPS's centralised Schur buffer, in the buffer's memory (no
+    m x m copies: the strict upper part, MUMPS's work, is overwritten by the lower one's
+    transpose).
 
     Args:
-        buffer: the m x m buffer (C order): S's lower triangle by rows; the strict upper
-            part holds MUMPS's work and is ignored.
+        buffer: the m x m buffer (C order): S's lower triangle by rows.
 
     Returns:
-        S, dense (m, m), symmetric.
+        S, dense (m, m), symmetric: the buffer itself.
     """
-    return _symmetric_from_triangle(np.tril(buffer))
+    mirror_upper(buffer.T)            # buffer.T's upper triangle is the buffer's lower one
+    return buffer
 
 
 class SchurMumps:

@@ -369,15 +369,32 @@ def spd_cholesky(S: np.ndarray) -> np.ndarray | None:
     return C if info == 0 else None
 
 
+def mirror_upper(U: np.ndarray, block: int = 256) -> None:
+    """Set U's strict lower triangle to the transpose of its upper one, in place, block by
+    block (each block transposed in cache): U becomes symmetric.
+
+    Args:
+        U: (m, m), any memory order (a view of it is written).
+        block: the order of the transposed blocks.
+    """
+    m = len(U)
+    for i in range(0, m, block):
+        diag = U[i:i + block, i:i + block]
+        lower = np.tril_indices(len(diag), -1)
+        diag[lower] = diag.T[lower]
+        for j in range(i + block, m, block):
+            U[j:j + block, i:i + block] = U[i:i + block, j:j + block].T
+
+
 def symmetric_in_place(U: np.ndarray, block: int = 256, chunk: int = 1 << 16) -> np.ndarray:
     """J (U + U^T - diag U) J, J the reversal, in U's own memory: the S of
     ``_schur_pair_cholesky`` from dlauum's upper triangle without a new m x m array (whose
     first touch, 85 MB at m = 3267, cost 0.06-0.23 s of page faults in a run; measured).
 
-    U's lower triangle is filled from its upper one block by block (each block transposed in
-    cache), and then the reversed matrix is U's memory read backwards: for a symmetric A in
-    Fortran order, (J A J)[i, j] = A[m-1-j, m-1-i] lies at position m^2 - 1 - (i m + j), so
-    reversing the m^2 values in place, chunk by chunk, gives J A J in C order.
+    U's lower triangle is filled from its upper one (``mirror_upper``), and then the
+    reversed matrix is U's memory read backwards: for a symmetric A in Fortran order,
+    (J A J)[i, j] = A[m-1-j, m-1-i] lies at position m^2 - 1 - (i m + j), so reversing the
+    m^2 values in place, chunk by chunk, gives J A J in C order.
 
     Args:
         U: (m, m), Fortran order, the upper triangle given (the lower one is overwritten).
@@ -388,12 +405,7 @@ def symmetric_in_place(U: np.ndarray, block: int = 256, chunk: int = 1 << 16) ->
         The symmetric matrix, C order, a view of U's memory (U is consumed).
     """
     m = len(U)
-    for i in range(0, m, block):
-        diag = U[i:i + block, i:i + block]
-        lower = np.tril_indices(len(diag), -1)
-        diag[lower] = diag.T[lower]
-        for j in range(i + block, m, block):
-            U[j:j + block, i:i + block] = U[i:i + block, j:j + block].T
+    mirror_upper(U, block)
     flat = U.reshape(-1, order="F")                   # a view: U is Fortran-contiguous
     n, tmp = len(flat), np.empty(min(chunk, len(flat) // 2 + 1))
     for i in range(0, n // 2, chunk):
@@ -403,13 +415,6 @@ def symmetric_in_place(U: np.ndarray, block: int = 256, chunk: int = 1 << 16) ->
         flat[i:i + k] = flat[n - i - k:n - i][::-1]
         flat[n - i - k:n - i] = t[::-1]
     return flat.reshape(m, m)
-
-
-def _symmetric_from_triangle(T: np.ndarray) -> np.ndarray:
-    """T + T^T with the diagonal once (T triangular, zero in the other triangle)."""
-    A = T + T.T
-    A.flat[::len(A) + 1] *= 0.5
-    return A
 
 
 def gamma3_schur_pair(K: PETSc.Mat, G_rows: np.ndarray, comm) -> tuple | None:

@@ -75,6 +75,19 @@ def test_symmetric_in_place_is_the_reversed_symmetric_matrix(m, block, chunk):
     assert np.array_equal(S, expected)
 
 
+@pytest.mark.parametrize("m, block", [(1, 4), (2, 1), (13, 4), (40, 7), (40, 256)])
+def test_schur_from_buffer_is_the_symmetric_lower_triangle(m, block, monkeypatch):
+    """mumps.schur_from_buffer: S = L + L^T - diag L from the buffer's lower triangle L, bit
+    for bit, in the buffer's memory, whatever MUMPS left in the strict upper part."""
+    from vpcontact.solvers import mumps, schur
+    monkeypatch.setattr(schur.mirror_upper, "__defaults__", (block,))
+    rng = np.random.default_rng(m)
+    buffer = rng.standard_normal((m, m))
+    L = np.tril(buffer)
+    S = mumps.schur_from_buffer(buffer)
+    assert S is buffer and np.array_equal(S, L + L.T - np.diag(np.diag(L)))
+
+
 def test_g_last_factors_reproduce_the_matrix():
     A = _spd(40, seed=1)
     G = np.array([5, 6, 70])
