@@ -55,7 +55,8 @@ def prepare_process() -> None:
 
     One BLAS thread (multithreaded OpenBLAS makes the small dense per-cell algebra 30-100x
     slower; the large operations widen it, app/solvers/threads.py), OpenBLAS's idle threads
-    asleep after 2^20 cycles instead of 2^28 (OPENBLAS_THREAD_TIMEOUT), a usable TMPDIR, MPI
+    asleep after 2^20 cycles instead of 2^28 (OPENBLAS_THREAD_TIMEOUT), one OpenMP thread
+    (OMP_THREAD_LIMIT: CHOLMOD's loops ask for 4), a usable TMPDIR, MPI
     initialised (a light singleton without a launcher), every cache writable or replaced
     (before dolfinx reads its JIT cache directory), the stand-in for ``pkg_resources``
     (app/startup.py) and usable standard streams.
@@ -66,6 +67,12 @@ def prepare_process() -> None:
     # two-thread sweeps; with 20 the steps' solves of box3d n = 32 with 32 steps took
     # 5.4-5.9 s against 6.3-6.4 s, the dense work as fast (measured); 4 made it slower
     os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "20")
+    # CHOLMOD's supernodal factorisation runs its scatter loops on 4 OpenMP threads (a
+    # constant compiled into libcholmod, whatever OMP_NUM_THREADS says); on 2 cores their
+    # spinning took the 2D reference's set-up from 0.26-0.27 to 0.33-0.34 s, and box3d
+    # n = 32's set-up was no faster with them (measured): one thread (read by libgomp when
+    # it loads, with libcholmod, after this)
+    os.environ.setdefault("OMP_THREAD_LIMIT", "1")
     _usable_tmpdir()
     MPI = _init_mpi()
     from vpcontact.io.cachedirs import start
