@@ -6,16 +6,21 @@ from __future__ import annotations
 import copy
 import difflib
 import re
+from typing import TYPE_CHECKING
 
-import jsonschema
-
+from vpcontact.case import schemamemo
 from vpcontact.case.reading import GROUP_MAPS
 from vpcontact.case.schema import SCHEMA
 from vpcontact.io.errors import CaseError
 
+if TYPE_CHECKING:
+    import jsonschema
+
 
 def check_schema(data: dict, source: str) -> None:
-    """Validate the mapping as given against SCHEMA.
+    """Validate the mapping as given against SCHEMA.  A mapping that passed before (the same
+    digest, app/case/schemamemo.py) is not checked again, and jsonschema is not imported for
+    it.
 
     Args:
         data: the case mapping (not default-filled).
@@ -24,13 +29,18 @@ def check_schema(data: dict, source: str) -> None:
     Raises:
         CaseError: one line: the first error (by key path), then the others.
     """
+    view = _schema_view(data, source)
+    key = schemamemo.digest(view)
+    if schemamemo.passed(key):
+        return
+    import jsonschema  # 44 ms: only for a mapping not seen passing (schemamemo)
     validator = jsonschema.Draft7Validator(SCHEMA)
-    errors = sorted(validator.iter_errors(_schema_view(data, source)),
-                    key=lambda e: list(e.absolute_path))
+    errors = sorted(validator.iter_errors(view), key=lambda e: list(e.absolute_path))
     if errors:       # one line: the first error, then the others
         msgs = [_explain(e) for e in errors]
         more = f" (also: {'; '.join(msgs[1:])})" if len(msgs) > 1 else ""
         raise CaseError(f"{source}: {msgs[0]}{more}")
+    schemamemo.remember(key)
 
 
 def fill_defaults(data: dict, schema: dict = SCHEMA) -> None:
