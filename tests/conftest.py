@@ -7,6 +7,7 @@ from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OMP_THREAD_LIMIT", "1")      # CHOLMOD's loops, as the command line
 
 import pytest  # noqa: E402
 
@@ -136,3 +137,17 @@ def contact_rows(out):
 def validate_raw(raw: dict):
     from vpcontact.case import validate
     return validate(raw, "test-case")
+
+
+@pytest.fixture(autouse=True)
+def _vpcontact_logger():
+    """Every test leaves the ``vpcontact`` logger as it found it: the command line's
+    setup_logging, which tests that call main() in-process run, stops its propagation, and
+    caplog would see nothing from the later tests in the same process."""
+    import logging
+    log = logging.getLogger("vpcontact")
+    handlers, level, propagate = log.handlers[:], log.level, log.propagate
+    yield
+    log.handlers[:] = handlers
+    log.setLevel(level)
+    log.propagate = propagate
