@@ -27,7 +27,7 @@ import numpy as np
 log = logging.getLogger("vpcontact")
 
 HERE = Path(__file__).resolve().parent
-_MODULES: dict[str, object] = {}
+_MODULES: dict[object, object] = {}       # by name, and by Library (Library.load)
 # no errno from sqrt and no FP traps assumed: lets the cell loops be if-converted and
 # vectorised; the results are IEEE's either way (no -ffast-math; c99: no FMA contraction)
 CFLAGS = ["-O3", "-std=c99", "-fno-math-errno", "-fno-trapping-math"]
@@ -244,10 +244,13 @@ class Library:
 
     def load(self):
         """The compiled library (``.lib``, ``.ffi``), built into cache_dir() if it is not
-        there yet.
+        there yet; found once per process (``name`` reads and hashes every file: 35-160 us,
+        and some callers load per step).
 
         Returns:
             The cffi module, or None if it cannot be built here (a warning says so).
         """
-        name = self.name()
-        return _cached(name, lambda target: self._build(name, target), self.what)
+        if self not in _MODULES:
+            name = self.name()
+            _MODULES[self] = _cached(name, lambda target: self._build(name, target), self.what)
+        return _MODULES[self]
