@@ -19,7 +19,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-import os
 from pathlib import Path
 
 DRAFT = "draft7"           # the validator schemacheck uses (part of every digest)
@@ -93,11 +92,9 @@ def remember(key: str | None) -> None:
     """
     if key is None:
         return
+    from vpcontact.io.files import atomic_write
     keys = [k for k in _entries() if k != key][-(MAX_ENTRIES - 1):] + [key]
-    try:
-        path = _path()
-        tmp = path.with_name(f".{FILE}.{os.getpid()}")
-        tmp.write_text("\n".join(keys) + "\n")
-        os.replace(tmp, path)
+    try:       # not synced: a memo lost in a crash only means one more check
+        atomic_write(_path(), "\n".join(keys) + "\n", sync=False)
     except OSError:
         pass
