@@ -9,6 +9,9 @@ the solution: the step problem is quasi-variational.  ``CoulombPressure.solve`` 
 a fixed point on p_n inside each step: start from the previous step's p_n, solve the step
 (either step solver: the factor is the nodal field theta they both read), recompute p_n,
 repeat until max|p^(i+1) - p^(i)| <= tol max p^(i+1), at most ``max_iterations`` solves.
+A converged fixed point says so on a --verbose line (DEBUG: at the default level the progress
+bar and the closing lines suffice); one that does not converge fails the step
+(StepSolveError: the run's warning of a rejected adaptive step, or its error line).
 The static/kinetic law mu(s) = mu_s - (mu_s - mu_k) min(s_n / L, 1) is mu = mu_s times the
 slip dependence theta(s_n) = 1 - (1 - mu_k / mu_s) min(s_n / L, 1)
 (``contact_laws.StaticKineticSlip``, summed by the Gamma3 slip machinery).  p_n is part of
@@ -91,8 +94,8 @@ class CoulombPressure:
             self.p = new
             if change <= TOL * scale:
                 self.iterations = i
-                log.info("Coulomb friction: the fixed point on p_n converged in %d "
-                         "iteration(s) (max change %.2e, max p_n %.4g)", i, change, scale)
+                log.debug("Coulomb friction: the fixed point on p_n converged in %d "
+                          "iteration(s) (max change %.2e, max p_n %.4g)", i, change, scale)
                 return its
         raise StepSolveError(
             f"Coulomb friction: the fixed point on the contact pressure p_n did not converge "

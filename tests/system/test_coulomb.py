@@ -277,3 +277,15 @@ def test_static_kinetic_refusals(coulomb, slip, key, tmp_path, capsys):
     assert cli_in_process(["check", _case_file(tmp_path, friction)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and re.search(rf"{re.escape(key)}( \(line \d+\))?:", err[0]), err
+
+
+@pytest.mark.parametrize("verbose", [False, True])
+def test_fixed_point_line_only_with_verbose(verbose, tmp_path, capsys):
+    """The per-step line of the converged fixed point is a --verbose line: a run at the
+    default level prints none of them (issue 49), with --verbose one per step."""
+    out = tmp_path / "out"
+    args = ["run", _case_file(tmp_path, {"coulomb": {"mu": MU}}), "--out", out, "--no-plots"]
+    assert cli_in_process(args + (["--verbose"] if verbose else [])) == 0
+    lines = [x for x in capsys.readouterr().out.splitlines()
+             if "Coulomb friction: the fixed point" in x]
+    assert len(lines) == (2 if verbose else 0), lines
