@@ -8,6 +8,8 @@ A Simulation calls, in the order the observers were added (``sim.add``):
   accepted: raising :class:`StopRun` refuses it (the last good state is then step n - 1);
 - ``step(sim, record)`` after step n was accepted (``sim.steps`` ends with ``record``);
 - ``end(sim, summary)`` once after the loop, also after a failure (a run summary exists then).
+- ``written()`` after the run: the files the observer wrote and left in the output directory
+  (``written_files``: the command line's closing ``outputs:`` line).
 
 An observer stops a run by raising StopRun (status and StepFailure); an OutputError raised
 by ``start`` or ``step`` ends the run as "failed" (the files written before stay intact).
@@ -86,6 +88,28 @@ class Observer:
             sim: the Simulation.
             summary: the RunSummary (an observer may amend it, e.g. a failed final write).
         """
+
+    def written(self) -> list[Path]:
+        """The files this observer wrote into the output directory and left there (the
+        run's closing ``outputs:`` line, ``written_files``).
+
+        Returns:
+            The paths, in the order written; none by default.
+        """
+        return []
+
+
+def written_files(observers) -> list[Path]:
+    """Every file the observers of a run wrote and left in its output directory: the one
+    list the run's closing ``outputs:`` line names.
+
+    Args:
+        observers: the run's Observers.
+
+    Returns:
+        The paths, observer by observer in their order.
+    """
+    return [f for o in observers for f in o.written()]
 
 
 class CollectorAfterSetUp(Observer):
@@ -171,6 +195,10 @@ class FieldOutput(Observer):
         if self.writer is not None:
             self.writer.close()
 
+    def written(self) -> list[Path]:
+        """Returns: solution.xdmf and its solution.h5 (none if never opened)."""
+        return [] if self.writer is None else [self.writer.path, self.writer.h5]
+
 
 class ContactOutput(Observer):
     """contact.xdmf in ``sim.outdir`` (app/io/contact_xdmf.py): the Gamma3 facet mesh with
@@ -222,6 +250,10 @@ class ContactOutput(Observer):
         if is_output_step(sim):
             self.writer.write(sim.t, data)
 
+    def written(self) -> list[Path]:
+        """Returns: contact.xdmf and its contact.h5 (none without Gamma3)."""
+        return [] if self.writer is None else [self.writer.path, self.writer.h5]
+
 
 class HistoryOutput(Observer):
     """history.csv in ``sim.outdir`` (app/io/history.py): a row per accepted step, appended
@@ -258,11 +290,19 @@ class HistoryOutput(Observer):
         """
         self.writer.append(record)
 
+    def written(self) -> list[Path]:
+        """Returns: history.csv (none if the run stopped before its start)."""
+        return [] if self.writer is None else [self.writer.path]
+
 
 class Checkpointer(Observer):
     """checkpoint_<n>.npz in ``sim.outdir`` (app/io/checkpoint.py): every
     output.checkpoint_every-th step, and at the step a signal stopped the run at (then a
     failed write is a warning, not a failure).  Sets ``sim.last_checkpoint``."""
+
+    def __init__(self):
+        self.saved = []
+
 
     def step(self, sim, record: dict) -> None:
         """Save checkpoint_<n>.npz if step n is a checkpoint step or a signal stopped the run.
@@ -282,8 +322,17 @@ class Checkpointer(Observer):
             except OutputError as exc:
                 log.warning("no checkpoint written: %s", exc)
                 sim.last_checkpoint = None
+                return
         elif every and sim.n % every == 0:
             sim.last_checkpoint = checkpoint.save(sim.outdir, sim)
+        else:
+            return
+        self.saved = [*self.saved, sim.last_checkpoint][-checkpoint.KEEP:]
+
+    def written(self) -> list[Path]:
+        """Returns: the checkpoints kept (``checkpoint.save`` removes all but the newest
+        KEEP)."""
+        return list(self.saved)
 
 
 class StepLog(Observer):
@@ -308,6 +357,13 @@ class RunFiles(Observer):
     run whose contact.csv cannot be written is "failed"; if summary.json cannot be written
     either, the error is logged and kept in the summary (summary_error)."""
 
+    def __init__(self):
+        self.files = []
+
+    def written(self) -> list[Path]:
+        """Returns: contact.csv and summary.json, those written."""
+        return list(self.files)
+
     def end(self, sim, summary) -> None:
         """Write contact.csv (if the case has Gamma3 and a step was taken) and summary.json.
 
@@ -322,10 +378,12 @@ class RunFiles(Observer):
                 summary.contact_states = write_contact_csv(
                     sim.comm, outdir / "contact.csv", quantities.contact_table(sim.problem),
                     sim.case.contact.g, compliance=sim.case.contact.compliances)
+                self.files.append(outdir / "contact.csv")
         except OutputError as exc:
             summary.fail(StepFailure.output(summary.last_good_step, steps[-1]["t"], exc))
         try:
             write_json(sim.comm, outdir / "summary.json", summary.as_dict())
+            self.files.append(outdir / "summary.json")
         except OutputError as exc:
             log.error("summary.json not written: %s", exc)
             summary.summary_error = str(exc)

@@ -118,6 +118,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
         HistoryOutput,
         RunFiles,
         StepLog,
+        written_files,
     )
     from vpcontact.simulation import run
     from vpcontact.solvers import threads
@@ -134,15 +135,15 @@ def cmd_run(args, petsc_cli: dict) -> int:
     painter = _early_painter(comm, args.no_plots)
     try:
         result = run(case, comm, observers, outdir=outdir, restart=loaded.get("checkpoint"))
-        s = result.summary
+        s, files = result.summary, written_files(observers)
         if result.status == "completed" and not args.no_plots and comm.rank == 0 and s["steps"]:
-            if plots(outdir, painter=painter) == "interrupted":
+            if plots(outdir, painter=painter, drawn=files) == "interrupted":
                 return EXIT_INTERRUPTED
     finally:
         resume_collector()             # also where the run stopped before its start
         if painter is not None:
             painter.cancel()
-    return report_run(comm, s, outdir, args.no_plots)
+    return report_run(comm, s, outdir, files)
 
 
 def _early_painter(comm, no_plots: bool):
@@ -159,14 +160,15 @@ def _early_painter(comm, no_plots: bool):
         return None
 
 
-def report_run(comm, s: dict, outdir: Path, no_plots: bool) -> int:
+def report_run(comm, s: dict, outdir: Path, files: list[Path]) -> int:
     """The closing lines of a run and its exit code.
 
     Args:
         comm: the MPI communicator.
         s: the run's summary (summary.json's content).
         outdir: the output directory.
-        no_plots: --no-plots was given.
+        files: every file the run wrote there (the observers' ``written_files`` and the
+            figures), named by the closing ``outputs:`` line.
 
     Returns:
         0 completed, 1 failed or diverged, 3 interrupted.
@@ -196,8 +198,7 @@ def report_run(comm, s: dict, outdir: Path, no_plots: bool) -> int:
             log.info("Gamma3 nodes at T: %s", states)
             for i, counts in enumerate(pairs):
                 log.info("  contact pair %d: %s", i, counts)
-        log.info("outputs: %s/{solution.xdmf, summary.json, contact.csv%s}", outdir,
-                 "" if no_plots else ", *.png")
+        log.info("outputs: %s/{%s}", outdir, ", ".join(Path(f).name for f in files))
         return 0
     f = s["failure"]
     if comm.rank != 0:
@@ -211,13 +212,15 @@ def report_run(comm, s: dict, outdir: Path, no_plots: bool) -> int:
                  rank=comm.rank)
 
 
-def plots(outdir: Path, animate: bool = False, painter=None) -> str:
+def plots(outdir: Path, animate: bool = False, painter=None, drawn: list | None = None) -> str:
     """Draw the figures of a run (call on rank 0).
 
     Args:
         outdir: the run's output directory.
         animate: also write animation.gif.
         painter: the pictures' process started ahead (app/post/plot.Painter), or None.
+        drawn: a list the figures written are appended to (also those of a failed
+            pictures' process: its line figures), or None.
 
     Returns:
         "drawn", "failed" (a plotting problem is a warning, not a failure of the run) or
@@ -229,6 +232,8 @@ def plots(outdir: Path, animate: bool = False, painter=None) -> str:
     try:
         files = plot_all(outdir, log=log.info, animate=animate, painter=painter)
     except PicturesError as exc:
+        if drawn is not None:
+            drawn.extend(exc.written)
         log.warning("pictures (pyvista) not drawn: %s; the line figures are (%s); "
                     "./vpcontact plot %s retries", exc, ", ".join(f.name for f in exc.written),
                     outdir)
@@ -243,6 +248,8 @@ def plots(outdir: Path, animate: bool = False, painter=None) -> str:
         return "failed"
     log.info("figures (%.1f s): %s", time.perf_counter() - t0,
              ", ".join(f.name for f in files))
+    if drawn is not None:
+        drawn.extend(files)
     return "drawn"
 
 

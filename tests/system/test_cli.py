@@ -107,3 +107,34 @@ def test_console_script_help():
     import subprocess
     proc = subprocess.run([script, "run", "--help"], capture_output=True, text=True)
     assert proc.returncode == 0 and "--set" in proc.stdout and "--overwrite" in proc.stdout
+
+
+def _outputs_line(stdout: str, out: Path) -> list[str]:
+    """The names of the closing ``outputs: <out>/{a, b, ...}`` line."""
+    lines = [x for x in stdout.splitlines() if x.startswith("[vpcontact] outputs: ")]
+    assert len(lines) == 1, stdout
+    listed = lines[0].split("outputs: ", 1)[1]
+    assert listed.startswith(f"{out}/{{") and listed.endswith("}"), listed
+    return listed[len(f"{out}/{{"):-1].split(", ")
+
+
+@pytest.mark.parametrize("case, sets, plots", [
+    (PAPER_CASE, ["mesh.n=4", "time.N=3", "output.checkpoint_every=1"], True),
+    (ROOT / "cases" / "norton_relaxation.yaml", ["time.N=2"], False),
+])
+def test_outputs_line_names_every_file_written(case, sets, plots, tmp_path):
+    """The closing ``outputs:`` line names exactly the files in the output directory
+   : contact.xdmf, contact.h5, history.csv, the checkpoints kept (step 1's is
+    removed: the newest 2 are kept), the figures; without Gamma3 no contact files."""
+    out = tmp_path / "o"
+    args = ["run", case, "--out", out, *[a for s in sets for a in ("--set", s)]]
+    proc = run_cli(args, plots=plots)
+    assert proc.returncode == 0, proc.stderr
+    listed = _outputs_line(proc.stdout, out)
+    assert len(listed) == len(set(listed))
+    assert set(listed) == {p.name for p in out.iterdir()}
+    if plots:
+        assert {"contact.xdmf", "contact.h5", "history.csv", "checkpoint_000002.npz",
+                "checkpoint_000003.npz", "fig2_laws.png"} <= set(listed)
+    else:
+        assert set(listed) == {"solution.xdmf", "solution.h5", "history.csv", "summary.json"}

@@ -282,7 +282,7 @@ def test_static_kinetic_refusals(coulomb, slip, key, tmp_path, capsys):
 @pytest.mark.parametrize("verbose", [False, True])
 def test_fixed_point_line_only_with_verbose(verbose, tmp_path, capsys):
     """The per-step line of the converged fixed point is a --verbose line: a run at the
-    default level prints none of them (issue 49), with --verbose one per step."""
+    default level prints none of them, with --verbose one per step."""
     out = tmp_path / "out"
     args = ["run", _case_file(tmp_path, {"coulomb": {"mu": MU}}), "--out", out, "--no-plots"]
     assert cli_in_process(args + (["--verbose"] if verbose else [])) == 0
