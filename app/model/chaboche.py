@@ -26,7 +26,7 @@ from vpcontact.model.laws import ViscoplasticLaw
 from vpcontact.model.material import Elasticity
 from vpcontact.model.norton import M3 as _M3
 from vpcontact.model.norton import W3 as _W3
-from vpcontact.model.norton import flow_direction
+from vpcontact.model.norton import flow_direction, flow_modulus
 from vpcontact.model.planestrain import PlaneStrain
 
 # the 3D t-coordinates of the body's stress coordinates (2D: s11, s22, s12)
@@ -38,7 +38,8 @@ class Chaboche(ViscoplasticLaw):
     strain: m = 9, then eps_vp33).  The explicit update is the protocol's numpy
     ExplicitUpdate, the implicit one its default residual with the finite-difference
     tangent; ``elastic`` is exactly f <= 0 (p' = 0 there).  No relaxation rate (it grows
-    with the overstress): no stability indicator.
+    with the overstress): the stability indicator is the linearisation's at the data's
+    stress scale (``rate_at_stress``).
 
     Args:
         elasticity: the elasticity E.
@@ -77,6 +78,37 @@ class Chaboche(ViscoplasticLaw):
         return {"k": (self.k, "Pa"), "K": (self.K, "Pa"), "n": (self.n, "-"),
                 "C": (self.C, "Pa"), "gamma": (self.gamma, "-"), "Q": (self.Q, "Pa"),
                 "b": (self.b, "-")}
+
+    def rate_at_stress(self, S: float) -> float | None:
+        """The relaxation rate of the explicit update (3.2)-(3.3) linearised at the initial
+        internal state (X = 0, R = 0) and a stress of von Mises norm S.  With the
+        overstress f = ||sigma - X||_VM - R - k, phi(f) = <f/K>^n and phi' its slope, the
+        radial part of (sigma, X, R) under held strain is
+            sigma' = -lambda_1 phi,  X' = (C - gamma X) phi,  R' = b (Q - R) phi,
+        (lambda_1 = ``flow_modulus``, 3 mu for isotropic E): its Jacobian at X = R = 0 is
+        J = phi' u v^T - diag(0, gamma phi, b phi), u = (-lambda_1, C, b Q), v = (1, -1, -1);
+        with P = diag(1, -1, -1), |P J P| is entrywise at most the nonnegative
+        phi' |u| (1, 1, 1)^T + max(gamma, b) phi I, so (Perron-Frobenius) its spectral
+        radius is at most
+
+            r(S) = phi'(S - k) (lambda_1 + C + b |Q|) + max(gamma, b) phi(S - k),
+
+        the transverse (deviatoric) directions relaxing at phi / ||sigma - X||_VM <= phi'.
+        The explicit update is stable for k r(S) <= 2.
+
+        Args:
+            S: the stress scale [Pa] (app/post/divergence.stress_scale).
+
+        Returns:
+            r(S) [1/s], or None where it vanishes (S <= k: no flow) or overflows.
+        """
+        x = max(float(S) - self.k, 0.0) / self.K
+        with np.errstate(over="ignore", invalid="ignore"):
+            phi = np.float64(x) ** self.n
+            slope = self.n / self.K * np.float64(x) ** (self.n - 1.0) if x > 0 else 0.0
+            r = float(slope * (flow_modulus(self.elasticity, self.plane_strain) + self.C
+                               + self.b * abs(self.Q)) + max(self.gamma, self.b) * phi)
+        return r if np.isfinite(r) and r > 0.0 else None
 
     def _overstress(self, t, kappa):
         """sigma - X in 3D t-coordinates, its von Mises norm, (3/2) dev(sigma - X) and f."""

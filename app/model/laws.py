@@ -131,6 +131,22 @@ class ViscoplasticLaw(ABC):
         """
         return None
 
+    def rate_at_stress(self, S: float) -> float | None:
+        """The relaxation rate of the explicit update linearised at stresses of von Mises
+        norm up to S (the data's stress scale), for a law whose rate grows with the stress
+        (Norton's, Chaboche's: the stability indicator k_max r(S) <= 2 of
+        app/post/diagnostics.py); by default the stated ``relaxation_rate`` (else L_G),
+        which holds at every stress.
+
+        Args:
+            S: the stress scale [Pa].
+
+        Returns:
+            r(S) [1/s], or None where the law does not know it.
+        """
+        rate = self.relaxation_rate()
+        return self.lipschitz_constant() if rate is None else rate
+
     @abstractmethod
     def rates(self, t: np.ndarray, kappa: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """G and Gk of (1.2)-(1.3) per cell.

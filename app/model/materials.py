@@ -257,6 +257,18 @@ class GroupLaws:
         """Returns: the largest L_G of the groups' laws (None if one does not know it)."""
         return self._largest("lipschitz_constant")
 
+    def rate_at_stress(self, S: float) -> float | None:
+        """The largest of the groups' laws' rates at the stress scale S.
+
+        Args:
+            S: the stress scale [Pa].
+
+        Returns:
+            r(S) [1/s], None if one group's law does not know it.
+        """
+        values = [getattr(g.law, "rate_at_stress", lambda _: None)(S) for g in self.flowing]
+        return None if any(v is None for v in values) else max(values)
+
     def constants(self) -> dict:
         """Returns: {} (the groups' constants are in ``describe()``)."""
         return {}

@@ -46,6 +46,27 @@ def flow_direction(t: np.ndarray, M: np.ndarray, w: np.ndarray) -> tuple[np.ndar
     return np.sqrt(np.maximum(np.einsum("ni,ni->n", Mt, t), 0.0)), Mt / w
 
 
+def flow_modulus(elasticity: Elasticity, plane_strain: PlaneStrain | None) -> float:
+    """lambda_1 = the largest eigenvalue of sigma -> E N' sigma, N' sigma = sigma_eq N
+    (= (3/2) dev(sigma) in 3D): the stress relaxes under held strain at the rate lambda_1
+    times the flow's scalar factor (A sigma_eq^(n-1) for Norton's law).  3 mu for an
+    isotropic E in 3D and in plane stress (a uniaxial or shear stress in the plane is the
+    3D one); in plane strain 3 mu with the 3D shear modulus (the state (sigma, eps_vp33)
+    under held strain is the 3D one); the largest over the cells for an E per cell.
+
+    Args:
+        elasticity: the elasticity E (its Cmat, von Mises form M and weights).
+        plane_strain: the PlaneStrain of sigma_33, or None (3D, plane stress).
+
+    Returns:
+        lambda_1 [Pa].
+    """
+    if plane_strain is not None:
+        return 1.5 * float(np.max(plane_strain.lame()[1]))
+    linear = elasticity.Cmat @ (elasticity.M / elasticity.weights[:, None])
+    return float(np.max(np.linalg.eigvals(linear).real))
+
+
 class Norton(ViscoplasticLaw):
     """Norton's creep law (see the module docstring), m = 1, kappa = p (plane strain: m = 2,
     kappa = (p, eps_vp33)): G = -E eps_vp' with eps_vp' = A sigma_eq^n N, p' = A sigma_eq^n.
@@ -101,9 +122,31 @@ class Norton(ViscoplasticLaw):
         """
         if self.n != 1:
             return None
-        if self.plane_strain is not None:
-            return self.A * 1.5 * float(np.max(self.plane_strain.lame()[1]))
-        return self.A * float(np.max(np.linalg.eigvals(self._linear_part()).real))
+        return self.A * flow_modulus(self.elasticity, self.plane_strain)
+
+    def rate_at_stress(self, S: float) -> float | None:
+        """The relaxation rate of the explicit update (3.2) linearised at stresses of von
+        Mises norm up to S: G = -A sigma_eq^(n-1) E N' sigma has the Jacobian
+        -A sigma_eq^(n-1) E (N' + (n - 1) (N' sigma)(N' sigma)^T / sigma_eq^2), whose
+        second term is at most (n - 1) N' (Cauchy-Schwarz in the von Mises form), so its
+        spectral radius is at most
+
+            r(S) = n A S^(n-1) lambda_1,   lambda_1 = ``flow_modulus`` (3 mu, isotropic E),
+
+        attained for a radial perturbation of a deviatoric stress under held strain.  The
+        explicit update is stable for k r(S) <= 2 (k E n A S^(n-1) <= 2 for a uniaxial bar,
+        whose stress relaxes with E instead of 3 mu).  n = 1: the relaxation rate.
+
+        Args:
+            S: the stress scale [Pa] (app/post/divergence.stress_scale).
+
+        Returns:
+            r(S) [1/s], or None where it vanishes (S = 0, n > 1) or overflows.
+        """
+        with np.errstate(over="ignore"):
+            r = float(self.n * self.A * np.float64(S) ** (self.n - 1.0)
+                      * flow_modulus(self.elasticity, self.plane_strain))
+        return r if np.isfinite(r) and r > 0.0 else None
 
     def lipschitz_constant(self) -> float | None:
         """L_G of H(G) in the energy norm |tau|_E = (E tau : tau)^1/2: for n = 1, A times

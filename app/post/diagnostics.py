@@ -5,7 +5,10 @@
   largest relaxation rate r_max = lambda_max(E) / (2 lambda1) (the law's
   ``relaxation_rate``, else its Lipschitz constant L_G, app/model/laws.py) the explicit
   scheme needs k_max r_max <= 2 (above 1 the relaxation overshoots and oscillates).  A law
-  that knows neither has its rate estimated: the spectral radius of the finite-difference
+  whose rate grows with the stress (Norton's, Chaboche's) gives its linearisation's rate
+  r(S) at the data's stress scale S (``rate_at_stress``; S of app/post/divergence.py
+  ``stress_scale``: the loads, initial data, contact laws and E g / L).  A law that knows
+  none of these has its rate estimated: the spectral radius of the finite-difference
   Jacobian dG/dsigma at the state's cell of largest ||sigma||_VM (``estimated_rate``);
   where that vanishes (a state at rest) the indicator is unknown.  The implicit variant has
   no such limit.
@@ -368,8 +371,8 @@ class Diagnostics:
         k_max: the largest time step.
         relaxation_rate: r_max stated by the law (its relaxation rate, else its L_G), or None
             (no law, or a law without a rate bound); the adaptive steps use it.
-        stability_indicator: k_max r_max (r_max the law's or, without one, the estimate),
-            or None (no law, or unknown).
+        stability_indicator: k_max r_max (r_max the law's, else its r(S) at the data's
+            stress scale, else the estimate), or None (no law, or unknown).
         stability_limit: the explicit scheme's limit of k_max r_max.
         explicit_stable: the indicator is within the limit (None without viscoplasticity).
         m_E: the ellipticity constant of E.
@@ -382,9 +385,12 @@ class Diagnostics:
         adaptive: the case has time.adaptive.
         gamma2_is_bound: gamma2 is the upper bound c_max lam_K, not the value.
         lipschitz_G: the law's L_G (app/model/laws.py), None where unknown or no law.
-        rate_estimate: the estimated rate (``estimated_rate``) of a law without a rate
-            bound, else None.
-        indicator_source: "law", "estimated", "unknown" or None (no law).
+        rate_estimate: the law's rate r(S) at the data's stress scale (``rate_at_stress``)
+            or the estimated rate (``estimated_rate``) of a law without a rate bound, else
+            None.
+        indicator_source: "law", "stress_scale" (the law's r(S)), "estimated", "unknown"
+            or None (no law).
+        stress_scale: S [Pa] of the source "stress_scale", else None.
     """
 
     scheme: str
@@ -404,6 +410,7 @@ class Diagnostics:
     lipschitz_G: float | None = None
     rate_estimate: float | None = None
     indicator_source: str | None = None
+    stress_scale: float | None = None
 
     def as_dict(self) -> dict:
         """The fields as a dict.
@@ -412,6 +419,15 @@ class Diagnostics:
             Field name -> value (summary.json's "diagnostics").
         """
         return asdict(self)
+
+    def _unstable(self) -> str:
+        """The warning's tail for an indicator above the explicit limit."""
+        growth = self.stability_indicator - 1
+        where = "here" if self.indicator_source != "stress_scale" else \
+            "where the stresses reach S (the run estimates it at every step)"
+        return (f": the explicit scheme is unstable {where} (errors can grow by up to "
+                f"{growth:.3g}x per step); use time.scheme: implicit, a smaller time step or "
+                "time.adaptive")
 
     def messages(self) -> list[tuple[str, str]]:
         """The lines for the run log.
@@ -426,22 +442,22 @@ class Diagnostics:
                                 "explicit scheme's step is not checked: watch for growing "
                                 "oscillations, or use time.scheme: implicit)"))
         if self.stability_indicator is not None:
-            est = self.indicator_source == "estimated"
+            est = self.indicator_source in ("estimated", "stress_scale")
             rate = self.rate_estimate if est else self.relaxation_rate
-            text = ("stability indicator " + ("(estimated: the law states no rate bound; "
-                                              "dG/dsigma at the initial state's largest "
-                                              "||sigma||_VM) " if est else "")
+            how = "" if not est else \
+                "(estimated: the law states no rate bound; dG/dsigma at the initial " \
+                "state's largest ||sigma||_VM) " if self.stress_scale is None else \
+                f"(the law's linearisation at the data's stress scale S = " \
+                f"{self.stress_scale:.4g} Pa) "
+            text = ("stability indicator " + how
                     + f"k_max r_max = {self.k_max:g} x {rate:.4g}"
                     f" = {self.stability_indicator:.3g} (explicit limit {self.stability_limit:g})")
-            if self.scheme == "explicit" and not self.explicit_stable and self.adaptive:
+            if self.scheme == "explicit" and not self.explicit_stable and self.adaptive \
+                    and self.relaxation_rate is not None:      # the steps know r_max
                 out.append(("info", text + ": adaptive steps will keep k r_max within "
                                            "time.adaptive.max_indicator"))
             elif self.scheme == "explicit" and not self.explicit_stable:
-                growth = self.stability_indicator - 1
-                out.append(("warning", text + ": the explicit scheme is unstable here (errors "
-                                              f"can grow by up to {growth:.3g}x per step); use "
-                                              "time.scheme: implicit, a smaller time step or "
-                                              "time.adaptive"))
+                out.append(("warning", text + self._unstable()))
             else:
                 out.append(("info", text + ("" if self.scheme == "explicit" else
                                             "; the implicit scheme has no such limit")))
@@ -483,7 +499,7 @@ def diagnose(problem, solver=None) -> Diagnostics:
     ks = np.diff(case.time.times)
     k_max = float(ks.max())
     law = problem.law
-    rate, lipschitz, estimate, source = _law_rate(problem)
+    rate, lipschitz, estimate, source, scale = _law_rate(problem)
     indicator = k_max * rate if rate is not None else \
         (k_max * estimate if estimate is not None else None)
     m_E = ellipticity(elasticity)
@@ -506,24 +522,32 @@ def diagnose(problem, solver=None) -> Diagnostics:
     return Diagnostics(case.time.scheme, k_max, rate, indicator, STABILITY_LIMIT,
                        None if indicator is None else indicator <= STABILITY_LIMIT,
                        m_E, m_j, 0.0, gamma2, margin, unique, case.time.adaptive is not None,
-                       is_bound, lipschitz, estimate, source if law is not None else None)
+                       is_bound, lipschitz, estimate, source if law is not None else None,
+                       scale)
 
 
 def _law_rate(problem) -> tuple:
-    """(r_max stated by the law or None, L_G or None, the estimate or None, the source)."""
+    """(r_max stated by the law or None, L_G or None, the rate r(S) at the data's stress
+    scale S or the estimate or None, the source, S or None); collective."""
+    from vpcontact.post.divergence import stress_scale
     law = problem.law
     if law is None:
-        return None, None, None, None
+        return None, None, None, None, None
     # the largest over the ranks: with E per cell a law sees only this rank's cells
     lipschitz = _largest_over_ranks(problem.comm, law.lipschitz_constant())
     rate = _largest_over_ranks(problem.comm, law.relaxation_rate())   # None if unknown
     rate = lipschitz if rate is None else rate
     if rate is not None:
-        return rate, lipschitz, None, "law"
+        return rate, lipschitz, None, "law", None
+    scale = stress_scale(problem.case, problem)
+    at_scale = getattr(law, "rate_at_stress", lambda _: None)(scale) if scale > 0 else None
+    at_scale = _largest_over_ranks(problem.comm, at_scale)
+    if at_scale is not None:
+        return None, None, at_scale, "stress_scale", scale
     el, H = problem.elasticity, problem.state.H       # sigma_0 = E eps(u_0) + H_0 (3.2)
     eps = problem.strain_voigt()
     estimate = state_rate(problem, el.apply(eps) + el.to_voigt(H.x.array), eps)
-    return None, None, estimate, "estimated" if estimate is not None else "unknown"
+    return None, None, estimate, "estimated" if estimate is not None else "unknown", None
 
 
 def _largest_over_ranks(comm, value: float | None) -> float | None:

@@ -2,12 +2,14 @@
 
 A law that states neither a relaxation rate nor a Lipschitz constant L_G (app/model/laws.py:
 Norton, Chaboche, the power law with n > 1, most laws of users) has no stability indicator
-k r_max <= 2 before the run (app/post/diagnostics.py estimates it at the initial state, where
-a body at rest gives none).  ``RateWatch`` estimates it at every accepted state of the
-explicit scheme (3.2)-(3.3), k_n times the spectral radius of dG/dsigma at the cell of
-largest ||sigma||_VM (``diagnostics.state_rate``), warns once when it exceeds the limit,
-and records the largest and the last values in summary.json's "diagnostics"
-(``estimated_indicator_max``, ``estimated_indicator_last``, ``estimated_indicator_step``).
+k r_max <= 2 that holds at every stress before the run (app/post/diagnostics.py: Norton's
+and Chaboche's at the data's stress scale, which the run's stresses may exceed; others'
+estimated at the initial state, where a body at rest gives none).  ``RateWatch`` estimates
+it at every accepted state of the explicit scheme (3.2)-(3.3), k_n times the spectral
+radius of dG/dsigma at the cell of largest ||sigma||_VM (``diagnostics.state_rate``), warns
+once when it exceeds the limit, and records the largest and the last values in
+summary.json's "diagnostics" (``estimated_indicator_max``, ``estimated_indicator_last``,
+``estimated_indicator_step``).
 """
 from __future__ import annotations
 
@@ -29,7 +31,7 @@ def needs_watch(sim) -> bool:
         True for the explicit scheme with a law that states no rate bound.
     """
     d = sim.diagnostics
-    return d is not None and d.indicator_source in ("estimated", "unknown") \
+    return d is not None and d.indicator_source in ("estimated", "stress_scale", "unknown") \
         and sim.case.time.scheme == "explicit"
 
 

@@ -188,3 +188,47 @@ def test_stability_sweep_cli(tmp_path):
     md = (out / "stability.md").read_text()
     line = next(x for x in md.splitlines() if x.startswith("- Explicit scheme unbounded"))
     assert "lambda1=0.01, k=1/16" in line and "lambda1=100" not in line
+
+
+def _norton_relaxation(k: float, strain: float):
+    """cases/norton_relaxation.yaml (a uniaxial bar, plane stress, E = 1000 Pa, nu = 0.3,
+    A = 1e-6, n = 3) held at the strain from t_1 = k, three explicit steps of k."""
+    from conftest import ROOT
+    from vpcontact.case import load_raw
+    raw = load_raw(ROOT / "cases" / "norton_relaxation.yaml")
+    raw["loads"]["displacement"]["right"] = [strain, None]
+    raw["time"] = {"T": 3 * k, "N": 3}
+    result = run_case(validate_raw(raw))
+    assert result.status == "completed"
+    return result
+
+
+@pytest.mark.parametrize("factor, stable", [(0.95, True), (1.25, False)])
+def test_norton_bound_against_the_explicit_relaxation(factor, stable):
+    """The indicator of Norton's law at the data's stress scale: S = E u / L = 40 Pa, r(S) =
+    n A S^(n-1) 3 mu = 5.538 1/s (by hand); k = 0.95 and 1.25 times 2 / r(S).  The
+    explicit scheme's own linearisation, measured: two runs whose held strains differ by
+    1e-4 (relative), the perturbation of sigma_11 = sigma_vm after the first relaxation
+    step over the one before (both at sigma = S) is 1 - k n E A S^(n-1) (the uniaxial
+    closed form: the bar relaxes with E, not 3 mu): -0.647 (decays) below the bound,
+    -1.167 (alternates and grows: unstable) above.  The bound is conservative by at most
+    the factor 3 mu / E = 1.154 of this uniaxial state (the scheme is stable up to
+    1.154 x 2 / r(S) here), so 1.25 is above both."""
+    E, nu, A, n, S = 1000.0, 0.3, 1e-6, 3.0, 40.0
+    r = n * A * S ** (n - 1) * 3 * E / (2 * (1 + nu))
+    assert r == pytest.approx(5.538461538, rel=1e-9)
+    k = factor * 2.0 / r
+    a, b = _norton_relaxation(k, 0.04), _norton_relaxation(k, 0.04 * (1 + 1e-4))
+    d = a.summary["diagnostics"]
+    assert d["indicator_source"] == "stress_scale" and d["stress_scale"] == pytest.approx(S)
+    assert d["rate_estimate"] == pytest.approx(r, rel=1e-12)
+    assert d["stability_indicator"] == pytest.approx(2.0 * factor, rel=1e-12)
+    assert d["explicit_stable"] is stable
+    vm = [np.array([s["max_vm"] for s in res.summary["steps"]]) for res in (a, b)]
+    assert vm[0][0] == pytest.approx(S, rel=1e-12)                      # sigma_1 = E u / L
+    delta = vm[1] - vm[0]
+    amplification = delta[1] / delta[0]
+    assert amplification == pytest.approx(1 - k * n * E * A * S ** (n - 1), abs=1e-3)
+    assert bool(abs(amplification) < 1) == stable
+    if not stable:
+        assert amplification < -1.1                                     # oscillating growth

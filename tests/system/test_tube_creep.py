@@ -17,9 +17,11 @@ being isochoric with eps_33 = 0, the hoop stress approaches Norton's steady stat
   r (scipy's solve_ivp) of compatible creep rates with the 3D norm and eps_vp33' = 0.
 - The shipped law's rates equal the recipe written here (``PlaneStrainNorton``: the 3D E,
   nu recovered from the plane-strain moduli, G = -2 mu eps_vp' in the plane).
-- Norton states no rate bound for n > 1, so the explicit run estimates its stability
-  indicator k r at every step (app/post/ratewatch.py): 1.68 at the end of the 25-step run
-  (3.6 after its first, elastic, step), above 2 in the 8-step run, which blows up.
+- Norton states no rate bound valid at every stress for n > 1: before the run its
+  indicator is the bound at the data's stress scale S = p, k n A p^(n-1) 3 mu = 0.69 for 25
+  steps and 2.16 for 8 (app/post/diagnostics.py); the explicit run estimates it at every
+  step (app/post/ratewatch.py): 1.68 at the end of the 25-step run (3.6 after its first,
+  elastic, step: the hoop stress exceeds p), above 2 in the 8-step run, which blows up.
 
 Mesh: 24 x 24 cells per quarter (transfinite, alternating diagonals: with one diagonal
 direction the P1 triangles lock under isochoric creep, measured +84 % at the inner layer on
@@ -222,14 +224,19 @@ def test_the_shipped_law_is_the_recipe(tube_case):
 
 
 def test_the_estimated_indicator_follows_the_explicit_limit(tube_folder, norton_run):
-    """Norton states no rate bound: the run estimates k r at every step (app/post/
+    """Norton states no rate bound valid at every stress: before the run its bound at the
+    data's stress scale S = p, k r(S) = k n A p^(n-1) 3 mu, is 0.69 at 25 steps (stable)
+    and 2.16 at 8 steps (unstable); the run estimates k r at every step (app/post/
     ratewatch.py).  At 25 steps the steady state's is below the explicit limit 2 (the run
     converges); at 8 steps it exceeds it and the run blows up."""
     from mpi4py import MPI
 
     from vpcontact.simulation import run
     d = norton_run[3]["diagnostics"]
-    assert d["indicator_source"] == "unknown" and d["stability_indicator"] is None
+    rate = N_NORTON * A_NORTON * P ** (N_NORTON - 1) * 3 * 1000.0 / (2 * 1.3)   # r(S = p)
+    assert d["indicator_source"] == "stress_scale" and d["stress_scale"] == pytest.approx(P)
+    assert d["stability_indicator"] == pytest.approx(0.2 * rate, rel=1e-12)      # 0.692
+    assert d["explicit_stable"] is True
     assert d["estimated_indicator_last"] < 2.0 < d["estimated_indicator_max"]
     assert d["estimated_indicator_step"] == 1               # the elastic response: stiffest
     res = run(_tube_case(tube_folder, 8), MPI.COMM_SELF)
@@ -238,4 +245,6 @@ def test_the_estimated_indicator_follows_the_explicit_limit(tube_folder, norton_
           f"largest {d['estimated_indicator_max']:.3g}; 8 steps: {res.summary['status']}, "
           f"at step {coarse['estimated_indicator_step']}: {coarse['estimated_indicator_max']:.3g}")
     assert coarse["estimated_indicator_max"] > 2.0
+    assert coarse["stability_indicator"] == pytest.approx(0.625 * rate, rel=1e-12)  # 2.16
+    assert coarse["explicit_stable"] is False
     assert res.status == "diverged"

@@ -241,3 +241,33 @@ def test_no_trace_constant_without_softening(monkeypatch):
         if not computed:
             assert diag.gamma2 is None and diag.wellposedness_margin == diag.m_E
             assert "m_j = 0" in diag.messages()[-1][1]
+
+
+@pytest.mark.parametrize("name, S, rate", [
+    ("norton_relaxation", 40.0, 3 * 1e-6 * 40.0 ** 2 * 3 * 1000.0 / 2.6),
+    ("chaboche_cycle", 30.0, 3 / 20 * ((30.0 - 10.0) / 20) ** 2 * (3 * 1000.0 / 2.6 + 2000.0
+                                                                   + 10 * 5.0) + 50.0)])
+def test_check_states_the_creep_laws_indicator_at_the_stress_scale(name, S, rate):
+    """Norton's and Chaboche's indicator in ``check``: S = E u_max / L of the case file (E =
+    1000 Pa, L = 1 m, u = 0.04 and 0.03 m), r(S) = n A S^(n-1) 3 mu and phi'(S - k) (3 mu + C
+    + b Q) + max(gamma, b) phi(S - k) by hand, times k_max = T / N."""
+    raw, text = _check_of(name)
+    k = raw["time"]["T"] / raw["time"]["N"]
+    line = next(x for x in text.splitlines() if x.startswith("stability indicator"))
+    assert f"(the law's linearisation at the data's stress scale S = {S:.4g} Pa) k_max " \
+           f"r_max = {k:g} x {rate:.4g} = {k * rate:.3g} (explicit limit 2)" in line
+    assert ("unstable where the stresses reach S" in line) == (k * rate > 2)
+
+
+@pytest.mark.parametrize("source, scale", [("estimated", None), ("stress_scale", 40.0)])
+def test_adaptive_steps_do_not_claim_an_estimated_rate(source, scale):
+    """An indicator above 2 that the law does not state (estimated, or at the stress scale)
+    is a warning with time.adaptive too: the adaptive steps only know a stated r_max
+    (make_stepper gets Diagnostics.relaxation_rate, None here)."""
+    from vpcontact.post.diagnostics import Diagnostics
+    d = Diagnostics("explicit", 1.0, None, 3.0, 2.0, False, 1.0, None, 0.0, None, None, None,
+                    adaptive=True, rate_estimate=3.0, indicator_source=source,
+                    stress_scale=scale)
+    (level, text), = d.messages()
+    assert level == "warning" and "adaptive steps will keep" not in text
+    assert "unstable" in text

@@ -261,3 +261,30 @@ def test_refusals(change, key):
         make_case(_raw(**{k: v for k, v in vp.items() if v is not None}))
     msg = str(info.value)
     assert key in msg and "\n" not in msg
+
+
+def test_rate_at_stress_by_hand_and_against_the_jacobian():
+    """r(S) = phi'(S - k) (3 mu + C + b |Q|) + max(gamma, b) phi(S - k), phi(f) = <f/K>^n:
+    at S = 30 Pa (f / K = 1) 0.15 x (1153.846 + 2000 + 50) + 50 = 530.577 1/s, none at
+    S <= k (no flow).  The spectral radius of the Jacobian of (G, Gk) by (sigma, kappa) of the
+    hand-written rates (central differences, 3D, X = R = 0) at uniaxial, shear and random
+    stresses of von Mises norm S = 15, 30, 60 Pa is at most r(S) and above 0.9 r(S)."""
+    law = _law(3)
+    assert law.rate_at_stress(30.0) == pytest.approx(0.15 * (3 * E_ / 2.6 + 2050.0) + 50.0,
+                                                     rel=1e-12)
+    assert law.rate_at_stress(30.0) == pytest.approx(530.5769230769, rel=1e-10)
+    assert law.rate_at_stress(K0) is None and law.rate_at_stress(0.5 * K0) is None
+    assert _law(2).rate_at_stress(30.0) == pytest.approx(law.rate_at_stress(30.0), rel=1e-12)
+    rng = np.random.default_rng(3)
+    dirs = [np.eye(6)[0], np.eye(6)[5], *rng.normal(size=(3, 6))]
+    for S in (15.0, 30.0, 60.0):
+        for d in dirs:
+            tau = _sym(d)
+            dev = tau - np.trace(tau) / 3 * np.eye(3)
+            z0 = np.concatenate([d * S / np.sqrt(1.5 * np.sum(dev * dev)), np.zeros(8)])
+            h = 1e-6 * S
+            cols = [(np.concatenate(_hand_rates((z0 + h * e)[:6], (z0 + h * e)[6:]))
+                     - np.concatenate(_hand_rates((z0 - h * e)[:6], (z0 - h * e)[6:])))
+                    / (2 * h) for e in np.eye(14)]
+            rho = np.max(np.abs(np.linalg.eigvals(np.array(cols).T)))
+            assert 0.9 * law.rate_at_stress(S) < rho <= law.rate_at_stress(S) * (1 + 1e-6)

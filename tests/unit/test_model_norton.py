@@ -415,3 +415,47 @@ def test_plane_strain_case():
                                                * [[1, 1, 0.5], [1, 1, 0.5], [1, 1, 0.5]]).tolist()}
     with pytest.raises(CaseError, match=r"material.elasticity.*: law norton in plane strain"):
         make_case(bad)
+
+
+# ------------------------------------------------ the stability estimate at a stress scale
+def _jacobian(rates, t0: np.ndarray, rel: float = 1e-6) -> np.ndarray:
+    """dG/dsigma of ``rates`` (t-coordinates -> G rows) by central differences."""
+    h = rel * np.abs(t0).max()
+    cols = [(rates(t0 + h * e) - rates(t0 - h * e)) / (2 * h) for e in np.eye(len(t0))]
+    return np.array(cols).T
+
+
+@pytest.mark.parametrize("dim, plane", [(2, "stress"), (2, "strain"), (3, None)])
+def test_rate_at_stress_by_hand(dim, plane):
+    """r(S) = n A S^(n-1) 3 mu (mu = E / (2 (1 + nu)) the 3D shear modulus, in plane stress
+    and plane strain too): E = 1000 Pa, nu = 0.3, A = 1e-6, n = 3, S = 40 Pa gives
+    3e-6 x 1600 x 1153.846... = 5.538462 1/s; n = 1: the relaxation rate 3 mu A at every S;
+    S = 0 with n > 1: none (the rate vanishes)."""
+    el = _ps_elasticity() if plane == "strain" else Elasticity(E_, NU, dim)
+    law = Norton(el, A_, N_EXP, plane or "stress")
+    assert law.rate_at_stress(40.0) == pytest.approx(5.538461538461538, rel=1e-12)
+    assert law.rate_at_stress(0.0) is None
+    linear = Norton(el, 2e-4, 1.0, plane or "stress")
+    assert linear.rate_at_stress(77.0) == pytest.approx(linear.relaxation_rate(), rel=1e-12)
+    assert linear.rate_at_stress(77.0) == pytest.approx(3 * 2e-4 * E_ / 2.6, rel=1e-12)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_rate_at_stress_bounds_the_jacobian(dim):
+    """The spectral radius of dG/dsigma of the hand-written rates (3 x 3 tensors, central
+    differences) at random stresses of von Mises norm S is at most r(S), and equals it for a
+    pure shear (the radial direction of a deviatoric stress under held strain)."""
+    S, rng = 40.0, np.random.default_rng(5)
+    law = Norton(Elasticity(E_, NU, dim), A_, N_EXP)
+    shear = np.zeros(3 if dim == 2 else 6)
+    shear[-1] = S / np.sqrt(3.0)
+    states = [shear] + list(rng.normal(size=(6, len(shear))))
+    for i, t0 in enumerate(states):
+        tau = _tensor(t0, dim)
+        dev = tau - np.trace(tau) / 3 * np.eye(3)
+        t0 = t0 * S / np.sqrt(1.5 * np.sum(dev * dev))              # ||sigma||_VM = S
+        jac = _jacobian(lambda t: _hand_rates(t[None], dim, A_, N_EXP)[0][0], t0)
+        rho = np.max(np.abs(np.linalg.eigvals(jac)))
+        assert rho <= law.rate_at_stress(S) * (1 + 1e-6)
+        if i == 0:
+            assert rho == pytest.approx(law.rate_at_stress(S), rel=1e-6)
