@@ -303,7 +303,6 @@ class Checkpointer(Observer):
     def __init__(self):
         self.saved = []
 
-
     def step(self, sim, record: dict) -> None:
         """Save checkpoint_<n>.npz if step n is a checkpoint step or a signal stopped the run.
 
