@@ -5,7 +5,9 @@ stored under the key "history" of the file's meta data), the step records, and e
 the next step reads: u_n (P1), sigma_n, H_n (DG0 tensors), kappa_n (DG0, the law's m
 columns: 8 for Chaboche's (X, R, p)), and the active Gamma3 history terms as their
 ``state()`` gives them (memory term: xi_n, and for the direct sum the stored u_nu^+ history;
-slip: s_n; Coulomb friction: the contact pressure p_n its next fixed point starts from).
+slip: s_n; Coulomb friction: the contact pressure p_n its next fixed point starts from;
+with either, the slip path: u_{n-1,tau} and the accumulated slip; a checkpoint without it
+restarts the path at the restart).
 Values are stored with the coordinates of their
 nodes / cell midpoints, gathered on rank 0 into one ``checkpoint.npz`` (written
 atomically), so a run can restart on any number of MPI ranks: each rank matches its own
@@ -311,8 +313,8 @@ def save(outdir: Path, sim) -> Path:
 
 def _gamma3_arrays(comm, problem, g3: dict, arrays: dict) -> None:
     """The Gamma3 history's nodal values (xi_n, the direct sum's u_nu^+ history, s_n, the
-    Coulomb p_n) at the owned Gamma3 nodes, with their coordinates, gathered into ``arrays``
-    on rank 0."""
+    Coulomb p_n, the slip path's u_{n-1,tau} and accumulated slip) at the owned Gamma3
+    nodes, with their coordinates, gathered into ``arrays`` on rank 0."""
     own = problem.gamma3.nodes                       # owned Gamma3 nodes (local index)
     pos = np.searchsorted(problem.gamma3_local_nodes, own)
     xg = problem.V.tabulate_dof_coordinates()[own]
@@ -326,6 +328,10 @@ def _gamma3_arrays(comm, problem, g3: dict, arrays: dict) -> None:
         cols["slip_s"] = slip["s"][pos][:, None]
     if g3.get("coulomb") is not None:
         cols["coulomb_p"] = g3["coulomb"]["p"][pos][:, None]
+    path = g3.get("path")
+    if path is not None and path["prev"] is not None:      # the slip path after step 1
+        cols["path_prev"] = path["prev"][pos]
+        cols["path_length"] = path["length"][pos][:, None]
     for name, v in cols.items():
         x, vv = _gather(comm, xg, v)
         if comm.rank == 0:
@@ -642,4 +648,7 @@ class Checkpoint:
             state["slip"] = {"s": self._lookup("g3_slip_s", xg, n_g3)[:, 0].copy()}
         if g3.coulomb is not None:
             state["coulomb"] = {"p": self._lookup("g3_coulomb_p", xg, n_g3)[:, 0].copy()}
+        if g3.path is not None and "g3_path_length_x" in self.arrays:
+            state["path"] = {"prev": self._lookup("g3_path_prev", xg, n_g3).copy(),
+                             "length": self._lookup("g3_path_length", xg, n_g3)[:, 0].copy()}
         g3.load_state(state)

@@ -8,7 +8,10 @@ HDF5 file with h5py and then appends the time's Grid to contact.xdmf (app/io/xdm
 TemporalXdmf: O(1) per time, the file complete after every time), so that contact.xdmf
 always describes complete data.  Nodes that a Dirichlet condition fixes
 entirely are in the facet mesh but not in the table: their values are NaN and their state
-"prescribed".
+"prescribed".  With friction the table's columns are written as they are: slip_state
+(Coulomb: -1 separated, 0 stick, 1 slip; app/post/quantities.py SLIP_CODES),
+slip_increment and slip_accumulated (Coulomb or a slip law), held (1 where a Dirichlet
+condition prescribes a component of u).
 """
 from __future__ import annotations
 

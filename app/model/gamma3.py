@@ -13,6 +13,11 @@ and step).  The slip obeys s_n = s_{n-1} + k_n |u_{n-1,tau}|.  Each term exists 
 case enables it.  A kernel b(t, x) = b0(x) b(t) with b0 an expression of x (H(b)) sums
 b0(x_i) u_{j-1,nu}^+ with the kernel of factor 1; theta(s) is the exponential law or a table
 (``slip_law``).
+
+With friction that has a slip variable (Coulomb's bound mu p_n, a slip law theta(s)) the
+history also follows the slip path of each node (``SlipPath``): the slip increment of step n,
+|u_{n,tau} - u_{n-1,tau}|, and the accumulated slip sum_{j=1..n} |u_{j,tau} - u_{j-1,tau}|,
+both lengths (m), unlike s_n of (1.6), a time integral of |u_tau| (m s).
 """
 from __future__ import annotations
 
@@ -180,6 +185,79 @@ class NodewiseSlip:
         return out
 
 
+class SlipPath:
+    """The slip path of m nodes: the tangential displacement u_{n-1,tau} of the last accepted
+    step (before step n), and the accumulated slip l_{n-1} = sum_{j=1..n-1} |u_{j,tau} -
+    u_{j-1,tau}| (the path length of u_tau, in m; the first increment is measured from
+    u_0). After step n the slip increment is |u_{n,tau} - u_{n-1,tau}| and the accumulated
+    slip l_{n-1} + that increment (``increment``, ``accumulated``).  Not s_n of (1.6)
+    (SlipSum: sum k_j |u_{j-1,tau}|, a time integral in m s, the argument of theta(s)).
+
+    Args:
+        m: the number of nodes.
+    """
+
+    def __init__(self, m: int):
+        self.prev: np.ndarray | None = None     # u_{n-1,tau} (m, d); None before step 1
+        self.length = np.zeros(m)
+
+    def advance(self, u_tau: np.ndarray) -> None:
+        """Before step n: l_{n-1} = l_{n-2} + |u_{n-1,tau} - u_{n-2,tau}|, then keep
+        u_{n-1,tau}.
+
+        Args:
+            u_tau: u_{n-1,tau} at the m nodes (m, d), the current u's.
+        """
+        if self.prev is not None:
+            self.length = self.length + np.linalg.norm(u_tau - self.prev, axis=1)
+        self.prev = np.array(u_tau, dtype=float)
+
+    def increment(self, u_tau: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """The slip increment |u_{n,tau} - u_{n-1,tau}| of the current step (0 before step 1).
+
+        Args:
+            u_tau: u_{n,tau} at the m nodes, or at ``rows`` of them ((m, d) or (rows, d)).
+            rows: a selection of the m nodes (an index array), or None: all.
+
+        Returns:
+            Lengths, one per row of u_tau.
+        """
+        if self.prev is None:
+            return np.zeros(len(u_tau))
+        prev = self.prev if rows is None else self.prev[rows]
+        return np.linalg.norm(u_tau - prev, axis=1)
+
+    def accumulated(self, u_tau: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """The accumulated slip l_n = l_{n-1} + |u_{n,tau} - u_{n-1,tau}|.
+
+        Args:
+            u_tau: u_{n,tau} at the m nodes, or at ``rows`` of them.
+            rows: a selection of the m nodes (an index array), or None: all.
+
+        Returns:
+            Lengths, one per row of u_tau.
+        """
+        length = self.length if rows is None else self.length[rows]
+        return length + self.increment(u_tau, rows)
+
+    def state(self) -> dict:
+        """Returns: {"prev": a copy of u_{n-1,tau} (m, d) or None, "length": l_{n-1} (m,)}."""
+        return {"prev": None if self.prev is None else self.prev.copy(),
+                "length": self.length.copy()}
+
+    def load_state(self, state: dict | None) -> None:
+        """Set the path from ``state()`` or a checkpoint's copy (None: from the start).
+
+        Args:
+            state: {"prev", "length"} or None.
+        """
+        if state is None:
+            self.prev, self.length = None, np.zeros(len(self.length))
+            return
+        self.prev = None if state["prev"] is None else np.array(state["prev"], dtype=float)
+        self.length = np.array(state["length"], dtype=float)
+
+
 # ----------------------------------------------------------------------------- wiring
 class NodalField:
     """A P1 scalar Function whose values at the Gamma3 nodes (given as nodes of the vector
@@ -254,6 +332,7 @@ class Gamma3History:
             self.coulomb = CoulombPressure(problem, mu, NodalField(problem.V, self.nodes,
                                                                    "p_n"))
             self._set_coulomb(mu * self.coulomb.p)
+        self.path = SlipPath(m) if slip is not None or mu is not None else None
 
     def _set_coulomb(self, mu_p: np.ndarray) -> None:
         """theta = mu p_n (times theta(s_n) with slip) at the nodes (with laws per pair:
@@ -288,6 +367,8 @@ class Gamma3History:
                "slip": self.slip.state() if self.slip else None}
         if self.coulomb is not None:
             out["coulomb"] = self.coulomb.state()
+        if self.path is not None:
+            out["path"] = self.path.state()
         return out
 
     def load_state(self, state: dict) -> None:
@@ -305,9 +386,11 @@ class Gamma3History:
         if self.coulomb is not None:
             self.coulomb.load_state(state.get("coulomb"))
             self._set_coulomb(self.coulomb.mu * self.coulomb.p)
+        if self.path is not None:
+            self.path.load_state(state.get("path"))
 
     def advance(self, t_prev: float, t_n: float) -> None:
-        """xi_n, s_n from u_{n-1} (the current u), before solving step n.
+        """xi_n, s_n (and the slip path) from u_{n-1} (the current u), before solving step n.
 
         Args:
             t_prev: t_{n-1}.
@@ -315,13 +398,15 @@ class Gamma3History:
         """
         u = self.problem.contact_u()      # u, or w = [u] - d nu of two bodies
         u_nu = np.einsum("ij,ij->i", u, self.normal)
+        u_tau = u - u_nu[:, None] * self.normal
         if self.memory is not None:
             r_plus = NUMPY.pos(u_nu) if self.b0 is None else self.b0 * NUMPY.pos(u_nu)
             self.xi.set(self.memory.advance(r_plus, t_prev, t_n))
         if self.slip is not None:
-            u_tau = u - u_nu[:, None] * self.normal
             self.slip.advance(np.linalg.norm(u_tau, axis=1), t_n - t_prev)
             self.theta.set(self.slip.theta())
+        if self.path is not None:
+            self.path.advance(u_tau)
 
 
 def build_gamma3_history(case, problem) -> Gamma3History | None:

@@ -6,7 +6,8 @@
 
 two_cylinders_hertz.png: the contact pressure of the last step against Hertz's half-ellipse
 for the measured force (E* and R* of the two cylinders); mindlin_traction.png: the shear
-traction of the last step against Cattaneo-Mindlin's, and the stick nodes.
+traction of the last step against Cattaneo-Mindlin's, the nodes by slip_state (stick, slip,
+separated).
 """
 import csv
 import json
@@ -75,8 +76,12 @@ def mindlin(out: Path) -> None:
     ax.plot(x, mu * hertz_pressure(x, a, p0) * np.sign(q.sum()), "k:", label="mu p")
     on = np.abs(t["x"]) <= 1.3 * a
     stick = on & (t["slip_state"] == 0)
-    ax.plot(t["x"][on], t["neg_sigma_tau"][on], "o", ms=4, mfc="none", label="slip nodes")
+    slip = on & (t["slip_state"] == 1)
+    separated = on & (t["slip_state"] == -1)
+    ax.plot(t["x"][slip], t["neg_sigma_tau"][slip], "o", ms=4, mfc="none", label="slip nodes")
     ax.plot(t["x"][stick], t["neg_sigma_tau"][stick], "o", ms=4, label="stick nodes")
+    ax.plot(t["x"][separated], t["neg_sigma_tau"][separated], "x", ms=4, color="0.5",
+            label="separated nodes")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("shear traction [N/m^2]")
     ax.set_title("mindlin: half-cylinder on a block, Coulomb mu = 0.3")

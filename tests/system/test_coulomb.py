@@ -234,6 +234,26 @@ def test_static_kinetic_restart_equals_uninterrupted(static_kinetic):
     assert np.abs(a - b).max() <= 1e-12 * np.abs(a).max()
 
 
+def test_slip_path_columns(static_kinetic):
+    """slip_increment = |u_{n,tau} - u_{n-1,tau}| and slip_accumulated = its sum over the
+    steps, from the recorded u_tau (u_0 = 0), to 1e-12 at every node of every step; the run
+    restarted from the step-3 checkpoint (the path stored) writes the same columns to
+    1e-12 of their largest value."""
+    _, tables, _, _, again = static_kinetic
+    prev = np.zeros(len(tables[0]["x"]))
+    total = np.zeros_like(prev)
+    for tab in tables:
+        inc = np.abs(tab["u_tau"] - prev)
+        total = total + inc
+        assert np.abs(tab["slip_increment"] - inc).max() <= 1e-12 * U
+        assert np.abs(tab["slip_accumulated"] - total).max() <= 1e-12 * U
+        prev = tab["u_tau"]
+    assert total.min() > 0.5 * U                   # every node slid about U
+    for ta, tb in zip(tables[3:], again):
+        for col in ("slip_increment", "slip_accumulated"):
+            assert np.abs(ta[col] - tb[col]).max() <= 1e-12 * np.abs(ta[col]).max(), col
+
+
 def test_equal_coefficients_are_coulomb_mu(runs):
     """mu_s = mu_k = mu: the run is the {mu} run bit for bit (theta(s) = 1 exactly)."""
     same = _run("slide", friction={"coulomb": {"mu_s": MU, "mu_k": MU, "slip_length": 1e-3}})
@@ -289,3 +309,45 @@ def test_fixed_point_line_only_with_verbose(verbose, tmp_path, capsys):
     lines = [x for x in capsys.readouterr().out.splitlines()
              if "Coulomb friction: the fixed point" in x]
     assert len(lines) == (2 if verbose else 0), lines
+
+
+# ------------------------------------------------------------------ a held node in Gamma3
+@pytest.fixture(scope="module")
+def held_corner():
+    """The slide run with the right side pushed as the left, by u_x = U t (u_y free): the
+    corner (1, 0) of Gamma3 is held by the Dirichlet data in x, its normal free."""
+    raw = _raw("slide")
+    raw["loads"]["displacement"]["right"] = [f"{U} * t", None]
+    rec = _Tables()
+    result = run(make_case(raw, mesh={"n": 4}, time={"N": 2}), MPI.COMM_WORLD, [rec])
+    assert result.status == "completed"
+    return result, rec.tables[-1]
+
+
+def test_held_corner_is_marked_and_carries_the_law_friction(held_corner):
+    """The corner is marked held (1; 0 elsewhere), its u_nu free (not 'prescribed'); its
+    written friction stress is the law's, mu p_n (it slides by U t = 5e5 delta: within
+    (delta / U)^2 of the bound), not the support's reaction (-4.54 against a bound of 2.43
+    before); it and every other node slide at mu p_n (slip_state 1)."""
+    _, tab = held_corner
+    corner = (np.abs(tab["x"] - 1.0) < 1e-12) & (np.abs(tab["y"]) < 1e-12)
+    assert corner.sum() == 1 and not tab["_prescribed"][corner].any()
+    np.testing.assert_array_equal(tab["held"], corner.astype(float))
+    bound = MU * tab["neg_sigma_nu"][corner]
+    assert abs(abs(tab["neg_sigma_tau"][corner][0]) - bound[0]) <= 1e-9 * bound[0]
+    assert np.abs(tab["friction_bound"][corner] - bound).max() <= 1e-7 * MU * P
+    assert np.all(tab["slip_state"] == 1.0)
+
+
+def test_held_corner_totals(held_corner):
+    """Every node slides against the push (-x), so the contact force on the body is
+    F_x = -mu F_y (Coulomb, summed over the nodes with the corner's pressure and
+    friction both in) to 1e-6, and the two sides' reactions balance it (equilibrium with
+    the top's load (0, -P) to 1e-8)."""
+    result, _ = held_corner
+    step = result.summary["steps"][-1]
+    fx, fy = step["contact_force"]
+    assert abs(fx + MU * fy) <= 1e-6 * MU * fy
+    left, right = step["reactions"]["left"], step["reactions"]["right"]
+    assert abs(left[0] + right[0] + fx) <= 1e-8 * P and right[1] == 0.0
+    assert abs(left[1] + fy - P) <= 1e-8 * P

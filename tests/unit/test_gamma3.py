@@ -5,7 +5,13 @@ import numpy as np
 import pytest
 
 from vpcontact.model.contact_laws import SlipWeakening, StaticKineticSlip
-from vpcontact.model.gamma3 import MemorySum, NodewiseSlip, SlipSum, build_gamma3_history
+from vpcontact.model.gamma3 import (
+    MemorySum,
+    NodewiseSlip,
+    SlipPath,
+    SlipSum,
+    build_gamma3_history,
+)
 from vpcontact.model.memory_kernels import memory_kernel
 
 
@@ -94,6 +100,44 @@ def test_slip_state_round_trip():
     np.testing.assert_array_equal(slip.s, expected)
     saved["s"][:] = 0.0                        # the state is a copy
     np.testing.assert_array_equal(slip.s, expected)
+
+
+def test_slip_path_by_hand():
+    """u_tau of two nodes (2D vectors) at t_0..t_3: (0,0) -> (3,4) -> (3,4) -> (0,0) and
+    (1,0) -> (1,0) -> (1,2) -> (1,2): increments 5, 0, 5 and 0, 2, 0 (the first from u_0),
+    accumulated 5, 5, 10 and 0, 2, 2; before step 1 the increment is 0; the state
+    round-trips (a copy) and None restarts the path."""
+    u = [np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([[3.0, 4.0], [1.0, 0.0]]),
+         np.array([[3.0, 4.0], [1.0, 2.0]]), np.array([[0.0, 0.0], [1.0, 2.0]])]
+    path = SlipPath(2)
+    np.testing.assert_array_equal(path.increment(u[0]), [0.0, 0.0])
+    incs, totals = [], []
+    for n in range(1, 4):
+        path.advance(u[n - 1])                     # before step n: u_{n-1,tau}
+        incs.append(path.increment(u[n]))
+        totals.append(path.accumulated(u[n]))
+    np.testing.assert_allclose(incs, [[5.0, 0.0], [0.0, 2.0], [5.0, 0.0]], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(totals, [[5.0, 0.0], [5.0, 2.0], [10.0, 2.0]], rtol=0,
+                               atol=1e-15)
+    np.testing.assert_array_equal(path.accumulated(u[3][[1]], np.array([1])), [2.0])
+    saved = path.state()
+    path.advance(u[3])
+    path.load_state(saved)
+    saved["length"][:] = -1.0                      # the state is a copy
+    np.testing.assert_allclose(path.accumulated(u[3]), [10.0, 2.0], rtol=0, atol=1e-15)
+    path.load_state(None)
+    np.testing.assert_array_equal(path.increment(u[3]), [0.0, 0.0])
+
+
+def test_slip_states_codes():
+    """slip_threshold = max(10 delta, 1e-9 u_scale); slip above it, stick at or below,
+    separated (-1) at p_n <= 1e-6 max p_n whatever the increment."""
+    from vpcontact.post.quantities import SLIP_CODES, slip_states, slip_threshold
+    assert SLIP_CODES == {"separated": -1, "stick": 0, "slip": 1}
+    assert slip_threshold(1e-8, 1.0) == 10 * 1e-8 and slip_threshold(1e-8, 1e3) == 1e-9 * 1e3
+    p = np.array([1.0, 1.0, 1.0, 1e-7, 1e-7, 0.0])
+    inc = np.array([0.0, 1e-7, 1.01e-7, 1.0, 0.0, 1.0])
+    np.testing.assert_array_equal(slip_states(p, inc, 1e-7, 1.0), [0, 0, 1, -1, -1, -1])
 
 
 class _Field:
