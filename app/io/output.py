@@ -102,8 +102,8 @@ def check_space(comm, path: Path, describe, need: int) -> None:
     free = None
     if comm.rank == 0:
         try:
-            st = os.statvfs(path.parent)
-            free = st.f_bavail * st.f_frsize
+            st = os.statvfs(path.parent)       # root may write the reserved blocks too
+            free = (st.f_bfree if os.geteuid() == 0 else st.f_bavail) * st.f_frsize
         except OSError:
             free = None            # unknown: the write itself tells
     free = comm.bcast(free, root=0)
