@@ -23,7 +23,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from vpcontact.io import checkpoint
+from vpcontact.io import checkpoint, reserve
 from vpcontact.io.contact_xdmf import ContactWriter
 from vpcontact.io.history import HistoryWriter, history_columns
 from vpcontact.io.output import (
@@ -354,10 +354,20 @@ class StepLog(Observer):
 class RunFiles(Observer):
     """contact.csv and summary.json in ``sim.outdir``, written once at the end.  A completed
     run whose contact.csv cannot be written is "failed"; if summary.json cannot be written
-    either, the error is logged and kept in the summary (summary_error)."""
+    either (a full disk), the run is "failed", the error is kept in the summary
+    (summary_error) and the summary written into the space kept for it since the start
+    (app/io/reserve.py); if even that fails, the log says so."""
 
     def __init__(self):
         self.files = []
+
+    def start(self, sim) -> None:
+        """Keep space on the output file system for summary.json (app/io/reserve.py).
+
+        Args:
+            sim: the Simulation before its first step.
+        """
+        reserve.reserve(sim.comm, Path(sim.outdir) / "summary.json")
 
     def written(self) -> list[Path]:
         """Returns: contact.csv and summary.json, those written."""
@@ -380,11 +390,28 @@ class RunFiles(Observer):
                 self.files.append(outdir / "contact.csv")
         except OutputError as exc:
             summary.fail(StepFailure.output(summary.last_good_step, steps[-1]["t"], exc))
+        path = outdir / "summary.json"
         try:
-            write_json(sim.comm, outdir / "summary.json", summary.as_dict())
-            self.files.append(outdir / "summary.json")
+            write_json(sim.comm, path, summary.as_dict())
+            self.files.append(path)
         except OutputError as exc:
-            log.error("summary.json not written: %s", exc)
             summary.summary_error = str(exc)
             summary.fail(StepFailure(summary.last_good_step, steps[-1]["t"] if steps else 0.0,
                                      f"cannot write summary.json: {exc}", hint=HINT_OUTPUT))
+            self._write_reserved(sim.comm, path, summary, exc)
+        finally:
+            reserve.release(sim.comm, path)
+
+    @staticmethod
+    def _write_reserved(comm, path, summary, exc) -> None:
+        """summary.json (status failed) into the space kept at the start, or the log says
+        that it is not written."""
+        try:
+            written = reserve.write_reserved(comm, path, summary.reduced_dicts())
+        except OutputError:
+            written = False
+        if written:
+            log.error("summary.json written into the space kept for it (status %s): %s",
+                      summary.status, exc)
+        else:
+            log.error("summary.json not written: %s", exc)

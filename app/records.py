@@ -154,3 +154,24 @@ class RunSummary:
         if self.summary_error is not None:
             d["summary_error"] = self.summary_error
         return d
+
+    def reduced_dicts(self, kept_steps: int = 10):
+        """summary.json's content in full, then smaller forms for a little space (a full
+        disk, app/io/reserve.py): without step_history and phases and with only the last
+        ``kept_steps`` step records ("steps_omitted" counts the others), then also without
+        case_data, laws and diagnostics.  Status, failure, last_good_step, mesh, time and
+        solver are in every form.
+
+        Args:
+            kept_steps: the step records the reduced forms keep (the last ones).
+
+        Yields:
+            The dicts, largest first.
+        """
+        d = self.as_dict()
+        yield d
+        omitted = max(len(self.steps) - kept_steps, 0)
+        d = {k: v for k, v in d.items() if k not in ("step_history", "phases")}
+        d.update(steps=self.steps[omitted:], steps_omitted=omitted)
+        yield d
+        yield {k: v for k, v in d.items() if k not in ("case_data", "laws", "diagnostics")}

@@ -285,6 +285,7 @@ def _read(gmsh, path: str, dim: int, size: float, max_vertices: float = MAX_VERT
             _interruptible(gmsh.merge, str(p))
         except Exception as err:
             raise MeshFileError(f"gmsh cannot read {path}: {err}") from None
+        _unpartition(gmsh)
     _check_elements(gmsh, path, dim)
     _check_groups(gmsh, path, dim)
     if dim == 2:
@@ -297,6 +298,15 @@ def _read(gmsh, path: str, dim: int, size: float, max_vertices: float = MAX_VERT
     if not np.array_equal(np.sort(nodes), np.arange(1, len(nodes) + 1)):
         gmsh.model.mesh.renumberNodes()     # model_to_mesh needs node tags 1..N
     return (*_boundary_groups(gmsh, path, dim), interior)
+
+
+def _unpartition(gmsh) -> None:
+    """Rank 0: a mesh saved partitioned (``gmsh -part N``, Mesh.PartitionCreate; MSH 4.1 or
+    2.2) as one mesh: gmsh reads its elements into partition entities, whose parents are the
+    entities of the physical groups; unpartition puts them back (the physical groups then
+    hold their elements again).  The mesh is distributed by dolfinx as any other."""
+    if any(len(gmsh.model.getPartitions(d, tag)) for d, tag in gmsh.model.getEntities()):
+        gmsh.model.mesh.unpartition()
 
 
 _busy = []      # a gmsh call an interrupt left running in its thread (gmsh is not usable)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import ast
 import math
 import operator
+import sys
 
 import numpy as np
 
@@ -61,8 +62,15 @@ def _check(node, names: set, depth: int) -> None:
     if isinstance(node, ast.Constant):
         if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
             raise ExpressionError(f"only numbers are allowed as constants, got {node.value!r}")
-        if not math.isfinite(float(node.value)):
-            raise ExpressionError(f"number out of range: {node.value!r}")
+        try:
+            finite = math.isfinite(float(node.value))
+        except OverflowError:           # an integer literal beyond the largest float
+            raise ExpressionError(f"number out of range: an integer of "
+                                  f"{len(str(node.value))} digits (allowed: magnitudes up to "
+                                  f"{sys.float_info.max:.3g})") from None
+        if not finite:
+            raise ExpressionError(f"number out of range: {node.value!r} (allowed: magnitudes "
+                                  f"up to {sys.float_info.max:.3g})")
     elif isinstance(node, ast.Name):
         if node.id not in names and node.id not in CONSTANTS:
             raise ExpressionError(f"unknown name '{node.id}' (allowed: "

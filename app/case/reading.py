@@ -179,9 +179,11 @@ def parse_override(text: str) -> tuple[str, object]:
 
 
 class RawCase(dict):
-    """The parsed case mapping; ``lines`` maps dotted key paths to their 1-based YAML line."""
+    """The parsed case mapping; ``lines`` maps dotted key paths to their 1-based YAML line,
+    ``overrides`` the key paths given by ``--set`` to their 'KEY=VALUE' text."""
 
     lines: dict = {}
+    overrides: dict = {}
 
 
 def key_lines(text: str) -> dict[str, int]:
@@ -221,30 +223,41 @@ def key_lines(text: str) -> dict[str, int]:
 _PATH = re.compile(r"[A-Za-z_]\w*(?:\.\w+|\[\d+\])*")
 
 
-def with_lines(message: str, lines: dict) -> str:
-    """Add '(line N)' after the first key path of each message line that the YAML text has.
+def with_lines(message: str, lines: dict, overrides: dict | None = None) -> str:
+    """Add '(line N)' after the key paths of a message that the YAML text has; a message
+    naming a key path whose value (or a part of it) came from --set ends with
+    '(the value of --set KEY=VALUE)' instead, and no line of the file is cited for it.
 
     Args:
         message: a CaseError message.
         lines: key path -> line (``key_lines``).
+        overrides: key path given by --set -> its 'KEY=VALUE' text (RawCase.overrides).
 
     Returns:
         The message with the lines.
     """
-    if not lines:
+    overrides = overrides or {}
+    if not lines and not overrides:
         return message
 
     def parent(path: str) -> str:
         return re.sub(r"(\.\w+|\[\d+\])$", "", path)
 
+    given = []
+
     def add(m):
         path = m.group(0)
+        given.extend(text for key, text in overrides.items()
+                     if path == key or path.startswith((key + ".", key + "[")))
+        if given:
+            return path
         while path and path not in lines:       # the deepest key present in the file
             shorter = parent(path)
             path = shorter if shorter != path else ""
         return f"{m.group(0)} (line {lines[path]})" if path else m.group(0)
     # a key path is followed by ': ' where our messages name it
-    return re.sub(r"(?<![\w.\[\]])" + _PATH.pattern + r"(?=: )", add, message)
+    message = re.sub(r"(?<![\w.\[\]])" + _PATH.pattern + r"(?=: )", add, message)
+    return f"{message} (the value of --set {given[0]})" if given else message
 
 
 def _yaml_error(exc: yaml.YAMLError, text: str = "") -> str:
@@ -364,15 +377,17 @@ def load_raw(path: str | Path, overrides: list[str] = ()) -> dict:
                         f"got {type(data).__name__}")
     data = RawCase(data)
     data.lines = key_lines(text)
+    data.overrides = {}
     for item in overrides:
         key, value = parse_override(item)
         _set_path(data, key, value)
         data.lines.pop(key, None)              # the value comes from --set, not the file
+        data.overrides[key] = item if len(item) <= 80 else item[:77] + "..."
     try:
         check_data(data, "", path, [MAX_CASE_SIZE])
     except RecursionError:
         raise CaseError(f"{path}: the case is nested too deeply") from None
     except CaseError as exc:
-        raise CaseError(with_lines(str(exc), data.lines)) from None
+        raise CaseError(with_lines(str(exc), data.lines, data.overrides)) from None
     return data
 

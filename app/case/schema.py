@@ -401,7 +401,8 @@ SCHEMA = _obj({
                   "description": "explicit time points 0 = t0 < t1 < ... (instead of T, N)"},
         "adaptive": _obj({
             "k_min": {**_pos, "description": "smallest step before the run gives up [s] "
-                                             "(default: first step / 1024)"},
+                                             "(default: first step / 1024; k_max must "
+                                             "not be smaller)"},
             "k_max": {**_pos, "description": "largest step [s] (default: T)"},
             "grow": {"type": "number", "minimum": 1, "default": 1.5,
                      "description": "factor by which the step grows after a step that "
@@ -445,8 +446,10 @@ SCHEMA = _obj({
     "petsc": {"type": "object", "default": {},
               "additionalProperties": {"type": ["string", "number", "boolean", "null"]},
               "propertyNames": {"pattern": r"^[a-z][a-z0-9_]*$"},
-              "description": "PETSc options without the leading '-', passed unchanged "
-                             "with the prefix vpcontact_ (e.g. snes_rtol: 1e-10)"},
+              "description": "PETSc options without the leading '-', passed with the "
+                             "prefix vpcontact_ (e.g. snes_rtol: 1e-10); only those of the "
+                             "allow-list in docs/user-guide.md (no python types, no files: "
+                             "monitors and views to standard output only)"},
     "output": _obj({
         "every": {"type": "integer", "minimum": 1, "default": 1,
                   "description": "write the fields every m-th step (the last step always)"},

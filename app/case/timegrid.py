@@ -8,6 +8,19 @@ from vpcontact.case.model import TimeGrid
 from vpcontact.io.errors import CaseError
 
 MAX_STEPS = 1_000_000       # time steps (as time.N allows)
+K_MIN_DIVISOR = 1024        # the default time.adaptive.k_min: the first step / K_MIN_DIVISOR
+
+
+def default_k_min(k0: float) -> float:
+    """The smallest adaptive step when time.adaptive.k_min is not given.
+
+    Args:
+        k0: the first step of the time grid.
+
+    Returns:
+        k0 / K_MIN_DIVISOR.
+    """
+    return k0 / K_MIN_DIVISOR
 
 
 def time_grid(t: dict, source: str) -> TimeGrid:
@@ -91,6 +104,11 @@ def check_adaptive(a: dict | None, times: tuple, source: str) -> None:
     if k_min is not None and k_min > k_max:
         raise CaseError(f"{source}: time.adaptive.k_min: {k_min:g} is larger than "
                         f"time.adaptive.k_max = {k_max:g} (allowed: k_min <= k_max)")
+    if k_min is None and default_k_min(k0) > k_max:
+        raise CaseError(f"{source}: time.adaptive.k_max: {k_max:g} is smaller than the default "
+                        f"time.adaptive.k_min = first step / {K_MIN_DIVISOR} = "
+                        f"{default_k_min(k0):g} (allowed: k_max >= k_min; give a smaller "
+                        "time.adaptive.k_min)")
     if k_min is not None and k_min > k0:
         raise CaseError(f"{source}: time.adaptive.k_min: {k_min:g} is larger than the first "
                         f"step of the time grid, {k0:g}, where adaptive steps start "

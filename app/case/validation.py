@@ -54,7 +54,8 @@ def validate(data: dict, source: str = "<case>") -> Case:
         return _validate(data, source)
     except CaseError as exc:          # one line, with the YAML lines of the keys named
         text = str(exc).replace("\r", "\\r").replace("\n", "\\n")
-        raise CaseError(with_lines(text, getattr(data, "lines", {}))) from None
+        raise CaseError(with_lines(text, getattr(data, "lines", {}),
+                                   getattr(data, "overrides", {}))) from None
     except RecursionError:
         raise CaseError(f"{source}: the case is nested too deeply") from None
 

@@ -109,7 +109,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
     if case is None:
         return EXIT_BAD_INPUT
 
-    from vpcontact.cli.progress import ProgressBar
+    from vpcontact.cli.progress import ProgressBar, ReaderWatch
     from vpcontact.observers import (
         Checkpointer,
         CollectorAfterSetUp,
@@ -130,7 +130,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
              comm.size, "s" if comm.size > 1 else "")
     progress = [ProgressBar()] if not args.quiet and not args.verbose else []
     observers = [CollectorAfterSetUp(), FieldOutput(), ContactOutput(), HistoryOutput(),
-                 Checkpointer(), *progress, StepLog(), RunFiles()]
+                 Checkpointer(), *progress, ReaderWatch(), StepLog(), RunFiles()]
     threads.request(args.threads)
     painter = _early_painter(comm, args.no_plots)
     try:

@@ -74,8 +74,8 @@ def _unexpected(exc: Exception) -> int:
     from petsc4py import PETSc
     if isinstance(exc, PETSc.Error):  # PETSc refused an option or a matrix: not our bug
         from vpcontact.solvers.snesvi import describe_petsc_error
-        return error(f"{describe_petsc_error(exc)} (check the PETSc options; -help "
-                     "lists them)", EXIT_FAILED)
+        return error(f"{describe_petsc_error(exc)} (check the PETSc options; "
+                     "docs/user-guide.md lists those allowed)", EXIT_FAILED)
     return internal_error(exc)
 
 

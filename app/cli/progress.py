@@ -124,3 +124,18 @@ class ProgressBar(Observer):
         """
         if self.bar is not None:
             self.bar.close()
+
+
+class ReaderWatch(Observer):
+    """At every step, drops stdout and stderr whose reader downstream of mpirun has gone
+    (app/cli/streams.py check_readers): PETSc's monitors write without Python."""
+
+    def step(self, sim, record: dict) -> None:
+        """Check the readers.
+
+        Args:
+            sim: the Simulation.
+            record: the step's record.
+        """
+        from vpcontact.cli.streams import check_readers
+        check_readers()

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vpcontact.io.h5files import open_h5
 from vpcontact.io.output import OutputError, on_rank0
 from vpcontact.io.xdmf import Field, TemporalXdmf, data_item
 
@@ -104,8 +105,7 @@ class ContactWriter:
         on_rank0(comm, self._create)
 
     def _create(self) -> None:
-        import h5py
-        with h5py.File(self.h5, "w") as f:
+        with open_h5(self.h5, "w") as f:
             f["Mesh/geometry"] = self.points
             f["Mesh/topology"] = self.cells.astype(np.int64)
             f.create_group("Step", track_order=True)     # O(1) per time (FieldWriter)
@@ -131,14 +131,13 @@ class ContactWriter:
         on_rank0(self.comm, self._write, t, data)
 
     def _write(self, t: float, data: dict) -> None:
-        import h5py
         try:
             idx = node_index(self.points, np.column_stack([data[a] for a in "xyz"[:self.dim]]))
         except ValueError as exc:
             raise OutputError(f"{self.path}: {exc}") from None
         n, k = len(self.points), self.xml.times
         columns = self._columns(data, idx, n)
-        with h5py.File(self.h5, "a") as f:
+        with open_h5(self.h5, "a") as f:
             for name, values in columns.items():
                 f[f"Step/{k}/{name}"] = values
         self.xml.add(t, [Field(name, "Vector" if name == "u" else "Scalar", "Node")

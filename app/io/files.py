@@ -1,6 +1,7 @@
 """Files replaced whole: a reader (another process, a crash) sees the old file or the new
 one, never half of either.  Both helpers write a temporary file beside the target and rename
-it over the target (``os.replace``, atomic within a directory)."""
+it over the target (``os.replace``, atomic within a directory); ``overwrite_in_place``
+rewrites a file within the blocks it has already (a full disk cannot stop it)."""
 from __future__ import annotations
 
 import os
@@ -36,6 +37,25 @@ def atomic_write(path: Path, text: str | bytes, sync: bool = True) -> None:
         except OSError:
             pass
         raise
+
+
+def overwrite_in_place(path: Path, data: bytes) -> None:
+    """Replace a file's content by ``data``, at most as long as it, in place: the blocks are
+    the file's already, so a full disk cannot leave it empty.
+
+    Args:
+        path: the file (at least len(data) bytes long).
+        data: its new content.
+
+    Raises:
+        OSError: the write failed.
+    """
+    fd = os.open(path, os.O_WRONLY)
+    try:
+        os.pwrite(fd, data, 0)
+        os.ftruncate(fd, len(data))
+    finally:
+        os.close(fd)
 
 
 def write_replacing(path: Path, draw):

@@ -15,10 +15,12 @@ from pathlib import Path
 import numpy as np
 from dolfinx import io as dio
 
-from vpcontact.io.files import atomic_write
+from vpcontact.io.files import atomic_write, overwrite_in_place
+from vpcontact.io.h5files import open_h5
 from vpcontact.io.xdmf import TemporalXdmf, XdmfLayoutError, dolfinx_layout, dolfinx_time_key
 from vpcontact.native import loaded_libraries
 
+HDF5_MARGIN = 64 * 1024      # bytes of HDF5 metadata a time's datasets may add (B-trees, heaps)
 OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv", "contact.xdmf",
                 "contact.h5", "history.csv")
 
@@ -79,6 +81,34 @@ def write_xdmf(comm, path: Path, mode: str, action, describe) -> None:
             ctypes.pythonapi.Py_IncRef(ctypes.py_object(f))
             _disarm_hdf5_termination()
         raise OutputError(describe(exc)) from None
+
+
+def check_space(comm, path: Path, describe, need: int) -> None:
+    """Refuse a collective HDF5 write that the file system has no room for (collective;
+    rank 0 measures): parallel HDF5 that runs out of space on one rank leaves the others
+    waiting in the write's collectives for ever (mpirun -n 2 on a full tmpfs: hung at
+    H5D__mpio_opt_possible's MPI_Allreduce), so the write is not begun.  Best effort: the
+    disk may still fill during the write (another process), then write_xdmf's error holds.
+
+    Args:
+        comm: the MPI communicator.
+        path: the file to be written.
+        describe: the OutputError's message from the free bytes.
+        need: the bytes the write needs at least.
+
+    Raises:
+        OutputError: on every rank, if fewer than ``need`` bytes are free.
+    """
+    free = None
+    if comm.rank == 0:
+        try:
+            st = os.statvfs(path.parent)       # root may write the reserved blocks too
+            free = (st.f_bfree if os.geteuid() == 0 else st.f_bavail) * st.f_frsize
+        except OSError:
+            free = None            # unknown: the write itself tells
+    free = comm.bcast(free, root=0)
+    if free is not None and free < need:
+        raise OutputError(describe(free))
 
 
 def _disarm_hdf5_termination() -> None:
@@ -211,17 +241,6 @@ def write_json(comm, path: Path, data: dict) -> None:
     on_rank0(comm, atomic_write, path, text)
 
 
-def _overwrite(path: Path, data: bytes) -> None:
-    """Replace a file's content by ``data``, at most as long as it, in place: the blocks are
-    the file's already, so a full disk cannot leave it empty."""
-    fd = os.open(path, os.O_WRONLY)
-    try:
-        os.pwrite(fd, data, 0)
-        os.ftruncate(fd, len(data))
-    finally:
-        os.close(fd)
-
-
 class FieldWriter:
     """solution.xdmf: u (P1 vector), sigma (DG0 tensor), sigma_vm, kappa (DG0) per time, as
     one dataset (app/io/xdmf.py: one temporal collection, every field in the Grid of its
@@ -284,8 +303,7 @@ class FieldWriter:
         dolfinx creates it, keeps its datasets' names in one local heap that HDF5 reads and
         writes whole whenever a dataset is added, O(n) bytes at step n; the new-style
         fractal heap writes one direct block (at most 64 KiB) and its B-tree nodes."""
-        import h5py
-        with h5py.File(self.h5, "a") as f:
+        with open_h5(self.h5, "a") as f:
             for field in self.fields:
                 f.create_group(f"Function/{field.name}", track_order=True)
 
@@ -296,7 +314,7 @@ class FieldWriter:
         key = dolfinx_time_key(t)
         self.xml.add(t, [field.attribute(self.h5.name, f"/Function/{field.name}/{key}", shape)
                          for field, shape in self._layout])
-        _overwrite(self.work, self._mesh_xml)      # dolfinx's XML back to the mesh alone
+        overwrite_in_place(self.work, self._mesh_xml)      # dolfinx's XML back to the mesh alone
 
     def _first_layout(self, t: float) -> list:
         """The fields (types and centres from dolfinx's XML) with their datasets' shapes,
@@ -325,6 +343,10 @@ class FieldWriter:
         def fields(f):
             for fn in self.fields:
                 f.write_function(fn, t)
+        need = 8 * sum(fn.vector.getSize() for fn in self.fields) + HDF5_MARGIN
+        check_space(self.comm, self.h5,
+                    lambda free: f"{self.h5}: cannot write the fields at t = {t:g} (No space "
+                                 f"left on device: {free} bytes free, {need} needed)", need)
         write_xdmf(self.comm, self.work, "a", fields,    # disk full, read-only
                    lambda exc: f"{self.h5}: cannot write the fields at t = {t:g} ({exc})")
         on_rank0(self.comm, self._add_time, t)

@@ -11,6 +11,8 @@ which solve the same discrete problem to round-off, take the same time grid.  Ev
 """
 from __future__ import annotations
 
+from vpcontact.case.timegrid import default_k_min
+
 
 class StepTooSmall(RuntimeError):
     """The adaptive step would have to fall below time.adaptive.k_min."""
@@ -114,7 +116,7 @@ class AdaptiveSteps:
         k0: the first step tried.
         rate: the relaxation rate r_max of the explicit scheme (None: no stability limit).
         scheme: "explicit" or "implicit" (only the explicit scheme has the limit).
-        k_min: the smallest step (default k0 / 1024).
+        k_min: the smallest step (default: app/case/timegrid.py default_k_min).
         k_max: the largest step (default T).
         grow: the factor k grows by after a step that changed the solution little.
         max_change: the largest relative change max|u_n - u_{n-1}| / max|u_n| of a step
@@ -127,7 +129,7 @@ class AdaptiveSteps:
     def __init__(self, T: float, k0: float, rate: float | None, scheme: str, k_min=None,
                  k_max=None, grow=1.5, max_change=0.2, max_indicator=1.0):
         self.T, self.k = T, k0
-        self.k_min = k_min if k_min is not None else k0 / 1024
+        self.k_min = k_min if k_min is not None else default_k_min(k0)
         self.k_max = k_max if k_max is not None else T
         self.grow, self.max_change = grow, max_change
         self.limit = max_indicator / rate if (rate and scheme == "explicit") else None

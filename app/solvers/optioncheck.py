@@ -6,6 +6,8 @@ options.py): ``vpcontact_`` for the SNES VI solver and its KSP/PC (app/solvers/s
 ``fast_ksp_type`` etc.).  PETSc
 itself would only complain when the solver is set up, after the mesh and forms are built,
 with an error code and a traceback.  Here:
+- first, only options that load no code and name no file are let through (an allow-list:
+  app/solvers/optionpolicy.py); PETSc reads none of the options before that;
 - ``*_type`` options are checked against PETSc's type lists (KSP, PC, SNES, line search,
   factorisation packages of this PETSc build);
 - tolerances (``*_rtol``, ...) must be numbers >= 0 (relative ones below 1), counts
@@ -24,6 +26,7 @@ import math
 import re
 
 from vpcontact.io.errors import CaseError
+from vpcontact.solvers.optionpolicy import policy_fault
 from vpcontact.solvers.options import (
     FAST_PREFIX,
     PREFIX,
@@ -131,6 +134,10 @@ def check_petsc_options(options: dict, source: str, where: str = "petsc.",
         raise CaseError(f"{source}: {where[:-1] if where.endswith('.') else 'PETSc options'}: "
                         f"{len(merged)} options (with the case's) are too many (allowed: at most "
                         f"{MAX_OPTIONS})")
+    for key, value in options.items():      # before PETSc reads any of them
+        why = policy_fault(key, value)
+        if why:
+            raise CaseError(f"{source}: {where}{key}: {why}")
     types = _type_lists()
     for key, value in options.items():
         try:

@@ -19,7 +19,7 @@ TINY = ["--set", "mesh.n=4", "--set", "time.N=2"]
 CACHE_VARS = ("HOME", "XDG_CACHE_HOME", "XDG_CONFIG_HOME", "VPCONTACT_CACHE", "MPLCONFIGDIR")
 
 
-def _cli(args, env=None, nprocs=1):
+def _cli(args, env=None, nprocs=1, timeout=600):
     """``python -m vpcontact ARGS`` with the environment ``env`` in place of the cache variables."""
     base = {k: v for k, v in os.environ.items() if k not in CACHE_VARS}
     base.update(MPI_ENV, PYTHONPATH=str(ROOT), HOME=os.environ.get("HOME", "/root"))
@@ -27,7 +27,7 @@ def _cli(args, env=None, nprocs=1):
     if nprocs > 1:
         cmd = ["mpirun", "-n", str(nprocs), *cmd]
     return subprocess.run(cmd, cwd=ROOT, env={**base, **(env or {})}, capture_output=True,
-                          text=True, timeout=600)
+                          text=True, timeout=timeout)
 
 
 def _one_error_line(proc, code=2) -> str:
@@ -364,3 +364,74 @@ def test_damaged_run_cache_entries_are_recomputed(tmp_path):
         runcache.load(entry)                                         # written again
     proc = _cli(args)
     assert proc.stdout.count("from the cache") == 2 and "is not usable" not in proc.stdout
+
+
+# ------------------------------------------------------------------ a real full disk (tmpfs)
+@pytest.fixture
+def small_disk(tmp_path):
+    """mount(kb): a tmpfs of kb kilobytes (needs root: skipped otherwise), unmounted after."""
+    mounted = []
+
+    def mount(kb):
+        d = tmp_path / f"disk{kb}"
+        d.mkdir()
+        if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={kb}k", "tmpfs", str(d)],
+                          capture_output=True).returncode:
+            pytest.skip("mounting a tmpfs needs root")
+        mounted.append(d)
+        return d
+    yield mount
+    for d in mounted:
+        subprocess.run(["umount", str(d)], capture_output=True)
+
+
+@pytest.mark.parametrize("nprocs", [1, 2])
+def test_a_full_disk_fails_the_run_with_a_summary_that_says_so(small_disk, nprocs):
+    """400 kB hold the paper case's outputs up to step ~5 of 16: the fields' write fails,
+    the run stops with exit 1, one error line, and summary.json says failed (before: no
+    summary.json, only the log's 'summary.json not written'; under mpirun -n 2 the ranks
+    hung in parallel HDF5's collectives for ever)."""
+    out = small_disk(400) / "out"
+    try:
+        proc = _cli(["run", PAPER_CASE, "--out", out, "--no-plots", "--quiet"],
+                    nprocs=nprocs, timeout=180)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the run hung on the full disk")
+    assert proc.returncode == 1, proc.stderr[-2000:]
+    assert "Traceback" not in proc.stderr and "internal error" not in proc.stderr
+    errors = [ln for ln in proc.stderr.splitlines() if ln.startswith("vpcontact: error:")]
+    assert len(errors) == 1 and "No space left on device" in errors[0], proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed", summary["status"]
+    assert "No space left on device" in summary["failure"]["reason"]
+    assert 0 < summary["last_good_step"] < 16
+    assert not list(out.glob(".summary.json.tmp*"))
+
+
+def test_contact_h5_filling_the_disk_is_an_output_error_not_a_crash(small_disk):
+    """contact.h5 is written with h5py: on a full disk h5py raised a RuntimeError (an
+    internal error) and its half-closed file crashed the process at its exit (segmentation
+    fault, exit 139).  Now an OutputError (ENOSPC) naming the file, nothing printed, exit 0
+    (app/io/h5files.py)."""
+    disk = small_disk(64)
+    code = ("import numpy as np\n"
+            "from mpi4py import MPI\n"
+            "from vpcontact.io.contact_xdmf import ContactWriter\n"
+            "from vpcontact.io.output import OutputError\n"
+            "x = np.linspace(0.0, 1.0, 9)\n"
+            "facets = np.zeros((8, 2, 3))\n"
+            "facets[:, 0, 0], facets[:, 1, 0] = x[:-1], x[1:]\n"
+            f"w = ContactWriter(MPI.COMM_WORLD, {str(disk / 'contact.xdmf')!r}, facets, 2)\n"
+            "for n in range(100000):\n"
+            "    try:\n"
+            "        w.write(0.01 * n, {'x': x, 'y': 0 * x, 'u_x': 0 * x + n, 'u_y': 0 * x,\n"
+            "                           'u_nu': 0 * x, 'state': np.array(['separated'] * 9)})\n"
+            "    except OutputError as exc:\n"
+            "        print(exc)\n"
+            "        break\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.strip() in (f"{disk / 'contact.h5'}: No space left on device",
+                                   f"{disk / 'contact.xdmf'}: No space left on device")
+    assert proc.stderr == ""

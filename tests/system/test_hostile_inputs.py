@@ -97,3 +97,25 @@ def test_a_tiny_body_run_from_the_command_line_finds_gamma3(tmp_path):
     assert proc.returncode == 0, proc.stderr[-2000:]
     states, u_nu = _read_states(tmp_path / "r" / "contact.csv")
     assert len(states) == 4 and np.abs(u_nu).max() > 0
+
+
+def test_petsc_options_that_write_files_or_load_code_are_refused_before_anything(tmp_path):
+    """A case file's petsc section (and --set petsc.*, and the command line) cannot make
+    PETSc write a file outside --out or petsc4py import code: exit 2, one line, no file."""
+    outside = tmp_path / "outside.txt"
+    case = tmp_path / "case.yaml"
+    case.write_text(open(PAPER_CASE).read() + f"petsc:\n  ksp_monitor: ascii:{outside}\n")
+    for args, pattern in [
+            (["check", case], f"case.yaml: petsc.ksp_monitor (line 43): 'ascii:{outside}' "
+                              "would write to a file or a window"),
+            (["run", case, "--out", tmp_path / "out", *SMALL],
+             "petsc.ksp_monitor (line 43): 'ascii:"),
+            (["check", PAPER_CASE, "--set", f"petsc.snes_view=binary:{outside}"],
+             "(the value of --set petsc.snes_view=binary:/"),
+            (["run", PAPER_CASE, "--out", tmp_path / "out", *SMALL, "-snes_monitor",
+              f"ascii:{outside}"],
+             "command line: -snes_monitor: 'ascii:"),
+            (["check", PAPER_CASE, "--set", "petsc={pc_type: python, pc_python_type: os.X}"],
+             "petsc.pc_type: a python type makes petsc4py import and run Python code")]:
+        _one_line_exit_2(run_cli(args), pattern)
+        assert not outside.exists() and not (tmp_path / "out").exists()

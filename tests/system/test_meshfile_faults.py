@@ -137,3 +137,47 @@ def test_a_geo_asking_for_a_huge_mesh_is_refused_before_meshing(tmp_path, geo, w
     proc = run_cli(["run", case, "--out", tmp_path / "out"], timeout=300)
     _one_line_error(proc, "part.geo: its mesh sizes", words, "(limit 1e+08)")
     assert time.monotonic() - start < 60
+
+
+PLATE = """Point(1) = {0, 0, 0, 0.25}; Point(2) = {1, 0, 0, 0.25};
+Point(3) = {1, 1, 0, 0.25}; Point(4) = {0, 1, 0, 0.25};
+Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 1};
+Curve Loop(1) = {1, 2, 3, 4}; Plane Surface(1) = {1};
+Physical Curve("base") = {1}; Physical Curve("lid") = {3}; Physical Curve("wall") = {4};
+Physical Surface("plate") = {1};
+"""
+
+
+def _save_partitioned(geo: Path, name: str, version: float, old_style: int) -> Path:
+    """The .geo meshed, partitioned in 2 (as gmsh -part 2) and saved in MSH ``version``."""
+    code = ("import sys, gmsh; gmsh.initialize(readConfigFiles=False); "
+            "gmsh.option.setNumber('General.Terminal', 0); gmsh.open(sys.argv[1]); "
+            "gmsh.model.mesh.generate(2); gmsh.model.mesh.partition(2); "
+            f"gmsh.option.setNumber('Mesh.MshFileVersion', {version}); "
+            f"gmsh.option.setNumber('Mesh.PartitionOldStyleMsh2', {old_style}); "
+            "gmsh.write(sys.argv[2]); gmsh.finalize()")
+    msh = geo.with_name(name)
+    subprocess.run([sys.executable, "-c", code, str(geo), str(msh)], check=True, timeout=120)
+    return msh
+
+
+@pytest.mark.parametrize("version,old_style", [(4.1, 0), (2.2, 0), (2.2, 1)])
+def test_a_mesh_saved_partitioned_is_read_as_one_mesh(tmp_path, version, old_style):
+    """gmsh -part 2 puts the elements into partition entities; the file was refused ('...
+    holds surface 1, which has no elements'): it is the same mesh as saved unpartitioned,
+    its groups holding their elements (lc = 0.25: 4 facets on each side of the square)."""
+    from mpi4py import MPI
+
+    from vpcontact.meshes.gmshfile import load_mesh_file
+    geo = tmp_path / "plate.geo"
+    geo.write_text(PLATE)
+    whole = load_mesh_file(MPI.COMM_WORLD, _save_msh(geo), 2)
+    parted = load_mesh_file(MPI.COMM_WORLD, _save_partitioned(
+        geo, f"parted_{version}_{old_style}.msh", version, old_style), 2)
+    assert parted.groups == whole.groups == {"base": 1, "lid": 2, "wall": 3}
+    for m in (whole, parted):
+        assert m.mesh.topology.index_map(2).size_global == 42
+        assert m.mesh.geometry.index_map().size_global == 30
+        assert m.h == pytest.approx(whole.h) and m.h_min == pytest.approx(whole.h_min)
+        for tag in (1, 2, 3):
+            assert int((m.facet_tags.values == tag).sum()) == 4, tag

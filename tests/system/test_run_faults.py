@@ -246,7 +246,10 @@ def test_summary_write_failure_is_reported(tmp_path, monkeypatch, capsys):
     assert _in_process_run(out, monkeypatch) == 1
     err = capsys.readouterr().err
     assert "summary.json" in err and "No space left" in err and "Traceback" not in err
-    assert not (out / "summary.json").exists()
+    # written into the space kept for it since the start (it was missing): status failed
+    s = _summary(out)
+    assert s["status"] == "failed" and "cannot write summary.json" in s["failure"]["reason"]
+    assert "No space left on device" in s["summary_error"] and s["last_good_step"] == 4
     assert not list(out.glob(".summary.json.tmp*"))          # no temporary left behind
 
 

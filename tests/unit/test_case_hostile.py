@@ -56,6 +56,14 @@ def test_expressions_not_finite_on_the_body_are_refused(sections, pattern):
     _refused(pattern, **sections)
 
 
+def test_an_integer_literal_beyond_the_largest_float_is_refused():
+    big = "1" + "0" * 400            # 1e400 > 1.8e308: no float holds it
+    _refused(r"loads\.f0\[1\]: number out of range: an integer of 401 digits \(allowed: "
+             r"magnitudes up to 1\.8e\+308\)", loads={"f0": [0, f"{big}*t"]})
+    _refused(r"material\.E: number out of range: an integer of 401 digits",
+             material={"E": big, "nu": 0.4})
+
+
 def test_a_traction_is_sampled_on_its_side_only():
     # 1/x is infinite on Gamma1 {x = 0}, finite on the right side {x = 1}
     case = make_case(loads={"traction": {"right": ["1/x", 0], "top": [0, -8.0]}})
@@ -92,6 +100,10 @@ def test_initial_values_inside_the_model_are_accepted():
      r"time\.adaptive\.k_max: 1e-09 gives at least 1e\+09 steps of T = 1 \(limit 1000000\)"),
     ({"T": 1.0, "N": 4, "adaptive": {"k_max": 1e-7}}, r"time\.adaptive\.k_max: 1e-07 gives"),
     ({"T": 1.0, "N": 4, "grading": 1e99}, r"time\.grading: .*overflow"),
+    # k_max below the default k_min (first step / 1024 = 6.1e-5): no step is possible
+    ({"T": 1.0, "N": 16, "adaptive": {"k_max": 1e-5}},
+     r"time\.adaptive\.k_max: 1e-05 is smaller than the default time\.adaptive\.k_min = "
+     r"first step / 1024 = 6\.10352e-05"),
 ])
 def test_inconsistent_time_settings_are_refused(time, pattern):
     raw = paper_raw()
@@ -298,3 +310,80 @@ def test_a_mesh_file_that_is_not_a_regular_file_is_refused_without_reading(kind,
         validate(raw, str(tmp_path / "case.yaml"))
     assert "\n" not in str(info.value) and re.search(
         r"mesh\.file: .*(no such file|not a readable regular file)", str(info.value))
+
+
+def test_an_error_in_a_value_from_set_cites_set_not_a_line_of_the_file(tmp_path):
+    from vpcontact.case import validate
+    case = tmp_path / "case.yaml"
+    case.write_text(open(PAPER_CASE).read())
+    for item, pattern in [
+            ("material.E=-3", r"case\.yaml: material\.E: -3 is less than or equal to the "
+                              r"minimum of 0 \(the value of --set material\.E=-3\)$"),
+            ("material={E: -1, nu: 0.3}", r"material\.E: .* \(the value of --set "
+                                          r"material=\{E: -1, nu: 0\.3\}\)$"),
+            ("material.E=1e400", r"material\.E: inf is not a finite number \(the value of "
+                                 r"--set material\.E=1e400\)$")]:
+        with pytest.raises(CaseError) as info:
+            validate(load_raw(case, [item]), str(case))
+        assert "(line" not in str(info.value) and re.search(pattern, str(info.value)), \
+            str(info.value)
+    # a value of the file keeps its line, beside another key given by --set
+    case.write_text(open(PAPER_CASE).read().replace("E: 1000.0", "E: -3.0"))
+    with pytest.raises(CaseError) as info:
+        validate(load_raw(case, ["material.nu=0.3"]), str(case))
+    assert re.search(r"material\.E \(line 14\): -3\.0 is less", str(info.value)) and \
+        "--set" not in str(info.value), str(info.value)
+
+
+# Options that would load code or name a file: {out} a file outside any output directory,
+# {module} a module that leaves a marker file when imported (petsc4py imports the module of a
+# python type's class when the options are read: check's option test would do that).
+PETSC_ATTACKS = [
+    ({"pc_type": "python", "pc_python_type": "{module}.PC"},
+     r"petsc\.pc_type: a python type makes petsc4py import and run Python code"),
+    ({"ksp_type": "python", "ksp_python_type": "{module}.KSP"}, r"petsc\.ksp_type: a python"),
+    ({"snes_type": "python", "snes_python_type": "{module}.SNES"}, r"petsc\.snes_type: a pyt"),
+    ({"amg_mg_levels_pc_type": "python"}, r"petsc\.amg_mg_levels_pc_type: a python type"),
+    ({"pc_python_type": "{module}.PC"}, r"petsc\.pc_python_type: not an option a case may"),
+    ({"ksp_monitor": "ascii:{out}"}, r"petsc\.ksp_monitor: 'ascii:.*' would write to a file"),
+    ({"snes_view": "binary:{out}"}, r"petsc\.snes_view: 'binary:.*' would write to a file"),
+    ({"fast_ksp_view": "ascii:{out}:ascii_info"}, r"petsc\.fast_ksp_view: .* would write"),
+    ({"snes_monitor": "draw"}, r"petsc\.snes_monitor: 'draw' would write to a file or a win"),
+    ({"snes_converged_reason": "{out}"}, r"petsc\.snes_converged_reason: .* would write"),
+    ({"ksp_view_mat": "binary:{out}"}, r"petsc\.ksp_view_mat: not an option a case may give"),
+    ({"log_view": "ascii:{out}"}, r"petsc\.log_view: not an option a case may give"),
+    ({"options_file": "{opts}"}, r"petsc\.options_file: not an option a case may give"),
+    ({"malloc_dump": "{out}"}, r"petsc\.malloc_dump: not an option a case may give"),
+    ({"pc_factor_mat_ordering_type": "{out}"}, r"petsc\.pc_factor_mat_ordering_type: .* is "
+     r"not a plain value"),
+]
+
+
+@pytest.mark.parametrize("options,pattern", PETSC_ATTACKS)
+def test_petsc_options_that_load_code_or_name_files_are_refused(options, pattern, tmp_path,
+                                                                 monkeypatch):
+    from vpcontact.solvers.optioncheck import check_petsc_options
+    module = f"vpcontact_attack_{os.getpid()}"
+    marker, out, opts = tmp_path / "imported", tmp_path / "outside.txt", tmp_path / "opts"
+    (tmp_path / f"{module}.py").write_text(f"open({str(marker)!r}, 'w').close()\n")
+    opts.write_text(f"-vpcontact_ksp_monitor ascii:{out}\n-ksp_monitor ascii:{out}\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    given = {k: v.format(module=module, out=out, opts=opts) for k, v in options.items()}
+    _refused(pattern, petsc=given)
+    with pytest.raises(CaseError, match=r"^command line: -" + pattern.split(r"\.", 1)[1]):
+        check_petsc_options(given, "command line", where="-", base=make_case().petsc)
+    assert not marker.exists() and not out.exists()
+
+
+def test_petsc_options_users_need_pass_the_allow_list():
+    from vpcontact.solvers.amg import AMG_PETSC
+    from vpcontact.solvers.optionpolicy import policy_fault
+    from vpcontact.solvers.options import DEFAULT_PETSC
+    needed = {**DEFAULT_PETSC, **AMG_PETSC, "snes_monitor": None, "ksp_view": True,
+              "fast_ksp_view": "::ascii_info_detail", "snes_converged_reason": "ascii",
+              "ksp_converged_reason": None, "fast_pc_factor_mat_solver_type": "mumps",
+              "mat_mumps_icntl_14": 50, "snes_linesearch_damping": 0.5, "snes_ksp_ew": False,
+              "amg_keep_levels": False, "ksp_gmres_restart": 100, "pc_hypre_type": "boomeramg",
+              "sub_pc_type": "ilu", "mg_levels_1_ksp_type": "richardson", "snes_lag_jacobian": -2,
+              "ksp_error_if_not_converged": True, "snes_vi_monitor": None}
+    assert {k: policy_fault(k, v) for k, v in needed.items() if policy_fault(k, v)} == {}
