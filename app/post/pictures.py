@@ -275,14 +275,16 @@ def pressure_picture(outdir: Path, path: Path) -> None:
                show_edges=True, edge_color="gray",
                scalar_bar_args={"title": bar_title("neg_sigma_nu"), **BAR})
     t = contact.times[-1] if contact.times else 0.0
-    p.add_text(f"t = {t:g}: contact pressure on Gamma3 (grey: fixed by Dirichlet data)",
+    fixed = np.isnan(np.asarray(gamma3["neg_sigma_nu"], dtype=float)).any()
+    p.add_text(f"t = {t:g}: contact pressure on Gamma3"
+               + (" (grey: fixed by Dirichlet data)" if fixed else ""),
                font_size=10, color="black")
     normal = _mean_normal(gamma3)
     p.camera_position = [tuple(gamma3.center - 3 * gamma3.length * normal), gamma3.center,
                          _up(normal)]
     p.enable_parallel_projection()
     p.reset_camera()
-    p.camera.zoom(0.85)                          # room for the colour bar below
+    p.camera.zoom(0.8)                           # room for the colour bar below
     _save(p, path)
     p.close()
 
