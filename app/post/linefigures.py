@@ -207,7 +207,7 @@ def _pressure_bars(ax, res: Results, c: dict, factor: float) -> None:
         if m.any():
             ax.vlines(xb[m], yb[m], yb[m] + side * scale * force[m], colors=colour, lw=2,
                       label=f"-sigma_nu, {states.get(state, state)} ({int(m.sum())} nodes)")
-    _force_scale(ax, xb.max() + 0.08 * size, yb[np.argmax(xb)], side * scale, top)
+    _force_scale(ax, xb.max() + 0.08 * size, yb[np.argmax(np.abs(force))], side * scale, top)
     ax.set_xlim(None, max(ax.get_xlim()[1], xb.max() + 0.3 * size))    # room for its label
     ax.legend(loc="upper right", fontsize=8)
     if not res.pairs:
@@ -219,7 +219,8 @@ FORCE_SCALE = "force_scale"     # the gid of fig3's scale bar and its label
 
 def _force_scale(ax, x: float, y: float, scale: float, top: float) -> None:
     """fig3's scale bar: a black bar of the round value round_125(top) [N/m^2] drawn as the
-    force bars are (length scale x value, from y), at x, labelled with its value."""
+    force bars are (length scale x value, from y: the level of the largest), at x,
+    labelled with its value."""
     ref = round_125(top)
     bar = ax.vlines([x], [y], [y + scale * ref], colors="black", lw=3,
                     label=f"scale: this bar is -sigma_nu = {ref:g} N/m^2")

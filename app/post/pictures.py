@@ -245,6 +245,8 @@ def fields_picture(grid, t: float, dim: int, path: Path) -> None:
         p.add_text(f"{text} at t = {t:g}" + (" (clipped at mid y)" if dim == 3 else ""),
                    font_size=9, color="black")
         _view(p, dim)
+        if dim == 3:
+            p.camera.zoom(0.8)                   # room for the colour bar below
     _save(p, path)
     p.close()
 
