@@ -97,6 +97,23 @@ def test_colour_bars_span_the_whole_field_with_units(paper):
     assert vm.max() > 1.5 * np.percentile(vm, 99.5)     # a range a percentile would cut
 
 
+CHAR_EM = 0.6      # a digit's width / the font size (DejaVu Sans 0.64, Arial 0.56)
+
+
+def test_colour_bar_labels_do_not_overlap(paper):
+    """Each colour bar's labels, as VTK formats them at their font size, fit side by side
+    in the bar's width (fig5's half-width bars had five labels of up to six characters at
+    18 px on 250 px: 0.0170 0.0520 ... overlapped)."""
+    drawn = _probe(paper, 2.0)
+    for name in ("body.png", "fig5_vm_kappa.png"):
+        for title, bar in drawn[name]["labels"].items():
+            fmt = bar["format"]
+            text = [(fmt.format(v) if "{" in fmt else fmt % v).strip()
+                    for v in np.linspace(*bar["range"], bar["n"])]
+            needed = (sum(map(len, text)) + len(text) - 1) * CHAR_EM * bar["font_px"]
+            assert needed <= bar["width_px"], (name, title, text, bar["width_px"])
+
+
 def test_a_uniform_field_is_one_colour_with_its_value(norton):
     """The Norton bar's stress and creep strain are homogeneous (equal to rounding): one
     colour each, no colour bar, the value in the title (they were split into two colours
