@@ -136,6 +136,10 @@ def test_no_contact_figures_without_a_contact_boundary(norton):
     written = {f.name for f in norton.glob("*.png")}
     assert written == {"body.png", "fig5_vm_kappa.png", "history.png", "forces.png"}
     assert "Gamma3" not in " ".join(_probe(norton)["body.png"]["texts"])
+    proc = run_cli(["plot", norton])
+    assert proc.returncode == 0, proc.stderr
+    assert "body.png: displacement magnified" in proc.stdout + proc.stderr
+    assert "fig3" not in proc.stdout + proc.stderr
 
 
 def test_no_fig3_fig4_without_contact_forces(paper, tmp_path):
@@ -229,7 +233,7 @@ def test_two_body_bars_stay_off_the_other_body(cylinders, monkeypatch):
 
 def test_3d_fig3_title_says_what_is_drawn(tmp_path, monkeypatch):
     """box3d's fig3 draws Gamma3's facets, no forces: its title does not say "contact
-    forces" but names the picture that has the pressure."""
+    forces" but names the picture that has the pressure, whose bar has its unit."""
     from vpcontact.post.linefigures import fig3_deformed_contact
     from vpcontact.post.results import Results
     out = tmp_path / "box"
@@ -237,6 +241,8 @@ def test_3d_fig3_title_says_what_is_drawn(tmp_path, monkeypatch):
                     "time.N=1", "--quiet"])
     assert proc.returncode == 0, proc.stderr
     fig = _figure(monkeypatch, fig3_deformed_contact, Results(out), out / "f.png")
+    bars = _probe(out, 1.0, 3)["contact_pressure.png"]["bars"]
+    assert list(bars) == ["contact pressure -sigma_nu [N/m^2]"]      # with its unit
     title = fig.axes[0].get_title()
     assert "contact forces" not in title and "contact_pressure.png" in title
     assert not fig.axes[0].collections or all(
@@ -286,3 +292,30 @@ def test_forces_do_not_magnify_rounding(norton, monkeypatch):
     fig = _figure(monkeypatch, forces, Results(norton), norton / "f.png")
     low, high = fig.axes[1].get_ylim()
     assert low <= -1e-9 * top and high >= 1e-9 * top
+
+
+ANIMATION_SCALE = """
+import json, sys
+from pathlib import Path
+from vpcontact.post import pictures
+solution = pictures.Dataset(Path(sys.argv[1]) / "solution.xdmf")
+if hasattr(pictures, "animation_scale"):
+    scale = pictures.animation_scale(solution, solution.times)
+    print(json.dumps([scale.low, scale.high]))
+else:                                                   # ae4aeab
+    print(json.dumps(list(pictures.animation_range(solution, solution.times))))
+"""
+
+
+def test_the_animation_colours_the_whole_range_of_all_times(paper):
+    """animation.gif's one colour scale runs from the smallest to the largest von Mises
+    stress of all output times (solution.h5: the largest, 32.7, is at the first step;
+    the 99.5th percentile ended it lower)."""
+    with h5py.File(paper / "solution.h5", "r") as f:
+        vm = np.concatenate([f["Function/sigma_vm"][k][...].ravel()
+                             for k in f["Function/sigma_vm"]])
+    proc = subprocess.run([sys.executable, "-P", "-c", ANIMATION_SCALE, str(paper)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    low, high = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert [low, high] == pytest.approx([vm.min(), vm.max()], rel=1e-12)
