@@ -5,13 +5,15 @@ results directory (app/post/results.py): solution.xdmf/.h5 (mesh and fields), co
 (app/post/pictures.py); app/post/plot.py's figure processes draw both.
 
 - fig3_deformed_contact.png: deformed mesh at T (displacement magnified, factor printed) with
-  the interface forces -sigma_nu along Gamma3 as in the paper's Fig. 3; at nodes with
-  u_nu = g the bar shows c_nu g (the paper plots the normal compliance part there);
+  the interface forces -sigma_nu along Gamma3 as in the paper's Fig. 3 and a scale bar; at
+  nodes with u_nu = g the bar shows c_nu g (the paper plots the normal compliance part
+  there);
 - fig4_tangential.png: u_tau and -sigma_tau along Gamma3 with u1 marked (Fig. 4);
 - fig2_laws.png: the normal and tangential contact laws of the case (Fig. 2);
 - history.png: norms, max von Mises, max kappa and iterations against time;
 - forces.png: the contact force and the supports' reactions against time.
-In 3D fig3 shows Gamma3 seen along z.
+In 3D fig3 shows Gamma3 seen along z.  The contact figures (fig2, fig3, fig4) are drawn
+where the scene has what they show (CONTACT_FIGURES).
 """
 from __future__ import annotations
 
