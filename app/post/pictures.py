@@ -9,10 +9,10 @@ and contact.xdmf (the Gamma3 facets with the contact table), for any geometry, 2
   paper's Fig. 5; in 3D the body clipped at mid y, its inside shown);
 - contact_pressure.png (3D, a scene with contact forces): the contact pressure -sigma_nu
   on Gamma3, seen from the foundation;
+- animation.gif (``plot --animate``): the deformed, coloured body at every output time.
 
 Each field is coloured on its whole range with its unit, a uniform one in one colour with
 its value (app/post/colourscale.py).
-- animation.gif (``plot --animate``): the deformed, coloured body at every output time.
 
 No display is needed: VTK renders through EGL (libEGL, Mesa) where no X display is set.
 
@@ -262,7 +262,8 @@ def _contact_last(outdir: Path, factor: float):
 
 def pressure_picture(outdir: Path, path: Path) -> None:
     """contact_pressure.png (3D): -sigma_nu on Gamma3 (contact.xdmf) at the last time, seen
-    from the foundation's side.
+    from the foundation's side, on its whole range (a uniform pressure: one colour, its
+    value in the title).
 
     Args:
         outdir: the results directory.
@@ -273,13 +274,16 @@ def pressure_picture(outdir: Path, path: Path) -> None:
     gamma3 = contact.at()
     p = pv.Plotter(off_screen=True, window_size=WINDOW)
     p.set_background("white")
+    scale = colour_scale(gamma3["neg_sigma_nu"])
     p.add_mesh(gamma3, scalars="neg_sigma_nu", cmap="inferno", nan_color="lightgray",
-               show_edges=True, edge_color="gray",
+               show_edges=True, edge_color="gray", clim=scale.clim,
+               show_scalar_bar=not scale.uniform,
                scalar_bar_args={"title": bar_title("neg_sigma_nu"), **BAR})
     t = contact.times[-1] if contact.times else 0.0
     fixed = np.isnan(np.asarray(gamma3["neg_sigma_nu"], dtype=float)).any()
     p.add_text(f"t = {t:g}: contact pressure on Gamma3"
-               + (" (grey: fixed by Dirichlet data)" if fixed else ""),
+               + (" (grey: fixed by Dirichlet data)" if fixed else "")
+               + (f"; {uniform_note('neg_sigma_nu', scale)}" if scale.uniform else ""),
                font_size=10, color="black")
     normal = _mean_normal(gamma3)
     p.camera_position = [tuple(gamma3.center - 3 * gamma3.length * normal), gamma3.center,
@@ -360,8 +364,8 @@ def animate(outdir: Path, factor: float, dim: int, path: Path, duration_ms: int 
 
 def animation_scale(solution: Dataset, times) -> ColourScale:
     """The animation's colour scale: the whole range of the von Mises stress over all
-    times (colour_scale of each time's smallest and largest value), reading one time at a
-    time.
+    times (colour_scale of each time's smallest and largest finite value), reading one
+    time at a time.
 
     Args:
         solution: solution.xdmf.
@@ -372,8 +376,9 @@ def animation_scale(solution: Dataset, times) -> ColourScale:
     """
     ends = []
     for t in times:
-        vm = colour_scale(solution.at(t).cell_data["sigma_vm"])
-        ends += [vm.low, vm.high]
+        vm = np.asarray(solution.at(t).cell_data["sigma_vm"], dtype=float)
+        vm = vm[np.isfinite(vm)]
+        ends += [vm.min(), vm.max()] if vm.size else []
     return colour_scale(ends)
 
 
