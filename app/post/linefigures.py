@@ -396,19 +396,20 @@ def history(res: Results, path: Path) -> None:
         return np.array([s[k] for s in steps])
     if len(t):
         ax = axes[0, 0]
+        root = "m" if res.dim == 2 else "m^(3/2)"        # the square root of the measure
         ax.plot(t, col("norm_u_V"), "o-", ms=2, label="||u||_V")
-        ax.set_ylabel("||u||_V")
+        ax.set_ylabel(f"||u||_V = ||eps(u)||_L2 [{root}]")
         ax2 = ax.twinx()
         ax2.plot(t, col("norm_sigma_Q"), "s-", ms=2, color="tab:orange", label="||sigma||_Q")
-        ax2.set_ylabel("||sigma||_Q")
+        ax2.set_ylabel(f"||sigma||_Q [N/m^2 x {root}]")
         lines = list(ax.get_lines()) + list(ax2.get_lines())   # two y-axes: one legend
         ax.legend(lines, [x.get_label() + (" (left axis)" if x.axes is ax else
                                            " (right axis)") for x in lines], fontsize=8)
         ax.set_title("norms", fontsize=10)
         axes[0, 1].plot(t, col("max_vm"), "o-", ms=2)
-        axes[0, 1].set_title("max ||sigma||_VM", fontsize=10)
+        axes[0, 1].set_title("max ||sigma||_VM [N/m^2]", fontsize=10)
         axes[1, 0].plot(t, col("max_kappa"), "o-", ms=2, color="tab:green")
-        axes[1, 0].set_title("max kappa", fontsize=10)
+        axes[1, 0].set_title(f"max kappa{_kappa_unit(res.case)}", fontsize=10)
         axes[1, 1].vlines(t, 0, col("newton_iterations"), color="tab:purple",
                           lw=max(0.5, min(4.0, 300 / len(t))))      # one artist per panel
         axes[1, 1].set_title("Newton / Gamma3 iterations per step", fontsize=10)
@@ -416,6 +417,18 @@ def history(res: Results, path: Path) -> None:
         ax.set_xlabel("t [s]")
     _save(plt, fig, path, f"History of run {res.summary.get('case')} "
                           f"({res.summary.get('status')})")
+
+
+def _kappa_unit(case: dict) -> str:
+    """" [unit]" of kappa for the laws of a case (perzyna, power: a stress, N/m^2; norton,
+    chaboche: their accumulated strain p, dimensionless), "" for a user's law or laws of
+    both kinds."""
+    materials = [case.get("material") or {}, *(case.get("materials") or {}).values()]
+    laws = {(m.get("viscoplastic") or {}).get("law", "perzyna")
+            for m in materials if m.get("viscoplastic")}
+    units = {{"perzyna": "N/m^2", "power": "N/m^2", "norton": "-", "chaboche": "-"}.get(law)
+             for law in laws}
+    return f" [{units.pop()}]" if len(units) == 1 and None not in units else ""
 
 
 ROUNDING = 1e-9      # forces.png: each axis spans at least +-ROUNDING x the largest force

@@ -269,7 +269,7 @@ def test_long_titles_stay_inside_the_figure(paper, monkeypatch):
 
 def test_history_names_both_axes_of_the_norms(paper, monkeypatch):
     """history.png's norms panel has two y-axes: one legend names both curves and their
-    axes."""
+    axes; the quantities have their units (Perzyna's kappa is a stress)."""
     from vpcontact.post.linefigures import history
     from vpcontact.post.results import Results
     fig = _figure(monkeypatch, history, Results(paper), paper / "f.png")
@@ -277,6 +277,10 @@ def test_history_names_both_axes_of_the_norms(paper, monkeypatch):
     assert legend is not None
     labels = [t.get_text() for t in legend.get_texts()]
     assert labels == ["||u||_V (left axis)", "||sigma||_Q (right axis)"]
+    units = [fig.axes[0].get_ylabel(), fig.axes[-1].get_ylabel(), fig.axes[1].get_title(),
+             fig.axes[2].get_title()]               # 2D: L2 norms over an area, in m
+    assert units == ["||u||_V = ||eps(u)||_L2 [m]", "||sigma||_Q [N/m^2 x m]",
+                     "max ||sigma||_VM [N/m^2]", "max kappa [N/m^2]"]
 
 
 def test_forces_do_not_magnify_rounding(norton, monkeypatch):
