@@ -1,6 +1,6 @@
 """The user's own mesh: a gmsh ``.msh`` file or a ``.geo`` script meshed at load time.
 
-Gmsh runs on rank 0 only: it merges the ``.msh`` (format 4.1; 2.2 is read too) or opens the
+Gmsh runs on rank 0 only: it merges the ``.msh`` (format 4.1 or 2.2, ASCII or binary) or opens the
 ``.geo`` and meshes it in ``dim`` dimensions with its characteristic lengths multiplied by
 ``size`` (``Mesh.MeshSizeFactor``, on top of any factor the script sets itself; transfinite
 lines keep their node counts).  dolfinx's ``gmshio.model_to_mesh`` then distributes the mesh.
@@ -271,7 +271,7 @@ def _read(gmsh, path: str, dim: int, size: float, max_vertices: float = MAX_VERT
     suffix = p.suffix.lower()
     if suffix not in SUFFIXES:
         raise MeshFileError(f"{path}: unknown suffix {p.suffix!r}; give a gmsh mesh (.msh, "
-                            "format 4.1) or a gmsh geometry script (.geo)")
+                            "format 4.1 or 2.2) or a gmsh geometry script (.geo)")
     try:
         mesh_files(p)                       # refuses what a case's file may not do
     except GeoScanError as err:

@@ -84,7 +84,8 @@ SCHEMA = _obj({
     "description": {"type": "string", "description": "free text"},
     "mesh": _obj({
         "file": {"type": "string", "minLength": 1, "maxLength": 4096,
-                 "description": "a gmsh .msh (format 4.1) or .geo file, relative to the case "
+                 "description": "a gmsh .msh (format 4.1 or 2.2, ASCII or binary) or .geo "
+                                "file, relative to the case "
                                 "file's directory; its physical groups name the boundary parts "
                                 "(boundaries, loads); a .geo is meshed by gmsh at load time "
                                 "(absent: the built-in rectangle / box of L1, L2, L3; the keys "

@@ -207,7 +207,10 @@ def _add_plot_check_info(sub) -> None:
                                       "paper's Figs. 2-4 and the run history, matplotlib), "
                                       "body.png (the deformed body coloured by von Mises "
                                       "stress, Gamma3 marked), fig5_vm_kappa.png (Fig. 5) "
-                                      "and in 3D contact_pressure.png (pyvista, off-screen).")
+                                      "and in 3D contact_pressure.png (pyvista, off-screen); "
+                                      "the contact figures only where the scene has a "
+                                      "contact boundary (fig2) and a node in contact "
+                                      "(fig3, fig4, contact_pressure.png).")
     plot.add_argument("results", metavar="RESULTS_DIR", help="output directory of a run")
     plot.add_argument("--animate", action="store_true",
                       help="also write animation.gif: the deformed body coloured by von "

@@ -1,5 +1,6 @@
 """history.csv: one row per accepted step (time, norms, force resultants, contact node
-counts, iterations, step wall time), for spreadsheets, pandas and ParaView's CSV reader.
+counts, iterations, step wall time), for spreadsheets, the csv module, numpy and
+ParaView's CSV reader.
 
 Rank 0 writes the header and the rows of the steps a restart restored at the start (by an
 atomic rename), then appends one complete line per step with a single write, so the file

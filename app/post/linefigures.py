@@ -5,13 +5,15 @@ results directory (app/post/results.py): solution.xdmf/.h5 (mesh and fields), co
 (app/post/pictures.py); app/post/plot.py's figure processes draw both.
 
 - fig3_deformed_contact.png: deformed mesh at T (displacement magnified, factor printed) with
-  the interface forces -sigma_nu along Gamma3 as in the paper's Fig. 3; at nodes with
-  u_nu = g the bar shows c_nu g (the paper plots the normal compliance part there);
+  the interface forces -sigma_nu along Gamma3 as in the paper's Fig. 3 and a scale bar; at
+  nodes with u_nu = g the bar shows c_nu g (the paper plots the normal compliance part
+  there);
 - fig4_tangential.png: u_tau and -sigma_tau along Gamma3 with u1 marked (Fig. 4);
 - fig2_laws.png: the normal and tangential contact laws of the case (Fig. 2);
 - history.png: norms, max von Mises, max kappa and iterations against time;
 - forces.png: the contact force and the supports' reactions against time.
-In 3D fig3 shows Gamma3 seen along z.
+In 3D fig3 shows Gamma3 seen along z.  The contact figures (fig2, fig3, fig4) are drawn
+where the scene has what they show (CONTACT_FIGURES).
 """
 from __future__ import annotations
 
@@ -22,7 +24,7 @@ import numpy as np
 
 from vpcontact.io.files import write_replacing
 from vpcontact.model import contact_laws
-from vpcontact.post.results import Results
+from vpcontact.post.results import Results, contact_scene, round_125
 
 LINE_FIGURES = ("fig3_deformed_contact.png", "fig4_tangential.png", "fig2_laws.png",
                 "history.png", "forces.png")
@@ -83,12 +85,32 @@ def _bottom_faces(res: Results):
 
 
 def _save(plt, fig, path: Path, title: str | None = None) -> None:
-    """Title, tight layout, write the PNG, free the figure."""
+    """Title (wrapped to the figure's width), tight layout, write the PNG, free the
+    figure."""
     if title:
-        fig.suptitle(title, fontsize=10)
+        fig.suptitle(wrap(title, fig.get_figwidth()), fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=DPI, pil_kwargs={"compress_level": 1})    # 3x faster than 6
     plt.close(fig)
+
+
+CHARS_PER_INCH = 11          # of a 10-point title (DejaVu Sans: about 6 points a character)
+
+
+def wrap(title: str, width_in: float) -> str:
+    """A title broken into lines that fit a width (each line of it kept: a line break in
+    the title stays one).
+
+    Args:
+        title: the text.
+        width_in: the width in inches.
+
+    Returns:
+        The title with line breaks.
+    """
+    import textwrap
+    width = max(20, int(CHARS_PER_INCH * width_in))
+    return "\n".join(textwrap.fill(line, width) for line in title.split("\n"))
 
 
 # ----------------------------------------------------------------------------- figures
@@ -134,7 +156,10 @@ def fig3_deformed_contact(res: Results, path: Path, factor: float | None = None)
     else:
         title = (f"Deformed configuration at t = {res.t:g} (displacement x {factor:g}); "
                  "contact forces on Gamma3")
-    ax.set_title(title, fontsize=10)
+    if res.dim == 3:        # Gamma3's facets only (contact_pressure.png: the pressure)
+        title = (f"Deformed contact boundary Gamma3 at t = {res.t:g} (displacement x "
+                 f"{factor:g}), seen along z; its contact pressure: contact_pressure.png")
+    ax.set_title(wrap(title, fig.get_figwidth()), fontsize=10)
     _save(plt, fig, path)
     return factor
 
@@ -153,8 +178,10 @@ def pair_label(res: Results) -> str:
 
 
 def _pressure_bars(ax, res: Results, c: dict, factor: float) -> None:
-    """fig3's bars -sigma_nu at the deformed Gamma3 nodes (2D), coloured by state; with
-    contact pairs the view is the surfaces' neighbourhood (the bars scaled to it)."""
+    """fig3's bars -sigma_nu at the deformed Gamma3 nodes (2D), coloured by state, with a
+    scale bar (FORCE_SCALE) of a round value beside them; below Gamma3 (the foundation's
+    side), with contact pairs on the surface's own side (not across the other body: the
+    view is the surfaces' neighbourhood, the bars scaled to it)."""
     nc = res.case.get("contact", {}).get("normal_compliance")
     g = res.case.get("contact", {}).get("g")
     force = c["neg_sigma_nu"].copy()
@@ -162,26 +189,61 @@ def _pressure_bars(ax, res: Results, c: dict, factor: float) -> None:
     if nc and "law" not in nc and isinstance(g, (int, float)) \
             and not isinstance(nc.get("c_nu"), str):
         force[bound] = _normal_law(nc, g, np.array([float(g)]))[0]   # the paper's Fig. 3
+    force = np.nan_to_num(force)
     xb = c["x"] + factor * c["u_x"]
     yb = c["y"] + factor * c["u_y"]
-    if res.pairs:          # the surfaces and the bars below them, a margin around
-        size = max(float(np.ptp(xb)), float(np.ptp(yb)), 1e-300)
-        scale = 0.3 * size / max(np.abs(force).max(), 1e-300)
+    top = max(float(np.abs(force).max()), 1e-300)
+    size = max(float(np.ptp(xb)), float(np.ptp(yb)), 1e-300)
+    if res.pairs:          # the surfaces and the bars on the surface's side, a margin around
+        scale = 0.3 * size / top
+        side = _surface_side(res, c)
         ax.set_xlim(xb.min() - 0.2 * size, xb.max() + 0.2 * size)
-        ax.set_ylim(yb.min() - 0.45 * size, yb.max() + 0.3 * size)
+        ax.set_ylim(yb.min() - (0.45 if side < 0 else 0.1) * size,
+                    yb.max() + (0.45 if side > 0 else 0.1) * size)
     else:
-        scale = 0.15 * float(np.ptp(res.x[:, 1])) / max(np.abs(force).max(), 1e-300)
+        scale, side = 0.15 * float(np.ptp(res.x[:, 1])) / top, -1.0
     states = {"bound": "touching" if res.pairs else "bound"}
     for state, colour in (("bound", "tab:red"), ("compliance", "tab:green"),
                           ("separated", "0.5")):
         m = c["state"] == state
         if m.any():
-            ax.vlines(xb[m], yb[m] - scale * force[m], yb[m], colors=colour, lw=2,
+            ax.vlines(xb[m], yb[m], yb[m] + side * scale * force[m], colors=colour, lw=2,
                       label=f"-sigma_nu, {states.get(state, state)} ({int(m.sum())} nodes)")
-    if ax.get_legend_handles_labels()[0]:
-        ax.legend(loc="upper right", fontsize=8)
+    _force_scale(ax, xb.max() + 0.08 * size, yb[np.argmax(np.abs(force))], side * scale, top)
+    ax.set_xlim(None, max(ax.get_xlim()[1], xb.max() + 0.3 * size))    # room for its label
+    ax.legend(loc="upper right", fontsize=8)
     if not res.pairs:
         ax.set_ylim(min(yb.min() - scale * max(force.max(), 0) - 0.05, -0.3), None)
+
+
+FORCE_SCALE = "force_scale"     # the gid of fig3's scale bar and its label
+
+
+def _force_scale(ax, x: float, y: float, scale: float, top: float) -> None:
+    """fig3's scale bar: a black bar of the round value round_125(top) [N/m^2] drawn as the
+    force bars are (length scale x value, from y: the level of the largest), at x,
+    labelled with its value."""
+    ref = round_125(top)
+    bar = ax.vlines([x], [y], [y + scale * ref], colors="black", lw=3,
+                    label=f"scale: this bar is -sigma_nu = {ref:g} N/m^2")
+    bar.set_gid(FORCE_SCALE)
+    ax.text(x, y + 0.5 * scale * ref, f"  {ref:g} N/m^2", fontsize=8, gid=FORCE_SCALE,
+            va="center", ha="left")
+
+
+def _surface_side(res: Results, c: dict) -> float:
+    """The side of the contact surface its own body lies on, along y (+1 above, -1
+    below): where the cells at its nodes lie (the other body is on the other side)."""
+    scale = max(1.0, float(np.ptp(res.x)))
+    keys = {tuple(p) for p in np.round(np.column_stack([c["x"], c["y"]]) / scale, 8)}
+    on = np.array([tuple(p) in keys for p in np.round(res.x / scale, 8)])
+    cells = res.cells[on[res.cells].any(axis=1)]
+    if not len(cells):
+        return -1.0
+    at = on[cells]                                   # each cell's vertices on the surface
+    y = res.x[cells][:, :, 1]
+    above = y.mean(axis=1) - (y * at).sum(axis=1) / at.sum(axis=1)
+    return 1.0 if above.mean() > 0 else -1.0
 
 
 def fig4_tangential(res: Results, path: Path) -> None:
@@ -334,16 +396,20 @@ def history(res: Results, path: Path) -> None:
         return np.array([s[k] for s in steps])
     if len(t):
         ax = axes[0, 0]
+        root = "m" if res.dim == 2 else "m^(3/2)"        # the square root of the measure
         ax.plot(t, col("norm_u_V"), "o-", ms=2, label="||u||_V")
-        ax.set_ylabel("||u||_V")
+        ax.set_ylabel(f"||u||_V = ||eps(u)||_L2 [{root}]")
         ax2 = ax.twinx()
         ax2.plot(t, col("norm_sigma_Q"), "s-", ms=2, color="tab:orange", label="||sigma||_Q")
-        ax2.set_ylabel("||sigma||_Q")
+        ax2.set_ylabel(f"||sigma||_Q [N/m^2 x {root}]")
+        lines = list(ax.get_lines()) + list(ax2.get_lines())   # two y-axes: one legend
+        ax.legend(lines, [x.get_label() + (" (left axis)" if x.axes is ax else
+                                           " (right axis)") for x in lines], fontsize=8)
         ax.set_title("norms", fontsize=10)
         axes[0, 1].plot(t, col("max_vm"), "o-", ms=2)
-        axes[0, 1].set_title("max ||sigma||_VM", fontsize=10)
+        axes[0, 1].set_title("max ||sigma||_VM [N/m^2]", fontsize=10)
         axes[1, 0].plot(t, col("max_kappa"), "o-", ms=2, color="tab:green")
-        axes[1, 0].set_title("max kappa", fontsize=10)
+        axes[1, 0].set_title(f"max kappa{_kappa_unit(res.case)}", fontsize=10)
         axes[1, 1].vlines(t, 0, col("newton_iterations"), color="tab:purple",
                           lw=max(0.5, min(4.0, 300 / len(t))))      # one artist per panel
         axes[1, 1].set_title("Newton / Gamma3 iterations per step", fontsize=10)
@@ -351,6 +417,21 @@ def history(res: Results, path: Path) -> None:
         ax.set_xlabel("t [s]")
     _save(plt, fig, path, f"History of run {res.summary.get('case')} "
                           f"({res.summary.get('status')})")
+
+
+def _kappa_unit(case: dict) -> str:
+    """" [unit]" of kappa for the laws of a case (perzyna, power: a stress, N/m^2; norton,
+    chaboche: their accumulated strain p, dimensionless), "" for a user's law or laws of
+    both kinds."""
+    materials = [case.get("material") or {}, *(case.get("materials") or {}).values()]
+    laws = {(m.get("viscoplastic") or {}).get("law", "perzyna")
+            for m in materials if m.get("viscoplastic")}
+    units = {{"perzyna": "N/m^2", "power": "N/m^2", "norton": "-", "chaboche": "-"}.get(law)
+             for law in laws}
+    return f" [{units.pop()}]" if len(units) == 1 and None not in units else ""
+
+
+ROUNDING = 1e-9      # forces.png: each axis spans at least +-ROUNDING x the largest force
 
 
 def forces(res: Results, path: Path) -> None:
@@ -378,10 +459,15 @@ def forces(res: Results, path: Path) -> None:
         series["contact (foundation)"] = [s.get("contact_force", [0.0] * dim) for s in steps]
     for name in (steps[-1]["reactions"] if steps else {}):
         series[f"reaction on {name}"] = [s["reactions"][name] for s in steps]
+    top = max([float(np.nanmax(np.abs(np.asarray(v, dtype=float)), initial=0.0))
+               for v in series.values()], default=0.0)
     for i, ax in enumerate(axes):
         for label, values in series.items():
             ax.plot(t, np.asarray(values)[:, i], "o-", ms=2, label=label)
         ax.axhline(0.0, color="0.7", lw=0.8)
+        if top > 0:          # a component that is rounding (1e-15 of the forces) stays flat
+            low, high = ax.get_ylim()
+            ax.set_ylim(min(low, -ROUNDING * top), max(high, ROUNDING * top))
         ax.set_xlabel("t [s]")
         ax.set_ylabel(f"F_{'xyz'[i]} [N{'/m' if dim == 2 else ''}]")
     if series:
@@ -393,8 +479,17 @@ def forces(res: Results, path: Path) -> None:
     _save(plt, fig, path, f"Forces on the {bodies}, run {res.summary.get('case')}")
 
 
+# the contact figures, drawn where the scene has what they show (results.ContactScene):
+# the laws where there is a contact boundary, the forces along it where there are some
+CONTACT_FIGURES = {"fig2_laws.png": lambda scene: scene.boundary,
+                   "fig3_deformed_contact.png": lambda scene: scene.forces,
+                   "fig4_tangential.png": lambda scene: scene.forces}
+
+
 def draw_line_figures(outdir: Path, names, factor: float, res=None) -> list[Path]:
-    """Draw line figures (each to a temporary file, then renamed).
+    """Draw line figures (each to a temporary file, then renamed), the contact figures
+    only where the scene has a contact boundary and forces (CONTACT_FIGURES; one that is
+    not drawn is removed if an earlier plot left it).
 
     Args:
         outdir: the results directory.
@@ -406,8 +501,12 @@ def draw_line_figures(outdir: Path, names, factor: float, res=None) -> list[Path
         The files written.
     """
     res = Results(outdir) if res is None else res
+    scene = contact_scene(outdir)
     written = []
     for name in names:
+        if not CONTACT_FIGURES.get(name, lambda _: True)(scene):
+            (Path(outdir) / name).unlink(missing_ok=True)      # an earlier plot's
+            continue
         options = {"factor": factor} if name.startswith("fig3") else {}
         path = Path(outdir) / name
         write_replacing(path, partial(LINE_FIGURE_FUNCTIONS[name], res, **options))

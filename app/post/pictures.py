@@ -3,12 +3,16 @@ directory: solution.xdmf (one dataset: the mesh with u, sigma_vm, ... at every o
 and contact.xdmf (the Gamma3 facets with the contact table), for any geometry, 2D or 3D.
 
 - body.png: the deformed body at the last time (displacement magnified as in fig3),
-  coloured by the von Mises stress, with the contact boundary Gamma3 drawn in black;
+  coloured by the von Mises stress, with the contact boundary Gamma3 drawn in black (where
+  the scene has one);
 - fig5_vm_kappa.png: the von Mises stress and kappa at the last time on the body (the
   paper's Fig. 5; in 3D the body clipped at mid y, its inside shown);
-- contact_pressure.png (3D): the contact pressure -sigma_nu on Gamma3, seen from the
-  foundation;
+- contact_pressure.png (3D, a scene with contact forces): the contact pressure -sigma_nu
+  on Gamma3, seen from the foundation;
 - animation.gif (``plot --animate``): the deformed, coloured body at every output time.
+
+Each field is coloured on its whole range with its unit, a uniform one in one colour with
+its value (app/post/colourscale.py).
 
 No display is needed: VTK renders through EGL (libEGL, Mesa) where no X display is set.
 
@@ -30,7 +34,9 @@ from pathlib import Path
 import numpy as np
 
 from vpcontact.io.files import write_replacing
+from vpcontact.post.colourscale import ColourScale, bar_title, colour_scale, uniform_note
 from vpcontact.post.linefigures import draw_line_figures, pyplot
+from vpcontact.post.results import contact_scene
 
 PICTURES = ("body.png", "fig5_vm_kappa.png", "contact_pressure.png")
 ANIMATION = "animation.gif"
@@ -84,8 +90,10 @@ def _deformed(grid, factor: float):
     return out
 
 
-BAR = {"color": "black", "vertical": False, "position_x": 0.25, "position_y": 0.02,
-       "width": 0.5, "height": 0.06}
+BAR = {"color": "black", "vertical": False, "position_x": 0.2, "position_y": 0.02,
+       "width": 0.6, "height": 0.08, "fmt": "%.3g", "n_labels": 5}
+NARROW_BAR = {**BAR, "position_x": 0.1, "width": 0.8, "n_labels": 3}   # fig5's subplots
+UNIFORM_COLOUR = "lightsteelblue"    # a uniform field: one colour, its value in the title
 
 
 def _save(plotter, path: Path) -> None:
@@ -114,24 +122,45 @@ def _view(plotter, dim: int, body=None, gamma3=None) -> None:
     plotter.reset_camera()
 
 
-def _body_plotter(body, gamma3, dim: int, clim, title: str, window=WINDOW):
-    """A plotter with the body coloured by sigma_vm and Gamma3 in black (not rendered)."""
+def _add_field(plotter, mesh, name: str, scale: ColourScale, bar: dict,
+               copy: bool = False) -> str:
+    """Colour the mesh by a cell field on its whole range with a titled colour bar, or in
+    one colour (UNIFORM_COLOUR, no bar) when the field is uniform (copy: the plotter
+    draws a copy of the mesh, else the mesh itself, which the animation updates).
+
+    Returns:
+        "" or, for a uniform field, its uniform_note (for the picture's title).
+    """
+    if scale.uniform:
+        plotter.add_mesh(mesh, color=UNIFORM_COLOUR, show_edges=False, copy_mesh=copy)
+        return uniform_note(name, scale)
+    plotter.add_mesh(mesh, scalars=name, preference="cell", cmap="viridis", clim=scale.clim,
+                     show_edges=False, copy_mesh=copy,
+                     scalar_bar_args={"title": bar_title(name), **bar})
+    return ""
+
+
+def _body_plotter(body, gamma3, dim: int, scale: ColourScale, title: str, window=WINDOW):
+    """A plotter with the body coloured by sigma_vm (scale: its ColourScale) and Gamma3 in
+    black if given (not rendered); a uniform stress is stated after the title."""
     pv = _pyvista()
     p = pv.Plotter(off_screen=True, window_size=window)
     p.set_background("white")
-    p.add_mesh(body, scalars="sigma_vm", preference="cell", cmap="viridis", clim=clim,
-               show_edges=False, scalar_bar_args={"title": "von Mises stress", **BAR})
+    note = _add_field(p, body, "sigma_vm", scale, BAR)
     if gamma3 is not None:
         p.add_mesh(gamma3.extract_all_edges() if dim == 3 else gamma3, color="black",
                    line_width=4 if dim == 2 else 2, label="contact boundary Gamma3")
-    p.add_text(title, font_size=10, color="black")
+    if title or note:
+        p.add_text("; ".join(x for x in (title, note) if x), font_size=10, color="black")
     _view(p, dim, body, gamma3)
     return p
 
 
 def draw_all(outdir: Path, factor: float, dim: int) -> list[Path]:
-    """Every picture of a results directory (PICTURES; contact_pressure.png in 3D with
-    contact), each written to a temporary file and renamed.
+    """Every picture of a results directory: body.png and fig5_vm_kappa.png, and in 3D
+    contact_pressure.png where the scene has contact forces (app/post/results.py,
+    contact_scene), each written to a temporary file and renamed; a picture not drawn is
+    removed if an earlier plot left it.
 
     Args:
         outdir: the results directory.
@@ -145,15 +174,20 @@ def draw_all(outdir: Path, factor: float, dim: int) -> list[Path]:
     grid, t = solution.at(), (solution.times[-1] if solution.times else 0.0)
     jobs = [("body.png", lambda f: body_picture(outdir, grid, t, factor, dim, f)),
             ("fig5_vm_kappa.png", lambda f: fields_picture(grid, t, dim, f))]
-    if dim == 3 and (outdir / "contact.xdmf").exists():
+    if dim == 3 and (outdir / "contact.xdmf").exists() and contact_scene(outdir).forces:
         jobs.append(("contact_pressure.png", lambda f: pressure_picture(outdir, f)))
+    drawn = [name for name, _ in jobs]
+    for name in PICTURES:
+        if name not in drawn:
+            (outdir / name).unlink(missing_ok=True)
     for name, draw in jobs:
         write_replacing(outdir / name, draw)
-    return [outdir / name for name, _ in jobs]
+    return [outdir / name for name in drawn]
 
 
 def body_picture(outdir: Path, grid, t: float, factor: float, dim: int, path: Path) -> None:
-    """body.png: the deformed body at time t coloured by von Mises stress, Gamma3 marked.
+    """body.png: the deformed body at time t coloured by von Mises stress on its whole
+    range (colourscale.py), the contact boundary in black where the scene has one.
 
     Args:
         outdir: the results directory (contact.xdmf).
@@ -165,9 +199,10 @@ def body_picture(outdir: Path, grid, t: float, factor: float, dim: int, path: Pa
     """
     body = _deformed(grid, factor)
     gamma3 = _contact_last(outdir, factor)
-    title = (f"t = {t:g}: von Mises stress, displacement x {factor:g}, "
-             f"{_gamma3_name(outdir)} in black")
-    p = _body_plotter(body, gamma3, dim, color_range(body.cell_data["sigma_vm"]), title)
+    title = f"t = {t:g}: von Mises stress, displacement x {factor:g}"
+    if gamma3 is not None:
+        title += f", {_gamma3_name(outdir)} in black"
+    p = _body_plotter(body, gamma3, dim, colour_scale(body.cell_data["sigma_vm"]), title)
     _save(p, path)
     p.close()
 
@@ -184,28 +219,11 @@ def _gamma3_name(outdir: Path) -> str:
     return "contact surface " + ", ".join(f"{q['surface']} (on {q['target']})" for q in pairs)
 
 
-def color_range(values) -> tuple[float, float]:
-    """A colour range that a stress singularity (a corner, a clamped edge) cannot wash out:
-    from the smallest value to the 99.5th percentile (larger values take the top colour).
-
-    Args:
-        values: the field's values.
-
-    Returns:
-        (low, high), high > low.
-    """
-    v = np.asarray(values, dtype=float)
-    v = v[np.isfinite(v)]
-    if not v.size:
-        return 0.0, 1.0
-    lo, hi = float(v.min()), float(np.percentile(v, 99.5))
-    return lo, hi if hi > lo else lo + max(abs(lo), 1.0)
-
-
 def fields_picture(grid, t: float, dim: int, path: Path) -> None:
     """fig5_vm_kappa.png: von Mises stress and kappa at time t on the undeformed body, side
     by side (kappa only where the run has it; the laws norton and chaboche: their
-    accumulated strain p); in 3D the body clipped at mid y.
+    accumulated strain p), each on its whole range with its unit, a uniform field in one
+    colour with its value (colourscale.py); in 3D the body clipped at mid y.
 
     Args:
         grid: solution.xdmf's dataset at t.
@@ -218,30 +236,34 @@ def fields_picture(grid, t: float, dim: int, path: Path) -> None:
     body = grid.clip(normal="y", origin=grid.center, invert=True) if dim == 3 else grid
     p = pv.Plotter(off_screen=True, window_size=(WINDOW[0], WINDOW[1] * 3 // 4),
                    shape=(1, len(names)))
-    titles = {"sigma_vm": "von Mises stress", "kappa": "kappa",
-              "p": "accumulated viscoplastic strain p"}
     for i, name in enumerate(names):
         p.subplot(0, i)
         p.set_background("white")
-        p.add_mesh(body, scalars=name, preference="cell", cmap="viridis",
-                   clim=color_range(body.cell_data[name]), copy_mesh=True,
-                   scalar_bar_args={"title": titles[name], **BAR})
-        p.add_text(f"{titles[name]} at t = {t:g}" + (" (clipped at mid y)" if dim == 3 else ""),
+        note = _add_field(p, body, name, colour_scale(body.cell_data[name]), NARROW_BAR,
+                          copy=True)
+        text = note or f"{bar_title(name).split(' [')[0]}"
+        p.add_text(f"{text} at t = {t:g}" + (" (clipped at mid y)" if dim == 3 else ""),
                    font_size=9, color="black")
         _view(p, dim)
+        if dim == 3:
+            p.camera.zoom(0.8)                   # room for the colour bar below
     _save(p, path)
     p.close()
 
 
 def _contact_last(outdir: Path, factor: float):
-    """Gamma3 (contact.xdmf) at the last time, deformed; None without contact.xdmf."""
+    """Gamma3 (contact.xdmf) at the last time, deformed; None without a contact boundary
+    (no contact.xdmf, or no Gamma3 node: app/post/results.py, contact_scene)."""
     path = outdir / "contact.xdmf"
-    return _deformed(Dataset(path).at(), factor) if path.exists() else None
+    if not path.exists() or not contact_scene(outdir).boundary:
+        return None
+    return _deformed(Dataset(path).at(), factor)
 
 
 def pressure_picture(outdir: Path, path: Path) -> None:
     """contact_pressure.png (3D): -sigma_nu on Gamma3 (contact.xdmf) at the last time, seen
-    from the foundation's side.
+    from the foundation's side, on its whole range (a uniform pressure: one colour, its
+    value in the title).
 
     Args:
         outdir: the results directory.
@@ -252,18 +274,23 @@ def pressure_picture(outdir: Path, path: Path) -> None:
     gamma3 = contact.at()
     p = pv.Plotter(off_screen=True, window_size=WINDOW)
     p.set_background("white")
+    scale = colour_scale(gamma3["neg_sigma_nu"])
     p.add_mesh(gamma3, scalars="neg_sigma_nu", cmap="inferno", nan_color="lightgray",
-               show_edges=True, edge_color="gray",
-               scalar_bar_args={"title": "contact pressure -sigma_nu", **BAR})
+               show_edges=True, edge_color="gray", clim=scale.clim,
+               show_scalar_bar=not scale.uniform,
+               scalar_bar_args={"title": bar_title("neg_sigma_nu"), **BAR})
     t = contact.times[-1] if contact.times else 0.0
-    p.add_text(f"t = {t:g}: contact pressure on Gamma3 (grey: fixed by Dirichlet data)",
+    fixed = np.isnan(np.asarray(gamma3["neg_sigma_nu"], dtype=float)).any()
+    p.add_text(f"t = {t:g}: contact pressure on Gamma3"
+               + (" (grey: fixed by Dirichlet data)" if fixed else "")
+               + (f"; {uniform_note('neg_sigma_nu', scale)}" if scale.uniform else ""),
                font_size=10, color="black")
     normal = _mean_normal(gamma3)
     p.camera_position = [tuple(gamma3.center - 3 * gamma3.length * normal), gamma3.center,
                          _up(normal)]
     p.enable_parallel_projection()
     p.reset_camera()
-    p.camera.zoom(0.85)                          # room for the colour bar below
+    p.camera.zoom(0.8)                           # room for the colour bar below
     _save(p, path)
     p.close()
 
@@ -289,10 +316,11 @@ def _up(normal: np.ndarray) -> tuple:
 
 def animate(outdir: Path, factor: float, dim: int, path: Path, duration_ms: int = 150) -> int:
     """animation.gif: the deformed body coloured by von Mises stress at every output time,
-    Gamma3 marked (one frame each; one colour range (animation_range) and the last time's
-    camera for all; one render window whose meshes are updated in place).  The frames are
-    streamed: each time is read, rendered and written to the file before the next, so the
-    memory does not grow with the number of frames.
+    Gamma3 marked (one frame each; one colour scale, the range of all times
+    (animation_scale), and the last time's camera for all; one render window whose meshes
+    are updated in place).  The frames are streamed: each time is read, rendered and
+    written to the file before the next, so the memory does not grow with the number of
+    frames.
 
     Args:
         outdir: the results directory.
@@ -310,7 +338,8 @@ def animate(outdir: Path, factor: float, dim: int, path: Path, duration_ms: int 
     times = solution.times or [0.0]
     body = _deformed(solution.at(times[-1]), factor)
     gamma3 = _deformed(contact.at(times[-1]), factor) if contact is not None else None
-    p = _body_plotter(body, gamma3, dim, animation_range(solution, times), "", FRAME)
+    scale = animation_scale(solution, times)
+    p = _body_plotter(body, gamma3, dim, scale, "", FRAME)
     caption = p.add_text(" ", position=(10, 10), font_size=10, color="black")  # a vtkTextActor
     try:
         with open(path, "wb") as fh:
@@ -321,7 +350,9 @@ def animate(outdir: Path, factor: float, dim: int, path: Path, duration_ms: int 
                 body.cell_data["sigma_vm"] = grid.cell_data["sigma_vm"]
                 if gamma3 is not None:
                     gamma3.points = _moved_points(contact.at(t), factor)
-                caption.SetInput(f"t = {t:g}: von Mises stress, displacement x {factor:g}")
+                caption.SetInput(f"t = {t:g}: von Mises stress, displacement x {factor:g}"
+                                 + (f"; {uniform_note('sigma_vm', scale)}"
+                                    if scale.uniform else ""))
                 p.render()
                 image = Image.fromarray(p.screenshot(return_img=True))
                 gif.add(image.quantize(method=Image.Quantize.FASTOCTREE))
@@ -331,32 +362,24 @@ def animate(outdir: Path, factor: float, dim: int, path: Path, duration_ms: int 
     return gif.frames
 
 
-RANGE_SAMPLE = 2_000_000     # values of sigma_vm kept for the animation's colour range
-
-
-def animation_range(solution: Dataset, times) -> tuple[float, float]:
-    """The animation's colour range (color_range of the von Mises stress of all times),
-    reading one time at a time and keeping at most RANGE_SAMPLE values: every value while
-    all times have no more (the exact range), else every s-th value of each time.
+def animation_scale(solution: Dataset, times) -> ColourScale:
+    """The animation's colour scale: the whole range of the von Mises stress over all
+    times (colour_scale of each time's smallest and largest finite value), reading one
+    time at a time.
 
     Args:
         solution: solution.xdmf.
         times: the output times.
 
     Returns:
-        (low, high), high > low.
+        The ColourScale.
     """
-    sample, low, stride = [], np.inf, None
+    ends = []
     for t in times:
         vm = np.asarray(solution.at(t).cell_data["sigma_vm"], dtype=float)
-        if stride is None:
-            stride = max(1, -(-len(times) * vm.size // RANGE_SAMPLE))
-        finite = vm[np.isfinite(vm)]
-        low = min(low, float(finite.min(initial=np.inf)))
-        sample.append(finite[::stride])
-    lo, hi = color_range(np.concatenate(sample))
-    lo = min(lo, low)
-    return lo, hi if hi > lo else lo + max(abs(lo), 1.0)
+        vm = vm[np.isfinite(vm)]
+        ends += [vm.min(), vm.max()] if vm.size else []
+    return colour_scale(ends)
 
 
 class GifStream:

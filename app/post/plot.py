@@ -36,7 +36,8 @@ def plot_all(outdir: Path, log=None, animate: bool = False, painter=None) -> lis
 
     Args:
         outdir: the results directory.
-        log: called with a line naming fig3's displacement factor, or None.
+        log: called with a line naming the displacement factor of fig3 and body.png (those
+            drawn), or None.
         animate: also write animation.gif (a frame per output time).
         painter: a Painter started ahead of time (None: one is started now).
 
@@ -55,8 +56,10 @@ def plot_all(outdir: Path, log=None, animate: bool = False, painter=None) -> lis
         result = painter.finish()
     finally:
         painter.cancel()
+    drawn = [Path(f).name for f in result["files"]]
     if log:
-        log("fig3_deformed_contact.png, body.png: " + (
+        log(", ".join(n for n in ("fig3_deformed_contact.png", "body.png") if n in drawn)
+            + ": " + (
             "true scale (two bodies: magnified, they would overlap)" if res.pairs
             else f"displacement magnified x {factor:g}"))
         if result["frames"] is not None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -90,6 +91,41 @@ def _check_contact_csv(path: Path) -> None:
                 raise ResultsError(f"{path}: line {line}: {exc}") from None
 
 
+CONTACT_STATES = ("bound", "compliance")    # contact.csv's states of a node in contact
+
+
+class ContactScene(NamedTuple):
+    """What a run's contact boundary has at its last time (contact.csv).
+
+    Attributes:
+        boundary: the case has a contact boundary (Gamma3 or contact pairs): contact.csv
+            has a row.
+        forces: there are contact forces: a node of it in contact (state bound or
+            compliance; a separated node has none, its -sigma_nu is rounding).
+    """
+
+    boundary: bool
+    forces: bool
+
+
+def contact_scene(outdir: Path) -> ContactScene:
+    """The contact boundary and forces of a results directory (the contact figures are
+    drawn for a scene that has them).
+
+    Args:
+        outdir: the results directory.
+
+    Returns:
+        The ContactScene of contact.csv (no file or no row: no boundary, no forces).
+    """
+    path = Path(outdir) / "contact.csv"
+    if not path.exists():
+        return ContactScene(False, False)
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    return ContactScene(bool(rows), any(r["state"] in CONTACT_STATES for r in rows))
+
+
 class Results:
     """The data of a results directory needed by the figures.
 
@@ -162,6 +198,18 @@ class Results:
         umax = float(np.abs(self.u).max())
         if umax <= 0:
             return 1.0
-        raw = 0.25 * size / umax
-        return float(10 ** np.floor(np.log10(raw)) * np.array([1, 2, 5])[
-            np.searchsorted([1, 2, 5], raw / 10 ** np.floor(np.log10(raw)), side="right") - 1])
+        return round_125(0.25 * size / umax)
+
+
+def round_125(value: float) -> float:
+    """The largest 1, 2 or 5 x 10^k not above a value (a round number for scales).
+
+    Args:
+        value: > 0.
+
+    Returns:
+        E.g. 0.05 for 0.073, 20 for 23.2.
+    """
+    decade = 10 ** np.floor(np.log10(value))
+    return float(decade * np.array([1, 2, 5])[
+        np.searchsorted([1, 2, 5], value / decade * (1 + 1e-12), side="right") - 1])

@@ -34,7 +34,7 @@ def _write(tmp_path, name, text):
     return path
 
 
-def _gmsh_box(path, generate=3, version=4.1, groups=(("bottom", 1, [5]),)):
+def _gmsh_box(path, generate=3, version=4.1, groups=(("bottom", 1, [5]),), binary=False):
     """A .msh of the unit box, meshed up to dimension ``generate`` (0: not at all)."""
     import gmsh
 
@@ -52,6 +52,7 @@ def _gmsh_box(path, generate=3, version=4.1, groups=(("bottom", 1, [5]),)):
         if generate:
             gmsh.model.mesh.generate(generate)
         gmsh.option.setNumber("Mesh.MshFileVersion", version)
+        gmsh.option.setNumber("Mesh.Binary", int(binary))
         gmsh.write(str(path))
     finally:
         gmsh.finalize()
@@ -171,9 +172,12 @@ def test_groups_and_tags(tmp_path):
     assert fem.assemble_scalar(fem.form(one * ds(9))) == pytest.approx(2.0)
 
 
-def test_msh_formats(tmp_path):
+@pytest.mark.parametrize("version, binary", [(2.2, False), (2.2, True), (4.1, True)])
+def test_msh_formats(tmp_path, version, binary):
+    """The formats the docs name (MSH_FORMATS in tests/unit/test_doc_facts.py): 4.1 and
+    2.2, ASCII and binary, load as the same mesh as 4.1 ASCII."""
     a = _load(_gmsh_box(tmp_path / "box41.msh"), 3)
-    b = _load(_gmsh_box(tmp_path / "box22.msh", version=2.2), 3)
+    b = _load(_gmsh_box(tmp_path / "other.msh", version=version, binary=binary), 3)
     assert a.groups == b.groups == {"bottom": 1}
     assert _vertices(a) == _vertices(b) > 8
 
