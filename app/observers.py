@@ -32,6 +32,7 @@ from vpcontact.io.output import (
     write_contact_csv,
     write_json,
 )
+from vpcontact.model.outputfields import StressOutput
 from vpcontact.model.state import KappaOutput
 from vpcontact.post import quantities
 from vpcontact.records import HINT_OUTPUT, StepFailure
@@ -116,12 +117,13 @@ def is_output_step(sim) -> bool:
 
 
 class FieldOutput(Observer):
-    """solution.xdmf in ``sim.outdir``: u, sigma, sigma_vm (and kappa, or the law's named
+    """solution.xdmf in ``sim.outdir``: u, sigma (2D plane strain: with sigma_33), the
+    3D von Mises norm sigma_vm (and kappa, or the law's named
     internal variables: p for Norton's, X, R, p for Chaboche's) at the start, every
     output.every-th step, the last step and the step a signal stopped at."""
 
     def __init__(self):
-        self.writer = self.kappa = None
+        self.writer = self.kappa = self.sigma = None
 
     def start(self, sim) -> None:
         """Open solution.xdmf, write the mesh and the fields at the start time.
@@ -136,8 +138,9 @@ class FieldOutput(Observer):
         kappa = p.state.kappa
         self.kappa = KappaOutput(kappa, getattr(p.law, "fields", None)) \
             if kappa is not None else None       # kappa, or the law's named variables
-        fields = [p.u, p.sigma, p.sigma_vm] + (self.kappa.functions if kappa is not None
-                                               else [])
+        self.sigma = StressOutput(p)             # plane strain: sigma_33 in sigma
+        fields = [p.u, p.sigma, p.sigma_vm] + (
+            self.kappa.functions if kappa is not None else [])
         self.writer = FieldWriter(sim.comm, Path(sim.outdir) / "solution.xdmf", p.mesh, fields)
         self._write(sim.t)
 
@@ -145,7 +148,7 @@ class FieldOutput(Observer):
         """The fields at time t (the law's named internal variables copied from kappa)."""
         if self.kappa is not None:
             self.kappa.update()
-        self.writer.write(t)
+        self.writer.write(t, self.sigma.columns())
 
     def step(self, sim, record: dict) -> None:
         """Write the fields at sim.t if step n is an output step (every output.every-th,

@@ -96,9 +96,12 @@ class State:
             values).
         m: the law's number of internal variables, or None without a viscoplastic law.
         rollback: keep a committed copy (adaptive steps); else ``commit`` copies nothing.
+        sigma_33: whether sigma has an out-of-plane component (2D plane strain).
 
     Attributes:
         u, sigma, sigma_vm, H, kappa: the live Functions (H, kappa None when absent).
+        sigma_33: the out-of-plane stress per cell in 2D plane strain (DG0 scalar,
+            app/model/fullstress.py; derived from sigma and kappa like sigma_vm), else None.
         m: the number of internal variables (None without a law).
         gamma3: the Gamma3 history (app/model/gamma3.py: xi_n, s_n), or None; set by
             ``attach_gamma3``.
@@ -106,10 +109,12 @@ class State:
             rollback).
     """
 
-    def __init__(self, V, Q, Y, has_H: bool, m: int | None, rollback: bool = False):
+    def __init__(self, V, Q, Y, has_H: bool, m: int | None, rollback: bool = False,
+                 sigma_33: bool = False):
         self.u = fem.Function(V, name="u")
         self.sigma = fem.Function(Q, name="sigma")
         self.sigma_vm = fem.Function(Y, name="sigma_vm")
+        self.sigma_33 = fem.Function(Y, name="sigma_33") if sigma_33 else None
         self.H = fem.Function(Q, name="H") if has_H else None
         self.m = m
         self.kappa = kappa_function(Y, m) if m is not None else None
