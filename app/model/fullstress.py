@@ -25,6 +25,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+from mpi4py import MPI
 
 from vpcontact.model.material import _von_mises_matrix
 from vpcontact.model.planestrain import PlaneStrain, isotropic_rows, matrices
@@ -147,7 +148,8 @@ def full_stress(problem) -> FullStress | None:
         r = getattr(el, "out_of_plane", None)
         if r is not None:
             fs.set_rows(rows, r)
-    if fs.unknown and problem.comm.rank == 0:
+    unknown = problem.comm.allreduce(fs.unknown, op=MPI.LOR)
+    if unknown and problem.comm.rank == 0:
         log.warning("plane strain with a 2D Voigt matrix (material.elasticity.voigt): no "
                     "out-of-plane data, so sigma_33 is written NaN and sigma_vm is the "
                     "in-plane norm (sigma_33 = 0) in its cells")

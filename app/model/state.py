@@ -43,18 +43,23 @@ class KappaOutput:
     itself, in 2D its in-plane d x d tensor ``X`` and its out-of-plane ``X_33`` (X_13 = X_23
     = 0 there); otherwise (m > 1, no names) one scalar kappa_i per component.
 
+    Cells whose law has not a component (an elastic material, or a material whose law has
+    fewer than m variables, app/model/materials.py) carry NaN in it: ParaView shows them as
+    absent.
+
     Args:
         kappa: the State's kappa Function (DG0, m components).
         layout: the law's ``fields``, or None.
+        present: (rows, m) booleans, which rows have which components (None: all).
 
     Attributes:
         functions: the Functions to write.
     """
 
-    def __init__(self, kappa: fem.Function, layout=None):
-        self.kappa, self.parts = kappa, []
+    def __init__(self, kappa: fem.Function, layout=None, present=None):
+        self.kappa, self.parts, self.present = kappa, [], present
         bs = kappa.function_space.dofmap.index_map_bs
-        if layout is None and bs == 1:
+        if layout is None and bs == 1 and present is None:
             self.functions = [kappa]
             return
         mesh = kappa.function_space.mesh
@@ -62,7 +67,8 @@ class KappaOutput:
         scalar = fem.FunctionSpace(mesh, ("DG", 0))
         tensor = fem.TensorFunctionSpace(mesh, ("DG", 0))
         start = 0
-        for name, size in layout or [(f"kappa_{i}", 1) for i in range(bs)]:
+        names = [("kappa", 1)] if bs == 1 else [(f"kappa_{i}", 1) for i in range(bs)]
+        for name, size in layout or names:
             if size == 1:
                 self.parts.append((fem.Function(scalar, name=name), [start]))
             else:                              # the 3D t-coordinates of a symmetric tensor
@@ -80,6 +86,8 @@ class KappaOutput:
             return
         bs = self.kappa.function_space.dofmap.index_map_bs
         cells = self.kappa.x.array.reshape(-1, bs)
+        if self.present is not None:
+            cells = np.where(self.present, cells, np.nan)
         for f, columns in self.parts:
             f.x.array[:] = cells[:, columns].reshape(-1)
 

@@ -34,7 +34,7 @@ def _history(outdir):
 def _last_fields(outdir):
     """The written sigma (9 components per cell) and sigma_vm at the last output time."""
     with h5py.File(outdir / "solution.h5", "r") as f:
-        key = sorted(f["Function/sigma"], key=float)[-1]
+        key = sorted(f["Function/sigma"], key=lambda k: float(k.replace("_", ".")))[-1]
         return f["Function/sigma"][key][:], f["Function/sigma_vm"][key][:, 0]
 
 
@@ -80,7 +80,7 @@ def _norton_reference(times, E, nu, A, n, e11):
     sol = solve_ivp(rate, (times[0], times[-1]), np.zeros(3), t_eval=times, method="LSODA",
                     rtol=1e-11, atol=1e-14)
     s11, s33 = np.array([stress(y) for y in sol.y.T]).T
-    return s11, s33, vm3(s11, 0.0, s33, 0.0)
+    return s11, s33, vm3(s11, 0.0, s33, 0.0), sol.y.T
 
 
 def test_norton_plane_strain_relaxation_against_scipy(tmp_path):
@@ -94,7 +94,7 @@ def test_norton_plane_strain_relaxation_against_scipy(tmp_path):
     assert r.returncode == 0, r.stderr
     rows = _history(out)
     t = np.array([row["t"] for row in rows])
-    s11, s33, vm = _norton_reference(t, 1000.0, 0.3, 1.0e-6, 3, 0.04)
+    s11, s33, vm, eps_vp = _norton_reference(t, 1000.0, 0.3, 1.0e-6, 3, 0.04)
     got = np.array([row["max_vm"] for row in rows])
     assert got[0] == pytest.approx(vm[0], rel=1e-12)          # t_1: elastic, exact
     err = np.abs(got - vm).max() / vm[0]
@@ -106,6 +106,12 @@ def test_norton_plane_strain_relaxation_against_scipy(tmp_path):
     np.testing.assert_allclose(s[:, 8], s33[-1], rtol=5e-3)
     np.testing.assert_allclose(written_vm, vm3(s[:, 0], s[:, 4], s[:, 8], s[:, 1]),
                                rtol=1e-12)
+    with h5py.File(out / "solution.h5", "r") as f:          # the creep strain tensor
+        g = f["Function/eps_vp"]
+        vp = g[sorted(g, key=lambda k: float(k.replace("_", ".")))[-1]][:]
+    np.testing.assert_allclose(vp[:, [0, 4, 8]], np.broadcast_to(eps_vp[-1], (len(vp), 3)),
+                               rtol=1e-2)
+    np.testing.assert_allclose(vp[:, 0] + vp[:, 4] + vp[:, 8], 0.0, atol=1e-15)
 
 
 def _patch(tmp_path, material):
