@@ -173,3 +173,41 @@ def test_plane_stress_keeps_sigma_33_zero(tmp_path):
     assert p.sigma_vm.x.array[0] == pytest.approx(vm3(s[0, 0], s[1, 1], 0.0, s[0, 1]),
                                                   rel=1e-13)
     assert n > 0
+
+
+def test_orthotropic_plane_strain_patch(tmp_path):
+    """Orthotropic 3D data in plane strain (axes at 30 degrees), a uniform strain: the 3D
+    stress of eps (eps_33 = 0), computed here by rotating eps into the material axes,
+    applying C3 = S^-1 of the engineering constants written out and rotating back, is
+    problem.stress_3d() in every cell, sigma_33 included."""
+    E, nu, G = [1000.0, 400.0, 250.0], [0.25, 0.3, 0.35], [150.0, 120.0, 90.0]
+    c, s = np.cos(np.radians(30.0)), np.sin(np.radians(30.0))
+    p = _patch(tmp_path, {"plane": "strain", "elasticity": {"orthotropic": {
+        "E": E, "nu": nu, "G": G, "axes": [[float(c), float(s)]]}}})
+    S = np.zeros((6, 6))
+    S[:3, :3] = [[1 / E[0], -nu[0] / E[0], -nu[1] / E[0]],
+                 [-nu[0] / E[0], 1 / E[1], -nu[2] / E[1]],
+                 [-nu[1] / E[0], -nu[2] / E[1], 1 / E[2]]]
+    S[3:, 3:] = np.diag([1 / G[2], 1 / G[1], 1 / G[0]])
+    R = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    e = R @ np.array([[0.001, 0.0005, 0.0], [0.0005, -0.002, 0.0], [0.0, 0.0, 0.0]]) @ R.T
+    t = np.linalg.solve(S, [e[0, 0], e[1, 1], e[2, 2], 2 * e[1, 2], 2 * e[0, 2], 2 * e[0, 1]])
+    local = np.array([[t[0], t[5], t[4]], [t[5], t[1], t[3]], [t[4], t[3], t[2]]])
+    sigma = R.T @ local @ R
+    full = p.stress_3d()
+    np.testing.assert_allclose(full, np.broadcast_to(sigma, full.shape), rtol=0,
+                               atol=1e-12 * np.abs(sigma).max())
+
+
+def test_voigt_plane_strain_has_no_sigma_33(tmp_path, caplog):
+    """A 2D Voigt matrix in plane strain (the in-plane law alone): sigma_33 is NaN, not 0,
+    sigma_vm the in-plane norm, and the log says so."""
+    D = [[1346.15, 576.92, 0.0], [576.92, 1346.15, 0.0], [0.0, 0.0, 384.62]]
+    with caplog.at_level("WARNING", logger="vpcontact"):
+        p = _patch(tmp_path, {"plane": "strain", "elasticity": {"voigt": D}})
+    assert any("sigma_33 is written NaN" in r.getMessage() for r in caplog.records)
+    n = p.num_owned_cells
+    assert np.isnan(p.sigma_33.x.array[:n]).all()
+    s = p.sigma.x.array.reshape(-1, 2, 2)[0]
+    assert p.sigma_vm.x.array[0] == pytest.approx(vm3(s[0, 0], s[1, 1], 0.0, s[0, 1]),
+                                                  rel=1e-13)
