@@ -34,6 +34,7 @@ from vpcontact.io.output import (
     write_contact_csv,
     write_json,
 )
+from vpcontact.model.outputfields import derived_outputs, law_rows
 from vpcontact.model.state import KappaOutput
 from vpcontact.post import quantities
 from vpcontact.records import HINT_OUTPUT, StepFailure
@@ -140,12 +141,14 @@ def is_output_step(sim) -> bool:
 
 
 class FieldOutput(Observer):
-    """solution.xdmf in ``sim.outdir``: u, sigma, sigma_vm (and kappa, or the law's named
+    """solution.xdmf in ``sim.outdir``: u, sigma (2D plane strain: with sigma_33), the
+    3D von Mises norm sigma_vm (and kappa, or the law's named
     internal variables: p for Norton's, X, R, p for Chaboche's) at the start, every
     output.every-th step, the last step and the step a signal stopped at."""
 
     def __init__(self):
         self.writer = self.kappa = None
+        self.derived = []
 
     def start(self, sim) -> None:
         """Open solution.xdmf, write the mesh and the fields at the start time.
@@ -158,18 +161,26 @@ class FieldOutput(Observer):
         """
         p = sim.problem
         kappa = p.state.kappa
-        self.kappa = KappaOutput(kappa, getattr(p.law, "fields", None)) \
+        self.kappa = KappaOutput(kappa, getattr(p.law, "fields", None), law_rows(p)) \
             if kappa is not None else None       # kappa, or the law's named variables
-        fields = [p.u, p.sigma, p.sigma_vm] + (self.kappa.functions if kappa is not None
-                                               else [])
+        # sigma_33 in sigma (plane strain), material id, eps, eps_vp, sigma_nodal
+        self.derived = derived_outputs(p)
+        fields = [p.u, p.sigma, p.sigma_vm] + (
+            self.kappa.functions if kappa is not None else []) + [
+            f for out in self.derived for f in out.functions]
         self.writer = FieldWriter(sim.comm, Path(sim.outdir) / "solution.xdmf", p.mesh, fields)
         self._write(sim.t)
 
     def _write(self, t: float) -> None:
-        """The fields at time t (the law's named internal variables copied from kappa)."""
+        """The fields at time t (the law's named internal variables copied from kappa, the
+        derived fields of app/model/outputfields.py computed)."""
         if self.kappa is not None:
             self.kappa.update()
-        self.writer.write(t)
+        columns = {}
+        for out in self.derived:
+            out.update()
+            columns.update(out.columns())
+        self.writer.write(t, columns)
 
     def step(self, sim, record: dict) -> None:
         """Write the fields at sim.t if step n is an output step (every output.every-th,

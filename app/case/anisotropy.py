@@ -173,6 +173,25 @@ def orthotropic_matrix(data: dict, dim: int, plane: str | None = "stress") -> np
     return np.linalg.solve(T, voigt_matrix(0.5 * (D + D.T), dim) @ T)
 
 
+def out_of_plane_row(data: dict) -> np.ndarray:
+    """Plane strain with orthotropic 3D data: the row r of sigma_33 = r . t(sigma) at eps_33
+    = 0 (t the in-plane t-coordinates (11, 22, 12) in the global axes).  With C3 = S^-1
+    (engineering Voigt order) sigma_33 = C3[33, p] e_p and e_p = (C3[p, p])^-1 sigma_p in
+    the material axes (p = (11, 22, 12), e engineering strains); the stress coordinates
+    there are T t(sigma) (T of ``rotation_matrix``), so r = C3[33, p] (C3[p, p])^-1 T.
+
+    Args:
+        data: the ``orthotropic`` section with 3D data (E, nu, G of 3 entries) and axes.
+
+    Returns:
+        r (3,).
+    """
+    E, nu, G = (list(map(float, data[k])) for k in ("E", "nu", "G"))
+    C3 = np.linalg.inv(orthotropic_compliance(E, nu, G))
+    local = np.linalg.solve(C3[np.ix_(_PLANE, _PLANE)].T, C3[2, _PLANE])
+    return local @ rotation_matrix(material_axes(data["axes"], 2))
+
+
 def energy_minimum(C: np.ndarray, dim: int) -> float:
     """m_E: the smallest eigenvalue of E on symmetric tensors in the Frobenius inner
     product (the generalised eigenvalues of A = diag(w) C against diag(w)).

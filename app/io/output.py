@@ -330,11 +330,14 @@ class FieldWriter:
                                   "(not the naming of dolfinx 0.5)")
             return [(field, f["Function"][field.name][key].shape) for field in fields]
 
-    def write(self, t: float) -> None:
+    def write(self, t: float, columns: dict | None = None) -> None:
         """Append the fields at time t and republish solution.xdmf (collective).
 
         Args:
             t: the time t_n the fields belong to.
+            columns: components of cell fields to replace after dolfinx wrote them,
+                {(field name, component): values of the owned cells in local order} (a 2D
+                tensor's sigma_33, which dolfinx writes 0: ``_write_columns``), or None.
 
         Raises:
             OutputError: HDF5 or the file system refused (solution.xdmf then still
@@ -349,7 +352,25 @@ class FieldWriter:
                                  f"left on device: {free} bytes free, {need} needed)", need)
         write_xdmf(self.comm, self.work, "a", fields,    # disk full, read-only
                    lambda exc: f"{self.h5}: cannot write the fields at t = {t:g} ({exc})")
+        if columns:
+            self._write_columns(t, columns)
         on_rank0(self.comm, self._add_time, t)
+
+    def _write_columns(self, t: float, columns: dict) -> None:
+        """Replace components of the cell datasets of time t (collective): dolfinx 0.5
+        writes a DG0 field's owned cells in their local order at the rank's global offset
+        (the order of the mesh's cells in the file), so the ranks' values gathered in rank
+        order are the dataset's rows; rank 0 writes them (one column each)."""
+        gathered = {k: self.comm.gather(np.ascontiguousarray(v, dtype=float), root=0)
+                    for k, v in columns.items()}
+
+        def put():
+            import h5py
+            key = dolfinx_time_key(t)
+            with h5py.File(self.h5, "r+") as f:
+                for (name, component), parts in gathered.items():
+                    f["Function"][name][key][:, component] = np.concatenate(parts)
+        on_rank0(self.comm, put)
 
     def close(self) -> None:
         """Remove the work file and its link (solution.xdmf and solution.h5 stay)."""

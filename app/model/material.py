@@ -235,7 +235,13 @@ class MatrixElasticity(_Described, ElasticityForms):
         Cmat: the (m, m) matrix, (E tau) = Cmat t; A = diag(weights) Cmat must be
             symmetric positive definite (checked by the builders).
         dim: space dimension d.
+
+    Attributes:
+        out_of_plane: 2D plane strain from orthotropic 3D data: the row r of sigma_33 = r .
+            t(sigma) (app/model/fullstress.py), else None (set by the builder).
     """
+
+    out_of_plane = None
 
     def __init__(self, Cmat: np.ndarray, dim: int):
         self.dim = dim

@@ -29,11 +29,34 @@ from vpcontact.model.material import ElasticityForms
 IN_3D = [0, 1, 5]
 
 
-def _matrices(elasticity: ElasticityForms) -> np.ndarray:
-    """Every matrix of E in t-coordinates, (g, 3, 3)."""
+def matrices(elasticity: ElasticityForms) -> np.ndarray:
+    """Every distinct matrix of E in t-coordinates.
+
+    Args:
+        elasticity: a 2D elasticity (homogeneous: one matrix; per cell: its ``mats``).
+
+    Returns:
+        (g, 3, 3) matrices (g = 1 for a homogeneous E).
+    """
     if elasticity.homogeneous:
         return np.asarray(elasticity.Cmat, dtype=float).reshape(1, 3, 3)
     return np.asarray(elasticity.mats, dtype=float)
+
+
+def isotropic_rows(C: np.ndarray) -> np.ndarray:
+    """Which 2D matrices are isotropic: lambda tr(tau) I + 2 mu tau.
+
+    Args:
+        C: (g, 3, 3) matrices in t-coordinates.
+
+    Returns:
+        (g,) booleans: the matrix is [[l + 2m, l, 0], [l, l + 2m, 0], [0, 0, 2m]].
+    """
+    scale = np.abs(C).max(axis=(1, 2))[:, None]
+    want = np.zeros_like(C)
+    want[:, :2, :2] = C[:, 0, 1][:, None, None]
+    want[:, [0, 1, 2], [0, 1, 2]] += C[:, 2, 2][:, None]
+    return np.all(np.abs(C - want).reshape(len(C), -1) <= 1e-12 * scale, axis=1)
 
 
 def isotropic(elasticity: ElasticityForms) -> bool:
@@ -45,12 +68,7 @@ def isotropic(elasticity: ElasticityForms) -> bool:
     Returns:
         True if every matrix is [[l + 2m, l, 0], [l, l + 2m, 0], [0, 0, 2m]].
     """
-    C = _matrices(elasticity)
-    scale = np.abs(C).max(axis=(1, 2))[:, None]
-    want = np.zeros_like(C)
-    want[:, :2, :2] = C[:, 0, 1][:, None, None]
-    want[:, [0, 1, 2], [0, 1, 2]] += C[:, 2, 2][:, None]
-    return bool(np.all(np.abs(C - want).reshape(len(C), -1) <= 1e-12 * scale))
+    return bool(np.all(isotropic_rows(matrices(elasticity))))
 
 
 class PlaneStrain:

@@ -29,6 +29,7 @@ from vpcontact.forms.step import (
 )
 from vpcontact.model.contact_laws import ContactLaw, contact_law, replace_laws, varies_in_space
 from vpcontact.model.discretisation import Discretisation
+from vpcontact.model.fullstress import full_stress
 from vpcontact.model.gamma3 import NodalField
 from vpcontact.model.history import ImplicitViscoplasticHistory
 from vpcontact.model.lawmodule import python_contact_laws
@@ -126,9 +127,12 @@ class ContactProblem:
         # H_n exists only with a history (viscoplastic law) or nonzero initial values.
         init = case.initial
         has_H = self.law is not None or init.u0 is not None or init.sigma0 is not None
+        plane_strain = d == 2 and case.all_materials[0].plane == "strain"
         self.state = State(self.V, self.Q, self.Y, has_H,
                            self.law.m if self.law is not None else None,
-                           rollback=case.time.adaptive is not None)
+                           rollback=case.time.adaptive is not None, sigma_33=plane_strain)
+        # sigma_33 and the 3D von Mises norm in plane strain (app/model/fullstress.py)
+        self.full_stress = full_stress(self)
         # Implicit history variant: the forms take sigma and the algorithmic tangent per
         # cell (updated by the residual hook before every residual), not E eps(u) + H_n.
         self.implicit = case.time.scheme == "implicit" and self.law is not None
@@ -176,6 +180,30 @@ class ContactProblem:
     def sigma_vm(self):
         """||sigma_n||_VM per cell (the State's)."""
         return self.state.sigma_vm
+
+    @property
+    def sigma_33(self):
+        """sigma_33 per cell in 2D plane strain (the State's; DG0), else None (3D: sigma is
+        3 x 3; plane stress: sigma_33 = 0 by definition)."""
+        return self.state.sigma_33
+
+    def stress_3d(self) -> np.ndarray:
+        """The full 3 x 3 stress of every owned cell: sigma itself in 3D; in 2D sigma with
+        sigma_33 (plane strain: ``sigma_33``, app/model/fullstress.py; plane stress: 0)
+        and sigma_13 = sigma_23 = 0.
+
+        Returns:
+            (owned cells, 3, 3).
+        """
+        n, d = self.num_owned_cells, self.dim
+        sig = self.sigma.x.array.reshape(-1, d, d)[:n]
+        if d == 3:
+            return sig.copy()
+        out = np.zeros((n, 3, 3))
+        out[:, :2, :2] = sig
+        if self.sigma_33 is not None:
+            out[:, 2, 2] = self.sigma_33.x.array[:n]
+        return out
 
     @property
     def H(self):
@@ -494,8 +522,9 @@ class ContactProblem:
             (the step record's norms without a second pass), else None.
         """
         sums = self.strain_operator.update_sigma(self.u, self.H, self.sigma, self.sigma_vm)
-        if sums is None:
+        if sums is None or self.full_stress is not None:
             self.update_vm()
+        if sums is None:
             return None
         return float(np.sqrt(max(sums[0], 0.0))), float(np.sqrt(max(sums[1], 0.0)))
 
@@ -507,9 +536,17 @@ class ContactProblem:
             self.update_sigma()
 
     def update_vm(self) -> None:
-        """sigma_vm = ||sigma||_VM per cell, from sigma."""
+        """sigma_vm = ||sigma||_VM per cell, from sigma: the 3D norm; in 2D plane strain
+        with sigma_33 (set here from sigma and kappa, app/model/fullstress.py)."""
         el = self.elasticity
-        self.sigma_vm.x.array[:] = el.von_mises(el.to_voigt(self.sigma.x.array))
+        t = el.to_voigt(self.sigma.x.array)
+        fs = self.full_stress
+        if fs is None:
+            self.sigma_vm.x.array[:] = el.von_mises(t)
+        else:
+            s33 = fs.sigma_33(t, self.state.kappa_cells)
+            self.sigma_33.x.array[:] = s33
+            self.sigma_vm.x.array[:] = fs.von_mises(t, s33)
         self.sigma_vm.x.scatter_forward()
 
     def strain_voigt(self) -> np.ndarray:

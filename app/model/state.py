@@ -43,18 +43,23 @@ class KappaOutput:
     itself, in 2D its in-plane d x d tensor ``X`` and its out-of-plane ``X_33`` (X_13 = X_23
     = 0 there); otherwise (m > 1, no names) one scalar kappa_i per component.
 
+    Cells whose law has not a component (an elastic material, or a material whose law has
+    fewer than m variables, app/model/materials.py) carry NaN in it: ParaView shows them as
+    absent.
+
     Args:
         kappa: the State's kappa Function (DG0, m components).
         layout: the law's ``fields``, or None.
+        present: (rows, m) booleans, which rows have which components (None: all).
 
     Attributes:
         functions: the Functions to write.
     """
 
-    def __init__(self, kappa: fem.Function, layout=None):
-        self.kappa, self.parts = kappa, []
+    def __init__(self, kappa: fem.Function, layout=None, present=None):
+        self.kappa, self.parts, self.present = kappa, [], present
         bs = kappa.function_space.dofmap.index_map_bs
-        if layout is None and bs == 1:
+        if layout is None and bs == 1 and present is None:
             self.functions = [kappa]
             return
         mesh = kappa.function_space.mesh
@@ -62,7 +67,8 @@ class KappaOutput:
         scalar = fem.FunctionSpace(mesh, ("DG", 0))
         tensor = fem.TensorFunctionSpace(mesh, ("DG", 0))
         start = 0
-        for name, size in layout or [(f"kappa_{i}", 1) for i in range(bs)]:
+        names = [("kappa", 1)] if bs == 1 else [(f"kappa_{i}", 1) for i in range(bs)]
+        for name, size in layout or names:
             if size == 1:
                 self.parts.append((fem.Function(scalar, name=name), [start]))
             else:                              # the 3D t-coordinates of a symmetric tensor
@@ -80,6 +86,8 @@ class KappaOutput:
             return
         bs = self.kappa.function_space.dofmap.index_map_bs
         cells = self.kappa.x.array.reshape(-1, bs)
+        if self.present is not None:
+            cells = np.where(self.present, cells, np.nan)
         for f, columns in self.parts:
             f.x.array[:] = cells[:, columns].reshape(-1)
 
@@ -96,9 +104,12 @@ class State:
             values).
         m: the law's number of internal variables, or None without a viscoplastic law.
         rollback: keep a committed copy (adaptive steps); else ``commit`` copies nothing.
+        sigma_33: whether sigma has an out-of-plane component (2D plane strain).
 
     Attributes:
         u, sigma, sigma_vm, H, kappa: the live Functions (H, kappa None when absent).
+        sigma_33: the out-of-plane stress per cell in 2D plane strain (DG0 scalar,
+            app/model/fullstress.py; derived from sigma and kappa like sigma_vm), else None.
         m: the number of internal variables (None without a law).
         gamma3: the Gamma3 history (app/model/gamma3.py: xi_n, s_n), or None; set by
             ``attach_gamma3``.
@@ -106,10 +117,12 @@ class State:
             rollback).
     """
 
-    def __init__(self, V, Q, Y, has_H: bool, m: int | None, rollback: bool = False):
+    def __init__(self, V, Q, Y, has_H: bool, m: int | None, rollback: bool = False,
+                 sigma_33: bool = False):
         self.u = fem.Function(V, name="u")
         self.sigma = fem.Function(Q, name="sigma")
         self.sigma_vm = fem.Function(Y, name="sigma_vm")
+        self.sigma_33 = fem.Function(Y, name="sigma_33") if sigma_33 else None
         self.H = fem.Function(Q, name="H") if has_H else None
         self.m = m
         self.kappa = kappa_function(Y, m) if m is not None else None

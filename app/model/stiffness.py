@@ -15,7 +15,7 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from vpcontact.case.anisotropy import elasticity_matrix
+from vpcontact.case.anisotropy import elasticity_matrix, out_of_plane_row
 from vpcontact.case.datacheck import evaluate
 from vpcontact.forms.elasticity import (
     elasticity_operator,
@@ -108,6 +108,8 @@ def case_elasticity(material, dim: int, Q) -> ElasticityForms | None:
             el = MatrixElasticity(elasticity_matrix(asdict(spec), dim, plane), dim)
         except ValueError as e:
             raise ValueError(f"material.elasticity.{e}") from None
+        if plane == "strain" and spec.orthotropic is not None:    # sigma_33 of the outputs
+            el.out_of_plane = out_of_plane_row(asdict(spec)["orthotropic"])
         return el.describe_as(*_described(spec, state))
     if isinstance(material.E, (int, float)) and isinstance(material.nu, (int, float)):
         return None

@@ -40,8 +40,8 @@ def test_demo_writes_the_three_outputs(demo_out):
     times = [float(g.find("Time").get("Value")) for g in grids]
     assert times == pytest.approx([n / 16 for n in range(17)])
     for g in grids:
-        assert [a.get("Name") for a in g.findall("Attribute")] == ["u", "sigma", "sigma_vm",
-                                                                   "kappa"]
+        assert [a.get("Name") for a in g.findall("Attribute")] == [
+            "u", "sigma", "sigma_vm", "kappa", "eps", "eps_vp", "sigma_nodal"]
 
     s = json.loads((demo_out / "summary.json").read_text())
     assert s["case"] == "wang_cheng_2021" and s["status"] == "completed"

@@ -72,6 +72,31 @@ def test_solution_xdmf_costs_the_same_at_every_step(tmp_path):
     assert u[:, :2] == pytest.approx(np.full((len(u), 2), STEPS - 1), rel=1e-14)
 
 
+def test_replaced_columns_cost_the_same_at_every_step(tmp_path):
+    """FieldWriter.write's ``columns`` (plane strain's sigma_33 in the written sigma): the
+    bytes per step stay constant and the column holds the last values."""
+    import h5py
+    from dolfinx import fem
+    from dolfinx import mesh as dmesh
+
+    from vpcontact.io.output import FieldWriter
+    from vpcontact.io.xdmf import dolfinx_time_key
+    mesh = dmesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
+    sigma = fem.Function(fem.TensorFunctionSpace(mesh, ("DG", 0)), name="sigma")
+    writer = FieldWriter(MPI.COMM_WORLD, tmp_path / "solution.xdmf", mesh, [sigma])
+    owned = mesh.topology.index_map(2).size_local
+
+    def write(n):
+        sigma.x.array[:] = n
+        writer.write(0.01 * n, {("sigma", 8): np.full(owned, -float(n))})
+    per_step = _per_step(write)
+    writer.close()
+    _assert_constant(per_step, 1)
+    with h5py.File(tmp_path / "solution.h5", "r") as f:
+        last = f["Function/sigma"][dolfinx_time_key(0.01 * (STEPS - 1))][:]
+    assert np.all(last[:, 8] == -(STEPS - 1)) and np.all(last[:, 0] == STEPS - 1)
+
+
 def test_contact_xdmf_costs_the_same_at_every_step(tmp_path):
     from vpcontact.io.contact_xdmf import ContactWriter
     x = np.linspace(0.0, 1.0, 9)

@@ -250,3 +250,32 @@ def test_projection_invariant_under_a_factor_on_E(dim):
         assert dev > 1e-3 * np.abs(s).max()
     else:
         assert dev <= 1e-11 * np.abs(s).max()
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.4])
+def test_out_of_plane_row_plane_strain(angle):
+    """Plane strain with orthotropic 3D data: sigma_33 = r . t(sigma) equals the 3D law's
+    sigma_33 at eps_33 = 0, computed here by rotating a strain into the material axes,
+    applying C3 = S^-1 of the engineering constants written out, and rotating back; the
+    isotropic constants give r = (nu, nu, 0)."""
+    from vpcontact.case.anisotropy import out_of_plane_row
+    E, nu, G = [1000.0, 400.0, 250.0], [0.25, 0.3, 0.35], [150.0, 120.0, 90.0]
+    c, s = np.cos(angle), np.sin(angle)
+    data = {"E": E, "nu": nu, "G": G, "axes": [[c, s]]}
+    S = np.zeros((6, 6))
+    S[:3, :3] = [[1 / E[0], -nu[0] / E[0], -nu[1] / E[0]],
+                 [-nu[0] / E[0], 1 / E[1], -nu[2] / E[1]],
+                 [-nu[1] / E[0], -nu[2] / E[1], 1 / E[2]]]
+    S[3:, 3:] = np.diag([1 / G[2], 1 / G[1], 1 / G[0]])       # 23, 13, 12
+    C3 = np.linalg.inv(S)
+    R = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])   # rows: the material axes
+    eps = np.array([[0.002, 0.0007, 0.0], [0.0007, -0.001, 0.0], [0.0, 0.0, 0.0]])
+    el = R @ eps @ R.T
+    e = np.array([el[0, 0], el[1, 1], el[2, 2], 2 * el[1, 2], 2 * el[0, 2], 2 * el[0, 1]])
+    sl = C3 @ e
+    sig_local = np.array([[sl[0], sl[5], sl[4]], [sl[5], sl[1], sl[3]], [sl[4], sl[3], sl[2]]])
+    sig = R.T @ sig_local @ R
+    r = out_of_plane_row(data)
+    assert r @ [sig[0, 0], sig[1, 1], sig[0, 1]] == pytest.approx(sig[2, 2], rel=1e-12)
+    iso = {"E": [1000.0] * 3, "nu": [0.3] * 3, "G": [1000.0 / 2.6] * 3, "axes": [[c, s]]}
+    np.testing.assert_allclose(out_of_plane_row(iso), [0.3, 0.3, 0.0], atol=1e-14)
