@@ -82,3 +82,30 @@ def test_an_infinite_indicator_says_no_step_is_stable():
     assert "k_max r_max = 0.25 x inf = inf" in text
     assert "unstable where the stresses reach S (the run estimates it at every step) for " \
            "every time step" in text and "infx" not in text
+
+
+class _PeerFailed:
+    """Rank 0 of two seen from one process; rank 1's estimate failed with ``message``."""
+
+    size, rank = 2, 0
+
+    def __init__(self, message: str):
+        self.message = message
+
+    def allreduce(self, value, op):
+        from mpi4py import MPI
+        assert op == MPI.MIN                     # only the failure flag: no rate is reduced
+        return min(value, 1)
+
+    def bcast(self, obj, root):
+        assert root == 1
+        return self.message
+
+
+def test_estimated_rate_fails_on_every_rank_when_one_rank_fails():
+    """The law fails in the cells of rank 1 only: rank 0, whose estimate succeeded, raises
+    too, with rank 1's message (it waited before in the reduction of the rates while rank 1
+    raised: a hang under mpirun)."""
+    from vpcontact.post.diagnostics import RateEstimateError
+    with pytest.raises(RateEstimateError, match=r"^boom \(on rank 1 of 2\)$"):
+        estimated_rate(Norton(EL, 1e-3, 2), STATE, np.zeros((1, 1)), comm=_PeerFailed("boom"))
