@@ -44,8 +44,8 @@ class UserLaw(ViscoplasticLaw):
 
     Raises:
         CaseError: m is not an integer >= 1, G or Gk is missing, only one of dG, dGk is
-            given, or G, Gk (dG, dGk) at the zero state have the wrong shapes or are not
-            finite.
+            given, or G, Gk (dG, dGk) at the zero state raise, have the wrong shapes or are
+            not finite (later, in a step, these fail the step: LawEvaluationError).
     """
 
     uses_eps = True
@@ -104,12 +104,25 @@ class UserLaw(ViscoplasticLaw):
                                      f"{raised(exc)}") from exc
 
     def _check_shape(self, what: str, value, shape: tuple) -> np.ndarray:
-        """The user's output as a float array of the expected shape, else CaseError."""
-        out = np.asarray(value, dtype=float)
+        """The user's output as a float array of the expected shape, else LawEvaluationError
+        (the probe's refusal before the first step, a failed step during the run)."""
+        try:
+            out = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise LawEvaluationError(f"{self.where}: {what} returned a "
+                                     f"{type(value).__name__}, not an array of numbers of "
+                                     f"shape {shape}") from None
         if out.shape != shape:
-            raise CaseError(f"{self.where}: {what} returned an array of shape {out.shape}, "
-                            f"expected {shape}")
+            raise LawEvaluationError(f"{self.where}: {what} returned an array of shape "
+                                     f"{out.shape}, expected {shape}")
         return out
+
+    def _pair(self, what: str, value) -> tuple:
+        """dG's or dGk's pair (by sigma, by kappa), else LawEvaluationError."""
+        if not (isinstance(value, (tuple, list)) and len(value) == 2):
+            raise LawEvaluationError(f"{self.where}: {what} returned a {type(value).__name__}, "
+                                     "expected a pair (by sigma, by kappa)")
+        return tuple(value)
 
     def _tensors(self, t, eps, kappa):
         """The user's arguments: sigma, eps (n, d, d) and a copy of kappa (n, m); without a
@@ -133,9 +146,8 @@ class UserLaw(ViscoplasticLaw):
             (G rows (n, mt), Gk (n, m)).
 
         Raises:
-            CaseError: the law returned arrays of the wrong shapes.
-            LawEvaluationError: G or Gk raised, or returned non-finite values (NaN/Inf)
-                with ``finite``.
+            LawEvaluationError: G or Gk raised, returned arrays of the wrong shapes, or
+                returned non-finite values (NaN/Inf) with ``finite``.
         """
         sigma, e, kap = self._tensors(t, eps, kappa)
         n, d = sigma.shape[0], self.elasticity.dim
@@ -199,15 +211,15 @@ class UserLaw(ViscoplasticLaw):
             (n, mt + m, mt + m), or None.
 
         Raises:
-            LawEvaluationError: dG or dGk raised.
+            LawEvaluationError: dG or dGk raised or returned the wrong shapes.
         """
         if not self.derivatives:
             return None
         mt, m, d = self.elasticity.m, self.m, self.elasticity.dim
         sigma, e, kap = self._tensors(z[:, :mt], eps, z[:, mt:])
         n = sigma.shape[0]
-        dGs, dGk_ = self._call("dG", sigma, e, kap)
-        dKs, dKk = self._call("dGk", sigma, e, kap)
+        dGs, dGk_ = self._pair("dG", self._call("dG", sigma, e, kap))
+        dKs, dKk = self._pair("dGk", self._call("dGk", sigma, e, kap))
         dGs = self._check_shape("dG[0]", dGs, (n, d, d, d, d)).reshape(n, d * d, d * d)
         dGk_ = self._check_shape("dG[1]", dGk_, (n, d, d, m)).reshape(n, d * d, m)
         dKs = self._check_shape("dGk[0]", dKs, (n, m, d, d)).reshape(n, m, d * d)

@@ -8,6 +8,7 @@ process, on the paper's case at h = k = 1/4."""
 import csv
 import functools
 import json
+import re
 
 import numpy as np
 import pytest
@@ -173,6 +174,17 @@ def test_a_law_that_exits_during_the_run_fails_the_step(tmp_path, capsys):
     assert failure["step"] == 2
     assert failure["reason"] == f"--law-module {LAW_MODULE}: class ExitsInG: " \
                                 "G(sigma, eps, kappa) raised SystemExit"
+
+
+def test_wrong_shapes_during_the_run_fail_the_step(tmp_path, capsys):
+    """Gk flat once sigma is not zero: the explicit update of step 2 fails (exit 1, a
+    summary); before, the run ended as bad input (exit 2) without summary.json after a
+    step was computed."""
+    failure = _failed_run(tmp_path, capsys, "ShapeLater", "lambda1: 100.0, lambda2: 100.0")
+    assert failure["step"] == 2
+    assert re.fullmatch(f"--law-module {re.escape(str(LAW_MODULE))}: class ShapeLater: Gk "
+                        r"returned an array of shape \(\d+,\), expected \(\d+, 1\)",
+                        failure["reason"]), failure["reason"]
 
 
 def test_a_law_that_raises_where_its_rate_is_estimated(tmp_path, capsys):

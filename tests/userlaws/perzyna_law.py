@@ -1,8 +1,8 @@
 """Laws written as a user would, for --law-module in the tests: Perzyna's law of the paper
 (Section 4) in tensors (UserPerzyna, and UserPerzynaTangent with its derivatives by finite
 differences of its own G, Gk), and laws that break the protocol (a wrong m, wrong shapes,
-non-finite values, a G or a constructor that raises or calls sys.exit, a G that raises
-above a stress level)."""
+non-finite values, wrong shapes during the run, a G or a constructor that raises or calls
+sys.exit, a G that raises above a stress level)."""
 import numpy as np
 
 from vpcontact.model.material import make_projection
@@ -136,3 +136,11 @@ class RaisesAbove(UserPerzyna):
         if len(sigma) and self.el.von_mises(self.el.to_voigt(sigma)).max() > self.level:
             raise RuntimeError("stress too large for my law")
         return super().G(sigma, eps, kappa)
+
+
+class ShapeLater(UserPerzyna):
+    """Gk flat, (n,) instead of (n, m), once sigma is not zero (after the probe)."""
+
+    def Gk(self, sigma, eps, kappa):
+        gk = super().Gk(sigma, eps, kappa)
+        return gk[:, 0] if np.any(sigma != 0.0) else gk
