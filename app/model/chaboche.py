@@ -26,7 +26,7 @@ from vpcontact.model.laws import ViscoplasticLaw
 from vpcontact.model.material import Elasticity
 from vpcontact.model.norton import M3 as _M3
 from vpcontact.model.norton import W3 as _W3
-from vpcontact.model.norton import flow_direction, flow_modulus
+from vpcontact.model.norton import flow_direction, flow_modulus, overflowed_rate
 from vpcontact.model.planestrain import PlaneStrain
 
 # the 3D t-coordinates of the body's stress coordinates (2D: s11, s22, s12)
@@ -100,15 +100,18 @@ class Chaboche(ViscoplasticLaw):
             S: the stress scale [Pa] (app/post/divergence.stress_scale).
 
         Returns:
-            r(S) [1/s], or None where it vanishes (S <= k: no flow) or overflows.
+            r(S) [1/s]; inf where it overflows (n = 200, K = 1e-90: no time step is stable
+            at that stress); None where it vanishes (S <= k: no flow).
         """
-        x = max(float(S) - self.k, 0.0) / self.K
         with np.errstate(over="ignore", invalid="ignore"):
-            phi = np.float64(x) ** self.n
-            slope = self.n / self.K * np.float64(x) ** (self.n - 1.0) if x > 0 else 0.0
+            x = max(float(S) - self.k, 0.0) / np.float64(self.K)
+            if x == 0.0:
+                return None
+            phi = x ** self.n
+            slope = self.n / np.float64(self.K) * x ** (self.n - 1.0)
             r = float(slope * (flow_modulus(self.elasticity, self.plane_strain) + self.C
                                + self.b * abs(self.Q)) + max(self.gamma, self.b) * phi)
-        return r if np.isfinite(r) and r > 0.0 else None
+        return overflowed_rate(r)
 
     def _overstress(self, t, kappa):
         """sigma - X in 3D t-coordinates, its von Mises norm, (3/2) dev(sigma - X) and f."""

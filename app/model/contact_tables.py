@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from vpcontact.model.laws import ScalarLaw
-from vpcontact.model.primitives import backend
+from vpcontact.model.primitives import backend, positive_slip
 
 
 class PiecewiseLinear:
@@ -180,9 +180,8 @@ class TableFriction(ScalarLaw):
         Returns:
             psi(rho), elementwise.
         """
-        # rho^+ (= rho: the regularised slip is > 0) keeps a conditional in the UFL form:
-        # FFCx 0.5 fails to generate the Jacobian of a table of one segment without it
-        return self.tau.primitive(backend(rho).pos(rho))
+        # rho^+ (= rho) keeps a conditional in the UFL form (a table of one segment)
+        return self.tau.primitive(positive_slip(rho))
 
     def derivative(self, rho):
         """psi'(rho) = tau(rho), the friction bound |sigma_tau| at slip rho > 0.

@@ -55,13 +55,33 @@ def collective_update(comm, update, sigma, H, kappa, k: float) -> None:
         update(sigma, H, kappa, k)
     except UPDATE_ERRORS as exc:
         error = exc
-    first = comm.allreduce(comm.rank if error is not None else comm.size, op=MPI.MIN)
-    if first == comm.size:
+    reason = first_failure(comm, error)
+    if reason is None:
         return
     if error is None:
         H[:], kappa[:] = saved
+    raise HistoryUpdateFailure(reason) from error
+
+
+def first_failure(comm, error: BaseException | None) -> str | None:
+    """Whether a local computation failed on some rank, known on every rank: one allreduce
+    of the lowest failing rank, then that rank's message broadcast; collective.
+
+    Args:
+        comm: the MPI communicator.
+        error: this rank's exception, or None (it succeeded).
+
+    Returns:
+        None if no rank failed, else the lowest failing rank's message, with the rank
+        named under MPI ("... (on rank r of size)").
+    """
+    first = comm.allreduce(comm.rank if error is not None else comm.size, op=MPI.MIN)
+    if first == comm.size:
+        return None
+    if comm.size == 1:
+        return str(error)
     reason = comm.bcast(str(error) if comm.rank == first else None, root=first)
-    raise HistoryUpdateFailure(f"{reason} (on rank {first} of {comm.size})") from error
+    return f"{reason} (on rank {first} of {comm.size})"
 
 
 class ViscoplasticHistory:

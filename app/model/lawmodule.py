@@ -17,6 +17,7 @@ from pathlib import Path
 
 from vpcontact.io.errors import CaseError
 from vpcontact.model.material import Elasticity
+from vpcontact.model.usercode import USER_ERRORS, raised
 
 OPTION = "--law-module FILE.py"
 _loaded: dict = {}                   # "path", "module": the module of --law-module
@@ -32,7 +33,8 @@ def load_law_module(path) -> object:
         The module.
 
     Raises:
-        CaseError: no such .py file, or importing it raised (its exception and line named).
+        CaseError: no such .py file, or importing it raised (its exception and line named;
+            ``sys.exit`` in the module too: SystemExit).
     """
     path = Path(path)
     if path.suffix != ".py" or not path.is_file():
@@ -44,13 +46,12 @@ def load_law_module(path) -> object:
     sys.modules[name] = module
     try:
         spec.loader.exec_module(module)
-    except Exception as exc:  # noqa: BLE001  (the user's code: report what it raised)
+    except USER_ERRORS as exc:          # the user's code: report what it raised
         sys.modules.pop(name, None)
         lines = [f.lineno for f in traceback.extract_tb(exc.__traceback__)
                  if Path(f.filename).resolve() == path.resolve()]
         at = f" (line {lines[-1]})" if lines else ""
-        raise CaseError(f"--law-module {path}: importing it raised {type(exc).__name__}: "
-                        f"{exc}{at}") from None
+        raise CaseError(f"--law-module {path}: importing it {raised(exc)}{at}") from None
     _loaded.update(path=path, module=module, sha256=digest)
     return module
 
@@ -151,9 +152,9 @@ def python_law(vp, elasticity: Elasticity, key: str = "material.viscoplastic"):
     params = dict(vp.params or {})
     try:
         obj = cls(elasticity, **params)
-    except TypeError as exc:
-        raise CaseError(f"{where}: {vp.cls}(elasticity, **{key}.params) failed: {exc}") \
-            from None
+    except USER_ERRORS as exc:          # the user's constructor: report what it raised
+        raise CaseError(f"{where}: {vp.cls}(elasticity, **{key}.params) failed: "
+                        f"{_what(exc)}") from None
     return as_viscoplastic_law(obj, elasticity, where, params)
 
 
@@ -192,6 +193,13 @@ def _contact_law(spec, key: str, part: str):
     where = f"--law-module {path}: class {spec.cls}"
     try:
         obj = cls(**spec.params)
-    except (TypeError, ValueError) as exc:
-        raise CaseError(f"{where}: {spec.cls}(**{key}.params) failed: {exc}") from None
+    except USER_ERRORS as exc:          # the user's constructor: report what it raised
+        raise CaseError(f"{where}: {spec.cls}(**{key}.params) failed: {_what(exc)}") \
+            from None
     return UserContactLaw(obj, where, part, spec.params)
+
+
+def _what(exc: BaseException) -> str:
+    """A constructor's failure: the message of a TypeError or ValueError (the params do not
+    fit), else what it raised (``raised``)."""
+    return str(exc) if type(exc) in (TypeError, ValueError) else raised(exc)

@@ -46,6 +46,22 @@ def flow_direction(t: np.ndarray, M: np.ndarray, w: np.ndarray) -> tuple[np.ndar
     return np.sqrt(np.maximum(np.einsum("ni,ni->n", Mt, t), 0.0)), Mt / w
 
 
+def overflowed_rate(r: float) -> float | None:
+    """A law's rate r(S) > 0 computed in floating point as it is, inf where the computation
+    overflowed (inf, or NaN from inf - inf or 0 inf: the true rate is positive and beyond
+    the largest float), None where it is 0 (the law does not flow at S).
+
+    Args:
+        r: the computed rate (>= 0, or not finite).
+
+    Returns:
+        r, inf or None.
+    """
+    if not np.isfinite(r):
+        return float("inf")
+    return r if r > 0.0 else None
+
+
 def flow_modulus(elasticity: Elasticity, plane_strain: PlaneStrain | None) -> float:
     """lambda_1 = the largest eigenvalue of sigma -> E N' sigma, N' sigma = sigma_eq N
     (= (3/2) dev(sigma) in 3D): the stress relaxes under held strain at the rate lambda_1
@@ -141,12 +157,13 @@ class Norton(ViscoplasticLaw):
             S: the stress scale [Pa] (app/post/divergence.stress_scale).
 
         Returns:
-            r(S) [1/s], or None where it vanishes (S = 0, n > 1) or overflows.
+            r(S) [1/s]; inf where it overflows (A = 1e-3, n = 300 at S = 9: no time step
+            is stable at that stress); None where it vanishes (S = 0, n > 1).
         """
         with np.errstate(over="ignore"):
             r = float(self.n * self.A * np.float64(S) ** (self.n - 1.0)
                       * flow_modulus(self.elasticity, self.plane_strain))
-        return r if np.isfinite(r) and r > 0.0 else None
+        return overflowed_rate(r)
 
     def lipschitz_constant(self) -> float | None:
         """L_G of H(G) in the energy norm |tau|_E = (E tau : tau)^1/2: for n = 1, A times

@@ -87,6 +87,22 @@ NUMPY = _Numpy()
 UFL = _Ufl()
 
 
+def positive_slip(rho):
+    """The regularised slip rho = |u_tau|_delta > 0 as rho^+ (= rho) for a friction law
+    psi(rho): in a UFL form it keeps a conditional, without which FFCx 0.5 fails to
+    generate the Jacobian of a psi smooth in rho (AttributeError: 'LiteralFloat' object
+    has no attribute 'args'; a friction table of one segment, a user's psi = b rho +
+    a rho^2 / 2); in numpy the values are rho's.
+
+    Args:
+        rho: the regularised slip (numpy array, number or UFL expression).
+
+    Returns:
+        rho^+, elementwise.
+    """
+    return backend(rho).pos(rho)
+
+
 def backend(x):
     """The back end of an argument.
 

@@ -15,10 +15,13 @@ import numpy as np
 from vpcontact.io.errors import CaseError
 from vpcontact.model.laws import ScalarLaw, ViscoplasticLaw, elastic_strain
 from vpcontact.model.material import FLAT, FROM, Elasticity
+from vpcontact.model.primitives import positive_slip
+from vpcontact.model.usercode import USER_ERRORS, raised
 
 
 class LawEvaluationError(RuntimeError):
-    """A user's law returned non-finite values during a step (the step fails)."""
+    """A user's law raised (``sys.exit`` too) or returned non-finite values during a step
+    (the step fails)."""
 
 
 def _symmetric_selector(dim: int) -> np.ndarray:
@@ -41,8 +44,8 @@ class UserLaw(ViscoplasticLaw):
 
     Raises:
         CaseError: m is not an integer >= 1, G or Gk is missing, only one of dG, dGk is
-            given, or G, Gk (dG, dGk) at the zero state have the wrong shapes or are not
-            finite.
+            given, or G, Gk (dG, dGk) at the zero state raise, have the wrong shapes or are
+            not finite (later, in a step, these fail the step: LawEvaluationError).
     """
 
     uses_eps = True
@@ -82,22 +85,44 @@ class UserLaw(ViscoplasticLaw):
         mt = self.elasticity.m
         try:
             self.rates(zeros, np.zeros((n, self.m)), zeros)
-        except LawEvaluationError as exc:
-            raise CaseError(f"{exc} at sigma = 0, eps = 0, kappa = 0") from None
-        if self.derivatives:
             J = self.implicit_jacobian(np.zeros((n, mt + self.m)), zeros,
                                        np.zeros((n, self.m)), 1.0, zeros)
+        except LawEvaluationError as exc:
+            raise CaseError(f"{exc} at sigma = 0, eps = 0, kappa = 0") from None
+        if J is not None:
             if not np.isfinite(J).all():
                 raise CaseError(f"{self.where}: dG or dGk returned non-finite values "
                                 "(NaN/Inf) at sigma = 0, eps = 0, kappa = 0")
 
+    def _call(self, method: str, *args):
+        """The user's ``method(sigma, eps, kappa)``; what it raises (SystemExit too) as a
+        LawEvaluationError naming the law and the method."""
+        try:
+            return getattr(self.user, method)(*args)
+        except USER_ERRORS as exc:
+            raise LawEvaluationError(f"{self.where}: {method}(sigma, eps, kappa) "
+                                     f"{raised(exc)}") from exc
+
     def _check_shape(self, what: str, value, shape: tuple) -> np.ndarray:
-        """The user's output as a float array of the expected shape, else CaseError."""
-        out = np.asarray(value, dtype=float)
+        """The user's output as a float array of the expected shape, else LawEvaluationError
+        (the probe's refusal before the first step, a failed step during the run)."""
+        try:
+            out = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise LawEvaluationError(f"{self.where}: {what} returned a "
+                                     f"{type(value).__name__}, not an array of numbers of "
+                                     f"shape {shape}") from None
         if out.shape != shape:
-            raise CaseError(f"{self.where}: {what} returned an array of shape {out.shape}, "
-                            f"expected {shape}")
+            raise LawEvaluationError(f"{self.where}: {what} returned an array of shape "
+                                     f"{out.shape}, expected {shape}")
         return out
+
+    def _pair(self, what: str, value) -> tuple:
+        """dG's or dGk's pair (by sigma, by kappa), else LawEvaluationError."""
+        if not (isinstance(value, (tuple, list)) and len(value) == 2):
+            raise LawEvaluationError(f"{self.where}: {what} returned a {type(value).__name__}, "
+                                     "expected a pair (by sigma, by kappa)")
+        return tuple(value)
 
     def _tensors(self, t, eps, kappa):
         """The user's arguments: sigma, eps (n, d, d) and a copy of kappa (n, m); without a
@@ -121,13 +146,13 @@ class UserLaw(ViscoplasticLaw):
             (G rows (n, mt), Gk (n, m)).
 
         Raises:
-            CaseError: the law returned arrays of the wrong shapes.
-            LawEvaluationError: non-finite values (NaN/Inf), with ``finite``.
+            LawEvaluationError: G or Gk raised, returned arrays of the wrong shapes, or
+                returned non-finite values (NaN/Inf) with ``finite``.
         """
         sigma, e, kap = self._tensors(t, eps, kappa)
         n, d = sigma.shape[0], self.elasticity.dim
-        G = self._check_shape("G", self.user.G(sigma, e, kap), (n, d, d))
-        Gk = self._check_shape("Gk", self.user.Gk(sigma, e, kap), (n, self.m))
+        G = self._check_shape("G", self._call("G", sigma, e, kap), (n, d, d))
+        Gk = self._check_shape("Gk", self._call("Gk", sigma, e, kap), (n, self.m))
         if finite:
             bad = ~(np.isfinite(G).all(axis=(1, 2)) & np.isfinite(Gk).all(axis=1))
             if bad.any():
@@ -184,14 +209,17 @@ class UserLaw(ViscoplasticLaw):
 
         Returns:
             (n, mt + m, mt + m), or None.
+
+        Raises:
+            LawEvaluationError: dG or dGk raised or returned the wrong shapes.
         """
         if not self.derivatives:
             return None
         mt, m, d = self.elasticity.m, self.m, self.elasticity.dim
         sigma, e, kap = self._tensors(z[:, :mt], eps, z[:, mt:])
         n = sigma.shape[0]
-        dGs, dGk_ = self.user.dG(sigma, e, kap)
-        dKs, dKk = self.user.dGk(sigma, e, kap)
+        dGs, dGk_ = self._pair("dG", self._call("dG", sigma, e, kap))
+        dKs, dKk = self._pair("dGk", self._call("dGk", sigma, e, kap))
         dGs = self._check_shape("dG[0]", dGs, (n, d, d, d, d)).reshape(n, d * d, d * d)
         dGk_ = self._check_shape("dG[1]", dGk_, (n, d, d, m)).reshape(n, d * d, m)
         dKs = self._check_shape("dGk[0]", dKs, (n, m, d, d)).reshape(n, m, d * d)
@@ -211,10 +239,13 @@ class UserLaw(ViscoplasticLaw):
             r_max [1/s], or None where the law gives none.
 
         Raises:
-            CaseError: the bound is negative or not finite.
+            CaseError: rate_bound() raised, or the bound is negative or not finite.
         """
         bound = getattr(self.user, "rate_bound", None)
-        value = bound() if callable(bound) else None
+        try:
+            value = bound() if callable(bound) else None
+        except USER_ERRORS as exc:
+            raise CaseError(f"{self.where}: rate_bound() {raised(exc)}") from None
         if value is None:
             return None
         if not (np.isfinite(value) and value >= 0):
@@ -290,6 +321,7 @@ class UserContactLaw(ScalarLaw):
                             "ScalarLaw of vpcontact.model.laws: energy, derivative, "
                             "second_derivative)")
         self.user, self.where, self.params = law, where, dict(params or {})
+        self.part = part
         self.name = str(getattr(law, "name", type(law).__name__))
         self.m_j = None
         if part == "friction" and getattr(law, "m_j", None) is not None:
@@ -307,9 +339,9 @@ class UserContactLaw(ScalarLaw):
         for method in SCALAR_METHODS:
             try:
                 out = np.asarray(getattr(self.user, method)(x.copy()), dtype=float)
-            except Exception as exc:  # noqa: BLE001  (the user's code: report what it raised)
+            except USER_ERRORS as exc:      # the user's code: report what it raised
                 raise CaseError(f"{self.where}: {method}(x) at x = {x.tolist()} (a numpy "
-                                f"array) raised {type(exc).__name__}: {exc}") from None
+                                f"array) {raised(exc)}") from None
             if out.shape not in (x.shape, ()):
                 raise CaseError(f"{self.where}: {method}(x) returned an array of shape "
                                 f"{out.shape}, expected {x.shape} (the shape of x)")
@@ -331,11 +363,11 @@ class UserContactLaw(ScalarLaw):
             for method in SCALAR_METHODS:
                 try:
                     out = getattr(self.user, method)(x)
-                except Exception as exc:  # noqa: BLE001  (the user's code)
+                except USER_ERRORS as exc:  # the user's code
                     out = exc
                 if not isinstance(out, (ufl.core.expr.Expr, int, float)):
-                    what = f"raised {type(out).__name__}: {str(out).rstrip('.')}" \
-                        if isinstance(out, Exception) else f"returned a {type(out).__name__}"
+                    what = raised(out).rstrip(".") if isinstance(out, BaseException) \
+                        else f"returned a {type(out).__name__}"
                     raise CaseError(f"{self.where}: {method}(x) on a UFL expression (SNES VI's "
                                     f"forms) {what}; write the law with the primitives of "
                                     "vpcontact.model.primitives.backend(x), not numpy's "
@@ -344,11 +376,31 @@ class UserContactLaw(ScalarLaw):
             log.setLevel(level)
 
     def constants(self) -> dict:
-        """Returns: the user's ``constants()`` where it gives some, else the numeric
-        ``params`` the law was built with (no units)."""
-        own = self.user.constants() if callable(getattr(self.user, "constants", None)) \
-            else {}
+        """The law's constants for ``check`` and summary.json.
+
+        Returns:
+            The user's ``constants()`` where it gives some, else the numeric ``params`` the
+            law was built with (no units).
+
+        Raises:
+            CaseError: the user's ``constants()`` raised.
+        """
+        try:
+            own = self.user.constants() if callable(getattr(self.user, "constants", None)) \
+                else {}
+        except USER_ERRORS as exc:
+            raise CaseError(f"{self.where}: constants() {raised(exc)}") from None
         return dict(own) or {key: (value, "") for key, value in self.params.items()}
+
+    def _call(self, method: str, r):
+        """The user's ``method(r)``, a friction law's at the slip ``positive_slip(r)`` (= r;
+        its UFL form compiles whatever psi is); what it raises during the run (SystemExit
+        too) as a LawEvaluationError naming the law and the method (the step fails)."""
+        try:
+            return getattr(self.user, method)(positive_slip(r) if self.part == "friction"
+                                              else r)
+        except USER_ERRORS as exc:
+            raise LawEvaluationError(f"{self.where}: {method}(x) {raised(exc)}") from exc
 
     def energy(self, r):
         """The user's energy.
@@ -359,7 +411,7 @@ class UserContactLaw(ScalarLaw):
         Returns:
             The energy, elementwise.
         """
-        return self.user.energy(r)
+        return self._call("energy", r)
 
     def derivative(self, r):
         """The user's derivative.
@@ -370,7 +422,7 @@ class UserContactLaw(ScalarLaw):
         Returns:
             The derivative, elementwise.
         """
-        return self.user.derivative(r)
+        return self._call("derivative", r)
 
     def second_derivative(self, r):
         """The user's second derivative.
@@ -381,4 +433,4 @@ class UserContactLaw(ScalarLaw):
         Returns:
             The second derivative, elementwise.
         """
-        return self.user.second_derivative(r)
+        return self._call("second_derivative", r)

@@ -32,6 +32,7 @@ from dolfinx import fem
 from petsc4py import PETSc
 
 from vpcontact.forms.elasticity import eps
+from vpcontact.model.history import UPDATE_ERRORS, first_failure
 from vpcontact.solvers import dense, threads
 from vpcontact.solvers.amg import AMG_PETSC, AMG_PREFIX, near_nullspace, rigid_body_modes
 from vpcontact.solvers.options import push_options, remove_options
@@ -65,11 +66,18 @@ def ellipticity(elasticity) -> float:
     return elasticity.bounds()[0]
 
 
+class RateEstimateError(RuntimeError):
+    """The law raised at the state where its rate is estimated (on some rank; raised on
+    every rank)."""
+
+
 def estimated_rate(law, t: np.ndarray, kappa: np.ndarray, eps: np.ndarray | None = None,
                    comm=None, rel_step: float = 1e-6) -> float | None:
     """An estimate of the relaxation rate of a law without a rate bound: the spectral radius
     of the Jacobian dG/dsigma (central differences in the t-coordinates, kappa held) at the
     cell of largest ||sigma||_VM, the largest over the ranks; collective with ``comm``.
+    Where the law's rates overflow there (G not finite: Norton's law with A = 1e-3, n = 300
+    at ||sigma||_VM = 9) the estimate is infinite: no time step is stable there.
 
     Args:
         law: the ViscoplasticLaw (its ``rates``, with eps where it ``uses_eps``).
@@ -80,26 +88,46 @@ def estimated_rate(law, t: np.ndarray, kappa: np.ndarray, eps: np.ndarray | None
         rel_step: the difference step relative to the cell's largest |sigma_ij|.
 
     Returns:
-        The estimate [1/s], or None where it vanishes (every cell at rest).
+        The estimate [1/s] (inf where the rates overflow), or None where it vanishes
+        (every cell at rest).
+
+    Raises:
+        RateEstimateError: the law raised (a user's law: LawEvaluationError) or failed
+            numerically there, on some rank (raised on every rank with ``comm``).
     """
-    rate = 0.0
-    if len(t):
-        i = int(np.argmax(law.elasticity.von_mises(t)))
-        t0, mt = t[i], t.shape[1]
-        h = rel_step * max(float(np.max(np.abs(t0))), 1e-300)
-        steps = np.concatenate([t0 + h * np.eye(mt), t0 - h * np.eye(mt)])
-        rows = [np.repeat(np.asarray(kappa, dtype=float).reshape(len(t), -1)[i:i + 1],
-                          2 * mt, axis=0)]
-        if getattr(law, "uses_eps", False):
-            rows.append(np.repeat(eps[i:i + 1], 2 * mt, axis=0))
-        with law.elasticity.rows(np.full(2 * mt, i)):       # E per cell: cell i's
-            G, _ = law.rates(steps, *rows)
-        jac = (G[:mt] - G[mt:]).T / (2.0 * h)
-        rate = float(np.max(np.abs(np.linalg.eigvals(jac))))
+    rate, error = 0.0, None
+    try:
+        rate = _jacobian_radius(law, t, kappa, eps, rel_step) if len(t) else 0.0
+    except UPDATE_ERRORS as exc:
+        error = exc
+    reason = first_failure(comm, error) if comm is not None else \
+        (None if error is None else str(error))
+    if reason is not None:
+        raise RateEstimateError(reason) from error
     if comm is not None:
         from mpi4py import MPI
         rate = comm.allreduce(rate, op=MPI.MAX)
-    return rate if np.isfinite(rate) and rate > 0.0 else None
+    return rate if rate > 0.0 else None
+
+
+def _jacobian_radius(law, t, kappa, eps, rel_step: float) -> float:
+    """The spectral radius of dG/dsigma at the cell of largest ||sigma||_VM (see
+    estimated_rate): inf where G is not finite at the differenced states."""
+    i = int(np.argmax(law.elasticity.von_mises(t)))
+    t0, mt = t[i], t.shape[1]
+    h = rel_step * max(float(np.max(np.abs(t0))), 1e-300)
+    steps = np.concatenate([t0 + h * np.eye(mt), t0 - h * np.eye(mt)])
+    rows = [np.repeat(np.asarray(kappa, dtype=float).reshape(len(t), -1)[i:i + 1],
+                      2 * mt, axis=0)]
+    if getattr(law, "uses_eps", False):
+        rows.append(np.repeat(eps[i:i + 1], 2 * mt, axis=0))
+    with law.elasticity.rows(np.full(2 * mt, i)), \
+            np.errstate(over="ignore", invalid="ignore"):       # E per cell: cell i's
+        G, _ = law.rates(steps, *rows)
+        jac = (G[:mt] - G[mt:]).T / (2.0 * h)
+    if not np.isfinite(jac).all():
+        return np.inf
+    return float(np.max(np.abs(np.linalg.eigvals(jac))))
 
 
 def _gamma3_mass(problem) -> PETSc.Mat:
@@ -391,6 +419,8 @@ class Diagnostics:
         indicator_source: "law", "stress_scale" (the law's r(S)), "estimated", "unknown"
             or None (no law).
         stress_scale: S [Pa] of the source "stress_scale", else None.
+        estimate_error: why the estimate failed (the law raised at the initial state: the
+            source is "unknown"), else None.
     """
 
     scheme: str
@@ -411,6 +441,7 @@ class Diagnostics:
     rate_estimate: float | None = None
     indicator_source: str | None = None
     stress_scale: float | None = None
+    estimate_error: str | None = None
 
     def as_dict(self) -> dict:
         """The fields as a dict.
@@ -425,6 +456,10 @@ class Diagnostics:
         growth = self.stability_indicator - 1
         where = "here" if self.indicator_source != "stress_scale" else \
             "where the stresses reach S (the run estimates it at every step)"
+        if not np.isfinite(growth):     # the law's rate overflows: no k is small enough
+            return (f": the explicit scheme is unstable {where} for every time step (the "
+                    "law's rate overflows a float there); use time.scheme: implicit or "
+                    "smaller law constants")
         return (f": the explicit scheme is unstable {where} (errors can grow by up to "
                 f"{growth:.3g}x per step); use time.scheme: implicit, a smaller time step or "
                 "time.adaptive")
@@ -437,10 +472,13 @@ class Diagnostics:
         """
         out = []
         if self.indicator_source == "unknown":
-            out.append(("info", "stability indicator: unknown (the law states no rate bound and "
-                                "its rates do not vary with sigma in the initial state; the "
-                                "explicit scheme's step is not checked: watch for growing "
-                                "oscillations, or use time.scheme: implicit)"))
+            why = "its rates do not vary with sigma in the initial state" \
+                if self.estimate_error is None else \
+                f"its rates failed in the initial state: {self.estimate_error}"
+            out.append(("info" if self.estimate_error is None else "warning",
+                        f"stability indicator: unknown (the law states no rate bound and "
+                        f"{why}; the explicit scheme's step is not checked: watch for growing "
+                        "oscillations, or use time.scheme: implicit)"))
         if self.stability_indicator is not None:
             est = self.indicator_source in ("estimated", "stress_scale")
             rate = self.rate_estimate if est else self.relaxation_rate
@@ -499,7 +537,7 @@ def diagnose(problem, solver=None) -> Diagnostics:
     ks = np.diff(case.time.times)
     k_max = float(ks.max())
     law = problem.law
-    rate, lipschitz, estimate, source, scale = _law_rate(problem)
+    rate, lipschitz, estimate, source, scale, failed = _law_rate(problem)
     indicator = k_max * rate if rate is not None else \
         (k_max * estimate if estimate is not None else None)
     m_E = ellipticity(elasticity)
@@ -523,31 +561,35 @@ def diagnose(problem, solver=None) -> Diagnostics:
                        None if indicator is None else indicator <= STABILITY_LIMIT,
                        m_E, m_j, 0.0, gamma2, margin, unique, case.time.adaptive is not None,
                        is_bound, lipschitz, estimate, source if law is not None else None,
-                       scale)
+                       scale, failed)
 
 
 def _law_rate(problem) -> tuple:
     """(r_max stated by the law or None, L_G or None, the rate r(S) at the data's stress
-    scale S or the estimate or None, the source, S or None); collective."""
+    scale S or the estimate or None, the source, S or None, why the estimate failed or
+    None); collective."""
     from vpcontact.post.divergence import stress_scale
     law = problem.law
     if law is None:
-        return None, None, None, None, None
+        return None, None, None, None, None, None
     # the largest over the ranks: with E per cell a law sees only this rank's cells
     lipschitz = _largest_over_ranks(problem.comm, law.lipschitz_constant())
     rate = _largest_over_ranks(problem.comm, law.relaxation_rate())   # None if unknown
     rate = lipschitz if rate is None else rate
     if rate is not None:
-        return rate, lipschitz, None, "law", None
+        return rate, lipschitz, None, "law", None, None
     scale = stress_scale(problem.case, problem)
     at_scale = getattr(law, "rate_at_stress", lambda _: None)(scale) if scale > 0 else None
     at_scale = _largest_over_ranks(problem.comm, at_scale)
     if at_scale is not None:
-        return None, None, at_scale, "stress_scale", scale
+        return None, None, at_scale, "stress_scale", scale, None
     el, H = problem.elasticity, problem.state.H       # sigma_0 = E eps(u_0) + H_0 (3.2)
     eps = problem.strain_voigt()
-    estimate = state_rate(problem, el.apply(eps) + el.to_voigt(H.x.array), eps)
-    return None, None, estimate, "estimated" if estimate is not None else "unknown", None
+    try:
+        estimate = state_rate(problem, el.apply(eps) + el.to_voigt(H.x.array), eps)
+    except RateEstimateError as exc:    # the first step's update fails there if the law does
+        return None, None, None, "unknown", None, str(exc)
+    return None, None, estimate, "estimated" if estimate is not None else "unknown", None, None
 
 
 def _largest_over_ranks(comm, value: float | None) -> float | None:

@@ -9,14 +9,17 @@ it at every accepted state of the explicit scheme (3.2)-(3.3), k_n times the spe
 radius of dG/dsigma at the cell of largest ||sigma||_VM (``diagnostics.state_rate``), warns
 once when it exceeds the limit, and records the largest and the last values in
 summary.json's "diagnostics" (``estimated_indicator_max``, ``estimated_indicator_last``,
-``estimated_indicator_step``).
+``estimated_indicator_step``).  Where the law raises (or fails numerically) at the state
+the watch differences, the estimate of that step is unknown: one warning; the scheme's next
+explicit update evaluates G at the same sigma_n and fails the step cleanly (summary.json
+status "failed") if the law raises there too, while a run already at T is complete.
 """
 from __future__ import annotations
 
 import logging
 
 from vpcontact.observers import Observer
-from vpcontact.post.diagnostics import STABILITY_LIMIT, state_rate
+from vpcontact.post.diagnostics import STABILITY_LIMIT, RateEstimateError, state_rate
 
 log = logging.getLogger("vpcontact")
 
@@ -41,7 +44,7 @@ class RateWatch(Observer):
     def __init__(self):
         self.largest = self.last = None
         self.step_of_largest = None
-        self.warned = False
+        self.warned = self.failed = False
 
     def step(self, sim, record: dict) -> None:
         """Estimate the indicator at the accepted state sigma_n, kappa_n with k_n.
@@ -51,7 +54,14 @@ class RateWatch(Observer):
             record: the step's record (its k and n).
         """
         p = sim.problem
-        rate = state_rate(p, p.elasticity.to_voigt(p.sigma.x.array))
+        try:
+            rate = state_rate(p, p.elasticity.to_voigt(p.sigma.x.array))
+        except RateEstimateError as exc:          # raised on every rank alike
+            if not self.failed:
+                self.failed = True
+                log.warning("estimated stability indicator not computed at step %d (t = %g): "
+                            "%s", record["n"], sim.t, exc)
+            return
         if rate is None:
             return
         self.last = record["k"] * rate

@@ -289,3 +289,26 @@ def test_plane_strain_equals_3d(path, steps, tmp_path):
         text = (tmp_path / "solution.xdmf").read_text()
         assert text.count('Attribute Name="eps_vp33" AttributeType="Scalar" '
                           'Center="Cell"') == steps + 1
+
+
+@pytest.mark.parametrize("law", [
+    {"law": "norton", "A": 1e-3, "n": 300},
+    {"law": "chaboche", "k": 1.0, "K": 1e-90, "n": 200, "C": 0.0, "gamma": 0.0, "Q": 0.0,
+     "b": 0.0},
+    {"law": "power", "lambda1": 1.0, "lambda2": 1.0, "n": 100, "s_ref": 1e-90},
+], ids=["norton", "chaboche", "power"])
+def test_rates_that_overflow_end_the_run_cleanly(law):
+    """Law constants whose rates overflow a float at the case's stresses (the paper's scene,
+    tractions of 8 N/m: 20^299 > 1.8e308 for Norton's r(S)): the stability indicator is
+    infinite (the warning says no time step is stable) and the run ends with a summary;
+    before, the diagnostics raised numpy's LinAlgError on the non-finite Jacobian (an
+    internal error of the set-up, or of the rate watch after step 1)."""
+    raw = paper_raw()
+    raw["material"]["viscoplastic"] = law
+    res = run_case(make_case(raw, mesh={"n": 8}, time={"N": 4}))
+    d = res.summary["diagnostics"]
+    assert res.status in ("failed", "diverged") and res.summary["failure"] is not None
+    if law["law"] == "power":                 # no r(S): estimated from step 1 on
+        assert d["estimated_indicator_max"] == np.inf
+    else:
+        assert d["stability_indicator"] == np.inf and d["explicit_stable"] is False

@@ -74,6 +74,45 @@ def test_the_case_law_takes_effect(runs):
     assert abs(other[-1]["norm_u_V"] / ref[-1]["norm_u_V"] - 1) > 1e-6
 
 
+def test_a_friction_law_smooth_in_the_slip_with_snes_vi(tmp_path):
+    """psi(rho) = b rho + a rho^2 / 2 written as plain arithmetic with psi'' = a a number
+    (QuadraticFriction): SNES VI gives the run of the friction table [[0, b], [1, b + a]]
+    (the same psi, the built-in TableFriction) to 1e-12; before, its Jacobian form failed
+    to compile (FFCx 0.5: 'LiteralFloat' object has no attribute 'args', an internal
+    error)."""
+    user, table = tmp_path / "user", tmp_path / "table"
+    _run(user, "--set", "solver.method=snes_vi", "--law-module", LAW_MODULE, "--set",
+         "contact.friction={law: python, class: QuadraticFriction, params: {b: 1.0, a: 60.0}}")
+    _run(table, "--set", "solver.method=snes_vi", "--set",
+         "contact.friction={table: [[0.0, 1.0], [1.0, 61.0]]}")
+    ref, got = summary_steps(table), summary_steps(user)
+    assert len(ref) == len(got) == 4
+    for a, b in zip(ref, got):
+        assert a["newton_iterations"] == b["newton_iterations"]
+        for key in KEYS:
+            assert b[key] == pytest.approx(a[key], rel=1e-12, abs=1e-300), key
+    (s0, c0), (s1, c1) = contact_rows(table), contact_rows(user)
+    assert s0 == s1 and np.all(np.abs(c1 - c0) <= 1e-12 * np.abs(c0).max(axis=0))
+
+
+def test_a_contact_law_that_raises_during_the_run_fails_the_step(tmp_path, capsys):
+    """A compliance whose derivative raises KeyError beyond r = 2e-3 (the probe, at 1e-3, stays
+    below): the condensed solver's step that reaches it fails, naming the law and
+    the method, with summary.json; before, a traceback and "this is a bug"."""
+    out = tmp_path / "out"
+    code = cli_in_process(["run", PAPER_CASE, *TINY, "--law-module", LAW_MODULE, "--set",
+                           "contact.normal_compliance={law: python, class: RaisingCompliance, "
+                           "params: {c: 100.0, level: 2.0e-3}}", "--set",
+                           "solver.method=condensed", "--out", out, "--quiet", "--no-plots"])
+    err = capsys.readouterr().err
+    assert code == 1 and "Traceback" not in err and "this is a bug" not in err, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed"
+    assert summary["failure"]["reason"].startswith(
+        f"--law-module {LAW_MODULE}: class RaisingCompliance: derivative(x) raised KeyError: "
+        "'beyond my table'")
+
+
 def test_check_lists_the_user_laws(capsys):
     """check names the laws, their params and m_j (the law's own, or not stated)."""
     assert cli_in_process(["check", PAPER_CASE, *TINY, "--law-module", LAW_MODULE, *USER]) == 0

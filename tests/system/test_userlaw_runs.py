@@ -8,6 +8,7 @@ process, on the paper's case at h = k = 1/4."""
 import csv
 import functools
 import json
+import re
 
 import numpy as np
 import pytest
@@ -98,6 +99,15 @@ def test_api_law_equals_the_builtin(runs):
      "at 6 cell(s) at sigma = 0, eps = 0, kappa = 0"),
     (["--law-module", LAW_MODULE, "--set", "material.viscoplastic.params={lambda1: 1.0}"],
      "UserPerzyna(elasticity, **material.viscoplastic.params) failed"),
+    (["--law-module", LAW_MODULE, "--set", "material.viscoplastic.class=RaisesInG"],
+     "--law-module {module}: class RaisesInG: G(sigma, eps, kappa) raised KeyError: 'x' at "
+     "sigma = 0, eps = 0, kappa = 0"),
+    (["--law-module", LAW_MODULE, "--set", "material.viscoplastic.class=FailingInit"],
+     "--law-module {module}: class FailingInit: FailingInit(elasticity, "
+     "**material.viscoplastic.params) failed: raised RuntimeError: no licence for this law"),
+    (["--law-module", LAW_MODULE, "--set", "material.viscoplastic.class=ExitsInInit"],
+     "--law-module {module}: class ExitsInInit: ExitsInInit(elasticity, "
+     "**material.viscoplastic.params) failed: raised SystemExit"),
 ])
 @pytest.mark.parametrize("command", ["run", "check"])
 def test_refusals(command, extra, message, tmp_path, capsys):
@@ -118,6 +128,77 @@ def test_import_error_names_the_line(tmp_path, capsys):
     assert cli_in_process(["check", PAPER_CASE, *PYTHON_LAW, "--law-module", bad]) == 2
     err = capsys.readouterr().err
     assert f"--law-module {bad}: importing it raised ValueError: no constants (line 3)" in err
+
+
+@pytest.mark.parametrize("body, raised", [
+    ("import sys\nsys.exit(0)\n", "raised SystemExit (line 2)"),
+    ("import sys\n\nsys.exit()\n", "raised SystemExit (line 3)"),
+    ("import sys\nsys.exit(3)\n", "raised SystemExit: 3 (line 2)"),
+])
+@pytest.mark.parametrize("command", ["run", "check"])
+def test_a_module_that_exits_is_refused(command, body, raised, tmp_path, capsys):
+    """A module that calls sys.exit when imported is refused like one that raises: one
+    line, exit 2, nothing computed (it ended the process with its own code, 0 or 3, and no
+    message before)."""
+    module = tmp_path / "exits.py"
+    module.write_text(body)
+    args = [command, PAPER_CASE, *TINY, *PYTHON_LAW, "--law-module", module]
+    if command == "run":
+        args += ["--out", tmp_path / "out", "--quiet", "--no-plots"]
+    assert cli_in_process(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"vpcontact: error: --law-module {module}: importing it {raised}"
+    assert not (tmp_path / "out").exists()
+
+
+def _failed_run(tmp_path, capsys, cls: str, params: str) -> dict:
+    """A run of the python law ``cls`` that must fail cleanly: exit 1, one error line and no
+    traceback, summary.json with status failed; returns its failure."""
+    out = tmp_path / "out"
+    code = cli_in_process(["run", PAPER_CASE, *TINY, "--law-module", LAW_MODULE, "--set",
+                           f"material.viscoplastic={{law: python, class: {cls}, params: "
+                           f"{{{params}}}}}", "--out", out, "--quiet", "--no-plots"])
+    err = capsys.readouterr().err
+    assert code == 1, err
+    assert "Traceback" not in err and "this is a bug" not in err, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed"
+    return summary["failure"]
+
+
+def test_a_law_that_exits_during_the_run_fails_the_step(tmp_path, capsys):
+    """G calls sys.exit(0) once sigma is not zero: the explicit update of step 2 (G at
+    sigma_1, the first nonzero stress; sigma_0 = 0) fails, naming the law; before, the run
+    ended with exit 0 and no summary."""
+    failure = _failed_run(tmp_path, capsys, "ExitsInG", "lambda1: 100.0, lambda2: 100.0")
+    assert failure["step"] == 2
+    assert failure["reason"] == f"--law-module {LAW_MODULE}: class ExitsInG: " \
+                                "G(sigma, eps, kappa) raised SystemExit"
+
+
+def test_wrong_shapes_during_the_run_fail_the_step(tmp_path, capsys):
+    """Gk flat once sigma is not zero: the explicit update of step 2 fails (exit 1, a
+    summary); before, the run ended as bad input (exit 2) without summary.json after a
+    step was computed."""
+    failure = _failed_run(tmp_path, capsys, "ShapeLater", "lambda1: 100.0, lambda2: 100.0")
+    assert failure["step"] == 2
+    assert re.fullmatch(f"--law-module {re.escape(str(LAW_MODULE))}: class ShapeLater: Gk "
+                        r"returned an array of shape \(\d+,\), expected \(\d+, 1\)",
+                        failure["reason"]), failure["reason"]
+
+
+def test_a_law_that_raises_where_its_rate_is_estimated(tmp_path, capsys):
+    """A law without a rate bound (its rate estimated at every accepted state) whose G
+    raises above ||sigma||_VM = 15: the paper's run reaches max ||sigma||_VM = 17.97 at
+    step 1, so the estimate at sigma_1 fails (a warning), and the explicit update of step 2,
+    G at the same sigma_1, fails the step with the law's message and a summary; before,
+    the rate watch ended the run with a traceback and no summary.json."""
+    failure = _failed_run(tmp_path, capsys, "RaisesAbove",
+                          "lambda1: 100.0, lambda2: 100.0, level: 15.0")
+    assert failure["step"] == 2
+    assert failure["reason"] == f"--law-module {LAW_MODULE}: class RaisesAbove: " \
+                                "G(sigma, eps, kappa) raised RuntimeError: stress too large " \
+                                "for my law"
 
 
 class _Frozen:

@@ -3,7 +3,8 @@ compliance (4.1) and nonmonotone friction (4.2) (Section 4) typed out from the p
 formulas as ScalarLaws with the primitives of backend(x) (numpy at the nodes, UFL in the
 forms), not the built-in classes; a compliance that is a duck-typed law (no ScalarLaw base);
 and objects that break the protocol (no second derivative, wrong shapes, NaN, numpy's
-functions, a negative m_j)."""
+functions, a negative m_j, a derivative that raises during the run); a friction psi smooth
+in the slip with a constant psi'' (QuadraticFriction)."""
 import numpy as np
 
 from vpcontact.model.laws import ScalarLaw
@@ -120,3 +121,38 @@ class NegativeMj(UserFriction):
     def __init__(self, b, c1, c2, u1):
         super().__init__(b, c1, c2, u1)
         self.m_j = -1.0
+
+
+class QuadraticFriction(ScalarLaw):
+    """psi(rho) = b rho + a rho^2 / 2 written as plain arithmetic (no conditional): psi' =
+    b + a rho, psi'' = a returned as the number itself; m_j = 0 (psi' increases).  The
+    friction table [[0, b], [1, b + a]] (linear beyond its last point) is the same law."""
+
+    name = "quadratic friction"
+    m_j = 0.0
+
+    def __init__(self, b, a):
+        self.b, self.a = b, a
+
+    def energy(self, rho):
+        return self.b * rho + 0.5 * self.a * rho * rho
+
+    def derivative(self, rho):
+        return self.b + self.a * rho
+
+    def second_derivative(self, rho):
+        return self.a
+
+
+class RaisingCompliance(UserCompliance):
+    """UserCompliance whose derivative raises (KeyError) once r exceeds a level: accepted
+    before the run (the probe stays below), the step that reaches it fails."""
+
+    def __init__(self, c, level):
+        super().__init__(c)
+        self.level = level
+
+    def derivative(self, r):
+        if not hasattr(r, "ufl_shape") and np.max(r, initial=0.0) > self.level:
+            raise KeyError("beyond my table")
+        return super().derivative(r)

@@ -1,7 +1,8 @@
 """Laws written as a user would, for --law-module in the tests: Perzyna's law of the paper
 (Section 4) in tensors (UserPerzyna, and UserPerzynaTangent with its derivatives by finite
 differences of its own G, Gk), and laws that break the protocol (a wrong m, wrong shapes,
-non-finite values)."""
+non-finite values, wrong shapes during the run, a G or a constructor that raises or calls
+sys.exit, a G that raises above a stress level)."""
 import numpy as np
 
 from vpcontact.model.material import make_projection
@@ -85,3 +86,61 @@ class NotFinite(UserPerzyna):
         norm = np.sqrt(np.einsum("nij,nij->n", sigma, sigma))
         with np.errstate(invalid="ignore"):
             return sigma / norm[:, None, None]
+
+
+class RaisesInG(UserPerzyna):
+    """G raises (a KeyError of the user's code) wherever it is called."""
+
+    def G(self, sigma, eps, kappa):
+        raise KeyError("x")
+
+
+class FailingInit(UserPerzyna):
+    """The constructor raises something other than TypeError (a RuntimeError)."""
+
+    def __init__(self, elasticity, lambda1, lambda2):
+        raise RuntimeError("no licence for this law")
+
+
+class ExitsInInit(UserPerzyna):
+    """The constructor calls sys.exit(0)."""
+
+    def __init__(self, elasticity, lambda1, lambda2):
+        import sys
+        sys.exit(0)
+
+
+class ExitsInG(UserPerzyna):
+    """G calls sys.exit(0) once sigma is not zero (after the probe at the zero state)."""
+
+    def G(self, sigma, eps, kappa):
+        if np.any(sigma != 0.0):
+            import sys
+            sys.exit(0)
+        return super().G(sigma, eps, kappa)
+
+
+class RaisesAbove(UserPerzyna):
+    """UserPerzyna without a rate bound (the run estimates its rate at every step) whose G
+    raises a RuntimeError once max ||sigma||_VM over the cells it is given exceeds
+    ``level``."""
+
+    def __init__(self, elasticity, lambda1, lambda2, level):
+        super().__init__(elasticity, lambda1, lambda2)
+        self.level = level
+
+    def rate_bound(self):
+        return None
+
+    def G(self, sigma, eps, kappa):
+        if len(sigma) and self.el.von_mises(self.el.to_voigt(sigma)).max() > self.level:
+            raise RuntimeError("stress too large for my law")
+        return super().G(sigma, eps, kappa)
+
+
+class ShapeLater(UserPerzyna):
+    """Gk flat, (n,) instead of (n, m), once sigma is not zero (after the probe)."""
+
+    def Gk(self, sigma, eps, kappa):
+        gk = super().Gk(sigma, eps, kappa)
+        return gk[:, 0] if np.any(sigma != 0.0) else gk
