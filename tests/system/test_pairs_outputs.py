@@ -13,9 +13,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from scipy.spatial import cKDTree
 
-from conftest import cli_in_process, make_case, run_case
+from conftest import cli_in_process, make_case, run_case, run_cli
 from vpcontact.io.history import history_columns
 from vpcontact.post.results import check_results
 
@@ -128,3 +129,46 @@ def test_a_single_body_run_has_no_pair_outputs():
     assert history_columns(2, ["a"], True)[:len(base)] == base
     result = run_case(make_case(mesh={"n": 4}, time={"N": 2}))
     assert all("pair_forces" not in step for step in result.summary["steps"])
+
+
+def _states(out: Path) -> dict:
+    """contact.h5's state codes at each output time, by rounded coordinates."""
+    import h5py
+    with h5py.File(out / "contact.h5") as f:
+        xyz = [tuple(np.round(p, 9)) for p in f["Mesh/geometry"][:]]
+        return {int(s): dict(zip(xyz, f[f"Step/{s}/state"][:].ravel()))
+                for s in f["Step"]}
+
+
+def test_touching_states_at_t0_do_not_depend_on_the_rank_count(tmp_path):
+    """tests/data/stack3.geo: three blocks that touch (d = 0 in the geometry, +-2e-16 as
+    measured on the mesh), Coulomb pairs without compliance: at t = 0 (u = 0) every node of
+    both pairs is at its bound (state 2), serial and under mpirun -n 2, and the states
+    agree at every output time.  Before, u_nu = -d = -2e-16 was 'separated' (0) at some
+    nodes, at different nodes for 1 and 2 ranks (the tolerance was relative to u alone,
+    0 at t = 0; now U_ROUNDOFF times the body's length scale as well)."""
+    raw = {
+        "mesh": {"file": str(Path(PATCH).with_name("stack3.geo")), "dim": 2},
+        "materials": {b: {"E": 1000.0, "nu": 0.3, "plane": "strain"}
+                      for b in ("bottom", "middle", "top")},
+        "boundaries": {"clamped": ["bottom_bottom"]},
+        "contact": {"pairs": [
+            {"surface": "bottom_top", "target": "middle_bottom",
+             "friction": {"coulomb": {"mu": 0.2}}},
+            {"surface": "middle_top", "target": "top_bottom",
+             "friction": {"coulomb": {"mu": 0.4}}}]},
+        "loads": {"f0": [0.0, -0.5], "displacement": {
+            "top_top": [{"table": [[0, 0], [1, 0.01]]}, -0.01],
+            "middle_left": [{"table": [[0, 0], [1, 0.005]]}, None]}},
+        "time": {"T": 1.0, "N": 1}, "solver": {"delta": 1e-8}}
+    case = tmp_path / "stack.yaml"
+    case.write_text(yaml.safe_dump(raw))
+    states = {}
+    for n in (1, 2):
+        proc = run_cli(["run", case, "--out", tmp_path / f"np{n}", "--quiet"], nprocs=n)
+        assert proc.returncode == 0, proc.stderr
+        states[n] = _states(tmp_path / f"np{n}")
+    for n in (1, 2):
+        codes = np.array(list(states[n][0].values()))
+        assert len(codes) == 14 and np.all(codes == 2), (n, codes)
+    assert states[1] == states[2]
