@@ -141,9 +141,16 @@ def _states(out: Path) -> dict:
 
 
 def _stack_file(tmp_path, friction2=None) -> Path:
+    """_stack_raw as a case file."""
+    case = tmp_path / "stack.yaml"
+    case.write_text(yaml.safe_dump(_stack_raw(friction2)))
+    return case
+
+
+def _stack_raw(friction2=None) -> dict:
     """tests/data/stack3.geo's three blocks, two Coulomb pairs (the second pair's friction
-    ``friction2`` if given), the middle block held sideways only: the case file."""
-    raw = {
+    ``friction2`` if given), the middle block held sideways only."""
+    return {
         "mesh": {"file": str(Path(PATCH).with_name("stack3.geo")), "dim": 2},
         "materials": {b: {"E": 1000.0, "nu": 0.3, "plane": "strain"}
                       for b in ("bottom", "middle", "top")},
@@ -157,9 +164,6 @@ def _stack_file(tmp_path, friction2=None) -> Path:
             "top_top": [{"table": [[0, 0], [1, 0.01]]}, -0.01],
             "middle_left": [{"table": [[0, 0], [1, 0.005]]}, None]}},
         "time": {"T": 1.0, "N": 1}, "solver": {"delta": 1e-8}}
-    case = tmp_path / "stack.yaml"
-    case.write_text(yaml.safe_dump(raw))
-    return case
 
 
 def test_touching_states_at_t0_do_not_depend_on_the_rank_count(tmp_path):
@@ -194,3 +198,20 @@ def test_wellposedness_names_the_body_held_only_by_contact(tmp_path, capsys):
         "body is held only by contact" in text
     assert "uniqueness of the solution is not guaranteed" in text
     assert "c1 is too large" not in text and "x inf" not in text
+
+
+def test_contact_force_of_two_pairs_is_the_sum_over_their_surfaces():
+    """The stack's two pairs have different surface bodies (bottom, middle): contact_force
+    is the sum of the pairs' on_surface (the documented meaning, kept), pair_forces gives
+    each pair's force on each body, and the forces on the middle block (pair 0's target,
+    pair 1's surface) are not contact_force.  Pins the meaning; the per-pair report was
+    already there."""
+    steps = run_case(make_case(_stack_raw())).summary["steps"]
+    last = steps[-1]
+    pairs = last["pair_forces"]
+    assert [(p["surface"], p["target"]) for p in pairs] == [("bottom_top", "middle_bottom"),
+                                                           ("middle_top", "top_bottom")]
+    total = np.sum([p["on_surface"] for p in pairs], axis=0)
+    scale = np.abs([p["on_surface"] for p in pairs]).max()
+    assert np.abs(np.array(last["contact_force"]) - total).max() <= 1e-12 * scale
+    assert np.abs(np.array(pairs[0]["on_surface"]) - last["contact_force"]).max() > 1e-3 * scale
