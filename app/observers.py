@@ -223,8 +223,8 @@ class ContactOutput(Observer):
     def _table(self, sim) -> dict | None:
         c = sim.case.contact
         table = quantities.contact_table(sim.problem, sim.boundary_residual)   # None: assembled
-        return gather_contact_table(sim.comm, table, c.g,
-                                    compliance=c.compliances)
+        return gather_contact_table(sim.comm, table, c.g, compliance=c.compliances,
+                                    length=sim.problem.length_scale)
 
     def start(self, sim) -> None:
         """Write the facet mesh and the table at the start time.
@@ -397,7 +397,8 @@ class RunFiles(Observer):
             if sim.problem.gamma3 is not None and steps:
                 summary.contact_states = write_contact_csv(
                     sim.comm, outdir / "contact.csv", quantities.contact_table(sim.problem),
-                    sim.case.contact.g, compliance=sim.case.contact.compliances)
+                    sim.case.contact.g, compliance=sim.case.contact.compliances,
+                    length=sim.problem.length_scale)
                 self.files.append(outdir / "contact.csv")
         except OutputError as exc:
             summary.fail(StepFailure.output(summary.last_good_step, steps[-1]["t"], exc))

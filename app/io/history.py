@@ -35,8 +35,9 @@ def history_columns(dim: int, groups: list[str], contact: bool,
 
     Returns:
         n, t, k, the norms of u_n, sigma_n, kappa_n, max von Mises and kappa, the contact
-        force on the body (contact_force_x, ...; with pairs, on the surfaces) and, per
-        pair, on its surface's and its target's body (pair<i>_<group>_x, ...), the reaction
+        force on the body (contact_force_x, ...; with pairs, on the surfaces summed over
+        the pairs: several pairs' surfaces are different bodies) and, per pair, on its
+        surface's and its target's body (pair<i>_<group>_x, ...), the reaction
         on each group (reaction_<group>_x, ...), the Gamma3 node counts (nodes_bound, ...),
         Newton and linear iterations, the step's wall time.
     """

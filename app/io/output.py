@@ -19,6 +19,7 @@ from vpcontact.io.files import atomic_write, overwrite_in_place
 from vpcontact.io.h5files import open_h5
 from vpcontact.io.xdmf import TemporalXdmf, XdmfLayoutError, dolfinx_layout, dolfinx_time_key
 from vpcontact.native import loaded_libraries
+from vpcontact.post.quantities import SEPARATED_RATIO, U_ROUNDOFF
 
 HDF5_MARGIN = 64 * 1024      # bytes of HDF5 metadata a time's datasets may add (B-trees, heaps)
 OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv", "contact.xdmf",
@@ -382,16 +383,22 @@ class FieldWriter:
         self.comm.barrier()
 
 
-def classify(data: dict, g: float | None, compliance: bool | tuple = True) -> np.ndarray:
+def classify(data: dict, g: float | None, compliance: bool | tuple = True,
+             length: float = 0.0) -> np.ndarray:
     """Node state from the columns of the contact table: 'bound' (u_nu = g), 'compliance'
     (0 < u_nu < g), 'separated' (u_nu <= 0), 'prescribed' (the Dirichlet data fix u_nu).
 
-    The tolerances come from the solution, not from g: u_nu counts as positive beyond the
-    round-off of the displacement (1e-9 of its largest component on Gamma3), or when the
-    node carries a contact pressure -sigma_nu above the round-off of the forces (1e-6 of the
-    largest force density): a stiff normal compliance (large c_nu) holds the load with a
-    penetration far below the displacement's round-off.  The bound u_nu <= g is imposed
-    exactly, so 'bound' is u_nu >= g up to the round-off of g.
+    The tolerances come from the solution and the body, not from g: u_nu counts as positive
+    beyond the round-off of the displacement and of the distances measured on the mesh,
+    U_ROUNDOFF (1e-9, as slip_threshold's) times the largest of the largest displacement
+    component on Gamma3 and the body's length scale L (with contact.pairs u_nu is measured
+    from the initial distance d, whose round-off ~ eps L differs with the partition: at
+    t = 0, u = 0, a touching node's d = +-2e-16 classed it bound with one rank count and
+    separated with another), or when the node carries a contact pressure -sigma_nu above
+    the round-off of the forces (SEPARATED_RATIO = 1e-6 of the largest force density, as
+    slip_state's): a stiff normal compliance (large c_nu) holds the load with a penetration
+    far below the displacement's round-off.  The bound u_nu <= g is imposed exactly, so
+    'bound' is u_nu >= g up to the same round-off (or 1e-9 of g where that is larger).
 
     Args:
         data: the columns of the contact table (u_nu, the u_* and neg_sigma* columns).
@@ -400,6 +407,8 @@ def classify(data: dict, g: float | None, compliance: bool | tuple = True) -> np
         compliance: the foundation has a normal compliance (else a node below its bound is
             'separated': the unilateral bound alone, Signorini contact); with laws per
             pair, one per pair (a tuple, read through the table's column ``pair``).
+        length: the body's length scale L (problem.length_scale; 0: the solution's
+            round-off alone).
 
     Returns:
         The state of each node (an object array of strings).
@@ -412,20 +421,21 @@ def classify(data: dict, g: float | None, compliance: bool | tuple = True) -> np
     f_cols = [v for k, v in data.items() if k.startswith("neg_sigma")]
     f_scale = max((float(np.abs(v).max(initial=0.0)) for v in f_cols), default=0.0)
     pressure = data.get("neg_sigma_nu", np.zeros_like(u_nu))
-    touching = (u_nu > 1e-9 * u_scale) | ((u_nu > 0) & (pressure > 1e-6 * f_scale))
+    scale = max(u_scale, length)
+    touching = (u_nu > U_ROUNDOFF * scale) | ((u_nu > 0) & (pressure > SEPARATED_RATIO * f_scale))
     state = np.where(touching & compliance, "compliance", "separated").astype(object)
     if "g" in data:                   # a gap that varies along Gamma3 (may be 0 somewhere)
         gap = data["g"]
-        state[u_nu >= gap - 1e-9 * np.maximum(gap, u_scale)] = "bound"
+        state[u_nu >= gap - U_ROUNDOFF * np.maximum(gap, scale)] = "bound"
     elif g is not None:
-        state[u_nu >= g * (1 - 1e-9)] = "bound"
+        state[u_nu >= g - U_ROUNDOFF * max(g, scale)] = "bound"
     if "_prescribed" in data:          # u_nu is Dirichlet data: the force is a reaction
         state[np.asarray(data["_prescribed"], dtype=bool)] = "prescribed"
     return state
 
 
 def gather_contact_table(comm, table: dict, g: float | None,
-                         compliance: bool = True) -> dict | None:
+                         compliance: bool = True, length: float = 0.0) -> dict | None:
     """The contact table of all ranks on rank 0, sorted by coordinates, with the node
     states (collective; O(Gamma3 nodes) data).
 
@@ -434,6 +444,7 @@ def gather_contact_table(comm, table: dict, g: float | None,
         table: this rank's columns (post.quantities.contact_table).
         g: the bound of the unilateral constraint (None: no bound).
         compliance: the foundation has a normal compliance (see classify).
+        length: the body's length scale (see classify).
 
     Returns:
         On rank 0: column -> values, the table's columns then ``state``; None elsewhere.
@@ -448,7 +459,7 @@ def gather_contact_table(comm, table: dict, g: float | None,
     keys = [np.round(data[k] / max(scale, 1e-300), 9) for k in ("z", "y", "x") if k in data]
     order = np.lexsort(tuple(keys))
     data = {k: v[order] for k, v in data.items()}
-    data["state"] = classify(data, g, compliance)
+    data["state"] = classify(data, g, compliance, length)
     return data
 
 
@@ -473,7 +484,7 @@ def state_counts(data: dict) -> dict:
 
 
 def write_contact_csv(comm, path: Path, table: dict, g: float | None,
-                      compliance: bool = True) -> dict:
+                      compliance: bool = True, length: float = 0.0) -> dict:
     """Gather the per-node contact table on rank 0, sorted by coordinates, and write it
     (columns in the table's order, then ``state``).  In 2D the columns are x, y, u_x, u_y, u_nu,
     u_tau (along the nodal tangent), neg_sigma_nu (the contact pressure, the bound's reaction
@@ -488,6 +499,7 @@ def write_contact_csv(comm, path: Path, table: dict, g: float | None,
         table: this rank's columns (post.quantities.contact_table).
         g: the bound of the unilateral constraint (None: no bound).
         compliance: the foundation has a normal compliance (see classify).
+        length: the body's length scale (see classify).
 
     Returns:
         The counts of node states (state_counts) on every rank.
@@ -495,7 +507,7 @@ def write_contact_csv(comm, path: Path, table: dict, g: float | None,
     Raises:
         OutputError: on every rank, if the file could not be written.
     """
-    data = gather_contact_table(comm, table, g, compliance)
+    data = gather_contact_table(comm, table, g, compliance, length)
     counts = text = None
     if comm.rank == 0:
         columns = [k for k in table if not k.startswith("_")] + ["state"]

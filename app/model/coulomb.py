@@ -8,7 +8,15 @@ reaction: -sigma_nu of the bulk residual, as in contact.csv).  The bound mu p_n 
 the solution: the step problem is quasi-variational.  ``CoulombPressure.solve`` solves it by
 a fixed point on p_n inside each step: start from the previous step's p_n, solve the step
 (either step solver: the factor is the nodal field theta they both read), recompute p_n,
-repeat until max|p^(i+1) - p^(i)| <= tol max p^(i+1), at most ``max_iterations`` solves.
+repeat until max|p^(i+1) - p^(i)| <= TOL max(max p^(i+1), S), at most ``MAX_ITERATIONS``
+solves.  S is the data's stress scale (``divergence.stress_scale``: the loads and initial
+data, E_max times the prescribed displacements over L, the contact laws' levels, the initial
+stress), the scale in which the bulk residual, and so p_n, is measured: p_n is a nodal
+residual divided by its weight, summed from stress terms of that size, so its round-off
+is a few eps S.  Without the floor TOL S a step in which every node separates (p_n = 0 up to
+round-off, ~1e-14 at S = 30) could never converge (the relative test compares that noise
+with max p_n ~ 1e-21); with it, p_n is resolved to 1e-8 of the data's stresses, as the
+relative test resolves it at nodes in contact.
 A converged fixed point says so on a --verbose line (DEBUG: at the default level the progress
 bar and the closing lines suffice); one that does not converge fails the step
 (StepSolveError: the run's warning of a rejected adaptive step, or its error line).
@@ -25,6 +33,7 @@ import logging
 import numpy as np
 from mpi4py import MPI
 
+from vpcontact.post.divergence import stress_scale
 from vpcontact.post.quantities import bulk_residual
 from vpcontact.solvers.snesvi import StepSolveError
 
@@ -33,6 +42,19 @@ log = logging.getLogger("vpcontact")
 # the fixed point's relative tolerance on p_n and its largest number of step solves
 TOL = 1e-8
 MAX_ITERATIONS = 30
+
+
+def pressure_floor(problem) -> float:
+    """The pressure below which p_n is round-off: the data's stress scale S
+    (``divergence.stress_scale``, see the module docstring); collective.
+
+    Args:
+        problem: the ContactProblem (its case, elasticity, length and gap scales).
+
+    Returns:
+        S [Pa] (0 for data without any stress: u = 0 and p_n = 0 exactly).
+    """
+    return stress_scale(problem.case, problem)
 
 
 class CoulombPressure:
@@ -51,6 +73,7 @@ class CoulombPressure:
         self.p = np.zeros(len(problem.gamma3_local_nodes))
         self.owned = np.searchsorted(problem.gamma3_local_nodes, problem.gamma3.nodes)
         self.iterations = 0
+        self.floor = pressure_floor(problem)
 
     def measure(self) -> np.ndarray:
         """p_n = (-sigma_nu)^+ at the current u: minus the normal component of the bulk
@@ -92,7 +115,7 @@ class CoulombPressure:
             change = comm.allreduce(float(np.abs(new - self.p).max(initial=0.0)), op=MPI.MAX)
             scale = comm.allreduce(float(new.max(initial=0.0)), op=MPI.MAX)
             self.p = new
-            if change <= TOL * scale:
+            if change <= TOL * max(scale, self.floor):
                 self.iterations = i
                 log.debug("Coulomb friction: the fixed point on p_n converged in %d "
                           "iteration(s) (max change %.2e, max p_n %.4g)", i, change, scale)
@@ -100,8 +123,8 @@ class CoulombPressure:
         raise StepSolveError(
             f"Coulomb friction: the fixed point on the contact pressure p_n did not converge "
             f"in {MAX_ITERATIONS} iterations (max|p^(i+1) - p^(i)| = {change:.3e} > "
-            f"{TOL:g} max p_n = {TOL * scale:.3e}; mu = {np.max(self.mu):g} may be too "
-            "large for the fixed point)")
+            f"{TOL:g} max(max p_n, stress scale) = {TOL * max(scale, self.floor):.3e}; "
+            f"mu = {np.max(self.mu):g} may be too large for the fixed point)")
 
     def state(self) -> dict:
         """Returns: {"p": a copy of p_n (m,)}."""

@@ -40,6 +40,13 @@ from vpcontact.solvers.schur import LAPACK_MIN
 from vpcontact.solvers.snesvi import PREFIX, direct_solver
 
 STABILITY_LIMIT = 2.0
+# (2.6) with ||gamma||^2 = inf: K of the trace constant is singular, a rigid motion of a
+# body that only contact holds (no Dirichlet condition stops it; two bodies), not c1
+UNBOUNDED_TRACE = (
+    "well-posedness (2.6) cannot be checked: the trace constant ||gamma||^2 is unbounded "
+    "because a body is held only by contact (a rigid motion that no Dirichlet condition "
+    "stops), so m_E > max(sqrt(3) c1~, m_j) ||gamma||^2 cannot hold for any softening m_j "
+    "> 0: uniqueness of the solution is not guaranteed")
 TRACE_PREFIX = PREFIX + "trace_"        # the iterative K^-1 of trace_constant
 # LOBPCG (the iterative path of trace_constant) stops at a residual of EIGEN_RTOL times the
 # value in the norm of the preconditioner (about K^-1's); the value's error is about the
@@ -502,7 +509,9 @@ class Diagnostics:
         if self.gamma2 is None and self.wellposedness_margin is not None:
             out.append(("info", f"well-posedness (2.6): m_j = 0 (the friction law does not "
                                 f"soften): margin m_E = {self.m_E:.4g}"))
-        if self.gamma2 is not None:
+        if self.gamma2 is not None and not np.isfinite(self.gamma2):
+            out.append(("warning", UNBOUNDED_TRACE))
+        elif self.gamma2 is not None:
             rel = "<=" if self.gamma2_is_bound else "="
             text = (f"well-posedness (2.6): m_E = {self.m_E:.4g} vs max(sqrt(3) c1~, m_j) "
                     f"||gamma||^2 {rel} {max(np.sqrt(3) * self.c1_tilde, self.m_j):.4g} x "

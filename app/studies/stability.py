@@ -31,6 +31,7 @@ import numpy as np
 from vpcontact.case import CaseError, validate
 from vpcontact.io.files import atomic_write
 from vpcontact.io.output import csv_text
+from vpcontact.studies import variantsections as vs
 from vpcontact.studies.interrupts import (
     SignalWatch,
     StudyInterrupted,
@@ -50,8 +51,9 @@ class Variant:
     Args:
         group: the report's group (e.g. "stiff viscosity", "near-Signorini").
         name: the variant's name in the report.
-        changes: dotted key (e.g. "contact.friction.b") -> new value; None deletes the key,
-            ("scale", f) multiplies every number under it by f.
+        changes: dotted key (e.g. "contact.friction.b"), or a tuple of path parts (a
+            material group's or a pair's, app/studies/variantsections.py) -> new value;
+            None deletes the key, ("scale", f) multiplies every number under it by f.
         schemes: the history schemes to run it with ("explicit", "implicit").
         scale: the material scaling factor (compared with the exactly scaled baseline), or
             None.
@@ -114,23 +116,36 @@ class Outcome:
                 and self.growth_u < BLOWUP)
 
 
-def _scaled(raw: dict, factor: float) -> dict:
-    """Every stress-like datum times factor (E, lambda1, kappa0, c_nu, b, c1, c2, the
-    memory's b0, the tractions, pressures, body force and initial stress): u is unchanged
-    (prescribed displacements and gaps too), stresses and kappa scale."""
-    keys = ["material.E", "material.viscoplastic.lambda1", "material.viscoplastic.kappa0",
-            "contact.normal_compliance.c_nu", "contact.friction.b", "contact.friction.c1",
-            "contact.friction.c2", "contact.memory.b0", "loads.traction", "loads.pressure",
-            "loads.f0", "initial.sigma0"]
-    return {k: ("scale", factor) for k in keys if _has(raw, k)}
+def _scaled(raw: dict, factor: float) -> tuple[dict, list[str]]:
+    """Every stress-like datum times factor, in every material section and set of contact
+    laws (app/studies/variantsections.py: E and the viscoplastic law's stresses, c_nu, b,
+    c1, c2, the memory's b0), and the tractions, pressures, body force and initial stress:
+    u is unchanged (prescribed displacements and gaps too), stresses scale.  Returns the
+    changes and why a material's law cannot be scaled (then the variant is left out)."""
+    changes, why = {}, []
+    for label, prefix, m in vs.material_sections(raw):
+        out, reason = vs.scaled_material(prefix, m, factor)
+        changes.update(out)
+        if reason:
+            why.append(f"{label}: {reason}")
+    for _, prefix, c in vs.contact_sections(raw):
+        changes.update(vs.scaled_contact(prefix, c, factor))
+    changes.update({k: ("scale", factor) for k in ("loads.traction", "loads.pressure",
+                                                    "loads.f0", "initial.sigma0")
+                    if _has(raw, k)})
+    return changes, why
 
 
-def _has(raw: dict, key: str) -> bool:
+def _has(raw: dict, key) -> bool:
+    """Whether the case has the key (a dotted string or a tuple of path parts)."""
     node = raw
-    for part in key.split("."):
-        if not isinstance(node, dict) or part not in node:
+    for part in vs.path(key):
+        if isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
+            node = node[part]
+        elif isinstance(node, dict) and part in node:
+            node = node[part]
+        else:
             return False
-        node = node[part]
     return True
 
 
@@ -141,21 +156,41 @@ def _loads_scaled(raw: dict, factor: float) -> dict:
 
 
 def not_applicable(raw: dict) -> list[str]:
-    """The groups of the standard sweep that a case leaves out (their data are absent).
+    """The groups of the standard sweep that a case leaves out, or that leave out some of
+    its material sections or contact laws, each with the reason (their data are absent,
+    or the law has no such datum: app/studies/variantsections.py).
 
     Args:
         raw: the sweep's base case.
 
     Returns:
-        One "group: why" line per group left out.
+        One "group: why" line per group (or part of a group) left out.
     """
     out = []
-    for key, group in (("material.viscoplastic", "stiff viscosity"),
-                       ("contact.normal_compliance", "near-Signorini c_nu"),
-                       ("contact.g", "near-Signorini g"), ("contact.friction", "friction")):
-        if not _has(raw, key):
-            out.append(f"{group}: the case has no {key}")
+    on, why = vs.viscosity_plan(raw)
+    out += _left_out("stiff viscosity", on, why, "material.viscoplastic")
+    on, why = vs.compliance_plan(raw)
+    out += _left_out("near-Signorini c_nu", on, why, "contact.normal_compliance")
+    if not vs.gap_plan(raw):
+        out.append("near-Signorini g: the case has no contact.g")
+    every, law42, why = vs.friction_plan(raw)
+    if not every:
+        out.append("friction: the case has no contact.friction")
+    out += _left_out("friction b=30, c1=300", law42, why, "")
+    on, why = vs.elastic_plan(raw)
+    out += _left_out("material nu, E scaled", on, why, "material")
+    if on and not why:
+        out += [f"material E scaled: {w}" for w in _scaled(raw, 1.0)[1]]
     return out
+
+
+def _left_out(group: str, on: list, why: list[str], absent: str) -> list[str]:
+    """The lines of a group that acts on the sections ``on``: none if it acts on all;
+    "group: why" if on none (the reasons, or that the case has no ``absent``); else
+    "group: not on ..." for the sections it leaves out."""
+    if not why:
+        return [] if on or not absent else [f"{group}: the case has no {absent}"]
+    return [f"{group}: {'not on ' if on else ''}{', '.join(why)}"]
 
 
 def default_variants(raw: dict, finer: dict | None = None) -> list[Variant]:
@@ -176,34 +211,20 @@ def default_variants(raw: dict, finer: dict | None = None) -> list[Variant]:
     """
     V = Variant
     out = [V("baseline", "baseline", {})]
-    if _has(raw, "material.viscoplastic"):
-        for lam in (100.0, 1.0, 0.01):
-            for N in (16, 128):
-                out.append(V("stiff viscosity", f"lambda1={lam:g}, k={_k(raw, N)}",
-                             {"material.viscoplastic.lambda1": lam, "time.N": N}))
-    if _has(raw, "contact.normal_compliance"):
-        for c in (1e4, 1e6):
-            out.append(V("near-Signorini", f"c_nu={c:g}", {"contact.normal_compliance.c_nu": c}))
-    if _has(raw, "contact.g"):
-        out += _gap_variants(raw["contact"]["g"])
-    if _has(raw, "contact.friction"):
-        out += [V("friction", "b=30 (all stick)", {"contact.friction.b": 30.0}),
-                V("friction", "frictionless", {"contact.friction": None}),
-                V("friction", "c1=300, b=3 (violates (2.6))",
-                  {"contact.friction.c1": 300.0, "contact.friction.b": 3.0})]
+    on, _ = vs.viscosity_plan(raw)
+    for lam in (100.0, 1.0, 0.01) if on else ():
+        for N in (16, 128):
+            out.append(V("stiff viscosity", f"lambda1={lam:g}, k={_k(raw, N)}",
+                         {**_every(on, "viscoplastic.lambda1", lam), "time.N": N}))
+    on, _ = vs.compliance_plan(raw)
+    for c in (1e4, 1e6) if on else ():
+        out.append(V("near-Signorini", f"c_nu={c:g}", _every(on, "normal_compliance.c_nu", c)))
+    out += _gap_variants(vs.gap_plan(raw))
+    out += _friction_variants(raw)
     out += [V("loads", "tiny (x1e-6)", _loads_scaled(raw, 1e-6)),
             V("loads", "large (x100)", _loads_scaled(raw, 100.0)),
             _pulling(raw)]
-    # materials (one per group of cells), E or nu expressions, material.elasticity: none
-    if "material" in raw and all(isinstance(raw["material"].get(k), (int, float))
-                                 for k in ("E", "nu")):
-        out += [
-            V("material", "nu=0", {"material.nu": 0.0}),
-            V("material", "nu=0.499", {"material.nu": 0.499}),
-            V("material", f"E scaled x1e-5 (E = {_short(raw['material']['E'] * 1e-5)})",
-              _scaled(raw, 1e-5), scale=1e-5),
-            V("material", f"E scaled x1e6 (E = {_short(raw['material']['E'] * 1e6)})",
-              _scaled(raw, 1e6), scale=1e6)]
+    out += _material_variants(raw)
     if finer:
         out.append(V("mesh", "h/2", dict(finer)))
     if _has(raw, "contact.direction"):
@@ -223,13 +244,57 @@ def _k(raw: dict, N: int) -> str:
     return f"1/{N}" if T == 1.0 else f"T/{N}"
 
 
-def _gap_variants(g) -> list[Variant]:
-    """Small and large gaps: the values 1e-6, 1e-3, 1 for a number; an expression of x,
-    y, z times 1e-3, 0.1, 10 (its shape kept)."""
-    if isinstance(g, str):
-        return [Variant("near-Signorini", f"g x{f:g}", {"contact.g": ("scale", f)})
-                for f in (1e-3, 0.1, 10.0)]
-    return [Variant("near-Signorini", f"g={v:g}", {"contact.g": v}) for v in (1e-6, 1e-3, 1.0)]
+def _every(prefixes: list, rest: str, value) -> dict:
+    """The changes that set ``rest`` to value in each section of ``prefixes``."""
+    return {vs.key(p, rest): value for p in prefixes}
+
+
+def _gap_variants(gaps: list) -> list[Variant]:
+    """Small and large gaps, in every section with a gap g ((prefix, g) of
+    ``variantsections.gap_plan``): the values 1e-6, 1e-3, 1 for a number; an expression of
+    x, y, z times 1e-3, 0.1, 10 (its shape kept)."""
+    out = []
+    for v, f in zip((1e-6, 1e-3, 1.0), (1e-3, 0.1, 10.0)):
+        changes = {vs.key(p, "g"): ("scale", f) if isinstance(g, str) else v for p, g in gaps}
+        kinds = {isinstance(g, str) for _, g in gaps}
+        name = {frozenset({True}): f"g x{f:g}", frozenset({False}): f"g={v:g}"}.get(
+            frozenset(kinds), f"g={v:g} (expressions x{f:g})")
+        if gaps:
+            out.append(Variant("near-Signorini", name, changes))
+    return out
+
+
+def _friction_variants(raw: dict) -> list[Variant]:
+    """Frictionless on every friction law; all stick (b = 30) and violating (2.6) (c1 =
+    300, b = 3) on every law (4.2) (``variantsections.friction_plan``)."""
+    every, law42, _ = vs.friction_plan(raw)
+    out = [Variant("friction", "b=30 (all stick)", _every(law42, "friction.b", 30.0))] \
+        if law42 else []
+    if every:
+        out.append(Variant("friction", "frictionless", _every(every, "friction", None)))
+    if law42:
+        out.append(Variant("friction", "c1=300, b=3 (violates (2.6))",
+                           {**_every(law42, "friction.c1", 300.0),
+                            **_every(law42, "friction.b", 3.0)}))
+    return out
+
+
+def _material_variants(raw: dict) -> list[Variant]:
+    """nu = 0 and 0.499 in every material with numbers E and nu; E and every stress datum
+    scaled by 1e-5 and 1e6 (``_scaled``) if every material's can be."""
+    on, why = vs.elastic_plan(raw)
+    if not on:
+        return []
+    out = [Variant("material", f"nu={nu:g}", _every(on, "nu", nu)) for nu in (0.0, 0.499)]
+    sections = vs.material_sections(raw)
+    for f in (1e-5, 1e6):
+        changes, bad = _scaled(raw, f)
+        if why or bad:
+            continue
+        E = f"E = {_short(sections[0][2]['E'] * f)}" if len(sections) == 1 else \
+            "every material"
+        out.append(Variant("material", f"E scaled x{_short(f)} ({E})", changes, scale=f))
+    return out
 
 
 def _pulling(raw: dict) -> Variant:
@@ -244,8 +309,9 @@ def apply_changes(raw: dict, changes: dict) -> dict:
 
     Args:
         raw: the case as read (not modified).
-        changes: dotted key -> value, None (delete) or ("scale", f) (see Variant); a scale
-            of an absent key changes nothing.
+        changes: key (dotted, or a tuple of path parts with list indices: see
+            app/studies/variantsections.py) -> value, None (delete) or ("scale", f) (see
+            Variant); a scale of an absent key changes nothing.
 
     Returns:
         The changed copy (missing sections are created).
@@ -256,13 +322,13 @@ def apply_changes(raw: dict, changes: dict) -> dict:
     """
     raw = copy.deepcopy(raw)
     for key, value in changes.items():
-        *path, last = key.split(".")
+        *path, last = vs.path(key)
         scale = isinstance(value, tuple) and value[0] == "scale"
         if scale and not _has(raw, key):
             continue
         node = raw
         for p in path:
-            node = node.setdefault(p, {})
+            node = node[p] if isinstance(node, list) else node.setdefault(p, {})
         if value is None:
             node.pop(last, None)
         elif scale:

@@ -152,7 +152,7 @@ def test_fixed_point_that_does_not_converge_fails_the_step():
 
     fp = CoulombPressure.__new__(CoulombPressure)
     fp.problem = type("Problem", (), {"comm": Comm()})()
-    fp.mu, fp.p, fp.iterations = MU, np.zeros(3), 0
+    fp.mu, fp.p, fp.iterations, fp.floor = MU, np.zeros(3), 0, 0.0
     fp.measure = lambda: np.full(3, 1.0 + Solver.calls % 2)
     with pytest.raises(StepSolveError, match="Coulomb friction: the fixed point"):
         fp.solve(Solver(), lambda mu_p: None)

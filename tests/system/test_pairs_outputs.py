@@ -13,9 +13,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from scipy.spatial import cKDTree
 
-from conftest import cli_in_process, make_case, run_case
+from conftest import cli_in_process, make_case, run_case, run_cli
 from vpcontact.io.history import history_columns
 from vpcontact.post.results import check_results
 
@@ -128,3 +129,89 @@ def test_a_single_body_run_has_no_pair_outputs():
     assert history_columns(2, ["a"], True)[:len(base)] == base
     result = run_case(make_case(mesh={"n": 4}, time={"N": 2}))
     assert all("pair_forces" not in step for step in result.summary["steps"])
+
+
+def _states(out: Path) -> dict:
+    """contact.h5's state codes at each output time, by rounded coordinates."""
+    import h5py
+    with h5py.File(out / "contact.h5") as f:
+        xyz = [tuple(np.round(p, 9)) for p in f["Mesh/geometry"][:]]
+        return {int(s): dict(zip(xyz, f[f"Step/{s}/state"][:].ravel()))
+                for s in f["Step"]}
+
+
+def _stack_file(tmp_path, friction2=None) -> Path:
+    """_stack_raw as a case file."""
+    case = tmp_path / "stack.yaml"
+    case.write_text(yaml.safe_dump(_stack_raw(friction2)))
+    return case
+
+
+def _stack_raw(friction2=None) -> dict:
+    """tests/data/stack3.geo's three blocks, two Coulomb pairs (the second pair's friction
+    ``friction2`` if given), the middle block held sideways only."""
+    return {
+        "mesh": {"file": str(Path(PATCH).with_name("stack3.geo")), "dim": 2},
+        "materials": {b: {"E": 1000.0, "nu": 0.3, "plane": "strain"}
+                      for b in ("bottom", "middle", "top")},
+        "boundaries": {"clamped": ["bottom_bottom"]},
+        "contact": {"pairs": [
+            {"surface": "bottom_top", "target": "middle_bottom",
+             "friction": {"coulomb": {"mu": 0.2}}},
+            {"surface": "middle_top", "target": "top_bottom",
+             "friction": friction2 or {"coulomb": {"mu": 0.4}}}]},
+        "loads": {"f0": [0.0, -0.5], "displacement": {
+            "top_top": [{"table": [[0, 0], [1, 0.01]]}, -0.01],
+            "middle_left": [{"table": [[0, 0], [1, 0.005]]}, None]}},
+        "time": {"T": 1.0, "N": 1}, "solver": {"delta": 1e-8}}
+
+
+def test_touching_states_at_t0_do_not_depend_on_the_rank_count(tmp_path):
+    """tests/data/stack3.geo: three blocks that touch (d = 0 in the geometry, +-2e-16 as
+    measured on the mesh), Coulomb pairs without compliance: at t = 0 (u = 0) every node of
+    both pairs is at its bound (state 2), serial and under mpirun -n 2, and the states
+    agree at every output time.  Before, u_nu = -d = -2e-16 was 'separated' (0) at some
+    nodes, at different nodes for 1 and 2 ranks (the tolerance was relative to u alone,
+    0 at t = 0; now U_ROUNDOFF times the body's length scale as well)."""
+    case = _stack_file(tmp_path)
+    states = {}
+    for n in (1, 2):
+        proc = run_cli(["run", case, "--out", tmp_path / f"np{n}", "--quiet"], nprocs=n)
+        assert proc.returncode == 0, proc.stderr
+        states[n] = _states(tmp_path / f"np{n}")
+    for n in (1, 2):
+        codes = np.array(list(states[n][0].values()))
+        assert len(codes) == 14 and np.all(codes == 2), (n, codes)
+    assert states[1] == states[2]
+
+
+def test_wellposedness_names_the_body_held_only_by_contact(tmp_path, capsys):
+    """The middle block of the stack is held vertically only by the pairs: K of the trace
+    constant is singular, ||gamma||^2 = inf.  With a softening law (4.2) on a pair, check
+    says (2.6) cannot be checked for that reason and that uniqueness is not guaranteed;
+    before, it printed "10 x inf: margin -inf ... the friction softening c1 is too large"."""
+    case = _stack_file(tmp_path, {"b": 0.5, "c1": 10.0, "c2": 20.0, "u1": 0.01})
+    assert cli_in_process(["check", case]) == 0
+    out = capsys.readouterr()
+    text = out.out + out.err
+    assert "(2.6) cannot be checked: the trace constant ||gamma||^2 is unbounded because a " \
+        "body is held only by contact" in text
+    assert "uniqueness of the solution is not guaranteed" in text
+    assert "c1 is too large" not in text and "x inf" not in text
+
+
+def test_contact_force_of_two_pairs_is_the_sum_over_their_surfaces():
+    """The stack's two pairs have different surface bodies (bottom, middle): contact_force
+    is the sum of the pairs' on_surface (the documented meaning, kept), pair_forces gives
+    each pair's force on each body, and the forces on the middle block (pair 0's target,
+    pair 1's surface) are not contact_force.  Pins the meaning; the per-pair report was
+    already there."""
+    steps = run_case(make_case(_stack_raw())).summary["steps"]
+    last = steps[-1]
+    pairs = last["pair_forces"]
+    assert [(p["surface"], p["target"]) for p in pairs] == [("bottom_top", "middle_bottom"),
+                                                           ("middle_top", "top_bottom")]
+    total = np.sum([p["on_surface"] for p in pairs], axis=0)
+    scale = np.abs([p["on_surface"] for p in pairs]).max()
+    assert np.abs(np.array(last["contact_force"]) - total).max() <= 1e-12 * scale
+    assert np.abs(np.array(pairs[0]["on_surface"]) - last["contact_force"]).max() > 1e-3 * scale

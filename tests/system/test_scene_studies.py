@@ -226,3 +226,58 @@ def test_growth_of_a_load_ramp_is_not_a_blow_up():
     fine = next(o for o in out if o.variant.name == "k=1/1024")
     assert fine.status == "completed" and fine.steps == 1024
     assert fine.growth_sigma == pytest.approx(2.0, rel=0.1) and fine.bounded
+
+
+def _two_materials_one_pair() -> dict:
+    """tests/data/patch2d.geo: a Norton lower block, a Chaboche upper block, one pair with
+    its own gap, compliance, memory and Coulomb friction, the upper top pressed down."""
+    def block(law: dict) -> dict:
+        return {"E": 1000.0, "nu": 0.3, "plane": "strain", "viscoplastic": law}
+    return {"name": "pairs", "mesh": {"file": str(ROOT / "tests" / "data" / "patch2d.geo"),
+                                      "dim": 2},
+            "materials": {"lower": block({"law": "norton", "A": 1e-3, "n": 2.0}),
+                          "upper": block({"law": "chaboche", "n": 3.0, "k": 1.0, "K": 10.0,
+                                          "C": 100.0, "gamma": 5.0, "Q": 2.0, "b": 3.0})},
+            "boundaries": {"clamped": ["lower_bottom"]},
+            "contact": {"pairs": [{"surface": "lower_top", "target": "upper_bottom",
+                                   "g": 0.002, "normal_compliance": {"c_nu": 2000.0},
+                                   "memory": {"b0": 100.0, "beta": 1.0},
+                                   "friction": {"coulomb": {"mu": 0.3}}}]},
+            "loads": {"displacement": {"upper_top": [0.0, "-0.01*t"]}},
+            "time": {"T": 1.0, "N": 2}}
+
+
+def test_stability_variants_act_on_materials_and_pairs():
+    """A case with materials and a pair's laws: the c_nu, gap, friction and material
+    variants change every group's and the pair's data (before, the sweep looked only at
+    material.* and contact.*: it left them out as absent); the variants that cannot act
+    say precisely why (no lambda1 in Norton's and Chaboche's laws, Coulomb friction has no
+    b, c1).  Run (explicit, 2 steps): the changed c_nu and the frictionless pair change the
+    solution, and the scaled materials (Norton's A by f^-n, Chaboche's k, K, C, Q, the
+    pair's c_nu and b0 by f) reproduce the baseline exactly scaled (u equal, sigma x f:
+    measured 5e-16)."""
+    from vpcontact.studies import stability as st
+    raw = _two_materials_one_pair()
+    assert st.not_applicable(raw) == [
+        "stiff viscosity: materials.lower: norton's law has no viscosity lambda1, "
+        "materials.upper: chaboche's law has no viscosity lambda1",
+        "friction b=30, c1=300: contact.pairs[0].friction is coulomb friction, not law "
+        "(4.2): no b, c1"]
+    variants = {v.name: v for v in st.default_variants(raw)}
+    pair = ("contact", "pairs", 0)
+    assert variants["c_nu=10000"].changes == {pair + ("normal_compliance", "c_nu"): 1e4}
+    assert variants["g=0.001"].changes == {pair + ("g",): 1e-3}
+    assert variants["frictionless"].changes == {pair + ("friction",): None}
+    assert variants["nu=0"].changes == {("materials", g, "nu"): 0.0 for g in ("lower", "upper")}
+    scaled = variants["E scaled x1e6 (every material)"].changes
+    assert scaled[("materials", "lower", "viscoplastic", "A")] == ("scale", 1e6 ** -2.0)
+    assert scaled[("materials", "upper", "viscoplastic", "K")] == ("scale", 1e6)
+    keep = {"baseline", "c_nu=10000", "frictionless", "E scaled x1e6 (every material)"}
+    out = {o.variant.name: o for o in st.sweep(
+        raw, MPI.COMM_WORLD, {}, None, 2,
+        select=lambda v: ("explicit",) if v.name in keep else False)}
+    assert set(out) == keep and all(o.status == "completed" for o in out.values())
+    u0 = out["baseline"].norms["u"]
+    assert abs(out["c_nu=10000"].norms["u"] / u0 - 1) > 1e-2
+    assert abs(out["frictionless"].norms["u"] / u0 - 1) > 1e-4
+    assert out["E scaled x1e6 (every material)"].scaling_error < 1e-10
