@@ -14,11 +14,12 @@ from vpcontact.io.errors import CaseError
 from vpcontact.io.messages import EXIT_BAD_INPUT, EXIT_FAILED, error, internal_error, interrupted
 from vpcontact.startup import resume_collector
 
-# command -> (function, takes the command line's PETSc options)
+# command -> (function, takes the command line's PETSc options); a command that does not
+# take them refuses them (exit 2) rather than dropping them
 COMMANDS = {
     "run": (commands.cmd_run, True),
     "plot": (commands.cmd_plot, False),
-    "check": (commands.cmd_check, False),
+    "check": (commands.cmd_check, True),
     "info": (commands.cmd_info, False),
     "convergence": (commands.cmd_convergence, True),
     "stability": (commands.cmd_stability, True),
@@ -58,9 +59,15 @@ def dispatch(args, petsc_cli: dict) -> int:
         petsc_cli: PETSc options given on the command line.
 
     Returns:
-        The command's exit code.
+        The command's exit code (2, after one line, if the command takes no PETSc options
+        and some are given).
     """
     command, takes_petsc = COMMANDS[args.command]
+    if petsc_cli and not takes_petsc:
+        given = " ".join(f"-{key}" for key in petsc_cli)
+        takers = ", ".join(name for name, (_, takes) in COMMANDS.items() if takes)
+        return error(f"{args.command}: PETSc option(s) {given} are not used by this command "
+                     f"(allowed with: {takers})", EXIT_BAD_INPUT)
     if args.command != "run":          # run: once set up (observers.CollectorAfterSetUp)
         resume_collector()
     return command(args, petsc_cli) if takes_petsc else command(args)
