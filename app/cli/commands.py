@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 from vpcontact import __version__
+from vpcontact.cli import ending
 from vpcontact.cli import outdir as outdirs
 from vpcontact.cli.logs import log, setup_logging
 from vpcontact.cli.outdir import CONVERGENCE_FILES, STABILITY_FILES
@@ -168,6 +169,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
     painter = _early_painter(comm, args.no_plots)
     try:
         result = run(case, comm, observers, outdir=outdir, restart=loaded.get("checkpoint"))
+        ending.run_ended(result.status, outdir)    # a signal from now on: app/cli/ending.py
         s, files = result.summary, written_files(observers)
         if result.status == "completed" and not args.no_plots and comm.rank == 0 and s["steps"]:
             if plots(outdir, painter=painter, drawn=files) == "interrupted":
