@@ -92,7 +92,8 @@ def _validate(data: dict, source: str, moved: dict) -> Case:
     check_petsc_options(data.get("petsc", {}), source, base=defaults, limits=limits)
     check_name(data, source)
     petsc = PetscOptions({**defaults, **data.get("petsc", {})}, limits)
-    case = dataclasses.replace(case, petsc=petsc, data_stress=stress, petsc_defaults=defaults)
+    case = dataclasses.replace(case, petsc=petsc, data_stress=stress, petsc_defaults=defaults,
+                               laws_written=dict(moved))
     ok, why = condensed_eligible(case)
     if case.numerics.method == "condensed" and not ok:
         raise CaseError(f"{source}: solver.method: {data['solver']['method']!r} is not "

@@ -69,3 +69,15 @@ def test_a_pairs_law_given_by_set_names_the_set(tmp_path):
                        ["contact.pairs[0].friction.coulomb.mu=-2"])
     assert ("contact.pairs[0].friction.coulomb.mu: must be >= 0 (a friction coefficient), "
             "got -2 (the value of --set contact.pairs[0].friction.coulomb.mu=-2)") in message
+
+
+def test_a_pairs_law_checked_on_the_mesh_is_named_where_it_is_written(tmp_path, capsys):
+    """b0 < 0 on Gamma3 is found on the loaded mesh's points (app/model/datapoints.py), after
+    validation: the message names the pair's key too."""
+    from conftest import cli_in_process
+    path = tmp_path / "case.yaml"
+    path.write_text(HEAD + PAIR + '      memory: {b0: "x - 10", beta: 1.0}\n'
+                    "      normal_compliance: {c_nu: 100.0}\n" + TAIL)
+    assert cli_in_process(["check", path]) == 2
+    err = capsys.readouterr().err
+    assert "contact.pairs[0].memory.b0: must be >= 0 on Gamma3" in err, err
