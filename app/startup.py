@@ -119,13 +119,17 @@ def resume_collector() -> None:
         _paused = False
 
 
-def quick_exit(code: int):
+def quick_exit(code: int, last=None, after_petsc=None):
     """Exit with ``code`` after what the interpreter's teardown would do that matters: flush
     sys.stdout/stderr, run the atexit handlers (logging's among them), finalise PETSc (its
     -log_view report) and MPI (mpirun expects every rank to), flush C's stdio buffers.
 
     Args:
         code: the exit status.
+        last: called with ``code`` after the finalisation, returns the exit status (e.g.
+            app/cli/ending.py ``signal_at_exit``); None: ``code``.
+        after_petsc: called right after PETSc's finalisation (which puts the signals'
+            default actions back: app/cli/ending.py ``hold_signals``), or None.
     """
     import atexit
     import ctypes
@@ -136,8 +140,13 @@ def quick_exit(code: int):
     petsc = sys.modules.get("petsc4py.PETSc")
     if petsc is not None:
         petsc._finalize()
+        if after_petsc is not None:
+            after_petsc()
     mpi = sys.modules.get("mpi4py.MPI")
     if mpi is not None and mpi.Is_initialized() and not mpi.Is_finalized():
         mpi.Finalize()
+    if last is not None:
+        code = last(code)
+        sys.stderr.flush()
     ctypes.CDLL(None).fflush(None)
     os._exit(code)

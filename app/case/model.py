@@ -325,6 +325,9 @@ class Case:
     petsc_defaults: dict = field(default_factory=dict, repr=False)
     # materials: physical group of cells (name or tag) -> Material, or None (material)
     materials: dict | None = None
+    # where the laws settled from the pairs into the contact section were written:
+    # contact.<law> -> contact.pairs[i].<law> (app/case/pairrules.py, for messages)
+    laws_written: dict = field(default_factory=dict, repr=False)
 
     @property
     def dim(self) -> int:

@@ -11,6 +11,8 @@ accepted as it is.
 """
 from __future__ import annotations
 
+import re
+
 from vpcontact.case.reading import GROUP_MAPS
 from vpcontact.case.schema import SCHEMA
 from vpcontact.case.schemacheck import fill_defaults
@@ -23,12 +25,16 @@ LAW_KEYS = ("normal_compliance", "memory", "friction")
 MEMORY_SHAPE = ("kernel", "beta", "alpha", "tau", "table", "sum")
 
 
-def settle_pairs(data: dict, source: str) -> None:
+def settle_pairs(data: dict, source: str) -> dict:
     """Check and settle contact.pairs in place (nothing without pairs).
 
     Args:
         data: the case mapping after the schema check (changed in place).
         source: the case file, for messages.
+
+    Returns:
+        Where the laws moved to the contact section were written: ``contact.<law>`` ->
+        ``contact.pairs[i].<law>`` (see ``settle_laws``; for ``as_written``).
 
     Raises:
         CaseError: pairs without a mesh.file, with contact.g or contact.direction, with a
@@ -39,7 +45,7 @@ def settle_pairs(data: dict, source: str) -> None:
     contact = data.get("contact") or {}
     pairs = contact.get("pairs")
     if not pairs:
-        return
+        return {}
     if "file" not in data["mesh"]:
         raise CaseError(f"{source}: contact.pairs: two bodies need a mesh.file holding both "
                         "(the built-in rectangle and box are one body)")
@@ -51,7 +57,7 @@ def settle_pairs(data: dict, source: str) -> None:
     if data.get("solver", {}).get("quadrature") == "gauss":
         raise CaseError(f"{source}: solver.quadrature: 'gauss' is not possible with "
                         "contact.pairs (the node-to-segment rule is nodal; allowed: vertex)")
-    settle_laws(contact, pairs, source)
+    moved = settle_laws(contact, pairs, source)
     _check_groups(data, pairs, source)
     surfaces = [p["surface"] for p in pairs]
     bounds = data.setdefault("boundaries", {})
@@ -60,9 +66,10 @@ def settle_pairs(data: dict, source: str) -> None:
         raise CaseError(f"{source}: boundaries.contact: not with contact.pairs (Gamma3 is the "
                         f"pairs' surfaces, {surfaces}): leave it out")
     bounds["contact"] = surfaces
+    return moved
 
 
-def settle_laws(contact: dict, pairs: list, source: str) -> None:
+def settle_laws(contact: dict, pairs: list, source: str) -> dict:
     """Each pair's laws: its own keys, else the contact section's.  The same in every pair:
     given once in the contact section (the pairs carry none); else each pair carries all of
     its laws and the contact section none (``ContactPair.laws``).
@@ -72,18 +79,25 @@ def settle_laws(contact: dict, pairs: list, source: str) -> None:
         pairs: its pairs (changed in place).
         source: the case file, for messages.
 
+    Returns:
+        The laws that moved from a pair to the contact section (the same in every pair):
+        ``contact.<law>`` -> ``contact.pairs[i].<law>``, the first pair's key where it gives
+        the law itself (a law of the contact section stays under its own key).
+
     Raises:
         CaseError: a law written in Python (``law: python``) in pairs whose laws differ.
     """
     defaults = {key: contact.pop(key) for key in LAW_KEYS if key in contact}
     laws = [{key: p.get(key, defaults.get(key)) for key in LAW_KEYS
              if key in p or key in defaults} for p in pairs]
+    written = [{key for key in LAW_KEYS if key in p} for p in pairs]
     for p in pairs:
         for key in LAW_KEYS:
             p.pop(key, None)
     if all(law == laws[0] for law in laws):
         contact.update(laws[0])
-        return
+        return {f"contact.{key}": f"contact.pairs[0].{key}" for key in laws[0]
+                if key in written[0]}
     for i, (p, law) in enumerate(zip(pairs, laws)):
         for key, value in law.items():
             if isinstance(value, dict) and value.get("law") == "python":
@@ -91,6 +105,24 @@ def settle_laws(contact: dict, pairs: list, source: str) -> None:
                                 "every pair or none: the pairs' laws differ here, so give "
                                 f"the law once in contact.{key} and the same in every pair")
         p.update(law)
+    return {}
+
+
+def as_written(message: str, moved: dict) -> str:
+    """A message of the rules (which name a law settled into the contact section
+    ``contact.<law>``) with the key paths where the case gives the law
+    (``contact.pairs[i].<law>...``), so that its line can be found (reading.with_lines).
+
+    Args:
+        message: a CaseError message.
+        moved: ``contact.<law>`` -> where it was written (``settle_pairs``).
+
+    Returns:
+        The message with those key paths replaced.
+    """
+    for short, written in moved.items():
+        message = re.sub(r"(?<![\w.\[\]])" + re.escape(short) + r"(?!\w)", written, message)
+    return message
 
 
 def fill_pair_defaults(data: dict, source: str) -> None:

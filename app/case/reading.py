@@ -108,8 +108,11 @@ _INDEXED = re.compile(r"(.+)\[([0-9]{1,6})\]")     # a list entry: contact.pairs
 
 def _set_path(data: dict, dotted: str, value) -> None:
     """data at the key path ``dotted`` (sections by name, list entries as name[i]) =
-    value; missing sections are created, a list entry must exist."""
+    value; missing sections are created, a list entry must exist, and a key of a material
+    group only in a group the case has (``_material_group``)."""
     keys = dotted.split(".")
+    if keys[0] == "materials" and len(keys) > 2:
+        keys[1] = _material_group(data, keys[1], dotted)
     node = data
     for key in keys[:-1]:
         node = _entry(node, key, dotted)
@@ -125,9 +128,25 @@ def _set_path(data: dict, dotted: str, value) -> None:
     node[last] = value
 
 
+def _material_group(data: dict, group: str, dotted: str):
+    """The key of the case's material group that ``--set materials.<group>.<key>`` names: a
+    name, or a physical tag written as digits (as YAML reads the key 10:).  A --set does not
+    create a group by one of its keys (it would be a group without the others)."""
+    groups = data.get("materials")
+    groups = groups if isinstance(groups, dict) else {}
+    if group in groups:
+        return group
+    if re.fullmatch(rf"[0-9]{{1,{MAX_INT_DIGITS}}}", group) and int(group) in groups:
+        return int(group)
+    raise CaseError(f"--set {dotted}: no material group {group!r} in the case (its groups: "
+                    f"{', '.join(map(str, groups)) or 'none: no materials section'}); a --set "
+                    "changes a group's keys, it does not add a group")
+
+
 def _entry(node: dict, key: str, dotted: str) -> dict:
-    """The section ``key`` of node (created if missing), or the list entry key = name[i]."""
-    indexed = _INDEXED.fullmatch(key)
+    """The section ``key`` of node (created if missing), or the list entry key = name[i]
+    (a physical tag, an int key, is a section)."""
+    indexed = isinstance(key, str) and _INDEXED.fullmatch(key)
     if indexed:
         entries, i = _list(node, indexed.group(1), int(indexed.group(2)), dotted)
         if not isinstance(entries[i], dict):

@@ -24,7 +24,7 @@ from vpcontact.case.meshrules import (
     settle_defaults,
 )
 from vpcontact.case.model import Case, build_case
-from vpcontact.case.pairrules import fill_pair_defaults, settle_pairs
+from vpcontact.case.pairrules import as_written, fill_pair_defaults, settle_pairs
 from vpcontact.case.reading import MAX_CASE_SIZE, check_data, load_raw, with_lines
 from vpcontact.case.rules import check_name, check_structure
 from vpcontact.case.schemacheck import check_schema, fill_defaults
@@ -50,25 +50,27 @@ def validate(data: dict, source: str = "<case>") -> Case:
         CaseError: one line naming the file, the key path and (for a file read by
             load_raw) its line.
     """
+    moved = {}                        # laws settled out of the pairs: where they were written
     try:
-        return _validate(data, source)
+        return _validate(data, source, moved)
     except CaseError as exc:          # one line, with the YAML lines of the keys named
-        text = str(exc).replace("\r", "\\r").replace("\n", "\\n")
+        text = as_written(str(exc), moved).replace("\r", "\\r").replace("\n", "\\n")
         raise CaseError(with_lines(text, getattr(data, "lines", {}),
                                    getattr(data, "overrides", {}))) from None
     except RecursionError:
         raise CaseError(f"{source}: the case is nested too deeply") from None
 
 
-def _validate(data: dict, source: str) -> Case:
-    """The rules in their order (see the module's docstring); raises CaseError."""
+def _validate(data: dict, source: str, moved: dict) -> Case:
+    """The rules in their order (see the module's docstring); raises CaseError.  ``moved``
+    receives where the pairs' laws settled into the contact section were written."""
     check_data(data, "", source, [MAX_CASE_SIZE])      # dicts built in code, not by load_raw
     data = copy.deepcopy(dict(data))
     check_schema(data, source)
     check_material_keys(data, source)
     dim_given = "dim" in data["mesh"]
     mesh_file = check_given(data, source)
-    settle_pairs(data, source)
+    moved.update(settle_pairs(data, source))
     fill_defaults(data)
     fill_pair_defaults(data, source)
     settle_defaults(data, mesh_file)
@@ -90,7 +92,8 @@ def _validate(data: dict, source: str) -> Case:
     check_petsc_options(data.get("petsc", {}), source, base=defaults, limits=limits)
     check_name(data, source)
     petsc = PetscOptions({**defaults, **data.get("petsc", {})}, limits)
-    case = dataclasses.replace(case, petsc=petsc, data_stress=stress, petsc_defaults=defaults)
+    case = dataclasses.replace(case, petsc=petsc, data_stress=stress, petsc_defaults=defaults,
+                               laws_written=dict(moved))
     ok, why = condensed_eligible(case)
     if case.numerics.method == "condensed" and not ok:
         raise CaseError(f"{source}: solver.method: {data['solver']['method']!r} is not "

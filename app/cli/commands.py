@@ -3,7 +3,8 @@ line and returns its exit code (0 done, 1 failed, 2 bad input, 3 interrupted).
 
 run, convergence and stability start alike (``start``: logging, the case and the PETSc
 options validated, the output directory prepared) and take the PETSc options of the command
-line; bench, plot, check and info take the parsed arguments only.
+line, as check does (it reports what run would do); bench, plot and info take the parsed
+arguments only (main refuses PETSc options given to them).
 """
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import time
 from pathlib import Path
 
 from vpcontact import __version__
+from vpcontact.cli import ending
 from vpcontact.cli import outdir as outdirs
 from vpcontact.cli.logs import log, setup_logging
 from vpcontact.cli.outdir import CONVERGENCE_FILES, STABILITY_FILES
@@ -48,9 +50,7 @@ def start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
         raw = load_raw(args.case, args.overrides)
         case = validate(raw, args.case)
         prepare_law_module(case.raw, getattr(args, "law_module", None))
-        if petsc_cli:
-            from vpcontact.solvers.optioncheck import check_petsc_options
-            check_petsc_options(petsc_cli, "command line", where="-", base=case.petsc)
+        check_command_line_petsc(case, petsc_cli)
         if check:
             check(case)
         outdir = Path(args.out) if args.out else \
@@ -60,6 +60,40 @@ def start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
         error(str(exc), EXIT_BAD_INPUT)
         return comm, None, None, None
     return comm, raw, case, outdir
+
+
+def check_command_line_petsc(case, petsc_cli: dict | None) -> None:
+    """Check the command line's PETSc options on top of the case's, as PETSc and the step
+    solvers would take them (app/solvers/optioncheck.py: the allow-list, the types, what
+    the step problem needs); run, check and the studies call it alike.
+
+    Args:
+        case: the validated Case (``case.petsc``: its options and tolerance limits).
+        petsc_cli: PETSc options given on the command line (name without '-' -> value).
+
+    Returns:
+        None.
+
+    Raises:
+        CaseError: naming the option (``-name``) and what is allowed.
+    """
+    if petsc_cli:
+        from vpcontact.solvers.optioncheck import check_petsc_options
+        check_petsc_options(petsc_cli, "command line", where="-", base=case.petsc)
+
+
+def with_command_line_petsc(case, petsc_cli: dict):
+    """The case with the command line's PETSc options over its own (what the step
+    solvers read: run and check choose the step solver from the same options).
+
+    Args:
+        case: the validated Case.
+        petsc_cli: PETSc options given on the command line (checked already).
+
+    Returns:
+        A copy of ``case`` whose ``petsc`` holds both, the command line's winning.
+    """
+    return dataclasses.replace(case, petsc={**case.petsc, **petsc_cli})
 
 
 # ----------------------------------------------------------------------------- run
@@ -125,7 +159,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
 
     if args.verbose:
         petsc_cli = {"snes_monitor": None, "snes_converged_reason": None, **petsc_cli}
-    case = dataclasses.replace(case, petsc={**case.petsc, **petsc_cli})
+    case = with_command_line_petsc(case, petsc_cli)
     log.info("vpcontact %s: case %s -> %s (%d MPI rank%s)", __version__, args.case, outdir,
              comm.size, "s" if comm.size > 1 else "")
     progress = [ProgressBar()] if not args.quiet and not args.verbose else []
@@ -135,6 +169,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
     painter = _early_painter(comm, args.no_plots)
     try:
         result = run(case, comm, observers, outdir=outdir, restart=loaded.get("checkpoint"))
+        ending.run_ended(result.status, outdir)    # a signal from now on: app/cli/ending.py
         s, files = result.summary, written_files(observers)
         if result.status == "completed" and not args.no_plots and comm.rank == 0 and s["steps"]:
             if plots(outdir, painter=painter, drawn=files) == "interrupted":
@@ -497,12 +532,14 @@ def cmd_plot(args) -> int:
     return 0
 
 
-def cmd_check(args) -> int:
+def cmd_check(args, petsc_cli: dict) -> int:
     """``vpcontact check``: the dry run: validate, build the mesh and spaces, report; no
-    solve, no output.
+    solve, no output.  The command line's PETSc options are checked and taken as ``run``
+    takes them (the step solver reported is the one ``run`` would use).
 
     Args:
         args: the parsed command line.
+        petsc_cli: PETSc options given on the command line.
 
     Returns:
         The exit code: 0 valid, 2 bad input.
@@ -517,9 +554,10 @@ def cmd_check(args) -> int:
     try:
         case = validate(load_raw(args.case, args.overrides), args.case)
         prepare_law_module(case.raw, args.law_module)
+        check_command_line_petsc(case, petsc_cli)
     except CaseError as exc:
         return error(str(exc), EXIT_BAD_INPUT)
-    for line in report(case, comm):
+    for line in report(with_command_line_petsc(case, petsc_cli), comm):
         if comm.rank == 0:
             print(line)
     return 0

@@ -90,6 +90,7 @@ def console() -> None:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _interrupted_while_starting)
     prepare_process()
+    from vpcontact.cli.ending import hold_signals, signal_at_exit
     from vpcontact.cli.main import main
     from vpcontact.startup import quick_exit
-    quick_exit(main(sys.argv[1:]))
+    quick_exit(main(sys.argv[1:], process=True), last=signal_at_exit, after_petsc=hold_signals)

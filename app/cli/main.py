@@ -8,17 +8,18 @@ from __future__ import annotations
 
 import sys
 
-from vpcontact.cli import commands
+from vpcontact.cli import commands, ending
 from vpcontact.cli.parser import build_parser, split_petsc_args
 from vpcontact.io.errors import CaseError
 from vpcontact.io.messages import EXIT_BAD_INPUT, EXIT_FAILED, error, internal_error, interrupted
 from vpcontact.startup import resume_collector
 
-# command -> (function, takes the command line's PETSc options)
+# command -> (function, takes the command line's PETSc options); a command that does not
+# take them refuses them (exit 2) rather than dropping them
 COMMANDS = {
     "run": (commands.cmd_run, True),
     "plot": (commands.cmd_plot, False),
-    "check": (commands.cmd_check, False),
+    "check": (commands.cmd_check, True),
     "info": (commands.cmd_info, False),
     "convergence": (commands.cmd_convergence, True),
     "stability": (commands.cmd_stability, True),
@@ -58,9 +59,15 @@ def dispatch(args, petsc_cli: dict) -> int:
         petsc_cli: PETSc options given on the command line.
 
     Returns:
-        The command's exit code.
+        The command's exit code (2, after one line, if the command takes no PETSc options
+        and some are given).
     """
     command, takes_petsc = COMMANDS[args.command]
+    if petsc_cli and not takes_petsc:
+        given = " ".join(f"-{key}" for key in petsc_cli)
+        takers = ", ".join(name for name, (_, takes) in COMMANDS.items() if takes)
+        return error(f"{args.command}: PETSc option(s) {given} are not used by this command "
+                     f"(allowed with: {takers})", EXIT_BAD_INPUT)
     if args.command != "run":          # run: once set up (observers.CollectorAfterSetUp)
         resume_collector()
     return command(args, petsc_cli) if takes_petsc else command(args)
@@ -79,25 +86,37 @@ def _unexpected(exc: Exception) -> int:
     return internal_error(exc)
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, process: bool = False) -> int:
     """Run ``vpcontact`` with a command line.
 
     Args:
         argv: the arguments without the program name (default: sys.argv[1:]); PETSc
             options (one leading dash) may be anywhere.
+        process: the command line's own process (app/cli/entry.py): SIGINT and SIGTERM are
+            held back once the command has its exit code (app/cli/ending.py: one arriving
+            later is reported at the process's exit, not acted on by the raw signal).
 
     Returns:
         The exit code: 0 done, 1 a step failed (or an environmental fault), 2 bad input,
-        3 interrupted (SIGINT/SIGTERM).
+        3 interrupted (SIGINT/SIGTERM; also after the run's time loop, its outputs
+        complete).
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     ours, petsc_cli = split_petsc_args(argv)
+    ending.forget()
     try:
-        args = build_parser().parse_args(ours)
-        take_signals()
-        return dispatch(args, petsc_cli)
-    except KeyboardInterrupt:
-        return interrupted(_BEFORE_THE_LOOP, all_ranks=True)
+        try:
+            args = build_parser().parse_args(ours)
+            take_signals()
+            code = dispatch(args, petsc_cli)
+        finally:
+            if process:
+                ending.hold_signals()
+        return code
+    except KeyboardInterrupt as exc:
+        from vpcontact.studies.interrupts import signal_name
+        return interrupted(ending.after_the_end(signal_name(exc)) or _BEFORE_THE_LOOP,
+                           all_ranks=True)
     except CaseError as exc:            # bad input found late (e.g. while building the problem)
         return error(str(exc), EXIT_BAD_INPUT)
     except MemoryError:

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from vpcontact.io.canonical import stable_json
+from vpcontact.io.casekey import SECTIONS, group_map, normalised_sections
 from vpcontact.io.errors import CaseError
 from vpcontact.io.output import on_rank0
 
@@ -77,10 +78,33 @@ def case_fingerprint(case, laws: dict | None = None) -> str:
         A SHA-256 hex digest of those sections.
     """
     raw = case.raw
-    keys = ("mesh", "material", "contact", "loads", "initial", "boundaries")
-    data = {k: raw.get(k) for k in keys}
+    data = {k: raw.get(k) for k in SECTIONS}
     if "materials" in raw:                 # one material per group of cells
         data["materials"] = raw["materials"]
+    return _fingerprint(case, data, laws)
+
+
+def case_key(case, groups: dict, laws: dict | None = None) -> str:
+    """The fingerprint of the normalised case (app/io/casekey.py): the sections of
+    ``case_fingerprint`` with defaults filled, numbers as floats and groups by their tags,
+    so that equivalent spellings of a case restart from each other's checkpoints; the same
+    time grid, mesh files, API laws and law module as ``case_fingerprint``.
+
+    Args:
+        case: the validated Case.
+        groups: ``casekey.group_map`` of the mesh the checkpoint is (was) written on.
+        laws: ``api_laws`` of the run, or None.
+
+    Returns:
+        A SHA-256 hex digest.
+    """
+    return _fingerprint(case, normalised_sections(case, groups), laws)
+
+
+def _fingerprint(case, data: dict, laws: dict | None) -> str:
+    """SHA-256 of the case's sections ``data`` with its time grid, mesh files, API laws and
+    law module (``case_fingerprint``)."""
+    data = dict(data)
     data["times"] = list(case.time.times)
     data["scheme"] = case.time.scheme
     data["adaptive"] = case.time.adaptive
@@ -296,7 +320,9 @@ def save(outdir: Path, sim) -> Path:
     if comm.rank == 0:
         st = sim.stepper.state()
         mem = g3["memory"] if g3 is not None else None
+        groups = group_map(problem.body)
         meta = {"n": sim.n, "t": sim.t, "fingerprint": case_fingerprint(sim.case, laws),
+                "case_key": case_key(sim.case, groups, laws), "groups": groups,
                 "steps": sim.steps,
                 "stepper": {"adaptive": st["adaptive"], "n": st["n"], "k": st["k"],
                             "history": st["decisions"]},
@@ -376,6 +402,14 @@ def _integer(v) -> bool:
     return isinstance(v, int) and not isinstance(v, bool)
 
 
+def _group_map(groups) -> bool:
+    """Whether ``groups`` is a ``casekey.group_map``: facet and cell names -> tags."""
+    return isinstance(groups, dict) and all(
+        isinstance(groups.get(kind), dict) and all(
+            isinstance(k, str) and _integer(v) for k, v in groups[kind].items())
+        for kind in ("facets", "cells"))
+
+
 def _check_meta(meta) -> str | None:
     """Why the checkpoint's meta data is unusable (types and internal consistency), or None."""
     if not isinstance(meta, dict):
@@ -390,6 +424,9 @@ def _check_meta(meta) -> str | None:
         return f"meta: t = {t!r} is not a time"
     if not isinstance(meta["fingerprint"], str):
         return "meta: fingerprint is not a string"
+    if "case_key" in meta and not (isinstance(meta["case_key"], str) and _group_map(
+            meta.get("groups"))):
+        return "meta: case_key is not a string with the mesh's groups"
     if not isinstance(steps, list) or len(steps) != n:
         return f"meta: steps is not a list of {n} step records"
     for i, rec in enumerate(steps):
@@ -514,7 +551,9 @@ class Checkpoint:
                     f"{stored['sha256'][:12]}...); --law-module {given['path']} differs "
                     f"(SHA-256 {given['sha256'][:12]}...): an edited law module is another "
                     "law; restart with the module the run was written with, or start anew")
-        if self.meta["fingerprint"] != case_fingerprint(case):
+        key = self.meta.get("case_key")      # checkpoints written before it: as written
+        if (case_key(case, self.meta["groups"]) if key is not None
+                else case_fingerprint(case)) != (key or self.meta["fingerprint"]):
             return (f"{self.path} was written for a different case (mesh, material, contact, "
                     "loads, initial values or time grid differ)")
         for name, cols in _required(case).items():

@@ -17,6 +17,7 @@ from mpi4py import MPI
 
 from vpcontact.case import Case, CaseError
 from vpcontact.case.datacheck import PointSamples
+from vpcontact.case.pairrules import as_written
 from vpcontact.case.values import check_values_on_mesh
 
 
@@ -116,8 +117,8 @@ def check_data_on_mesh(case: Case, body) -> float:
     error, stress = None, 0.0
     try:
         stress = check_values_on_mesh(case, mesh_samples(case, body), float(np.max(hi - lo)))
-    except CaseError as exc:
-        error = str(exc)
+    except CaseError as exc:         # a pair's law named where it is written
+        error = as_written(str(exc), case.laws_written)
     errors = [e for e in comm.allgather(error) if e is not None]
     if errors:
         raise CaseError(errors[0])
