@@ -112,6 +112,20 @@ def check_space(comm, path: Path, describe, need: int) -> None:
         raise OutputError(describe(free))
 
 
+def written_values(fn) -> int:
+    """The numbers dolfinx 0.5's XDMFFile writes for a function at one time: every value is
+    padded to 3D (a 2D vector to 3 components, a 2D tensor to 9), one per dof block.
+
+    Args:
+        fn: a dolfinx Function (scalar, vector or tensor valued).
+
+    Returns:
+        The count of float64 values of its dataset.
+    """
+    blocks = fn.vector.getSize() // fn.function_space.dofmap.index_map_bs
+    return blocks * 3 ** len(fn.ufl_shape)
+
+
 def _disarm_hdf5_termination() -> None:
     """After an HDF5 file failed to close, HDF5 keeps a half-destroyed file object, and its
     termination closes every open file: parallel HDF5 terminates in MPI_Finalize (a delete
@@ -347,7 +361,7 @@ class FieldWriter:
         def fields(f):
             for fn in self.fields:
                 f.write_function(fn, t)
-        need = 8 * sum(fn.vector.getSize() for fn in self.fields) + HDF5_MARGIN
+        need = 8 * sum(written_values(fn) for fn in self.fields) + HDF5_MARGIN
         check_space(self.comm, self.h5,
                     lambda free: f"{self.h5}: cannot write the fields at t = {t:g} (No space "
                                  f"left on device: {free} bytes free, {need} needed)", need)

@@ -387,11 +387,12 @@ def small_disk(tmp_path):
 
 @pytest.mark.parametrize("nprocs", [1, 2])
 def test_a_full_disk_fails_the_run_with_a_summary_that_says_so(small_disk, nprocs):
-    """400 kB hold the paper case's outputs up to step ~5 of 16: the fields' write fails,
+    """1000 kB hold the paper case's outputs up to step ~4 of 16 (its seven fields, 146 kB
+    a step, and the margin check_space keeps): the fields' write fails,
     the run stops with exit 1, one error line, and summary.json says failed (before: no
     summary.json, only the log's 'summary.json not written'; under mpirun -n 2 the ranks
     hung in parallel HDF5's collectives for ever)."""
-    out = small_disk(400) / "out"
+    out = small_disk(1000) / "out"
     try:
         proc = _cli(["run", PAPER_CASE, "--out", out, "--no-plots", "--quiet"],
                     nprocs=nprocs, timeout=180)
