@@ -327,7 +327,7 @@ class Case:
     materials: dict | None = None
     # where the laws settled from the pairs into the contact section were written:
     # contact.<law> -> contact.pairs[i].<law> (app/case/pairrules.py, for messages)
-    laws_written: dict = field(default_factory=dict, repr=False)
+    laws_written: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def dim(self) -> int:

@@ -8,15 +8,16 @@ reaction: -sigma_nu of the bulk residual, as in contact.csv).  The bound mu p_n 
 the solution: the step problem is quasi-variational.  ``CoulombPressure.solve`` solves it by
 a fixed point on p_n inside each step: start from the previous step's p_n, solve the step
 (either step solver: the factor is the nodal field theta they both read), recompute p_n,
-repeat until max|p^(i+1) - p^(i)| <= TOL max(max p^(i+1), S), at most ``MAX_ITERATIONS``
-solves.  S is the data's stress scale (``divergence.stress_scale``: the loads and initial
-data, E_max times the prescribed displacements over L, the contact laws' levels, the initial
-stress), the scale in which the bulk residual, and so p_n, is measured: p_n is a nodal
-residual divided by its weight, summed from stress terms of that size, so its round-off
-is a few eps S.  Without the floor TOL S a step in which every node separates (p_n = 0 up to
-round-off, ~1e-14 at S = 30) could never converge (the relative test compares that noise
-with max p_n ~ 1e-21); with it, p_n is resolved to 1e-8 of the data's stresses, as the
-relative test resolves it at nodes in contact.
+repeat until max|p^(i+1) - p^(i)| <= max(TOL max p^(i+1), ROUNDOFF S), at most
+``MAX_ITERATIONS`` solves. S is the data's stress scale (``divergence.stress_scale``: the
+loads and initial data, E_max times the prescribed displacements over L, the contact laws'
+levels, the initial stress), the scale in which the bulk residual, and so p_n, is measured:
+p_n is a nodal residual divided by its weight, summed from stress terms of that size, so its
+round-off is a few eps S. Without the floor ROUNDOFF S a step in which every node separates
+(p_n = 0 up to round-off, ~1e-14 at S = 30) could never converge (the relative test compares
+that noise with max p_n ~ 1e-21); the floor is some 5000 eps S, far above that noise and far
+below the pressures of nodes in contact (a floor of TOL S stopped the fixed point of a stiff
+foundation body, whose E enters S, long before its pressures were resolved).
 A converged fixed point says so on a --verbose line (DEBUG: at the default level the progress
 bar and the closing lines suffice); one that does not converge fails the step
 (StepSolveError: the run's warning of a rejected adaptive step, or its error line).
@@ -41,20 +42,21 @@ log = logging.getLogger("vpcontact")
 
 # the fixed point's relative tolerance on p_n and its largest number of step solves
 TOL = 1e-8
+ROUNDOFF = 1e-12   # the floor of the fixed point's test, relative to the data's stresses
 MAX_ITERATIONS = 30
 
 
 def pressure_floor(problem) -> float:
-    """The pressure below which p_n is round-off: the data's stress scale S
+    """The pressure below which p_n is round-off: ROUNDOFF times the data's stress scale S
     (``divergence.stress_scale``, see the module docstring); collective.
 
     Args:
         problem: the ContactProblem (its case, elasticity, length and gap scales).
 
     Returns:
-        S [Pa] (0 for data without any stress: u = 0 and p_n = 0 exactly).
+        ROUNDOFF S [Pa] (0 for data without any stress: u = 0 and p_n = 0 exactly).
     """
-    return stress_scale(problem.case, problem)
+    return ROUNDOFF * stress_scale(problem.case, problem)
 
 
 class CoulombPressure:
@@ -115,7 +117,7 @@ class CoulombPressure:
             change = comm.allreduce(float(np.abs(new - self.p).max(initial=0.0)), op=MPI.MAX)
             scale = comm.allreduce(float(new.max(initial=0.0)), op=MPI.MAX)
             self.p = new
-            if change <= TOL * max(scale, self.floor):
+            if change <= max(TOL * scale, self.floor):
                 self.iterations = i
                 log.debug("Coulomb friction: the fixed point on p_n converged in %d "
                           "iteration(s) (max change %.2e, max p_n %.4g)", i, change, scale)
@@ -123,7 +125,7 @@ class CoulombPressure:
         raise StepSolveError(
             f"Coulomb friction: the fixed point on the contact pressure p_n did not converge "
             f"in {MAX_ITERATIONS} iterations (max|p^(i+1) - p^(i)| = {change:.3e} > "
-            f"{TOL:g} max(max p_n, stress scale) = {TOL * max(scale, self.floor):.3e}; "
+            f"max({TOL:g} max p_n, round-off floor) = {max(TOL * scale, self.floor):.3e}; "
             f"mu = {np.max(self.mu):g} may be too large for the fixed point)")
 
     def state(self) -> dict:
