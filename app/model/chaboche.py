@@ -79,6 +79,13 @@ class Chaboche(ViscoplasticLaw):
                 "C": (self.C, "Pa"), "gamma": (self.gamma, "-"), "Q": (self.Q, "Pa"),
                 "b": (self.b, "-")}
 
+    @property
+    def hardens(self) -> bool:
+        """Returns: whether the rates fall as the law hardens (X grows towards sigma, R
+        towards Q: with Q >= 0 both shrink the overstress f), so that ``rate_at_stress``,
+        taken at X = R = 0, bounds the rates of the hardened states."""
+        return self.Q >= 0.0
+
     def rate_at_stress(self, S: float) -> float | None:
         """The relaxation rate of the explicit update (3.2)-(3.3) linearised at the initial
         internal state (X = 0, R = 0) and a stress of von Mises norm S.  With the

@@ -98,6 +98,9 @@ class ViscoplasticLaw(ABC):
     m: int = 1
     name: str = "user law"
     uses_eps: bool = False     # rates and residual take the strain eps too (a user's law)
+    # rate_at_stress is at the initial internal state and the rates fall as the law hardens
+    # (Chaboche with Q >= 0): k r(S) above the limit is then a bound, not a prediction
+    hardens: bool = False
 
     def __init__(self, elasticity: Elasticity):
         self.elasticity = elasticity

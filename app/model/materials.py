@@ -257,6 +257,11 @@ class GroupLaws:
         """Returns: the largest L_G of the groups' laws (None if one does not know it)."""
         return self._largest("lipschitz_constant")
 
+    @property
+    def hardens(self) -> bool:
+        """Returns: whether every group's law hardens (ViscoplasticLaw.hardens)."""
+        return all(getattr(g.law, "hardens", False) for g in self.flowing)
+
     def rate_at_stress(self, S: float) -> float | None:
         """The largest of the groups' laws' rates at the stress scale S.
 

@@ -428,6 +428,9 @@ class Diagnostics:
         stress_scale: S [Pa] of the source "stress_scale", else None.
         estimate_error: why the estimate failed (the law raised at the initial state: the
             source is "unknown"), else None.
+        before_hardening: the rate r(S) is the law's at its initial internal state (a law
+            that hardens, ``ViscoplasticLaw.hardens``: its rates fall as it hardens), so an
+            indicator above the limit is a bound, not a prediction.
     """
 
     scheme: str
@@ -449,6 +452,7 @@ class Diagnostics:
     indicator_source: str | None = None
     stress_scale: float | None = None
     estimate_error: str | None = None
+    before_hardening: bool = False
 
     def as_dict(self) -> dict:
         """The fields as a dict.
@@ -501,6 +505,11 @@ class Diagnostics:
                     and self.relaxation_rate is not None:      # the steps know r_max
                 out.append(("info", text + ": adaptive steps will keep k r_max within "
                                            "time.adaptive.max_indicator"))
+            elif self.scheme == "explicit" and not self.explicit_stable \
+                    and self.before_hardening:
+                out.append(("info", text + " before the law hardens (its rates fall as it "
+                                           "hardens): the run estimates the indicator at "
+                                           "every step and warns if it passes the limit"))
             elif self.scheme == "explicit" and not self.explicit_stable:
                 out.append(("warning", text + self._unstable()))
             else:
@@ -570,7 +579,8 @@ def diagnose(problem, solver=None) -> Diagnostics:
                        None if indicator is None else indicator <= STABILITY_LIMIT,
                        m_E, m_j, 0.0, gamma2, margin, unique, case.time.adaptive is not None,
                        is_bound, lipschitz, estimate, source if law is not None else None,
-                       scale, failed)
+                       scale, failed,
+                       source == "stress_scale" and bool(getattr(law, "hardens", False)))
 
 
 def _law_rate(problem) -> tuple:

@@ -256,7 +256,32 @@ def test_check_states_the_creep_laws_indicator_at_the_stress_scale(name, S, rate
     line = next(x for x in text.splitlines() if x.startswith("stability indicator"))
     assert f"(the law's linearisation at the data's stress scale S = {S:.4g} Pa) k_max " \
            f"r_max = {k:g} x {rate:.4g} = {k * rate:.3g} (explicit limit 2)" in line
-    assert ("unstable where the stresses reach S" in line) == (k * rate > 2)
+    hardens = name == "chaboche_cycle"        # Q = 5 >= 0: r(S) is a bound before hardening
+    assert ("unstable where the stresses reach S" in line) == (k * rate > 2 and not hardens)
+    assert ("before the law hardens" in line) == (k * rate > 2 and hardens)
+
+
+@pytest.mark.parametrize("before_hardening", [False, True])
+def test_a_bound_before_hardening_is_no_warning(before_hardening):
+    """An indicator above 2 at the stress scale is a warning, unless the rate is the
+    hardening law's at its initial state (chaboche_cycle: 10.6 at X = R = 0, the run's own
+    estimate below 0.2): then an info line that says so and that the run watches."""
+    from vpcontact.post.diagnostics import Diagnostics
+    d = Diagnostics("explicit", 0.02, None, 10.6, 2.0, False, 1.0, None, 0.0, None, None,
+                    None, rate_estimate=530.0, indicator_source="stress_scale",
+                    stress_scale=30.0, before_hardening=before_hardening)
+    (level, text), = d.messages()
+    assert level == ("info" if before_hardening else "warning")
+    assert ("warns if it passes the limit" in text) == before_hardening
+
+
+@pytest.mark.parametrize("Q, hardens", [(5.0, True), (0.0, True), (-5.0, False)])
+def test_chaboche_hardens_with_a_nonnegative_Q(Q, hardens):
+    """R' = b (Q - R) phi: with Q < 0 the law softens and r(S) at R = 0 bounds nothing."""
+    from vpcontact.model.chaboche import Chaboche
+    from vpcontact.model.material import Elasticity
+    law = Chaboche(Elasticity(1000.0, 0.3, 2), 10.0, 20.0, 3.0, 2000.0, 50.0, Q, 10.0)
+    assert law.hardens is hardens
 
 
 @pytest.mark.parametrize("source, scale", [("estimated", None), ("stress_scale", 40.0)])
