@@ -6,8 +6,10 @@ displacement of node i is taken as the phi_i-weighted mean of the jump over its 
     [u]_i = u_i - sum_k c_ik u_k,    c_ik = M_ik / sum_l M_il,
     M_ik = int_surface phi_i(x) psi_k(pi(x)) ds(x),
 
-phi_i the surface's and psi_k the target's P1 shape functions, pi the closest-point
-projection (app/model/pairgeometry.py).  The contact force f_i = D_i p_i of node i then
+phi_i the surface's and psi_k the target's P1 shape functions, pi(x) the point of the target
+met along the pair's normal nu(x) = (n_s(x) - n_t(pi(x))) / |...| (app/model/pairnormal.py:
+the average of the two bodies' normals, n_s(x) interpolated from the surface's vertex
+normals).  The contact force f_i = D_i p_i of node i then
 reaches the target as sum_i c_ik f_i, which for a uniform pressure p is p int psi_k ds: the
 consistent nodal forces of the target (the contact patch test), where the node-to-segment
 rule (c_ik = psi_k(pi(x_i))) gives a pressure that varies with the two meshes' offset.  The
@@ -22,7 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from vpcontact.model.pairgeometry import project_points
+from vpcontact.model.pairgeometry import facet_measure
+from vpcontact.model.pairnormal import normal_at, pair_projection
 
 SUB_2D = 16       # pieces of a surface segment
 SUB_3D = 6        # a surface triangle cut into SUB_3D^2 triangles
@@ -58,36 +61,26 @@ def reference_rule(dim: int) -> tuple[np.ndarray, np.ndarray]:
     return bary, np.full(len(bary), 1.0 / len(bary))
 
 
-def facet_measure(coords: np.ndarray) -> np.ndarray:
-    """Length (2D) or area (3D) of each facet.
-
-    Args:
-        coords: (nf, nv, d) vertex coordinates.
-
-    Returns:
-        (nf,) measures.
-    """
-    if coords.shape[2] == 2:
-        return np.linalg.norm(coords[:, 1] - coords[:, 0], axis=1)
-    return 0.5 * np.linalg.norm(np.cross(coords[:, 1] - coords[:, 0],
-                                         coords[:, 2] - coords[:, 0]), axis=1)
-
-
-def mortar_triplets(surface: np.ndarray, surface_nodes: np.ndarray, target: np.ndarray,
-                    target_normals: np.ndarray, target_nodes: np.ndarray) -> tuple:
+def mortar_triplets(surface: np.ndarray, surface_nodes: np.ndarray,
+                    surface_normals: np.ndarray, target: np.ndarray,
+                    target_normals: np.ndarray, target_nodes: np.ndarray,
+                    target_vertex: np.ndarray) -> tuple:
     """The entries of M from some surface facets (module docstring).
 
     Args:
         surface: (nf, nv, d) the surface facets' vertex coordinates.
         surface_nodes: (nf, nv) their global nodes.
+        surface_normals: (nf, nv, d) the surface's vertex normals at them
+            (pairnormal.vertex_normals).
         target: (nt, nv, d) the target facets' vertex coordinates.
         target_normals: (nt, d) their outward unit normals.
         target_nodes: (nt, nv) their global nodes.
+        target_vertex: (nt, nv, d) the target's vertex normals.
 
     Returns:
         (rows, cols, values): surface global node i, target global node k, the
         contribution to M_ik (duplicates to be summed); quadrature points that project
-        past the target's free edge contribute nothing.
+        past the target's free edge (or whose ray does) contribute nothing.
     """
     nf, nv, d = surface.shape
     if nf == 0:
@@ -96,7 +89,8 @@ def mortar_triplets(surface: np.ndarray, surface_nodes: np.ndarray, target: np.n
     bary, w = reference_rule(d)
     nq = len(w)
     points = np.einsum("qa,fad->fqd", bary, surface).reshape(-1, d)
-    proj = project_points(points, target, target_normals)
+    n_s = normal_at(np.tile(bary, (nf, 1)), np.repeat(surface_normals, nq, axis=0))
+    proj, _ = pair_projection(points, n_s, target, target_normals, target_vertex)
     weight = (facet_measure(surface)[:, None] * w[None, :]).reshape(-1)
     inside = proj.inside
     facet = np.where(inside, proj.facet, 0)

@@ -103,6 +103,21 @@ def facet_normals(facets, interior_points) -> np.ndarray:
     return np.where((side > 0)[:, None], -n, n)
 
 
+def facet_measure(coords: np.ndarray) -> np.ndarray:
+    """Length (2D) or area (3D) of each facet.
+
+    Args:
+        coords: (nf, nv, d) vertex coordinates.
+
+    Returns:
+        (nf,) measures.
+    """
+    if coords.shape[2] == 2:
+        return np.linalg.norm(coords[:, 1] - coords[:, 0], axis=1)
+    return 0.5 * np.linalg.norm(np.cross(coords[:, 1] - coords[:, 0],
+                                         coords[:, 2] - coords[:, 0]), axis=1)
+
+
 def _on_segments(p: np.ndarray, v: np.ndarray):
     """The clamped and unclamped barycentric coordinates of p (n, d) on segments v (n, 2, d)."""
     a, ab = v[:, 0], v[:, 1] - v[:, 0]
@@ -150,6 +165,16 @@ def _on_triangles(p: np.ndarray, v: np.ndarray):
     return np.stack(w, axis=1), lam
 
 
+def plane_coordinates(p: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The unclamped barycentric coordinates of points p (n, d) on facets v (n, nv, d): those
+    of p's projection onto the facet's line (2D) or plane (3D).
+
+    Returns:
+        (n, nv), summing to 1 (all >= 0 when the projection lies in the facet).
+    """
+    return (_on_segments if v.shape[1] == 2 else _on_triangles)(p, v)[1]
+
+
 def _best(points: np.ndarray, facets: np.ndarray, row: np.ndarray, cand: np.ndarray,
           tie: float, tol: float):
     """The chosen facet of each point among its candidates: the pairs (row, cand), row
@@ -172,7 +197,7 @@ def _best(points: np.ndarray, facets: np.ndarray, row: np.ndarray, cand: np.ndar
     return cand[pick], w[pick], lam[pick], dist[pick]
 
 
-def _row_chunks(counts: np.ndarray):
+def row_chunks(counts: np.ndarray):
     """Consecutive ranges of rows whose candidate counts sum to about CHUNK_PAIRS.
 
     Yields:
@@ -211,7 +236,7 @@ def _nearest(points: np.ndarray, facets: np.ndarray, tie: float, tol: float):
     todo = np.flatnonzero(dist + tie >= r[:, -1] - radius) if k < nf else np.arange(0)
     reach = (dist[todo] + tie + radius) * (1 + 1e-12) + 1e-300
     counts = tree.query_ball_point(points[todo], reach, return_length=True)
-    for start, stop in _row_chunks(counts):
+    for start, stop in row_chunks(counts):
         rows = todo[start:stop]
         near = tree.query_ball_point(points[rows], reach[start:stop])
         cand = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64,

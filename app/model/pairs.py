@@ -1,10 +1,15 @@
 """Two bodies in contact (``contact.pairs``): the node-to-segment kinematics of small sliding.
 
-Each local node x_i of a pair's ``surface`` (Gamma3 of the pair) is projected once, in the
-reference configuration, onto the pair's ``target`` facets (app/model/pairgeometry.py):
-pi(x_i) = sum_k N_ik x_k on one target facet, with the target's outward unit normal n_i
-there.  The pair's normal is nu_i = -n_i (from the surface toward the target) and the
-measured initial distance d_i = (pi(x_i) - x_i) . nu_i >= 0.  The relative displacement
+Each local node x_i of a pair's ``surface`` (Gamma3 of the pair) is coupled once, in the
+reference configuration, to a point pi(x_i) = sum_k N_ik x_k of one of the pair's ``target``
+facets (app/model/pairnormal.py): the point met along the pair's normal
+
+    nu_i = (n_s(x_i) - n_t(pi(x_i))) / |n_s(x_i) - n_t(pi(x_i))|,
+
+the average of the surface's outward normal n_s and the target's inward one -n_t (each body's
+area-weighted vertex normals, n_t interpolated on the facet; Code_Aster's NORMALE='MAIT_ESCL'),
+so that two mirror-image bodies pressed together have a purely normal jump.  The measured
+initial distance is d_i = (pi(x_i) - x_i) . nu_i >= 0.  The relative displacement
 
     [u]_i = u(x_i) - u(pi(x_i)) = u_i - sum_k N_ik u_k
 
@@ -17,7 +22,9 @@ of the rigid-foundation case act on
 with the bound w_i . nu_i <= g (the pair's g).  So the forms of the Gamma3 terms (4.1)-(4.2),
 the memory and slip sums and the Coulomb pressure are those of one body against the
 foundation, evaluated on w (a P1 Function whose values at the Gamma3 nodes are w_i); the step
-solver maps them back to u (app/solvers/pairmap.py).
+solver maps them back to u (app/solvers/pairmap.py).  Small sliding: nu_i and the coupling
+are those of the reference configuration, and the friction's slip is [u]_tau, the total
+tangential jump along them (zero under a pure normal approach of mirror-image bodies).
 """
 from __future__ import annotations
 
@@ -114,18 +121,20 @@ def local_facets(disc, ref, owned: bool = False) -> tuple:
     return V.tabulate_dof_coordinates()[local][:, :, :d], interior, glob
 
 
-def target_facets(disc, ref) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The facets of a target group over all ranks, each once: their vertex coordinates,
-    the target body's outward normals and the vertices' global nodes.
+def gathered_facets(disc, ref) -> tuple:
+    """The facets of a group over all ranks, each once: their vertex coordinates, the body's
+    outward normals, the vertices' global nodes and the vertex normals there.
 
     Args:
         disc: the Discretisation.
-        ref: the target group.
+        ref: the group (a pair's target or surface).
 
     Returns:
-        (coordinates (nf, nv, d), outward normals (nf, d), global nodes (nf, nv)).
+        (coordinates (nf, nv, d), outward normals (nf, d), global nodes (nf, nv), vertex
+        normals (nf, nv, d): pairnormal.vertex_normals).
     """
     from vpcontact.model.pairgeometry import facet_normals  # scipy: only with pairs
+    from vpcontact.model.pairnormal import vertex_normals
 
     d = disc.dim
     parts = disc.comm.allgather(local_facets(disc, ref))
@@ -134,7 +143,25 @@ def target_facets(disc, ref) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     glob = np.concatenate([p[2] for p in parts]).reshape(-1, d)
     _, first = np.unique(np.sort(glob, axis=1), axis=0, return_index=True)
     first = np.sort(first)
-    return coords[first], facet_normals(coords[first], inner[first]), glob[first]
+    coords, glob = coords[first], glob[first]
+    normals = facet_normals(coords, inner[first])
+    return coords, normals, glob, vertex_normals(coords, normals, glob)
+
+
+def _at_nodes(facets: tuple, nodes: np.ndarray) -> np.ndarray:
+    """The vertex normals of gathered_facets at some of their global nodes.
+
+    Args:
+        facets: gathered_facets of a group.
+        nodes: global nodes of that group's vertices (any shape).
+
+    Returns:
+        (nodes.shape, d) normals.
+    """
+    glob, vertex = facets[2].ravel(), facets[3].reshape(facets[2].size, -1)
+    order = np.argsort(glob, kind="stable")
+    at = order[np.searchsorted(glob[order], np.asarray(nodes).ravel())]
+    return vertex[at].reshape(*np.shape(nodes), vertex.shape[1])
 
 
 def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
@@ -154,7 +181,7 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
             surfaces that do not face each other, an initial interpenetration (on every
             rank).
     """
-    from vpcontact.model.pairgeometry import project_points  # scipy: only with pairs
+    from vpcontact.model.pairnormal import pair_projection  # scipy: only with pairs
 
     case, d = disc.case, disc.dim
     x = disc.V.tabulate_dof_coordinates()[nodes, :d]
@@ -169,22 +196,25 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
     couplings, targets = [], []
     for i, p in enumerate(case.contact.pairs):
         sel = pair == i
-        target = target_facets(disc, p.target)
+        target, surface = gathered_facets(disc, p.target), gathered_facets(disc, p.surface)
         targets.append(target)
         _refuse(disc, sel.any() and len(target[0]) == 0, f"contact.pairs[{i}].target",
                 f"the group {p.target!r} has no facets")
-        proj = project_points(x[sel], target[0], target[1]) if sel.any() else None
+        n_s = _at_nodes(surface, _global(disc, nodes[sel]))
+        proj, nu = pair_projection(x[sel], n_s, target[0], target[1], target[3]) \
+            if sel.any() else (None, None)
         inside = proj.inside if proj is not None else np.ones(0, bool)
         _refuse_count(disc, ~inside, x[sel], f"contact.pairs[{i}]",
                       f"node(s) of {p.surface!r} project outside the target {p.target!r} "
                       "(past its free edge): make the surface group cover only the part "
                       "that faces the target, or the target larger")
         if proj is not None:
-            geo.normal[sel] = -proj.normal
-            geo.distance[sel] = proj.distance
+            geo.normal[sel] = nu
+            geo.distance[sel] = np.einsum("ij,ij->i", proj.closest - x[sel], nu)
             geo.g[sel] = p.g
         _check_facing(disc, i, p, outward[sel], geo.normal[sel], x[sel])   # collective
-        couplings.append(_coupling(disc, p, nodes, np.flatnonzero(sel), proj, target))
+        couplings.append(_coupling(disc, p, nodes, np.flatnonzero(sel), proj,
+                                   (surface, target)))
     geo.rows, geo.cols, geo.coef = (np.concatenate([c[k] for c in couplings])
                                     for k in range(3))
     _coupled_distance(geo, x, targets)
@@ -193,11 +223,19 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
     return geo
 
 
-def _coupling(disc, p, nodes, sel, proj, target) -> tuple:
-    """(rows, cols, coef) of one pair's owned nodes (positions ``sel`` in ``nodes``)."""
+def _global(disc, nodes: np.ndarray) -> np.ndarray:
+    """The global indices of local nodes of V."""
+    return np.asarray(disc.V.dofmap.index_map.local_to_global(
+        np.asarray(nodes, dtype=np.int32)), dtype=np.int64)
+
+
+def _coupling(disc, p, nodes, sel, proj, facets) -> tuple:
+    """(rows, cols, coef) of one pair's owned nodes (positions ``sel`` in ``nodes``);
+    ``facets`` the pair's (surface, target) gathered_facets."""
     from scipy.sparse import coo_matrix
 
     from vpcontact.model.mortar import mortar_triplets
+    surface, target = facets
     n_owned = disc.V.dofmap.index_map.size_local
     owned = nodes[sel] < n_owned
     if p.rule == "node_to_segment":
@@ -206,8 +244,8 @@ def _coupling(disc, p, nodes, sel, proj, target) -> tuple:
         nv = proj.weights.shape[1]
         return (np.repeat(sel[owned], nv), target[2][proj.facet[owned]].ravel(),
                 proj.weights[owned].ravel())
-    rows, cols, vals = mortar_triplets(*local_facets(disc, p.surface, owned=True)[::2],
-                                       *target)
+    coords, _, glob = local_facets(disc, p.surface, owned=True)
+    rows, cols, vals = mortar_triplets(coords, glob, _at_nodes(surface, glob), *target)
     parts = disc.comm.allgather((rows, cols, vals))
     rows, cols, vals = (np.concatenate([q[k] for q in parts]) for k in range(3))
     start = disc.V.dofmap.index_map.local_range[0]
