@@ -13,7 +13,12 @@ normals).  The contact force f_i = D_i p_i of node i then
 reaches the target as sum_i c_ik f_i, which for a uniform pressure p is p int psi_k ds: the
 consistent nodal forces of the target (the contact patch test), where the node-to-segment
 rule (c_ik = psi_k(pi(x_i))) gives a pressure that varies with the two meshes' offset.  The
-rows sum to 1, so a rigid translation gives no jump.
+rows sum to 1, so a rigid translation gives no jump.  The initial distance d_i is
+that of the node's own point, (pi(x_i) - x_i) . nu_i (app/model/pairs.py): the weighted gap
+int phi_i g ds / int phi_i ds of mortar methods would exceed it by O(h^2 g'') where the gap
+g grows (a fillet), and the mean target point sum_k c_ik x_k is no point of the target on
+the ray (nu_i . (sum_k c_ik x_k - x_i) < 0 where a punch's flat bottom, lying on the
+target, turns into a fillet and nu_i tilts).
 
 M is integrated by a composite rule on each surface facet (segments cut in SUB_2D pieces with
 2 Gauss points, triangles in SUB_3D^2 with the 3-point edge-midpoint rule): the integrand is

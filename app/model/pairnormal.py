@@ -45,6 +45,7 @@ from vpcontact.model.pairgeometry import (
 NORMAL_TOL = 1e-14        # the fixed point of (1) stops when nu moves by less than this
 NORMAL_ITERATIONS = 20    # at most this many ray casts
 REACH = 4.0               # the ray is sought within REACH times the closest distance (+ h)
+ROUNDOFF = 1e-12          # a normal's component below this is round-off (pair_normal)
 
 
 def vertex_normals(facets: np.ndarray, normals: np.ndarray, nodes: np.ndarray) -> np.ndarray:
@@ -86,7 +87,11 @@ def normal_at(weights: np.ndarray, vertex: np.ndarray) -> np.ndarray:
 
 def pair_normal(surface: np.ndarray, target: np.ndarray) -> np.ndarray:
     """nu of (1): (n_s - n_t) / |n_s - n_t|; -n_t where n_s = n_t (the surfaces do not face
-    each other: the caller refuses).
+    each other: the caller refuses).  Components below ROUNDOFF are the round-off of the
+    coordinates (a flat side at y = 1 has vertices at y = 1 + 2e-16): they are set to 0, so
+    that a normal along an axis is that axis exactly (as the frames of app/model/frames.py
+    take it; a 1e-15 component in the pairs' change of variables made K_x of a body held
+    only by contact pivot otherwise).
 
     Args:
         surface: (m, d) n_s.
@@ -97,7 +102,8 @@ def pair_normal(surface: np.ndarray, target: np.ndarray) -> np.ndarray:
     """
     diff = surface - target
     bad = np.linalg.norm(diff, axis=1) <= 1e-12
-    return unit(np.where(bad[:, None], -target, diff))
+    nu = unit(np.where(bad[:, None], -target, diff))
+    return unit(np.where(np.abs(nu) < ROUNDOFF, 0.0, nu))
 
 
 def _hits(points, directions, facets, normals, row, cand, tie, tol):

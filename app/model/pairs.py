@@ -9,7 +9,8 @@ facets (app/model/pairnormal.py): the point met along the pair's normal
 the average of the surface's outward normal n_s and the target's inward one -n_t (each body's
 area-weighted vertex normals, n_t interpolated on the facet; Code_Aster's NORMALE='MAIT_ESCL'),
 so that two mirror-image bodies pressed together have a purely normal jump.  The measured
-initial distance is d_i = (pi(x_i) - x_i) . nu_i >= 0.  The relative displacement
+initial distance is d_i = (pi(x_i) - x_i) . nu_i >= 0 (with either rule).  The relative
+displacement
 
     [u]_i = u(x_i) - u(pi(x_i)) = u_i - sum_k N_ik u_k
 
@@ -53,8 +54,8 @@ class PairGeometry:
     Attributes:
         pair: (m,) the index of each node's pair in contact.pairs.
         normal: (m, d) nu_i, the pair's unit normal (the target's inward normal at pi(x_i)).
-        distance: (m,) d_i >= 0, the initial distance along nu_i (owned nodes: of the
-            coupling, nu_i . (sum_k c_ik x_k - x_i); ghosts: of the projection).
+        distance: (m,) d_i >= 0, the initial distance (pi(x_i) - x_i) . nu_i along nu_i
+            (both rules: of the node's own point; app/model/mortar.py says why).
         g: (m,) the pair's extra gap g at each node.
         rows, cols, coef: the coupling [u]_i = u_i - sum_k c_ik u_k of the owned nodes:
             the node's position in ``gamma3_local_nodes``, the target's global node k,
@@ -193,11 +194,10 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
                 "shares a node with another pair's surface")
         pair[mine] = i
     geo = PairGeometry(pair, np.zeros((m, d)), np.zeros(m), np.zeros(m))
-    couplings, targets = [], []
+    couplings = []
     for i, p in enumerate(case.contact.pairs):
         sel = pair == i
         target, surface = gathered_facets(disc, p.target), gathered_facets(disc, p.surface)
-        targets.append(target)
         _refuse(disc, sel.any() and len(target[0]) == 0, f"contact.pairs[{i}].target",
                 f"the group {p.target!r} has no facets")
         n_s = _at_nodes(surface, _global(disc, nodes[sel]))
@@ -217,7 +217,6 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
                                    (surface, target)))
     geo.rows, geo.cols, geo.coef = (np.concatenate([c[k] for c in couplings])
                                     for k in range(3))
-    _coupled_distance(geo, x, targets)
     for i, p in enumerate(case.contact.pairs):
         _check_distance(disc, i, p, geo, pair == i, x[pair == i])
     return geo
@@ -230,14 +229,11 @@ def _global(disc, nodes: np.ndarray) -> np.ndarray:
 
 
 def _coupling(disc, p, nodes, sel, proj, facets) -> tuple:
-    """(rows, cols, coef) of one pair's owned nodes (positions ``sel`` in ``nodes``);
+    """(rows, cols, coef) of one pair's owned nodes (positions ``sel`` in ``nodes``),
     ``facets`` the pair's (surface, target) gathered_facets."""
-    from scipy.sparse import coo_matrix
-
     from vpcontact.model.mortar import mortar_triplets
     surface, target = facets
-    n_owned = disc.V.dofmap.index_map.size_local
-    owned = nodes[sel] < n_owned
+    owned = nodes[sel] < disc.V.dofmap.index_map.size_local
     if p.rule == "node_to_segment":
         if proj is None:
             return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
@@ -245,17 +241,25 @@ def _coupling(disc, p, nodes, sel, proj, facets) -> tuple:
         return (np.repeat(sel[owned], nv), target[2][proj.facet[owned]].ravel(),
                 proj.weights[owned].ravel())
     coords, _, glob = local_facets(disc, p.surface, owned=True)
-    rows, cols, vals = mortar_triplets(coords, glob, _at_nodes(surface, glob), *target)
-    parts = disc.comm.allgather((rows, cols, vals))
+    return _owned_rows(disc, nodes, sel, mortar_triplets(coords, glob,
+                                                         _at_nodes(surface, glob), *target))
+
+
+def _owned_rows(disc, nodes, sel, triplets) -> tuple:
+    """The rows of M (mortar_triplets: global row, global column, value, from all ranks)
+    at this rank's owned nodes at positions ``sel`` in ``nodes``, duplicates summed, each
+    row divided by its sum: (positions in nodes, global columns, c_ik) (collective)."""
+    from scipy.sparse import coo_matrix
+
+    parts = disc.comm.allgather(triplets)
     rows, cols, vals = (np.concatenate([q[k] for q in parts]) for k in range(3))
     start = disc.V.dofmap.index_map.local_range[0]
-    mine = (rows >= start) & (rows < start + n_owned)
+    mine = (rows >= start) & (rows < start + disc.V.dofmap.index_map.size_local)
     local = rows[mine] - start
     at = np.searchsorted(nodes, local)
     ok = (at < len(nodes)) & (nodes[np.minimum(at, len(nodes) - 1)] == local)
+    ok &= np.isin(at, sel)                          # another pair's node: not this one
     rows, cols, vals = at[ok], cols[mine][ok], vals[mine][ok]
-    rows = np.where(np.isin(rows, sel), rows, -1)      # another pair's node: not this one
-    rows, cols, vals = rows[rows >= 0], cols[rows >= 0], vals[rows >= 0]
     # sum the quadrature points' contributions to each (node, target node) entry
     M = coo_matrix((vals, (rows, cols)), shape=(len(nodes), int(cols.max(initial=-1)) + 1))
     M = M.tocsr()
@@ -263,20 +267,6 @@ def _coupling(disc, p, nodes, sel, proj, facets) -> tuple:
     rows = np.repeat(np.arange(M.shape[0]), np.diff(M.indptr))
     total = np.bincount(rows, weights=M.data, minlength=len(nodes))
     return rows, M.indices.astype(np.int64), M.data / total[rows]
-
-
-def _coupled_distance(geo, x, targets) -> None:
-    """d_i = nu_i . (sum_k c_ik x_k - x_i) at the owned nodes (the coupling's own gap),
-    x_k from the targets' facets (coordinates, normals, global nodes)."""
-    d = x.shape[1]
-    glob = np.concatenate([t[2].ravel() for t in targets])
-    coords = np.concatenate([t[0].reshape(-1, d) for t in targets])
-    order = np.argsort(glob, kind="stable")
-    at = order[np.searchsorted(glob[order], geo.cols)]
-    mean = np.zeros_like(x)
-    np.add.at(mean, geo.rows, geo.coef[:, None] * coords[at])
-    owned = np.unique(geo.rows)
-    geo.distance[owned] = np.einsum("ij,ij->i", mean[owned] - x[owned], geo.normal[owned])
 
 
 def surface_nodes(disc, ref) -> np.ndarray:
