@@ -35,6 +35,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from vpcontact.model.pairgeometry import (
+    CANDIDATES,
     Projection,
     facet_measure,
     plane_coordinates,
@@ -141,25 +142,38 @@ def _hits(points, directions, facets, normals, row, cand, tie, tol):
             inside & found)
 
 
-def _cast(points, directions, facets, normals, reach, tol):
-    """_hits of each point among the facets whose centroid lies within `reach` (m,) of it
-    (plus the largest facet radius), in chunks of bounded memory."""
-    m, d = points.shape
-    h = np.linalg.norm(facets - np.roll(facets, 1, axis=1), axis=2).max()
+def _index(facets: np.ndarray) -> tuple:
+    """The search structure of the target facets: (KD tree of the centroids, the largest
+    facet edge h, the largest facet radius)."""
     centroids = facets.mean(axis=1)
     radius = np.linalg.norm(facets - centroids[:, None], axis=2).max()
-    tree = cKDTree(centroids)
-    reach = reach + radius + tol * h
-    counts = tree.query_ball_point(points, reach, return_length=True)
-    facet, weights = np.full(m, -1), np.zeros((m, facets.shape[1]))
-    s, inside = np.zeros(m), np.zeros(m, bool)
+    h = np.linalg.norm(facets - np.roll(facets, 1, axis=1), axis=2).max()
+    return cKDTree(centroids), h, radius
+
+
+def _cast(points, directions, facets, normals, guess, reach, index, tol):
+    """_hits of each point among the CANDIDATES facets whose centroids are nearest its guess
+    of pi; where none of them is met inside (an end of the target, a guess far off), among
+    every facet whose centroid lies within `reach` (m,) of x plus the largest facet radius,
+    in chunks of bounded memory."""
+    tree, h, radius = index
+    m, nf = len(points), len(facets)
+    k = min(CANDIDATES, nf)
+    cand = tree.query(guess, k)[1].reshape(m, k)
+    facet, weights, s, inside = _hits(points, directions, facets, normals,
+                                      np.repeat(np.arange(m), k), cand.ravel(), tol * h, tol)
+    todo = np.flatnonzero(~inside)
+    if not len(todo) or k == nf:
+        return facet, weights, s, inside
+    reach = reach[todo] + radius + tol * h
+    counts = tree.query_ball_point(points[todo], reach, return_length=True)
     for start, stop in row_chunks(np.maximum(counts, 1)):
-        near = tree.query_ball_point(points[start:stop], reach[start:stop])
-        row = np.repeat(np.arange(stop - start), [max(len(c), 1) for c in near])
-        cand = np.concatenate([c if len(c) else [0] for c in near]).astype(np.int64)
-        part = slice(start, stop)
-        facet[part], weights[part], s[part], inside[part] = _hits(
-            points[part], directions[part], facets, normals, row, cand, tol * h, tol)
+        rows = todo[start:stop]
+        near = tree.query_ball_point(points[rows], reach[start:stop])
+        row = np.repeat(np.arange(len(rows)), [max(len(c), 1) for c in near])
+        found = np.concatenate([c if len(c) else [0] for c in near]).astype(np.int64)
+        facet[rows], weights[rows], s[rows], inside[rows] = _hits(
+            points[rows], directions[rows], facets, normals, row, found, tol * h, tol)
     return facet, weights, s, inside
 
 
@@ -189,14 +203,26 @@ def pair_projection(points, surface_normals, facets, facet_normals, vertex: np.n
     facet, weights = np.maximum(near.facet, 0), near.weights
     reach = REACH * np.linalg.norm(points - near.closest, axis=1)
     nu = pair_normal(surface_normals, normal_at(weights, vertex[facet]))
-    for _ in range(NORMAL_ITERATIONS):
-        facet, weights, s, inside = _cast(points, nu, facets, facet_normals, reach, tol)
-        new = pair_normal(surface_normals, normal_at(weights, vertex[np.maximum(facet, 0)]))
-        new = np.where((facet >= 0)[:, None], new, nu)
-        moved = np.abs(new - nu).max(initial=0.0)
-        if moved <= NORMAL_TOL:
+    index, guess = _index(facets), near.closest.copy()
+    facet, weights = np.full(len(points), -1), np.zeros_like(weights)
+    s, inside = np.zeros(len(points)), np.zeros(len(points), bool)
+    active = np.arange(len(points))              # the points whose nu still moves
+    for it in range(NORMAL_ITERATIONS + 1):
+        at = active
+        facet[at], weights[at], s[at], inside[at] = _cast(
+            points[at], nu[at], facets, facet_normals, guess[at], reach[at], index, tol)
+        if it == NORMAL_ITERATIONS:              # the last nu's own cast
             break
-        nu = new
+        found = facet[at] >= 0
+        guess[at[found]] = points[at[found]] + s[at[found], None] * nu[at[found]]
+        new = pair_normal(surface_normals[at], normal_at(weights[at],
+                                                         vertex[np.maximum(facet[at], 0)]))
+        new = np.where(found[:, None], new, nu[at])
+        moving = np.abs(new - nu[at]).max(axis=1) > NORMAL_TOL
+        nu[at[moving]] = new[moving]
+        active = at[moving]
+        if not len(active):
+            break
     inside &= near.inside
     closest = points + s[:, None] * nu
     normal = facet_normals[np.maximum(facet, 0)]
