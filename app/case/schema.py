@@ -491,13 +491,14 @@ _CONTACT["pairs"] = {
                  "description": "how a surface node's relative displacement is taken: "
                                 "mortar (default: the phi_i-weighted mean of the jump over "
                                 "the node's facets; passes the contact patch test) or "
-                                "node_to_segment (at the node's closest point)"},
+                                "node_to_segment (at the node's point pi(x) of the target)"},
         **{key: _CONTACT[key] for key in ("normal_compliance", "memory", "friction")},
     }, required=["surface", "target"]),
     "description": "two deformable bodies of one mesh.file in contact (node to segment, "
-                   "small sliding): each node of surface is projected once onto target; "
-                   "u_nu = (u(x) - u(pi(x))) . nu with nu the target's inward normal at "
-                   "pi(x), the initial distance d measured from the mesh; the laws act on "
+                   "small sliding): each node of surface is coupled once to the point "
+                   "pi(x) of target met along nu, the average of the surface's outward and "
+                   "the target's inward normals; u_nu = (u(x) - u(pi(x))) . nu, the "
+                   "initial distance d measured from the mesh; the laws act on "
                    "u_nu - d and the relative tangential displacement.  A pair's "
                    "normal_compliance, memory or friction replaces the contact section's "
                    "for that pair (which serves the pairs that give none); pairs with "

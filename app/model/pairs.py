@@ -53,7 +53,8 @@ class PairGeometry:
 
     Attributes:
         pair: (m,) the index of each node's pair in contact.pairs.
-        normal: (m, d) nu_i, the pair's unit normal (the target's inward normal at pi(x_i)).
+        normal: (m, d) nu_i, the pair's unit normal (the average of the surface's outward
+            and the target's inward normals, app/model/pairnormal.py).
         distance: (m,) d_i >= 0, the initial distance (pi(x_i) - x_i) . nu_i along nu_i
             (both rules: of the node's own point; app/model/mortar.py says why).
         g: (m,) the pair's extra gap g at each node.
