@@ -265,7 +265,13 @@ SCHEMA = _obj({
                                      "naming the node; warned of above 80 degrees on average) "
                                      "(absent: the outward "
                                      "unit normal of Gamma3 at each node; (0, -1) / (0, 0, -1) "
-                                     "on the built-in bottom side)"},
+                                     "on the built-in bottom side).  With contact.pairs: "
+                                     "every pair's normal, from its surface toward its "
+                                     "target; each surface node is coupled to the target's "
+                                     "point on the line through it along d (a ray cast) and "
+                                     "the gap is measured along d, as linear (Hertz) theory "
+                                     "does (absent: the target's normal at the closest "
+                                     "point)"},
         "normal_compliance": _obj({
             "c_nu": {"oneOf": [_nonneg, _expr],
                      "description": "stiffness of p(r) = c_nu (r^+)^m [N/m^(2+m)] (m = 1: "
@@ -501,8 +507,9 @@ _CONTACT["pairs"] = {
                    "u_nu - d and the relative tangential displacement.  A pair's "
                    "normal_compliance, memory or friction replaces the contact section's "
                    "for that pair (which serves the pairs that give none); pairs with "
-                   "different memory terms share the kernel (b0 may differ).  Not with g, "
-                   "direction or boundaries.contact (the pairs' surfaces are Gamma3)"}
+                   "different memory terms share the kernel (b0 may differ).  Not with g or "
+                   "boundaries.contact (the pairs' surfaces are Gamma3); with direction, nu "
+                   "is that direction and pi(x) the target's point along it"}
 _KEYS = list(SCHEMA["properties"].items())
 _AT = [key for key, _ in _KEYS].index("material") + 1
 SCHEMA["properties"] = dict(_KEYS[:_AT] + [("materials", _MATERIALS)] + _KEYS[_AT:])
