@@ -45,6 +45,9 @@ def condensed_eligible(case, problem=None) -> tuple[bool, str]:
         return False, "the implicit history variant makes the bulk problem nonlinear"
     if case.numerics.quadrature != "vertex" and case.contact.active:
         return False, "the condensed solver needs the nodal (vertex) Gamma3 quadrature"
+    if case.loads.rigid and not case.contact.pairs:
+        return False, ("rigid caps (loads.rigid) of one body are solved by SNES VI only (with "
+                       "contact pairs, by both)")
     if problem is not None and case.contact.pairs and \
             any(str(k).startswith("fast_") for k in case.petsc) and held_by_contact(problem):
         return False, ("a body's rigid motion is held only by a contact pair: the condensed "
@@ -64,7 +67,8 @@ def held_by_contact(problem) -> bool:
         True if some part has a free rigid motion.
     """
     from vpcontact.model.dirichlet import body_parts, free_motions
-    free = free_motions(problem.V, problem.dirichlet.fixed, body_parts(problem.V))
+    free = free_motions(problem.V, problem.dirichlet.fixed, body_parts(problem.V),
+                        problem.caps)
     return any(f.shape[1] > 0 for f in free)
 
 
