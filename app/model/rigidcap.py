@@ -159,7 +159,7 @@ def _masters(V, nodes: np.ndarray, reference: np.ndarray, where: str) -> np.ndar
     x = np.concatenate([p[1] for p in parts]).reshape(-1, d)
     order = np.argsort(gid)
     gid, x = gid[order], x[order]
-    phi = cap_modes(x, reference).reshape(len(x) * d, -1).copy()
+    phi = cap_modes(x, reference).reshape(len(x) * d, len(_ORDER[d]))
     size = max(np.ptp(x, axis=0).max(initial=0.0), 1e-300)
     phi[:, d:] /= size
     r = phi.shape[1]
@@ -184,7 +184,7 @@ def _build_cap(V, name: str, spec, facets: np.ndarray, source: str) -> RigidCap:
     masters = _masters(V, nodes, reference, where)
     owned = np.sort(nodes[nodes < imap.size_local])
     x = V.tabulate_dof_coordinates()[owned, :d]
-    phi = cap_modes(x, reference).reshape(len(owned) * d, -1)
+    phi = cap_modes(x, reference).reshape(len(owned) * d, len(_ORDER[d]))
     gram = phi.T @ phi
     V.mesh.comm.Allreduce(MPI.IN_PLACE, gram, op=MPI.SUM)
     dofs = (owned[:, None] * d + np.arange(d)).ravel()
