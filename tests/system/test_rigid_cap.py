@@ -1,0 +1,183 @@
+"""Rigid caps (loads.rigid, app/model/rigidcap.py) against closed forms:
+
+- a bar (nu = 0, on rollers) under a cap force F: the homogeneous stress F / A is exact for
+  P1, so the cap's u_y = F L / (E A) to round-off and its resultant on the body is F; under a
+  prescribed cap displacement delta the resultant is E A delta / L;
+- a cantilever (nu = 0) clamped at x = 0 under a cap moment M at x = L: with nu = 0 the
+  pure-bending field u_x = -k x y, u_y = k x^2 / 2 (k = M / (E I)) satisfies the clamp and is
+  rigid on the end, so theta = M L / (E I) is the exact continuum answer; P1 locks in
+  bending, and the error falls with h (measured: 29 % at n = 8, 9.2 % at n = 16);
+- two cylinders in Hertz contact (cases/hertz_cap.yaml, the pair of
+  tests/system/test_pairs_hertz.py) loaded by the cap force P/2 instead of a displacement:
+  the contact force equals the cap force to 1e-6, a and p0 within 2 % of Hertz at that P
+  (measured -0.95 % and +1.1 %, both solvers), serial == mpirun -n 2;
+- bad input: one line naming the key.
+"""
+import copy
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import make_case, run_case, run_cli
+from references.contact_closed_forms import hertz_cylinders
+from vpcontact.case import load_raw, validate
+from vpcontact.io.errors import CaseError
+from vpcontact.post.quantities import contact_table
+
+CASES = Path(__file__).resolve().parents[2] / "cases"
+E, L, H = 1000.0, 2.0, 1.0
+
+
+def _bar(cap: dict, method: str = "snes_vi") -> dict:
+    """A bar L1 = H wide, L2 = L high, nu = 0, rollers on the bottom and the left side, a
+    cap on the top."""
+    return {"name": "bar", "mesh": {"L1": H, "L2": L, "n": 4},
+            "material": {"E": E, "nu": 0.0},
+            "boundaries": {"clamped": [], "contact": []},
+            "loads": {"displacement": {"left": [0.0, None], "bottom": [None, 0.0]},
+                      "rigid": {"top": cap}},
+            "time": {"T": 1.0, "N": 2}, "solver": {"method": method}}
+
+
+def test_bar_under_a_cap_force():
+    result = run_case(validate(_bar({"force": [None, "-4.0*t"]}), "bar"))
+    assert result.status == "completed"
+    for step in result.summary["steps"]:
+        F = -4.0 * step["t"]
+        cap = step["rigid"]["top"]
+        assert cap["displacement"][1] == pytest.approx(F * L / (E * H), rel=1e-12)
+        assert abs(cap["rotation"]) < 1e-14
+        assert cap["force"][1] == pytest.approx(F, rel=1e-12)
+        assert abs(cap["moment"]) < 1e-12
+        assert step["reactions"]["bottom"][1] == pytest.approx(-F, rel=1e-12)
+
+
+def test_bar_under_a_prescribed_cap_displacement():
+    result = run_case(validate(_bar({"displacement": [None, -0.01], "rotation": 0.0}), "bar"))
+    cap = result.summary["steps"][-1]["rigid"]["top"]
+    assert cap["displacement"][1] == pytest.approx(-0.01, rel=1e-14)
+    assert cap["force"][1] == pytest.approx(-E * H * 0.01 / L, rel=1e-12)
+
+
+def _cantilever_rotation(n: int, M: float) -> tuple[float, dict]:
+    raw = {"name": "beam", "mesh": {"L1": 4.0, "L2": 1.0, "n": n},
+           "material": {"E": E, "nu": 0.0},
+           "boundaries": {"clamped": ["left"], "contact": []},
+           "loads": {"rigid": {"right": {"moment": M}}},
+           "time": {"T": 1.0, "N": 1}, "solver": {"method": "snes_vi"}}
+    cap = run_case(validate(raw, "beam")).summary["steps"][-1]["rigid"]["right"]
+    return cap["rotation"], cap
+
+
+def test_cantilever_under_a_cap_moment():
+    M, length, inertia = 2.0, 4.0, 1.0 / 12
+    theta = M * length / (E * inertia)
+    errors = []
+    for n in (8, 16):
+        rotation, cap = _cantilever_rotation(n, M)
+        errors.append(abs(rotation / theta - 1))
+        assert cap["moment"] == pytest.approx(M, rel=1e-10)
+        assert np.allclose(cap["force"], 0.0, atol=1e-10)
+    assert errors[1] < errors[0] / 2.5
+    assert errors[1] < 0.1
+
+
+def _hertz_raw(method: str) -> dict:
+    raw = copy.deepcopy(dict(load_raw(CASES / "hertz_cap.yaml")))
+    raw["mesh"] = {"file": str(CASES / "two_cylinders.geo"), "dim": 2, "size": 2.0}
+    raw["time"] = {"T": 1.0, "N": 1}
+    raw["solver"] = {"method": method}
+    return raw
+
+
+@pytest.mark.parametrize("method", ["snes_vi", "condensed"])
+def test_hertz_under_a_cap_force(method):
+    result = run_case(make_case(_hertz_raw(method)))
+    assert result.status == "completed"
+    assert result.summary["solver"]["used"] == method
+    step = result.summary["steps"][-1]
+    half = 4.315                                   # the case's cap force at t = 1
+    assert step["contact_force"][1] == pytest.approx(half, rel=1e-6)
+    cap = step["rigid"]["upper_top"]
+    assert cap["force"][1] == pytest.approx(-half, rel=1e-6)
+    assert abs(cap["displacement"][0]) < 1e-14 and abs(cap["rotation"]) < 1e-14
+    tab = contact_table(result.problem)
+    order = np.argsort(tab["x"])
+    x, p = tab["x"][order], tab["neg_sigma_nu"][order]
+    on = p > 1e-6 * p.max()
+    (c0, c1), *_ = np.linalg.lstsq(np.c_[np.ones(on.sum()), x[on] ** 2], p[on] ** 2, rcond=None)
+    a_ref, p0_ref = hertz_cylinders(2 * half, 1.0, 2.0, 1000.0, 0.3, 2000.0, 0.3,
+                                    plane_strain=True)
+    assert abs(np.sqrt(-c0 / c1) / a_ref - 1) <= 0.02
+    assert abs(np.sqrt(c0) / p0_ref - 1) <= 0.02
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("method", ["snes_vi", "condensed"])
+def test_hertz_cap_on_two_ranks(method, tmp_path):
+    caps = []
+    for n in (1, 2):
+        out = tmp_path / f"np{n}"
+        proc = run_cli(["run", CASES / "hertz_cap.yaml", "--out", out, "--quiet", "--set",
+                        "mesh.size=2", "--set", "time.N=2", "--set",
+                        f"solver.method={method}"], nprocs=n)
+        assert proc.returncode == 0, proc.stderr
+        summary = json.loads((out / "summary.json").read_text())
+        caps.append(summary["steps"][-1]["rigid"]["upper_top"])
+        header = (out / "history.csv").read_text().splitlines()[0].split(",")
+        assert "rigid_upper_top_u_y" in header and "rigid_upper_top_F_y" in header
+    assert caps[1]["displacement"][1] == pytest.approx(caps[0]["displacement"][1], rel=1e-10)
+    assert caps[1]["force"][1] == pytest.approx(-4.315, rel=1e-6)
+
+
+@pytest.mark.parametrize("cap, where, words", [
+    ({"force": [0.0, 1.0, 2.0]}, "loads.rigid.top.force", "expected a list of 2 components"),
+    ({"force": [None, 1.0], "displacement": [None, 0.0]}, "loads.rigid.top",
+     "force[1] and displacement[1] are both given"),
+    ({"moment": [1.0, 2.0, 3.0]}, "loads.rigid.top.moment", "one component (not a list)"),
+    ({"force": [None, "x*t"]}, "loads.rigid.top.force[1]", "x"),
+    ({"reference": [0.0, 1.0, 2.0]}, "loads.rigid.top.reference", "expected 2 coordinates"),
+])
+def test_bad_caps_are_refused(cap, where, words):
+    with pytest.raises(CaseError) as err:
+        validate(_bar(cap), "bar.yaml")
+    message = str(err.value)
+    assert "\n" not in message and f"bar.yaml: {where}" in message and words in message
+
+
+def test_a_cap_on_a_clamped_or_unknown_group_is_refused():
+    raw = _bar({"force": [None, 1.0]})
+    raw["boundaries"]["clamped"] = ["top"]
+    with pytest.raises(CaseError, match=r"loads.rigid.top: the top side is also in "
+                                        r"boundaries.clamped"):
+        validate(raw, "bar.yaml")
+    raw = _bar({"force": [None, 1.0]})
+    raw["loads"]["rigid"] = {"topp": {"force": [None, 1.0]}}
+    with pytest.raises(CaseError, match="loads.rigid.topp"):
+        validate(raw, "bar.yaml")
+
+
+def test_a_cap_on_a_contact_group_exits_2(tmp_path):
+    import yaml
+    raw = copy.deepcopy(dict(load_raw(CASES / "hertz_cap.yaml")))
+    raw["mesh"]["file"] = str(CASES / "two_cylinders.geo")
+    raw["loads"]["rigid"] = {"upper_arc": {"force": [None, -1.0]}}
+    case = tmp_path / "bad.yaml"
+    case.write_text(yaml.safe_dump(raw))
+    proc = run_cli(["check", case])
+    assert proc.returncode == 2
+    lines = [s for s in proc.stderr.splitlines() if s.strip()]
+    assert len(lines) == 1 and "contact.pairs[0].surface" in lines[0] \
+        and "'upper_arc' carries a load (loads.traction, pressure, displacement or rigid)" \
+        in lines[0], proc.stderr
+
+
+def test_a_cap_sharing_nodes_with_a_clamped_group_is_refused():
+    raw = _bar({"force": [None, 1.0]})
+    raw["boundaries"]["clamped"] = ["left"]
+    del raw["loads"]["displacement"]["left"]
+    with pytest.raises(CaseError, match=r"loads.rigid.top: the cap shares 1 node\(s\) with "
+                                        r"boundaries.clamped"):
+        run_case(validate(raw, "bar.yaml"))
