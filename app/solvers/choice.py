@@ -45,9 +45,6 @@ def condensed_eligible(case, problem=None) -> tuple[bool, str]:
         return False, "the implicit history variant makes the bulk problem nonlinear"
     if case.numerics.quadrature != "vertex" and case.contact.active:
         return False, "the condensed solver needs the nodal (vertex) Gamma3 quadrature"
-    if case.loads.rigid and not case.contact.pairs:
-        return False, ("rigid caps (loads.rigid) of one body are solved by SNES VI only (with "
-                       "contact pairs, by both)")
     if problem is not None and case.contact.pairs and \
             any(str(k).startswith("fast_") for k in case.petsc) and held_by_contact(problem):
         return False, ("a body's rigid motion is held only by a contact pair: the condensed "

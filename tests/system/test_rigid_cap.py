@@ -1,8 +1,8 @@
 """Rigid caps (loads.rigid, app/model/rigidcap.py) against closed forms:
 
 - a bar (nu = 0, on rollers) under a cap force F: the homogeneous stress F / A is exact for
-  P1, so the cap's u_y = F L / (E A) to round-off and its resultant on the body is F; under a
-  prescribed cap displacement delta the resultant is E A delta / L;
+  P1, so the cap's u_y = F L / (E A) to round-off and its resultant on the body is F (both
+  solvers); under a prescribed cap displacement delta the resultant is E A delta / L;
 - a cantilever (nu = 0) clamped at x = 0 under a cap moment M at x = L: with nu = 0 the
   pure-bending field u_x = -k x y, u_y = k x^2 / 2 (k = M / (E I)) satisfies the clamp and is
   rigid on the end, so theta = M L / (E I) is the exact continuum answer; P1 locks in
@@ -11,6 +11,8 @@
   tests/system/test_pairs_hertz.py) loaded by the cap force P/2 instead of a displacement:
   the contact force equals the cap force to 1e-6, a and p0 within 2 % of Hertz at that P
   (measured -0.95 % and +1.1 %, both solvers), serial == mpirun -n 2;
+- one body on the rigid foundation (the paper's scene, its top load through a cap): the
+  condensed solver equals SNES VI, serial == mpirun -n 2;
 - bad input: one line naming the key.
 """
 import copy
@@ -41,9 +43,11 @@ def _bar(cap: dict, method: str = "snes_vi") -> dict:
             "time": {"T": 1.0, "N": 2}, "solver": {"method": method}}
 
 
-def test_bar_under_a_cap_force():
-    result = run_case(validate(_bar({"force": [None, "-4.0*t"]}), "bar"))
+@pytest.mark.parametrize("method", ["snes_vi", "condensed"])
+def test_bar_under_a_cap_force(method):
+    result = run_case(validate(_bar({"force": [None, "-4.0*t"]}, method), "bar"))
     assert result.status == "completed"
+    assert result.summary["solver"]["used"] == method
     for step in result.summary["steps"]:
         F = -4.0 * step["t"]
         cap = step["rigid"]["top"]
@@ -181,3 +185,69 @@ def test_a_cap_sharing_nodes_with_a_clamped_group_is_refused():
     with pytest.raises(CaseError, match=r"loads.rigid.top: the cap shares 1 node\(s\) with "
                                         r"boundaries.clamped"):
         run_case(validate(raw, "bar.yaml"))
+
+
+CAPPED_GEO = """
+h = 1/16;
+Point(1) = {0, 0, 0, h}; Point(2) = {1, 0, 0, h}; Point(3) = {1, 1, 0, h};
+Point(4) = {0.75, 1, 0, h}; Point(5) = {0.25, 1, 0, h}; Point(6) = {0, 1, 0, h};
+Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 5}; Line(5) = {5, 6};
+Line(6) = {6, 1};
+Curve Loop(1) = {1, 2, 3, 4, 5, 6}; Plane Surface(1) = {1};
+Physical Curve("bottom") = {1}; Physical Curve("right") = {2};
+Physical Curve("top_free") = {3, 5}; Physical Curve("cap") = {4};
+Physical Curve("left") = {6}; Physical Surface("body") = {1};
+"""
+
+
+def _capped_scene(tmp_path, method: str) -> dict:
+    """The paper's scene (Perzyna, compliance, nonmonotone friction on the bottom, the left
+    side clamped) with its top load applied through a cap on the middle of the top side:
+    force (0, -4 t), moment 0.1 t."""
+    geo = tmp_path / "capped.geo"
+    geo.write_text(CAPPED_GEO)
+    raw = copy.deepcopy(dict(load_raw(CASES / "wang_cheng_2021.yaml")))
+    raw["mesh"] = {"file": str(geo), "dim": 2}
+    raw["material"]["plane"] = "stress"
+    raw["boundaries"] = {"clamped": ["left"], "contact": ["bottom"]}
+    raw["loads"] = {"traction": {"right": [-3.2, 0.0]},
+                    "rigid": {"cap": {"force": [0.0, "-4.0*t"], "moment": "0.1*t"}}}
+    raw["time"] = {"T": 1.0, "N": 8}
+    raw["solver"] = {"method": method, "quadrature": "vertex"}
+    raw["output"] = {"every": 1}
+    return raw
+
+
+def test_one_body_with_a_cap_both_solvers(tmp_path):
+    """One body in contact with a rigid foundation, loaded through a cap: the condensed
+    solver (in z of u = T z) equals SNES VI (measured 6e-15 of max |u|), and the cap's
+    resultant is the applied force and moment at every step."""
+    u = {}
+    for method in ("snes_vi", "condensed"):
+        result = run_case(validate(_capped_scene(tmp_path, method), "scene"))
+        assert result.status == "completed"
+        assert result.summary["solver"]["used"] == method
+        for step in result.summary["steps"]:
+            cap = step["rigid"]["cap"]
+            assert cap["force"][1] == pytest.approx(-4.0 * step["t"], rel=1e-9)
+            assert cap["moment"] == pytest.approx(0.1 * step["t"], rel=1e-9)
+        u[method] = result.problem.u.x.array.copy()
+    scale = np.abs(u["snes_vi"]).max()
+    assert np.abs(u["condensed"] - u["snes_vi"]).max() <= 1e-10 * scale
+
+
+@pytest.mark.mpi
+def test_one_body_with_a_cap_on_two_ranks(tmp_path):
+    import yaml
+    case = tmp_path / "capped.yaml"
+    case.write_text(yaml.safe_dump({**_capped_scene(tmp_path, "condensed"), "name": "capped"}))
+    caps = []
+    for n in (1, 2):
+        out = tmp_path / f"np{n}"
+        proc = run_cli(["run", case, "--out", out, "--quiet"], nprocs=n)
+        assert proc.returncode == 0, proc.stderr
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["solver"]["used"] == "condensed"
+        caps.append(summary["steps"][-1]["rigid"]["cap"])
+    for key in ("displacement", "rotation"):
+        assert np.allclose(caps[1][key], caps[0][key], rtol=1e-10, atol=1e-14)
