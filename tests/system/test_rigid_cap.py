@@ -251,3 +251,45 @@ def test_one_body_with_a_cap_on_two_ranks(tmp_path):
         caps.append(summary["steps"][-1]["rigid"]["cap"])
     for key in ("displacement", "rotation"):
         assert np.allclose(caps[1][key], caps[0][key], rtol=1e-10, atol=1e-14)
+
+
+def test_the_rigid_motion_check_counts_prescribed_amplitudes_only():
+    """A bar hanging from a cap whose motion is prescribed is held (the cap carries its
+    weight, rho g A L = 2); a cap under a force with the bottom on vertical rollers alone
+    leaves the translation x free (refused), and its u_x prescribed holds it."""
+    raw = _bar({"displacement": [0.0, -0.01], "rotation": 0.0})
+    raw["loads"]["displacement"] = {}
+    raw["loads"]["f0"] = [0.0, -1.0]
+    cap = run_case(validate(raw, "bar")).summary["steps"][-1]["rigid"]["top"]
+    assert cap["force"][1] == pytest.approx(1.0 * H * L, rel=1e-10)
+    raw = _bar({"force": [None, -4.0]})
+    raw["loads"]["displacement"] = {"bottom": [None, 0.0]}
+    with pytest.raises(CaseError, match=r"loads.rigid: the prescribed displacements leave 1 "
+                                        r"rigid motion\(s\) of the body free \(like "
+                                        r"translation x\)"):
+        run_case(validate(raw, "bar"))
+    raw["loads"]["rigid"]["top"]["displacement"] = [0.0, None]
+    cap = run_case(validate(raw, "bar")).summary["steps"][-1]["rigid"]["top"]
+    assert cap["displacement"][1] == pytest.approx(-4.0 * L / (E * H), rel=1e-12)
+
+
+@pytest.mark.parametrize("method", ["snes_vi", "condensed"])
+def test_3d_bar_under_a_cap_force_and_moment(method):
+    """A 3D bar (nu = 0, rollers on three faces): u_z = F L / (E A) to round-off; clamped
+    at the bottom under a cap moment about x: the cap's moment resultant is M, its rotation
+    turns about +x."""
+    raw = {"name": "bar3", "mesh": {"dim": 3, "L1": 1.0, "L2": 1.0, "L3": L, "n": 2},
+           "material": {"E": E, "nu": 0.0},
+           "boundaries": {"clamped": [], "contact": []},
+           "loads": {"displacement": {"left": [0.0, None, None], "front": [None, 0.0, None],
+                                      "bottom": [None, None, 0.0]},
+                     "rigid": {"top": {"force": [None, None, "-4.0*t"]}}},
+           "time": {"T": 1.0, "N": 1}, "solver": {"method": method}}
+    cap = run_case(validate(raw, "bar3")).summary["steps"][-1]["rigid"]["top"]
+    assert cap["displacement"][2] == pytest.approx(-4.0 * L / E, rel=1e-12)
+    assert cap["force"][2] == pytest.approx(-4.0, rel=1e-12)
+    raw["boundaries"]["clamped"] = ["bottom"]
+    raw["loads"] = {"rigid": {"top": {"moment": [1.0, 0.0, 0.0]}}}
+    cap = run_case(validate(raw, "bar3")).summary["steps"][-1]["rigid"]["top"]
+    assert np.allclose(cap["moment"], [1.0, 0.0, 0.0], atol=1e-10)
+    assert cap["rotation"][0] > 0 and cap["displacement"][1] < 0
