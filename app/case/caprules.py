@@ -6,6 +6,9 @@ the mesh (nodes shared with a contact group, a clamped group or another cap) are
 app/model/rigidcap.py."""
 from __future__ import annotations
 
+import numpy as np
+
+from vpcontact.case import expressions
 from vpcontact.case.rules import _check_component, _check_group, _group_name
 from vpcontact.io.errors import CaseError
 
@@ -67,3 +70,58 @@ def _check_cap(cap: dict, path: str, dim: int, source: str) -> None:
     if ref is not None and len(ref) != dim:
         raise CaseError(f"{source}: {path}.reference: expected {dim} coordinates (the mesh "
                         f"dimension), got {len(ref)}")
+
+
+def component_value(c, t: float) -> float:
+    """A load component's value at t (a number, an expression in t or a table).
+
+    Args:
+        c: the component as the case gives it (not None).
+        t: the time.
+
+    Returns:
+        The value (NaN or inf where the expression is not finite).
+    """
+    if isinstance(c, (int, float)):
+        return float(c)
+    if isinstance(c, dict):
+        pts = np.asarray(c["table"], dtype=float)
+        return float(np.interp(t, pts[:, 0], pts[:, 1]))
+    return float(expressions.evaluate(expressions.parse(c, ("t",)), {"t": np.float64(t)}))
+
+
+def cap_stress(rigid: dict, dim: int, times, length: float, E: float, source: str) -> float:
+    """The stress scale of the caps' data, every component finite at every time point:
+    |F| / L^(d-1), |M| / L^d, E |U| / L and E |theta|.
+
+    Args:
+        rigid: the case's ``loads.rigid``.
+        dim: the mesh dimension d.
+        times: the time points t_0..t_N.
+        length: the body's size L.
+        E: the largest Young's modulus.
+        source: the case file, for messages.
+
+    Returns:
+        The largest of these over the caps and times (0 without caps).
+
+    Raises:
+        CaseError: a component that is not finite at some time, naming the key and t.
+    """
+    factors = {"force": length ** (1 - dim), "moment": length ** -dim,
+               "displacement": E / length, "rotation": E}
+    scale = 0.0
+    for ref, cap in rigid.items():
+        for key, factor in factors.items():
+            value = cap.get(key)
+            items = value if isinstance(value, list) else [value]
+            for i, c in enumerate(items):
+                if c is None:
+                    continue
+                v = np.array([component_value(c, t) for t in times])
+                if not np.isfinite(v).all():
+                    where = f"{key}[{i}]" if isinstance(value, list) else key
+                    raise CaseError(f"{source}: loads.rigid.{ref}.{where}: not finite at "
+                                    f"t = {times[int(np.argmin(np.isfinite(v)))]:g}")
+                scale = max(scale, factor * float(np.abs(v).max()))
+    return scale

@@ -33,7 +33,7 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from vpcontact.case import expressions
+from vpcontact.case.caprules import component_value
 from vpcontact.io.errors import CaseError
 from vpcontact.model.dirichlet import rigid_modes
 
@@ -42,24 +42,6 @@ log = logging.getLogger("vpcontact")
 # rigid_modes' 3D rotation order is (about z, about x, about y): the amplitudes are
 # (U, theta_x, theta_y, theta_z)
 _ORDER = {2: [0, 1, 2], 3: [0, 1, 2, 4, 5, 3]}
-
-
-def component_value(c, t: float) -> float:
-    """A load component's value at t (a number, an expression in t or a table).
-
-    Args:
-        c: the component as the case gives it (not None).
-        t: the time.
-
-    Returns:
-        The value.
-    """
-    if isinstance(c, (int, float)):
-        return float(c)
-    if isinstance(c, dict):
-        pts = np.asarray(c["table"], dtype=float)
-        return float(np.interp(t, pts[:, 0], pts[:, 1]))
-    return float(expressions.evaluate(expressions.parse(c, ("t",)), {"t": t}))
 
 
 def cap_modes(x: np.ndarray, reference: np.ndarray) -> np.ndarray:

@@ -143,6 +143,7 @@ def test_hertz_cap_on_two_ranks(method, tmp_path):
     ({"moment": [1.0, 2.0, 3.0]}, "loads.rigid.top.moment", "one component (not a list)"),
     ({"force": [None, "x*t"]}, "loads.rigid.top.force[1]", "x"),
     ({"reference": [0.0, 1.0, 2.0]}, "loads.rigid.top.reference", "expected 2 coordinates"),
+    ({"force": [None, "1/(t - 0.5)"]}, "loads.rigid.top.force[1]", "not finite at t = 0.5"),
 ])
 def test_bad_caps_are_refused(cap, where, words):
     with pytest.raises(CaseError) as err:
