@@ -142,7 +142,8 @@ class Discretisation:
             (contact if case.contact.active else []) + \
             [(p.target, f"contact.pairs[{i}].target") for i, p in enumerate(pairs)]
         self.caps = build_caps(self.V, self.facets, loads.rigid, case.source,
-                               self._group_nodes(taken))
+                               self._group_nodes(taken), self._group_nodes(
+                                   [(r, f"loads.displacement.{r}") for r in loads.displacement]))
         self.dirichlet = build_dirichlet(self.V, self.facets, list(b.clamped),
                                          dict(loads.displacement), self.time_data,
                                          None if self.caps is None else self.caps.nodes)

@@ -333,7 +333,14 @@ class RigidCaps:
         return out
 
 
-def build_caps(V, facets: dict, rigid: dict, source: str, taken: dict) -> RigidCaps | None:
+def _shared(V, cap: RigidCap, nodes: np.ndarray) -> int:
+    """The number of the cap's nodes among ``nodes`` (local), over the ranks."""
+    mine = cap.nodes[cap.nodes < V.dofmap.index_map.size_local]
+    return V.mesh.comm.allreduce(len(np.intersect1d(mine, nodes)))
+
+
+def build_caps(V, facets: dict, rigid: dict, source: str, taken: dict,
+               yielding: dict | None = None) -> RigidCaps | None:
     """The rigid caps of ``loads.rigid`` (collective).
 
     Args:
@@ -343,6 +350,8 @@ def build_caps(V, facets: dict, rigid: dict, source: str, taken: dict) -> RigidC
         source: the case file, for messages.
         taken: role (a case key) -> local nodes that a cap may not share (the clamped
             groups', the contact groups').
+        yielding: role -> local nodes where the cap's motion wins (loads.displacement's
+            groups: the shared nodes are logged at INFO), or None.
 
     Returns:
         The RigidCaps, or None without caps.
@@ -354,14 +363,15 @@ def build_caps(V, facets: dict, rigid: dict, source: str, taken: dict) -> RigidC
     if not rigid:
         return None
     caps = [_build_cap(V, name, spec, facets[name], source) for name, spec in rigid.items()]
-    owned = V.dofmap.index_map.size_local
     for i, c in enumerate(caps):
         others = {f"loads.rigid.{o.name}": o.nodes for o in caps[:i]}
         for key, nodes in {**taken, **others}.items():
-            shared = np.intersect1d(c.nodes[c.nodes < owned], nodes)
-            n = V.mesh.comm.allreduce(len(shared))
-            if n:
+            if n := _shared(V, c, nodes):
                 raise CaseError(f"{source}: loads.rigid.{c.name}: the cap shares {n} node(s) "
                                 f"with {key} (a node is on one rigid cap, and never also "
                                 "clamped or in contact)")
+        for key, nodes in (yielding or {}).items():
+            if n := _shared(V, c, nodes):
+                log.info("%s: loads.rigid.%s: %d node(s) shared with %s follow the cap (its "
+                         "motion wins there)", source, c.name, n, key)
     return RigidCaps(V, caps)
