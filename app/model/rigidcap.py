@@ -179,6 +179,7 @@ class RigidCaps:
     Args:
         V: the P1 vector space.
         caps: the RigidCap of every ``loads.rigid`` group.
+        source: the case file, for messages.
 
     Attributes:
         caps: the caps.
@@ -187,8 +188,8 @@ class RigidCaps:
             amplitudes.
     """
 
-    def __init__(self, V, caps: list[RigidCap]):
-        self.V, self.caps, self.comm = V, caps, V.mesh.comm
+    def __init__(self, V, caps: list[RigidCap], source: str = "case"):
+        self.V, self.caps, self.comm, self.source = V, caps, V.mesh.comm, source
         self.d = V.dofmap.index_map_bs
         self.start = V.dofmap.index_map.local_range[0] * self.d
         self.n = V.dofmap.index_map.size_local * self.d
@@ -298,13 +299,22 @@ class RigidCaps:
 
         Returns:
             [(part, rows (k, r))] per cap with prescribed amplitudes.
+
+        Raises:
+            CaseError: a cap on several disconnected parts (it would tie them; the check
+                is part by part).
         """
         out = []
         for c in self.caps:
             mine = labels[c.nodes[c.nodes < self.V.dofmap.index_map.size_local]]
             k = self.comm.allreduce(int(mine.max(initial=-1)), op=MPI.MAX)
+            low = self.comm.allreduce(int(mine.min(initial=len(centre))), op=MPI.MIN)
+            if low != k:
+                raise CaseError(f"{self.source}: loads.rigid.{c.name}: the cap spans "
+                                "disconnected parts of the body (a cap is on one part: split "
+                                "it into one cap per part)")
             given = [i for i, v in enumerate(c.spec.prescribed) if v is not None]
-            if not given or k < 0:
+            if not given:
                 continue
             at = rigid_modes(((c.reference - centre[k]) / scale[k])[None, :])[0]   # (d, r)
             rows = np.vstack([at, np.eye(at.shape[1])[_ORDER[self.d][self.d:]]])
@@ -374,4 +384,4 @@ def build_caps(V, facets: dict, rigid: dict, source: str, taken: dict,
             if n := _shared(V, c, nodes):
                 log.info("%s: loads.rigid.%s: %d node(s) shared with %s follow the cap (its "
                          "motion wins there)", source, c.name, n, key)
-    return RigidCaps(V, caps)
+    return RigidCaps(V, caps, source)

@@ -294,3 +294,30 @@ def test_3d_bar_under_a_cap_force_and_moment(method):
     cap = run_case(validate(raw, "bar3")).summary["steps"][-1]["rigid"]["top"]
     assert np.allclose(cap["moment"], [1.0, 0.0, 0.0], atol=1e-10)
     assert cap["rotation"][0] > 0 and cap["displacement"][1] < 0
+
+
+TWO_SQUARES = """
+h = 0.25;
+Point(1) = {0, 0, 0, h}; Point(2) = {1, 0, 0, h}; Point(3) = {1, 1, 0, h};
+Point(4) = {0, 1, 0, h}; Point(5) = {2, 0, 0, h}; Point(6) = {3, 0, 0, h};
+Point(7) = {3, 1, 0, h}; Point(8) = {2, 1, 0, h};
+Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 1};
+Line(5) = {5, 6}; Line(6) = {6, 7}; Line(7) = {7, 8}; Line(8) = {8, 5};
+Curve Loop(1) = {1, 2, 3, 4}; Plane Surface(1) = {1};
+Curve Loop(2) = {5, 6, 7, 8}; Plane Surface(2) = {2};
+Physical Curve("bottom") = {1, 5}; Physical Curve("top") = {3, 7};
+Physical Surface("body") = {1, 2};
+"""
+
+
+def test_a_cap_over_two_disconnected_parts_is_refused(tmp_path):
+    geo = tmp_path / "two.geo"
+    geo.write_text(TWO_SQUARES)
+    raw = {"name": "two", "mesh": {"file": str(geo), "dim": 2},
+           "material": {"E": E, "nu": 0.0},
+           "boundaries": {"clamped": ["bottom"], "contact": []},
+           "loads": {"rigid": {"top": {"force": [0.0, -1.0]}}},
+           "time": {"T": 1.0, "N": 1}}
+    with pytest.raises(CaseError, match=r"two.yaml: loads.rigid.top: the cap spans "
+                                        r"disconnected parts of the body"):
+        run_case(validate(raw, "two.yaml"))
