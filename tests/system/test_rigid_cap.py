@@ -13,6 +13,7 @@
   (measured -0.95 % and +1.1 %, both solvers), serial == mpirun -n 2;
 - one body on the rigid foundation (the paper's scene, its top load through a cap): the
   condensed solver equals SNES VI, serial == mpirun -n 2;
+- Cattaneo-Mindlin under cap forces P and Q: the stick zone's half-width;
 - bad input: one line naming the key.
 """
 import copy
@@ -321,3 +322,39 @@ def test_a_cap_over_two_disconnected_parts_is_refused(tmp_path):
     with pytest.raises(CaseError, match=r"two.yaml: loads.rigid.top: the cap spans "
                                         r"disconnected parts of the body"):
         run_case(validate(raw, "two.yaml"))
+
+
+@pytest.mark.parametrize("method", ["condensed", "snes_vi"])
+def test_mindlin_under_cap_forces(method):
+    """Cattaneo-Mindlin loaded by forces (the issue's use): cases/mindlin.yaml's cylinder
+    with a cap on its flat top (rotation 0) pressed by P = 4.28 in the first step and
+    sheared by Q = 0.5 mu P in the second (mesh.size 4), its tangential motion held by
+    friction alone: the contact force is (-Q, P) to 1e-6 and the stick nodes' half-width c
+    within 5 % of a of Mindlin's a sqrt(1 - Q/(mu P)) (measured -0.67 % with both solvers),
+    as the displacement-controlled run
+    (tests/system/test_pairs_friction.py).  SNES VI with vinewtonssls: vinewtonrsls starts
+    with the touching node's bound inactive, where the Newton matrix is singular in the
+    cylinder's free motions (docs/user-guide.md, two bodies), and fails the first step."""
+    P, Q, mu = 4.28, 0.642, 0.3
+    raw = load_raw(CASES / "mindlin.yaml")
+    raw["mesh"].update({"file": str(CASES / "mindlin.geo"), "size": 4.0})
+    raw["loads"] = {"rigid": {"cylinder_top": {
+        "force": [{"table": [[0.0, 0.0], [0.5, 0.0], [1.0, Q]]},
+                  {"table": [[0.0, 0.0], [0.5, -P], [1.0, -P]]}], "rotation": 0.0}}}
+    raw["time"] = {"T": 1.0, "N": 2}
+    raw["solver"]["method"] = method
+    if method == "snes_vi":
+        raw["petsc"] = {"snes_type": "vinewtonssls"}
+    result = run_case(make_case(raw))
+    assert result.status == "completed" and result.summary["solver"]["used"] == method
+    force = result.summary["steps"][-1]["contact_force"]
+    assert force[0] == pytest.approx(-Q, rel=1e-6) and force[1] == pytest.approx(P, rel=1e-6)
+    tab = contact_table(result.problem)
+    order = np.argsort(tab["x"])
+    x, p, state = tab["x"][order], tab["neg_sigma_nu"][order], tab["slip_state"][order]
+    stick = np.flatnonzero((p > 1e-6 * p.max()) & (state == 0))
+    i, j = stick.min(), stick.max()
+    assert (state[i:j + 1] == 0).all() and state[i - 1] == state[j + 1] == 1
+    c = ((x[j] + x[j + 1]) / 2 - (x[i - 1] + x[i]) / 2) / 2
+    a, _ = hertz_cylinders(P, 1.0, float("inf"), 1000.0, 0.3, 1000.0, 0.3)
+    assert abs(c - a * np.sqrt(1 - Q / (mu * P))) <= 0.05 * a
