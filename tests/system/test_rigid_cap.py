@@ -239,17 +239,18 @@ def test_one_body_with_a_cap_both_solvers(tmp_path):
 
 
 @pytest.mark.mpi
-def test_one_body_with_a_cap_on_two_ranks(tmp_path):
+@pytest.mark.parametrize("method", ["snes_vi", "condensed"])
+def test_one_body_with_a_cap_on_two_ranks(tmp_path, method):
     import yaml
     case = tmp_path / "capped.yaml"
-    case.write_text(yaml.safe_dump({**_capped_scene(tmp_path, "condensed"), "name": "capped"}))
+    case.write_text(yaml.safe_dump({**_capped_scene(tmp_path, method), "name": "capped"}))
     caps = []
     for n in (1, 2):
         out = tmp_path / f"np{n}"
         proc = run_cli(["run", case, "--out", out, "--quiet"], nprocs=n)
         assert proc.returncode == 0, proc.stderr
         summary = json.loads((out / "summary.json").read_text())
-        assert summary["solver"]["used"] == "condensed"
+        assert summary["solver"]["used"] == method
         caps.append(summary["steps"][-1]["rigid"]["cap"])
     for key in ("displacement", "rotation"):
         assert np.allclose(caps[1][key], caps[0][key], rtol=1e-10, atol=1e-14)
