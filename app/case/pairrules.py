@@ -175,5 +175,5 @@ def _check_groups(data: dict, pairs: list, source: str) -> None:
                                 "boundaries.clamped (u = 0 there: it cannot be in contact)")
             if ref in loaded:
                 raise CaseError(f"{source}: {where}.{role}: the group {ref!r} carries a load "
-                                "(loads.traction, pressure or displacement): a contact "
+                                "(loads.traction, pressure, displacement or rigid): a contact "
                                 "surface takes no load")
