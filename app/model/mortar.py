@@ -9,12 +9,13 @@ displacement of node i is taken as the phi_i-weighted mean of the jump over its 
 phi_i the surface's and psi_k the target's P1 shape functions, pi(x) the point of the target
 met along the pair's normal nu(x) = (n_s(x) - n_t(pi(x))) / |...| (app/model/pairnormal.py:
 the average of the two bodies' normals, n_s(x) interpolated from the surface's vertex
-normals).  The contact force f_i = D_i p_i of node i then
-reaches the target as sum_i c_ik f_i, which for a uniform pressure p is p int psi_k ds: the
-consistent nodal forces of the target (the contact patch test), where the node-to-segment
-rule (c_ik = psi_k(pi(x_i))) gives a pressure that varies with the two meshes' offset.  The
-rows sum to 1, so a rigid translation gives no jump.  The initial distance d_i is
-that of the node's own point, (pi(x_i) - x_i) . nu_i (app/model/pairs.py): the weighted gap
+normals), or along the pairs' fixed direction (``contact.direction``:
+pairgeometry.cast_points).  The contact force f_i = D_i p_i of node i then reaches the
+target as sum_i c_ik f_i, which for a uniform pressure p is p int psi_k ds: the consistent
+nodal forces of the target (the contact patch test), where the node-to-segment rule
+(c_ik = psi_k(pi(x_i))) gives a pressure that varies with the two meshes' offset.  The rows
+sum to 1, so a rigid translation gives no jump.  The initial distance d_i is that of the
+node's own point, (pi(x_i) - x_i) . nu_i (app/model/pairs.py): the weighted gap
 int phi_i g ds / int phi_i ds of mortar methods would exceed it by O(h^2 g'') where the gap
 g grows (a fillet), and the mean target point sum_k c_ik x_k is no point of the target on
 the ray (nu_i . (sum_k c_ik x_k - x_i) < 0 where a punch's flat bottom, lying on the
@@ -30,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from vpcontact.model.pairgeometry import facet_measure
-from vpcontact.model.pairnormal import normal_at, pair_projection
+from vpcontact.model.pairnormal import normal_at
 
 SUB_2D = 16       # pieces of a surface segment
 SUB_3D = 6        # a surface triangle cut into SUB_3D^2 triangles
@@ -67,9 +68,8 @@ def reference_rule(dim: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def mortar_triplets(surface: np.ndarray, surface_nodes: np.ndarray,
-                    surface_normals: np.ndarray, target: np.ndarray,
-                    target_normals: np.ndarray, target_nodes: np.ndarray,
-                    target_vertex: np.ndarray) -> tuple:
+                    surface_normals: np.ndarray, target_nodes: np.ndarray,
+                    project) -> tuple:
     """The entries of M from some surface facets (module docstring).
 
     Args:
@@ -77,10 +77,10 @@ def mortar_triplets(surface: np.ndarray, surface_nodes: np.ndarray,
         surface_nodes: (nf, nv) their global nodes.
         surface_normals: (nf, nv, d) the surface's vertex normals at them
             (pairnormal.vertex_normals).
-        target: (nt, nv, d) the target facets' vertex coordinates.
-        target_normals: (nt, d) their outward unit normals.
-        target_nodes: (nt, nv) their global nodes.
-        target_vertex: (nt, nv, d) the target's vertex normals.
+        target_nodes: (nt, nv) the target facets' global nodes.
+        project: pi: f(points, n_s) -> (Projection onto the target facets, nu)
+            (pairs.projector: along the pair's averaged normal, or along the fixed
+            direction).
 
     Returns:
         (rows, cols, values): surface global node i, target global node k, the
@@ -95,7 +95,7 @@ def mortar_triplets(surface: np.ndarray, surface_nodes: np.ndarray,
     nq = len(w)
     points = np.einsum("qa,fad->fqd", bary, surface).reshape(-1, d)
     n_s = normal_at(np.tile(bary, (nf, 1)), np.repeat(surface_normals, nq, axis=0))
-    proj, _ = pair_projection(points, n_s, target, target_normals, target_vertex)
+    proj, _ = project(points, n_s)
     weight = (facet_measure(surface)[:, None] * w[None, :]).reshape(-1)
     inside = proj.inside
     facet = np.where(inside, proj.facet, 0)

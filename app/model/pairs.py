@@ -14,7 +14,10 @@ displacement
 
     [u]_i = u(x_i) - u(pi(x_i)) = u_i - sum_k N_ik u_k
 
-is a fixed linear combination of dofs (the rows of the jump matrix B), and the contact laws
+is a fixed linear combination of dofs (the rows of the jump matrix B).  With a fixed approach
+direction e (``contact.direction``, from the surfaces toward the targets: the gap of linear
+contact theory, Johnson ch. 4) pi(x_i) is instead the point of the target on the line through
+x_i along e (a ray cast), nu_i = e and d_i the distance along e.  The contact laws
 of the rigid-foundation case act on
 
     w_i = [u]_i - d_i nu_i:    w_i . nu_i = [u]_nu - d_i  (the interpenetration when > 0),
@@ -183,8 +186,6 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
             surfaces that do not face each other, an initial interpenetration (on every
             rank).
     """
-    from vpcontact.model.pairnormal import pair_projection  # scipy: only with pairs
-
     case, d = disc.case, disc.dim
     x = disc.V.tabulate_dof_coordinates()[nodes, :d]
     m = len(nodes)
@@ -201,9 +202,11 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
         target, surface = gathered_facets(disc, p.target), gathered_facets(disc, p.surface)
         _refuse(disc, sel.any() and len(target[0]) == 0, f"contact.pairs[{i}].target",
                 f"the group {p.target!r} has no facets")
+        if case.contact.direction is not None:                        # collective
+            _check_direction(disc, p, outward[sel], x[sel])
+        project = projector(case.contact.direction, target)
         n_s = _at_nodes(surface, _global(disc, nodes[sel]))
-        proj, nu = pair_projection(x[sel], n_s, target[0], target[1], target[3]) \
-            if sel.any() else (None, None)
+        proj, nu = project(x[sel], n_s) if sel.any() else (None, None)
         inside = proj.inside if proj is not None else np.ones(0, bool)
         _refuse_count(disc, ~inside, x[sel], f"contact.pairs[{i}]",
                       f"node(s) of {p.surface!r} project outside the target {p.target!r} "
@@ -215,7 +218,7 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
             geo.g[sel] = p.g
         _check_facing(disc, i, p, outward[sel], geo.normal[sel], x[sel])   # collective
         couplings.append(_coupling(disc, p, nodes, np.flatnonzero(sel), proj,
-                                   (surface, target)))
+                                   (surface, target), project))
     geo.rows, geo.cols, geo.coef = (np.concatenate([c[k] for c in couplings])
                                     for k in range(3))
     for i, p in enumerate(case.contact.pairs):
@@ -229,9 +232,33 @@ def _global(disc, nodes: np.ndarray) -> np.ndarray:
         np.asarray(nodes, dtype=np.int32)), dtype=np.int64)
 
 
-def _coupling(disc, p, nodes, sel, proj, facets) -> tuple:
+def projector(direction, target: tuple):
+    """pi and nu of the pairs onto one target: along the pair's averaged normal, or along
+    a fixed direction.
+
+    Args:
+        direction: contact.direction (unit), or None.
+        target: gathered_facets of the target.
+
+    Returns:
+        f(points, n_s) -> (Projection, nu (m, d)), n_s the surface's outward normals at
+        the points: ``pairnormal.pair_projection`` without a direction (nu the average of
+        the two bodies' normals), else ``cast_points`` along it (the gap of linear contact
+        theory, measured along one approach direction; nu = the direction).
+    """
+    from vpcontact.model import pairgeometry, pairnormal  # scipy: only with pairs
+    coords, normals, _, vertex = target
+    if direction is None:
+        return lambda points, n_s: pairnormal.pair_projection(points, n_s, coords, normals,
+                                                              vertex)
+    e = np.asarray(direction, float)
+    return lambda points, n_s: (pairgeometry.cast_points(points, coords, normals, e),
+                                np.broadcast_to(e, np.shape(points)).copy())
+
+
+def _coupling(disc, p, nodes, sel, proj, facets, project) -> tuple:
     """(rows, cols, coef) of one pair's owned nodes (positions ``sel`` in ``nodes``),
-    ``facets`` the pair's (surface, target) gathered_facets."""
+    ``facets`` the pair's (surface, target) gathered_facets, ``project`` its projector."""
     from vpcontact.model.mortar import mortar_triplets
     surface, target = facets
     owned = nodes[sel] < disc.V.dofmap.index_map.size_local
@@ -242,8 +269,8 @@ def _coupling(disc, p, nodes, sel, proj, facets) -> tuple:
         return (np.repeat(sel[owned], nv), target[2][proj.facet[owned]].ravel(),
                 proj.weights[owned].ravel())
     coords, _, glob = local_facets(disc, p.surface, owned=True)
-    return _owned_rows(disc, nodes, sel, mortar_triplets(coords, glob,
-                                                         _at_nodes(surface, glob), *target))
+    return _owned_rows(disc, nodes, sel, mortar_triplets(coords, glob, _at_nodes(surface, glob),
+                                                         target[2], project))
 
 
 def _owned_rows(disc, nodes, sel, triplets) -> tuple:
@@ -323,6 +350,16 @@ def _check_facing(disc, i, p, outward, nu, x) -> None:
     _refuse_count(disc, cos <= FACING_MIN, x, f"contact.pairs[{i}]",
                   f"node(s) of {p.surface!r} whose outward normal points away from the "
                   f"target {p.target!r} (the surfaces do not face each other there)")
+
+
+def _check_direction(disc, p, outward, x) -> None:
+    """Refuse a contact.direction that does not point from a pair's surface toward its
+    target: under 90 degrees to the surface's outward normal at every node."""
+    cos = outward @ np.asarray(disc.case.contact.direction, float)
+    _refuse_count(disc, cos <= FACING_MIN, x, "contact.direction",
+                  f"node(s) of {p.surface!r} whose outward normal makes 90 degrees or more "
+                  "with the direction (it must point from each pair's surface toward its "
+                  f"target, here {p.target!r})")
 
 
 def _check_distance(disc, i, p, geo, sel, x) -> None:
