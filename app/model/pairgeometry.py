@@ -169,6 +169,10 @@ def plane_coordinates(p: np.ndarray, v: np.ndarray) -> np.ndarray:
     """The unclamped barycentric coordinates of points p (n, d) on facets v (n, nv, d): those
     of p's projection onto the facet's line (2D) or plane (3D).
 
+    Args:
+        p: (n, d) the points.
+        v: (n, nv, d) each point's facet.
+
     Returns:
         (n, nv), summing to 1 (all >= 0 when the projection lies in the facet).
     """
@@ -199,6 +203,9 @@ def _best(points: np.ndarray, facets: np.ndarray, row: np.ndarray, cand: np.ndar
 
 def row_chunks(counts: np.ndarray):
     """Consecutive ranges of rows whose candidate counts sum to about CHUNK_PAIRS.
+
+    Args:
+        counts: (rows,) the number of candidates of each row.
 
     Yields:
         (start, stop) of each range (at least one row).

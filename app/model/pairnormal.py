@@ -68,7 +68,14 @@ def vertex_normals(facets: np.ndarray, normals: np.ndarray, nodes: np.ndarray) -
 
 
 def unit(v: np.ndarray) -> np.ndarray:
-    """Each row of v divided by its length (a zero row stays zero)."""
+    """Each row of v divided by its length.
+
+    Args:
+        v: (n, d) vectors.
+
+    Returns:
+        (n, d) unit vectors (a zero row stays zero).
+    """
     size = np.linalg.norm(v, axis=1)
     return v / np.where(size > 0.0, size, 1.0)[:, None]
 
