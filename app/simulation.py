@@ -348,6 +348,8 @@ class Simulation:
                     g3.advance(self.t, t_new)       # xi_n, s_n from u_{n-1}
             t_g3 = time.perf_counter() - t_g3
             p.set_time(t_new, k)                    # f_n, prescribed displacements, k_n
+            if p.hold is not None and p.hold.close_gap(p.u):    # held only by contact
+                self.solver.warm_start()
             # u_n in U^h, (3.4); with Coulomb friction a fixed point on p_n (Gamma3History)
             with stage("solve"):
                 its = g3.solve(self.solver) if g3 else self.solver.solve()

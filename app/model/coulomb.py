@@ -110,6 +110,10 @@ class CoulombPressure:
                 iterate's; the step is not accepted).
         """
         comm, its, change, scale = self.problem.comm, 0, np.inf, 0.0
+        hold = self.problem.hold        # a body held only by the contact: p_n = 0 holds
+        if hold is not None and comm.allreduce(float(self.p.max(initial=0.0)),
+                                               op=MPI.MAX) <= self.floor:
+            self.p = self._spread(hold.pressure_start(self._loads()))
         for i in range(1, MAX_ITERATIONS + 1):
             set_factor(self.mu * self.p)
             its += solver.solve()
@@ -127,6 +131,22 @@ class CoulombPressure:
             f"in {MAX_ITERATIONS} iterations (max|p^(i+1) - p^(i)| = {change:.3e} > "
             f"max({TOL:g} max p_n, round-off floor) = {max(TOL * scale, self.floor):.3e}; "
             f"mu = {np.max(self.mu):g} may be too large for the fixed point)")
+
+    def _loads(self) -> np.ndarray:
+        """The step's owned nodal loads f_n, (owned nodes, d)."""
+        p = self.problem
+        owned = p.V.dofmap.index_map.size_local
+        if p.load_vector is None:
+            return np.zeros((owned, p.dim))
+        return p.load_vector.at_current_time().array_r.reshape(-1, p.dim)[:owned]
+
+    def _spread(self, owned: np.ndarray) -> np.ndarray:
+        """p at the local Gamma3 nodes (owned and ghost) from its owned values."""
+        local = np.zeros(len(self.p))
+        local[self.owned] = owned
+        self.field.set(local)
+        self.field.function.x.scatter_forward()
+        return self.field.function.x.array[self.field.dofs].copy()
 
     def state(self) -> dict:
         """Returns: {"p": a copy of p_n (m,)}."""

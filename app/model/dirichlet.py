@@ -148,6 +148,35 @@ def rigid_modes(x: np.ndarray) -> np.ndarray:
 
 
 @dataclass
+class HeldPart:
+    """A part of the body whose rigid motions only its contact with the foundation holds.
+
+    Attributes:
+        nodes: bool (local nodes,): the part's local (owned and ghost) nodes.
+        free: (r, free) the free motions in the basis of ``rigid_modes``, at coordinates
+            centred at ``centre`` and divided by ``scale``.
+        centre: (d,) the centre of the part's bounding box.
+        scale: the part's size.
+    """
+
+    nodes: np.ndarray
+    free: np.ndarray
+    centre: np.ndarray
+    scale: float
+
+    def modes(self, x: np.ndarray) -> np.ndarray:
+        """The free motions at points.
+
+        Args:
+            x: (n, d) coordinates.
+
+        Returns:
+            (n, d, free).
+        """
+        return rigid_modes((x - self.centre) / self.scale) @ self.free
+
+
+@dataclass
 class BodyParts:
     """The connected components of the body (cells connected through shared vertices), on
     every rank alike.
@@ -335,7 +364,8 @@ def _held_by_pairs(free: list, links: list) -> dict:
     return via
 
 
-def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = ()) -> None:
+def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
+                        foundation=None) -> list:
     """Refuse Dirichlet data that leave a rigid motion of the body, or of one of its
     connected parts, free (collective): the step matrix would be singular.
 
@@ -353,6 +383,14 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = ()) -> 
         source: the case file, for the message.
         pairs: for each contact pair, (its surface's local facets, its target's local
             facets); none for a case without pairs.
+        foundation: the local facets of Gamma3 on the rigid foundation
+            (boundaries.contact), or None: a part carrying them may leave rigid motions free,
+            held by the contact with the foundation where the load presses the part onto it
+            (app/model/semicoercive.py checks the loads before the first step).
+
+    Returns:
+        The HeldPart of each part whose free motions only the contact with the foundation
+        holds (empty: the Dirichlet data hold the body).
 
     Raises:
         CaseError: naming boundaries.clamped / loads.displacement, the free motions and, for
@@ -362,6 +400,9 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = ()) -> 
     parts = body_parts(V)
     free = free_motions(V, fixed, parts)
     via = _held_by_pairs(free, _pair_parts(V, parts, list(pairs))) if len(pairs) else {}
+    on_foundation = set() if foundation is None else \
+        _pair_parts(V, parts, [(foundation, foundation)])[0][0]
+    held = []
     names = ["translation x", "translation y", "translation z"][:d] + \
         (["rotation"] if d == 2 else ["rotation about z", "rotation about x",
                                        "rotation about y"])
@@ -380,7 +421,15 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = ()) -> 
             log.info("%s: %d rigid motion(s) of %s (like %s) held only by contact pair %d "
                      "(contact.pairs[%d])", source, f.shape[1], where, what, via[k], via[k])
             continue
+        if k in on_foundation:
+            log.info("%s: %d rigid motion(s) of %s (like %s) held only by the contact with the "
+                     "foundation (boundaries.contact)", source, f.shape[1], where, what)
+            centre = 0.5 * (parts.lo[k] + parts.hi[k])
+            held.append(HeldPart(parts.label == k, f, centre,
+                                 max(float(np.max(parts.hi[k] - parts.lo[k])), 1e-300)))
+            continue
         raise CaseError(f"{source}: boundaries.clamped / loads.displacement: the prescribed "
                         f"displacements leave {f.shape[1]} rigid motion(s) of {where} free "
                         f"(like {what}); clamp a group {'on that part ' if len(free) > 1 else ''}"
                         "or prescribe more components")
+    return held

@@ -139,9 +139,11 @@ class Discretisation:
         self.dirichlet = build_dirichlet(self.V, self.facets, list(b.clamped),
                                          dict(loads.displacement), self.time_data)
         self.bcs = self.dirichlet.bcs
-        check_rigid_motions(self.V, self.dirichlet.fixed, case.source,
-                            [(self.facets[p.surface], self.facets[p.target])
-                             for p in case.contact.pairs])
+        foundation = np.concatenate([self.facets[r] for r in b.contact]) \
+            if case.contact.active and not pairs else None
+        self.held_by_foundation = check_rigid_motions(
+            self.V, self.dirichlet.fixed, case.source,
+            [(self.facets[p.surface], self.facets[p.target]) for p in pairs], foundation)
         self.clamped_nodes = self.dirichlet.clamped_nodes
 
     def _check_roles(self) -> None:
