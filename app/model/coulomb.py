@@ -110,10 +110,9 @@ class CoulombPressure:
                 iterate's; the step is not accepted).
         """
         comm, its, change, scale = self.problem.comm, 0, np.inf, 0.0
-        hold = self.problem.hold        # a body held only by the contact: p_n = 0 holds
-        if hold is not None and comm.allreduce(float(self.p.max(initial=0.0)),
-                                               op=MPI.MAX) <= self.floor:
-            self.p = self._spread(hold.pressure_start(self._loads()))
+        hold = self.problem.hold    # a body held only by the contact: p_n of the step's load
+        if hold is not None:
+            self.p = self._spread(hold.pressure_start(self._loads(), self.p[self.owned]))
         for i in range(1, MAX_ITERATIONS + 1):
             set_factor(self.mu * self.p)
             its += solver.solve()

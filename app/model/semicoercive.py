@@ -201,24 +201,32 @@ class FoundationHold:
             return np.full(len(self.nodes), 1e-3 * self.problem.length_scale)
         return 0.5 * self.g if has_normal else self.g.copy()
 
-    def pressure_start(self, f: np.ndarray) -> np.ndarray:
-        """Coulomb's start p_n where no node is in contact: the normal resultant P of the
-        loads spread uniformly over each part's Gamma3 (owned Gamma3 nodes; collective).
+    def pressure_start(self, f: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Coulomb's start p_n for a step: the last p_n scaled to the normal resultant P of
+        the step's loads, or P spread uniformly where no node is pressed (owned Gamma3
+        nodes; collective).  From the last step's p_n alone, a growing load would meet a
+        friction bound mu p_(n-1) below its tangential resultant: nothing would hold the
+        tangential motion in the fixed point's first solve.
 
         Args:
             f: the owned nodal loads (n, d) of the step.
+            p: the last p_n at the owned Gamma3 nodes (``problem.gamma3``'s order).
 
         Returns:
-            p (owned Gamma3 nodes, G's order of ``problem.gamma3``).
+            p (owned Gamma3 nodes).
         """
-        c, p = self.problem.comm, np.zeros(len(self.nodes))
+        c, out = self.problem.comm, p.copy()
         for k, part in enumerate(self.parts):
             mine = self.mine[k]
+            nu, w = self.normal[mine], self.w[mine]
             F = c.allreduce(f[part.nodes[:len(f)]].sum(axis=0), op=MPI.SUM)
-            area = c.allreduce(float(self.w[mine].sum()), op=MPI.SUM)
-            P = np.maximum(self.normal[mine] @ F, 0.0)
-            p[mine] = P / max(area, 1e-300)
-        return p
+            nbar = c.allreduce((w[:, None] * nu).sum(0), op=MPI.SUM)
+            area = np.linalg.norm(nbar)
+            nbar = nbar / max(area, 1e-300)
+            P = max(float(F @ nbar), 0.0)
+            R = c.allreduce(float(((w * p[mine])[:, None] * nu).sum(0) @ nbar), op=MPI.SUM)
+            out[mine] = p[mine] * (P / R) if R > 1e-12 * P else P / max(area, 1e-300)
+        return out
 
 
 def _angles(d: int) -> np.ndarray:
@@ -237,13 +245,15 @@ def _direction(tau: np.ndarray, a: float) -> np.ndarray:
 
 def _strictly_inside(A: np.ndarray, box: np.ndarray, b: np.ndarray) -> bool:
     """Whether b = A a + B t with every a_j > 0 and every |t_j| < c_j (B, c = box's rows
-    and last row): the largest common slack s of a linear program, load scaled to 1."""
+    and last row) and [A B] of full rank (the interior of the cone, not of a face of it):
+    the largest common slack s of a linear program, load scaled to 1."""
     from scipy.optimize import linprog
     scale = np.linalg.norm(b)
-    if scale == 0.0:
-        return False                # no load: nothing determines the rigid motion
+    B = box[:-1]
+    if scale == 0.0 or np.linalg.matrix_rank(np.hstack([A, B])) < len(b):
+        return False                # no load, or a free motion no contact force resists
     r, n = A.shape
-    B, c = box[:-1], box[-1] / scale
+    c = box[-1] / scale
     m = B.shape[1]
     An = A / np.maximum(np.linalg.norm(A, axis=0), 1e-300)
     # unknowns (a, t, s): max s, A a + B t = b / scale, a_j >= s, |t_j| + s c_j <= c_j
