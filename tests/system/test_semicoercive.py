@@ -1,0 +1,103 @@
+"""Force control of a body held only by its contact with the foundation (issue 50, item 2;
+app/model/semicoercive.py): the probe of the issue (a block on the foundation, top traction
+[1, -10], no Dirichlet data) runs with both step solvers, serially and under mpirun -n 2,
+and its contact force balances the applied load (the statics of a free body: contact
+force = minus the applied resultant); loads the contact cannot balance are refused in one
+line with exit code 2 before anything is solved; the cone test of the loads against its
+closed form for two contact points."""
+import numpy as np
+import pytest
+
+from conftest import ROOT, cli_in_process, run_cli, summary_steps
+
+PROBE = ROOT / "tests" / "data" / "block_force_probe.yaml"
+APPLIED = np.array([1.0, -10.0])          # the probe's top traction times its width 1
+
+
+def _balance(out) -> float:
+    """The largest relative misfit of contact force + applied resultant over the steps."""
+    steps = summary_steps(out)
+    assert len(steps) == 2
+    return max(np.abs(np.array(s["contact_force"]) + APPLIED).max() / np.abs(APPLIED).max()
+               for s in steps)
+
+
+@pytest.mark.parametrize("method", ["condensed", "snes_vi"])
+def test_probe_runs_and_balances_serially(tmp_path, method):
+    """On main: 'leave 3 rigid motion(s) of the body free', exit 2."""
+    code = cli_in_process(["run", PROBE, "--out", tmp_path / "o", "--quiet", "--no-plots",
+                           "--set", f"solver.method={method}"])
+    assert code == 0
+    assert _balance(tmp_path / "o") < 1e-6
+
+
+@pytest.mark.parametrize("method", ["condensed", "snes_vi"])
+def test_probe_runs_and_balances_under_mpirun(tmp_path, method):
+    proc = run_cli(["run", PROBE, "--out", tmp_path / "o", "--quiet",
+                    "--set", f"solver.method={method}"], nprocs=2)
+    assert proc.returncode == 0, proc.stderr
+    assert _balance(tmp_path / "o") < 1e-6
+
+
+def test_shipped_case_balances_its_ramp(tmp_path):
+    """cases/block_force.yaml: contact force (-2, 10) t at every step; the edge nodes slip,
+    the middle sticks (Q / (mu P) = 0.67)."""
+    import csv
+    out = tmp_path / "o"
+    assert cli_in_process(["run", ROOT / "cases" / "block_force.yaml", "--out", out,
+                           "--quiet", "--no-plots"]) == 0
+    for s in summary_steps(out):
+        want = np.array([-2.0, 10.0]) * s["t"]
+        assert np.abs(np.array(s["contact_force"]) - want).max() < 1e-6 * 10 * s["t"]
+    with open(out / "contact.csv") as f:
+        rows = sorted(csv.DictReader(f), key=lambda r: float(r["x"]))
+    slip = [float(r["slip_state"]) for r in rows]
+    assert slip[0] == slip[-1] == 1.0 and slip[len(slip) // 2] == 0.0
+
+
+@pytest.mark.parametrize("traction, words", [
+    ("[4,-10]", "tangential resultant 4 >= mu P = 0.3 x 10 = 3"),
+    ("[1,10]", "does not press it onto Gamma3 (normal component -10 <= 0: a pull-off)"),
+    ("[0,'-10 + 15*t']", "at t = 1 the applied force resultant (0, 5)"),
+])
+def test_unbalanceable_loads_are_refused_before_any_solve(tmp_path, capsys, traction, words):
+    """Exit 2, one line naming the keys and the numbers, no solution written."""
+    out = tmp_path / "o"
+    code = cli_in_process(["run", PROBE, "--out", out, "--quiet", "--no-plots",
+                           "--set", f"loads.traction.top={traction}"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    line = [e for e in err if "error" in e]
+    assert len(line) == 1 and words in line[0] and "loads.traction" in line[0], err
+    assert not (out / "solution.h5").exists()
+
+
+def test_frictionless_free_tangential_motion_is_refused(tmp_path, capsys):
+    """No friction: the tangential translation is free even under a purely normal load
+    (Code_Aster refuses the singular system; we do too)."""
+    import yaml
+    raw = yaml.safe_load(PROBE.read_text())
+    del raw["contact"]["friction"]
+    raw["loads"]["traction"]["top"] = [0.0, -10.0]
+    path = tmp_path / "nofriction.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    assert cli_in_process(["check", path]) == 2
+    assert "frictionless contact cannot hold its tangential motion" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("Q, P, M", [(2.9, 10, 0), (3.1, 10, 0), (1, 10, 9.9), (1, 10, 10.1),
+                                     (0, 10, -9), (1, -1, 0), (0, 0, 0), (-2.9, 10, -9)])
+def test_cone_test_against_two_contact_points(Q, P, M):
+    """Two contact nodes at x = -1, 1 on y = 0, outward normal (0, -1), Coulomb mu = 0.3;
+    the free motions x, y, rotation; load W = (Q, -P, M).  Closed form: node forces
+    p_1,2 = (P -+ M) / 2 must be > 0 and |Q| < mu P."""
+    from vpcontact.model.semicoercive import _strictly_inside
+    mu, x = 0.3, np.array([-1.0, 1.0])
+    modes = np.array([[[1, 0, 0], [0, 1, xi]] for xi in x])        # (node, d, free)
+    nu = np.array([[0.0, -1.0]] * 2)
+    tau = np.array([[1.0, 0.0]] * 2)
+    A = np.concatenate([np.einsum("nd,ndr->rn", -nu + s * mu * tau, modes) for s in (1, -1)],
+                       axis=1)
+    W = np.array([Q, -P, M], dtype=float)
+    expected = P > 0 and abs(M) < P and abs(Q) < mu * P
+    assert _strictly_inside(A, np.zeros((4, 0)), -W) == expected
