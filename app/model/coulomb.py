@@ -68,10 +68,15 @@ class CoulombPressure:
         mu: the friction coefficient (mu_s of the static/kinetic law); with laws per pair,
             its value at each local Gamma3 node (0 at the nodes of pairs without Coulomb).
         field: a NodalField of the Gamma3 nodes (scratch: p_n's ghost values).
+        hold: the FoundationHold of a body held only by the contact
+            (app/model/semicoercive.py: each step's fixed point starts from the pressure of
+            its normal load), or None.
     """
 
-    def __init__(self, problem, mu: float, field):
-        self.problem, self.mu, self.field = problem, mu, field
+    hold = None
+
+    def __init__(self, problem, mu: float, field, hold=None):
+        self.problem, self.mu, self.field, self.hold = problem, mu, field, hold
         self.p = np.zeros(len(problem.gamma3_local_nodes))
         self.owned = np.searchsorted(problem.gamma3_local_nodes, problem.gamma3.nodes)
         self.iterations = 0
@@ -110,9 +115,8 @@ class CoulombPressure:
                 iterate's; the step is not accepted).
         """
         comm, its, change, scale = self.problem.comm, 0, np.inf, 0.0
-        hold = self.problem.hold    # a body held only by the contact: p_n of the step's load
-        if hold is not None:
-            self.p = self._spread(hold.pressure_start(self._loads(), self.p[self.owned]))
+        if self.hold is not None:   # a body held only by the contact: p_n of the step's load
+            self.p = self._spread(self.hold.pressure_start(self._loads(), self.p[self.owned]))
         for i in range(1, MAX_ITERATIONS + 1):
             set_factor(self.mu * self.p)
             its += solver.solve()

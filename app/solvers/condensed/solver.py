@@ -89,6 +89,8 @@ class CondensedStepSolver:
                                       self.comm, self.semidefinite)
         self.factorisations = self.condensation.factorisations
         self.gamma3_problem = self._gamma3_problem(rtol) if self.gamma3 else None
+        # two bodies or S semidefinite: the Gamma3 problem takes r = S y0, not y0
+        self.gamma3_problem_reduced = self.pairs is not None or self.semidefinite
         if self.pairs is not None:
             self.warm_start()           # the reduced Gamma3 problem starts from u_0
 
@@ -216,7 +218,7 @@ class CondensedStepSolver:
     def _solve_condensed(self) -> int:
         """y0 = condense(F_n), the Gamma3 problem, u = expand(y)."""
         self.rhs.assemble(self.b)
-        y0 = self.condensation.reduce(self.b) if self.semidefinite else \
+        y0 = self.condensation.reduce(self.b) if self.gamma3_problem_reduced else \
             self.condensation.condense(self.b)        # r = S y0 (Gamma3Problem.reduced)
         its, y = 0, np.zeros(0)
         if self.gamma3:
