@@ -350,6 +350,8 @@ class Simulation:
             p.set_time(t_new, k)                    # f_n, prescribed displacements, k_n
             if p.hold is not None and p.hold.close_gap(p.u):    # held only by contact
                 self.solver.warm_start()
+                if hasattr(self.solver, "press_next"):          # SNES VI: a held start
+                    self.solver.press_next(p.hold.pinned_slots())
             # u_n in U^h, (3.4); with Coulomb friction a fixed point on p_n (Gamma3History)
             with stage("solve"):
                 its = g3.solve(self.solver) if g3 else self.solver.solve()

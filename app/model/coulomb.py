@@ -68,7 +68,7 @@ class CoulombPressure:
         mu: the friction coefficient (mu_s of the static/kinetic law); with laws per pair,
             its value at each local Gamma3 node (0 at the nodes of pairs without Coulomb).
         field: a NodalField of the Gamma3 nodes (scratch: p_n's ghost values).
-        hold: the FoundationHold of a body held only by the contact
+        hold: the ContactHold of a body held only by contact
             (app/model/semicoercive.py: each step's fixed point starts from the pressure of
             its normal load), or None.
     """

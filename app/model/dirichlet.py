@@ -149,7 +149,8 @@ def rigid_modes(x: np.ndarray) -> np.ndarray:
 
 @dataclass
 class HeldPart:
-    """A part of the body whose rigid motions only its contact with the foundation holds.
+    """A part of the body whose rigid motions only its contact (with the foundation, or a
+    contact pair's) holds.
 
     Attributes:
         nodes: bool (local nodes,): the part's local (owned and ghost) nodes.
@@ -157,12 +158,17 @@ class HeldPart:
             centred at ``centre`` and divided by ``scale``.
         centre: (d,) the centre of the part's bounding box.
         scale: the part's size.
+        surface_of: the contact pairs whose surface the part carries (none: the
+            foundation's contact holds it).
+        target_of: the contact pairs whose target the part carries.
     """
 
     nodes: np.ndarray
     free: np.ndarray
     centre: np.ndarray
     scale: float
+    surface_of: tuple = ()
+    target_of: tuple = ()
 
     def modes(self, x: np.ndarray) -> np.ndarray:
         """The free motions at points.
@@ -389,8 +395,8 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
             (app/model/semicoercive.py checks the loads before the first step).
 
     Returns:
-        The HeldPart of each part whose free motions only the contact with the foundation
-        holds (empty: the Dirichlet data hold the body).
+        The HeldPart of each part whose free motions only the contact (the foundation's or
+        a pair's) holds (empty: the Dirichlet data hold the body).
 
     Raises:
         CaseError: naming boundaries.clamped / loads.displacement, the free motions and, for
@@ -399,7 +405,8 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
     d = V.dofmap.index_map_bs
     parts = body_parts(V)
     free = free_motions(V, fixed, parts)
-    via = _held_by_pairs(free, _pair_parts(V, parts, list(pairs))) if len(pairs) else {}
+    links = _pair_parts(V, parts, list(pairs)) if len(pairs) else []
+    via = _held_by_pairs(free, links) if links else {}
     on_foundation = set() if foundation is None else \
         _pair_parts(V, parts, [(foundation, foundation)])[0][0]
     held = []
@@ -420,16 +427,22 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
         if k in via:
             log.info("%s: %d rigid motion(s) of %s (like %s) held only by contact pair %d "
                      "(contact.pairs[%d])", source, f.shape[1], where, what, via[k], via[k])
-            continue
-        if k in on_foundation:
+        elif k in on_foundation:
             log.info("%s: %d rigid motion(s) of %s (like %s) held only by the contact with the "
                      "foundation (boundaries.contact)", source, f.shape[1], where, what)
-            centre = 0.5 * (parts.lo[k] + parts.hi[k])
-            held.append(HeldPart(parts.label == k, f, centre,
-                                 max(float(np.max(parts.hi[k] - parts.lo[k])), 1e-300)))
-            continue
-        raise CaseError(f"{source}: boundaries.clamped / loads.displacement: the prescribed "
-                        f"displacements leave {f.shape[1]} rigid motion(s) of {where} free "
-                        f"(like {what}); clamp a group {'on that part ' if len(free) > 1 else ''}"
-                        "or prescribe more components")
+        else:
+            raise CaseError(f"{source}: boundaries.clamped / loads.displacement: the prescribed "
+                            f"displacements leave {f.shape[1]} rigid motion(s) of {where} free "
+                            f"(like {what}); clamp a group "
+                            f"{'on that part ' if len(free) > 1 else ''}"
+                            "or prescribe more components")
+        held.append(_held_part(parts, k, f, links))
     return held
+
+
+def _held_part(parts: BodyParts, k: int, free: np.ndarray, links: list) -> HeldPart:
+    """The HeldPart of part k with its free motions (links: the pairs' parts)."""
+    return HeldPart(parts.label == k, free, 0.5 * (parts.lo[k] + parts.hi[k]),
+                    max(float(np.max(parts.hi[k] - parts.lo[k])), 1e-300),
+                    tuple(i for i, (sf, _) in enumerate(links) if k in sf),
+                    tuple(i for i, (sf, tg) in enumerate(links) if k in tg and k not in sf))

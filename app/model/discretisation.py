@@ -141,7 +141,7 @@ class Discretisation:
         self.bcs = self.dirichlet.bcs
         foundation = np.concatenate([self.facets[r] for r in b.contact]) \
             if case.contact.active and not pairs else None
-        self.held_by_foundation = check_rigid_motions(
+        self.held_by_contact = check_rigid_motions(
             self.V, self.dirichlet.fixed, case.source,
             [(self.facets[p.surface], self.facets[p.target]) for p in pairs], foundation)
         self.clamped_nodes = self.dirichlet.clamped_nodes

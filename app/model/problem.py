@@ -39,7 +39,7 @@ from vpcontact.model.loadvector import LoadVector
 from vpcontact.model.material import Elasticity
 from vpcontact.model.materials import body_materials
 from vpcontact.model.pairs import PairOperators, node_labels
-from vpcontact.model.semicoercive import FoundationHold
+from vpcontact.model.semicoercive import ContactHold
 from vpcontact.model.state import State
 from vpcontact.model.stiffness import case_elasticity, stress_operator
 from vpcontact.model.strain import StrainOperator
@@ -165,10 +165,10 @@ class ContactProblem:
         # the implicit scheme's local update, run by the residual hook (before_residual)
         self.implicit_update = ImplicitViscoplasticHistory(self, self.law) \
             if self.implicit else None
-        # a body held only by the foundation contact: its loads checked for every step
+        # a body held only by contact: its loads checked for every step
         # (app/model/semicoercive.py)
-        held = self.disc.held_by_foundation
-        self.hold = FoundationHold(self, held) if held else None
+        held = self.disc.held_by_contact
+        self.hold = ContactHold(self, held) if held else None
         if self.hold is not None:
             self.hold.check_loads(case.time.times[1:])
 

@@ -7,7 +7,7 @@ load on them: with W_k = f_n(r_k) (the loads vector of step n on the motion r_k;
 history term B^T H_n does no work on a rigid motion), there must be nodal contact forces
 -p_i nu_i + t_i at the Gamma3 nodes, p_i >= 0, |t_i| <= mu p_i (Coulomb; 0 frictionless;
 the friction law's bound psi'(oo) w_i otherwise, which does not scale with p_i), with
-sum_i (-p_i nu_i + t_i) . r_k(x_i) = -W_k.  ``FoundationHold.check_loads`` refuses, before
+sum_i (-p_i nu_i + t_i) . r_k(x_i) = -W_k.  ``ContactHold.check_loads`` refuses, before
 any solve, a step whose load is not strictly inside that cone (a linear program: the slack
 of every generator maximised): a pull-off, a tangential resultant at or above mu P, a
 moment whose centre of pressure falls outside Gamma3, a free tangential motion of
@@ -37,11 +37,18 @@ COULOMB_DIRECTIONS = 8      # 3D: the friction cone's inner polygon
 SLACK = 1e-9                # the least slack (per generator, load scaled to 1) accepted
 
 
-class FoundationHold:
-    """The parts of the body held only by the foundation contact (collective to build).
+class ContactHold:
+    """The parts of the body held only by contact (collective to build): by the foundation
+    (Gamma3 = boundaries.contact) or by contact pairs.
+
+    Each owned Gamma3 node i acts on part k with the sign sigma_ik: +1 where the node is
+    the part's own (the foundation's Gamma3, a pair's surface), -1 where the part carries
+    the pair's target (the force on the target is the opposite of the surface node's, at
+    the node's projection: taken at the node, which misplaces it by the initial distance
+    d_i in the moments only), 0 elsewhere.
 
     Args:
-        problem: the ContactProblem (its Gamma3 nodes, frames, loads vector).
+        problem: the ContactProblem (its Gamma3 nodes, frames, loads vector, pairs).
         parts: the HeldParts of ``check_rigid_motions`` (app/model/dirichlet.py).
     """
 
@@ -51,11 +58,36 @@ class FoundationHold:
         owned = problem.V.dofmap.index_map.size_local
         x = problem.V.tabulate_dof_coordinates()[:owned, :d]
         self.modes = [p.modes(x) * p.nodes[:owned, None, None] for p in parts]
-        pos = np.searchsorted(fr.nodes, gm.nodes)
-        self.normal, self.tangents = fr.normal[pos], fr.tangents[pos]
-        self.g = None if fr.g is None else fr.g[pos]
-        self.nodes, self.w = gm.nodes, gm.weight
-        self.mine = [p.nodes[gm.nodes] for p in parts]      # owned Gamma3 nodes per part
+        self.pos = np.searchsorted(fr.nodes, gm.nodes)   # owned Gamma3 nodes in frames
+        self.normal, self.tangents = fr.normal[self.pos], fr.tangents[self.pos]
+        self.g = None if fr.g is None else fr.g[self.pos]
+        self.nodes, self.w, self.x = gm.nodes, gm.weight, x[gm.nodes]
+        pair = None if problem.pairs is None else problem.pairs.pair[self.pos]
+        self.sign = [_signs(p, gm.nodes, pair) for p in parts]
+        self.mine = [s != 0 for s in self.sign]
+        self.mu, self.bound, self.compliance = self._laws(pair)
+
+    def _laws(self, pair) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per owned Gamma3 node: Coulomb's mu (nan: not Coulomb), the friction bound
+        psi'(oo) of a law whose bound does not scale with p_n (nan: none), whether a normal
+        compliance acts (else the bound alone)."""
+        c = self.problem.case.contact
+        sections = c.sections
+        index = np.zeros(len(self.nodes), dtype=int) if pair is None or len(sections) == 1 \
+            else pair
+        mu, bound, comp = (np.full(len(self.nodes), np.nan), np.full(len(self.nodes), np.nan),
+                           np.zeros(len(self.nodes), dtype=bool))
+        big = 1e6 * self.problem.length_scale
+        for i, section in enumerate(sections):
+            at = index == i
+            law = self.problem.contact_law(section=section)
+            comp[at] = law.normal is not None
+            fr = section.friction
+            if fr is not None and fr.coulomb is not None:
+                mu[at] = float(fr.coulomb.mu)
+            elif law.friction is not None:
+                bound[at] = float(np.asarray(law.friction.derivative(np.array([big]))).ravel()[0])
+        return mu, bound, comp
 
     # ---------------------------------------------------------------- the loads' check
     def check_loads(self, times) -> None:
@@ -90,77 +122,81 @@ class FoundationHold:
         A, box = self._generators(k)
         if _strictly_inside(A, box, -W):
             return
-        raise CaseError(f"{self.problem.case.source}: {self._why(k, F, A, box, t)}")
+        raise CaseError(f"{self.problem.case.source}: {self._why(k, F, box, t)}")
 
     def _generators(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """(the cone's generators, the bounded tangential columns with their bounds) of
         part k on the free motions, gathered on every rank: A (free, n), box (free + 1, m)."""
         mine = self.mine[k]
-        M = self.modes[k][self.nodes[mine]]                         # (n, d, free)
-        nu, tau, w = self.normal[mine], self.tangents[mine], self.w[mine]
-        gens, box = [-nu], []
-        mu, bound = self._friction()
-        if mu is not None and mu > 0:
-            gens = [-nu + mu * _direction(tau, a) for a in _angles(self.problem.dim)]
-        elif bound is not None:
-            for j in range(tau.shape[1]):
-                box.append((tau[:, j], w * bound / np.sqrt(tau.shape[1])))
-        A = np.concatenate([np.einsum("nd,ndr->rn", g, M) for g in gens], axis=1)
-        B = np.concatenate([np.vstack([np.einsum("nd,ndr->rn", tj, M), c[None]])
-                            for tj, c in box], axis=1) if box else np.zeros((M.shape[2] + 1, 0))
+        M = self.parts[k].modes(self.x[mine])       # (n, d, free): at the node, either side
+        sign = self.sign[k][mine][:, None]
+        nu, tau, w = sign * self.normal[mine], self.tangents[mine], self.w[mine]
+        mu, bound = self.mu[mine], self.bound[mine]
+        coulomb = ~np.isnan(mu) & (mu > 0)
+        gens = [(-nu)[~coulomb]] + [(-nu + mu[:, None] * _direction(tau, a))[coulomb]
+                                    for a in _angles(self.problem.dim)]
+        sel = [~coulomb] + [coulomb] * (len(gens) - 1)
+        A = np.concatenate([np.einsum("nd,ndr->rn", g, M[m]) for g, m in zip(gens, sel)],
+                           axis=1)
+        tb, j = ~np.isnan(bound), tau.shape[1]
+        B = np.concatenate([np.vstack([np.einsum("nd,ndr->rn", tau[tb, i], M[tb]),
+                                       (w * bound)[tb][None] / np.sqrt(j)])
+                            for i in range(j)], axis=1)
         comm = self.problem.comm
         return (np.concatenate(comm.allgather(A), axis=1),
                 np.concatenate(comm.allgather(B), axis=1))
 
-    def _friction(self) -> tuple[float | None, float | None]:
-        """(Coulomb's mu, else None; the friction law's bound psi'(oo) where the bound does
-        not scale with p_n, else None)."""
-        fr = self.problem.case.contact.friction
-        if fr is None:
-            return None, None
-        if fr.coulomb is not None:
-            return float(fr.coulomb.mu), None
-        law = self.problem.contact_law().friction
-        big = 1e6 * self.problem.length_scale
-        return None, float(np.asarray(law.derivative(np.array([big]))).ravel()[0])
-
-    def _why(self, k: int, F: np.ndarray, A: np.ndarray, box: np.ndarray, t: float) -> str:
+    def _why(self, k: int, F: np.ndarray, box: np.ndarray, t: float) -> str:
         """The refusal's words for part k at time t (F: the applied force resultant)."""
-        c = self.problem.comm
-        nbar = c.allreduce((self.w[self.mine[k], None] * self.normal[self.mine[k]]).sum(0),
-                           op=MPI.SUM)
-        nbar = nbar / max(np.linalg.norm(nbar), 1e-300)
+        c, mine = self.problem.comm, self.mine[k]
+        nbar = self._mean_normal(k)
         P = float(F @ nbar)                     # the load pressing along the outward normal
         Q = float(np.linalg.norm(F - P * nbar))
+        mu = c.allreduce(float(np.nanmax(self.mu[mine], initial=-1.0)), op=MPI.MAX)
+        bounded = c.allreduce(bool(np.any(~np.isnan(self.bound[mine]))), op=MPI.LOR)
+        pairs = self.parts[k].surface_of + self.parts[k].target_of
+        held = ("the contact with the foundation" if not pairs else
+                "contact pair(s) " + ", ".join(f"contact.pairs[{i}]" for i in pairs))
         keys = "loads.traction / loads.pressure / loads.f0"
+        fkey = "contact.friction" if not pairs else "the pair's friction"
         at = (f"at t = {t:g} the applied force resultant ({', '.join(f'{v:.6g}' for v in F)})"
-              " on the body held only by the contact with the foundation")
-        mu, bound = self._friction()
+              f" on the {'body' if len(self.parts) == 1 else f'part {k + 1}'} held only by "
+              f"{held}")
         if P <= 0:
             return (f"{keys}: {at} does not press it onto Gamma3 (normal component "
                     f"{P:.6g} <= 0: a pull-off); clamp a group or press the body")
-        if mu is None and bound is None:
-            return (f"{keys} / contact.friction: {at}: frictionless contact cannot hold its "
+        if mu <= 0 and not bounded:
+            return (f"{keys} / {fkey}: {at}: frictionless contact cannot hold its "
                     f"tangential motion (tangential resultant {Q:.6g}); add friction or "
                     "prescribe a tangential component")
-        if mu is not None and Q >= mu * P * (1 - 1e-9):
-            return (f"{keys} / contact.friction.coulomb.mu: {at}: tangential resultant "
+        if mu > 0 and Q >= mu * P * (1 - 1e-9):
+            return (f"{keys} / {fkey}.coulomb.mu: {at}: tangential resultant "
                     f"{Q:.6g} >= mu P = {mu:g} x {P:.6g} = {mu * P:.6g}: the body would slide "
                     "away; lower the tangential load or prescribe a tangential component")
-        cap = 0.0 if bound is None else float(box[-1].sum())
-        if bound is not None and Q >= cap * (1 - 1e-9):
-            return (f"{keys} / contact.friction: {at}: tangential resultant {Q:.6g} >= the "
-                    f"friction bound's resultant {cap:.6g} (psi'(oo) = {bound:.6g} over "
-                    "Gamma3): the body would slide away")
+        cap = float(box[-1].sum()) * np.sqrt(self.problem.dim - 1)
+        if bounded and Q >= cap * (1 - 1e-9):
+            return (f"{keys} / {fkey}: {at}: tangential resultant {Q:.6g} >= the friction "
+                    f"bound's resultant {cap:.6g} (psi'(oo) w_i over Gamma3): the body would "
+                    "slide away")
         return (f"{keys}: {at} has a moment the contact zone cannot carry (its centre of "
                 "pressure falls outside Gamma3, or the friction cannot hold it); clamp a "
                 "group or change the loads")
 
+    def _mean_normal(self, k: int) -> np.ndarray:
+        """The unit mean of sigma_ik w_i nu_i over part k's Gamma3 nodes (collective): the
+        direction in which the contact presses the part outward."""
+        mine = self.mine[k]
+        n = self.problem.comm.allreduce(
+            ((self.sign[k][mine] * self.w[mine])[:, None] * self.normal[mine]).sum(0),
+            op=MPI.SUM)
+        return n / max(np.linalg.norm(n), 1e-300)
+
     # ---------------------------------------------------------------- the step's start
     def close_gap(self, u) -> bool:
-        """Translate each part out of contact at u along its mean inward normal until its
-        nearest Gamma3 node is half-way into the gap (on the bound without a normal
-        compliance, at 1e-3 of the body's size without a bound); collective.
+        """Translate each part out of contact at u (no Gamma3 node of it with u_nu > 0; two
+        bodies: w_nu) towards the contact until its nearest Gamma3 node is half-way into
+        the gap (on the bound without a normal compliance, 1e-3 of the body's size without
+        a bound); collective.
 
         Args:
             u: the displacement Function (the step's start, u_{n-1}), changed in place.
@@ -169,44 +205,56 @@ class FoundationHold:
             Whether u was changed (on every rank).
         """
         p = self.problem
-        arr = u.x.array.reshape(-1, p.dim)
-        changed = False
+        r = np.einsum("nd,nd->n", p.contact_u()[self.pos], self.normal)
+        target = self._target()
+        arr, changed = u.x.array.reshape(-1, p.dim), False
         for k, part in enumerate(self.parts):
             mine = self.mine[k]
-            un = np.einsum("nd,nd->n", arr[self.nodes[mine]], self.normal[mine])
-            target = self._target()[mine]
-            if p.comm.allreduce(bool(np.any(un > 0)), op=MPI.LOR):
+            if p.comm.allreduce(bool(np.any(r[mine] > 0)), op=MPI.LOR):
                 continue                         # in contact somewhere
-            nbar = p.comm.allreduce((self.w[mine, None] * self.normal[mine]).sum(0),
-                                    op=MPI.SUM)
-            nbar /= max(np.linalg.norm(nbar), 1e-300)
-            cos = self.normal[mine] @ nbar
+            nbar = self._mean_normal(k)
+            cos = self.sign[k][mine] * (self.normal[mine] @ nbar)
             ok = cos > 1e-6
-            s = p.comm.allreduce(float(np.min((target - un)[ok] / cos[ok], initial=np.inf)),
-                                 op=MPI.MIN)
+            s = p.comm.allreduce(float(np.min(((target - r)[mine] / np.where(ok, cos, 1))[ok],
+                                              initial=np.inf)), op=MPI.MIN)
             if not np.isfinite(s):
                 continue
             arr[part.nodes[:len(arr)]] += s * nbar
             changed = True
-            log.debug("part held by the foundation: start translated by %.3g along the "
-                      "mean normal into contact", s)
+            log.debug("part %d held by contact: the step starts from it translated by %.3g "
+                      "into contact", k + 1, s)
         if changed:
             u.x.scatter_forward()
         return changed
 
+    def pinned_slots(self) -> np.ndarray:
+        """The normal dofs (d node + slot, in the nodal frames) of the held parts' owned
+        Gamma3 nodes that are in contact at u (u_nu, two bodies w_nu, at least the start's
+        target): those SNES VI's first solve holds (``SNESVISolver.press_next``);
+        collective with pairs.
+
+        Returns:
+            Local dof indices.
+        """
+        p, fr = self.problem, self.problem.frames
+        r = np.einsum("nd,nd->n", p.contact_u()[self.pos], self.normal)
+        tol = 1e-9 * max(float(np.max(np.abs(self._target()), initial=0.0)),
+                         1e-12 * p.length_scale)
+        on = np.any(self.mine, axis=0) & (r >= self._target() - tol) & fr.bounded[self.pos]
+        return (p.dim * self.nodes[on] + fr.slot[self.pos][on]).astype(np.int32)
+
     def _target(self) -> np.ndarray:
-        """u_nu at which a Gamma3 node is in contact for the start (owned Gamma3 nodes)."""
-        has_normal = self.problem.contact_law().normal is not None
+        """u_nu (w_nu) at which a Gamma3 node is in contact for the start (owned nodes)."""
         if self.g is None:
             return np.full(len(self.nodes), 1e-3 * self.problem.length_scale)
-        return 0.5 * self.g if has_normal else self.g.copy()
+        return np.where(self.compliance, 0.5 * self.g, self.g)
 
     def pressure_start(self, f: np.ndarray, p: np.ndarray) -> np.ndarray:
         """Coulomb's start p_n for a step: the last p_n scaled to the normal resultant P of
-        the step's loads, or P spread uniformly where no node is pressed (owned Gamma3
-        nodes; collective).  From the last step's p_n alone, a growing load would meet a
-        friction bound mu p_(n-1) below its tangential resultant: nothing would hold the
-        tangential motion in the fixed point's first solve.
+        the step's loads on each part, or P spread uniformly where none of its nodes is
+        pressed (owned Gamma3 nodes; collective).  From the last step's p_n alone, a growing
+        load would meet a friction bound mu p_(n-1) below its tangential resultant: nothing
+        would hold the tangential motion in the fixed point's first solve.
 
         Args:
             f: the owned nodal loads (n, d) of the step.
@@ -218,15 +266,24 @@ class FoundationHold:
         c, out = self.problem.comm, p.copy()
         for k, part in enumerate(self.parts):
             mine = self.mine[k]
-            nu, w = self.normal[mine], self.w[mine]
             F = c.allreduce(f[part.nodes[:len(f)]].sum(axis=0), op=MPI.SUM)
-            nbar = c.allreduce((w[:, None] * nu).sum(0), op=MPI.SUM)
-            area = np.linalg.norm(nbar)
-            nbar = nbar / max(area, 1e-300)
+            nbar = self._mean_normal(k)
+            cos = self.sign[k][mine] * (self.normal[mine] @ nbar)
+            area = c.allreduce(float((self.w[mine] * cos).sum()), op=MPI.SUM)
             P = max(float(F @ nbar), 0.0)
-            R = c.allreduce(float(((w * p[mine])[:, None] * nu).sum(0) @ nbar), op=MPI.SUM)
+            R = c.allreduce(float((self.w[mine] * p[mine] * cos).sum()), op=MPI.SUM)
             out[mine] = p[mine] * (P / R) if R > 1e-12 * P else P / max(area, 1e-300)
         return out
+
+
+def _signs(part, nodes: np.ndarray, pair: np.ndarray | None) -> np.ndarray:
+    """sigma_i of the owned Gamma3 nodes for a part: +1 its own (the foundation's Gamma3, a
+    pair's surface), -1 where it carries the node's pair's target, else 0."""
+    own = part.nodes[nodes]
+    if pair is None:
+        return own.astype(float)
+    return np.where(own & np.isin(pair, part.surface_of), 1.0,
+                    np.where(np.isin(pair, part.target_of), -1.0, 0.0))
 
 
 def _angles(d: int) -> np.ndarray:
