@@ -101,3 +101,46 @@ def test_cone_test_against_two_contact_points(Q, P, M):
     W = np.array([Q, -P, M], dtype=float)
     expected = P > 0 and abs(M) < P and abs(Q) < mu * P
     assert _strictly_inside(A, np.zeros((4, 0)), -W) == expected
+
+
+# ------------------------------------------------------------------ held by a contact pair
+def _block_on_block(tmp_path, top=(1.0, -10.0)):
+    """The upper block of patch2d.geo on the clamped lower one, no Dirichlet data on it:
+    held only by the pair (compliance, the bound at touching, Coulomb mu = 0.3)."""
+    import yaml
+    raw = {"name": "block_on_block",
+           "mesh": {"file": str(ROOT / "tests" / "data" / "patch2d.geo"), "dim": 2},
+           "materials": {b: {"E": 1000.0, "nu": 0.3, "plane": "strain"}
+                         for b in ("upper", "lower")},
+           "boundaries": {"clamped": ["lower_bottom"]},
+           "contact": {"pairs": [{"surface": "lower_top", "target": "upper_bottom",
+                                  "normal_compliance": {"c_nu": 1000.0},
+                                  "friction": {"coulomb": {"mu": 0.3}}}]},
+           "loads": {"traction": {"upper_top": list(top)}},
+           "solver": {"delta": 1e-7}, "time": {"T": 1.0, "N": 2}}
+    path = tmp_path / "block_on_block.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    return path
+
+
+@pytest.mark.parametrize("method, nprocs", [("condensed", 1), ("snes_vi", 1),
+                                            ("condensed", 2), ("snes_vi", 2)])
+def test_block_held_by_a_pair_balances(tmp_path, method, nprocs):
+    """The force on the lower block (the pair's contact force) is the load on the upper
+    one, the clamp's reaction its opposite (on main: SNES VI ran away at step 1; the
+    condensed solver's Coulomb fixed point started from p_n = 0)."""
+    case = _block_on_block(tmp_path)
+    proc = run_cli(["run", case, "--out", tmp_path / "o", "--quiet",
+                    "--set", f"solver.method={method}"], nprocs=nprocs)
+    assert proc.returncode == 0, proc.stderr
+    for s in summary_steps(tmp_path / "o"):
+        assert np.abs(np.array(s["contact_force"]) - APPLIED).max() < 1e-6 * 10
+        assert np.abs(np.array(s["reactions"]["lower_bottom"]) + APPLIED).max() < 1e-6 * 10
+
+
+def test_block_held_by_a_pair_refuses_sliding_load(tmp_path, capsys):
+    case = _block_on_block(tmp_path, top=(3.5, -10.0))
+    assert cli_in_process(["check", case]) == 2
+    err = capsys.readouterr().err
+    assert "tangential resultant 3.5 >= mu P = 0.3 x 10 = 3" in err
+    assert "held only by contact pair(s) contact.pairs[0]" in err
