@@ -1,26 +1,33 @@
-"""A body held only by its contact with the rigid foundation (semi-coercive: no Dirichlet
-data hold its rigid motions; force control of a block pressed and sheared on Gamma3).
+"""A body held only by contact (semi-coercive: no Dirichlet data hold its rigid motions;
+force control of a block pressed and sheared on the foundation, or on a second body through
+contact.pairs).
 
 The step matrix is then singular in the free rigid motions r_k, which only the contact
 determines; the body is in equilibrium only if the contact forces can balance the applied
 load on them: with W_k = f_n(r_k) (the loads vector of step n on the motion r_k; the
 history term B^T H_n does no work on a rigid motion), there must be nodal contact forces
--p_i nu_i + t_i at the Gamma3 nodes, p_i >= 0, |t_i| <= mu p_i (Coulomb; 0 frictionless;
-the friction law's bound psi'(oo) w_i otherwise, which does not scale with p_i), with
-sum_i (-p_i nu_i + t_i) . r_k(x_i) = -W_k.  ``ContactHold.check_loads`` refuses, before
-any solve, a step whose load is not strictly inside that cone (a linear program: the slack
-of every generator maximised): a pull-off, a tangential resultant at or above mu P, a
-moment whose centre of pressure falls outside Gamma3, a free tangential motion of
-frictionless contact (Code_Aster refuses such a singular system, Abaqus stabilises it; we
-refuse, as Code_Aster).  Strictly inside, the rigid motion is determined by the contact.
+-p_i nu_i + t_i at the Gamma3 nodes (two bodies: their opposite on the target's side),
+p_i >= 0, |t_i| <= mu p_i (Coulomb; 0 frictionless; the friction law's bound psi'(oo) w_i
+otherwise, which does not scale with p_i), with sum_i (-p_i nu_i + t_i) . r_k(x_i) = -W_k.
+``ContactHold.check_loads`` refuses, before any solve, a step whose load is not strictly
+inside that cone (a linear program: the slack of every generator maximised): a pull-off, a
+tangential resultant at or above mu P, a moment whose centre of pressure falls outside
+Gamma3, a free tangential motion of frictionless contact (Code_Aster refuses such a
+singular system, Abaqus stabilises it; we refuse, as Code_Aster).  Strictly inside, the
+rigid motion is determined by the contact.  Each part is checked against its own contact
+forces as if the bodies it touches were held (exact for a body on the foundation or on a
+held body; a chain of free bodies is checked link by link).
 
 To solve a step from a state out of contact (the first step: the Newton matrix is K, singular
 in r_k), ``close_gap`` translates the part along its mean inward normal until its nearest
-Gamma3 node is half-way into the gap (on the bound without a compliance), and
-``pressure_start`` gives Coulomb's fixed point (app/model/coulomb.py) the uniform pressure
-of the normal resultant instead of p_n = 0 (with p_n = 0 nothing holds the tangential
-motion).  The condensed solver takes S as only positive semidefinite (``reduce``,
-app/solvers/condensed/condensation.py), as for a body held by a contact pair.
+Gamma3 node is half-way into the gap (on the bound without a compliance), SNES VI takes
+one Newton step with those nodes' normal dofs held (``pinned_slots``,
+``SNESVISolver.press_next``: touching the bound, the body's Gamma3 residual is 0 and the VI
+sees no active node), and ``pressure_start`` gives Coulomb's fixed point
+(app/model/coulomb.py) the last p_n scaled to the step's normal resultant, or that
+resultant spread uniformly (with p_n = 0 nothing holds the tangential motion).  The
+condensed solver takes S as only positive semidefinite (``reduce``,
+app/solvers/condensed/condensation.py).
 """
 from __future__ import annotations
 
