@@ -40,7 +40,7 @@ from vpcontact.io.errors import CaseError
 
 log = logging.getLogger("vpcontact")
 
-COULOMB_DIRECTIONS = 8      # 3D: the friction cone's inner polygon
+COULOMB_DIRECTIONS = 16     # 3D: the friction cone's inner polygon (mu cos(pi/16) = 0.98 mu)
 SLACK = 1e-9                # the least slack (per generator, load scaled to 1) accepted
 
 
