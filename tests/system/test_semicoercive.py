@@ -144,3 +144,38 @@ def test_block_held_by_a_pair_refuses_sliding_load(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "tangential resultant 3.5 >= mu P = 0.3 x 10 = 3" in err
     assert "held only by contact pair(s) contact.pairs[0]" in err
+
+
+@pytest.mark.parametrize("method", ["condensed", "snes_vi"])
+def test_hertz_cylinder_under_a_force(tmp_path, method):
+    """cases/hertz_cylinder.yaml pressed by a traction of 10 on its top instead of a
+    displacement (the roller on 'sym' holds x and the rotation, the Signorini contact the
+    vertical translation): the contact force is the load to 1e-6 and the pressure Hertz's
+    for P = 2 x 10 (the half model): half-width within 1e-3 (5e-5 measured) and peak
+    within 1 % (0.2 % measured) of a = sqrt(4 P R / (pi E*)), p0 = 2 P / (pi a)."""
+    import csv
+    import shutil
+
+    import yaml
+
+    from references.contact_closed_forms import hertz_cylinders
+    raw = yaml.safe_load((ROOT / "cases" / "hertz_cylinder.yaml").read_text())
+    raw["loads"] = {"displacement": {"sym": [0.0, None]},
+                    "traction": {"top": [0.0, -10.0]}}
+    shutil.copy(ROOT / "cases" / "hertz_cylinder.geo", tmp_path)
+    (tmp_path / "hertz_force.yaml").write_text(yaml.safe_dump(raw))
+    out = tmp_path / "o"
+    assert cli_in_process(["run", tmp_path / "hertz_force.yaml", "--out", out, "--quiet",
+                           "--no-plots", "--set", f"solver.method={method}"]) == 0
+    force = summary_steps(out)[-1]["contact_force"]
+    assert abs(force[1] - 10.0) < 1e-5 and abs(force[0]) < 1e-5
+    with open(out / "contact.csv") as f:
+        rows = list(csv.DictReader(f))
+    x = np.array([float(r["x"]) for r in rows])
+    p = np.array([float(r["neg_sigma_nu"]) for r in rows])
+    inside = p > 1e-6 * p.max()
+    use = inside & (x < x[inside].max())          # the edge node's partial load left out
+    B, A = np.polyfit(x[use] ** 2, p[use] ** 2, 1)
+    a, p0 = hertz_cylinders(20.0, 1.0, float("inf"), 1000.0, 0.3, float("inf"), 0.3)
+    assert abs(np.sqrt(-A / B) / a - 1) < 1e-3
+    assert abs(p.max() / p0 - 1) < 1e-2
