@@ -98,7 +98,9 @@ class ContactHold:
 
     # ---------------------------------------------------------------- the loads' check
     def check_loads(self, times) -> None:
-        """Refuse a step whose load the contact cannot balance (collective).
+        """Refuse a step whose load the contact cannot balance (collective).  The cone of
+        each part is built once; a load whose direction on the free motions was found
+        inside already (a proportional ramp: every step) is not tested again.
 
         Args:
             times: the step times t_1..t_N.
@@ -108,27 +110,33 @@ class ContactHold:
         """
         p = self.problem
         lv, t0 = p.load_vector, float(p.time_data.t.value)
-        last = None
-        for t in times:
+        cones = [self._generators(k) for k in range(len(self.parts))]
+        inside = [[] for _ in self.parts]       # the load directions found inside
+        for i, t in enumerate(times):
+            if lv is not None and not lv.timed and i > 0:
+                break                           # the same load at every step
             p.time_data.set_time(float(t))
             f = np.zeros(p.V.dofmap.index_map.size_local * p.dim) if lv is None else \
                 lv.at_current_time().array_r
-            if lv is not None and not lv.timed and last is not None:
-                break                   # the same load at every step
-            last = t
             for k in range(len(self.parts)):
-                self._check_part(k, f.reshape(-1, p.dim), float(t))
+                self._check_part(k, f.reshape(-1, p.dim), float(t), cones[k], inside[k])
         p.time_data.set_time(t0)
 
-    def _check_part(self, k: int, f: np.ndarray, t: float) -> None:
-        """The cone test of part k at time t (``f``: the owned nodal loads)."""
+    def _check_part(self, k: int, f: np.ndarray, t: float, cone: tuple,
+                    inside: list) -> None:
+        """The cone test of part k at time t (``f``: the owned nodal loads; ``cone``: its
+        generators; ``inside``: the unit loads found inside so far, extended)."""
         comm = self.problem.comm
-        M = self.modes[k]
-        W = comm.allreduce(np.einsum("nd,ndr->r", f, M[:len(f)]), op=MPI.SUM)
-        F = comm.allreduce(f[self.parts[k].nodes[:len(f)]].sum(axis=0), op=MPI.SUM)
-        A, box = self._generators(k)
-        if _strictly_inside(A, box, -W):
+        W = comm.allreduce(np.einsum("nd,ndr->r", f, self.modes[k][:len(f)]), op=MPI.SUM)
+        unit = W / max(np.linalg.norm(W), 1e-300)
+        if any(np.abs(unit - u).max() <= 1e-12 for u in inside):
             return
+        A, box = cone
+        ok = comm.bcast(_strictly_inside(A, box, -W) if comm.rank == 0 else None, root=0)
+        if ok:
+            inside.append(unit)
+            return
+        F = comm.allreduce(f[self.parts[k].nodes[:len(f)]].sum(axis=0), op=MPI.SUM)
         raise CaseError(f"{self.problem.case.source}: {self._why(k, F, box, t)}")
 
     def _generators(self, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -180,7 +188,7 @@ class ContactHold:
             return (f"{keys} / {fkey}.coulomb.mu: {at}: tangential resultant "
                     f"{Q:.6g} >= mu P = {mu:g} x {P:.6g} = {mu * P:.6g}: the body would slide "
                     "away; lower the tangential load or prescribe a tangential component")
-        cap = float(box[-1].sum()) * np.sqrt(self.problem.dim - 1)
+        cap = float(box[-1].sum()) / np.sqrt(self.problem.dim - 1)   # sum_i w_i psi'(oo)
         if bounded and Q >= cap * (1 - 1e-9):
             return (f"{keys} / {fkey}: {at}: tangential resultant {Q:.6g} >= the friction "
                     f"bound's resultant {cap:.6g} (psi'(oo) w_i over Gamma3): the body would "
@@ -312,22 +320,22 @@ def _strictly_inside(A: np.ndarray, box: np.ndarray, b: np.ndarray) -> bool:
     and last row) and [A B] of full rank (the interior of the cone, not of a face of it):
     the largest common slack s of a linear program, load scaled to 1."""
     from scipy.optimize import linprog
+    from scipy.sparse import diags, hstack, vstack
     scale = np.linalg.norm(b)
     B = box[:-1]
     if scale == 0.0 or np.linalg.matrix_rank(np.hstack([A, B])) < len(b):
         return False                # no load, or a free motion no contact force resists
-    r, n = A.shape
+    n, m = A.shape[1], B.shape[1]
     c = box[-1] / scale
-    m = B.shape[1]
     An = A / np.maximum(np.linalg.norm(A, axis=0), 1e-300)
-    # unknowns (a, t, s): max s, A a + B t = b / scale, a_j >= s, |t_j| + s c_j <= c_j
+    # unknowns (e, t, s) with a = s + e, e >= 0: max s, An e + B t + (An 1) s = b / scale,
+    # |t_j| + s c_j <= c_j, s <= 1
     cost = np.zeros(n + m + 1)
     cost[-1] = -1.0
-    eq = np.hstack([An, B, np.zeros((r, 1))])
-    ub = np.vstack([np.hstack([-np.eye(n), np.zeros((n, m)), np.ones((n, 1))]),
-                    np.hstack([np.zeros((m, n)), np.eye(m), c[:, None]]),
-                    np.hstack([np.zeros((m, n)), -np.eye(m), c[:, None]])])
-    rhs = np.concatenate([np.zeros(n), c, c])
-    res = linprog(cost, A_ub=ub, b_ub=rhs, A_eq=eq, b_eq=b / scale,
-                  bounds=[(None, None)] * (n + m) + [(None, 1.0)], method="highs")
+    eq = np.hstack([An, B, An.sum(axis=1, keepdims=True)])
+    ub = vstack([hstack([diags(sign * np.ones(m)), c[:, None]]) for sign in (1.0, -1.0)])
+    ub = hstack([np.zeros((2 * m, n)), ub]).tocsr() if m else None
+    res = linprog(cost, A_ub=ub, b_ub=np.concatenate([c, c]) if m else None, A_eq=eq,
+                  b_eq=b / scale, bounds=[(0, None)] * n + [(None, None)] * m + [(None, 1.0)],
+                  method="highs")
     return bool(res.status == 0 and -res.fun > SLACK)
