@@ -179,3 +179,19 @@ def test_hertz_cylinder_under_a_force(tmp_path, method):
     a, p0 = hertz_cylinders(20.0, 1.0, float("inf"), 1000.0, 0.3, float("inf"), 0.3)
     assert abs(np.sqrt(-A / B) / a - 1) < 1e-3
     assert abs(p.max() / p0 - 1) < 1e-2
+
+
+def test_shipped_sliding_case_slides_at_mu_p(tmp_path):
+    """cases/block_slide.yaml: pressed by P = 10, pushed by its left side: the push's
+    reaction grows, then stays at mu P = 3 while the block slides (Coulomb); the contact
+    force balances push and pressure."""
+    out = tmp_path / "o"
+    assert cli_in_process(["run", ROOT / "cases" / "block_slide.yaml", "--out", out,
+                           "--quiet", "--no-plots"]) == 0
+    steps = summary_steps(out)
+    push = [s["reactions"]["left"][0] for s in steps]
+    assert push[0] < 3.0 * (1 - 1e-3)                 # still sticking at the first step
+    assert abs(push[-1] / 3.0 - 1) < 1e-6
+    for s in steps:
+        force = np.array(s["contact_force"])
+        assert np.abs(force - [-s["reactions"]["left"][0], 10.0]).max() < 1e-6 * 10
