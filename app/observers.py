@@ -285,7 +285,8 @@ class HistoryOutput(Observer):
         p = sim.problem
         groups = [str(g.name) for g in p.dirichlet.groups]
         columns = history_columns(p.dim, groups, p.gamma3 is not None,
-                                  [(str(q.surface), str(q.target)) for q in sim.case.contact.pairs])
+                                  [(str(q.surface), str(q.target)) for q in sim.case.contact.pairs],
+                                  [str(g) for g in sim.case.loads.rigid])
         self.writer = HistoryWriter(sim.comm, Path(sim.outdir) / "history.csv", columns,
                                     p.dim, sim.steps)
 
@@ -360,6 +361,11 @@ class StepLog(Observer):
                   sim.t, record["newton_iterations"], record["norm_u_V"],
                   record["norm_sigma_Q"], record["max_vm"], record["max_kappa"],
                   record["wall_s"])
+        for cap, q in record.get("rigid", {}).items():
+            log.debug("         rigid cap %s: u = %s  theta = %s  F = %s  M = %s", cap,
+                      *(" ".join(f"{v:.6g}" for v in (q[k] if isinstance(q[k], list)
+                                                       else [q[k]]))
+                        for k in ("displacement", "rotation", "force", "moment")))
 
 
 class RunFiles(Observer):

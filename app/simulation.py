@@ -460,6 +460,10 @@ class Simulation:
             record["contact_force"] = forces["contact_force"]
         if forces["pair_forces"] is not None:
             record["pair_forces"] = forces["pair_forces"]
+        if p.caps is not None:                  # the rigid caps' motion and resultant
+            owned = p.V.dofmap.index_map.size_local * p.dim
+            record["rigid"] = p.caps.report(p.u.x.array[:owned],
+                                            self.boundary_residual.ravel())
         if self.gamma3_history:
             record["gamma3_history_s"] = t_g3       # memory term / slip update of this step
         if self.solver.fallback:

@@ -252,6 +252,45 @@ class Loads:
     traction: dict
     pressure: dict = field(default_factory=dict)
     displacement: dict = field(default_factory=dict)
+    rigid: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class RigidCap:
+    """One group of ``loads.rigid``: its d(d+1)/2 rigid amplitudes (2D: u_x, u_y, theta; 3D:
+    u_x, u_y, u_z, theta_x, theta_y, theta_z), each loaded or prescribed.
+
+    Attributes:
+        load: per amplitude the force or moment component given (None: not given, 0).
+        prescribed: per amplitude the displacement or rotation given (None: free).
+        reference: the reference point X_ref, or None (the group's centroid).
+    """
+
+    load: tuple
+    prescribed: tuple
+    reference: tuple | None = None
+
+    @classmethod
+    def from_data(cls, data: dict, dim: int) -> RigidCap:
+        """The cap of a case's ``loads.rigid.<group>`` mapping (checked by caprules).
+
+        Args:
+            data: force, moment, displacement, rotation, reference (each optional).
+            dim: the mesh dimension.
+
+        Returns:
+            The RigidCap.
+        """
+        turns = 1 if dim == 2 else 3
+
+        def amplitudes(move: str, turn: str) -> tuple:
+            t = data.get(turn)
+            return tuple(data.get(move) or [None] * dim) + \
+                tuple(t if isinstance(t, list) else [t] * turns)
+
+        ref = data.get("reference")
+        return cls(amplitudes("force", "moment"), amplitudes("displacement", "rotation"),
+                   tuple(ref) if ref is not None else None)
 
 
 @dataclass(frozen=True)
@@ -456,7 +495,9 @@ def build_case(data: dict, source: str, time_grid: TimeGrid, petsc: dict) -> Cas
         loads=Loads(tuple(loads["f0"]) if "f0" in loads else None,
                     {k: tuple(v) for k, v in loads.get("traction", {}).items()},
                     dict(loads.get("pressure", {})),
-                    {k: tuple(v) for k, v in loads.get("displacement", {}).items()}),
+                    {k: tuple(v) for k, v in loads.get("displacement", {}).items()},
+                    {k: RigidCap.from_data(v, mesh["dim"])
+                     for k, v in loads.get("rigid", {}).items()}),
         boundaries=Boundaries(tuple(data["boundaries"]["clamped"]),
                               tuple(data["boundaries"]["contact"])),
         initial=Initial(tuple(init["u0"]) if "u0" in init else None,

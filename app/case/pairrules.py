@@ -37,7 +37,7 @@ def settle_pairs(data: dict, source: str) -> dict:
         ``contact.pairs[i].<law>`` (see ``settle_laws``; for ``as_written``).
 
     Raises:
-        CaseError: pairs without a mesh.file, with contact.g or contact.direction, with a
+        CaseError: pairs without a mesh.file, with contact.g, with a
             boundaries.contact other than the surfaces, a surface that is its own target or
             another pair's target or surface, a clamped or loaded pair group, pairs with
             different laws of which one is written in Python.
@@ -49,11 +49,10 @@ def settle_pairs(data: dict, source: str) -> dict:
     if "file" not in data["mesh"]:
         raise CaseError(f"{source}: contact.pairs: two bodies need a mesh.file holding both "
                         "(the built-in rectangle and box are one body)")
-    for key in ("g", "direction"):
-        if key in contact:
-            raise CaseError(f"{source}: contact.{key}: not with contact.pairs (a pair's gap is "
-                            "the distance measured on the mesh plus the pair's own g; its "
-                            "normal is the target's)")
+    if "g" in contact:
+        raise CaseError(f"{source}: contact.g: not with contact.pairs (a pair's gap is the "
+                        "distance measured on the mesh plus the pair's own g: "
+                        "contact.pairs[i].g)")
     if data.get("solver", {}).get("quadrature") == "gauss":
         raise CaseError(f"{source}: solver.quadrature: 'gauss' is not possible with "
                         "contact.pairs (the node-to-segment rule is nodal; allowed: vertex)")
@@ -176,5 +175,5 @@ def _check_groups(data: dict, pairs: list, source: str) -> None:
                                 "boundaries.clamped (u = 0 there: it cannot be in contact)")
             if ref in loaded:
                 raise CaseError(f"{source}: {where}.{role}: the group {ref!r} carries a load "
-                                "(loads.traction, pressure or displacement): a contact "
+                                "(loads.traction, pressure, displacement or rigid): a contact "
                                 "surface takes no load")

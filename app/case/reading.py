@@ -25,7 +25,7 @@ MAX_FILE_BYTES = 50_000_000
 # of a few data values stay within double precision
 MIN_MAGNITUDE, MAX_MAGNITUDE = 1e-100, 1e100
 # the maps of loads keyed by boundary group: a name, or (YAML's integer keys) a physical tag
-GROUP_MAPS = ("traction", "pressure", "displacement")
+GROUP_MAPS = ("traction", "pressure", "displacement", "rigid")
 
 
 class CaseLoader(yaml.SafeLoader):

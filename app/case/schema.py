@@ -27,6 +27,26 @@ _free_component = {"oneOf": [_num, _expr, {"type": "object", "additionalProperti
                                            "required": ["table"],
                                            "properties": {"table": _table}},
                              {"type": "null"}]}
+# a rigid cap's amplitude components (force, displacement: d; moment, rotation: 1 in 2D,
+# 3 in 3D): a number, an expression in t, a table, or null (not given)
+_cap_vector = {"type": "array", "items": _free_component, "minItems": 2, "maxItems": 3}
+_cap_turn = {"oneOf": [_free_component, {"type": "array", "items": _free_component,
+                                         "minItems": 3, "maxItems": 3}]}
+_RIGID_CAP = {
+    "type": "object", "additionalProperties": False,
+    "properties": {
+        "force": {**_cap_vector, "description": "the resultant force [N (3D), N/m (2D)] on "
+                  "the cap, per component (null: not loaded)"},
+        "moment": {**_cap_turn, "description": "the resultant moment about the reference "
+                   "point (2D: one component, 3D: three; null: not loaded)"},
+        "displacement": {**_cap_vector, "description": "the prescribed displacement [m] of "
+                         "the reference point, per component (null: free)"},
+        "rotation": {**_cap_turn, "description": "the prescribed (small) rotation [rad] (2D: "
+                     "one component, 3D: three; null: free)"},
+        "reference": {"type": "array", "items": _num, "minItems": 2, "maxItems": 3,
+                      "description": "the reference point (absent: the group's centroid)"},
+    }}
+
 # a boundary part: a physical group's name (mesh.file) or tag (an integer >= 0), or a side of
 # the built-in rectangle / box (left right bottom top, and front back in 3D)
 _group = {"oneOf": [{"type": "string", "minLength": 1, "maxLength": 200},
@@ -265,7 +285,13 @@ SCHEMA = _obj({
                                      "naming the node; warned of above 80 degrees on average) "
                                      "(absent: the outward "
                                      "unit normal of Gamma3 at each node; (0, -1) / (0, 0, -1) "
-                                     "on the built-in bottom side)"},
+                                     "on the built-in bottom side).  With contact.pairs: "
+                                     "every pair's normal, from its surface toward its "
+                                     "target; each surface node is coupled to the target's "
+                                     "point on the line through it along d (a ray cast) and "
+                                     "the gap is measured along d, as linear (Hertz) theory "
+                                     "does (absent: the target's normal at the closest "
+                                     "point)"},
         "normal_compliance": _obj({
             "c_nu": {"oneOf": [_nonneg, _expr],
                      "description": "stiffness of p(r) = c_nu (r^+)^m [N/m^(2+m)] (m = 1: "
@@ -383,6 +409,14 @@ SCHEMA = _obj({
                                         "(free), at least one not null (e.g. a symmetry "
                                         "roller [0, null]); not on a clamped group, nor on a "
                                         "contact group of a case with a contact section"},
+        "rigid": {"type": "object", "additionalProperties": _RIGID_CAP,
+                  "description": "{group: {force, moment, displacement, rotation, "
+                                 "reference}}: a rigid cap: the group moves rigidly, u = U + "
+                                 "theta x (X - X_ref) (small rotations), each of its d(d+1)/2 "
+                                 "amplitudes either loaded (force, moment: a resultant, "
+                                 "default 0) or prescribed (displacement, rotation), never "
+                                 "both; components a number, expression in t or {table: "
+                                 "...}; not on a clamped, displaced or contact group"},
     }, description="loads"),
     "initial": _obj({
         "u0": {**_vector, "description": "initial displacement (must satisfy u_nu <= g on "
@@ -501,8 +535,9 @@ _CONTACT["pairs"] = {
                    "u_nu - d and the relative tangential displacement.  A pair's "
                    "normal_compliance, memory or friction replaces the contact section's "
                    "for that pair (which serves the pairs that give none); pairs with "
-                   "different memory terms share the kernel (b0 may differ).  Not with g, "
-                   "direction or boundaries.contact (the pairs' surfaces are Gamma3)"}
+                   "different memory terms share the kernel (b0 may differ).  Not with g or "
+                   "boundaries.contact (the pairs' surfaces are Gamma3); with direction, nu "
+                   "is that direction and pi(x) the target's point along it"}
 _KEYS = list(SCHEMA["properties"].items())
 _AT = [key for key, _ in _KEYS].index("material") + 1
 SCHEMA["properties"] = dict(_KEYS[:_AT] + [("materials", _MATERIALS)] + _KEYS[_AT:])

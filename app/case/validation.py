@@ -14,6 +14,7 @@ import copy
 import dataclasses
 from pathlib import Path
 
+from vpcontact.case.caprules import check_rigid_caps
 from vpcontact.case.materialrules import check_material_keys, check_planes
 from vpcontact.case.meshrules import (
     MAX_LENGTH,
@@ -79,6 +80,7 @@ def _validate(data: dict, source: str, moved: dict) -> Case:
         check_mesh(data["mesh"], source)
     try:
         check_structure(data, source)
+        check_rigid_caps(data, source)
     except CaseError:       # vectors of the other dimension: is mesh.dim the cause?
         if mesh_file is not None and dim_given:
             check_file_dimension(data["mesh"]["dim"], mesh_file, source)

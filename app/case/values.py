@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 from vpcontact.case import datacheck
+from vpcontact.case.caprules import cap_stress
 from vpcontact.case.materialrules import material_sections, section_errors
 from vpcontact.case.meshrules import DEFAULT_BOUNDARIES
 from vpcontact.case.model import Case
@@ -75,7 +76,9 @@ def check_values(case: Case, length: float | None = None, samples=None) -> float
         raise CaseError(f"{case.source}: {exc}") from None
     length = body_length(data) if length is None else length
     E = max(moduli)
-    return max(loads, sigma0, E * max(u0, moved) / length)
+    caps = cap_stress(data["loads"].get("rigid", {}), mesh["dim"], time_grid.times, length, E,
+                      case.source)
+    return max(loads, sigma0, E * max(u0, moved) / length, caps)
 
 
 def check_values_on_mesh(case: Case, samples, length: float) -> float:

@@ -55,7 +55,9 @@ def report(case, comm) -> list[str]:
         + (f"; contact pairs: {pairs}" if pairs
            else f"; contact: {', '.join(map(str, b.contact)) or '-'}")
         + (f"; displacement: {', '.join(map(str, case.loads.displacement))}"
-           if case.loads.displacement else ""),
+           if case.loads.displacement else "")
+        + (f"; rigid caps: {', '.join(map(str, case.loads.rigid))}"
+           if case.loads.rigid else ""),
         f"dofs: {problem.num_dofs} (P1 displacement), Gamma3 nodes: {n_g}",
         f"time: T = {case.time.T:g}, {case.time.N} steps, k = "
         + (f"{ks[0]:g}" if case.time.uniform else f"{ks.min():g}..{ks.max():g}")

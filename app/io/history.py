@@ -17,14 +17,33 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
+
 from vpcontact.io.files import atomic_write
 from vpcontact.io.output import csv_text, on_rank0
 
 STATES = ("bound", "compliance", "separated", "prescribed")
 
 
+def rigid_columns(dim: int, cap: str) -> list[str]:
+    """The columns of a rigid cap: its displacement, rotation, force and moment.
+
+    Args:
+        dim: the body's dimension.
+        cap: the cap's group.
+
+    Returns:
+        rigid_<cap>_u_x, ..., rigid_<cap>_theta (3D: theta_x, ...), rigid_<cap>_F_x, ...,
+        rigid_<cap>_M (3D: M_x, ...).
+    """
+    axes = "xyz"[:dim]
+    turns = [""] if dim == 2 else [f"_{a}" for a in axes]
+    return [f"rigid_{cap}_{q}" for q in [f"u_{a}" for a in axes] + [f"theta{a}" for a in turns]
+            + [f"F_{a}" for a in axes] + [f"M{a}" for a in turns]]
+
+
 def history_columns(dim: int, groups: list[str], contact: bool,
-                    pairs: list[tuple[str, str]] = ()) -> list[str]:
+                    pairs: list[tuple[str, str]] = (), caps: list[str] = ()) -> list[str]:
     """The columns of history.csv.
 
     Args:
@@ -32,13 +51,15 @@ def history_columns(dim: int, groups: list[str], contact: bool,
         groups: the Dirichlet groups' names (their reaction resultants).
         contact: the case has Gamma3 (contact force and node counts).
         pairs: (surface, target) of each contact pair (two bodies), or none.
+        caps: the rigid caps' groups (loads.rigid), or none.
 
     Returns:
         n, t, k, the norms of u_n, sigma_n, kappa_n, max von Mises and kappa, the contact
         force on the body (contact_force_x, ...; with pairs, on the surfaces summed over
         the pairs: several pairs' surfaces are different bodies) and, per pair, on its
         surface's and its target's body (pair<i>_<group>_x, ...), the reaction
-        on each group (reaction_<group>_x, ...), the Gamma3 node counts (nodes_bound, ...),
+        on each group (reaction_<group>_x, ...), each rigid cap's motion and resultant
+        (rigid_columns), the Gamma3 node counts (nodes_bound, ...),
         Newton and linear iterations, the step's wall time.
     """
     axes = "xyz"[:dim]
@@ -47,6 +68,7 @@ def history_columns(dim: int, groups: list[str], contact: bool,
         cols += [f"contact_force_{a}" for a in axes]
     cols += [f"pair{i}_{g}_{a}" for i, pair in enumerate(pairs) for g in pair for a in axes]
     cols += [f"reaction_{g}_{a}" for g in groups for a in axes]
+    cols += [c for cap in caps for c in rigid_columns(dim, cap)]
     if contact:
         cols += [f"nodes_{s}" for s in STATES]
     return cols + ["newton_iterations", "linear_iterations", "wall_s"]
@@ -72,6 +94,10 @@ def history_row(record: dict, dim: int) -> dict:
     for i, pair in enumerate(record.get("pair_forces", ())):
         for g, key in ((pair["surface"], "on_surface"), (pair["target"], "on_target")):
             row.update({f"pair{i}_{g}_{a}": pair[key][j] for j, a in enumerate(axes)})
+    for cap, q in record.get("rigid", {}).items():
+        values = [v for key in ("displacement", "rotation", "force", "moment")
+                  for v in np.atleast_1d(q[key])]
+        row.update(zip(rigid_columns(dim, cap), values))
     states = record.get("contact_states")
     if states is not None:
         row.update({f"nodes_{s}": states.get(s, 0) for s in STATES})

@@ -67,7 +67,8 @@ class DirichletData:
             fn.x.scatter_forward()
 
 
-def build_dirichlet(V, facets: dict, clamped: list, displacement: dict, time_data) -> DirichletData:
+def build_dirichlet(V, facets: dict, clamped: list, displacement: dict, time_data,
+                    exclude: np.ndarray | None = None) -> DirichletData:
     """The Dirichlet conditions of the clamped groups and of ``loads.displacement``.
 
     Args:
@@ -76,6 +77,8 @@ def build_dirichlet(V, facets: dict, clamped: list, displacement: dict, time_dat
         clamped: the clamped group names (Gamma1).
         displacement: group name -> components (number, expression, table or None: free).
         time_data: the TimeData of the run (UFL of expressions, time Constants).
+        exclude: local nodes that ``loads.displacement`` does not prescribe (a rigid cap's:
+            the cap's motion wins where a displaced group meets it), or None.
 
     Returns:
         The DirichletData.
@@ -92,6 +95,9 @@ def build_dirichlet(V, facets: dict, clamped: list, displacement: dict, time_dat
                 continue
             Vi, _ = V.sub(i).collapse()
             dofs = fem.locate_dofs_topological((V.sub(i), Vi), fdim, facets[name])
+            if exclude is not None:
+                keep = ~np.isin(dofs[1], exclude)
+                dofs = [dofs[0][keep], dofs[1][keep]]
             value = fem.Function(Vi)
             if isinstance(comp, (int, float)):
                 value.x.array[:] = float(comp)
@@ -297,7 +303,7 @@ def _gather_parts(V, node_label: np.ndarray, gid: np.ndarray, cells: np.ndarray)
     return BodyParts(part, count.astype(int), point, lo, hi)
 
 
-def free_motions(V, fixed: np.ndarray, parts: BodyParts) -> list[np.ndarray]:
+def free_motions(V, fixed: np.ndarray, parts: BodyParts, caps=None) -> list[np.ndarray]:
     """The rigid motions that the prescribed components leave free, part by part
     (collective).
 
@@ -310,6 +316,8 @@ def free_motions(V, fixed: np.ndarray, parts: BodyParts) -> list[np.ndarray]:
         V: the P1 vector space.
         fixed: bool (local nodes, d): prescribed components.
         parts: the body's connected components.
+        caps: the rigid caps (app/model/rigidcap.py), whose prescribed amplitudes block
+            motions too (their free amplitudes and their slave dofs block none), or None.
 
     Returns:
         For each part, the free motions as columns (r, free) in the basis of rigid_modes.
@@ -331,6 +339,8 @@ def free_motions(V, fixed: np.ndarray, parts: BodyParts) -> list[np.ndarray]:
         R = rows[ends[k]:ends[k + 1]]
         M[k] = R.T @ R
     V.mesh.comm.Allreduce(MPI.IN_PLACE, M, op=MPI.SUM)
+    for k, R in caps.blocked(parts.label, centre, scale) if caps is not None else ():
+        M[k] += R.T @ R
     free = []
     for Mk in M:
         w, vecs = np.linalg.eigh(Mk)
@@ -371,7 +381,7 @@ def _held_by_pairs(free: list, links: list) -> dict:
 
 
 def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
-                        foundation=None) -> list:
+                        caps=None, foundation=None) -> list:
     """Refuse Dirichlet data that leave a rigid motion of the body, or of one of its
     connected parts, free (collective): the step matrix would be singular.
 
@@ -389,6 +399,7 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
         source: the case file, for the message.
         pairs: for each contact pair, (its surface's local facets, its target's local
             facets); none for a case without pairs.
+        caps: the rigid caps, or None (free_motions).
         foundation: the local facets of Gamma3 on the rigid foundation
             (boundaries.contact), or None: a part carrying them may leave rigid motions free,
             held by the contact with the foundation where the load presses the part onto it
@@ -404,7 +415,7 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
     """
     d = V.dofmap.index_map_bs
     parts = body_parts(V)
-    free = free_motions(V, fixed, parts)
+    free = free_motions(V, fixed, parts, caps)
     links = _pair_parts(V, parts, list(pairs)) if len(pairs) else []
     via = _held_by_pairs(free, links) if links else {}
     on_foundation = set() if foundation is None else \
@@ -413,6 +424,7 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
     names = ["translation x", "translation y", "translation z"][:d] + \
         (["rotation"] if d == 2 else ["rotation about z", "rotation about x",
                                        "rotation about y"])
+    rigid = " / loads.rigid" if caps is not None else ""
     for k, f in enumerate(free):
         if f.shape[1] == 0:
             continue
@@ -431,9 +443,9 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
             log.info("%s: %d rigid motion(s) of %s (like %s) held only by the contact with the "
                      "foundation (boundaries.contact)", source, f.shape[1], where, what)
         else:
-            raise CaseError(f"{source}: boundaries.clamped / loads.displacement: the prescribed "
-                            f"displacements leave {f.shape[1]} rigid motion(s) of {where} free "
-                            f"(like {what}); clamp a group "
+            raise CaseError(f"{source}: boundaries.clamped / loads.displacement{rigid}: the "
+                            f"prescribed displacements leave {f.shape[1]} rigid motion(s) of "
+                            f"{where} free (like {what}); clamp a group "
                             f"{'on that part ' if len(free) > 1 else ''}"
                             "or prescribe more components")
         held.append(_held_part(parts, k, f, links))

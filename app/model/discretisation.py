@@ -25,6 +25,7 @@ from vpcontact.model.dirichlet import build_dirichlet, check_rigid_motions
 from vpcontact.model.frames import ContactFrames, build_frames, facet_normals, gap_values
 from vpcontact.model.loads import TimeData
 from vpcontact.model.pairs import project_pairs
+from vpcontact.model.rigidcap import build_caps
 
 
 @dataclass
@@ -123,6 +124,7 @@ class Discretisation:
             [(r, f"loads.traction.{r}") for r in loads.traction] + \
             [(r, f"loads.pressure.{r}") for r in loads.pressure] + \
             [(r, f"loads.displacement.{r}") for r in loads.displacement] + \
+            [(r, f"loads.rigid.{r}") for r in loads.rigid] + \
             [(p.target, f"contact.pairs[{i}].target") for i, p in enumerate(pairs)]
         self.tags = {ref: self.group_tag(ref, key) for ref, key in keys}
         for i, p in enumerate(pairs):
@@ -136,15 +138,29 @@ class Discretisation:
             if (why := interior_role(self.body, key, ref, self.tags[ref])) is not None:
                 raise CaseError(f"{case.source}: {why}")
         self.facets = {ref: ft.indices[ft.values == tag] for ref, tag in self.tags.items()}
+        taken = [(r, "boundaries.clamped") for r in b.clamped] + \
+            (contact if case.contact.active else []) + \
+            [(p.target, f"contact.pairs[{i}].target") for i, p in enumerate(pairs)]
+        self.caps = build_caps(self.V, self.facets, loads.rigid, case.source,
+                               self._group_nodes(taken), self._group_nodes(
+                                   [(r, f"loads.displacement.{r}") for r in loads.displacement]))
         self.dirichlet = build_dirichlet(self.V, self.facets, list(b.clamped),
-                                         dict(loads.displacement), self.time_data)
+                                         dict(loads.displacement), self.time_data,
+                                         None if self.caps is None else self.caps.nodes)
         self.bcs = self.dirichlet.bcs
         foundation = np.concatenate([self.facets[r] for r in b.contact]) \
             if case.contact.active and not pairs else None
         self.held_by_contact = check_rigid_motions(
             self.V, self.dirichlet.fixed, case.source,
-            [(self.facets[p.surface], self.facets[p.target]) for p in pairs], foundation)
+            [(self.facets[p.surface], self.facets[p.target]) for p in pairs], self.caps,
+            foundation)
         self.clamped_nodes = self.dirichlet.clamped_nodes
+
+    def _group_nodes(self, keys: list) -> dict:
+        """Case key -> the local nodes of its group (for the caps' shared-node rule)."""
+        fdim = self.dim - 1
+        return {key: fem.locate_dofs_topological(self.V, fdim, self.facets[ref])
+                for ref, key in keys} if self.case.loads.rigid else {}
 
     def _check_roles(self) -> None:
         """The rules validation applies to the groups' spellings (app/case/rules.py: no group
@@ -158,7 +174,7 @@ class Discretisation:
         b, loads, source = self.case.boundaries, self.case.loads, self.case.source
         roles = [("boundaries.clamped", b.clamped), ("boundaries.contact", b.contact)] + \
             [(f"loads.{kind}", tuple(getattr(loads, kind)))
-             for kind in ("traction", "pressure", "displacement")]
+             for kind in ("traction", "pressure", "displacement", "rigid")]
         for key, refs in roles:
             seen = {}
             for ref in refs:

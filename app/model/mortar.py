@@ -7,11 +7,12 @@ displacement of node i is taken as the phi_i-weighted mean of the jump over its 
     M_ik = int_surface phi_i(x) psi_k(pi(x)) ds(x),
 
 phi_i the surface's and psi_k the target's P1 shape functions, pi the closest-point
-projection (app/model/pairgeometry.py).  The contact force f_i = D_i p_i of node i then
-reaches the target as sum_i c_ik f_i, which for a uniform pressure p is p int psi_k ds: the
-consistent nodal forces of the target (the contact patch test), where the node-to-segment
-rule (c_ik = psi_k(pi(x_i))) gives a pressure that varies with the two meshes' offset.  The
-rows sum to 1, so a rigid translation gives no jump.
+projection, or the ray cast along the pairs' fixed direction (app/model/pairgeometry.py).
+The contact force f_i = D_i p_i of node i then reaches the target as sum_i c_ik f_i, which
+for a uniform pressure p is p int psi_k ds: the consistent nodal forces of the target (the
+contact patch test), where the node-to-segment rule (c_ik = psi_k(pi(x_i))) gives a pressure
+that varies with the two meshes' offset.  The rows sum to 1, so a rigid translation gives no
+jump.
 
 M is integrated by a composite rule on each surface facet (segments cut in SUB_2D pieces with
 2 Gauss points, triangles in SUB_3D^2 with the 3-point edge-midpoint rule): the integrand is
@@ -74,7 +75,8 @@ def facet_measure(coords: np.ndarray) -> np.ndarray:
 
 
 def mortar_triplets(surface: np.ndarray, surface_nodes: np.ndarray, target: np.ndarray,
-                    target_normals: np.ndarray, target_nodes: np.ndarray) -> tuple:
+                    target_normals: np.ndarray, target_nodes: np.ndarray,
+                    project=project_points) -> tuple:
     """The entries of M from some surface facets (module docstring).
 
     Args:
@@ -83,6 +85,8 @@ def mortar_triplets(surface: np.ndarray, surface_nodes: np.ndarray, target: np.n
         target: (nt, nv, d) the target facets' vertex coordinates.
         target_normals: (nt, d) their outward unit normals.
         target_nodes: (nt, nv) their global nodes.
+        project: pi, ``project_points`` (the closest point) or a ray cast along the pair's
+            fixed direction (``cast_points``).
 
     Returns:
         (rows, cols, values): surface global node i, target global node k, the

@@ -313,3 +313,98 @@ def project_points(points, facets, facet_normals, tol: float = 1e-8) -> Projecti
     outside = _outside(facet, weights, lam, facets, tol * h, tol)
     return Projection(facet=np.where(outside, -1, facet), weights=weights, closest=closest,
                       normal=normal, distance=distance, inside=~outside)
+
+
+def _plane_basis(direction: np.ndarray) -> np.ndarray:
+    """(d, d - 1) an orthonormal basis of the plane (2D: the line) orthogonal to a unit
+    direction."""
+    d = len(direction)
+    q, _ = np.linalg.qr(np.column_stack([direction, np.eye(d)]))
+    return q[:, 1:d]
+
+
+def _cast_hits(p: np.ndarray, v: np.ndarray, tol: float) -> np.ndarray:
+    """The barycentric coordinates (n, nv) of the projected points p (n, d - 1) in the
+    projected facets v (n, nv, d - 1): NaN rows where a projected facet is degenerate
+    (parallel to the direction) or the point lies outside it (a coordinate < -tol)."""
+    if v.shape[1] == 2:
+        a, b = v[:, 0, 0], v[:, 1, 0]
+        span = b - a
+        flat = np.abs(span) <= tol * np.abs(v).max(initial=1.0)
+        s = (p[:, 0] - a) / np.where(flat, 1.0, span)
+        lam = np.stack([1.0 - s, s], axis=1)
+    else:
+        e1, e2, r = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0], p - v[:, 0]
+        det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+        flat = np.abs(det) <= tol * np.einsum("ij,ij->i", e1, e1)
+        safe = np.where(flat, 1.0, det)
+        s = (r[:, 0] * e2[:, 1] - r[:, 1] * e2[:, 0]) / safe
+        t = (e1[:, 0] * r[:, 1] - e1[:, 1] * r[:, 0]) / safe
+        lam = np.stack([1.0 - s - t, s, t], axis=1)
+    bad = flat | (lam < -tol).any(axis=1)
+    return np.where(bad[:, None], np.nan, lam)
+
+
+def cast_points(points, facets, facet_normals, direction, tol: float = 1e-8) -> Projection:
+    """Project points onto a target surface along one fixed direction (a ray cast): the
+    point pi(x) = x + d(x) e of the target facets on the line through x along the unit
+    direction e, where the line enters the target (its outward normal n has n . e < 0);
+    of several such points the one of the smallest |d(x)| (ties: the smallest facet index).
+
+    The gap of linear contact theory (Johnson, Contact Mechanics, ch. 4): measured along
+    one approach direction, d(x) > 0 where x lies outside the target (separation).  The
+    facets and points are projected onto the plane orthogonal to e, where the facet
+    containing x's image is found (a KD tree on the projected centroids); an affine map
+    keeps the barycentric coordinates, which are pi(x)'s P1 weights.
+
+    Args:
+        points: (m, d) the points x (d = 2 or 3).
+        facets: (nf, nv, d) the target facets' vertex coordinates.
+        facet_normals: (nf, d) the target body's outward unit normal on each facet.
+        direction: (d,) the approach direction e (from the points toward the target).
+        tol: relative tolerance of a projected image inside a facet (barycentrics >= -tol).
+
+    Returns:
+        The Projection (``project_points``'s fields; ``normal`` the facet's outward normal,
+        ``distance`` d(x) along e); a point whose line meets no facet entering the target
+        is outside (inside False, facet -1, weights 0, closest x, normal 0, distance 0).
+    """
+    facets = _checked_facets(facets)
+    nf, nv, d = facets.shape
+    points = np.asarray(points, dtype=float).reshape(-1, d)
+    normals = np.asarray(facet_normals, dtype=float).reshape(nf, d)
+    e = np.asarray(direction, dtype=float)
+    e = e / np.linalg.norm(e)
+    basis = _plane_basis(e)
+    fp, pp = facets @ basis, points @ basis
+    centroids = fp.mean(axis=1)
+    radius = np.linalg.norm(fp - centroids[:, None], axis=2).max(initial=0.0)
+    entering = normals @ e < 0.0
+    m = len(points)
+    facet, dist = np.full(m, -1), np.zeros(m)
+    weights = np.zeros((m, nv))
+    if m == 0 or nf == 0:
+        return Projection(facet, weights, points.copy(), np.zeros((m, d)), dist,
+                          np.zeros(m, bool))
+    tree = cKDTree(centroids)
+    near = tree.query_ball_point(pp, radius * (1 + 1e-9) + tol * max(radius, 1e-300))
+    counts = np.fromiter((len(c) for c in near), dtype=np.int64, count=m)
+    row = np.repeat(np.arange(m), counts)
+    cand = np.fromiter(itertools.chain.from_iterable(near), dtype=np.int64,
+                       count=int(counts.sum()))
+    lam = _cast_hits(pp[row], fp[cand], tol)
+    ok = ~np.isnan(lam[:, 0]) & entering[cand]
+    row, cand, lam = row[ok], cand[ok], np.clip(lam[ok], 0.0, None)
+    lam /= lam.sum(axis=1, keepdims=True)
+    hit = np.einsum("ik,ikd->id", lam, facets[cand])
+    t = np.einsum("ij,j->i", hit - points[row], e)
+    order = np.lexsort((cand, np.abs(t), row))
+    first = order[np.unique(row[order], return_index=True)[1]]
+    at = row[first]
+    facet[at], weights[at], dist[at] = cand[first], lam[first], t[first]
+    inside = facet >= 0
+    closest = points.copy()
+    closest[at] = hit[first]
+    normal = np.where(inside[:, None], normals[np.maximum(facet, 0)], 0.0)
+    return Projection(facet=facet, weights=weights, closest=closest, normal=normal,
+                      distance=dist, inside=inside)

@@ -8,7 +8,10 @@ measured initial distance d_i = (pi(x_i) - x_i) . nu_i >= 0.  The relative displ
 
     [u]_i = u(x_i) - u(pi(x_i)) = u_i - sum_k N_ik u_k
 
-is a fixed linear combination of dofs (the rows of the jump matrix B), and the contact laws
+is a fixed linear combination of dofs (the rows of the jump matrix B).  With a fixed approach
+direction e (``contact.direction``, from the surfaces toward the targets: the gap of linear
+contact theory, Johnson ch. 4) pi(x_i) is instead the point of the target on the line through
+x_i along e (a ray cast), nu_i = e and d_i the distance along e.  The contact laws
 of the rigid-foundation case act on
 
     w_i = [u]_i - d_i nu_i:    w_i . nu_i = [u]_nu - d_i  (the interpenetration when > 0),
@@ -154,9 +157,8 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
             surfaces that do not face each other, an initial interpenetration (on every
             rank).
     """
-    from vpcontact.model.pairgeometry import project_points  # scipy: only with pairs
-
     case, d = disc.case, disc.dim
+    project = projector(case.contact.direction)
     x = disc.V.tabulate_dof_coordinates()[nodes, :d]
     m = len(nodes)
     pair = np.full(m, -1)
@@ -173,18 +175,22 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
         targets.append(target)
         _refuse(disc, sel.any() and len(target[0]) == 0, f"contact.pairs[{i}].target",
                 f"the group {p.target!r} has no facets")
-        proj = project_points(x[sel], target[0], target[1]) if sel.any() else None
+        if case.contact.direction is not None:                        # collective
+            _check_direction(disc, p, outward[sel], x[sel])
+        proj = project(x[sel], target[0], target[1]) if sel.any() else None
         inside = proj.inside if proj is not None else np.ones(0, bool)
         _refuse_count(disc, ~inside, x[sel], f"contact.pairs[{i}]",
                       f"node(s) of {p.surface!r} project outside the target {p.target!r} "
                       "(past its free edge): make the surface group cover only the part "
                       "that faces the target, or the target larger")
         if proj is not None:
-            geo.normal[sel] = -proj.normal
+            geo.normal[sel] = -proj.normal if case.contact.direction is None \
+                else case.contact.direction
             geo.distance[sel] = proj.distance
             geo.g[sel] = p.g
         _check_facing(disc, i, p, outward[sel], geo.normal[sel], x[sel])   # collective
-        couplings.append(_coupling(disc, p, nodes, np.flatnonzero(sel), proj, target))
+        couplings.append(_coupling(disc, p, nodes, np.flatnonzero(sel), proj, target,
+                                   project))
     geo.rows, geo.cols, geo.coef = (np.concatenate([c[k] for c in couplings])
                                     for k in range(3))
     _coupled_distance(geo, x, targets)
@@ -193,7 +199,25 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
     return geo
 
 
-def _coupling(disc, p, nodes, sel, proj, target) -> tuple:
+def projector(direction):
+    """pi of the pairs: the closest point, or the ray cast along a fixed direction.
+
+    Args:
+        direction: contact.direction (unit), or None.
+
+    Returns:
+        f(points, facets, facet_normals) -> Projection: ``project_points`` without a
+        direction, else ``cast_points`` along it (the gap of linear contact theory,
+        measured along one approach direction).
+    """
+    from vpcontact.model import pairgeometry  # scipy: only with pairs
+    if direction is None:
+        return pairgeometry.project_points
+    return lambda points, facets, normals: pairgeometry.cast_points(points, facets, normals,
+                                                                    direction)
+
+
+def _coupling(disc, p, nodes, sel, proj, target, project) -> tuple:
     """(rows, cols, coef) of one pair's owned nodes (positions ``sel`` in ``nodes``)."""
     from scipy.sparse import coo_matrix
 
@@ -207,7 +231,7 @@ def _coupling(disc, p, nodes, sel, proj, target) -> tuple:
         return (np.repeat(sel[owned], nv), target[2][proj.facet[owned]].ravel(),
                 proj.weights[owned].ravel())
     rows, cols, vals = mortar_triplets(*local_facets(disc, p.surface, owned=True)[::2],
-                                       *target)
+                                       *target, project=project)
     parts = disc.comm.allgather((rows, cols, vals))
     rows, cols, vals = (np.concatenate([q[k] for q in parts]) for k in range(3))
     start = disc.V.dofmap.index_map.local_range[0]
@@ -294,6 +318,16 @@ def _check_facing(disc, i, p, outward, nu, x) -> None:
     _refuse_count(disc, cos <= FACING_MIN, x, f"contact.pairs[{i}]",
                   f"node(s) of {p.surface!r} whose outward normal points away from the "
                   f"target {p.target!r} (the surfaces do not face each other there)")
+
+
+def _check_direction(disc, p, outward, x) -> None:
+    """Refuse a contact.direction that does not point from a pair's surface toward its
+    target: under 90 degrees to the surface's outward normal at every node."""
+    cos = outward @ np.asarray(disc.case.contact.direction, float)
+    _refuse_count(disc, cos <= FACING_MIN, x, "contact.direction",
+                  f"node(s) of {p.surface!r} whose outward normal makes 90 degrees or more "
+                  "with the direction (it must point from each pair's surface toward its "
+                  f"target, here {p.target!r})")
 
 
 def _check_distance(disc, i, p, geo, sel, x) -> None:

@@ -413,10 +413,12 @@ class ContactProblem:
 
     @cached_property
     def boundary_layer(self) -> BoundaryLayer:
-        """The nodal forces at the nodes of the Dirichlet groups, of Gamma3 and of the pairs'
-        targets (app/model/layer.py); built when first used (collective)."""
+        """The nodal forces at the nodes of the Dirichlet groups, of Gamma3, of the pairs'
+        targets and of the rigid caps (app/model/layer.py); built when first used
+        (collective)."""
         refs = [g.name for g in self.dirichlet.groups] + list(self.case.boundaries.contact) \
-            + [q.target for q in self.case.contact.pairs]      # two bodies: the targets
+            + [q.target for q in self.case.contact.pairs] \
+            + list(self.case.loads.rigid)      # two bodies: the targets; the rigid caps
         return BoundaryLayer(self, refs)
 
     @cached_property
@@ -591,7 +593,7 @@ _FROM_DISCRETISATION = (
     "mesh", "comm", "dim", "body", "V", "Q", "Y", "tags", "dirichlet", "bcs", "gamma3",
     "gamma3_local_nodes", "frames", "gamma3_tags", "group_tag", "gamma3_facet_coordinates",
     "gamma3_exact_measure", "num_cells", "num_vertices", "num_dofs", "num_gamma3_nodes",
-    "num_owned_cells", "length_scale", "gap_scale", "cell_volumes", "reduce", "pairs")
+    "num_owned_cells", "length_scale", "gap_scale", "cell_volumes", "reduce", "pairs", "caps")
 
 
 def _discretisation_attribute(name: str) -> property:

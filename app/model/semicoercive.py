@@ -37,6 +37,7 @@ import numpy as np
 from mpi4py import MPI
 
 from vpcontact.io.errors import CaseError
+from vpcontact.model.dirichlet import rigid_modes
 
 log = logging.getLogger("vpcontact")
 
@@ -127,7 +128,9 @@ class ContactHold:
         """The cone test of part k at time t (``f``: the owned nodal loads; ``cone``: its
         generators; ``inside``: the unit loads found inside so far, extended)."""
         comm = self.problem.comm
-        W = comm.allreduce(np.einsum("nd,ndr->r", f, self.modes[k][:len(f)]), op=MPI.SUM)
+        cap_work, cap_force = self._cap_loads(k, t)
+        W = comm.allreduce(np.einsum("nd,ndr->r", f, self.modes[k][:len(f)]), op=MPI.SUM) \
+            + cap_work
         unit = W / max(np.linalg.norm(W), 1e-300)
         if any(np.abs(unit - u).max() <= 1e-12 for u in inside):
             return
@@ -136,8 +139,29 @@ class ContactHold:
         if ok:
             inside.append(unit)
             return
-        F = comm.allreduce(f[self.parts[k].nodes[:len(f)]].sum(axis=0), op=MPI.SUM)
+        F = comm.allreduce(f[self.parts[k].nodes[:len(f)]].sum(axis=0), op=MPI.SUM) \
+            + cap_force
         raise CaseError(f"{self.problem.case.source}: {self._why(k, F, box, t)}")
+
+    def _cap_loads(self, k: int, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(the work of the rigid caps' loads (loads.rigid: force F, moment M about X_ref)
+        on part k's free motions at t, F . r(X_ref) + M . theta(r); their force F summed)
+        (collective)."""
+        from vpcontact.case.caprules import component_value
+        from vpcontact.model.rigidcap import _ORDER
+        caps, part = self.problem.caps, self.parts[k]
+        W, F = np.zeros(part.free.shape[1]), np.zeros(self.problem.dim)
+        for c in () if caps is None else caps.caps:
+            if not self.problem.comm.allreduce(bool(part.nodes[c.nodes].any()), op=MPI.LOR):
+                continue
+            d = len(c.reference)
+            at = rigid_modes(((c.reference - part.centre) / part.scale)[None, :])[0]
+            amp = np.vstack([at, np.eye(at.shape[1])[_ORDER[d][d:]] / part.scale])
+            load = np.array([0.0 if v is None else component_value(v, t)
+                             for v in c.spec.load])
+            W += load @ amp @ part.free
+            F += load[:d]
+        return W, F
 
     def _generators(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """(the cone's generators, the bounded tangential columns with their bounds) of

@@ -66,7 +66,8 @@ def held_by_contact(problem) -> bool:
         True if some part has a free rigid motion.
     """
     from vpcontact.model.dirichlet import body_parts, free_motions
-    free = free_motions(problem.V, problem.dirichlet.fixed, body_parts(problem.V))
+    free = free_motions(problem.V, problem.dirichlet.fixed, body_parts(problem.V),
+                        problem.caps)
     return any(f.shape[1] > 0 for f in free)
 
 

@@ -20,6 +20,12 @@ J_n is convex).  The Gamma3 terms are evaluated on w = B u - c_w = C x with C = 
 Dirichlet dofs keep their index (they are never slot dofs, and target dofs keep x = u): x
 takes their values before each solve, and their rows and columns are the identity with a
 zero residual, so Newton never moves them.
+
+Rigid caps (app/model/rigidcap.py) add their elimination T on the left, u = T (R (I + S) x
++ c): P = T R (I + S) and x = (I - S) R^T (T^+ u - c) (the caps' nodes are neither Gamma3
+nor target nodes, so T commutes with R and S and T c = c); the caps' slaves and prescribed
+amplitudes are fixed dofs of x like the Dirichlet dofs, and their loads enter the residual
+at the amplitudes.
 """
 from __future__ import annotations
 
@@ -50,7 +56,12 @@ class PairVariables:
         self.problem = problem
         ops = problem.pair_operators
         self.R = rotation_matrix(problem)
+        self.caps, self.T = problem.caps, None
         self.P = self.R.matMult(ops.lift)
+        if self.caps is not None:                  # u = T (R (I + S) x + c)
+            self.T, self.T_inv = self.caps.matrices()
+            lifted, self.P = self.P, self.T.matMult(self.P)
+            lifted.destroy()
         self.C = ops.B.matMult(self.P)
         self.unlift = ops.unlift
         self.c = ops.c
@@ -59,6 +70,8 @@ class PairVariables:
         n = imap.size_local * problem.dim
         dofs = np.unique(np.concatenate([bc.dof_indices()[0] for bc in problem.bcs]
                                         or [np.zeros(0, np.int32)]))
+        if self.caps is not None:
+            dofs = np.union1d(dofs, self.caps.fixed)
         self.dirichlet = dofs[dofs < n].astype(PETSc.IntType)
         self.dirichlet_global = (self.dirichlet + imap.local_range[0] * problem.dim
                                  ).astype(PETSc.IntType)
@@ -76,17 +89,36 @@ class PairVariables:
         return Kx
 
     def to_x(self, u: PETSc.Vec, x: PETSc.Vec) -> None:
-        """x = (I - S) R^T (u - c), then the Dirichlet values at their dofs.
+        """x = (I - S) R^T (T^+ u - c), then the Dirichlet values (and the caps' fixed
+        values) at their dofs.
 
         Args:
             u: the displacement.
             x: output.
         """
-        u.copy(self.x_work)
+        if self.T is None:
+            u.copy(self.x_work)
+        else:
+            self.T_inv.mult(u, self.x_work)
         self.x_work.axpy(-1.0, self.c)
         self.R.multTranspose(self.x_work, self.y_work)
         self.unlift.mult(self.y_work, x)
+        self.fix(x)
+
+    def fix(self, x: PETSc.Vec) -> None:
+        """The Dirichlet values and the caps' fixed values (at the step's t) at their dofs.
+
+        Args:
+            x: a vector of x's layout.
+        """
         fem.petsc.set_bc(x, self.problem.bcs)
+        if self.caps is not None:
+            self.caps.fix(x, self.time)
+
+    @property
+    def time(self) -> float:
+        """The step's t_n (of the time data)."""
+        return float(self.problem.time_data.t.value)
 
     def modes(self, Z: np.ndarray) -> np.ndarray:
         """Rigid body modes in x: (I - S) R^T z for each column z (no offset c).
@@ -101,6 +133,9 @@ class PairVariables:
         out = Z.copy()
         for j in range(Z.shape[1]):
             z.array[:] = Z[:, j]
+            if self.T is not None:
+                self.T_inv.mult(z, y)
+                y.copy(z)
             self.R.multTranspose(z, y)
             self.unlift.mult(y, z)
             out[:, j] = z.array
@@ -121,7 +156,8 @@ class PairVariables:
 
     def destroy(self) -> None:
         """Free the PETSc objects."""
-        for obj in (self.R, self.P, self.C, self.x_work, self.y_work):
+        for obj in (self.R, self.P, self.C, self.x_work, self.y_work) + \
+                ((self.T, self.T_inv) if self.T is not None else ()):
             obj.destroy()
 
 
@@ -196,6 +232,8 @@ class PairMap(PairVariables):
         self.P.multTranspose(self.b_u, b)
         if self.b_w is not None:
             self.C.multTransposeAdd(self.b_w, b, b)
+        if self.caps is not None:
+            self.caps.add_loads(b, self.time, -1.0)
         b.array[self.dirichlet] = 0.0
         return True
 

@@ -300,13 +300,15 @@ class SNESVISolver:
         self.x = self.u.vector.copy()
         # curved Gamma3: SNES solves for x = R^T u in the nodal frames (app/solvers/rotation.py)
         self.frames = None
-        if problem.frames is not None and problem.frames.rotated and self.pairs is None:
+        # rigid caps: and for their amplitudes (app/model/rigidcap.py; two bodies: in PairMap)
+        rotated = problem.frames is not None and problem.frames.rotated
+        if (rotated or problem.caps is not None) and self.pairs is None:
             self.frames = FrameMap(problem, self.u.vector)
             self.b_frames = self.b.duplicate()
             if not self.reuse:                   # the pattern of J for the first PtAP
                 fem.petsc.assemble_matrix(self.A, problem.J_form, problem.bcs)
                 self.A.assemble()
-            self.A_frames = self.A.PtAP(self.frames.R)
+            self.A_frames = self.frames.product(self.A)
         self.options, self.prefix = dict(options), prefix
         push_options(self.options, prefix)      # in the database while the solver lives
         self._lb = self._ub = None               # the bounds (set with the first VI SNES)
@@ -422,7 +424,7 @@ class SNESVISolver:
         z, zr = self.A_frames.createVecs()
         for j in range(Z.shape[1]):
             z.array[:] = Z[:, j]
-            self.frames.R.multTranspose(z, zr)
+            self.frames.to_frames(z, zr)
             Z[:, j] = zr.array
         return Z
 
@@ -517,16 +519,16 @@ class SNESVISolver:
         self.pairs.jacobian()
 
     def _F_frames(self, snes, x, b):
-        """The residual in the nodal frames: R^T F(R x)."""
+        """The residual in the nodal frames (and the caps' amplitudes): M^T F(M x)."""
         fm = self.frames
         fm.from_frames(x, fm.u_work)
         self._F(snes, fm.u_work, fm.F_work)
-        fm.R.multTranspose(fm.F_work, b)
+        fm.pull_back(fm.F_work, b)
 
     def _J_frames(self, snes, x, A, P):
-        """The Jacobian in the nodal frames: R^T J R (J at u = R x, set by the residual)."""
+        """The Jacobian in the nodal frames: M^T J M (J at u = M x, set by the residual)."""
         self._J(snes, None, self.A, self.A)
-        self.A.PtAP(self.frames.R, result=A)
+        self.frames.product(self.A, result=A)
 
     def _setup_jacobian_reuse(self, problem) -> None:
         """Explicit scheme: the bulk Jacobian K = (E eps(du), eps(v)) is the same in every
@@ -600,6 +602,10 @@ class SNESVISolver:
         self._to_x()
         if extrapolate and self._lb is not None:
             self._extrapolate()
+            if self.frames is not None:       # the caps' prescribed amplitudes at t_n
+                self.frames.fix(self.x)
+            elif self.pairs is not None:
+                self.pairs.fix(self.x)
         if self._residual is not None:
             self._residual.new_solve()
         snes.solve(None, self.x)

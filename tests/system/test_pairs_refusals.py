@@ -3,12 +3,13 @@ the key (exit code 2), on two small blocks written here (Geometry.AutoCoherence 
 bodies share no node):
 
 - the case-level rules (app/case/pairrules.py): the built-in mesh, contact.g,
-  contact.direction, boundaries.contact, surface = target, a group that is another pair's
+  boundaries.contact, surface = target, a group that is another pair's
   surface, clamped or loaded pair groups, different laws in two pairs of which one is
   written in Python, memory kernels of two shapes, a pair's own law that breaks a rule of
   the contact section (named in the pair), quadrature gauss, a target group the mesh lacks;
 - the mesh-level ones (app/model/pairs.py, built by check): nodes projecting outside the
-  target, surfaces that do not face each other, an initial interpenetration;
+  target, surfaces that do not face each other, a contact.direction pointing from a target
+  toward its surface, an initial interpenetration;
 - the report of a valid pair: nodes, target facets, d, g, nodes touching.
 """
 import csv
@@ -106,8 +107,6 @@ def _builtin_mesh(raw):
 CASE_RULES = [  # (change of the case, the key the message names, words it holds)
     (_builtin_mesh, "contact.pairs", "mesh.file"),
     (lambda r: r["contact"].update(g=0.0), "contact.g", "not with contact.pairs"),
-    (lambda r: r["contact"].update(direction=[0.0, -1.0]), "contact.direction",
-     "not with contact.pairs"),
     (lambda r: r["boundaries"].update(contact=["upper_bottom"]), "boundaries.contact",
      "leave it out"),
     (lambda r: r["contact"]["pairs"][0].update(target="lower_top"), "contact.pairs[0]",
@@ -147,27 +146,31 @@ def test_case_refusals(change, key, words, tmp_path, capsys):
     assert re.search(rf": {re.escape(key)}( \(line \d+\))?: ", err[0]) and words in err[0], err
 
 
-MESH_RULES = [  # (blocks, change of the case, words of the message)
+MESH_RULES = [  # (blocks, change of the case, the key named, words of the message)
     # the upper block over [0.25, 0.75]: the lower top's end nodes x = 0, 1 lie past it
-    ({"upper": (0.25, 0.75, 1.0, 2.0)}, None,
+    ({"upper": (0.25, 0.75, 1.0, 2.0)}, None, "contact.pairs[0]",
      "2 node(s) of 'lower_top' project outside the target 'upper_bottom'"),
-    ({}, _surface_lower_bottom, "do not face each other"),
+    ({}, _surface_lower_bottom, "contact.pairs[0]", "do not face each other"),
+    # a fixed direction from the target toward the surface (lower_top faces +y)
+    ({}, lambda r: r["contact"].update(direction=[0.0, -1.0]), "contact.direction",
+     "5 node(s) of 'lower_top' whose outward normal makes 90 degrees or more with the "
+     "direction"),
     # the upper block 0.1 into the lower one: every lower top node starts inside it
-    ({"upper": (0.0, 1.0, 0.9, 2.0)}, None,
+    ({"upper": (0.0, 1.0, 0.9, 2.0)}, None, "contact.pairs[0]",
      "5 node(s) of 'lower_top' start inside the target body 'upper_bottom' (initial "
      "interpenetration, largest 0.1 m)"),
 ]
 
 
-@pytest.mark.parametrize("blocks, change, words", MESH_RULES)
-def test_mesh_refusals(blocks, change, words, tmp_path, capsys):
+@pytest.mark.parametrize("blocks, change, key, words", MESH_RULES)
+def test_mesh_refusals(blocks, change, key, words, tmp_path, capsys):
     """The pairs' projection, built by check: exit code 2, one line naming the pair."""
     raw = _raw(_geo(tmp_path / "two.geo", **blocks))
     if change is not None:
         change(raw)
     code, _, err = _check(tmp_path, raw, capsys)
     assert code == 2 and len(err) == 1, err
-    assert ": contact.pairs[0]: " in err[0] and words in err[0], err
+    assert f": {key}: " in err[0] and words in err[0], err
 
 
 def test_check_reports_each_pair(tmp_path, capsys):

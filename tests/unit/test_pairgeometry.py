@@ -294,3 +294,68 @@ def test_candidates_beyond_the_nearest_centroids(monkeypatch):
     np.testing.assert_allclose(pr.closest, np.c_[np.clip(x[:, :2], 0, 1), np.zeros(300)],
                                rtol=0, atol=1e-15)
     np.testing.assert_allclose(pr.distance, x[:, 2], rtol=0, atol=1e-15)
+
+
+# the ray cast along a fixed direction (contact.direction with pairs): cast_points
+
+
+def _line_circle(x, e, R):
+    """The parameters t of the points x + t e (x (m, 2), e unit) on the circle |y| = R."""
+    b = x @ e
+    disc = b ** 2 - (np.einsum("ij,ij->i", x, x) - R ** 2)
+    return -b - np.sqrt(disc), -b + np.sqrt(disc)
+
+
+def test_cast_onto_a_circle_of_chords_enters_where_the_line_meets_it():
+    """Vertical lines above the circle (R = 1, 400 chords) downward: pi(x) on the upper
+    half where the line enters (not the lower half, where it leaves), the gap within the
+    chord error R (1 - cos(pi / n)) of the exact line-circle distance, pi(x) on the line, and
+    the P1 weights reproducing pi(x) on its chord; a tilted direction the same."""
+    n, R = 400, 1.0
+    F, N = _circle(n, R)
+    rng = np.random.default_rng(RNG_SEED)
+    chord = R * (1 - np.cos(np.pi / n))
+    for e in (np.array([0.0, -1.0]), np.array([0.6, -0.8])):
+        foot = rng.uniform(-0.9, 0.9, 50)[:, None] * np.array([-e[1], e[0]])
+        x = foot - rng.uniform(1.2, 2.0, 50)[:, None] * e
+        proj = pairgeometry.cast_points(x, F, N, e)
+        assert proj.inside.all()
+        t_in, _ = _line_circle(x, e, R)
+        assert np.abs(proj.distance - t_in).max() <= chord / np.sqrt(1 - 0.9 ** 2)
+        off = proj.closest - x - proj.distance[:, None] * e
+        assert np.abs(off).max() <= 1e-12
+        on = np.einsum("ik,ikd->id", proj.weights, F[proj.facet])
+        assert np.abs(on - proj.closest).max() <= 1e-12
+        assert (proj.normal @ e < 0).all()                  # the entering side
+
+
+def test_cast_onto_a_tilted_triangulated_plane():
+    """The plane z = 0.2 x + 0.1 y in 8 x 8 squares (two triangles each), lines along
+    (0, 0, -1) from z = 1: the gap 1 - z(x, y) and the weights the P1 coordinates."""
+    F = _grid_triangles(8)
+    F[:, :, 2] = 0.2 * F[:, :, 0] + 0.1 * F[:, :, 1]
+    N = np.tile(np.array([-0.2, -0.1, 1.0]) / np.linalg.norm([-0.2, -0.1, 1.0]), (len(F), 1))
+    rng = np.random.default_rng(RNG_SEED)
+    xy = rng.uniform(0.01, 0.99, (60, 2))
+    x = np.c_[xy, np.ones(60)]
+    proj = pairgeometry.cast_points(x, F, N, [0.0, 0.0, -1.0])
+    assert proj.inside.all()
+    assert np.allclose(proj.distance, 1.0 - 0.2 * xy[:, 0] - 0.1 * xy[:, 1], atol=1e-13)
+    assert np.allclose(proj.closest[:, :2], xy, atol=1e-13)
+    assert np.allclose(proj.weights.sum(axis=1), 1.0) and (proj.weights >= 0).all()
+
+
+def test_cast_misses_and_back_faces():
+    """A line past the target's end is outside; a facet the line leaves through (n . e > 0)
+    is not taken; of two entering layers the nearer one is."""
+    F = _chain([[0.0, 0.0], [1.0, 0.0]])
+    up = np.array([[0.0, 1.0]])
+    down = np.array([[0.0, -1.0]])
+    x = np.array([[0.5, 1.0], [1.5, 1.0]])
+    proj = pairgeometry.cast_points(x, F, up, [0.0, -1.0])
+    assert proj.inside.tolist() == [True, False] and proj.facet.tolist() == [0, -1]
+    assert proj.distance[0] == pytest.approx(1.0)
+    assert not pairgeometry.cast_points(x, F, down, [0.0, -1.0]).inside.any()
+    two = np.concatenate([F, F - [0.0, 0.5]])
+    proj = pairgeometry.cast_points(x[:1], two, np.concatenate([up, up]), [0.0, -1.0])
+    assert proj.facet.tolist() == [0] and proj.distance[0] == pytest.approx(1.0)

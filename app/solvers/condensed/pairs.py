@@ -61,7 +61,7 @@ class PairRightHandSide:
         p, pv, z = self.problem, self.pv, self.z
         p.u.vector.copy(self.saved)
         z.set(0.0)
-        fem.petsc.set_bc(z, p.bcs)                  # x_D
+        pv.fix(z)                                   # x_D (and the caps' fixed values)
         pv.to_u(z, p.u)
         with self.b_u.localForm() as loc:
             loc.set(0.0)
@@ -71,6 +71,8 @@ class PairRightHandSide:
         p.u.x.scatter_forward()
         pv.P.multTranspose(self.b_u, b)
         b.scale(-1.0)
+        if pv.caps is not None:                     # the caps' loads at their amplitudes
+            pv.caps.add_loads(b, pv.time, 1.0)
         b.array[pv.dirichlet] = z.array_r[pv.dirichlet]
 
     def destroy(self) -> None:

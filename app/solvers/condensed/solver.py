@@ -10,7 +10,8 @@ and solves a step as y0 = condense(F_n); y = the Gamma3 problem from y0; u = exp
 It solves the same discrete problem as SNESVISolver, which takes over a step whose Gamma3
 problem fails.  Two bodies (contact pairs): the same in the unknown x of
 app/solvers/pairmap.py (u = P x + c), with K_x = P^T K P, F_x and G of
-app/solvers/condensed/pairs.py.
+app/solvers/condensed/pairs.py.  One body with rigid caps: the same in z of u = T z
+(condensed/caps.py; two bodies: T is in P).
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from mpi4py import MPI
 
 from vpcontact.forms.elasticity import eps
 from vpcontact.solvers.choice import held_by_contact
+from vpcontact.solvers.condensed.caps import CapRightHandSide, cap_stiffness
 from vpcontact.solvers.condensed.condensation import factorise
 from vpcontact.solvers.condensed.frames import work_frames
 from vpcontact.solvers.condensed.layout import Gamma3Layout
@@ -75,6 +77,7 @@ class CondensedStepSolver:
         self._snes = None
         # two bodies: the problem in x of app/solvers/pairmap.py (condensed/pairs.py)
         self.pairs = None if problem.pairs is None else PairVariables(problem)
+        self.caps_T = None                   # one body's rigid caps: (T, T^+)
         self.K, self.rhs = self._stiffness()
         self.b, self.x = self.K.createVecRight(), self.K.createVecRight()
         self.layout = self._layout()
@@ -104,10 +107,16 @@ class CondensedStepSolver:
         du, v = ufl.TrialFunction(p.V), ufl.TestFunction(p.V)
         a = fem.form(ufl.inner(C(eps(du)), eps(v)) * ufl.dx)
         # serial: d x d blocks (BAIJ), the fastest PETSc back-substitution
-        K = fem.petsc.create_matrix(a, "baij" if self.comm.size == 1 else None)
+        blocks = self.comm.size == 1 and p.caps is None
+        K = fem.petsc.create_matrix(a, "baij" if blocks else None)
         fem.petsc.assemble_matrix(K, a, bcs=p.bcs)
         K.assemble()
-        return K, StepRightHandSide(p, a)
+        if p.caps is None:
+            return K, StepRightHandSide(p, a)
+        # rigid caps: in z of u = T z (condensed/caps.py)
+        self.caps_T = p.caps.matrices()
+        return cap_stiffness(K, p.caps, self.caps_T[0]), \
+            CapRightHandSide(p, StepRightHandSide(p, a), K, self.caps_T[0])
 
     def _gamma3_problem(self, rtol: float) -> Gamma3Problem:
         """The Gamma3 problem on the condensed dofs (collective)."""
@@ -245,12 +254,16 @@ class CondensedStepSolver:
         if self.pairs is not None:
             self.pairs.to_u(self.x, self.u)
             return
-        self.u.vector.array[:self.x.getLocalSize()] = self.x.array_r
+        if self.caps_T is not None:              # u = T z
+            self.caps_T[0].mult(self.x, self.u.vector)
+        else:
+            self.u.vector.array[:self.x.getLocalSize()] = self.x.array_r
         self.u.x.scatter_forward()
 
     def destroy(self) -> None:
         """Free the PETSc objects (and those of the SNES VI fallback, if it was created)."""
-        for obj in (self.K, self.b, self.x, self.rhs, self.condensation, self.pairs):
+        for obj in (self.K, self.b, self.x, self.rhs, self.condensation, self.pairs,
+                    *(self.caps_T or ())):
             if obj is not None:
                 obj.destroy()
         if self._snes is not None:
