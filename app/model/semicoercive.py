@@ -256,7 +256,7 @@ class ContactHold:
             ok = cos > 1e-6
             s = p.comm.allreduce(float(np.min(((target - r)[mine] / np.where(ok, cos, 1))[ok],
                                               initial=np.inf)), op=MPI.MIN)
-            if not np.isfinite(s):
+            if not np.isfinite(s) or s == 0.0:
                 continue
             arr[part.nodes[:len(arr)]] += s * nbar
             changed = True
@@ -296,7 +296,7 @@ class ContactHold:
         would hold the tangential motion in the fixed point's first solve.
 
         Args:
-            f: the owned nodal loads (n, d) of the step.
+            f: the owned nodal loads (n, d) of the step (the rigid caps' loads are added).
             p: the last p_n at the owned Gamma3 nodes (``problem.gamma3``'s order).
 
         Returns:
@@ -305,7 +305,9 @@ class ContactHold:
         c, out = self.problem.comm, p.copy()
         for k, part in enumerate(self.parts):
             mine = self.mine[k]
-            F = c.allreduce(f[part.nodes[:len(f)]].sum(axis=0), op=MPI.SUM)
+            t = float(self.problem.time_data.t.value)
+            F = c.allreduce(f[part.nodes[:len(f)]].sum(axis=0), op=MPI.SUM) + \
+                self._cap_loads(k, t)[1]
             nbar = self._mean_normal(k)
             cos = self.sign[k][mine] * (self.normal[mine] @ nbar)
             area = c.allreduce(float((self.w[mine] * cos).sum()), op=MPI.SUM)
