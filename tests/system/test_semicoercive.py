@@ -1,10 +1,12 @@
-"""Force control of a body held only by its contact with the foundation (issue 50, item 2;
+"""Force control of a body held only by contact (issue 50, item 2;
 app/model/semicoercive.py): the probe of the issue (a block on the foundation, top traction
 [1, -10], no Dirichlet data) runs with both step solvers, serially and under mpirun -n 2,
 and its contact force balances the applied load (the statics of a free body: contact
-force = minus the applied resultant); loads the contact cannot balance are refused in one
-line with exit code 2 before anything is solved; the cone test of the loads against its
-closed form for two contact points."""
+force = minus the applied resultant); the shipped cases (a sheared block that sticks with
+slipping edges, a pushed block that slides at mu P); a block on a clamped block through
+contact.pairs; Hertz's cylinder under a force against Hertz's closed form; loads the contact
+cannot balance are refused in one line with exit code 2 before anything is solved; the cone
+test of the loads against its closed form for two contact points."""
 import numpy as np
 import pytest
 
