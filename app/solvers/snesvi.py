@@ -736,8 +736,10 @@ class SNESVISolver:
         held (their rows and columns of the Jacobian the identity, their increments 0),
         put into the bounds."""
         pinned, self._pinned = self._pinned, None
-        if self._lb is None:
+        comm = self.problem.comm
+        if self._lb is None or comm.allreduce(len(pinned)) == 0:
             return
+        start = self.u.x.array.copy()
         F, J, b, A = (self._F_pairs, self._J_pairs, self.b, self.pairs.A) \
             if self.pairs is not None else (self._F, self._J, self.b, self.A) \
             if self.frames is None else (self._F_frames, self._J_frames, self.b_frames,
@@ -756,8 +758,11 @@ class SNESVISolver:
         self._to_u()
         for obj in (ksp, M, rhs, dx):
             obj.destroy()
+        if comm.allreduce(not np.all(np.isfinite(self.u.x.array)), op=MPI.LOR):
+            self.u.x.array[:] = start           # the step's own solve starts from u
+            return
         log.debug("  SNES VI: started from the body held at its %d contact node(s)",
-                  self.problem.comm.allreduce(len(pinned)))
+                  comm.allreduce(len(pinned)))
 
     def _to_x(self) -> None:
         """x from u (two bodies: x of u = P x + c; curved Gamma3: in the nodal frames)."""
