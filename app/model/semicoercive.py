@@ -12,11 +12,11 @@ otherwise, which does not scale with p_i), with sum_i (-p_i nu_i + t_i) . r_k(x_
 ``ContactHold.check_loads`` refuses, before any solve, a step whose load is not strictly
 inside that cone (a linear program: the slack of every generator maximised): a pull-off, a
 tangential resultant at or above mu P, a moment whose centre of pressure falls outside
-Gamma3, a free tangential motion of frictionless contact (Code_Aster refuses such a
-singular system, Abaqus stabilises it; we refuse, as Code_Aster).  Strictly inside, the
-rigid motion is determined by the contact.  Each part is checked against its own contact
-forces as if the bodies it touches were held (exact for a body on the foundation or on a
-held body; a chain of free bodies is checked link by link).
+Gamma3, a free tangential motion of frictionless contact (Code_Aster's solver stops on such
+a singular matrix, Abaqus can stabilise it by damping; we refuse, as Code_Aster).
+Strictly inside, the rigid motion is determined by the contact.  Each part is checked
+against its own contact forces as if the bodies it touches were held (exact for a body on
+the foundation or on a held body; a chain of free bodies is checked link by link).
 
 To solve a step from a state out of contact (the first step: the Newton matrix is K, singular
 in r_k), ``close_gap`` translates the part along its mean inward normal until its nearest
