@@ -4,8 +4,9 @@ contact.pairs).
 
 The step matrix is then singular in the free rigid motions r_k, which only the contact
 determines; the body is in equilibrium only if the contact forces can balance the applied
-load on them: with W_k = f_n(r_k) (the loads vector of step n on the motion r_k; the
-history term B^T H_n does no work on a rigid motion), there must be nodal contact forces
+load on them: with W_k = f_n(r_k) (the loads vector of step n on the motion r_k, plus the
+rigid caps' loads F . r_k(X_ref) + M . theta(r_k); the history term B^T H_n does no work on
+a rigid motion), there must be nodal contact forces
 -p_i nu_i + t_i at the Gamma3 nodes (two bodies: their opposite on the target's side),
 p_i >= 0, |t_i| <= mu p_i (Coulomb; 0 frictionless; the friction law's bound psi'(oo) w_i
 otherwise, which does not scale with p_i), with sum_i (-p_i nu_i + t_i) . r_k(x_i) = -W_k.
@@ -18,8 +19,8 @@ Strictly inside, the rigid motion is determined by the contact.  Each part is ch
 against its own contact forces as if the bodies it touches were held (exact for a body on
 the foundation or on a held body; a chain of free bodies is checked link by link).
 
-To solve a step from a state out of contact (the first step: the Newton matrix is K, singular
-in r_k), ``close_gap`` translates the part along its mean inward normal until its nearest
+To solve the first step from a state out of contact (the Newton matrix is K, singular in
+r_k), ``close_gap`` translates the part along its mean inward normal until its nearest
 Gamma3 node is half-way into the gap (on the bound without a compliance), SNES VI takes
 one Newton step with those nodes' normal dofs held (``pinned_slots``,
 ``SNESVISolver.press_next``: touching the bound, the body's Gamma3 residual is 0 and the VI
