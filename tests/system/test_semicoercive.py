@@ -197,3 +197,24 @@ def test_shipped_sliding_case_slides_at_mu_p(tmp_path):
     for s in steps:
         force = np.array(s["contact_force"])
         assert np.abs(force - [-s["reactions"]["left"][0], 10.0]).max() < 1e-6 * 10
+
+
+def test_mindlin_under_cap_forces_with_the_default_snes():
+    """cases/mindlin.yaml's cylinder loaded by a rigid cap (P, then Q = 0.15 P; rotation 0),
+    held sideways by friction alone, with SNES VI's default vinewtonrsls: the held start
+    solves its first step (on main it failed: the touching nodes' bound inactive, the Newton
+    matrix singular; test_rigid_cap.py needs vinewtonssls), contact force (-Q, P) to 1e-6."""
+    from conftest import make_case, run_case
+    from vpcontact.case import load_raw
+    P, Q = 4.28, 0.642
+    raw = load_raw(ROOT / "cases" / "mindlin.yaml")
+    raw["mesh"].update({"file": str(ROOT / "cases" / "mindlin.geo"), "size": 4.0})
+    raw["loads"] = {"rigid": {"cylinder_top": {
+        "force": [{"table": [[0.0, 0.0], [0.5, 0.0], [1.0, Q]]},
+                  {"table": [[0.0, 0.0], [0.5, -P], [1.0, -P]]}], "rotation": 0.0}}}
+    raw["time"] = {"T": 1.0, "N": 2}
+    raw["solver"]["method"] = "snes_vi"
+    result = run_case(make_case(raw))
+    assert result.status == "completed"
+    force = result.summary["steps"][-1]["contact_force"]
+    assert force[0] == pytest.approx(-Q, rel=1e-6) and force[1] == pytest.approx(P, rel=1e-6)
