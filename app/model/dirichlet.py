@@ -421,14 +421,11 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
     on_foundation = set() if foundation is None else \
         _pair_parts(V, parts, [(foundation, foundation)])[0][0]
     held = []
-    names = ["translation x", "translation y", "translation z"][:d] + \
-        (["rotation"] if d == 2 else ["rotation about z", "rotation about x",
-                                       "rotation about y"])
     rigid = " / loads.rigid" if caps is not None else ""
     for k, f in enumerate(free):
         if f.shape[1] == 0:
             continue
-        what = ", ".join(names[int(np.argmax(np.abs(v)))] for v in f.T)
+        what = motion_names(f, d)
         where = "the body"
         if len(free) > 1:
             size = np.max(parts.hi[k] - parts.lo[k])
@@ -450,6 +447,23 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
                             "or prescribe more components")
         held.append(_held_part(parts, k, f, links))
     return held
+
+
+def motion_names(free: np.ndarray, d: int) -> str:
+    """The free motions in words ('translation x, rotation'): each column named by its
+    largest component in the basis of ``rigid_modes``.
+
+    Args:
+        free: (r, free) the motions.
+        d: the dimension.
+
+    Returns:
+        The names, comma separated.
+    """
+    names = ["translation x", "translation y", "translation z"][:d] + \
+        (["rotation"] if d == 2 else ["rotation about z", "rotation about x",
+                                       "rotation about y"])
+    return ", ".join(names[int(np.argmax(np.abs(v)))] for v in free.T)
 
 
 def _held_part(parts: BodyParts, k: int, free: np.ndarray, links: list) -> HeldPart:

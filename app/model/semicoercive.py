@@ -38,7 +38,7 @@ import numpy as np
 from mpi4py import MPI
 
 from vpcontact.io.errors import CaseError
-from vpcontact.model.dirichlet import rigid_modes
+from vpcontact.model.dirichlet import motion_names, rigid_modes
 
 log = logging.getLogger("vpcontact")
 
@@ -142,7 +142,7 @@ class ContactHold:
             return
         F = comm.allreduce(f[self.parts[k].nodes[:len(f)]].sum(axis=0), op=MPI.SUM) \
             + cap_force
-        raise CaseError(f"{self.problem.case.source}: {self._why(k, F, box, t)}")
+        raise CaseError(f"{self.problem.case.source}: {self._why(k, F, W, box, t)}")
 
     def _cap_loads(self, k: int, t: float) -> tuple[np.ndarray, np.ndarray]:
         """(the work of the rigid caps' loads (loads.rigid: force F, moment M about X_ref)
@@ -186,8 +186,9 @@ class ContactHold:
         return (np.concatenate(comm.allgather(A), axis=1),
                 np.concatenate(comm.allgather(B), axis=1))
 
-    def _why(self, k: int, F: np.ndarray, box: np.ndarray, t: float) -> str:
-        """The refusal's words for part k at time t (F: the applied force resultant)."""
+    def _why(self, k: int, F: np.ndarray, W: np.ndarray, box: np.ndarray, t: float) -> str:
+        """The refusal's words for part k at time t (F: the applied force resultant, W: the
+        loads' work on the free motions)."""
         c, mine = self.problem.comm, self.mine[k]
         nbar = self._mean_normal(k)
         P = float(F @ nbar)                     # the load pressing along the outward normal
@@ -202,6 +203,8 @@ class ContactHold:
         at = (f"at t = {t:g} the applied force resultant ({', '.join(f'{v:.6g}' for v in F)})"
               f" on the {'body' if len(self.parts) == 1 else f'part {k + 1}'} held only by "
               f"{held}")
+        if not np.any(W):                       # no load: nothing to hold, the motion free
+            return self._unloaded(k, t, keys)
         if P <= 0:
             return (f"{keys}: {at} does not press it onto Gamma3 (normal component "
                     f"{P:.6g} <= 0: a pull-off); clamp a group or press the body")
@@ -221,6 +224,17 @@ class ContactHold:
         return (f"{keys}: {at} has a moment the contact zone cannot carry (its centre of "
                 "pressure falls outside Gamma3, or the friction cannot hold it); clamp a "
                 "group or change the loads")
+
+    def _unloaded(self, k: int, t: float, keys: str) -> str:
+        """The refusal of part k without any load on its free motions at t: as the
+        rigid-motion check's (app/model/dirichlet.py), the loads named."""
+        free = self.parts[k].free
+        return (f"boundaries.clamped / loads.displacement: the prescribed displacements leave "
+                f"{free.shape[1]} rigid motion(s) of the "
+                f"{'body' if len(self.parts) == 1 else f'part {k + 1}'} free (like "
+                f"{motion_names(free, self.problem.dim)}), and at t = {t:g} no load ({keys}) "
+                "presses it onto Gamma3; clamp a group, prescribe more components or press "
+                "the body")
 
     def _mean_normal(self, k: int) -> np.ndarray:
         """The unit mean of sigma_ik w_i nu_i over part k's Gamma3 nodes (collective): the
