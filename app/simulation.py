@@ -320,6 +320,16 @@ class Simulation:
         """The PhaseClock's timer of the loop's stage ``name`` (none before ``start``)."""
         return self.clock.stage(name) if self.clock is not None else nullcontext()
 
+    def _start_in_contact(self) -> None:
+        """The first step of a body held only by contact (app/model/semicoercive.py): from
+        the body translated into contact, and with SNES VI from one Newton step with its
+        contact nodes held (``press_next``)."""
+        p = self.problem
+        if p.hold.close_gap(p.u):
+            self.solver.warm_start()
+        if hasattr(self.solver, "press_next"):
+            self.solver.press_next(p.hold.pinned_slots())
+
     def advance(self, k: float, t_new: float):
         """The scheme's step from t_{n-1} = ``self.t`` to t_n = ``t_new``: H_n, kappa_n
         (explicit: from step n-1) (3.2)-(3.3), xi_n, s_n, the loads f_n, u_n from the step
@@ -348,6 +358,8 @@ class Simulation:
                     g3.advance(self.t, t_new)       # xi_n, s_n from u_{n-1}
             t_g3 = time.perf_counter() - t_g3
             p.set_time(t_new, k)                    # f_n, prescribed displacements, k_n
+            if p.hold is not None and self.n == 0:  # held only by contact: the first step
+                self._start_in_contact()
             # u_n in U^h, (3.4); with Coulomb friction a fixed point on p_n (Gamma3History)
             with stage("solve"):
                 its = g3.solve(self.solver) if g3 else self.solver.solve()

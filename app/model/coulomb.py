@@ -68,10 +68,15 @@ class CoulombPressure:
         mu: the friction coefficient (mu_s of the static/kinetic law); with laws per pair,
             its value at each local Gamma3 node (0 at the nodes of pairs without Coulomb).
         field: a NodalField of the Gamma3 nodes (scratch: p_n's ghost values).
+        hold: the ContactHold of a body held only by contact
+            (app/model/semicoercive.py: each step's fixed point starts from the pressure of
+            its normal load), or None.
     """
 
-    def __init__(self, problem, mu: float, field):
-        self.problem, self.mu, self.field = problem, mu, field
+    hold = None
+
+    def __init__(self, problem, mu: float, field, hold=None):
+        self.problem, self.mu, self.field, self.hold = problem, mu, field, hold
         self.p = np.zeros(len(problem.gamma3_local_nodes))
         self.owned = np.searchsorted(problem.gamma3_local_nodes, problem.gamma3.nodes)
         self.iterations = 0
@@ -110,6 +115,8 @@ class CoulombPressure:
                 iterate's; the step is not accepted).
         """
         comm, its, change, scale = self.problem.comm, 0, np.inf, 0.0
+        if self.hold is not None:   # a body held only by the contact: p_n of the step's load
+            self.p = self._spread(self.hold.pressure_start(self._loads(), self.p[self.owned]))
         for i in range(1, MAX_ITERATIONS + 1):
             set_factor(self.mu * self.p)
             its += solver.solve()
@@ -127,6 +134,22 @@ class CoulombPressure:
             f"in {MAX_ITERATIONS} iterations (max|p^(i+1) - p^(i)| = {change:.3e} > "
             f"max({TOL:g} max p_n, round-off floor) = {max(TOL * scale, self.floor):.3e}; "
             f"mu = {np.max(self.mu):g} may be too large for the fixed point)")
+
+    def _loads(self) -> np.ndarray:
+        """The step's owned nodal loads f_n, (owned nodes, d)."""
+        p = self.problem
+        owned = p.V.dofmap.index_map.size_local
+        if p.load_vector is None:
+            return np.zeros((owned, p.dim))
+        return p.load_vector.at_current_time().array_r.reshape(-1, p.dim)[:owned]
+
+    def _spread(self, owned: np.ndarray) -> np.ndarray:
+        """p at the local Gamma3 nodes (owned and ghost) from its owned values."""
+        local = np.zeros(len(self.p))
+        local[self.owned] = owned
+        self.field.set(local)
+        self.field.function.x.scatter_forward()
+        return self.field.function.x.array[self.field.dofs].copy()
 
     def state(self) -> dict:
         """Returns: {"p": a copy of p_n (m,)}."""

@@ -154,6 +154,41 @@ def rigid_modes(x: np.ndarray) -> np.ndarray:
 
 
 @dataclass
+class HeldPart:
+    """A part of the body whose rigid motions only its contact (with the foundation, or a
+    contact pair's) holds.
+
+    Attributes:
+        nodes: bool (local nodes,): the part's local (owned and ghost) nodes.
+        free: (r, free) the free motions in the basis of ``rigid_modes``, at coordinates
+            centred at ``centre`` and divided by ``scale``.
+        centre: (d,) the centre of the part's bounding box.
+        scale: the part's size.
+        surface_of: the contact pairs whose surface the part carries (none: the
+            foundation's contact holds it).
+        target_of: the contact pairs whose target the part carries.
+    """
+
+    nodes: np.ndarray
+    free: np.ndarray
+    centre: np.ndarray
+    scale: float
+    surface_of: tuple = ()
+    target_of: tuple = ()
+
+    def modes(self, x: np.ndarray) -> np.ndarray:
+        """The free motions at points.
+
+        Args:
+            x: (n, d) coordinates.
+
+        Returns:
+            (n, d, free).
+        """
+        return rigid_modes((x - self.centre) / self.scale) @ self.free
+
+
+@dataclass
 class BodyParts:
     """The connected components of the body (cells connected through shared vertices), on
     every rank alike.
@@ -346,7 +381,7 @@ def _held_by_pairs(free: list, links: list) -> dict:
 
 
 def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
-                        caps=None) -> None:
+                        caps=None, foundation=None) -> list:
     """Refuse Dirichlet data that leave a rigid motion of the body, or of one of its
     connected parts, free (collective): the step matrix would be singular.
 
@@ -365,6 +400,14 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
         pairs: for each contact pair, (its surface's local facets, its target's local
             facets); none for a case without pairs.
         caps: the rigid caps, or None (free_motions).
+        foundation: the local facets of Gamma3 on the rigid foundation
+            (boundaries.contact), or None: a part carrying them may leave rigid motions free,
+            held by the contact with the foundation where the load presses the part onto it
+            (app/model/semicoercive.py checks the loads before the first step).
+
+    Returns:
+        The HeldPart of each part whose free motions only the contact (the foundation's or
+        a pair's) holds (empty: the Dirichlet data hold the body).
 
     Raises:
         CaseError: naming boundaries.clamped / loads.displacement, the free motions and, for
@@ -373,15 +416,16 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
     d = V.dofmap.index_map_bs
     parts = body_parts(V)
     free = free_motions(V, fixed, parts, caps)
-    via = _held_by_pairs(free, _pair_parts(V, parts, list(pairs))) if len(pairs) else {}
-    names = ["translation x", "translation y", "translation z"][:d] + \
-        (["rotation"] if d == 2 else ["rotation about z", "rotation about x",
-                                       "rotation about y"])
+    links = _pair_parts(V, parts, list(pairs)) if len(pairs) else []
+    via = _held_by_pairs(free, links) if links else {}
+    on_foundation = set() if foundation is None else \
+        _pair_parts(V, parts, [(foundation, foundation)])[0][0]
+    held = []
     rigid = " / loads.rigid" if caps is not None else ""
     for k, f in enumerate(free):
         if f.shape[1] == 0:
             continue
-        what = ", ".join(names[int(np.argmax(np.abs(v)))] for v in f.T)
+        what = motion_names(f, d)
         where = "the body"
         if len(free) > 1:
             size = np.max(parts.hi[k] - parts.lo[k])
@@ -392,8 +436,39 @@ def check_rigid_motions(V, fixed: np.ndarray, source: str, pairs: list = (),
         if k in via:
             log.info("%s: %d rigid motion(s) of %s (like %s) held only by contact pair %d "
                      "(contact.pairs[%d])", source, f.shape[1], where, what, via[k], via[k])
-            continue
-        raise CaseError(f"{source}: boundaries.clamped / loads.displacement{rigid}: the prescribed "
-                        f"displacements leave {f.shape[1]} rigid motion(s) of {where} free "
-                        f"(like {what}); clamp a group {'on that part ' if len(free) > 1 else ''}"
-                        "or prescribe more components")
+        elif k in on_foundation:
+            log.info("%s: %d rigid motion(s) of %s (like %s) held only by the contact with the "
+                     "foundation (boundaries.contact)", source, f.shape[1], where, what)
+        else:
+            raise CaseError(f"{source}: boundaries.clamped / loads.displacement{rigid}: the "
+                            f"prescribed displacements leave {f.shape[1]} rigid motion(s) of "
+                            f"{where} free (like {what}); clamp a group "
+                            f"{'on that part ' if len(free) > 1 else ''}"
+                            "or prescribe more components")
+        held.append(_held_part(parts, k, f, links))
+    return held
+
+
+def motion_names(free: np.ndarray, d: int) -> str:
+    """The free motions in words ('translation x, rotation'): each column named by its
+    largest component in the basis of ``rigid_modes``.
+
+    Args:
+        free: (r, free) the motions.
+        d: the dimension.
+
+    Returns:
+        The names, comma separated.
+    """
+    names = ["translation x", "translation y", "translation z"][:d] + \
+        (["rotation"] if d == 2 else ["rotation about z", "rotation about x",
+                                       "rotation about y"])
+    return ", ".join(names[int(np.argmax(np.abs(v)))] for v in free.T)
+
+
+def _held_part(parts: BodyParts, k: int, free: np.ndarray, links: list) -> HeldPart:
+    """The HeldPart of part k with its free motions (links: the pairs' parts)."""
+    return HeldPart(parts.label == k, free, 0.5 * (parts.lo[k] + parts.hi[k]),
+                    max(float(np.max(parts.hi[k] - parts.lo[k])), 1e-300),
+                    tuple(i for i, (sf, _) in enumerate(links) if k in sf),
+                    tuple(i for i, (sf, tg) in enumerate(links) if k in tg and k not in sf))

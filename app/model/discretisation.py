@@ -148,9 +148,12 @@ class Discretisation:
                                          dict(loads.displacement), self.time_data,
                                          None if self.caps is None else self.caps.nodes)
         self.bcs = self.dirichlet.bcs
-        check_rigid_motions(self.V, self.dirichlet.fixed, case.source,
-                            [(self.facets[p.surface], self.facets[p.target])
-                             for p in case.contact.pairs], self.caps)
+        foundation = np.concatenate([self.facets[r] for r in b.contact]) \
+            if case.contact.active and not pairs else None
+        self.held_by_contact = check_rigid_motions(
+            self.V, self.dirichlet.fixed, case.source,
+            [(self.facets[p.surface], self.facets[p.target]) for p in pairs], self.caps,
+            foundation)
         self.clamped_nodes = self.dirichlet.clamped_nodes
 
     def _group_nodes(self, keys: list) -> dict:

@@ -330,7 +330,7 @@ class Gamma3History:
         if mu is not None:
             self.theta = problem.theta
             self.coulomb = CoulombPressure(problem, mu, NodalField(problem.V, self.nodes,
-                                                                   "p_n"))
+                                                                   "p_n"), problem.hold)
             self._set_coulomb(mu * self.coulomb.p)
         self.path = SlipPath(m) if slip is not None or mu is not None else None
 

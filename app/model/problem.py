@@ -39,6 +39,7 @@ from vpcontact.model.loadvector import LoadVector
 from vpcontact.model.material import Elasticity
 from vpcontact.model.materials import body_materials
 from vpcontact.model.pairs import PairOperators, node_labels
+from vpcontact.model.semicoercive import ContactHold
 from vpcontact.model.state import State
 from vpcontact.model.stiffness import case_elasticity, stress_operator
 from vpcontact.model.strain import StrainOperator
@@ -164,6 +165,12 @@ class ContactProblem:
         # the implicit scheme's local update, run by the residual hook (before_residual)
         self.implicit_update = ImplicitViscoplasticHistory(self, self.law) \
             if self.implicit else None
+        # a body held only by contact: its loads checked for every step
+        # (app/model/semicoercive.py)
+        held = self.disc.held_by_contact
+        self.hold = ContactHold(self, held) if held else None
+        if self.hold is not None:
+            self.hold.check_loads(case.time.times[1:])
 
     # the live fields of the State (app/model/state.py)
     @property

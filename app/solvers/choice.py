@@ -3,9 +3,9 @@ at import time, so case validation can ask ``condensed_eligible``.
 
 ``condensed_eligible`` is the rule of the condensed solver (app/solvers/condensed/): the bulk
 problem of a step must be linear (explicit history scheme), every Gamma3 term a sum of
-nodal energies (vertex quadrature), and with two bodies (contact pairs) a rigid motion held
-only by a pair (the bulk stiffness it factorises, without the contact, is singular in it)
-only in a serial run with its compiled back end.
+nodal energies (vertex quadrature), and a rigid motion held only by contact (a pair's or the
+foundation's: the bulk stiffness it factorises, without the contact, is singular in it)
+only with its compiled back end (serially) or MUMPS (under mpirun).
 ``choose_method`` resolves ``solver.method`` (the Case holds ``condensed`` where a file gives
 ``fast``, its former name: app/case/model.py), ``choose_linear`` SNES VI's ``solver.linear``.
 """
@@ -35,7 +35,7 @@ def condensed_eligible(case, problem=None) -> tuple[bool, str]:
     Args:
         case: the case.
         problem: its ContactProblem, or None: the case's rules only.  With it, also the
-            rule of the mesh: a body whose rigid motion only a contact pair holds
+            rule of the mesh: a body whose rigid motion only contact holds
             (``held_by_contact``) is refused with fast_* PETSc options.
 
     Returns:
@@ -45,17 +45,19 @@ def condensed_eligible(case, problem=None) -> tuple[bool, str]:
         return False, "the implicit history variant makes the bulk problem nonlinear"
     if case.numerics.quadrature != "vertex" and case.contact.active:
         return False, "the condensed solver needs the nodal (vertex) Gamma3 quadrature"
-    if problem is not None and case.contact.pairs and \
+    if problem is not None and \
             any(str(k).startswith("fast_") for k in case.petsc) and held_by_contact(problem):
-        return False, ("a body's rigid motion is held only by a contact pair: the condensed "
-                       "solver takes it with its compiled back end (serially) or MUMPS "
-                       "(under mpirun) only, not with fast_* PETSc options")
+        return False, ("a body's rigid motion is held only by a contact pair or the "
+                       "foundation: the condensed solver takes it with its compiled back end "
+                       "(serially) or MUMPS (under mpirun) only, not with fast_* PETSc "
+                       "options")
     return True, ""
 
 
 def held_by_contact(problem) -> bool:
     """Whether the Dirichlet data leave a rigid motion of a part of the body free (held
-    only by a contact pair: app/model/dirichlet.py ``check_rigid_motions``); collective.
+    only by contact, a pair's or the foundation's: app/model/dirichlet.py
+    ``check_rigid_motions``); collective.
 
     Args:
         problem: the ContactProblem.

@@ -319,6 +319,7 @@ class SNESVISolver:
         self.fallback = None
         self.sticky_robust = False
         self._past: list[tuple[float, np.ndarray]] = []   # (t, x) of the last two solves
+        self._pinned = None     # press_next: x's dofs held at their values in a first solve
 
     def _create(self, robust: bool = False):
         """A SNES reading this solver's options; ``robust``: with ROBUST on top (the
@@ -598,12 +599,7 @@ class SNESVISolver:
         """SNES from the current u, or with ``extrapolate`` from the extrapolation of the
         last steps (our options are in the database while it runs: PCs set up their parts,
         e.g. multigrid levels, from it when the inactive set changes)."""
-        if self.pairs is not None:
-            self.pairs.to_x(self.u.vector, self.x)
-        elif self.frames is None:
-            self.u.vector.copy(self.x)
-        else:
-            self.frames.to_frames(self.u.vector, self.x)
+        self._to_x()
         if extrapolate and self._lb is not None:
             self._extrapolate()
             if self.frames is not None:       # the caps' prescribed amplitudes at t_n
@@ -656,13 +652,7 @@ class SNESVISolver:
                 if self.stagnated else ""
             raise StepSolveError(f"SNES did not converge: {reason_name(reason)} ({reason}) "
                                  f"after {its} Newton iterations{hint}", reason)
-        if self.pairs is not None:
-            self.pairs.to_u(self.x, self.u)
-        elif self.frames is None:
-            self.x.copy(self.u.vector)
-        else:
-            self.frames.from_frames(self.x, self.u.vector)
-        self.u.x.scatter_forward()
+        self._to_u()
         self._remember()
         return its
 
@@ -682,6 +672,8 @@ class SNESVISolver:
         Raises:
             StepSolveError: every attempt failed; u is restored to u_{n-1}.
         """
+        if self._pinned is not None:
+            self._press()
         start = self.u.x.array.copy()
         self.continuation_stages, self.fallback = 0, None
         self.linear_iterations = 0
@@ -724,6 +716,72 @@ class SNESVISolver:
         self.fallback = "delta continuation"
         self.continuation_stages = len(stages)
         return its
+
+    def press_next(self, pinned: np.ndarray) -> None:
+        """Start the next solve from a first solve with the dofs ``pinned`` of x (local
+        indices: the normal slots of the Gamma3 nodes that a ContactHold brought into
+        contact, app/model/semicoercive.py) held at their values.  A body held only by
+        contact that starts touching has no residual on Gamma3 (its load reaches Gamma3
+        only through the body): the VI's active set is empty and the Newton matrix singular
+        in the free rigid motions; held, the body carries its load to Gamma3, whose
+        reactions then press on the bound.
+
+        Args:
+            pinned: local indices into x (owned).
+        """
+        self._pinned = pinned
+
+    def _press(self) -> None:
+        """The first solve of ``press_next``: one Newton step from u with the pinned dofs
+        held (their rows and columns of the Jacobian the identity, their increments 0),
+        put into the bounds."""
+        pinned, self._pinned = self._pinned, None
+        comm = self.problem.comm
+        if self._lb is None or comm.allreduce(len(pinned)) == 0:
+            return
+        start = self.u.x.array.copy()
+        F, J, b, A = (self._F_pairs, self._J_pairs, self.b, self.pairs.A) \
+            if self.pairs is not None else (self._F, self._J, self.b, self.A) \
+            if self.frames is None else (self._F_frames, self._J_frames, self.b_frames,
+                                         self.A_frames)
+        self._to_x()
+        F(self.snes, self.x, b)
+        J(self.snes, self.x, A, A)
+        M, rhs, dx = A.duplicate(copy=True), b.copy(), self.x.duplicate()
+        M.zeroRowsColumns((pinned + self.x.getOwnershipRange()[0]).astype(PETSc.IntType),
+                          diag=1.0)
+        rhs.array[pinned] = 0.0
+        ksp = direct_solver(M, self.problem.comm)
+        ksp.solve(rhs, dx)
+        self.x.axpy(-1.0, dx)
+        np.clip(self.x.array, self._lb.array_r, self._ub.array_r, out=self.x.array)
+        self._to_u()
+        for obj in (ksp, M, rhs, dx):
+            obj.destroy()
+        if comm.allreduce(not np.all(np.isfinite(self.u.x.array)), op=MPI.LOR):
+            self.u.x.array[:] = start           # the step's own solve starts from u
+            return
+        log.debug("  SNES VI: started from the body held at its %d contact node(s)",
+                  comm.allreduce(len(pinned)))
+
+    def _to_x(self) -> None:
+        """x from u (two bodies: x of u = P x + c; curved Gamma3: in the nodal frames)."""
+        if self.pairs is not None:
+            self.pairs.to_x(self.u.vector, self.x)
+        elif self.frames is None:
+            self.u.vector.copy(self.x)
+        else:
+            self.frames.to_frames(self.u.vector, self.x)
+
+    def _to_u(self) -> None:
+        """u from x (``_to_x``'s inverse), ghosts updated."""
+        if self.pairs is not None:
+            self.pairs.to_u(self.x, self.u)
+        elif self.frames is None:
+            self.x.copy(self.u.vector)
+        else:
+            self.frames.from_frames(self.x, self.u.vector)
+        self.u.x.scatter_forward()
 
     def destroy(self) -> None:
         """Free the PETSc objects (SNES, matrices, vectors) and take the options out of

@@ -107,8 +107,8 @@ def factorise(K: PETSc.Mat, G_rows: np.ndarray, d: int, layout, options: dict,
             return condensation
     if semidefinite:
         from vpcontact.io.errors import CaseError
-        raise CaseError("solver.method: the condensed solver takes a body held only by a "
-                        "contact pair with its compiled kernels (serially) or MUMPS (under "
+        raise CaseError("solver.method: the condensed solver takes a body held only by "
+                        "contact with its compiled kernels (serially) or MUMPS (under "
                         "mpirun) only, without fast_* options (allowed here: snes_vi)")
     from vpcontact.solvers.condensed.petsc import PetscCondensation
     return PetscCondensation(K, G_rows, layout, options, comm)

@@ -48,11 +48,11 @@ class Gamma3Problem:
     """
 
     def __init__(self, comm, S, frames, w, law: ContactLaw, rtol: float = 1e-13,
-                 coupling=None):
+                 coupling=None, reduced: bool = False):
         self.comm, self.frames, self.w, self.rtol = comm, frames, w, rtol
         self.d = len(frames.normal)
         self.m = len(w) * self.d if coupling is None else coupling.m
-        self.reduced = coupling is not None     # solve() takes r = S y0 for y0
+        self.reduced = coupling is not None or reduced   # solve() takes r = S y0 for y0
         self._y_prev = []               # (t, y) of the last two steps (_start)
         self._direction = None
 

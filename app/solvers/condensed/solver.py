@@ -55,6 +55,8 @@ class CondensedStepSolver:
         layout: the Gamma3Layout (a PairLayout with pairs; None without Gamma3).
         pairs: the PairVariables of two bodies (app/solvers/pairmap.py), or None.
         condensation: the Condensation of K (its S and C on GAMMA3_ROOT).
+        semidefinite: K is singular in rigid motions that only the contact holds (a pair's
+            or the foundation's): S only positive semidefinite, the Gamma3 problem reduced.
 
     Args:
         problem: the ContactProblem.
@@ -82,12 +84,16 @@ class CondensedStepSolver:
         self.gamma3 = self.layout is not None
         self.m = self.layout.m if self.gamma3 else 0
         G_rows = self.layout.global_rows() if self.gamma3 else np.zeros(0, dtype=np.int32)
-        # two bodies: a rigid motion held only by the contact leaves S semidefinite
-        semidefinite = self.pairs is not None and held_by_contact(problem)
+        # a rigid motion held only by the contact (a pair's, or the foundation's:
+        # app/model/semicoercive.py) leaves S semidefinite: the Gamma3 problem takes r = S y0
+        self.semidefinite = problem.hold is not None or \
+            (self.pairs is not None and held_by_contact(problem))
         self.condensation = factorise(self.K, G_rows, problem.dim, self.layout, self.options,
-                                      self.comm, semidefinite)
+                                      self.comm, self.semidefinite)
         self.factorisations = self.condensation.factorisations
         self.gamma3_problem = self._gamma3_problem(rtol) if self.gamma3 else None
+        # two bodies or S semidefinite: the Gamma3 problem takes r = S y0, not y0
+        self.gamma3_problem_reduced = self.pairs is not None or self.semidefinite
         if self.pairs is not None:
             self.warm_start()           # the reduced Gamma3 problem starts from u_0
 
@@ -117,7 +123,8 @@ class CondensedStepSolver:
         p, layout = self.problem, self.layout
         if self.pairs is None:
             return Gamma3Problem(self.comm, self.condensation.S, work_frames(p, layout),
-                                 layout.w, p.contact_law(x=gamma3_points(p, layout)), rtol)
+                                 layout.w, p.contact_law(x=gamma3_points(p, layout)), rtol,
+                                 reduced=self.semidefinite)
         surface = layout.surface            # the nodal energy's nodes and weights
         law = pair_sections(p, surface) or p.contact_law(x=gamma3_points(p, surface))
         return Gamma3Problem(self.comm, self.condensation.S, pair_frames(p, layout),
@@ -144,15 +151,17 @@ class CondensedStepSolver:
         body only: with two bodies there is no Schur complement of u on Gamma3 (the
         condensation's S is x's on G), and the attribute is absent (AttributeError), so
         that the trace bound of app/post/diagnostics.py is not taken from it."""
-        if self.pairs is not None:
-            raise AttributeError("S: two bodies condense x onto G (condensation.S)")
+        if self.pairs is not None or self.semidefinite:
+            raise AttributeError("S: two bodies condense x onto G (condensation.S); a body "
+                                 "held only by the contact has a singular S")
         return self.condensation.S
 
     @property
     def C(self) -> np.ndarray | None:
         """S's lower Cholesky factor where S is (one body only, as ``S``)."""
-        if self.pairs is not None:
-            raise AttributeError("C: two bodies condense x onto G (condensation.C)")
+        if self.pairs is not None or self.semidefinite:
+            raise AttributeError("C: two bodies condense x onto G (condensation.C); a body "
+                                 "held only by the contact has a singular S")
         return self.condensation.C
 
     def describe(self) -> str:
@@ -218,8 +227,8 @@ class CondensedStepSolver:
     def _solve_condensed(self) -> int:
         """y0 = condense(F_n), the Gamma3 problem, u = expand(y)."""
         self.rhs.assemble(self.b)
-        y0 = self.condensation.condense(self.b) if self.pairs is None else \
-            self.condensation.reduce(self.b)          # r = S y0 (Gamma3Problem.reduced)
+        y0 = self.condensation.reduce(self.b) if self.gamma3_problem_reduced else \
+            self.condensation.condense(self.b)        # r = S y0 (Gamma3Problem.reduced)
         its, y = 0, np.zeros(0)
         if self.gamma3:
             self._gamma3_inputs()
