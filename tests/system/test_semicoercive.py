@@ -1,5 +1,5 @@
-"""Force control of a body held only by contact (issue 50, item 2;
-app/model/semicoercive.py): the probe of the issue (a block on the foundation, top traction
+"""Force control of a body held only by contact (app/model/semicoercive.py): the probe of
+the issue (a block on the foundation, top traction
 [1, -10], no Dirichlet data) runs with both step solvers, serially and under mpirun -n 2,
 and its contact force balances the applied load (the statics of a free body: contact
 force = minus the applied resultant); the shipped cases (a sheared block that sticks with
