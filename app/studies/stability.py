@@ -6,8 +6,8 @@ refined R times (--refine; the variant "h/2" runs on the next refinement, as the
 one doubles n), with N uniform steps.  Only the variants whose data the case has are run
 (no stiff viscosity without a Perzyna law, no friction variants without friction, ...);
 gap variants scale a gap expression, load variants scale every load (tractions, pressures,
-body force, prescribed displacements), and a case with contact.direction also runs with
-the nodal normals of its contact boundary.
+body force, prescribed displacements, the rigid caps' loads and motions), and a case with
+contact.direction also runs with the nodal normals of its contact boundary.
 
 Per variant: the parameters changed, the history scheme, whether it converged (and why not),
 the largest Newton count, the growth of ||sigma||_Q and ||u||_V over time (max over the run /
@@ -133,7 +133,16 @@ def _scaled(raw: dict, factor: float) -> tuple[dict, list[str]]:
     changes.update({k: ("scale", factor) for k in ("loads.traction", "loads.pressure",
                                                     "loads.f0", "initial.sigma0")
                     if _has(raw, k)})
+    changes.update(_caps_scaled(raw, factor, ("force", "moment")))
     return changes, why
+
+
+def _caps_scaled(raw: dict, factor: float, keys: tuple) -> dict:
+    """The rigid caps' data of ``keys`` (force, moment, displacement, rotation; never the
+    reference point) times factor: key paths as tuples (a group's name may hold a dot)."""
+    caps = (raw.get("loads") or {}).get("rigid") or {}
+    return {("loads", "rigid", group, k): ("scale", factor)
+            for group, spec in caps.items() for k in keys if k in (spec or {})}
 
 
 def _has(raw: dict, key) -> bool:
@@ -150,9 +159,12 @@ def _has(raw: dict, key) -> bool:
 
 
 def _loads_scaled(raw: dict, factor: float) -> dict:
-    """Every load (tractions, pressures, body force, prescribed displacements) times factor."""
-    return {f"loads.{k}": ("scale", factor)
-            for k in ("traction", "pressure", "f0", "displacement") if _has(raw, f"loads.{k}")}
+    """Every load (tractions, pressures, body force, prescribed displacements, the rigid
+    caps' forces, moments, displacements and rotations) times factor."""
+    return {**{f"loads.{k}": ("scale", factor)
+               for k in ("traction", "pressure", "f0", "displacement")
+               if _has(raw, f"loads.{k}")},
+            **_caps_scaled(raw, factor, ("force", "moment", "displacement", "rotation"))}
 
 
 def not_applicable(raw: dict) -> list[str]:

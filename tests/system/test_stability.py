@@ -232,3 +232,21 @@ def test_norton_bound_against_the_explicit_relaxation(factor, stable):
     assert bool(abs(amplification) < 1) == stable
     if not stable:
         assert amplification < -1.1                                     # oscillating growth
+
+
+def test_load_variants_scale_the_rigid_caps():
+    """The load variants scale a rigid cap's force and moment (and, with every load, its
+    prescribed displacement and rotation), never its reference point; the stress-scaling
+    variant leaves the prescribed motions (u unchanged)."""
+    from vpcontact.studies.stability import _loads_scaled, _scaled, apply_changes
+    raw = {"mesh": {"file": "x.msh", "dim": 2},
+           "material": {"E": 1000.0, "nu": 0.3},
+           "loads": {"rigid": {"cap.top": {"force": [None, "-2*t"], "moment": 0.5,
+                                           "displacement": [0.01, None], "rotation": 0.0,
+                                           "reference": [0.0, 1.0]}}}}
+    every = apply_changes(raw, _loads_scaled(raw, 100.0))["loads"]["rigid"]["cap.top"]
+    assert every == {"force": [None, "(-2*t)*(100.0)"], "moment": 50.0,
+                     "displacement": [1.0, None], "rotation": 0.0, "reference": [0.0, 1.0]}
+    stress = apply_changes(raw, _scaled(raw, 10.0)[0])["loads"]["rigid"]["cap.top"]
+    assert stress == {"force": [None, "(-2*t)*(10.0)"], "moment": 5.0,
+                      "displacement": [0.01, None], "rotation": 0.0, "reference": [0.0, 1.0]}
