@@ -212,10 +212,18 @@ class ContactHold:
             return (f"{keys} / {fkey}: {at}: frictionless contact cannot hold its "
                     f"tangential motion (tangential resultant {Q:.6g}); add friction or "
                     "prescribe a tangential component")
+        # 3D: the cone is its inscribed polygon of COULOMB_DIRECTIONS sides (mu cos(pi/16))
+        inner = 1.0 if self.problem.dim == 2 else float(np.cos(np.pi / COULOMB_DIRECTIONS))
         if mu > 0 and Q >= mu * P * (1 - 1e-9):
             return (f"{keys} / {fkey}.coulomb.mu: {at}: tangential resultant "
                     f"{Q:.6g} >= mu P = {mu:g} x {P:.6g} = {mu * P:.6g}: the body would slide "
                     "away; lower the tangential load or prescribe a tangential component")
+        if mu > 0 and Q >= inner * mu * P * (1 - 1e-9):
+            return (f"{keys} / {fkey}.coulomb.mu: {at}: tangential resultant {Q:.6g} is "
+                    f"within {100 * (1 - inner):.1f} % below mu P = {mu * P:.6g}: in 3D the "
+                    f"check takes the friction cone as its inscribed {COULOMB_DIRECTIONS}-gon "
+                    f"({inner:.4f} mu), so this load is refused as at the onset of sliding; "
+                    "lower the tangential load or prescribe a tangential component")
         cap = float(box[-1].sum()) / np.sqrt(self.problem.dim - 1)   # sum_i w_i psi'(oo)
         if bounded and Q >= cap * (1 - 1e-9):
             return (f"{keys} / {fkey}: {at}: tangential resultant {Q:.6g} >= the friction "

@@ -218,3 +218,31 @@ def test_mindlin_under_cap_forces_with_the_default_snes():
     assert result.status == "completed"
     force = result.summary["steps"][-1]["contact_force"]
     assert force[0] == pytest.approx(-Q, rel=1e-6) and force[1] == pytest.approx(P, rel=1e-6)
+
+
+@pytest.mark.parametrize("Qx, refused", [(0.28, False), (0.2955, True)])
+def test_3d_cone_polygon_refusal_names_its_reason(tmp_path, capsys, Qx, refused):
+    """3D: the check takes the Coulomb cone as its inscribed 16-gon (mu cos(pi/16) = 0.981
+    mu), so a load within 2 % below mu P (here at pi/16 to a vertex of the polygon, its
+    inscribed radius) is refused, with that reason (before: 'a moment the contact zone
+    cannot carry'); 0.933 mu P passes."""
+    import math
+
+    import yaml
+    a = math.pi / 16
+    raw = {"name": "block3d", "mesh": {"dim": 3, "L1": 1.0, "L2": 1.0, "L3": 0.5,
+                                       "kind": "structured", "n": 2},
+           "material": {"E": 1000.0, "nu": 0.3}, "boundaries": {"clamped": []},
+           "contact": {"g": 0.01, "normal_compliance": {"c_nu": 1000.0},
+                       "friction": {"coulomb": {"mu": 0.3}}},
+           "loads": {"traction": {"top": [Qx * math.cos(a), Qx * math.sin(a), -1.0]}},
+           "time": {"T": 1.0, "N": 1}}
+    path = tmp_path / "block3d.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    code = cli_in_process(["check", path])
+    err = capsys.readouterr().err
+    if not refused:
+        assert code == 0, err
+        return
+    assert code == 2
+    assert "within 1.9 % below mu P = 0.3" in err and "inscribed 16-gon (0.9808 mu)" in err, err
