@@ -355,9 +355,10 @@ def test_mindlin_under_cap_forces(method):
     friction alone: the contact force is (-Q, P) to 1e-6 and the stick nodes' half-width c
     within 5 % of a of Mindlin's a sqrt(1 - Q/(mu P)) (measured -0.67 % with both solvers),
     as the displacement-controlled run
-    (tests/system/test_pairs_friction.py).  SNES VI with vinewtonssls: vinewtonrsls starts
-    with the touching node's bound inactive, where the Newton matrix is singular in the
-    cylinder's free motions (docs/user-guide.md, two bodies), and fails the first step."""
+    (tests/system/test_pairs_friction.py).  SNES VI here with vinewtonssls; the default
+    vinewtonrsls, which needs the held start of a body held only by contact
+    (app/model/semicoercive.py), in
+    test_semicoercive.py::test_mindlin_under_cap_forces_with_the_default_snes."""
     P, Q, mu = 4.28, 0.642, 0.3
     raw = load_raw(CASES / "mindlin.yaml")
     raw["mesh"].update({"file": str(CASES / "mindlin.geo"), "size": 4.0})
