@@ -190,8 +190,8 @@ class NodalStressOutput:
     """``sigma_nodal``: the stress averaged at the nodes (P1 tensor, N/m^2), the L2
     projection of the DG0 sigma onto P1 with the lumped (row-sum) mass: sigma_i = (sigma,
     phi_i) / (1, phi_i), the volume-weighted mean of the cells around node i (a uniform
-    stress is reproduced exactly; app/model/recovery.py: LumpedProjection).  In 2D plane strain a 3 x 3 tensor with sigma_33; in 2D
-    plane stress the 2 x 2 one (sigma_33 = 0).
+    stress is reproduced exactly; app/model/recovery.py: LumpedProjection).  In 2D plane
+    strain a 3 x 3 tensor with sigma_33; in 2D plane stress the 2 x 2 one (sigma_33 = 0).
 
     Args:
         problem: the ContactProblem.
