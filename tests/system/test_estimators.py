@@ -171,3 +171,23 @@ def test_mpirun_equals_serial(tmp_path):
     for ra, rb in zip(a, b, strict=True):
         for c in EST:
             assert rb[c] == pytest.approx(ra[c], rel=1e-12, abs=1e-15)
+
+
+def test_convergence_reports_the_effectivity(tmp_path):
+    """convergence.csv's estimate of a level is that level's own run's error_estimate (an
+    independent run), its effectivity estimate / Error; the table and a second, cached
+    study show the same."""
+    out, cache = tmp_path / "conv", tmp_path / "cache"
+    for _ in range(2):                                   # computed, then from the cache
+        proc = run_cli(["convergence", PAPER_CASE, "--levels", "4", "--reference", "8",
+                        "--out", out, "--overwrite", "--cache-dir", cache])
+        assert proc.returncode == 0, proc.stderr
+        with open(out / "convergence.csv") as f:
+            row = next(csv.DictReader(f))
+        own = run_case(make_case(mesh={"n": 4}, time={"N": 4})).summary["error_estimate"]
+        assert float(row["estimate"]) == pytest.approx(own["estimate"], rel=1e-12)
+        assert float(row["est_time"]) == pytest.approx(own["time"], rel=1e-12)
+        assert float(row["effectivity"]) == pytest.approx(own["estimate"]
+                                                          / float(row["error"]), rel=1e-12)
+        assert "effectivity" in (out / "convergence.md").read_text()
+        assert "effectivity " in proc.stdout + proc.stderr
