@@ -24,7 +24,7 @@ import logging
 
 import numpy as np
 
-from vpcontact.model.history import UPDATE_ERRORS
+from vpcontact.model.history import UPDATE_ERRORS, first_failure
 from vpcontact.model.recovery import SpaceIndicators
 from vpcontact.observers import Observer
 
@@ -81,11 +81,14 @@ class ErrorEstimate(Observer):
                 self._keep(rec)
 
     def _rates(self, k: float):
-        """(G, Gk) at the current state, None if the law's update fails."""
+        """(G, Gk) at the current state, None if the law's update fails on some rank
+        (collective: then None on every rank)."""
+        now, error = None, None
         try:
-            return self.rates(k)
-        except UPDATE_ERRORS:
-            return None
+            now = self.rates(k)
+        except UPDATE_ERRORS as exc:
+            error = exc
+        return None if first_failure(self.rates.problem.comm, error) is not None else now
 
     def check(self, sim, record: dict) -> None:
         """Add the estimates of step n to its record.
