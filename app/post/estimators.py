@@ -4,19 +4,24 @@ kappa(t_n)||_Y), split into a time part and a space part.
 
 - Space, per step: eta_Q + eta_V + eta_Y, the recovery indicators of app/model/recovery.py
   summed over the cells (each a global L2 norm, as the error measure's three norms).
-- Time: the local error of the history update, embedded.  The explicit sums (3.2)-(3.3)
-  take G at the left end point; the trapezoidal (second order) update differs from them by
-  e_n = (k_n / 2) (||G(sigma_n, kappa_n) - G(sigma_{n-1}, kappa_{n-1})||_Q + ||Gk(sigma_n,
-  kappa_n) - Gk(sigma_{n-1}, kappa_{n-1})||_Y), known after the step; the implicit scheme's
-  backward-Euler update differs from the trapezoidal one by the same amount.  The
-  estimate of step n is the sum E_n = e_1 + ... + e_n (the stability factor of the scheme
-  taken as 1: the errors of a relaxing history are not amplified).  G is the law's own
-  update evaluated once more per step (its explicit update with the step k_n on a copy of
-  the state).  The memory and slip sums of Gamma3 add no term yet.
+- Time: the error of the history update, embedded and propagated.  The explicit sums
+  (3.2)-(3.3) take G at the left end point; the trapezoidal (second order) update differs
+  from them by the local error l_n = (k_n / 2) (G_n - G_{n-1}), G_j = G(sigma_j, kappa_j)
+  (Gk likewise for kappa), known after the step; the implicit scheme's backward-Euler
+  update differs from the trapezoidal one by -l_n.  The error fields (delta H, delta kappa)
+  per cell are carried through the scheme by the law itself, with the stress error taken
+  as the error of H (exact under held displacements):
+      explicit: delta_n = delta_{n-1} + k_n (G(s_{n-1}) - G(s_{n-1} - delta_{n-1})) - l_n,
+      implicit: delta_n = delta_{n-1} + k_n (G(s_n) - G(s_n - delta_{n-1})) + l_n,
+  s_j = (sigma_j, kappa_j); the time estimate of step n is ||delta H_n||_Q + ||delta
+  kappa_n||_Y.  So a relaxing history damps its early errors as the scheme does (the sum of
+  the ||l_n|| would keep them).  It costs two more evaluations of the law's explicit update
+  per step, on copies of the state.  The memory and slip sums of Gamma3 add no term yet; a
+  restarted run starts the error fields from zero (they are not in the checkpoint).
 
-Each step record gets est_time (E_n), est_space, est_total (their sum), est_max (the
-running max of est_total, the measure's max_n) and est_space's three parts; summary.json
-gets ``error_estimate``.
+Each step record gets est_time, est_space, est_total (their sum), est_max (the running max
+of est_total, the measure's max_n) and est_space's three parts; summary.json gets
+``error_estimate``.
 """
 from __future__ import annotations
 
@@ -35,8 +40,8 @@ COLUMNS = ("est_time", "est_space", "est_total", "est_max") + PARTS
 
 
 class HistoryRates:
-    """k G(sigma, kappa) and k Gk(sigma, kappa) of the current state by the law's explicit
-    update on a copy (the State is untouched).
+    """G(sigma, kappa) and Gk(sigma, kappa) per cell by the law's explicit update on copies
+    (the State is untouched).
 
     Args:
         problem: the ContactProblem (its law, sigma and State).
@@ -46,22 +51,104 @@ class HistoryRates:
         self.problem = problem
         self.update = problem.law.explicit()
 
-    def __call__(self, k: float) -> tuple[np.ndarray, np.ndarray]:
-        """Returns: (G, Gk) per local cell, (cells, d*d) and (cells, m), from the update
-        with the step k (the one the scheme takes there, so no safeguard of the law acts
-        otherwise than in the run)."""
+    def __call__(self, k: float, sigma: np.ndarray | None = None,
+                 kappa: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(G, Gk) at (sigma, kappa), by default the current state.
+
+        Args:
+            k: the step of the update (the scheme's there, so that a safeguard of the law
+                acts as in the run).
+            sigma: sigma per local cell, flat, or None.
+            kappa: kappa (cells, m), or None.
+
+        Returns:
+            (G, Gk) per local cell, (cells, d*d) and (cells, m).
+        """
         p, st = self.problem, self.problem.state
-        H, kappa = st.H.x.array.copy(), st.kappa_cells.copy()
-        self.update(p.sigma.x.array.copy(), H, kappa, k)
-        return ((H - st.H.x.array).reshape(len(kappa), -1) / k, (kappa - st.kappa_cells) / k)
+        sigma = p.sigma.x.array if sigma is None else sigma
+        kappa0 = st.kappa_cells if kappa is None else kappa
+        H, kap = st.H.x.array.copy(), kappa0.copy()
+        self.update(sigma.copy(), H, kap, k)
+        return ((H - st.H.x.array).reshape(len(kap), -1) / k, (kap - kappa0) / k)
+
+
+class TimeError:
+    """The propagated error (delta H, delta kappa) of the history update (module
+    docstring); collective.
+
+    Args:
+        problem: the ContactProblem with a viscoplastic law.
+        k: the first step (for G at the initial or restored state).
+    """
+
+    def __init__(self, problem, k: float):
+        self.problem, self.rates = problem, HistoryRates(problem)
+        self.implicit = bool(problem.implicit)
+        self.previous = self._state_rates(k)
+        self.delta = None
+
+    def _state_rates(self, k: float):
+        """(sigma, kappa, G, Gk) of the current state; None if the law fails on a rank."""
+        p = self.problem
+        out = _collective(p.comm, self.rates, k)
+        if out is None:
+            return None
+        return (p.sigma.x.array.copy(), p.state.kappa_cells.copy()) + out
+
+    def step(self, k: float) -> float:
+        """delta_n from delta_{n-1} and the step just solved.
+
+        Args:
+            k: the step k_n.
+
+        Returns:
+            ||delta H_n||_Q + ||delta kappa_n||_Y (NaN once the law's update failed).
+        """
+        now, before = self._state_rates(k), self.previous
+        self.previous = now
+        if now is None or before is None:
+            self.delta = None
+            return float("nan")
+        local = [0.5 * k * (a - b) for a, b in zip(now[2:], before[2:])]
+        if self.delta is None:                    # the first step: no error before it
+            self.delta = [-x if not self.implicit else x for x in local]
+            return self._norm()
+        at = now if self.implicit else before
+        sig = at[0] - self.delta[0].reshape(-1)
+        moved = _collective(self.problem.comm, self.rates, k, sig, at[1] - self.delta[1])
+        if moved is None:
+            self.delta = None
+            return float("nan")
+        sign = 1.0 if self.implicit else -1.0
+        self.delta = [d + k * (g - gm) + sign * x
+                      for d, g, gm, x in zip(self.delta, at[2:], moved, local)]
+        return self._norm()
+
+    def _norm(self) -> float:
+        """||delta H||_Q + ||delta kappa||_Y over the owned cells of all ranks."""
+        p = self.problem
+        n = p.num_owned_cells
+        vol = p.cell_volumes()[:n]
+        return float(sum(np.sqrt(p.reduce(float(vol @ np.einsum("ij,ij->i", d[:n], d[:n])),
+                                          "SUM")) for d in self.delta))
+
+
+def _collective(comm, call, *args):
+    """call(*args), or None on every rank if it failed on some rank (collective)."""
+    out, error = None, None
+    try:
+        out = call(*args)
+    except UPDATE_ERRORS as exc:
+        error = exc
+    return None if first_failure(comm, error) is not None else out
 
 
 class ErrorEstimate(Observer):
     """The estimate of every step (module docstring); collective."""
 
     def __init__(self):
-        self.space = self.rates = self.previous = None
-        self.time_sum, self.best = 0.0, None
+        self.space = self.time = None
+        self.best = None
 
     def start(self, sim) -> None:
         """The indicators, and G at the initial (or restored) state.
@@ -72,23 +159,11 @@ class ErrorEstimate(Observer):
         p = sim.problem
         self.space = SpaceIndicators(p)
         if p.law is not None and p.state.H is not None:
-            self.rates = HistoryRates(p)
             times = sim.case.time.times
-            self.previous = self._rates(float(times[1] - times[0]))
-        for rec in sim.steps:                 # restored steps: their estimates go on
+            self.time = TimeError(p, float(times[1] - times[0]))
+        for rec in sim.steps:                 # restored steps: their running max goes on
             if "est_total" in rec:
-                self.time_sum = rec["est_time"]
                 self._keep(rec)
-
-    def _rates(self, k: float):
-        """(G, Gk) at the current state, None if the law's update fails on some rank
-        (collective: then None on every rank)."""
-        now, error = None, None
-        try:
-            now = self.rates(k)
-        except UPDATE_ERRORS as exc:
-            error = exc
-        return None if first_failure(self.rates.problem.comm, error) is not None else now
 
     def check(self, sim, record: dict) -> None:
         """Add the estimates of step n to its record.
@@ -97,35 +172,21 @@ class ErrorEstimate(Observer):
             sim: the Simulation with step n solved.
             record: the step's record.
         """
-        p = sim.problem
         parts = self.space.norms(self.space.update())
-        record["est_space"] = float(parts.sum())
-        record.update(zip(PARTS, map(float, parts)))
-        self.time_sum += self._local_time_error(p, record["k"])
-        record["est_time"] = self.time_sum
-        record["est_total"] = record["est_time"] + record["est_space"]
+        est = dict(zip(PARTS, map(float, parts)), est_space=float(parts.sum()))
+        est["est_time"] = self.time.step(record["k"]) if self.time is not None else 0.0
+        est["est_total"] = est["est_time"] + est["est_space"]
+        # an estimate that is not finite (rates that overflow) is absent, never a reason
+        # for the blow-up monitor to stop the run
+        record.update({k: v if np.isfinite(v) else None for k, v in est.items()})
         self._keep(record)
-        record["est_max"] = self.best["estimate"]
-
-    def _local_time_error(self, p, k: float) -> float:
-        """e_n = (k_n / 2) (||G_n - G_{n-1}||_Q + ||Gk_n - Gk_{n-1}||_Y); G_n kept."""
-        if self.rates is None:
-            return 0.0
-        now = self._rates(k)
-        if now is None or self.previous is None:
-            self.previous = now
-            return float("nan")
-        n, vol = p.num_owned_cells, p.cell_volumes()[:p.num_owned_cells]
-        e = 0.0
-        for a, b in zip(now, self.previous):
-            d = (a - b)[:n]
-            e += np.sqrt(p.reduce(float(vol @ np.einsum("ij,ij->i", d, d)), "SUM"))
-        self.previous = now
-        return 0.5 * k * e
+        record["est_max"] = None if self.best is None else self.best["estimate"]
 
     def _keep(self, record: dict) -> None:
         """The running max of est_total with its step and split."""
-        if self.best is None or not record["est_total"] <= self.best["estimate"]:
+        if record["est_total"] is None:
+            return
+        if self.best is None or record["est_total"] > self.best["estimate"]:
             self.best = {"estimate": record["est_total"], "time": record["est_time"],
                          "space": record["est_space"], "n_max": record["n"],
                          "t_max": record["t"],

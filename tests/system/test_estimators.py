@@ -1,7 +1,7 @@
 """The a posteriori error estimate of every run (app/post/estimators.py, app/model/recovery.py):
 the space part vanishes on a homogeneous stress (patch test) and equals an independent numpy
-recovery on the paper case; the time part of Norton relaxation equals its closed form to
-first order in k and its effectivity tends to the one of the scheme's error expansion;
+recovery on the paper case; the time part of Norton relaxation: its first step's closed
+form after the load's jump, and under a smooth load 0.9 to 1.1 times the true error;
 the command line writes it to history.csv, summary.json, the log and solution.xdmf (eta);
 mpirun -n 2 equals the serial run."""
 import csv
@@ -79,56 +79,70 @@ def _norton_data():
     return m["E"], m["nu"], vp["A"], vp["n"], m["E"] * 0.04
 
 
-def _error_coefficient(steps: int = 20000) -> float:
-    """max_t |epsilon(t)| of forward Euler's error expansion sigma_n - sigma(t_n) = k
-    epsilon(t_n) + O(k^2) for sigma' = f(sigma) = -E A sigma^n (held strain):
-    epsilon' = f'(sigma) epsilon - sigma''/2, epsilon(0) = 0 (RK4, independent of the code);
-    the kappa part (|p error| = |sigma error| / E) added."""
-    E, _, A, n, s0 = _norton_data()
-
-    def rhs(y):
-        s, e = y
-        f, fp = -E * A * s**n, -n * E * A * s**(n - 1)
-        return np.array([f, fp * e - 0.5 * fp * f])
-
-    y, h, best = np.array([s0, 0.0]), 1.0 / steps, 0.0
-    for _ in range(steps):
-        k1 = rhs(y)
-        k2 = rhs(y + h / 2 * k1)
-        k3 = rhs(y + h / 2 * k2)
-        y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + rhs(y + h * k3))
-        best = max(best, abs(y[1]))
-    return best * (1 + 1 / E)
-
-
-def test_norton_time_estimate_closed_form_and_effectivity():
-    """Held uniaxial strain in plane stress: G = -E A sigma^3 (1 - nu/2, nu - 1/2) / (1 -
-    nu^2) (its Frobenius norm c_F E A sigma^3) and Gk = A sigma^3, monotone in t, so the
-    summed local errors are (k/2) (|G(sigma_1)| + |G(sigma_1)| - |G(sigma_N)|) (the first
-    from G(sigma_0) = 0: the load's jump) plus the same for Gk: est_time / k tends to that
-    closed form (to 1 %), halves with k (first order), and est_total / (true error) tends to
-    the closed form over the error expansion's max |epsilon| (to 3 % at N = 80; the sum of
-    local errors is not damped by the relaxation, hence about 4.9 > 2)."""
+def test_norton_time_estimate_of_the_load_jump():
+    """Held uniaxial strain applied in the first step, plane stress: G(sigma_0) = 0, so the
+    time estimate of step 1 is (k/2) (||G(sigma_1)||_Q + |Gk(sigma_1)|) = (k/2) (c_F E + 1)
+    A sigma_0^3 (G = -E A sigma^3 (1 - nu/2, nu - 1/2) / (1 - nu^2), Frobenius norm c_F E A
+    sigma^3; Gk = A sigma^3), to round-off, first order in k.  The data do not say when in
+    the first step the strain jumps: the case's closed form takes t_1 (no error at step
+    1), a jump at t = 0+ makes the error of step 1 the relaxation over k; the estimate (the
+    trapezoid: the jump at mid-step) lies between, its max over the steps 2.0 to 2.7 times
+    the first error and 0.45 to 0.6 times the second (measured 2.39, 2.50, 2.56 and 0.54,
+    0.51, 0.49 at N = 20, 40, 80)."""
     E, nu, A, n, s0 = _norton_data()
     cF = np.hypot(1 - nu / 2, nu - 0.5) / (1 - nu**2)
-    sT = (s0 ** (1 - n) + (n - 1) * E * A * 1.0) ** (1 / (1 - n))     # k -> 0: t_1 -> 0
-    limit = 0.5 * (cF * E + 1) * A * (2 * s0**n - sT**n)
-    coeff = _error_coefficient()
-    est, ratio = [], []
+    first = []
     for N in (20, 40, 80):
         s = _norton(N)
-        k, t1 = 1.0 / N, 1.0 / N
-        true = max(abs(r["max_vm"] - (s0 ** (1 - n) + (n - 1) * E * A * (r["t"] - t1))
-                       ** (1 / (1 - n))) * (1 + 1 / E) for r in s["steps"])
-        e = s["error_estimate"]
-        assert e["time"] / k == pytest.approx(limit, rel=0.01)
-        assert e["space"] < 1e-12 * e["time"]
-        est.append(e["estimate"])
-        ratio.append(e["estimate"] / true)
-    assert est[0] / est[1] == pytest.approx(2.0, rel=0.01)
-    assert est[1] / est[2] == pytest.approx(2.0, rel=0.01)
-    assert ratio[-1] == pytest.approx(limit / coeff, rel=0.03)
-    assert abs(ratio[-1] - limit / coeff) < abs(ratio[0] - limit / coeff)
+        k = 1.0 / N
+        first.append(s["steps"][0]["est_time"])
+        assert first[-1] == pytest.approx(0.5 * k * (cF * E + 1) * A * s0**n, rel=1e-10)
+        for t1, band in ((k, (2.0, 2.7)), (0.0, (0.45, 0.6))):
+            true = max(abs(r["max_vm"] - (s0 ** (1 - n) + (n - 1) * E * A * (r["t"] - t1))
+                           ** (1 / (1 - n))) * (1 + 1 / E) for r in s["steps"])
+            assert band[0] < s["error_estimate"]["estimate"] / true < band[1]
+    assert first[0] / first[1] == pytest.approx(2.0, rel=1e-10)
+
+
+def _ramp_exact(times, E: float, A: float, rate: float, steps: int = 20000) -> np.ndarray:
+    """sigma(t) of sigma' = E (rate - A sigma^3), sigma(0) = 0 (Norton, n = 3, under the
+    strain rate ``rate``) by RK4 with 1/steps, at the given multiples of 1/steps."""
+    f = lambda s: E * (rate - A * s**3)           # noqa: E731
+    want = {round(t * steps): i for i, t in enumerate(times)}
+    out, s, h = np.empty(len(times)), 0.0, 1.0 / steps
+    for i in range(steps + 1):
+        if i in want:
+            out[want[i]] = s
+        k1 = f(s)
+        k2 = f(s + h / 2 * k1)
+        k3 = f(s + h / 2 * k2)
+        s += h / 6 * (k1 + 2 * k2 + 2 * k3 + f(s + h * k3))
+    return out
+
+
+def test_norton_ramp_time_estimate_effectivity():
+    """A smooth load (u_x = 0.04 t on the right, no jump): the propagated time estimate
+    against the true error of the explicit scheme (sigma_n - sigma(t_n), sigma by RK4; the
+    p error is the stress error over E) is 0.9 to 1.1 times it at every step from T/4 on and
+    in its max over the steps (measured 0.99, 0.97, 0.96 at N = 20, 40, 80: the estimate
+    in the Frobenius norm of the H error, which has the lateral component that equilibrium
+    removes from sigma), and it halves with k."""
+    E, _, A, _, _ = _norton_data()
+    from vpcontact.case import load_case
+    from vpcontact.simulation import run
+    est = []
+    for N in (20, 40, 80):
+        s = run(load_case(NORTON, [f"time.N={N}", "loads.displacement.right=[0.04*t, null]"]),
+                MPI.COMM_WORLD).summary
+        steps = s["steps"]
+        exact = _ramp_exact([r["t"] for r in steps], E, A, 0.04)
+        err = np.abs(np.array([r["max_vm"] for r in steps]) - exact) * (1 + 1 / E)
+        e = np.array([r["est_time"] for r in steps])
+        assert np.all((0.9 < e[N // 4:] / err[N // 4:]) & (e[N // 4:] / err[N // 4:] < 1.1))
+        assert 0.9 < s["error_estimate"]["estimate"] / err.max() < 1.1
+        est.append(s["error_estimate"]["estimate"])
+    assert est[0] / est[1] == pytest.approx(2.0, rel=0.05)
+    assert est[1] / est[2] == pytest.approx(2.0, rel=0.05)
 
 
 def _cli_outputs(out):
