@@ -163,7 +163,7 @@ class FieldOutput(Observer):
         kappa = p.state.kappa
         self.kappa = KappaOutput(kappa, getattr(p.law, "fields", None), law_rows(p)) \
             if kappa is not None else None       # kappa, or the law's named variables
-        # sigma_33 in sigma (plane strain), material id, eps, eps_vp, sigma_nodal
+        # sigma_33 in sigma (plane strain), material id, eps, eps_vp, sigma_nodal, eta
         self.derived = derived_outputs(p)
         fields = [p.u, p.sigma, p.sigma_vm] + (
             self.kappa.functions if kappa is not None else []) + [

@@ -93,6 +93,8 @@ class RunSummary:
             recorded).
         phases: where the loop's time went (app/post/phases.py: the stages of the steps and
             PETSc's events in the solves; None: not timed).
+        error_estimate: the a posteriori estimate's max over the steps with its time and
+            space parts (app/post/estimators.py; None: no step).
     """
 
     case: str
@@ -115,6 +117,7 @@ class RunSummary:
     summary_error: str | None = None
     laws: dict | None = None
     phases: dict | None = None
+    error_estimate: dict | None = None
 
     @property
     def last_good_step(self) -> int:
@@ -143,6 +146,8 @@ class RunSummary:
              "newton_iterations_total": sum(s["newton_iterations"] for s in self.steps),
              "solve_s": sum(s["wall_s"] for s in self.steps),
              "setup_s": self.setup_s, "loop_s": self.loop_s, "wall_s": self.wall_s}
+        if self.error_estimate is not None:
+            d["error_estimate"] = self.error_estimate
         if self.phases is not None:
             d["phases"] = self.phases
         if self.step_history is not None:

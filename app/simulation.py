@@ -41,6 +41,7 @@ from vpcontact.model.stepping import StepTooSmall, make_stepper
 from vpcontact.observers import Observer, StopRun
 from vpcontact.post import quantities
 from vpcontact.post.diagnostics import diagnose
+from vpcontact.post.estimators import ErrorEstimate
 from vpcontact.post.lawreport import law_report
 from vpcontact.post.pairreport import pair_lines
 from vpcontact.post.phases import PhaseClock
@@ -235,6 +236,7 @@ class Simulation:
         self.stepper = make_stepper(case, self.diagnostics.relaxation_rate)
         if needs_watch(self):       # no rate bound: k r estimated at every step, first
             self.observers.insert(0, RateWatch())
+        self.observers.insert(0, ErrorEstimate())   # the a posteriori estimate, every run
         if self.restart is not None:
             self.steps = self.restart.restore(self)
             self.n, self.t = self.restart.n, self.restart.t

@@ -338,10 +338,11 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
         return interrupted(_convergence_interrupted(exc, cache_dir, outdir))
     if comm.rank == 0:
         for r in res["rows"]:
-            log.info("delta %-8g h %-9.5g k %-9.5g Error %.6g  rate %s  wall %.3f s%s",
-                     r["delta"], r["h"], r["k"], r["error"],
-                     "-" if r["rate"] is None else f"{r['rate']:.3f}", r["solve_s"],
-                     " (cached)" if r["cached"] else "")
+            log.info("delta %-8g h %-9.5g k %-9.5g Error %.6g  rate %s  effectivity %s  wall "
+                     "%.3f s%s", r["delta"], r["h"], r["k"], r["error"],
+                     "-" if r["rate"] is None else f"{r['rate']:.3f}",
+                     "-" if r["effectivity"] is None else f"{r['effectivity']:.3f}",
+                     r["solve_s"], " (cached)" if r["cached"] else "")
         log.info("done in %.1f s: %s/{%s}", res["total_s"], outdir, ", ".join(CONVERGENCE_FILES))
     comm.barrier()
     return 0

@@ -14,12 +14,10 @@ replaced after (FieldWriter.write's ``columns``): the files keep their size and 
 from __future__ import annotations
 
 import numpy as np
-import ufl
 from dolfinx import fem
-from dolfinx.la import ScatterMode
 from mpi4py import MPI
 
-_ADD = ScatterMode.add
+from vpcontact.model.recovery import LumpedProjection, SpaceIndicators
 
 
 def owned_rows(problem) -> np.ndarray:
@@ -192,8 +190,8 @@ class NodalStressOutput:
     """``sigma_nodal``: the stress averaged at the nodes (P1 tensor, N/m^2), the L2
     projection of the DG0 sigma onto P1 with the lumped (row-sum) mass: sigma_i = (sigma,
     phi_i) / (1, phi_i), the volume-weighted mean of the cells around node i (a uniform
-    stress is reproduced exactly).  In 2D plane strain a 3 x 3 tensor with sigma_33; in 2D
-    plane stress the 2 x 2 one (sigma_33 = 0).
+    stress is reproduced exactly; app/model/recovery.py: LumpedProjection).  In 2D plane
+    strain a 3 x 3 tensor with sigma_33; in 2D plane stress the 2 x 2 one (sigma_33 = 0).
 
     Args:
         problem: the ContactProblem.
@@ -205,15 +203,9 @@ class NodalStressOutput:
         shape = (3, 3) if full else (d, d)
         msh = problem.mesh
         self.cells = fem.Function(fem.TensorFunctionSpace(msh, ("DG", 0), shape=shape))
-        T = fem.TensorFunctionSpace(msh, ("CG", 1), shape=shape)
-        self.nodal = fem.Function(T, name="sigma_nodal")
+        self.projection = LumpedProjection(msh, self.cells, shape, name="sigma_nodal")
+        self.nodal = self.projection.nodal
         self.functions = [self.nodal]
-        self.rhs = fem.form(ufl.inner(self.cells, ufl.TestFunction(T)) * ufl.dx)
-        W = fem.FunctionSpace(msh, ("CG", 1))
-        mass = fem.assemble_vector(fem.form(ufl.TestFunction(W) * ufl.dx))
-        mass.scatter_reverse(_ADD)
-        mass.scatter_forward()
-        self.mass = np.repeat(mass.array, shape[0] * shape[1])
 
     def update(self) -> None:
         """Project the current sigma (with sigma_33 in plane strain) onto P1 (collective)."""
@@ -225,10 +217,32 @@ class NodalStressOutput:
             c = self.cells.x.array.reshape(-1, 3, 3)
             c[:, :d, :d] = p.sigma.x.array.reshape(-1, d, d)
             c[:, 2, 2] = p.sigma_33.x.array
-        b = fem.assemble_vector(self.rhs)
-        b.scatter_reverse(_ADD)
-        b.scatter_forward()
-        self.nodal.x.array[:] = b.array / self.mass
+        self.projection.update()
+
+    def columns(self) -> dict:
+        """Returns: {} (nothing replaced)."""
+        return {}
+
+
+class EtaOutput:
+    """``eta``: the space error indicator per cell (DG0 scalar), (eta_Q,K^2 + eta_V,K^2 +
+    eta_Y,K^2)^(1/2) of app/model/recovery.py (the stress, strain and kappa parts of the
+    paper's error measure, each against its recovered nodal field).
+
+    Args:
+        problem: the ContactProblem.
+    """
+
+    def __init__(self, problem):
+        self.problem = problem
+        self.indicators = SpaceIndicators(problem)
+        self.eta = fem.Function(problem.Y, name="eta")
+        self.functions = [self.eta]
+
+    def update(self) -> None:
+        """eta of the owned cells from the current state (collective)."""
+        eta2 = self.indicators.update()
+        self.eta.x.array[owned_rows(self.problem)] = np.sqrt(eta2.sum(axis=1))
 
     def columns(self) -> dict:
         """Returns: {} (nothing replaced)."""
@@ -242,8 +256,8 @@ def derived_outputs(problem) -> list:
         problem: the ContactProblem.
 
     Returns:
-        [StressOutput, MaterialOutput, StrainOutput, NodalStressOutput]: each with
+        [StressOutput, MaterialOutput, StrainOutput, NodalStressOutput, EtaOutput]: each with
         ``functions`` (what it writes, possibly none), ``update()`` and ``columns()``.
     """
     return [StressOutput(problem), MaterialOutput(problem), StrainOutput(problem),
-            NodalStressOutput(problem)]
+            NodalStressOutput(problem), EtaOutput(problem)]

@@ -85,6 +85,8 @@ class RunRecord:
             computed run; None for a cached one.
         last_step: the record of the run's last step (summary.json's, e.g. contact_force and
             reactions) for a computed run; None for a cached one.
+        estimate: the run's a posteriori error estimate (summary.json's error_estimate:
+            estimate, time, space), or None (a cached run of an earlier version).
     """
 
     n: int
@@ -100,6 +102,7 @@ class RunRecord:
     snaps: list = field(default_factory=list, repr=False)
     contact: dict | None = field(default=None, repr=False)
     last_step: dict | None = field(default=None, repr=False)
+    estimate: dict | None = field(default=None, repr=False)
 
     @property
     def h(self) -> float:
@@ -384,7 +387,8 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
         times = comm.bcast(times, root=0)
         log.info("  %s, N = %4d, delta = %g: from the cache (%s)", what, N, delta, path.name)
         return RunRecord(n, N, delta, grid, meta["dofs"], np.asarray(times), meta["solve_s"],
-                         meta["setup_s"], meta["newton"], True, snaps)
+                         meta["setup_s"], meta["newton"], True, snaps,
+                         estimate=meta.get("estimate"))
 
     sampler, watch = GridSamples(grid), SignalWatch()
     loglevel = log.level
@@ -402,7 +406,7 @@ def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: 
     rec = RunRecord(n, N, delta, grid, s["mesh"]["dofs"], np.array(case.time.times),
                     s["solve_s"], s["setup_s"], s["newton_iterations_total"], False,
                     sampler.snaps, _final_table(result.problem, comm),
-                    s["steps"][-1] if s["steps"] else None)
+                    s["steps"][-1] if s["steps"] else None, _estimate(s))
     try:
         with signals_held():          # the finished run is logged and cached whole
             _keep(rec, what, path, case.time.times, comm)
@@ -421,9 +425,16 @@ def _keep(rec: RunRecord, what: str, path: Path | None, times, comm) -> None:
         try:
             runcache.save(path, times, rec.snaps,
                           {"dofs": rec.dofs, "solve_s": rec.solve_s, "setup_s": rec.setup_s,
-                           "newton": rec.newton, "n": rec.n, "N": rec.N, "delta": rec.delta})
+                           "newton": rec.newton, "n": rec.n, "N": rec.N, "delta": rec.delta,
+                           "estimate": rec.estimate})
         except OSError as exc:        # e.g. a full disk: the study goes on without the entry
             log.warning("run not cached (%s: %s)", path, exc.strerror or exc)
+
+
+def _estimate(summary: dict) -> dict | None:
+    """The run's error estimate (estimate, time, space) from its summary, or None."""
+    e = summary.get("error_estimate")
+    return None if e is None else {k: e[k] for k in ("estimate", "time", "space")}
 
 
 def _final_table(problem, comm) -> dict | None:
@@ -519,7 +530,8 @@ def matches_paper(raw: dict) -> bool:
 
 
 COLUMNS = ["delta", "level", "h", "k", "n", "N", "dofs", "steps", "error", "e_sigma", "e_u",
-           "e_kappa", "n_max", "t_max", "rate", "solve_s", "setup_s", "newton_total", "cached"]
+           "e_kappa", "n_max", "t_max", "rate", "estimate", "est_time", "est_space",
+           "effectivity", "solve_s", "setup_s", "newton_total", "cached"]
 
 
 def study(raw: dict, source: str, levels: list[int], reference: int, vary: str,
@@ -635,8 +647,18 @@ def _level_rows(levels, recs, ref, vary, T, delta, comm) -> list[dict]:
              "steps": r.N, "error": p, "e_sigma": e["e_sigma"], "e_u": e["e_u"],
              "e_kappa": e["e_kappa"], "n_max": e["n_max"], "t_max": e["t_max"], "rate": rate,
              "solve_s": r.solve_s, "setup_s": r.setup_s, "newton_total": r.newton,
-             "cached": r.cached}
+             "cached": r.cached, **_effectivity(r.estimate, p)}
             for L, r, e, p, rate in zip(levels, recs, errs, printed, rates)]
+
+
+def _effectivity(estimate: dict | None, error: float) -> dict:
+    """The columns of the run's error estimate: estimate, its time and space parts and the
+    effectivity estimate / Error (None without an estimate or with a zero Error)."""
+    if estimate is None:
+        return {"estimate": None, "est_time": None, "est_space": None, "effectivity": None}
+    return {"estimate": estimate["estimate"], "est_time": estimate["time"],
+            "est_space": estimate["space"],
+            "effectivity": estimate["estimate"] / error if error > 0 else None}
 
 
 def check_level_sizes(case, comm, option: str, value: int, extra: int = 0) -> None:
@@ -789,13 +811,16 @@ def write_markdown(path: Path, res: dict, case_name: str) -> None:
               "Wall time = sum over the steps of the time spent in the history update, the "
               "SNES solve and the stress update (time.perf_counter); mesh generation, JIT "
               "compilation, set-up, outputs and sampling are excluded (set-up column). Cached "
-              "runs show the times measured when they were computed.", ""]
+              "runs show the times measured when they were computed.", "",
+              "Estimate = the level's own a posteriori estimate of its Error (summary.json's "
+              "error_estimate: the summed local errors of the history update plus the "
+              "recovery estimate of the space error); effectivity = estimate / Error.", ""]
     for delta in res["deltas"]:
         rows = [r for r in res["rows"] if r["delta"] == delta]
         paper = res["paper"]
         head = ["r"] * bool(res.get("file")) + [
             "h", "k", "dofs", "steps", "Error", "sigma part", "u part", "kappa part", "n_max",
-            "rate", "wall s", "set-up s", "Newton"]
+            "rate", "estimate", "effectivity", "wall s", "set-up s", "Newton"]
         if paper:
             head += ["paper Error", "paper rate"]
         lines += [f"## delta = {delta:g}", "", "| " + " | ".join(head) + " |",
@@ -808,7 +833,8 @@ def write_markdown(path: Path, res: dict, case_name: str) -> None:
                      else _fmt(r["k"]),
                      r["dofs"], r["steps"], f"{r['error']:.6g}", _fmt(r["e_sigma"]),
                      _fmt(r["e_u"]), _fmt(r["e_kappa"]), r["n_max"], _fmt(r["rate"]),
-                     f"{r['solve_s']:.3f}", f"{r['setup_s']:.2f}", r["newton_total"]]
+                     _fmt(r["estimate"]), _fmt(r["effectivity"], 3), f"{r['solve_s']:.3f}",
+                     f"{r['setup_s']:.2f}", r["newton_total"]]
             if paper:
                 cells += [_fmt(PAPER_TABLE1.get(r["level"])), _fmt(PAPER_RATES.get(r["level"]))]
             lines.append("| " + " | ".join(map(str, cells)) + " |")

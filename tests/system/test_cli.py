@@ -41,7 +41,7 @@ def test_demo_writes_the_three_outputs(demo_out):
     assert times == pytest.approx([n / 16 for n in range(17)])
     for g in grids:
         assert [a.get("Name") for a in g.findall("Attribute")] == [
-            "u", "sigma", "sigma_vm", "kappa", "eps", "eps_vp", "sigma_nodal"]
+            "u", "sigma", "sigma_vm", "kappa", "eps", "eps_vp", "sigma_nodal", "eta"]
 
     s = json.loads((demo_out / "summary.json").read_text())
     assert s["case"] == "wang_cheng_2021" and s["status"] == "completed"

@@ -87,12 +87,12 @@ def test_serial_equals_two_ranks(punch):
 
 def test_elastic_scene_writes_what_it_has(tmp_path):
     """hertz_cylinder (one body, elastic): no eps_vp, no kappa, no material id; eps and
-    sigma_nodal written."""
+    sigma_nodal and eta written."""
     out = tmp_path / "hertz"
     r = run_cli(["run", HERTZ, "--out", out])
     assert r.returncode == 0, r.stderr
     f, _, _ = _fields(out)
-    assert set(f) == {"u", "sigma", "sigma_vm", "eps", "sigma_nodal"}
+    assert set(f) == {"u", "sigma", "sigma_vm", "eps", "sigma_nodal", "eta"}
 
 
 @pytest.mark.parametrize("plane", ["strain", "stress"])

@@ -223,8 +223,8 @@ def _check_readable_after_a_kill(out) -> None:
     root = ET.fromstring((out / "solution.xdmf").read_text())
     steps = root.findall(".//Grid[@Name='solution'][@GridType='Uniform']")
     assert len(steps) >= 2
-    assert all(len(g.findall("Attribute")) == 7 for g in steps)   # u, sigma, sigma_vm, kappa,
-    #                                                                eps, eps_vp, sigma_nodal
+    assert all(len(g.findall("Attribute")) == 8 for g in steps)   # u, sigma, sigma_vm, kappa,
+    #                                                                eps, eps_vp, sigma_nodal, eta
     for stem in ("solution", "contact"):
         root = ET.fromstring((out / f"{stem}.xdmf").read_text())
         with h5py.File(out / f"{stem}.h5", "r") as f:

@@ -1,0 +1,113 @@
+"""Recovery of nodal fields and the space error indicators of Zienkiewicz-Zhu type
+(docs/model.md, "Error estimates").
+
+The recovered field f* of a cellwise field f_h is its L2 projection onto P1 with the lumped
+(row-sum) mass: f*_i = (f_h, phi_i) / (1, phi_i), the volume-weighted mean of the cells
+around node i; a uniform field is reproduced exactly.  ``sigma_nodal`` of solution.xdmf is
+this projection of sigma (app/model/outputfields.py), and the space indicators compare the
+three fields of the paper's error measure with theirs, cell by cell:
+
+    eta_Q,K = ||sigma* - sigma_h||_L2(K)          (Frobenius, the norm ||.||_Q)
+    eta_V,K = ||eps(u_h)* - eps(u_h)||_L2(K)     (the recovered gradient, ||.||_V)
+    eta_Y,K = ||kappa* - kappa_h||_L2(K)          (Euclidean over kappa's m components)
+
+integrated exactly (f* is P1, f_h constant on K: quadrature of degree 2).  The recovered
+strain is the projection of eps(u_h) itself, not E^-1 (sigma* - H): the latter would only
+rescale eta_Q and carry the jumps of the cellwise H; the former measures ||.||_V's own
+discretisation error.  The contact boundary adds no term yet.
+"""
+from __future__ import annotations
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.la import ScatterMode
+from mpi4py import MPI
+
+_ADD = ScatterMode.add
+
+
+def _space(msh, family: str, shape: tuple):
+    """A P1 or DG0 space of scalars (shape ()), vectors (m,) or tensors (d, d)."""
+    if not shape:
+        return fem.FunctionSpace(msh, (family, (1 if family == "CG" else 0)))
+    if len(shape) == 1:
+        return fem.VectorFunctionSpace(msh, (family, (1 if family == "CG" else 0)),
+                                       dim=shape[0])
+    return fem.TensorFunctionSpace(msh, (family, (1 if family == "CG" else 0)), shape=shape)
+
+
+class LumpedProjection:
+    """The lumped-mass L2 projection onto P1 of a cellwise UFL expression f_h:
+    f*_i = (f_h, phi_i) / (1, phi_i) (collective).
+
+    Args:
+        msh: the mesh.
+        expr: the UFL expression of f_h (constant on each cell).
+        shape: its value shape: () a scalar, (m,) a vector, (d, d) a tensor.
+        name: the name of the P1 Function f*.
+    """
+
+    def __init__(self, msh, expr, shape: tuple, name: str = "recovered"):
+        T = _space(msh, "CG", shape)
+        self.nodal = fem.Function(T, name=name)
+        self.expr = expr
+        self.rhs = fem.form(ufl.inner(expr, ufl.TestFunction(T)) * ufl.dx)
+        W = fem.FunctionSpace(msh, ("CG", 1))
+        mass = fem.assemble_vector(fem.form(ufl.TestFunction(W) * ufl.dx))
+        mass.scatter_reverse(_ADD)
+        mass.scatter_forward()
+        self.mass = np.repeat(mass.array, int(np.prod(shape, dtype=int)))
+
+    def update(self) -> None:
+        """f* from the current f_h, ghosts included (collective)."""
+        b = fem.assemble_vector(self.rhs)
+        b.scatter_reverse(_ADD)
+        b.scatter_forward()
+        self.nodal.x.array[:] = b.array / self.mass
+
+
+class SpaceIndicators:
+    """The indicators eta_Q,K, eta_V,K, eta_Y,K of a problem's state (module docstring).
+
+    Args:
+        problem: the ContactProblem (its u, sigma and State's kappa).
+    """
+
+    def __init__(self, problem):
+        d, msh = problem.dim, problem.mesh
+        self.comm, self.owned = problem.comm, problem.num_owned_cells
+        kappa = problem.state.kappa
+        fields = [(problem.sigma, (d, d)), (ufl.sym(ufl.grad(problem.u)), (d, d))]
+        if kappa is not None:
+            fields.append((kappa, tuple(kappa.ufl_shape)))
+        self.projections = [LumpedProjection(msh, f, s) for f, s in fields]
+        E = fem.VectorFunctionSpace(msh, ("DG", 0), dim=3)
+        w = ufl.TestFunction(E)
+        form = sum(ufl.inner(pr.nodal - pr.expr, pr.nodal - pr.expr) * w[i]
+                   for i, pr in enumerate(self.projections))
+        self.form = fem.form(form * ufl.dx(metadata={"quadrature_degree": 2}))
+        self.rows = np.asarray(E.dofmap.list.array)[:self.owned]
+
+    def update(self) -> np.ndarray:
+        """The squared indicators of the owned cells (collective).
+
+        Returns:
+            (owned cells, 3): eta_Q,K^2, eta_V,K^2, eta_Y,K^2 (0 without kappa), in local
+            cell order.
+        """
+        for pr in self.projections:
+            pr.update()
+        b = fem.assemble_vector(self.form)        # cell integrals: the owned cells
+        return b.array.reshape(-1, 3)[self.rows]
+
+    def norms(self, eta2: np.ndarray) -> np.ndarray:
+        """The global estimates (sum over the cells of all ranks; collective).
+
+        Args:
+            eta2: ``update()``'s squared indicators.
+
+        Returns:
+            (3,): eta_Q, eta_V, eta_Y.
+        """
+        return np.sqrt(self.comm.allreduce(eta2.sum(axis=0), op=MPI.SUM))

@@ -1,0 +1,207 @@
+"""A posteriori estimate of the paper's error measure in every run (docs/model.md, "Error
+estimates"): max_n (||sigma_n - sigma(t_n)||_Q + ||u_n - u(t_n)||_V + ||kappa_n -
+kappa(t_n)||_Y), split into a time part and a space part.
+
+- Space, per step: eta_Q + eta_V + eta_Y, the recovery indicators of app/model/recovery.py
+  summed over the cells (each a global L2 norm, as the error measure's three norms).
+- Time: the error of the history update, embedded and propagated.  The explicit sums
+  (3.2)-(3.3) take G at the left end point; the trapezoidal (second order) update differs
+  from them by the local error l_n = (k_n / 2) (G_n - G_{n-1}), G_j = G(sigma_j, kappa_j)
+  (Gk likewise for kappa), known after the step; the implicit scheme's backward-Euler
+  update differs from the trapezoidal one by -l_n.  The error fields (delta H, delta kappa)
+  per cell are carried through the scheme by the law itself, with the stress error taken
+  as the error of H (exact under held displacements):
+      explicit: delta_n = delta_{n-1} + k_n (G(s_{n-1}) - G(s_{n-1} - delta_{n-1})) - l_n,
+      implicit: delta_n = delta_{n-1} + k_n (G(s_n) - G(s_n - delta_{n-1})) + l_n,
+  s_j = (sigma_j, kappa_j); the time estimate of step n is ||delta H_n||_Q + ||delta
+  kappa_n||_Y.  So a relaxing history damps its early errors as the scheme does (the sum of
+  the ||l_n|| would keep them).  It costs two more evaluations of the law's explicit update
+  per step, on copies of the state.  The memory and slip sums of Gamma3 add no term yet; a
+  restarted run starts the error fields from zero (they are not in the checkpoint).
+
+Each step record gets est_time, est_space, est_total (their sum), est_max (the running max
+of est_total, the measure's max_n) and est_space's three parts; summary.json gets
+``error_estimate``.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from vpcontact.model.history import UPDATE_ERRORS, first_failure
+from vpcontact.model.recovery import SpaceIndicators
+from vpcontact.observers import Observer
+
+log = logging.getLogger("vpcontact")
+
+PARTS = ("est_space_sigma_Q", "est_space_u_V", "est_space_kappa_Y")
+COLUMNS = ("est_time", "est_space", "est_total", "est_max") + PARTS
+
+
+class HistoryRates:
+    """G(sigma, kappa) and Gk(sigma, kappa) per cell by the law's explicit update on copies
+    (the State is untouched).
+
+    Args:
+        problem: the ContactProblem (its law, sigma and State).
+    """
+
+    def __init__(self, problem):
+        self.problem = problem
+        self.update = problem.law.explicit()
+
+    def __call__(self, k: float, sigma: np.ndarray | None = None,
+                 kappa: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(G, Gk) at (sigma, kappa), by default the current state.
+
+        Args:
+            k: the step of the update (the scheme's there, so that a safeguard of the law
+                acts as in the run).
+            sigma: sigma per local cell, flat, or None.
+            kappa: kappa (cells, m), or None.
+
+        Returns:
+            (G, Gk) per local cell, (cells, d*d) and (cells, m).
+        """
+        p, st = self.problem, self.problem.state
+        sigma = p.sigma.x.array if sigma is None else sigma
+        kappa0 = st.kappa_cells if kappa is None else kappa
+        H, kap = st.H.x.array.copy(), kappa0.copy()
+        self.update(sigma.copy(), H, kap, k)
+        return ((H - st.H.x.array).reshape(len(kap), -1) / k, (kap - kappa0) / k)
+
+
+class TimeError:
+    """The propagated error (delta H, delta kappa) of the history update (module
+    docstring); collective.
+
+    Args:
+        problem: the ContactProblem with a viscoplastic law.
+        k: the first step (for G at the initial or restored state).
+    """
+
+    def __init__(self, problem, k: float):
+        self.problem, self.rates = problem, HistoryRates(problem)
+        self.implicit = bool(problem.implicit)
+        self.previous = self._state_rates(k)
+        self.delta = None
+
+    def _state_rates(self, k: float):
+        """(sigma, kappa, G, Gk) of the current state; None if the law fails on a rank."""
+        p = self.problem
+        out = _collective(p.comm, self.rates, k)
+        if out is None:
+            return None
+        return (p.sigma.x.array.copy(), p.state.kappa_cells.copy()) + out
+
+    def step(self, k: float) -> float:
+        """delta_n from delta_{n-1} and the step just solved.
+
+        Args:
+            k: the step k_n.
+
+        Returns:
+            ||delta H_n||_Q + ||delta kappa_n||_Y (NaN once the law's update failed).
+        """
+        now, before = self._state_rates(k), self.previous
+        self.previous = now
+        if now is None or before is None:
+            self.delta = None
+            return float("nan")
+        local = [0.5 * k * (a - b) for a, b in zip(now[2:], before[2:])]
+        if self.delta is None:                    # the first step: no error before it
+            self.delta = [-x if not self.implicit else x for x in local]
+            return self._norm()
+        at = now if self.implicit else before
+        sig = at[0] - self.delta[0].reshape(-1)
+        moved = _collective(self.problem.comm, self.rates, k, sig, at[1] - self.delta[1])
+        if moved is None:
+            self.delta = None
+            return float("nan")
+        sign = 1.0 if self.implicit else -1.0
+        self.delta = [d + k * (g - gm) + sign * x
+                      for d, g, gm, x in zip(self.delta, at[2:], moved, local)]
+        return self._norm()
+
+    def _norm(self) -> float:
+        """||delta H||_Q + ||delta kappa||_Y over the owned cells of all ranks."""
+        p = self.problem
+        n = p.num_owned_cells
+        vol = p.cell_volumes()[:n]
+        return float(sum(np.sqrt(p.reduce(float(vol @ np.einsum("ij,ij->i", d[:n], d[:n])),
+                                          "SUM")) for d in self.delta))
+
+
+def _collective(comm, call, *args):
+    """call(*args), or None on every rank if it failed on some rank (collective)."""
+    out, error = None, None
+    try:
+        out = call(*args)
+    except UPDATE_ERRORS as exc:
+        error = exc
+    return None if first_failure(comm, error) is not None else out
+
+
+class ErrorEstimate(Observer):
+    """The estimate of every step (module docstring); collective."""
+
+    def __init__(self):
+        self.space = self.time = None
+        self.best = None
+
+    def start(self, sim) -> None:
+        """The indicators, and G at the initial (or restored) state.
+
+        Args:
+            sim: the Simulation, set up.
+        """
+        p = sim.problem
+        self.space = SpaceIndicators(p)
+        if p.law is not None and p.state.H is not None:
+            times = sim.case.time.times
+            self.time = TimeError(p, float(times[1] - times[0]))
+        for rec in sim.steps:                 # restored steps: their running max goes on
+            if "est_total" in rec:
+                self._keep(rec)
+
+    def check(self, sim, record: dict) -> None:
+        """Add the estimates of step n to its record.
+
+        Args:
+            sim: the Simulation with step n solved.
+            record: the step's record.
+        """
+        parts = self.space.norms(self.space.update())
+        est = dict(zip(PARTS, map(float, parts)), est_space=float(parts.sum()))
+        est["est_time"] = self.time.step(record["k"]) if self.time is not None else 0.0
+        est["est_total"] = est["est_time"] + est["est_space"]
+        # an estimate that is not finite (rates that overflow) is absent, never a reason
+        # for the blow-up monitor to stop the run
+        record.update({k: v if np.isfinite(v) else None for k, v in est.items()})
+        self._keep(record)
+        record["est_max"] = None if self.best is None else self.best["estimate"]
+
+    def _keep(self, record: dict) -> None:
+        """The running max of est_total with its step and split."""
+        if record["est_total"] is None:
+            return
+        if self.best is None or record["est_total"] > self.best["estimate"]:
+            self.best = {"estimate": record["est_total"], "time": record["est_time"],
+                         "space": record["est_space"], "n_max": record["n"],
+                         "t_max": record["t"],
+                         "space_parts": {k: record[k] for k in PARTS}}
+
+    def end(self, sim, summary) -> None:
+        """summary.json's ``error_estimate`` and the log line.
+
+        Args:
+            sim: the Simulation at its end.
+            summary: the RunSummary.
+        """
+        if self.best is None:
+            return
+        summary.error_estimate = dict(self.best)
+        b = self.best
+        log.info("error estimate: %.4g (time %.4g, space %.4g) at step %d (t = %g)",
+                 b["estimate"], b["time"], b["space"], b["n_max"], b["t_max"])
