@@ -195,6 +195,17 @@ def _early_painter(comm, no_plots: bool):
         return None
 
 
+def _small_case_note(comm, s: dict) -> None:
+    """Under mpirun on few dofs per rank: the run log's line on where the time went
+    (app/cli/ranknote.py)."""
+    from vpcontact.cli.entry import STARTED
+    from vpcontact.cli.ranknote import small_case_note
+    startup = time.perf_counter() - STARTED - s["wall_s"]
+    note = small_case_note(comm.size, s["mesh"]["dofs"], startup, s["setup_s"], s["loop_s"])
+    if note:
+        log.info("%s", note)
+
+
 def report_run(comm, s: dict, outdir: Path, files: list[Path]) -> int:
     """The closing lines of a run and its exit code.
 
@@ -217,6 +228,7 @@ def report_run(comm, s: dict, outdir: Path, files: list[Path]) -> int:
             from vpcontact.post.phases import phase_lines  # PETSc: imported by the run
             for line in phase_lines(s["phases"]):
                 log.info("%s", line)
+        _small_case_note(comm, s)
         g3 = s["solver"].get("gamma3")
         if g3:
             log.info("Gamma3 problem (%d dofs): %d dense factorisations, %d CG iterations with "
