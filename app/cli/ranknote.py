@@ -4,8 +4,9 @@ from __future__ import annotations
 
 # Below this many dofs per rank `mpirun -n 2` was never faster than one rank on the 2-core
 # machines (whole process, interleaved runs, docs/performance.md section 5): the paper case
-# at h = k = 1/128 (16,641 per rank, condensed) 2.44 s serial against 7.88 s, the two
-# cylinders (1,678 per rank) 1.7x; box3d n = 32 (53,906 per rank) about even.
+# at h = k = 1/128 (16,641 per rank, condensed) 1.44 s serial against 2.13 s (10.8 s on a
+# busy machine), the two cylinders (1,678 per rank) 1.54 s against 1.72 s; box3d n = 32
+# (53,906 per rank) about even.
 SMALL_DOFS_PER_RANK = 50_000
 
 
