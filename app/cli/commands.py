@@ -198,8 +198,8 @@ def _early_painter(comm, no_plots: bool):
 def _small_case_note(comm, s: dict) -> None:
     """Under mpirun on few dofs per rank: the run log's line on where the time went
     (app/cli/ranknote.py)."""
-    from vpcontact.cli.entry import STARTED
     from vpcontact.cli.ranknote import small_case_note
+    from vpcontact.startup import STARTED
     startup = time.perf_counter() - STARTED - s["wall_s"]
     note = small_case_note(comm.size, s["mesh"]["dofs"], startup, s["setup_s"], s["loop_s"])
     if note:

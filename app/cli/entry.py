@@ -7,9 +7,6 @@ first prepares the process (``prepare_process``) and then runs ``main``.
 import os
 import signal
 import sys
-import time
-
-STARTED = time.perf_counter()      # the command's start (the run log's start-up time)
 
 
 def _interrupted_while_starting(signum, frame):

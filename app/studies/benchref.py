@@ -180,9 +180,8 @@ def _amg(K, V):
 
 
 def main(argv: list[str]) -> None:
-    """The reference process: ``benchref CASE [--set k=v ...]``; prints measure's dict."""
-    from vpcontact.cli.entry import prepare_process
-    prepare_process()                          # the runs' threads and a light MPI singleton
+    """The reference process: ``benchref CASE [--set k=v ...]``; prints measure's dict
+    (its threads from benchrun.ENV, as the runs')."""
     from mpi4py import MPI
 
     from vpcontact.case import load_raw, validate
