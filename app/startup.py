@@ -25,7 +25,12 @@ import importlib
 import os
 import re
 import sys
+import time
 import types
+
+# the command's start (imported first by the command line, app/cli/entry.py console): the
+# run log's start-up time under mpirun (app/cli/ranknote.py)
+STARTED = time.perf_counter()
 
 
 class _PkgResourcesStandIn(types.ModuleType):

@@ -289,7 +289,9 @@ def _add_stability(sub) -> None:
 def _add_bench(sub) -> None:
     b = sub.add_parser("bench", help="time the step solvers on the paper case",
                        description="Whole-process timings of a case with each step solver, "
-                                   "serial and under mpirun -n 2 (bench.json, bench.md).")
+                                   "serial and under mpirun -n 2 (bench.json, bench.md), also "
+                                   "as ratios to a reference solve on each mesh timed in the "
+                                   "same bench run (comparable between machines).")
     b.add_argument("case", nargs="?", default="cases/wang_cheng_2021.yaml")
     b.add_argument("--levels", type=int_range(1, MAX_CELLS), nargs="+", default=[16, 32, 64, 128],
                    help="h = k = 1/L levels (default 16 32 64 128)")

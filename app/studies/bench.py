@@ -6,7 +6,8 @@ the measured run (output only at T), repeated ``repeat`` times for every solver 
 extra levels once); the wall time reported is the fastest of the repeats, all of them are
 kept.  Wall time is the whole process (start-up, imports, mesh, set-up, steps, output)
 measured from outside; set-up and per-step times come from the fastest run's summary.json.
-Speed-ups are ratios measured in the same bench run.
+Speed-ups are ratios measured in the same bench run, and every row's times are also given
+as ratios to a reference solve on its mesh timed in the same bench run (benchref.py).
 """
 from __future__ import annotations
 
@@ -27,6 +28,7 @@ from vpcontact.io.files import atomic_write
 from vpcontact.solvers.choice import condensed_eligible
 from vpcontact.studies import bench3d, scenebench
 from vpcontact.studies.bench3d import BOX3D
+from vpcontact.studies.benchref import REFERENCE_TEXT, References, ratio_text, reference_cells
 from vpcontact.studies.benchrun import ENV, run_overrides
 
 MAX_REPEAT = 100             # --repeat: more gives no better minimum, only a longer bench
@@ -115,7 +117,8 @@ def _check_box3d(levels) -> None:
 
 
 def bench(case, outdir: Path, levels, methods=("snes_vi", "condensed"), nprocs=(1, 2),
-          extra=(), log=print, repeat: int = 1) -> list[dict]:
+          extra=(), log=print, repeat: int = 1, references: References | None = None
+          ) -> list[dict]:
     """Time the step solvers on the case, each configuration in its own process.
 
     Args:
@@ -127,15 +130,18 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "condensed"), nprocs=(
         extra: further (n, N) configurations, run once.
         log: called with one line per configuration.
         repeat: timed runs per level configuration (the fastest counts).
+        references: the bench run's reference solves (benchref.py; None: a new set).
 
     Returns:
-        One row per configuration (level, solver, ranks); a configuration that fails gets a
-        row with its reason under "failed".
+        One row per configuration (level, solver, ranks), its times also as ratios to the
+        reference of its mesh; a configuration that fails gets a row with its reason under
+        "failed".
 
     Raises:
         CaseError: for arguments it cannot run as asked.
     """
     check_arguments(case, levels, extra, nprocs, repeat, methods=methods)
+    references = references or References(log=log)
     rows = []
     for n, N in [(L, L) for L in levels] + list(extra):
         repeats = repeat if (n, N) not in extra else 1
@@ -164,13 +170,15 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "condensed"), nprocs=(
                              "phases": s.get("phases")})
                 rows[-1]["final"] = [s["steps"][-1][k] for k in ("norm_u_V", "norm_sigma_Q",
                                                                    "norm_kappa_Y")]
+                references.attach(rows[-1], case, [f"mesh.n={n}"])
                 finals[(method, np_)] = rows[-1]
                 u = np.array([[float(r["u_x"]), float(r["u_y"])]
                               for r in csv.DictReader(open(out / "contact.csv"))])
                 rows[-1]["_u"] = u
                 log(f"  h = 1/{n}, N = {N}, {method:8s} np {np_}: {wall:7.2f} s whole process, "
                     f"set-up {s['setup_s']:.2f} s, steps {s['loop_s']:.2f} s, "
-                    f"{s['newton_iterations_total']} Newton iterations")
+                    f"{s['newton_iterations_total']} Newton iterations, "
+                    f"{ratio_text(rows[-1], 'wall_ratio')} the reference")
         for np_ in nprocs:
             a, b = finals.get(("snes_vi", np_)), finals.get(("condensed", np_))
             if a and b:
@@ -193,27 +201,32 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "condensed"), nprocs=(
     return rows
 
 
-def failures(rows: list[dict], memory: list[dict], scene: list[dict] = ()) -> list[str]:
-    """The configurations of a bench that failed.
+def failures(rows: list[dict], memory: list[dict], scene: list[dict] = (),
+             box3d: list[dict] = ()) -> list[str]:
+    """The configurations of a bench that failed, and the runs whose reference solve failed.
 
     Args:
         rows: the solver rows (``bench``).
         memory: the memory-term rows (``memory_rows``).
         scene: the user-scene rows (app/studies/scenebench.py).
+        box3d: the 3D rows (app/studies/bench3d.py).
 
     Returns:
-        One short name per failed configuration.
+        One short name per failed configuration or reference.
     """
-    out = [f"h = 1/{r['n']}, N = {r['N']}, {r['method']}, {r['nprocs']} rank(s)"
-           for r in rows if "failed" in r]
-    return out + [f"memory term {r['sum']}, N = {r['N']}" for r in memory if "failed" in r] \
-        + [f"scene {r['kind']}, n = {r['n']}" for r in scene if "failed" in r]
+    names = [(r, f"h = 1/{r['n']}, N = {r['N']}, {r['method']}, {r['nprocs']} rank(s)")
+             for r in rows] + [(r, f"memory term {r['sum']}, N = {r['N']}") for r in memory] \
+        + [(r, f"scene {r['kind']}, n = {r['n']}") for r in scene] \
+        + [(r, r["label"]) for r in box3d]
+    return [name for r, name in names if "failed" in r] + \
+        [f"the reference of {name}" for r, name in names if "reference_failed" in r]
 
 
 MEMORY_CASE = Path(__file__).resolve().parents[2] / "cases" / "memory.yaml"
 
 
-def memory_rows(outdir: Path, steps=(64, 256, 1024), n: int = 16, log=print) -> list[dict]:
+def memory_rows(outdir: Path, steps=(64, 256, 1024), n: int = 16, log=print,
+                references: References | None = None) -> list[dict]:
     """Per-step cost of the memory term: the exponential kernel's exact recursion (O(1) per
     step) against the direct sum over the stored history (O(n) at step n), on
     cases/memory.yaml with the fast solver; per-step wall times of the first and last tenth
@@ -224,10 +237,13 @@ def memory_rows(outdir: Path, steps=(64, 256, 1024), n: int = 16, log=print) -> 
         steps: the step counts N.
         n: the mesh level.
         log: called with one line per run.
+        references: the bench run's reference solves (benchref.py; None: a new set).
 
     Returns:
-        One row per (sum, N); a failed run's row has its reason under "failed".
+        One row per (sum, N), its times also as ratios to the reference of the mesh; a
+        failed run's row has its reason under "failed".
     """
+    references = references or References(log=log)
     rows = []
     for N in steps:
         for how in ("recursion", "direct"):
@@ -254,7 +270,7 @@ def memory_rows(outdir: Path, steps=(64, 256, 1024), n: int = 16, log=print) -> 
                          "memory_last_tenth_s": statistics.mean(mem[-tenth:]),
                          "memory_total_s": sum(mem),
                          "final_norm_u_V": s["steps"][-1]["norm_u_V"]})
-            r = rows[-1]
+            r = references.attach(rows[-1], MEMORY_CASE, [f"mesh.n={n}"])
             log(f"  memory term, {how:9s} N = {N:5d}: steps {r['steps_s']:.2f} s; memory update "
                 f"per step {1e6 * r['memory_first_tenth_s']:.0f} us (first tenth) -> "
                 f"{1e6 * r['memory_last_tenth_s']:.0f} us (last tenth)")
@@ -288,15 +304,15 @@ def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None,
              "of the repeated runs (all of them under 'runs'; every solver is repeated alike). "
              "Per-step times and set-up from that run's summary.json. Speed-up = SNES VI wall "
              "/ fast wall in the same bench run; difference = max |u_fast - u_snes| / max |u| "
-             "on Gamma3.",
+             "on Gamma3. " + REFERENCE_TEXT,
              "", "| h | N | dofs | solver | ranks | wall s | runs s | set-up s | steps s | "
              "step min s | step median s | Newton | factorisations | speed-up | difference | "
-             "cost exponent |",
-             "|" + "---|" * 16]
+             "cost exponent | reference s | wall / ref | set-up / ref | steps / ref |",
+             "|" + "---|" * 20]
     for r in rows:
         if "failed" in r:
             lines.append(f"| 1/{r['n']} | {r['N']} | - | {r['method']} | {r['nprocs']} | "
-                         f"failed: {r['failed']} |" + " |" * 11)
+                         f"failed: {r['failed']} |" + " |" * 15)
             continue
         lines.append("| " + " | ".join([
             f"1/{r['n']}", str(r["N"]), str(r["dofs"]), r["method"], str(r["nprocs"]),
@@ -307,26 +323,30 @@ def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None,
                 else "numeric, every Newton it."),
             f"{r['speedup_fast_vs_snes']:.1f}x" if "speedup_fast_vs_snes" in r else "-",
             f"{r['solution_difference']:.1e}" if "solution_difference" in r else "-",
-            f"{r['step_cost_exponent']:.2f}" if "step_cost_exponent" in r else "-"]) + " |")
+            f"{r['step_cost_exponent']:.2f}" if "step_cost_exponent" in r else "-",
+            *reference_cells(r, ("wall_ratio", "setup_ratio", "loop_ratio"))]) + " |")
     if memory:
         lines += ["", "## Memory term: cost per step", "",
                   "cases/memory.yaml (h = 1/16, fast solver): the exponential kernel's exact "
                   "recursion costs O(1) per step, the direct sum over the stored history O(n) "
                   "at step n. Mean wall time of the memory update (xi_n) per step over the "
                   "first and the last tenth of the steps, and of the whole step; difference = "
-                  "relative difference of the final ||u||_V.", "",
+                  "relative difference of the final ||u||_V; steps / ref: the steps' time over "
+                  "the reference solve on the mesh.", "",
                   "| sum | N | steps s | memory update s (first tenth) | memory update s (last "
-                  "tenth) | growth | memory total s | step s (last tenth) | difference |",
-                  "|---|---|---|---|---|---|---|---|---|"]
+                  "tenth) | growth | memory total s | step s (last tenth) | difference | "
+                  "reference s | steps / ref |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in memory:
             if "failed" in r:
-                lines.append(f"| {r['sum']} | {r['N']} | failed: {r['failed']} | | | | | | |")
+                lines.append(f"| {r['sum']} | {r['N']} | failed: {r['failed']} | | | | | | | | |")
                 continue
             lines.append(f"| {r['sum']} | {r['N']} | {r['steps_s']:.2f} | "
                          f"{r['memory_first_tenth_s']:.2e} | {r['memory_last_tenth_s']:.2e} | "
                          f"{r['memory_last_tenth_s'] / r['memory_first_tenth_s']:.1f}x | "
                          f"{r['memory_total_s']:.3f} | {r['last_tenth_step_s']:.4f} | "
-                         f"{r.get('recursion_vs_direct_rel_diff', float('nan')):.1e} |")
+                         f"{r.get('recursion_vs_direct_rel_diff', float('nan')):.1e} | "
+                         f"{' | '.join(reference_cells(r, ('steps_ratio',)))} |")
     if scene:
         lines += scenebench.markdown(scene)
     if box3d:

@@ -11,7 +11,8 @@ the process (of any rank under mpirun) from the kernel's accounting (``os.wait4`
 - mpirun -n 2 at one level, with its agreement with the serial run and the speed ratio;
 - the 2D reference (the paper case at h = k = 1/128 with the fast solver).
 The scaling of time and memory with dofs goes to a log-log plot (bench3d.png) and a fitted
-exponent per quantity.
+exponent per quantity.  Every row's times are also ratios to a reference solve on its mesh
+timed in the same bench run (benchref.py).
 """
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vpcontact.studies.benchref import REFERENCE_TEXT, References, reference_cells
 from vpcontact.studies.benchrun import measured_run
 
 CASES = Path(__file__).resolve().parents[2] / "cases"
@@ -52,10 +54,12 @@ def _row(label: str, n: int, N: int, nprocs: int, run: tuple) -> dict:
 _warmed: set = set()
 
 
-def _attempt(rows, label, case, out, n, N, nprocs, overrides, log) -> dict | None:
-    """Run one configuration and append its row, or a row with the reason under "failed".
-    The first run of each case, solver options and rank count is preceded by a one-step
-    warm-up on the same mesh (it fills the JIT cache; the forms do not depend on n)."""
+def _attempt(rows, label, case, out, n, N, nprocs, overrides, log,
+             references: References) -> dict | None:
+    """Run one configuration and append its row (with the reference of its mesh), or a row
+    with the reason under "failed".  The first run of each case, solver options and rank
+    count is preceded by a one-step warm-up on the same mesh (it fills the JIT cache; the
+    forms do not depend on n)."""
     over = [f"mesh.n={n}", *overrides]
     try:
         key = (str(case), tuple(overrides), nprocs)
@@ -70,10 +74,11 @@ def _attempt(rows, label, case, out, n, N, nprocs, overrides, log) -> dict | Non
         log(f"  {label}: FAILED: {rows[-1]['failed']}")
         return None
     row["out"] = str(out)
-    rows.append(row)
+    rows.append(references.attach(row, case, [f"mesh.n={n}"]))
     log(f"  {label}: {row['wall_s']:.2f} s whole process, set-up {row['setup_s']:.2f} s, "
         f"steps {row['loop_s']:.2f} s, {row['method']}, iterations per step "
-        f"{' '.join(map(str, row['iterations']))}, peak {row['peak_rss_gb']:.2f} GB")
+        f"{' '.join(map(str, row['iterations']))}, peak {row['peak_rss_gb']:.2f} GB, "
+        f"{reference_cells(row, ('wall_ratio',))[1]} the reference")
     return row
 
 
@@ -86,7 +91,8 @@ def _agreement(a: dict | None, b: dict | None) -> float | None:
 
 
 def box3d_rows(outdir: Path, levels=LEVELS, steps: int = 8, snes_levels=(8, 16),
-               target=(32, 32), mpi_level: int | None = 32, log=print) -> list[dict]:
+               target=(32, 32), mpi_level: int | None = 32, log=print,
+               references: References | None = None) -> list[dict]:
     """The 3D rows (see the module docstring).
 
     Args:
@@ -97,29 +103,31 @@ def box3d_rows(outdir: Path, levels=LEVELS, steps: int = 8, snes_levels=(8, 16),
         target: (n, N) of the target run, or None.
         mpi_level: the level also run under mpirun -n 2, or None.
         log: called with one line per run.
+        references: the bench run's reference solves (benchref.py; None: a new set).
 
     Returns:
         The rows; each failed configuration has a row with its reason under "failed".
     """
     runs, rows = outdir / "runs", []
+    ref = references or References(log=log)
     _attempt(rows, "2D reference 1/128, fast", REFERENCE_2D, runs / "ref2d_n128", 128, 128, 1,
-             ["solver.method=fast"], log)
+             ["solver.method=fast"], log, ref)
     level = {}
     for n in levels:
         level[n] = _attempt(rows, f"box3d n = {n}", BOX3D, runs / f"box3d_n{n}_N{steps}", n,
-                            steps, 1, [], log)
+                            steps, 1, [], log, ref)
     for n in snes_levels:
         r = _attempt(rows, f"box3d n = {n}, SNES VI", BOX3D, runs / f"box3d_n{n}_snes", n,
-                     steps, 1, ["solver.method=snes_vi"], log)
+                     steps, 1, ["solver.method=snes_vi"], log, ref)
         if r and level.get(n):
             r["agreement_vs_default"] = _agreement(r, level[n])
     if target:
         n, N = target
         _attempt(rows, f"box3d n = {n}, {N} steps (target)", BOX3D,
-                 runs / f"box3d_n{n}_N{N}", n, N, 1, [], log)
+                 runs / f"box3d_n{n}_N{N}", n, N, 1, [], log, ref)
     if mpi_level:
         r = _attempt(rows, f"box3d n = {mpi_level}, mpirun -n 2", BOX3D,
-                     runs / f"box3d_n{mpi_level}_np2", mpi_level, steps, 2, [], log)
+                     runs / f"box3d_n{mpi_level}_np2", mpi_level, steps, 2, [], log, ref)
         serial = level.get(mpi_level)
         if r and serial:
             r["agreement_vs_default"] = _agreement(r, serial)
@@ -192,14 +200,15 @@ def markdown(rows: list[dict]) -> list[str]:
              "resident set of the process (of one rank under mpirun); iterations = Gamma3 "
              "(fast) or Newton (SNES VI) iterations per step; Gamma3 LA = dense "
              "factorisations / CG iterations with a kept factor; agreement = max |u - u_ref| "
-             "/ max |u| on Gamma3 against the default serial run of the same level.", "",
+             "/ max |u| on Gamma3 against the default serial run of the same level. "
+             + REFERENCE_TEXT, "",
              "| run | dofs | N | solver | ranks | wall s | set-up s | steps s | iterations per "
-             "step | Gamma3 LA | peak GB | agreement | speed-up |",
-             "|" + "---|" * 13]
+             "step | Gamma3 LA | peak GB | agreement | speed-up | reference s | wall / ref |",
+             "|" + "---|" * 15]
     for r in rows:
         if "failed" in r:
             lines.append(f"| {r['label']} | - | {r['N']} | - | {r['nprocs']} | failed: "
-                         f"{r['failed']} |" + " |" * 7)
+                         f"{r['failed']} |" + " |" * 9)
             continue
         la = (f"{r['gamma3_factorisations']} / {r['gamma3_cg_iterations']}"
               if r.get("gamma3_factorisations") is not None else "-")
@@ -208,7 +217,8 @@ def markdown(rows: list[dict]) -> list[str]:
                      f"{r['nprocs']} | {r['wall_s']:.2f} | {r['setup_s']:.2f} | "
                      f"{r['loop_s']:.2f} | {' '.join(map(str, r['iterations'][:40]))} | {la} | "
                      f"{r['peak_rss_gb']:.2f} | {f'{agree:.1e}' if agree is not None else '-'} "
-                     f"| {f'{speed:.2f}x' if speed else '-'} |")
+                     f"| {f'{speed:.2f}x' if speed else '-'} | "
+                     f"{' | '.join(reference_cells(r, ('wall_ratio',)))} |")
     if fit:
         lines += ["", f"Scaling of the level runs: wall time ~ dofs^{fit['time']:.2f}, peak "
                       f"memory ~ dofs^{fit['memory']:.2f} (least squares on log-log; plot "

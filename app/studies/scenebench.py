@@ -18,6 +18,7 @@ import yaml
 
 from vpcontact.case import load_raw
 from vpcontact.io.files import atomic_write
+from vpcontact.studies.benchref import REFERENCE_TEXT, References, reference_cells
 
 ANGLE = 30.0
 _GEO = """// The unit square rotated by {angle} degrees about the origin, n x n transfinite.
@@ -68,7 +69,7 @@ def write_scene(case: Path, outdir: Path, n: int) -> Path:
 
 
 def scene_rows(case: Path, outdir: Path, n: int, N: int, run, repeat: int = 1,
-               log=print) -> list[dict]:
+               log=print, references: References | None = None) -> list[dict]:
     """Time the built-in rectangle and the rotated user scene of the same size.
 
     Args:
@@ -79,11 +80,14 @@ def scene_rows(case: Path, outdir: Path, n: int, N: int, run, repeat: int = 1,
         run: bench's runner: run(case, out, overrides) -> (wall s, summary dict).
         repeat: timed runs of each (the fastest counts).
         log: called with one line per run.
+        references: the bench run's reference solves (benchref.py; None: a new set).
 
     Returns:
-        Two rows (builtin, scene), each with its wall time; the scene row carries the ratio
-        scene / builtin and the relative difference of the final ||u||_V.
+        Two rows (builtin, scene), each with its wall time, also as ratios to the reference
+        solve on its mesh; the scene row carries the ratio scene / builtin and the relative
+        difference of the final ||u||_V.
     """
+    references = references or References(log=log)
     scene = write_scene(case, outdir / "runs" / "scene", n)
     common = [f"time.N={N}", f"output.every={N}", "solver.method=fast"]
     rows = []
@@ -101,6 +105,7 @@ def scene_rows(case: Path, outdir: Path, n: int, N: int, run, repeat: int = 1,
                      "wall_runs_s": [r[0] for r in runs], "setup_s": s["setup_s"],
                      "loop_s": s["loop_s"], "newton_total": s["newton_iterations_total"],
                      "final_norm_u_V": s["steps"][-1]["norm_u_V"]})
+        references.attach(rows[-1], path, over)
         log(f"  scene {kind:8s} n = {n}, N = {N}: {wall:.2f} s whole process, set-up "
             f"{s['setup_s']:.2f} s, steps {s['loop_s']:.2f} s")
     if len(rows) == 2 and not any("failed" in r for r in rows):
@@ -124,17 +129,18 @@ def markdown(rows: list[dict]) -> list[str]:
              f"The paper case on the built-in n x n rectangle and on the same square rotated by "
              f"{ANGLE:g} degrees, read from a gmsh .geo (mesh.file, named groups, computed "
              "normals, rotated nodal frames), fast solver; whole process, fastest of the "
-             "repeats; difference = relative difference of the final ||u||_V.", "",
-             "| mesh | n | N | dofs | wall s | set-up s | steps s | Newton | scene / built-in | "
-             "difference |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "repeats; difference = relative difference of the final ||u||_V. " + REFERENCE_TEXT,
+             "", "| mesh | n | N | dofs | wall s | set-up s | steps s | Newton | scene / "
+             "built-in | difference | reference s | wall / ref |", "|" + "---|" * 12]
     for r in rows:
         if "failed" in r:
             lines.append(f"| {r['kind']} | {r['n']} | {r['N']} | failed: {r['failed']} |"
-                         + " |" * 6)
+                         + " |" * 8)
             continue
         ratio = r.get("ratio_scene_vs_builtin")
         diff = r.get("norm_u_V_rel_diff")
         lines.append(f"| {r['kind']} | {r['n']} | {r['N']} | {r['dofs']} | {r['wall_s']:.2f} | "
                      f"{r['setup_s']:.2f} | {r['loop_s']:.2f} | {r['newton_total']} | "
-                     f"{f'{ratio:.2f}' if ratio else '-'} | {f'{diff:.1e}' if diff else '-'} |")
+                     f"{f'{ratio:.2f}' if ratio else '-'} | {f'{diff:.1e}' if diff else '-'} | "
+                     f"{' | '.join(reference_cells(r, ('wall_ratio',)))} |")
     return lines

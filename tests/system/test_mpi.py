@@ -47,6 +47,20 @@ def test_serial_equals_two_ranks(tmp_path, mesh, request):
     assert [r["state"] for r in c1] == [r["state"] for r in c2]
 
 
+def test_small_case_note_in_the_log(tmp_path):
+    """Under mpirun on few dofs per rank the run log says where the time went: its set-up
+    and steps are summary.json's, its dofs per rank half the mesh's."""
+    out = tmp_path / "np2"
+    proc = run_cli(["run", PAPER_CASE, "--out", out, "--set", "mesh.n=4", "--set", "time.N=2"],
+                   nprocs=2)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    s = json.loads((out / "summary.json").read_text())
+    note = [line for line in proc.stdout.splitlines() if "dofs per rank" in line]
+    assert len(note) == 1, proc.stdout
+    assert f"mpirun -n 2 on {s['mesh']['dofs'] // 2:,} dofs per rank: start-up " in note[0]
+    assert f"set-up {s['setup_s']:.2f} s, steps {s['loop_s']:.2f} s;" in note[0]
+
+
 ROOT_CALL_SCRIPT = """
 import json
 import pathlib

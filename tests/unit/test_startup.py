@@ -2,6 +2,7 @@
 settings must not leak into child processes (an inherited OMPI_MCA_btl=self breaks
 `mpirun -n 2` started from a serial run)."""
 import os
+import shutil
 import subprocess
 import sys
 
@@ -26,6 +27,32 @@ def test_user_settings_win():
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                          text=True, check=True).stdout.strip()
     assert out == "self,vader"
+
+
+def test_mpi_settings_of_a_launch():
+    """Without a launcher: the light singleton; under Open MPI's mpirun with every rank on
+    this node: the ob1 layer named (no other layer opened first); across nodes or under
+    another launcher: nothing (the launcher's settings)."""
+    from vpcontact.cli.entry import mpi_settings
+    assert dict(mpi_settings({}))["OMPI_MCA_btl"] == "self"
+    one_node = {"OMPI_COMM_WORLD_SIZE": "2", "OMPI_COMM_WORLD_LOCAL_SIZE": "2"}
+    assert dict(mpi_settings(one_node)) == {"OMPI_MCA_pml": "ob1"}
+    assert mpi_settings({**one_node, "OMPI_COMM_WORLD_LOCAL_SIZE": "1"}) == ()
+    assert mpi_settings({"PMI_RANK": "0", "PMI_SIZE": "2"}) == ()
+
+
+@pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
+def test_one_node_mpirun_settings_are_not_inherited():
+    """Two ranks on this node start with the ob1 layer named and pass none of it on."""
+    code = ("import os; " + PREP + "from mpi4py import MPI; c = MPI.COMM_WORLD; "
+            "s = c.allreduce(c.rank); "
+            "found = c.gather([k for k in ('OMPI_MCA_pml',) if k in os.environ]); "
+            "c.rank or print(c.size, s, found)")
+    env = {**{k: v for k, v in os.environ.items() if not k.startswith("OMPI_MCA_")},
+           "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"}
+    out = subprocess.run(["mpirun", "-n", "2", sys.executable, "-c", code], env=env,
+                         capture_output=True, text=True, timeout=120, check=True).stdout
+    assert out.strip() == "2 1 [[], []]"
 
 
 def test_openblas_thread_timeout_default_and_user_value():
