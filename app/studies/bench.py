@@ -159,22 +159,9 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "condensed"), nprocs=(
                                  "nprocs": np_, "failed": reason})
                     log(f"  h = 1/{n}, N = {N}, {method:8s} np {np_}: FAILED: {reason}")
                     continue
-                steps = [st["wall_s"] for st in s["steps"]]
-                rows.append({"n": n, "h": 1.0 / n, "N": N, "dofs": s["mesh"]["dofs"],
-                             "method": s["solver"]["used"], "nprocs": np_, "wall_s": wall,
-                             "wall_runs_s": [r[0] for r in runs],
-                             "setup_s": s["setup_s"], "loop_s": s["loop_s"],
-                             "step_min_s": min(steps), "step_median_s": statistics.median(steps),
-                             "newton_total": s["newton_iterations_total"],
-                             "factorisations": s["solver"].get("factorisations"),
-                             "phases": s.get("phases")})
-                rows[-1]["final"] = [s["steps"][-1][k] for k in ("norm_u_V", "norm_sigma_Q",
-                                                                   "norm_kappa_Y")]
+                rows.append(_row(n, N, np_, s, wall, runs, out))
                 references.attach(rows[-1], case, [f"mesh.n={n}"])
                 finals[(method, np_)] = rows[-1]
-                u = np.array([[float(r["u_x"]), float(r["u_y"])]
-                              for r in csv.DictReader(open(out / "contact.csv"))])
-                rows[-1]["_u"] = u
                 log(f"  h = 1/{n}, N = {N}, {method:8s} np {np_}: {wall:7.2f} s whole process, "
                     f"set-up {s['setup_s']:.2f} s, steps {s['loop_s']:.2f} s, "
                     f"{s['newton_iterations_total']} Newton iterations, "
@@ -188,7 +175,31 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "condensed"), nprocs=(
                     r["solution_difference"] = diff
     for r in rows:
         r.pop("_u", None)
-    # cost growth of the per-step time against dofs (least squares on log-log, serial)
+    _cost_exponents(rows, methods)
+    return rows
+
+
+def _row(n: int, N: int, nprocs: int, s: dict, wall: float, runs: list, out: Path) -> dict:
+    """A bench row of one configuration from its run's summary ``s`` (and, under "_u", the
+    contact nodes' displacements of contact.csv, for the solvers' difference)."""
+    steps = [st["wall_s"] for st in s["steps"]]
+    row = {"n": n, "h": 1.0 / n, "N": N, "dofs": s["mesh"]["dofs"],
+           "method": s["solver"]["used"], "nprocs": nprocs, "wall_s": wall,
+           "wall_runs_s": [r[0] for r in runs],
+           "setup_s": s["setup_s"], "loop_s": s["loop_s"],
+           "step_min_s": min(steps), "step_median_s": statistics.median(steps),
+           "newton_total": s["newton_iterations_total"],
+           "factorisations": s["solver"].get("factorisations"),
+           "phases": s.get("phases")}
+    row["final"] = [s["steps"][-1][k] for k in ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y")]
+    with open(out / "contact.csv") as f:
+        row["_u"] = np.array([[float(r["u_x"]), float(r["u_y"])] for r in csv.DictReader(f)])
+    return row
+
+
+def _cost_exponents(rows: list[dict], methods) -> None:
+    """The growth of the per-step time against dofs (least squares on log-log, serial),
+    as ``step_cost_exponent`` of each method's serial rows."""
     for method in methods:
         pts = [(r["dofs"], r["step_median_s"]) for r in rows if "failed" not in r
                and r["method"] == method and r["nprocs"] == 1 and r["step_median_s"] > 0]
@@ -198,7 +209,6 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "condensed"), nprocs=(
             for r in rows:
                 if "failed" not in r and r["method"] == method and r["nprocs"] == 1:
                     r["step_cost_exponent"] = slope
-    return rows
 
 
 def failures(rows: list[dict], memory: list[dict], scene: list[dict] = (),

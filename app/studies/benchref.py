@@ -111,14 +111,30 @@ REFERENCE_TEXT = ("Reference = one elasticity matrix assembly, factorisation (LU
 
 
 def reference_cells(row: dict, keys) -> list[str]:
-    """bench.md's cells of a row's reference: its seconds, then the ratios ``keys``."""
+    """bench.md's cells of a row's reference.
+
+    Args:
+        row: a bench row.
+        keys: its ratio keys to show (e.g. ``wall_ratio``).
+
+    Returns:
+        The reference's seconds ("failed" or "-" without one), then the ratios.
+    """
     if "reference_s" not in row:
         return ["failed" if "reference_failed" in row else "-"] + ["-"] * len(keys)
     return [f"{row['reference_s']:.3g}", *(ratio_text(row, k) for k in keys)]
 
 
 def ratio_text(row: dict, key: str) -> str:
-    """A ratio for bench.md: ``wall_ratio`` -> "12.3x", "-" where there is none."""
+    """A ratio for bench.md.
+
+    Args:
+        row: a bench row.
+        key: its ratio key (e.g. ``wall_ratio``).
+
+    Returns:
+        "12.3x" (three digits, whole numbers from 100x), "-" where there is none.
+    """
     value = row.get(key)
     if value is None:
         return "-"
@@ -180,8 +196,12 @@ def _amg(K, V):
 
 
 def main(argv: list[str]) -> None:
-    """The reference process: ``benchref CASE [--set k=v ...]``; prints measure's dict
-    (its threads from benchrun.ENV, as the runs')."""
+    """The reference process: prints the measurement as JSON (its threads from
+    benchrun.ENV, as the runs').
+
+    Args:
+        argv: ``CASE [--set k=v ...]``.
+    """
     from mpi4py import MPI
 
     from vpcontact.case import load_raw, validate
