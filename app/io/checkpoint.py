@@ -7,7 +7,9 @@ columns: 8 for Chaboche's (X, R, p)), and the active Gamma3 history terms as the
 ``state()`` gives them (memory term: xi_n, and for the direct sum the stored u_nu^+ history;
 slip: s_n; Coulomb friction: the contact pressure p_n its next fixed point starts from;
 with either, the slip path: u_{n-1,tau} and the accumulated slip; a checkpoint without it
-restarts the path at the restart).
+restarts the path at the restart), and the error estimate's propagated time error (delta H,
+delta kappa per cell, app/post/estimators.py ``TimeError.state``; a checkpoint without it
+restarts that error from zero).
 Values are stored with the coordinates of their
 nodes / cell midpoints, gathered on rank 0 into one ``checkpoint.npz`` (written
 atomically), so a run can restart on any number of MPI ranks: each rank matches its own
@@ -317,6 +319,7 @@ def save(outdir: Path, sim) -> Path:
     g3 = state.gamma3.state() if state.gamma3 is not None else None
     if g3 is not None:
         _gamma3_arrays(comm, problem, g3, arrays)
+    _time_error_arrays(comm, sim, arrays)
     if comm.rank == 0:
         st = sim.stepper.state()
         mem = g3["memory"] if g3 is not None else None
@@ -362,6 +365,23 @@ def _gamma3_arrays(comm, problem, g3: dict, arrays: dict) -> None:
         x, vv = _gather(comm, xg, v)
         if comm.rank == 0:
             arrays[f"g3_{name}_x"], arrays[f"g3_{name}_v"] = x, vv
+
+
+def _time_error_arrays(comm, sim, arrays: dict) -> None:
+    """The error estimate's time error (``est_dH``, ``est_dkappa``) at the owned cells, with
+    the cell midpoints, gathered into ``arrays`` on rank 0 (nothing while it has none)."""
+    estimate = getattr(sim, "estimate", None)
+    time = estimate.time if estimate is not None else None
+    err = time.state() if time is not None else None
+    if err is None:
+        return
+    problem = sim.problem
+    n = problem.num_owned_cells
+    x = points(problem, problem.state.H.function_space)[:n]
+    for name, v in err.items():
+        gx, gv = _gather(comm, x, v[:n])
+        if comm.rank == 0:
+            arrays[f"est_{name}_x"], arrays[f"est_{name}_v"] = gx, gv
 
 
 def _write(path: Path, arrays: dict, outdir) -> None:
@@ -504,6 +524,7 @@ class Checkpoint:
 
     def __init__(self, path: Path):
         self.path = path
+        self.time_error = None        # set by restore(): the estimate's delta, or None
         try:
             with np.load(path, allow_pickle=False) as data:
                 self.arrays = {k: data[k] for k in data.files}
@@ -626,6 +647,7 @@ class Checkpoint:
         n_g3 = comm.allreduce(len(problem.gamma3.nodes) if problem.gamma3 is not None else 0)
         try:
             self._restore_fields(problem, problem.state, n_g3)
+            self._restore_time_error(problem, problem.state)
             why = None
         except CheckpointError as exc:
             why = exc.why
@@ -691,3 +713,13 @@ class Checkpoint:
             state["path"] = {"prev": self._lookup("g3_path_prev", xg, n_g3).copy(),
                              "length": self._lookup("g3_path_length", xg, n_g3)[:, 0].copy()}
         g3.load_state(state)
+
+    def _restore_time_error(self, problem, state) -> None:
+        """``time_error``: the error estimate's delta H, delta kappa at the local cells (owned
+        and ghost), or None if the checkpoint has none (local, no collectives)."""
+        if state.H is None or "est_dH_x" not in self.arrays:
+            return
+        V = state.H.function_space
+        x, rows = points(problem, V), V.dofmap.index_map.size_global
+        self.time_error = {name: self._lookup(f"est_{name}", x, rows).copy()
+                           for name in ("dH", "dkappa")}

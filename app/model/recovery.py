@@ -15,6 +15,10 @@ integrated exactly (f* is P1, f_h constant on K: quadrature of degree 2).  The r
 strain is the projection of eps(u_h) itself, not E^-1 (sigma* - H): the latter would only
 rescale eta_Q and carry the jumps of the cellwise H; the former measures ||.||_V's own
 discretisation error.  The contact boundary adds no term yet.
+
+A problem has one SpaceIndicators (``space_indicators``), shared by the estimate of every
+step and the ``eta`` output; it recomputes only when u, sigma or kappa changed, so an
+output step projects once.
 """
 from __future__ import annotations
 
@@ -88,18 +92,27 @@ class SpaceIndicators:
                    for i, pr in enumerate(self.projections))
         self.form = fem.form(form * ufl.dx(metadata={"quadrature_degree": 2}))
         self.rows = np.asarray(E.dofmap.list.array)[:self.owned]
+        self.inputs = [problem.u, problem.sigma] + ([kappa] if kappa is not None else [])
+        self.seen, self.eta2 = None, None
 
     def update(self) -> np.ndarray:
-        """The squared indicators of the owned cells (collective).
+        """The squared indicators of the owned cells, recomputed only if u, sigma or kappa
+        changed since the last call on some rank (collective).
 
         Returns:
             (owned cells, 3): eta_Q,K^2, eta_V,K^2, eta_Y,K^2 (0 without kappa), in local
-            cell order.
+            cell order (a copy).
         """
-        for pr in self.projections:
-            pr.update()
-        b = fem.assemble_vector(self.form)        # cell integrals: the owned cells
-        return b.array.reshape(-1, 3)[self.rows]
+        now = [f.x.array for f in self.inputs]
+        same = self.seen is not None and all(np.array_equal(a, b)
+                                             for a, b in zip(now, self.seen))
+        if not self.comm.allreduce(same, op=MPI.LAND):
+            for pr in self.projections:
+                pr.update()
+            b = fem.assemble_vector(self.form)        # cell integrals: the owned cells
+            self.eta2 = b.array.reshape(-1, 3)[self.rows]
+            self.seen = [a.copy() for a in now]
+        return self.eta2.copy()
 
     def norms(self, eta2: np.ndarray) -> np.ndarray:
         """The global estimates (sum over the cells of all ranks; collective).
@@ -111,3 +124,18 @@ class SpaceIndicators:
             (3,): eta_Q, eta_V, eta_Y.
         """
         return np.sqrt(self.comm.allreduce(eta2.sum(axis=0), op=MPI.SUM))
+
+
+def space_indicators(problem) -> SpaceIndicators:
+    """The problem's one SpaceIndicators, built on first use (collective then).
+
+    Args:
+        problem: the ContactProblem.
+
+    Returns:
+        The SpaceIndicators the estimate and the ``eta`` output share.
+    """
+    found = getattr(problem, "space_indicators", None)
+    if found is None:
+        found = problem.space_indicators = SpaceIndicators(problem)
+    return found

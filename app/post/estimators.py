@@ -16,8 +16,9 @@ kappa(t_n)||_Y), split into a time part and a space part.
   s_j = (sigma_j, kappa_j); the time estimate of step n is ||delta H_n||_Q + ||delta
   kappa_n||_Y.  So a relaxing history damps its early errors as the scheme does (the sum of
   the ||l_n|| would keep them).  It costs two more evaluations of the law's explicit update
-  per step, on copies of the state.  The memory and slip sums of Gamma3 add no term yet; a
-  restarted run starts the error fields from zero (they are not in the checkpoint).
+  per step, on copies of the state.  The memory and slip sums of Gamma3 add no term yet.
+  The error fields are in the checkpoint (``TimeError.state``), so a restarted run goes on
+  with them and reports the uninterrupted run's estimate.
 
 Each step record gets est_time, est_space, est_total (their sum), est_max (the running max
 of est_total, the measure's max_n) and est_space's three parts; summary.json gets
@@ -30,7 +31,7 @@ import logging
 import numpy as np
 
 from vpcontact.model.history import UPDATE_ERRORS, first_failure
-from vpcontact.model.recovery import SpaceIndicators
+from vpcontact.model.recovery import space_indicators
 from vpcontact.observers import Observer
 
 log = logging.getLogger("vpcontact")
@@ -124,6 +125,16 @@ class TimeError:
                       for d, g, gm, x in zip(self.delta, at[2:], moved, local)]
         return self._norm()
 
+    def state(self) -> dict | None:
+        """delta_n for a checkpoint: {"dH": (cells, d*d), "dkappa": (cells, m)} per local
+        cell (owned rows first), or None (no step yet, or the law's update failed)."""
+        return None if self.delta is None else {"dH": self.delta[0], "dkappa": self.delta[1]}
+
+    def load_state(self, state: dict | None) -> None:
+        """delta_n from ``state()`` of the checkpointed run (None: no error before)."""
+        self.delta = None if state is None else [np.array(state["dH"], dtype=float),
+                                                 np.array(state["dkappa"], dtype=float)]
+
     def _norm(self) -> float:
         """||delta H||_Q + ||delta kappa||_Y over the owned cells of all ranks."""
         p = self.problem
@@ -151,16 +162,21 @@ class ErrorEstimate(Observer):
         self.best = None
 
     def start(self, sim) -> None:
-        """The indicators, and G at the initial (or restored) state.
+        """The indicators, and G at the initial (or restored) state, with the restored
+        error fields (the step of the last restored record is the one G was taken with).
 
         Args:
             sim: the Simulation, set up.
         """
         p = sim.problem
-        self.space = SpaceIndicators(p)
+        self.space = space_indicators(p)
         if p.law is not None and p.state.H is not None:
             times = sim.case.time.times
-            self.time = TimeError(p, float(times[1] - times[0]))
+            k = sim.steps[-1]["k"] if sim.steps else float(times[1] - times[0])
+            self.time = TimeError(p, float(k))
+            restart = getattr(sim, "restart", None)
+            if restart is not None:
+                self.time.load_state(restart.time_error)
         for rec in sim.steps:                 # restored steps: their running max goes on
             if "est_total" in rec:
                 self._keep(rec)

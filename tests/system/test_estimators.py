@@ -206,3 +206,25 @@ def test_convergence_reports_the_effectivity(tmp_path):
                                                           / float(row["error"]), rel=1e-12)
         assert "effectivity" in (out / "convergence.md").read_text()
         assert "effectivity " in proc.stdout + proc.stderr
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("nprocs", [1, 2], ids=["serial", "serial-checkpoint-on-2-ranks"])
+def test_restart_reports_the_uninterrupted_estimate(nprocs, tmp_path):
+    """A run restarted from step 3 (a serial checkpoint, continued serially or under
+    mpirun -n 2) reports the uninterrupted run's est_* in every step to 1e-12: the
+    propagated time error (delta H, delta kappa) is in the checkpoint."""
+    full, re_ = tmp_path / "full", tmp_path / "re"
+    opts = ["--set", "mesh.n=8", "--set", "time.N=6", "--set", "output.checkpoint_every=3",
+            "--quiet"]
+    assert run_cli(["run", PAPER_CASE, "--out", full, *opts]).returncode == 0
+    proc = run_cli(["run", PAPER_CASE, "--out", re_, *opts, "--restart",
+                    full / "checkpoint_000003.npz"], nprocs=nprocs)
+    assert proc.returncode == 0, proc.stderr
+    a, b = (_cli_outputs(o)[0] for o in (full, re_))
+    assert a["steps"][3]["est_time"] > 0.1 * a["steps"][3]["est_total"]  # the time part counts
+    for ra, rb in zip(a["steps"], b["steps"], strict=True):
+        for c in EST:
+            assert rb[c] == pytest.approx(ra[c], rel=1e-12, abs=1e-15), (ra["n"], c)
+    assert b["error_estimate"]["estimate"] == pytest.approx(a["error_estimate"]["estimate"],
+                                                           rel=1e-12)
