@@ -368,18 +368,26 @@ def _gamma3_arrays(comm, problem, g3: dict, arrays: dict) -> None:
 
 
 def _time_error_arrays(comm, sim, arrays: dict) -> None:
-    """The error estimate's time error (``est_dH``, ``est_dkappa``) at the owned cells, with
-    the cell midpoints, gathered into ``arrays`` on rank 0 (nothing while it has none)."""
-    estimate = getattr(sim, "estimate", None)
-    time = estimate.time if estimate is not None else None
-    err = time.state() if time is not None else None
-    if err is None:
+    """The error estimate's time error (``est_dH``, ``est_dkappa``) at the owned cells and
+    its Gamma3 sums (``est_g3_right``, ``est_g3_ds``: app/post/gamma3error.py) at the owned
+    Gamma3 nodes, with their coordinates, gathered into ``arrays`` on rank 0 (what the
+    estimate has)."""
+    estimate, problem = getattr(sim, "estimate", None), sim.problem
+    if estimate is None:
         return
-    problem = sim.problem
+    err = estimate.time.state() if estimate.time is not None else None
     n = problem.num_owned_cells
-    x = points(problem, problem.state.H.function_space)[:n]
-    for name, v in err.items():
-        gx, gv = _gather(comm, x, v[:n])
+    cols = {} if err is None else {
+        name: (points(problem, problem.state.H.function_space)[:n], v[:n])
+        for name, v in err.items()}
+    if estimate.gamma3 is not None:
+        own = problem.gamma3.nodes
+        pos = np.searchsorted(problem.gamma3_local_nodes, own)
+        xg = problem.V.tabulate_dof_coordinates()[own]
+        cols.update({f"g3_{name}": (xg, v[pos][:, None])
+                     for name, v in estimate.gamma3.state().items() if v is not None})
+    for name, (x, v) in cols.items():
+        gx, gv = _gather(comm, x, v)
         if comm.rank == 0:
             arrays[f"est_{name}_x"], arrays[f"est_{name}_v"] = gx, gv
 
@@ -524,7 +532,8 @@ class Checkpoint:
 
     def __init__(self, path: Path):
         self.path = path
-        self.time_error = None        # set by restore(): the estimate's delta, or None
+        # set by restore(): the estimate's delta and Gamma3 sums, or None (none stored)
+        self.time_error = self.gamma3_error = None
         try:
             with np.load(path, allow_pickle=False) as data:
                 self.arrays = {k: data[k] for k in data.files}
@@ -647,7 +656,7 @@ class Checkpoint:
         n_g3 = comm.allreduce(len(problem.gamma3.nodes) if problem.gamma3 is not None else 0)
         try:
             self._restore_fields(problem, problem.state, n_g3)
-            self._restore_time_error(problem, problem.state)
+            self._restore_time_error(problem, problem.state, n_g3)
             why = None
         except CheckpointError as exc:
             why = exc.why
@@ -714,12 +723,17 @@ class Checkpoint:
                              "length": self._lookup("g3_path_length", xg, n_g3)[:, 0].copy()}
         g3.load_state(state)
 
-    def _restore_time_error(self, problem, state) -> None:
+    def _restore_time_error(self, problem, state, n_g3: int) -> None:
         """``time_error``: the error estimate's delta H, delta kappa at the local cells (owned
-        and ghost), or None if the checkpoint has none (local, no collectives)."""
-        if state.H is None or "est_dH_x" not in self.arrays:
-            return
-        V = state.H.function_space
-        x, rows = points(problem, V), V.dofmap.index_map.size_global
-        self.time_error = {name: self._lookup(f"est_{name}", x, rows).copy()
-                           for name in ("dH", "dkappa")}
+        and ghost); ``gamma3_error``: its Gamma3 sums at the local Gamma3 nodes; each None
+        if the checkpoint has none (local, no collectives)."""
+        if state.H is not None and "est_dH_x" in self.arrays:
+            V = state.H.function_space
+            x, rows = points(problem, V), V.dofmap.index_map.size_global
+            self.time_error = {name: self._lookup(f"est_{name}", x, rows).copy()
+                               for name in ("dH", "dkappa")}
+        names = [k for k in ("right", "ds") if f"est_g3_{k}_x" in self.arrays]
+        if names and problem.gamma3 is not None:
+            xg = problem.V.tabulate_dof_coordinates()[problem.gamma3_local_nodes]
+            self.gamma3_error = {k: self._lookup(f"est_g3_{k}", xg, n_g3)[:, 0].copy()
+                                 for k in names}

@@ -33,11 +33,12 @@ import numpy as np
 from vpcontact.model.history import UPDATE_ERRORS, first_failure
 from vpcontact.model.recovery import space_indicators
 from vpcontact.observers import Observer
+from vpcontact.post.gamma3error import Gamma3TimeError
 
 log = logging.getLogger("vpcontact")
 
 PARTS = ("est_space_sigma_Q", "est_space_u_V", "est_space_kappa_Y")
-COLUMNS = ("est_time", "est_space", "est_total", "est_max") + PARTS
+COLUMNS = ("est_time", "est_space", "est_total", "est_max") + PARTS + ("est_time_gamma3",)
 
 
 class HistoryRates:
@@ -158,25 +159,31 @@ class ErrorEstimate(Observer):
     """The estimate of every step (module docstring); collective."""
 
     def __init__(self):
-        self.space = self.time = None
+        self.space = self.time = self.gamma3 = None
         self.best = None
 
     def start(self, sim) -> None:
         """The indicators, and G at the initial (or restored) state, with the restored
-        error fields (the step of the last restored record is the one G was taken with).
+        error fields and Gamma3 sums (the step of the last restored record is the one G was
+        taken with).
 
         Args:
             sim: the Simulation, set up.
         """
-        p = sim.problem
+        p, restart = sim.problem, getattr(sim, "restart", None)
         self.space = space_indicators(p)
         if p.law is not None and p.state.H is not None:
             times = sim.case.time.times
             k = sim.steps[-1]["k"] if sim.steps else float(times[1] - times[0])
             self.time = TimeError(p, float(k))
-            restart = getattr(sim, "restart", None)
             if restart is not None:
                 self.time.load_state(restart.time_error)
+        g3 = p.state.gamma3
+        if g3 is not None and (g3.memory is not None or g3.slip is not None) \
+                and p.pairs is None:
+            self.gamma3 = Gamma3TimeError(p)
+            if restart is not None and restart.gamma3_error is not None:
+                self.gamma3.load_state(restart.gamma3_error)
         for rec in sim.steps:                 # restored steps: their running max goes on
             if "est_total" in rec:
                 self._keep(rec)
@@ -191,6 +198,9 @@ class ErrorEstimate(Observer):
         parts = self.space.norms(self.space.update())
         est = dict(zip(PARTS, map(float, parts)), est_space=float(parts.sum()))
         est["est_time"] = self.time.step(record["k"]) if self.time is not None else 0.0
+        est["est_time_gamma3"] = self.gamma3.step(record["k"], record["t"]) \
+            if self.gamma3 is not None else 0.0
+        est["est_time"] += est["est_time_gamma3"]
         est["est_total"] = est["est_time"] + est["est_space"]
         # an estimate that is not finite (rates that overflow) is absent, never a reason
         # for the blow-up monitor to stop the run

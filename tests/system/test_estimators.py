@@ -228,3 +228,22 @@ def test_restart_reports_the_uninterrupted_estimate(nprocs, tmp_path):
             assert rb[c] == pytest.approx(ra[c], rel=1e-12, abs=1e-15), (ra["n"], c)
     assert b["error_estimate"]["estimate"] == pytest.approx(a["error_estimate"]["estimate"],
                                                            rel=1e-12)
+
+
+@pytest.mark.parametrize("case", ["memory", "slip_weakening"])
+def test_restart_keeps_the_gamma3_time_term(case, tmp_path):
+    """The Gamma3 sums of the time estimate (the memory term's right sum, the slip sum's
+    error) are in the checkpoint: a run restarted from step 3 reports the uninterrupted
+    est_time_gamma3 and est_time to 1e-12."""
+    full, re_, path = tmp_path / "full", tmp_path / "re", ROOT / "cases" / f"{case}.yaml"
+    opts = ["--set", "mesh.n=8", "--set", "time.N=6", "--set", "output.checkpoint_every=3",
+            "--quiet"]
+    assert run_cli(["run", path, "--out", full, *opts]).returncode == 0
+    proc = run_cli(["run", path, "--out", re_, *opts, "--restart",
+                    full / "checkpoint_000003.npz"])
+    assert proc.returncode == 0, proc.stderr
+    a, b = (_cli_outputs(o)[0]["steps"] for o in (full, re_))
+    assert a[3]["est_time_gamma3"] > 0
+    for ra, rb in zip(a, b, strict=True):
+        for c in ("est_time_gamma3", "est_time", "est_total"):
+            assert rb[c] == pytest.approx(ra[c], rel=1e-12, abs=1e-15), (ra["n"], c)
