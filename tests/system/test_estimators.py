@@ -230,17 +230,19 @@ def test_restart_reports_the_uninterrupted_estimate(nprocs, tmp_path):
                                                            rel=1e-12)
 
 
-@pytest.mark.parametrize("case", ["memory", "slip_weakening"])
-def test_restart_keeps_the_gamma3_time_term(case, tmp_path):
+@pytest.mark.mpi
+@pytest.mark.parametrize("case, nprocs", [("memory", 1), ("slip_weakening", 2)])
+def test_restart_keeps_the_gamma3_time_term(case, nprocs, tmp_path):
     """The Gamma3 sums of the time estimate (the memory term's right sum, the slip sum's
-    error) are in the checkpoint: a run restarted from step 3 reports the uninterrupted
-    est_time_gamma3 and est_time to 1e-12."""
+    error) are in the checkpoint: a run restarted from step 3 (serially, or the serial
+    checkpoint under mpirun -n 2) reports the uninterrupted est_time_gamma3 and est_time
+    to 1e-12."""
     full, re_, path = tmp_path / "full", tmp_path / "re", ROOT / "cases" / f"{case}.yaml"
     opts = ["--set", "mesh.n=8", "--set", "time.N=6", "--set", "output.checkpoint_every=3",
             "--quiet"]
     assert run_cli(["run", path, "--out", full, *opts]).returncode == 0
     proc = run_cli(["run", path, "--out", re_, *opts, "--restart",
-                    full / "checkpoint_000003.npz"])
+                    full / "checkpoint_000003.npz"], nprocs=nprocs)
     assert proc.returncode == 0, proc.stderr
     a, b = (_cli_outputs(o)[0]["steps"] for o in (full, re_))
     assert a[3]["est_time_gamma3"] > 0
