@@ -249,3 +249,29 @@ def test_restart_keeps_the_gamma3_time_term(case, nprocs, tmp_path):
     for ra, rb in zip(a, b, strict=True):
         for c in ("est_time_gamma3", "est_time", "est_total"):
             assert rb[c] == pytest.approx(ra[c], rel=1e-12, abs=1e-15), (ra["n"], c)
+
+
+def test_the_recovery_is_computed_once_a_step(monkeypatch):
+    """The estimate and the eta output share one SpaceIndicators, which projects again only
+    when u, sigma or kappa changed: an output step's second call costs no projection, and
+    its result is the first's."""
+    from vpcontact.model import recovery
+    from vpcontact.model.outputfields import EtaOutput, owned_rows
+    from vpcontact.simulation import Simulation
+    sim = Simulation(make_case(mesh={"n": 4}, time={"N": 2}), MPI.COMM_WORLD)
+    sim.setup()
+    calls = []
+    monkeypatch.setattr(recovery.LumpedProjection, "update",
+                        lambda self, f=recovery.LumpedProjection.update: (calls.append(1),
+                                                                          f(self))[1])
+    shared = recovery.space_indicators(sim.problem)
+    eta = EtaOutput(sim.problem)
+    assert eta.indicators is shared
+    first = shared.update()
+    eta.update()
+    assert len(calls) == 3                    # sigma, eps(u), kappa: once
+    rows = owned_rows(sim.problem)
+    assert eta.eta.x.array[rows] == pytest.approx(np.sqrt(first.sum(axis=1)), rel=1e-14)
+    sim.problem.u.x.array[:] += 1e-3 * np.arange(sim.problem.u.x.array.size)
+    second = shared.update()
+    assert len(calls) == 6 and not np.allclose(second, first)
