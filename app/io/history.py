@@ -73,7 +73,7 @@ def history_columns(dim: int, groups: list[str], contact: bool,
     if contact:
         cols += [f"nodes_{s}" for s in STATES]
     cols += ["est_time", "est_space", "est_total", "est_max", "est_space_sigma_Q",
-             "est_space_u_V", "est_space_kappa_Y", "est_time_gamma3"]
+             "est_space_u_V", "est_space_kappa_Y", "est_space_contact", "est_time_gamma3"]
     return cols + ["newton_iterations", "linear_iterations", "wall_s"]
 
 

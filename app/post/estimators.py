@@ -2,8 +2,9 @@
 estimates"): max_n (||sigma_n - sigma(t_n)||_Q + ||u_n - u(t_n)||_V + ||kappa_n -
 kappa(t_n)||_Y), split into a time part and a space part.
 
-- Space, per step: eta_Q + eta_V + eta_Y, the recovery indicators of app/model/recovery.py
-  summed over the cells (each a global L2 norm, as the error measure's three norms).
+- Space, per step: (eta_Q^2 + eta_C^2)^(1/2) + eta_V + eta_Y, the recovery indicators of
+  app/model/recovery.py summed over the cells (each a global L2 norm, as the error
+  measure's three norms; eta_C, the contact boundary's, is part of the stress error).
 - Time: the error of the history update, embedded and propagated.  The explicit sums
   (3.2)-(3.3) take G at the left end point; the trapezoidal (second order) update differs
   from them by the local error l_n = (k_n / 2) (G_n - G_{n-1}), G_j = G(sigma_j, kappa_j)
@@ -37,7 +38,7 @@ from vpcontact.post.gamma3error import Gamma3TimeError
 
 log = logging.getLogger("vpcontact")
 
-PARTS = ("est_space_sigma_Q", "est_space_u_V", "est_space_kappa_Y")
+PARTS = ("est_space_sigma_Q", "est_space_u_V", "est_space_kappa_Y", "est_space_contact")
 COLUMNS = ("est_time", "est_space", "est_total", "est_max") + PARTS + ("est_time_gamma3",)
 
 
@@ -196,7 +197,8 @@ class ErrorEstimate(Observer):
             record: the step's record.
         """
         parts = self.space.norms(self.space.update())
-        est = dict(zip(PARTS, map(float, parts)), est_space=float(parts.sum()))
+        est = dict(zip(PARTS, map(float, parts)),
+                   est_space=float(np.hypot(parts[0], parts[3]) + parts[1] + parts[2]))
         est["est_time"] = self.time.step(record["k"]) if self.time is not None else 0.0
         est["est_time_gamma3"] = self.gamma3.step(record["k"], record["t"]) \
             if self.gamma3 is not None else 0.0
@@ -216,7 +218,7 @@ class ErrorEstimate(Observer):
             self.best = {"estimate": record["est_total"], "time": record["est_time"],
                          "space": record["est_space"], "n_max": record["n"],
                          "t_max": record["t"],
-                         "space_parts": {k: record[k] for k in PARTS}}
+                         "space_parts": {k: record.get(k) for k in PARTS}}
 
     def end(self, sim, summary) -> None:
         """summary.json's ``error_estimate`` and the log line.

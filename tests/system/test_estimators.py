@@ -17,7 +17,7 @@ from conftest import PAPER_CASE, ROOT, make_case, run_case, run_cli
 
 NORTON = ROOT / "cases" / "norton_relaxation.yaml"
 EST = ("est_time", "est_space", "est_total", "est_max", "est_space_sigma_Q", "est_space_u_V",
-       "est_space_kappa_Y")
+       "est_space_kappa_Y", "est_space_contact")
 
 
 def _norton(N: int):
@@ -69,7 +69,10 @@ def test_space_estimate_equals_an_independent_recovery():
     ref = _numpy_eta_sigma(res.problem)
     assert ref > 1e-3 * rec["norm_sigma_Q"]
     assert rec["est_space_sigma_Q"] == pytest.approx(ref, rel=1e-12)
-    assert rec["est_space"] == pytest.approx(rec["est_space_sigma_Q"] + rec["est_space_u_V"]
+    # the contact boundary's eta_C is part of the stress error (docs/model.md)
+    assert rec["est_space"] == pytest.approx(np.hypot(rec["est_space_sigma_Q"],
+                                                      rec["est_space_contact"])
+                                             + rec["est_space_u_V"]
                                              + rec["est_space_kappa_Y"], rel=1e-14)
 
 
@@ -275,3 +278,56 @@ def test_the_recovery_is_computed_once_a_step(monkeypatch):
     sim.problem.u.x.array[:] += 1e-3 * np.arange(sim.problem.u.x.array.size)
     second = shared.update()
     assert len(calls) == 6 and not np.allclose(second, first)
+
+
+def _numpy_contact_jump(problem, recovered) -> float:
+    """sum over the Gamma3 facets F of h_K ||sigma* nu - t_h||^2_L2(F), with numpy: sigma* at
+    the facet's end points (evaluated in K), t_h of the contact table there, the outward
+    normal of the edge, h_K the cell's longest edge, the exact integral of a linear
+    function's square (2D, serial)."""
+    from dolfinx.cpp.mesh import entities_to_geometry
+
+    from vpcontact.post.quantities import contact_table
+    msh, gm, fr = problem.mesh, problem.gamma3, problem.frames
+    msh.topology.create_connectivity(1, 2)
+    ft = problem.body.facet_tags
+    facets = ft.indices[np.isin(ft.values, problem.gamma3_tags)]
+    table = contact_table(problem)
+    pos = np.searchsorted(fr.nodes, gm.nodes)
+    t_nodes = -table["neg_sigma_nu"][:, None] * fr.normal[pos] \
+        - table["neg_sigma_tau"][:, None] * fr.tangents[pos][:, 0]
+    at = {tuple(np.round(x, 12)): t for x, t in zip(gm.x[:, :2], t_nodes)}
+    total = 0.0
+    for f in facets:
+        K = msh.topology.connectivity(1, 2).links(f)[0]
+        ends = msh.geometry.x[entities_to_geometry(getattr(msh, "_mesh", msh), 1,
+                                                   np.array([f], dtype=np.int32),
+                                                   False)[0]]
+        corners = msh.geometry.x[msh.geometry.dofmap.links(K)][:, :2]
+        h = max(np.linalg.norm(a - b) for a in corners for b in corners)
+        edge = ends[1, :2] - ends[0, :2]
+        nu = np.array([edge[1], -edge[0]]) / np.linalg.norm(edge)
+        if nu @ (ends[0, :2] - corners.mean(axis=0)) < 0:
+            nu = -nu
+        sig = recovered.eval(ends, np.array([K, K], dtype=np.int32)).reshape(2, 2, 2)
+        a, b = (sig[i] @ nu - at[tuple(np.round(ends[i, :2], 12))] for i in range(2))
+        total += h * np.linalg.norm(edge) / 3 * (a @ a + a @ b + b @ b)
+    return total
+
+
+def test_contact_boundary_term_equals_numpy():
+    """The contact boundary's eta_C^2 on the Hertz cylinder equals the numpy sum of h_K
+    ||sigma* nu - t_h||^2 over the Gamma3 facets to 1e-10, and is not round-off."""
+    from vpcontact.case import load_case
+    from vpcontact.model.recovery import SpaceIndicators
+    from vpcontact.simulation import Simulation
+    if MPI.COMM_WORLD.size > 1:
+        pytest.skip("serial numpy reference")
+    sim = Simulation(load_case(ROOT / "cases" / "hertz_cylinder.yaml"), MPI.COMM_WORLD)
+    sim.run()
+    space = SpaceIndicators(sim.problem)
+    eta2 = space.update()
+    part = eta2[:, 3].sum()
+    expected = _numpy_contact_jump(sim.problem, space.projections[0].nodal)
+    assert expected > 1e-3 * eta2[:, 0].sum()
+    assert part == pytest.approx(expected, rel=1e-10)
