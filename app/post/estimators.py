@@ -17,12 +17,13 @@ kappa(t_n)||_Y), split into a time part and a space part.
   s_j = (sigma_j, kappa_j); the time estimate of step n is ||delta H_n||_Q + ||delta
   kappa_n||_Y.  So a relaxing history damps its early errors as the scheme does (the sum of
   the ||l_n|| would keep them).  It costs two more evaluations of the law's explicit update
-  per step, on copies of the state.  The memory and slip sums of Gamma3 add no term yet.
+  per step, on copies of the state.  The memory and slip sums of Gamma3 add
+  ``est_time_gamma3`` (app/post/gamma3error.py), their error's effect on u and sigma.
   The error fields are in the checkpoint (``TimeError.state``), so a restarted run goes on
   with them and reports the uninterrupted run's estimate.
 
 Each step record gets est_time, est_space, est_total (their sum), est_max (the running max
-of est_total, the measure's max_n) and est_space's three parts; summary.json gets
+of est_total, the measure's max_n), est_space's four parts and est_time's Gamma3 part; summary.json gets
 ``error_estimate``.
 """
 from __future__ import annotations

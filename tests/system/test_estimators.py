@@ -3,7 +3,9 @@ the space part vanishes on a homogeneous stress (patch test) and equals an indep
 recovery on the paper case; the time part of Norton relaxation: its first step's closed
 form after the load's jump, and under a smooth load 0.9 to 1.1 times the true error;
 the command line writes it to history.csv, summary.json, the log and solution.xdmf (eta);
-mpirun -n 2 equals the serial run."""
+mpirun -n 2 equals the serial run; a restarted run reports the uninterrupted run's estimate
+(the time error and the Gamma3 sums are in the checkpoint); the estimate and eta share one
+recovery; the contact boundary's indicator equals a numpy facet sum."""
 import csv
 import json
 
