@@ -23,8 +23,8 @@ kappa(t_n)||_Y), split into a time part and a space part.
   with them and reports the uninterrupted run's estimate.
 
 Each step record gets est_time, est_space, est_total (their sum), est_max (the running max
-of est_total, the measure's max_n), est_space's four parts and est_time's Gamma3 part; summary.json gets
-``error_estimate``.
+of est_total, the measure's max_n), est_space's four parts and est_time's Gamma3 part;
+summary.json gets ``error_estimate``.
 """
 from __future__ import annotations
 
