@@ -371,7 +371,7 @@ def _time_error_arrays(comm, sim, arrays: dict) -> None:
     """The error estimate's time error (``est_dH``, ``est_dkappa``) at the owned cells and
     its Gamma3 sums (``est_g3_right``, ``est_g3_ds``: app/post/gamma3error.py) at the owned
     Gamma3 nodes, with their coordinates, gathered into ``arrays`` on rank 0 (what the
-    estimate has)."""
+    estimate has, if finite: a restart starts the rest from zero)."""
     estimate, problem = getattr(sim, "estimate", None), sim.problem
     if estimate is None:
         return
@@ -388,7 +388,7 @@ def _time_error_arrays(comm, sim, arrays: dict) -> None:
                      for name, v in estimate.gamma3.state().items() if v is not None})
     for name, (x, v) in cols.items():
         gx, gv = _gather(comm, x, v)
-        if comm.rank == 0:
+        if comm.rank == 0 and np.isfinite(gv).all():    # overflowed rates: not stored
             arrays[f"est_{name}_x"], arrays[f"est_{name}_v"] = gx, gv
 
 
