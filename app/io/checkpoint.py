@@ -727,7 +727,7 @@ class Checkpoint:
         """``time_error``: the error estimate's delta H, delta kappa at the local cells (owned
         and ghost); ``gamma3_error``: its Gamma3 sums at the local Gamma3 nodes; each None
         if the checkpoint has none (local, no collectives)."""
-        if state.H is not None and "est_dH_x" in self.arrays:
+        if state.H is not None and {"est_dH_x", "est_dkappa_x"} <= self.arrays.keys():
             V = state.H.function_space
             x, rows = points(problem, V), V.dofmap.index_map.size_global
             self.time_error = {name: self._lookup(f"est_{name}", x, rows).copy()
