@@ -168,6 +168,8 @@ class Simulation:
         status, failure: "completed" or how and why the run stopped (a StepFailure).
         interrupted: a signal asked to stop after the current step.
         last_checkpoint: the checkpoint written last (set by the Checkpointer).
+        estimate: the ErrorEstimate observer (app/post/estimators.py; its time error goes
+            into checkpoints).
     """
 
     def __init__(self, case: Case, comm, outdir: Path | None = None, restart=None, law=None,
@@ -177,7 +179,7 @@ class Simulation:
         self.observers: list[Observer] = []
         self.domain = self.problem = self.history = self.gamma3_history = None
         self.clock = None                       # the loop's PhaseClock, from ``start``
-        self.solver = self.stepper = self.diagnostics = None
+        self.solver = self.stepper = self.diagnostics = self.estimate = None
         self.n, self.t, self.steps = 0, 0.0, []
         self.status, self.failure = "completed", None
         self.interrupted, self.last_checkpoint = False, None
@@ -236,7 +238,8 @@ class Simulation:
         self.stepper = make_stepper(case, self.diagnostics.relaxation_rate)
         if needs_watch(self):       # no rate bound: k r estimated at every step, first
             self.observers.insert(0, RateWatch())
-        self.observers.insert(0, ErrorEstimate())   # the a posteriori estimate, every run
+        self.estimate = ErrorEstimate()             # the a posteriori estimate, every run
+        self.observers.insert(0, self.estimate)
         if self.restart is not None:
             self.steps = self.restart.restore(self)
             self.n, self.t = self.restart.n, self.restart.t

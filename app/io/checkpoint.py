@@ -7,7 +7,9 @@ columns: 8 for Chaboche's (X, R, p)), and the active Gamma3 history terms as the
 ``state()`` gives them (memory term: xi_n, and for the direct sum the stored u_nu^+ history;
 slip: s_n; Coulomb friction: the contact pressure p_n its next fixed point starts from;
 with either, the slip path: u_{n-1,tau} and the accumulated slip; a checkpoint without it
-restarts the path at the restart).
+restarts the path at the restart), and the error estimate's propagated time error (delta H,
+delta kappa per cell, app/post/estimators.py ``TimeError.state``; a checkpoint without it
+restarts that error from zero).
 Values are stored with the coordinates of their
 nodes / cell midpoints, gathered on rank 0 into one ``checkpoint.npz`` (written
 atomically), so a run can restart on any number of MPI ranks: each rank matches its own
@@ -317,6 +319,7 @@ def save(outdir: Path, sim) -> Path:
     g3 = state.gamma3.state() if state.gamma3 is not None else None
     if g3 is not None:
         _gamma3_arrays(comm, problem, g3, arrays)
+    _time_error_arrays(comm, sim, arrays)
     if comm.rank == 0:
         st = sim.stepper.state()
         mem = g3["memory"] if g3 is not None else None
@@ -362,6 +365,31 @@ def _gamma3_arrays(comm, problem, g3: dict, arrays: dict) -> None:
         x, vv = _gather(comm, xg, v)
         if comm.rank == 0:
             arrays[f"g3_{name}_x"], arrays[f"g3_{name}_v"] = x, vv
+
+
+def _time_error_arrays(comm, sim, arrays: dict) -> None:
+    """The error estimate's time error (``est_dH``, ``est_dkappa``) at the owned cells and
+    its Gamma3 sums (``est_g3_right``, ``est_g3_ds``: app/post/gamma3error.py) at the owned
+    Gamma3 nodes, with their coordinates, gathered into ``arrays`` on rank 0 (what the
+    estimate has, if finite: a restart starts the rest from zero)."""
+    estimate, problem = getattr(sim, "estimate", None), sim.problem
+    if estimate is None:
+        return
+    err = estimate.time.state() if estimate.time is not None else None
+    n = problem.num_owned_cells
+    cols = {} if err is None else {
+        name: (points(problem, problem.state.H.function_space)[:n], v[:n])
+        for name, v in err.items()}
+    if estimate.gamma3 is not None:
+        own = problem.gamma3.nodes
+        pos = np.searchsorted(problem.gamma3_local_nodes, own)
+        xg = problem.V.tabulate_dof_coordinates()[own]
+        cols.update({f"g3_{name}": (xg, v[pos][:, None])
+                     for name, v in estimate.gamma3.state().items() if v is not None})
+    for name, (x, v) in cols.items():
+        gx, gv = _gather(comm, x, v)
+        if comm.rank == 0 and np.isfinite(gv).all():    # overflowed rates: not stored
+            arrays[f"est_{name}_x"], arrays[f"est_{name}_v"] = gx, gv
 
 
 def _write(path: Path, arrays: dict, outdir) -> None:
@@ -504,6 +532,8 @@ class Checkpoint:
 
     def __init__(self, path: Path):
         self.path = path
+        # set by restore(): the estimate's delta and Gamma3 sums, or None (none stored)
+        self.time_error = self.gamma3_error = None
         try:
             with np.load(path, allow_pickle=False) as data:
                 self.arrays = {k: data[k] for k in data.files}
@@ -626,6 +656,7 @@ class Checkpoint:
         n_g3 = comm.allreduce(len(problem.gamma3.nodes) if problem.gamma3 is not None else 0)
         try:
             self._restore_fields(problem, problem.state, n_g3)
+            self._restore_time_error(problem, problem.state, n_g3)
             why = None
         except CheckpointError as exc:
             why = exc.why
@@ -691,3 +722,18 @@ class Checkpoint:
             state["path"] = {"prev": self._lookup("g3_path_prev", xg, n_g3).copy(),
                              "length": self._lookup("g3_path_length", xg, n_g3)[:, 0].copy()}
         g3.load_state(state)
+
+    def _restore_time_error(self, problem, state, n_g3: int) -> None:
+        """``time_error``: the error estimate's delta H, delta kappa at the local cells (owned
+        and ghost); ``gamma3_error``: its Gamma3 sums at the local Gamma3 nodes; each None
+        if the checkpoint has none (local, no collectives)."""
+        if state.H is not None and {"est_dH_x", "est_dkappa_x"} <= self.arrays.keys():
+            V = state.H.function_space
+            x, rows = points(problem, V), V.dofmap.index_map.size_global
+            self.time_error = {name: self._lookup(f"est_{name}", x, rows).copy()
+                               for name in ("dH", "dkappa")}
+        names = [k for k in ("right", "ds") if f"est_g3_{k}_x" in self.arrays]
+        if names and problem.gamma3 is not None:
+            xg = problem.V.tabulate_dof_coordinates()[problem.gamma3_local_nodes]
+            self.gamma3_error = {k: self._lookup(f"est_g3_{k}", xg, n_g3)[:, 0].copy()
+                                 for k in names}

@@ -389,6 +389,16 @@ class Gamma3History:
         if self.path is not None:
             self.path.load_state(state.get("path"))
 
+    def components(self) -> tuple[np.ndarray, np.ndarray]:
+        """The normal and tangential parts of the current u (two bodies: w) at the nodes.
+
+        Returns:
+            u_nu (m,) and u_tau (m, d).
+        """
+        u = self.problem.contact_u()      # u, or w = [u] - d nu of two bodies
+        u_nu = np.einsum("ij,ij->i", u, self.normal)
+        return u_nu, u - u_nu[:, None] * self.normal
+
     def advance(self, t_prev: float, t_n: float) -> None:
         """xi_n, s_n (and the slip path) from u_{n-1} (the current u), before solving step n.
 
@@ -396,9 +406,7 @@ class Gamma3History:
             t_prev: t_{n-1}.
             t_n: t_n.
         """
-        u = self.problem.contact_u()      # u, or w = [u] - d nu of two bodies
-        u_nu = np.einsum("ij,ij->i", u, self.normal)
-        u_tau = u - u_nu[:, None] * self.normal
+        u_nu, u_tau = self.components()
         if self.memory is not None:
             r_plus = NUMPY.pos(u_nu) if self.b0 is None else self.b0 * NUMPY.pos(u_nu)
             self.xi.set(self.memory.advance(r_plus, t_prev, t_n))

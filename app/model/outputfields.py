@@ -17,7 +17,7 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
-from vpcontact.model.recovery import LumpedProjection, SpaceIndicators
+from vpcontact.model.recovery import LumpedProjection, space_indicators
 
 
 def owned_rows(problem) -> np.ndarray:
@@ -235,7 +235,7 @@ class EtaOutput:
 
     def __init__(self, problem):
         self.problem = problem
-        self.indicators = SpaceIndicators(problem)
+        self.indicators = space_indicators(problem)   # the estimate's: computed once a step
         self.eta = fem.Function(problem.Y, name="eta")
         self.functions = [self.eta]
 

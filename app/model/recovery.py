@@ -14,7 +14,14 @@ three fields of the paper's error measure with theirs, cell by cell:
 integrated exactly (f* is P1, f_h constant on K: quadrature of degree 2).  The recovered
 strain is the projection of eps(u_h) itself, not E^-1 (sigma* - H): the latter would only
 rescale eta_Q and carry the jumps of the cellwise H; the former measures ||.||_V's own
-discretisation error.  The contact boundary adds no term yet.
+discretisation error.  The contact boundary gives the cells at Gamma3 a fourth indicator
+(``ContactJump``), eta_C,K^2 = h_K ||sigma* nu - t_h||^2 over their Gamma3 facets, t_h the
+discrete contact traction, as the boundary jumps of residual estimators; a part of the
+stress error, it enters the estimate as (eta_Q^2 + eta_C^2)^(1/2).
+
+A problem has one SpaceIndicators (``space_indicators``), shared by the estimate of every
+step and the ``eta`` output; it recomputes only when u, sigma or kappa changed, so an
+output step projects once.
 """
 from __future__ import annotations
 
@@ -23,6 +30,8 @@ import ufl
 from dolfinx import fem
 from dolfinx.la import ScatterMode
 from mpi4py import MPI
+
+from vpcontact.post.quantities import contact_table
 
 _ADD = ScatterMode.add
 
@@ -82,24 +91,40 @@ class SpaceIndicators:
         if kappa is not None:
             fields.append((kappa, tuple(kappa.ufl_shape)))
         self.projections = [LumpedProjection(msh, f, s) for f, s in fields]
-        E = fem.VectorFunctionSpace(msh, ("DG", 0), dim=3)
+        E = fem.VectorFunctionSpace(msh, ("DG", 0), dim=4)
         w = ufl.TestFunction(E)
         form = sum(ufl.inner(pr.nodal - pr.expr, pr.nodal - pr.expr) * w[i]
                    for i, pr in enumerate(self.projections))
-        self.form = fem.form(form * ufl.dx(metadata={"quadrature_degree": 2}))
+        self.contact = ContactJump(problem, self.projections[0].nodal)
+        if self.contact.active:
+            form = form * ufl.dx(metadata={"quadrature_degree": 2}) + self.contact.form(w[3])
+        else:
+            form = form * ufl.dx(metadata={"quadrature_degree": 2})
+        self.form = fem.form(form)
         self.rows = np.asarray(E.dofmap.list.array)[:self.owned]
+        self.inputs = [problem.u, problem.sigma] + ([kappa] if kappa is not None else [])
+        self.seen, self.eta2 = None, None
 
     def update(self) -> np.ndarray:
-        """The squared indicators of the owned cells (collective).
+        """The squared indicators of the owned cells, recomputed only if u, sigma or kappa
+        changed since the last call on some rank (collective).
 
         Returns:
-            (owned cells, 3): eta_Q,K^2, eta_V,K^2, eta_Y,K^2 (0 without kappa), in local
-            cell order.
+            (owned cells, 4): eta_Q,K^2, eta_V,K^2, eta_Y,K^2 (0 without kappa), eta_C,K^2
+            (the contact boundary's, ``ContactJump``; 0 without Gamma3), in local
+            cell order (a copy).
         """
-        for pr in self.projections:
-            pr.update()
-        b = fem.assemble_vector(self.form)        # cell integrals: the owned cells
-        return b.array.reshape(-1, 3)[self.rows]
+        now = [f.x.array for f in self.inputs]
+        same = self.seen is not None and all(np.array_equal(a, b)
+                                             for a, b in zip(now, self.seen))
+        if not self.comm.allreduce(same, op=MPI.LAND):
+            for pr in self.projections:
+                pr.update()
+            self.contact.update()
+            b = fem.assemble_vector(self.form)        # cell integrals: the owned cells
+            self.eta2 = b.array.reshape(-1, 4)[self.rows]
+            self.seen = [a.copy() for a in now]
+        return self.eta2.copy()
 
     def norms(self, eta2: np.ndarray) -> np.ndarray:
         """The global estimates (sum over the cells of all ranks; collective).
@@ -108,6 +133,68 @@ class SpaceIndicators:
             eta2: ``update()``'s squared indicators.
 
         Returns:
-            (3,): eta_Q, eta_V, eta_Y.
+            (4,): eta_Q, eta_V, eta_Y, eta_C.
         """
         return np.sqrt(self.comm.allreduce(eta2.sum(axis=0), op=MPI.SUM))
+
+
+class ContactJump:
+    """The contact boundary's indicator eta_C,K^2 = h_K ||sigma* nu - t_h||^2_L2(F) over the Gamma3
+    facets F of cell K, the recovered stress's traction against the discrete contact
+    traction t_h = r_i / w_i at the Gamma3 nodes (the bulk residual over the nodal rule's
+    weight: p_n nu + sigma_tau of the laws, or the bound's multiplier), P1 on Gamma3.  One
+    body only (pairs: none).  (The contact table's sign: -sigma_nu, -sigma_tau.)
+
+    Args:
+        problem: the ContactProblem.
+        recovered: sigma*, the P1 tensor of the recovery.
+    """
+
+    def __init__(self, problem, recovered):
+        self.problem, self.recovered = problem, recovered
+        self.active = problem.gamma3 is not None and problem.pairs is None
+        if self.active:
+            self.traction = fem.Function(problem.V, name="contact_traction")
+
+    def form(self, w):
+        """The facet integral h (sigma* nu - t_h)^2 w over Gamma3 (w: a DG0 test function)."""
+        p, msh = self.problem, self.problem.mesh
+        nu, h = ufl.FacetNormal(msh), ufl.CellDiameter(msh)
+        jump = ufl.dot(self.recovered, nu) - self.traction
+        ds = ufl.Measure("ds", domain=msh, subdomain_data=p.body.facet_tags,
+                         metadata={"quadrature_degree": 2})
+        return h * ufl.inner(jump, jump) * w * ds(p.gamma3_tags)
+
+    def update(self) -> None:
+        """t_h from the current state: -(neg_sigma_nu nu + neg_sigma_tau tau) of the contact
+        table (app/post/quantities.py: at a node a Dirichlet condition holds, the laws'
+        friction, not the support's reaction); collective."""
+        if not self.active:
+            return
+        p = self.problem
+        gm, fr = p.gamma3, p.frames
+        table = contact_table(p)
+        pos = np.searchsorted(fr.nodes, gm.nodes)
+        sfx = [""] if p.dim == 2 else ["1", "2"]
+        t = -table["neg_sigma_nu"][:, None] * fr.normal[pos] - sum(
+            table[f"neg_sigma_tau{x}"][:, None] * fr.tangents[pos][:, k]
+            for k, x in enumerate(sfx))
+        values = self.traction.x.array.reshape(-1, p.dim)
+        values[:] = 0.0
+        values[gm.nodes] = t
+        self.traction.x.scatter_forward()
+
+
+def space_indicators(problem) -> SpaceIndicators:
+    """The problem's one SpaceIndicators, built on first use (collective then).
+
+    Args:
+        problem: the ContactProblem.
+
+    Returns:
+        The SpaceIndicators the estimate and the ``eta`` output share.
+    """
+    found = getattr(problem, "space_indicators", None)
+    if found is None:
+        found = problem.space_indicators = SpaceIndicators(problem)
+    return found

@@ -2,8 +2,9 @@
 estimates"): max_n (||sigma_n - sigma(t_n)||_Q + ||u_n - u(t_n)||_V + ||kappa_n -
 kappa(t_n)||_Y), split into a time part and a space part.
 
-- Space, per step: eta_Q + eta_V + eta_Y, the recovery indicators of app/model/recovery.py
-  summed over the cells (each a global L2 norm, as the error measure's three norms).
+- Space, per step: (eta_Q^2 + eta_C^2)^(1/2) + eta_V + eta_Y, the recovery indicators of
+  app/model/recovery.py summed over the cells (each a global L2 norm, as the error
+  measure's three norms; eta_C, the contact boundary's, is part of the stress error).
 - Time: the error of the history update, embedded and propagated.  The explicit sums
   (3.2)-(3.3) take G at the left end point; the trapezoidal (second order) update differs
   from them by the local error l_n = (k_n / 2) (G_n - G_{n-1}), G_j = G(sigma_j, kappa_j)
@@ -16,12 +17,14 @@ kappa(t_n)||_Y), split into a time part and a space part.
   s_j = (sigma_j, kappa_j); the time estimate of step n is ||delta H_n||_Q + ||delta
   kappa_n||_Y.  So a relaxing history damps its early errors as the scheme does (the sum of
   the ||l_n|| would keep them).  It costs two more evaluations of the law's explicit update
-  per step, on copies of the state.  The memory and slip sums of Gamma3 add no term yet; a
-  restarted run starts the error fields from zero (they are not in the checkpoint).
+  per step, on copies of the state.  The memory and slip sums of Gamma3 add
+  ``est_time_gamma3`` (app/post/gamma3error.py), their error's effect on u and sigma.
+  The error fields are in the checkpoint (``TimeError.state``), so a restarted run goes on
+  with them and reports the uninterrupted run's estimate.
 
 Each step record gets est_time, est_space, est_total (their sum), est_max (the running max
-of est_total, the measure's max_n) and est_space's three parts; summary.json gets
-``error_estimate``.
+of est_total, the measure's max_n), est_space's four parts and est_time's Gamma3 part;
+summary.json gets ``error_estimate``.
 """
 from __future__ import annotations
 
@@ -30,13 +33,14 @@ import logging
 import numpy as np
 
 from vpcontact.model.history import UPDATE_ERRORS, first_failure
-from vpcontact.model.recovery import SpaceIndicators
+from vpcontact.model.recovery import space_indicators
 from vpcontact.observers import Observer
+from vpcontact.post.gamma3error import Gamma3TimeError
 
 log = logging.getLogger("vpcontact")
 
-PARTS = ("est_space_sigma_Q", "est_space_u_V", "est_space_kappa_Y")
-COLUMNS = ("est_time", "est_space", "est_total", "est_max") + PARTS
+PARTS = ("est_space_sigma_Q", "est_space_u_V", "est_space_kappa_Y", "est_space_contact")
+COLUMNS = ("est_time", "est_space", "est_total", "est_max") + PARTS + ("est_time_gamma3",)
 
 
 class HistoryRates:
@@ -124,6 +128,16 @@ class TimeError:
                       for d, g, gm, x in zip(self.delta, at[2:], moved, local)]
         return self._norm()
 
+    def state(self) -> dict | None:
+        """delta_n for a checkpoint: {"dH": (cells, d*d), "dkappa": (cells, m)} per local
+        cell (owned rows first), or None (no step yet, or the law's update failed)."""
+        return None if self.delta is None else {"dH": self.delta[0], "dkappa": self.delta[1]}
+
+    def load_state(self, state: dict | None) -> None:
+        """delta_n from ``state()`` of the checkpointed run (None: no error before)."""
+        self.delta = None if state is None else [np.array(state["dH"], dtype=float),
+                                                 np.array(state["dkappa"], dtype=float)]
+
     def _norm(self) -> float:
         """||delta H||_Q + ||delta kappa||_Y over the owned cells of all ranks."""
         p = self.problem
@@ -147,20 +161,31 @@ class ErrorEstimate(Observer):
     """The estimate of every step (module docstring); collective."""
 
     def __init__(self):
-        self.space = self.time = None
+        self.space = self.time = self.gamma3 = None
         self.best = None
 
     def start(self, sim) -> None:
-        """The indicators, and G at the initial (or restored) state.
+        """The indicators, and G at the initial (or restored) state, with the restored
+        error fields and Gamma3 sums (the step of the last restored record is the one G was
+        taken with).
 
         Args:
             sim: the Simulation, set up.
         """
-        p = sim.problem
-        self.space = SpaceIndicators(p)
+        p, restart = sim.problem, getattr(sim, "restart", None)
+        self.space = space_indicators(p)
         if p.law is not None and p.state.H is not None:
             times = sim.case.time.times
-            self.time = TimeError(p, float(times[1] - times[0]))
+            k = sim.steps[-1]["k"] if sim.steps else float(times[1] - times[0])
+            self.time = TimeError(p, float(k))
+            if restart is not None:
+                self.time.load_state(restart.time_error)
+        g3 = p.state.gamma3
+        if g3 is not None and (g3.memory is not None or g3.slip is not None) \
+                and p.pairs is None:
+            self.gamma3 = Gamma3TimeError(p)
+            if restart is not None and restart.gamma3_error is not None:
+                self.gamma3.load_state(restart.gamma3_error)
         for rec in sim.steps:                 # restored steps: their running max goes on
             if "est_total" in rec:
                 self._keep(rec)
@@ -173,8 +198,12 @@ class ErrorEstimate(Observer):
             record: the step's record.
         """
         parts = self.space.norms(self.space.update())
-        est = dict(zip(PARTS, map(float, parts)), est_space=float(parts.sum()))
+        est = dict(zip(PARTS, map(float, parts)),
+                   est_space=float(np.hypot(parts[0], parts[3]) + parts[1] + parts[2]))
         est["est_time"] = self.time.step(record["k"]) if self.time is not None else 0.0
+        est["est_time_gamma3"] = self.gamma3.step(record["k"], record["t"]) \
+            if self.gamma3 is not None else 0.0
+        est["est_time"] += est["est_time_gamma3"]
         est["est_total"] = est["est_time"] + est["est_space"]
         # an estimate that is not finite (rates that overflow) is absent, never a reason
         # for the blow-up monitor to stop the run
@@ -190,7 +219,7 @@ class ErrorEstimate(Observer):
             self.best = {"estimate": record["est_total"], "time": record["est_time"],
                          "space": record["est_space"], "n_max": record["n"],
                          "t_max": record["t"],
-                         "space_parts": {k: record[k] for k in PARTS}}
+                         "space_parts": {k: record.get(k) for k in PARTS}}
 
     def end(self, sim, summary) -> None:
         """summary.json's ``error_estimate`` and the log line.

@@ -3,7 +3,9 @@ the space part vanishes on a homogeneous stress (patch test) and equals an indep
 recovery on the paper case; the time part of Norton relaxation: its first step's closed
 form after the load's jump, and under a smooth load 0.9 to 1.1 times the true error;
 the command line writes it to history.csv, summary.json, the log and solution.xdmf (eta);
-mpirun -n 2 equals the serial run."""
+mpirun -n 2 equals the serial run; a restarted run reports the uninterrupted run's estimate
+(the time error and the Gamma3 sums are in the checkpoint); the estimate and eta share one
+recovery; the contact boundary's indicator equals a numpy facet sum."""
 import csv
 import json
 
@@ -17,7 +19,7 @@ from conftest import PAPER_CASE, ROOT, make_case, run_case, run_cli
 
 NORTON = ROOT / "cases" / "norton_relaxation.yaml"
 EST = ("est_time", "est_space", "est_total", "est_max", "est_space_sigma_Q", "est_space_u_V",
-       "est_space_kappa_Y")
+       "est_space_kappa_Y", "est_space_contact")
 
 
 def _norton(N: int):
@@ -69,7 +71,10 @@ def test_space_estimate_equals_an_independent_recovery():
     ref = _numpy_eta_sigma(res.problem)
     assert ref > 1e-3 * rec["norm_sigma_Q"]
     assert rec["est_space_sigma_Q"] == pytest.approx(ref, rel=1e-12)
-    assert rec["est_space"] == pytest.approx(rec["est_space_sigma_Q"] + rec["est_space_u_V"]
+    # the contact boundary's eta_C is part of the stress error (docs/model.md)
+    assert rec["est_space"] == pytest.approx(np.hypot(rec["est_space_sigma_Q"],
+                                                      rec["est_space_contact"])
+                                             + rec["est_space_u_V"]
                                              + rec["est_space_kappa_Y"], rel=1e-14)
 
 
@@ -206,3 +211,125 @@ def test_convergence_reports_the_effectivity(tmp_path):
                                                           / float(row["error"]), rel=1e-12)
         assert "effectivity" in (out / "convergence.md").read_text()
         assert "effectivity " in proc.stdout + proc.stderr
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("nprocs", [1, 2], ids=["serial", "serial-checkpoint-on-2-ranks"])
+def test_restart_reports_the_uninterrupted_estimate(nprocs, tmp_path):
+    """A run restarted from step 3 (a serial checkpoint, continued serially or under
+    mpirun -n 2) reports the uninterrupted run's est_* in every step to 1e-12: the
+    propagated time error (delta H, delta kappa) is in the checkpoint."""
+    full, re_ = tmp_path / "full", tmp_path / "re"
+    opts = ["--set", "mesh.n=8", "--set", "time.N=6", "--set", "output.checkpoint_every=3",
+            "--quiet"]
+    assert run_cli(["run", PAPER_CASE, "--out", full, *opts]).returncode == 0
+    proc = run_cli(["run", PAPER_CASE, "--out", re_, *opts, "--restart",
+                    full / "checkpoint_000003.npz"], nprocs=nprocs)
+    assert proc.returncode == 0, proc.stderr
+    a, b = (_cli_outputs(o)[0] for o in (full, re_))
+    assert a["steps"][3]["est_time"] > 0.1 * a["steps"][3]["est_total"]  # the time part counts
+    for ra, rb in zip(a["steps"], b["steps"], strict=True):
+        for c in EST:
+            assert rb[c] == pytest.approx(ra[c], rel=1e-12, abs=1e-15), (ra["n"], c)
+    assert b["error_estimate"]["estimate"] == pytest.approx(a["error_estimate"]["estimate"],
+                                                           rel=1e-12)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("case, nprocs", [("memory", 1), ("slip_weakening", 2)])
+def test_restart_keeps_the_gamma3_time_term(case, nprocs, tmp_path):
+    """The Gamma3 sums of the time estimate (the memory term's right sum, the slip sum's
+    error) are in the checkpoint: a run restarted from step 3 (serially, or the serial
+    checkpoint under mpirun -n 2) reports the uninterrupted est_time_gamma3 and est_time
+    to 1e-12."""
+    full, re_, path = tmp_path / "full", tmp_path / "re", ROOT / "cases" / f"{case}.yaml"
+    opts = ["--set", "mesh.n=8", "--set", "time.N=6", "--set", "output.checkpoint_every=3",
+            "--quiet"]
+    assert run_cli(["run", path, "--out", full, *opts]).returncode == 0
+    proc = run_cli(["run", path, "--out", re_, *opts, "--restart",
+                    full / "checkpoint_000003.npz"], nprocs=nprocs)
+    assert proc.returncode == 0, proc.stderr
+    a, b = (_cli_outputs(o)[0]["steps"] for o in (full, re_))
+    assert a[3]["est_time_gamma3"] > 0
+    for ra, rb in zip(a, b, strict=True):
+        for c in ("est_time_gamma3", "est_time", "est_total"):
+            assert rb[c] == pytest.approx(ra[c], rel=1e-12, abs=1e-15), (ra["n"], c)
+
+
+def test_the_recovery_is_computed_once_a_step(monkeypatch):
+    """The estimate and the eta output share one SpaceIndicators, which projects again only
+    when u, sigma or kappa changed: an output step's second call costs no projection, and
+    its result is the first's."""
+    from vpcontact.model import recovery
+    from vpcontact.model.outputfields import EtaOutput, owned_rows
+    from vpcontact.simulation import Simulation
+    sim = Simulation(make_case(mesh={"n": 4}, time={"N": 2}), MPI.COMM_WORLD)
+    sim.setup()
+    calls = []
+    monkeypatch.setattr(recovery.LumpedProjection, "update",
+                        lambda self, f=recovery.LumpedProjection.update: (calls.append(1),
+                                                                          f(self))[1])
+    shared = recovery.space_indicators(sim.problem)
+    eta = EtaOutput(sim.problem)
+    assert eta.indicators is shared
+    first = shared.update()
+    eta.update()
+    assert len(calls) == 3                    # sigma, eps(u), kappa: once
+    rows = owned_rows(sim.problem)
+    assert eta.eta.x.array[rows] == pytest.approx(np.sqrt(first.sum(axis=1)), rel=1e-14)
+    sim.problem.u.x.array[:] += 1e-3 * np.arange(sim.problem.u.x.array.size)
+    second = shared.update()
+    assert len(calls) == 6 and not np.allclose(second, first)
+
+
+def _numpy_contact_jump(problem, recovered) -> float:
+    """sum over the Gamma3 facets F of h_K ||sigma* nu - t_h||^2_L2(F), with numpy: sigma* at
+    the facet's end points (evaluated in K), t_h of the contact table there, the outward
+    normal of the edge, h_K the cell's longest edge, the exact integral of a linear
+    function's square (2D, serial)."""
+    from dolfinx.cpp.mesh import entities_to_geometry
+
+    from vpcontact.post.quantities import contact_table
+    msh, gm, fr = problem.mesh, problem.gamma3, problem.frames
+    msh.topology.create_connectivity(1, 2)
+    ft = problem.body.facet_tags
+    facets = ft.indices[np.isin(ft.values, problem.gamma3_tags)]
+    table = contact_table(problem)
+    pos = np.searchsorted(fr.nodes, gm.nodes)
+    t_nodes = -table["neg_sigma_nu"][:, None] * fr.normal[pos] \
+        - table["neg_sigma_tau"][:, None] * fr.tangents[pos][:, 0]
+    at = {tuple(np.round(x, 12)): t for x, t in zip(gm.x[:, :2], t_nodes)}
+    total = 0.0
+    for f in facets:
+        K = msh.topology.connectivity(1, 2).links(f)[0]
+        ends = msh.geometry.x[entities_to_geometry(getattr(msh, "_mesh", msh), 1,
+                                                   np.array([f], dtype=np.int32),
+                                                   False)[0]]
+        corners = msh.geometry.x[msh.geometry.dofmap.links(K)][:, :2]
+        h = max(np.linalg.norm(a - b) for a in corners for b in corners)
+        edge = ends[1, :2] - ends[0, :2]
+        nu = np.array([edge[1], -edge[0]]) / np.linalg.norm(edge)
+        if nu @ (ends[0, :2] - corners.mean(axis=0)) < 0:
+            nu = -nu
+        sig = recovered.eval(ends, np.array([K, K], dtype=np.int32)).reshape(2, 2, 2)
+        a, b = (sig[i] @ nu - at[tuple(np.round(ends[i, :2], 12))] for i in range(2))
+        total += h * np.linalg.norm(edge) / 3 * (a @ a + a @ b + b @ b)
+    return total
+
+
+def test_contact_boundary_term_equals_numpy():
+    """The contact boundary's eta_C^2 on the Hertz cylinder equals the numpy sum of h_K
+    ||sigma* nu - t_h||^2 over the Gamma3 facets to 1e-10, and is not round-off."""
+    from vpcontact.case import load_case
+    from vpcontact.model.recovery import SpaceIndicators
+    from vpcontact.simulation import Simulation
+    if MPI.COMM_WORLD.size > 1:
+        pytest.skip("serial numpy reference")
+    sim = Simulation(load_case(ROOT / "cases" / "hertz_cylinder.yaml"), MPI.COMM_WORLD)
+    sim.run()
+    space = SpaceIndicators(sim.problem)
+    eta2 = space.update()
+    part = eta2[:, 3].sum()
+    expected = _numpy_contact_jump(sim.problem, space.projections[0].nodal)
+    assert expected > 1e-3 * eta2[:, 0].sum()
+    assert part == pytest.approx(expected, rel=1e-10)
