@@ -157,7 +157,14 @@ class ContactJump:
             self.traction = fem.Function(problem.V, name="contact_traction")
 
     def form(self, w):
-        """The facet integral h (sigma* nu - t_h)^2 w over Gamma3 (w: a DG0 test function)."""
+        """The facet integral of the contact boundary term.
+
+        Args:
+            w: a DG0 test function.
+
+        Returns:
+            The UFL form h (sigma* nu - t_h)^2 w ds over Gamma3.
+        """
         p, msh = self.problem, self.problem.mesh
         nu, h = ufl.FacetNormal(msh), ufl.CellDiameter(msh)
         jump = ufl.dot(self.recovered, nu) - self.traction

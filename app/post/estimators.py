@@ -129,12 +129,20 @@ class TimeError:
         return self._norm()
 
     def state(self) -> dict | None:
-        """delta_n for a checkpoint: {"dH": (cells, d*d), "dkappa": (cells, m)} per local
-        cell (owned rows first), or None (no step yet, or the law's update failed)."""
+        """delta_n for a checkpoint.
+
+        Returns:
+            {"dH": (cells, d*d), "dkappa": (cells, m)} per local cell (owned rows first), or
+            None (no step yet, or the law's update failed).
+        """
         return None if self.delta is None else {"dH": self.delta[0], "dkappa": self.delta[1]}
 
     def load_state(self, state: dict | None) -> None:
-        """delta_n from ``state()`` of the checkpointed run (None: no error before)."""
+        """delta_n from a checkpoint.
+
+        Args:
+            state: ``state()`` of the checkpointed run (None: no error before).
+        """
         self.delta = None if state is None else [np.array(state["dH"], dtype=float),
                                                  np.array(state["dkappa"], dtype=float)]
 

@@ -71,11 +71,19 @@ class Gamma3TimeError:
         return u_nu, np.linalg.norm(u_tau, axis=1), u_tau
 
     def state(self) -> dict:
-        """{"right": T_n or None, "ds": D^s_n or None} at the local Gamma3 nodes."""
+        """The sums for a checkpoint.
+
+        Returns:
+            {"right": T_n or None, "ds": D^s_n or None} at the local Gamma3 nodes.
+        """
         return {"right": self.right, "ds": self.ds}
 
     def load_state(self, state: dict) -> None:
-        """T_n, D^s_n from ``state()`` of the checkpointed run (absent: zeros)."""
+        """T_n, D^s_n from a checkpoint.
+
+        Args:
+            state: ``state()`` of the checkpointed run (a key absent: zeros).
+        """
         for key in ("right", "ds"):
             if getattr(self, key) is not None and state.get(key) is not None:
                 setattr(self, key, np.array(state[key], dtype=float))
