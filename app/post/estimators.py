@@ -205,6 +205,8 @@ class ErrorEstimate(Observer):
             sim: the Simulation with step n solved.
             record: the step's record.
         """
+        if self.space is None:     # a loop driven by ``step`` without ``start``: the time
+            return                 # part would miss G at the initial state: no estimate
         parts = self.space.norms(self.space.update())
         est = dict(zip(PARTS, map(float, parts)),
                    est_space=float(np.hypot(parts[0], parts[3]) + parts[1] + parts[2]))
