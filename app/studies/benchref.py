@@ -20,7 +20,7 @@ import sys
 import time
 from pathlib import Path
 
-from vpcontact.studies.benchrun import ENV
+from vpcontact.studies.benchrun import ENV, stop_child
 
 REPEAT = 3                   # timed solves per reference: the fastest counts
 PREFIX = "benchref_"         # the reference KSP's PETSc options (its own process)
@@ -44,11 +44,17 @@ def measure(case, mesh_overrides: list[str]) -> dict:
     cmd = [sys.executable, "-m", "vpcontact.studies.benchref", str(case)]
     for item in mesh_overrides:
         cmd += ["--set", item]
-    proc = subprocess.run(cmd, env={**os.environ, **ENV}, capture_output=True, text=True)
+    proc = subprocess.Popen(cmd, env={**os.environ, **ENV}, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        stdout, stderr = proc.communicate()
+    except BaseException:          # SIGINT/SIGTERM to the bench: the reference ends with it
+        stop_child(proc)
+        raise
     if proc.returncode != 0:
         raise RuntimeError(f"bench reference failed ({' '.join(cmd)}): "
-                           f"{proc.stderr.strip()[-300:]}")
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+                           f"{stderr.strip()[-300:]}")
+    return json.loads(stdout.strip().splitlines()[-1])
 
 
 class References:

@@ -44,7 +44,7 @@ def measured_run(case: Path, out: Path, overrides: list[str], nprocs: int = 1):
         try:
             _, status, usage = os.wait4(proc.pid, 0)
         except BaseException:          # SIGINT/SIGTERM to the bench: its run ends with it
-            _stop(proc)
+            stop_child(proc)
             raise
     wall = time.perf_counter() - t0
     proc.returncode = os.waitstatus_to_exitcode(status)
@@ -54,9 +54,14 @@ def measured_run(case: Path, out: Path, overrides: list[str], nprocs: int = 1):
     return wall, peak, json.loads((out / "summary.json").read_text())
 
 
-def _stop(proc: subprocess.Popen) -> None:
-    """End a bench run whose bench was interrupted: SIGTERM (the run stops after its step),
-    SIGKILL if it has not ended within 10 s; never left running on its own."""
+def stop_child(proc: subprocess.Popen) -> None:
+    """End a bench's child process (a run, a reference solve) whose bench was interrupted:
+    SIGTERM (a run stops after its step), SIGKILL if it has not ended within 10 s; never
+    left running on its own.
+
+    Args:
+        proc: the child.
+    """
     proc.terminate()
     try:
         proc.wait(timeout=10)
