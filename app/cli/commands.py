@@ -174,7 +174,8 @@ def cmd_run(args, petsc_cli: dict) -> int:
     painter = _early_painter(comm, args.no_plots)
     try:
         if args.tol is not None:             # passes to a tolerance: app/studies/tolerance.py
-            result, files = _run_to_tolerance(args, comm, raw, case, outdir, make_observers)
+            result, files, met = _run_to_tolerance(args, comm, raw, case, outdir,
+                                                   make_observers)
         else:
             result = run(case, comm, observers, outdir=outdir,
                          restart=loaded.get("checkpoint"))
@@ -188,7 +189,8 @@ def cmd_run(args, petsc_cli: dict) -> int:
         resume_collector()             # also where the run stopped before its start
         if painter is not None:
             painter.cancel()
-    return report_run(comm, s, outdir, files)
+    code = report_run(comm, s, outdir, files)
+    return EXIT_FAILED if code == 0 and args.tol is not None and not met else code
 
 
 def _run_check(args, loaded: dict):
@@ -196,13 +198,13 @@ def _run_check(args, loaded: dict):
     restart = _restart_check(args, loaded)
 
     def check(case):
-        restart(case)
         if args.tol is not None:
             from vpcontact.studies.tolerance import check_tolerance_case
             if args.restart:
                 raise CaseError("--tol: every pass starts at t = 0; it cannot continue "
                                 "from --restart")
             check_tolerance_case(case, case.raw)
+        restart(case)
 
     return check
 
@@ -212,7 +214,7 @@ def _run_to_tolerance(args, comm, raw: dict, case, outdir: Path, make_observers)
     moved into outdir.
 
     Returns:
-        (the last pass's RunResult, the files in outdir).
+        (the last pass's RunResult, the files in outdir, whether the tolerance was met).
     """
     from vpcontact.case import validate
     from vpcontact.studies import tolerance
@@ -221,12 +223,12 @@ def _run_to_tolerance(args, comm, raw: dict, case, outdir: Path, make_observers)
                                                outdir, make_observers, validate)
     tolerance.log_table(passes, args.tol)
     if not met:
-        log.warning("run --tol %g: not reached after %d passes (est_max / scale = %.3g); "
-                    "raise --max-passes or the tolerance", args.tol, len(passes),
-                    passes[-1].relative or float("nan"))
+        log.warning("run --tol %g: not reached after %d passes (est_max / scale = %.3g; "
+                    "exit code 1, the outputs are the last pass's); raise --max-passes or "
+                    "the tolerance", args.tol, len(passes), passes[-1].relative or float("nan"))
     files = tolerance.promote_final(outdir, passes[-1].index) if comm.rank == 0 else []
     comm.barrier()
-    return result, files + [outdir / "passes.csv", outdir / "passes.json"]
+    return result, files + [outdir / "passes.csv", outdir / "passes.json"], met
 
 
 def _early_painter(comm, no_plots: bool):
