@@ -560,13 +560,20 @@ class Simulation:
         self.solver.destroy()
         return summary
 
+    def _mesh_kind(self) -> dict:
+        """summary.json's mesh kind and n: "adapted" (n None) for a built-in structured mesh
+        refined locally (meshes/adapt.py), else the case's."""
+        if self.case.mesh.kind == "structured" and getattr(self.domain, "n", 0) is None:
+            return {"kind": "adapted", "n": None}
+        return {"kind": self.case.mesh.kind, "n": self.case.mesh.n}
+
     def summary(self) -> RunSummary:
         """Returns: the RunSummary of the run so far (summary.json without contact_states)."""
         case, p, stepper = self.case, self.problem, self.stepper
         return RunSummary(
             case=case.name, source=case.source, case_data=case.raw, status=self.status,
             mesh={"cells": p.num_cells, "vertices": p.num_vertices, "dofs": p.num_dofs,
-                  "kind": case.mesh.kind, "n": case.mesh.n, "h": self.domain.h,
+                  **self._mesh_kind(), "h": self.domain.h,
                   "diagonal": self.domain.diagonal},
             time={"T": case.time.T, "N": self.n, "uniform": case.time.uniform,
                   "scheme": case.time.scheme, "adaptive": stepper.adaptive},
