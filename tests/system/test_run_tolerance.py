@@ -117,3 +117,17 @@ def test_mpirun_equals_serial(tmp_path):
     for a, b in zip(runs[1], runs[2]):
         assert (a["cells"], a["steps"], a["next"]) == (b["cells"], b["steps"], b["next"])
         assert float(b["est_max"]) == pytest.approx(float(a["est_max"]), rel=1e-10)
+
+
+def test_overwrite_replaces_the_passes(tmp_path):
+    """A directory of a run --tol is one of vpcontact's: refused without --overwrite,
+    and with it the earlier passes (pass_<i>, passes.csv) are replaced, none left over."""
+    out = tmp_path / "tol"
+    assert _tol_run(out, 0.3).returncode == 0
+    before = sorted(p.name for p in out.glob("pass_*"))
+    assert _tol_run(out, 0.5).returncode == 2
+    proc = _tol_run(out, 0.5, "--overwrite")
+    assert proc.returncode == 0, proc.stderr
+    rows, _ = _passes(out)
+    after = sorted(p.name for p in out.glob("pass_*"))
+    assert len(after) == len(rows) - 1 < len(before)
