@@ -155,6 +155,9 @@ class Simulation:
             "friction": psi}, each a ScalarLaw written with ``backend(r)`` of
             app/model/primitives.py (app/model/contact_laws.py: ``replace_laws``; the case
             keeps the section of the part replaced); None: the case's laws.
+        mesh: the body's mesh, built already (a RectangleMesh or BoxMesh of the case's
+            built-in mesh, e.g. refined locally by meshes/adapt.py), or None: built from
+            the case.
 
     Attributes:
         problem: the ContactProblem (u, sigma, forms, norms).
@@ -173,11 +176,11 @@ class Simulation:
     """
 
     def __init__(self, case: Case, comm, outdir: Path | None = None, restart=None, law=None,
-                 contact_laws=None):
+                 contact_laws=None, mesh=None):
         self.case, self.comm, self.outdir, self.restart = case, comm, outdir, restart
         self.law, self.contact_laws = law, contact_laws
         self.observers: list[Observer] = []
-        self.domain = self.problem = self.history = self.gamma3_history = None
+        self.domain, self.problem, self.history, self.gamma3_history = mesh, None, None, None
         self.clock = None                       # the loop's PhaseClock, from ``start``
         self.solver = self.stepper = self.diagnostics = self.estimate = None
         self.n, self.t, self.steps = 0, 0.0, []
@@ -215,7 +218,8 @@ class Simulation:
         control, and the state of the checkpoint to continue from (else sigma_0)."""
         self._clock["start"] = time.perf_counter()
         case = self.case
-        self.domain = build_mesh(case, self.comm)
+        if self.domain is None:
+            self.domain = build_mesh(case, self.comm)
         if case.mesh.file is not None:          # the tolerances' scale: the body's size
             lo, hi = self.domain.bbox
             self.case = case = rescale_for_length(case, float(np.max(hi - lo)),
@@ -559,13 +563,20 @@ class Simulation:
         self.solver.destroy()
         return summary
 
+    def _mesh_kind(self) -> dict:
+        """summary.json's mesh kind and n: "adapted" (n None) for a built-in structured mesh
+        refined locally (meshes/adapt.py), else the case's."""
+        if self.case.mesh.kind == "structured" and getattr(self.domain, "n", 0) is None:
+            return {"kind": "adapted", "n": None}
+        return {"kind": self.case.mesh.kind, "n": self.case.mesh.n}
+
     def summary(self) -> RunSummary:
         """Returns: the RunSummary of the run so far (summary.json without contact_states)."""
         case, p, stepper = self.case, self.problem, self.stepper
         return RunSummary(
             case=case.name, source=case.source, case_data=case.raw, status=self.status,
             mesh={"cells": p.num_cells, "vertices": p.num_vertices, "dofs": p.num_dofs,
-                  "kind": case.mesh.kind, "n": case.mesh.n, "h": self.domain.h,
+                  **self._mesh_kind(), "h": self.domain.h,
                   "diagonal": self.domain.diagonal},
             time={"T": case.time.T, "N": self.n, "uniform": case.time.uniform,
                   "scheme": case.time.scheme, "adaptive": stepper.adaptive},
@@ -606,7 +617,7 @@ class RunResult:
 
 
 def run(case: Case, comm, observers=(), *, outdir: Path | None = None, restart=None,
-        monitor: bool = True, law=None, contact_laws=None) -> RunResult:
+        monitor: bool = True, law=None, contact_laws=None, mesh=None) -> RunResult:
     """Run a case: a Simulation with the blow-up monitor (unless ``monitor`` is False) and
     the given observers.  Writes nothing unless an observer does.
 
@@ -620,6 +631,7 @@ def run(case: Case, comm, observers=(), *, outdir: Path | None = None, restart=N
         law: a viscoplastic law that replaces the case's (see Simulation), or None.
         contact_laws: contact laws that replace parts of the case's (see Simulation), or
             None.
+        mesh: the body's mesh, built already (see Simulation), or None.
 
     Returns:
         The RunResult (status, summary dict, and the problem and histories at the end).
@@ -627,7 +639,7 @@ def run(case: Case, comm, observers=(), *, outdir: Path | None = None, restart=N
     from vpcontact.post.divergence import BlowUpMonitor
 
     sim = Simulation(case, comm, outdir=outdir, restart=restart, law=law,
-                     contact_laws=contact_laws)
+                     contact_laws=contact_laws, mesh=mesh)
     if monitor:
         sim.add(BlowUpMonitor())
     for obs in observers:

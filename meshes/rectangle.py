@@ -144,7 +144,24 @@ def dolfinx_structured(comm: MPI.Comm, L, n: int, diagonal: str | None = None):
     else:
         msh = dmesh.create_box(comm, corners, [n, n, n], dmesh.CellType.tetrahedron,
                                partitioner=cell_partitioner(comm))
-    tdim = msh.topology.dim
+    return (msh,) + tag_sides(msh, L)
+
+
+def tag_sides(msh, L) -> tuple:
+    """The rectangle's or box's tags, found geometrically: DOMAIN_TAG on the owned cells,
+    BOUNDARY_TAGS on the sides; collective.  Also tags a refinement of such a mesh (its
+    sides are the same planes).
+
+    Args:
+        msh: a dolfinx mesh of (0, L1) x (0, L2) [x (0, L3)].
+        L: the sides (L1, L2) or (L1, L2, L3).
+
+    Returns:
+        (cell tags, facet tags).
+    """
+    from dolfinx import mesh as dmesh
+
+    d, tdim = len(L), msh.topology.dim
     # the axis and the end of each side; vertex coordinates along an axis carry round-off
     # relative to that axis' length
     where = {"left": (0, 0), "right": (0, 1), "bottom": (d - 1, 0), "top": (d - 1, 1),
@@ -162,7 +179,7 @@ def dolfinx_structured(comm: MPI.Comm, L, n: int, diagonal: str | None = None):
     ft = dmesh.meshtags(msh, tdim - 1, facets[order], values[order])
     cells = np.arange(msh.topology.index_map(tdim).size_local, dtype=np.int32)
     ct = dmesh.meshtags(msh, tdim, cells, np.full(len(cells), DOMAIN_TAG, dtype=np.int32))
-    return msh, ct, ft
+    return ct, ft
 
 
 def build_rectangle(comm: MPI.Comm, L1: float = 1.0, L2: float = 1.0, *, n: int | None = None,

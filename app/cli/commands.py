@@ -138,8 +138,8 @@ def cmd_run(args, petsc_cli: dict) -> int:
         The exit code (see report_run; 2: bad input).
     """
     loaded = {}
-    comm, _, case, outdir = start(args, None, check=_restart_check(args, loaded),
-                                  petsc_cli=petsc_cli)
+    comm, raw, case, outdir = start(args, None, check=_run_check(args, loaded),
+                                    petsc_cli=petsc_cli)
     if case is None:
         return EXIT_BAD_INPUT
 
@@ -162,15 +162,26 @@ def cmd_run(args, petsc_cli: dict) -> int:
     case = with_command_line_petsc(case, petsc_cli)
     log.info("vpcontact %s: case %s -> %s (%d MPI rank%s)", __version__, args.case, outdir,
              comm.size, "s" if comm.size > 1 else "")
-    progress = [ProgressBar()] if not args.quiet and not args.verbose else []
-    observers = [CollectorAfterSetUp(), FieldOutput(), ContactOutput(), HistoryOutput(),
-                 Checkpointer(), *progress, ReaderWatch(), StepLog(), RunFiles()]
+    bar = not args.quiet and not args.verbose
+
+    def make_observers():
+        return [CollectorAfterSetUp(), FieldOutput(), ContactOutput(), HistoryOutput(),
+                Checkpointer(), *([ProgressBar()] if bar else []), ReaderWatch(), StepLog(),
+                RunFiles()]
+
+    observers = make_observers()
     threads.request(args.threads)
     painter = _early_painter(comm, args.no_plots)
     try:
-        result = run(case, comm, observers, outdir=outdir, restart=loaded.get("checkpoint"))
+        if args.tol is not None:             # passes to a tolerance: app/studies/tolerance.py
+            result, files, met = _run_to_tolerance(args, comm, raw, case, outdir,
+                                                   make_observers)
+        else:
+            result = run(case, comm, observers, outdir=outdir,
+                         restart=loaded.get("checkpoint"))
+            files = written_files(observers)
         ending.run_ended(result.status, outdir)    # a signal from now on: app/cli/ending.py
-        s, files = result.summary, written_files(observers)
+        s = result.summary
         if result.status == "completed" and not args.no_plots and comm.rank == 0 and s["steps"]:
             if plots(outdir, painter=painter, drawn=files) == "interrupted":
                 return EXIT_INTERRUPTED
@@ -178,7 +189,46 @@ def cmd_run(args, petsc_cli: dict) -> int:
         resume_collector()             # also where the run stopped before its start
         if painter is not None:
             painter.cancel()
-    return report_run(comm, s, outdir, files)
+    code = report_run(comm, s, outdir, files)
+    return EXIT_FAILED if code == 0 and args.tol is not None and not met else code
+
+
+def _run_check(args, loaded: dict):
+    """The checks of run: --restart's, and --tol's (app/studies/tolerance.py)."""
+    restart = _restart_check(args, loaded)
+
+    def check(case):
+        if args.tol is not None:
+            from vpcontact.studies.tolerance import check_tolerance_case
+            if args.restart:
+                raise CaseError("--tol: every pass starts at t = 0; it cannot continue "
+                                "from --restart")
+            check_tolerance_case(case, case.raw)
+        restart(case)
+
+    return check
+
+
+def _run_to_tolerance(args, comm, raw: dict, case, outdir: Path, make_observers):
+    """run --tol: the passes, passes.csv/json, the final table; the final pass's files
+    moved into outdir.
+
+    Returns:
+        (the last pass's RunResult, the files in outdir, whether the tolerance was met).
+    """
+    from vpcontact.case import validate
+    from vpcontact.studies import tolerance
+
+    passes, met, result = tolerance.run_passes(raw, case, comm, args.tol, args.max_passes,
+                                               outdir, make_observers, validate)
+    tolerance.log_table(passes, args.tol)
+    if not met:
+        log.warning("run --tol %g: not reached after %d passes (est_max / scale = %.3g; "
+                    "exit code 1, the outputs are the last pass's); raise --max-passes or "
+                    "the tolerance", args.tol, len(passes), passes[-1].relative or float("nan"))
+    files = tolerance.promote_final(outdir, passes[-1].index) if comm.rank == 0 else []
+    comm.barrier()
+    return result, files + [outdir / "passes.csv", outdir / "passes.json"], met
 
 
 def _early_painter(comm, no_plots: bool):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import atexit
 import os
+import shutil
 from pathlib import Path
 
 from vpcontact.io.errors import CaseError
@@ -12,10 +13,12 @@ from vpcontact.io.errors import CaseError
 CONVERGENCE_FILES = ("convergence.csv", "convergence.md", "convergence.png")
 STABILITY_FILES = ("stability.csv", "stability.md")
 BENCH_FILES = ("bench.json", "bench.md", "bench3d.png")
+TOLERANCE_FILES = ("passes.csv", "passes.json")    # run --tol, with the pass_<i> directories
 # besides the files of each command: a run's directory holds its convergence/ and
 # stability/ studies; checkpoints, figures, the lock and temporary files of atomic writes
 OUR_DIRECTORIES = ("convergence", "stability", "bench")
-OUR_PATTERNS = ("checkpoint_*.npz", "*.png", ".vpcontact.lock", ".solution.work.*", ".*.tmp*")
+OUR_PATTERNS = ("checkpoint_*.npz", "*.png", ".vpcontact.lock", ".solution.work.*", ".*.tmp*",
+                "pass_*")
 
 LOCK_NAME = ".vpcontact.lock"
 _LOCKS = []      # (path, open file, created by us) of the output directories this process holds
@@ -32,7 +35,7 @@ def foreign_files(outdir: Path) -> list[str]:
     """
     from vpcontact.io.output import OUTPUT_FILES
     ours = {*OUTPUT_FILES, *CONVERGENCE_FILES, *STABILITY_FILES, *BENCH_FILES,
-            *OUR_DIRECTORIES}
+            *TOLERANCE_FILES, *OUR_DIRECTORIES}
     return sorted(p.name for p in outdir.iterdir() if p.name not in ours
                   and not any(p.match(pattern) for pattern in OUR_PATTERNS))
 
@@ -133,6 +136,8 @@ def _earlier_outputs(outdir: Path, files) -> list[str]:
         from vpcontact.post.plot import FIGURES
         existing += sorted(p.name for p in outdir.glob("checkpoint_*.npz"))
         existing += [f for f in FIGURES if (outdir / f).exists()]
+        existing += [f for f in TOLERANCE_FILES if (outdir / f).exists()]
+        existing += sorted(p.name for p in outdir.glob("pass_*") if p.is_dir())
     return existing
 
 
@@ -161,5 +166,8 @@ def prepare(comm, outdir: Path, overwrite: bool, files=None) -> None:
     comm.barrier()
     if comm.rank == 0:
         for f in existing:
-            (outdir / f).unlink()
+            if (outdir / f).is_dir():             # run --tol's pass_<i>
+                shutil.rmtree(outdir / f)
+            else:
+                (outdir / f).unlink()
     comm.barrier()

@@ -197,6 +197,15 @@ def _add_run(sub) -> None:
                           "3D set-up and Gamma3 problem; default: the cores this process may "
                           "use; under mpirun: of rank 0, which solves the Gamma3 problem, "
                           "at most the cores of the ranks on its node, the others 1)")
+    run.add_argument("--tol", type=positive_float, metavar="TOL",
+                     help="run in passes from t = 0 until the error estimate est_max is at "
+                          "most TOL times the solution's scale max_n (||sigma_n||_Q + "
+                          "||u_n||_V + ||kappa_n||_Y): after each pass the built-in mesh is "
+                          "refined where the space indicator is large and/or k halved, by "
+                          "the estimate's parts; passes.csv and passes.json, the final "
+                          "pass's outputs in DIR, the others in DIR/pass_<i>")
+    run.add_argument("--max-passes", type=int_range(1, 32), default=8, metavar="N",
+                     help="with --tol: the most passes (default 8)")
 
 
 def _add_plot_check_info(sub) -> None:

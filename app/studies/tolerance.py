@@ -1,0 +1,241 @@
+"""``run --tol``: runs to a tolerance on the a posteriori estimate (app/post/estimators.py).
+
+A pass is a whole run from t = 0 on the current mesh and time grid, so no history is carried
+from one mesh to another in the middle of a run.  After pass i:
+
+- stop if est_max <= tol * scale, the scale being max_n (||sigma_n||_Q + ||u_n||_V +
+  ||kappa_n||_Y) of that pass (the size of the solution in the error measure's norms);
+- else refine by the estimate's parts at the step of est_max (summary.json's
+  ``error_estimate``): the mesh if the space part is at least half the time part, the time
+  grid if the time part is at least half the space part (both when they are comparable).
+  Space: Doerfler marking (theta = 0.5) of the cell indicators eta_K^2 = eta_Q,K^2 +
+  eta_V,K^2 + eta_Y,K^2 at the step of est_max (``PeakIndicators``), whose cells are
+  refined by ``meshes.adapt.refine_cells``.  Time: N doubled (k halved); with
+  ``time.adaptive`` also its max_change halved.
+
+The stop is also reached after ``max_passes`` passes or when the next mesh would exceed
+``MAX_CELLS``, with a line saying that the tolerance was not met.
+"""
+from __future__ import annotations
+
+import copy
+import json
+import logging
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vpcontact.io.errors import CaseError
+from vpcontact.observers import Observer
+
+log = logging.getLogger("vpcontact")
+
+THETA = 0.5                 # Doerfler's bulk fraction
+MAX_CELLS = 2_000_000       # the largest mesh a pass may refine to
+NORMS = ("norm_sigma_Q", "norm_u_V", "norm_kappa_Y")
+
+
+@dataclass
+class Pass:
+    """One pass of a run to a tolerance (a row of passes.csv)."""
+
+    index: int
+    cells: int
+    dofs: int
+    steps: int
+    status: str
+    est_max: float | None
+    est_time: float | None
+    est_space: float | None
+    scale: float
+    relative: float | None
+    wall_s: float
+    next: str                  # what the next pass refines: "h", "k", "h+k" or "stop"
+
+
+def check_tolerance_case(case, raw: dict) -> None:
+    """Refuse a case ``run --tol`` cannot refine (before any computation).
+
+    Args:
+        case: the validated Case.
+        raw: its raw dict.
+
+    Raises:
+        CaseError: one line naming the file, the key and what --tol allows.
+    """
+    if case.mesh.file is not None:
+        raise CaseError(f"{case.source}: mesh.file: run --tol refines the built-in mesh only "
+                        "(mesh: kind structured or unstructured without file)")
+    given = set(raw.get("time", {})) & {"times", "grading"}
+    if given:
+        raise CaseError(f"{case.source}: time.{sorted(given)[0]}: run --tol halves a grid "
+                        "of T with N or k (allowed: N, k, adaptive)")
+
+
+def scale_of(steps: list[dict]) -> float:
+    """max_n (||sigma_n||_Q + ||u_n||_V + ||kappa_n||_Y) over the step records."""
+    return max((sum(r.get(k) or 0.0 for k in NORMS) for r in steps), default=0.0)
+
+
+def doerfler(eta2: np.ndarray, theta: float = THETA) -> float:
+    """Doerfler's threshold: the cells with eta_K^2 >= it hold at least theta of the sum.
+
+    Args:
+        eta2: every cell's eta_K^2 (all ranks).
+        theta: the bulk fraction.
+
+    Returns:
+        The threshold (ties at it are all marked, so the marking does not depend on the
+        order of the cells or on the ranks).
+    """
+    desc = np.sort(eta2)[::-1]
+    cum = np.cumsum(desc)
+    return float(desc[min(int(np.searchsorted(cum, theta * cum[-1])), len(desc) - 1)])
+
+
+class PeakIndicators(Observer):
+    """The cell indicators eta_K^2 (owned cells) at the step of est_max: recomputed by the
+    run's ErrorEstimate's SpaceIndicators after each step that raises est_max (collective;
+    est_max is global, so every rank recomputes at the same steps)."""
+
+    def __init__(self):
+        self.space, self.eta2 = None, None
+
+    def start(self, sim) -> None:
+        """Find the run's ErrorEstimate (Simulation.setup adds it)."""
+        from vpcontact.post.estimators import ErrorEstimate
+        est = next(o for o in sim.observers if isinstance(o, ErrorEstimate))
+        self.space = est.space
+
+    def step(self, sim, record: dict) -> None:
+        """Keep eta_K^2 if step n raised est_max."""
+        if record.get("est_total") is not None and record["est_total"] == record["est_max"]:
+            self.eta2 = self.space.update().sum(axis=1)
+
+    def marked(self, comm) -> np.ndarray:
+        """This rank's local cells marked by Doerfler (theta = THETA) over all ranks."""
+        if self.eta2 is None:
+            return np.zeros(0, dtype=np.int32)
+        everything = np.concatenate(comm.allgather(self.eta2))
+        return np.flatnonzero(self.eta2 >= doerfler(everything)).astype(np.int32)
+
+
+def finer_in_time(raw: dict) -> dict:
+    """The raw case with N doubled (k halved) and time.adaptive's max_change halved."""
+    raw = copy.deepcopy(raw)
+    t = raw["time"]
+    t["N"] = 2 * (t["N"] if "N" in t else int(round(float(t["T"]) / float(t.pop("k")))))
+    if isinstance(t.get("adaptive"), dict):
+        t["adaptive"]["max_change"] = 0.5 * float(t["adaptive"].get("max_change", 0.2))
+    return raw
+
+
+def what_next(estimate: dict) -> str:
+    """"h", "k" or "h+k": the part(s) within a factor 2 of the larger (module docstring)."""
+    space, tpart = estimate["space"] or 0.0, estimate["time"] or 0.0
+    parts = [p for p, a, b in (("h", space, tpart), ("k", tpart, space)) if a >= 0.5 * b]
+    return "+".join(parts)
+
+
+def write_passes(outdir: Path, passes: list[Pass], tol: float, met: bool) -> None:
+    """passes.csv and passes.json (rank 0)."""
+    rows = [asdict(p) for p in passes]
+    cols = list(rows[0]) if rows else []
+    lines = [",".join(cols)] + [",".join("" if r[c] is None else str(r[c]) for c in cols)
+                                for r in rows]
+    (outdir / "passes.csv").write_text("\n".join(lines) + "\n")
+    (outdir / "passes.json").write_text(json.dumps(
+        {"tol": tol, "met": met, "theta": THETA, "passes": rows}, indent=1) + "\n")
+
+
+def log_table(passes: list[Pass], tol: float) -> None:
+    """The final table of the passes."""
+    log.info("pass  cells    dofs  steps  est_max (time, space)       relative  wall_s")
+    for p in passes:
+        log.info("%4d %6d %7d %6d  %.4g (%.3g, %.3g)  %.3g  %.2f", p.index, p.cells, p.dofs,
+                 p.steps, p.est_max or float("nan"), p.est_time or float("nan"),
+                 p.est_space or float("nan"), p.relative or float("nan"), p.wall_s)
+    log.info("tolerance %g, total wall %.2f s", tol, sum(p.wall_s for p in passes))
+
+
+def run_passes(raw: dict, case, comm, tol: float, max_passes: int, outdir: Path,
+               observers, validate) -> tuple[list[Pass], bool, object]:
+    """The passes (module docstring).
+
+    Args:
+        raw: the case's raw dict.
+        case: the validated Case.
+        comm: the MPI communicator.
+        tol: the relative tolerance.
+        max_passes: the most passes.
+        outdir: the output directory; pass i writes into outdir/pass_<i>.
+        observers: called with no argument, the observers of one pass (new ones each time).
+        validate: (raw, source) -> Case.
+
+    Returns:
+        (passes, met, the last pass's RunResult).
+    """
+    from vpcontact.meshes.adapt import refine_cells
+    from vpcontact.simulation import build_mesh, run
+
+    passes, domain, result, met = [], None, None, False
+    for i in range(1, max_passes + 1):
+        wall = time.perf_counter()
+        domain = domain if domain is not None else build_mesh(case, comm)
+        peak, where = PeakIndicators(), outdir / f"pass_{i}"
+        if comm.rank == 0:
+            where.mkdir(parents=True, exist_ok=True)
+        comm.barrier()
+        result = run(case, comm, [peak, *observers()], outdir=where, mesh=domain)
+        s, est = result.summary, result.summary.get("error_estimate") or {}
+        scale = scale_of(s["steps"])
+        rel = est["estimate"] / scale if est and scale > 0 else None
+        met = result.status == "completed" and rel is not None and rel <= tol
+        nxt = "stop" if met or result.status != "completed" or not est else what_next(est)
+        if nxt != "stop" and i < max_passes:
+            if "h" in nxt:
+                domain = refine_cells(domain, peak.marked(comm))
+            if "k" in nxt:
+                raw = finer_in_time(raw)
+                case = validate(raw, case.source)
+        row = Pass(i, s["mesh"]["cells"], s["mesh"]["dofs"], s["time"]["N"], result.status,
+                   est.get("estimate"), est.get("time"), est.get("space"), scale, rel,
+                   time.perf_counter() - wall, nxt if i < max_passes else "stop")
+        passes.append(row)
+        log.info("pass %d: %d cells, %d dofs, %d steps: estimate %.4g (time %.4g, space "
+                 "%.4g), %.3g of the scale %.4g (tol %g), wall %.2f s; next: %s", i, row.cells,
+                 row.dofs, row.steps, row.est_max or float("nan"), row.est_time or float("nan"),
+                 row.est_space or float("nan"), rel or float("nan"), scale, tol, row.wall_s,
+                 row.next)
+        if comm.rank == 0:
+            write_passes(outdir, passes, tol, met)
+        if row.next == "stop" or _too_large(domain, comm):
+            break
+    return passes, met, result
+
+
+def _too_large(domain, comm) -> bool:
+    """The next mesh exceeds MAX_CELLS (said in the log)."""
+    cells = comm.allreduce(domain.mesh.topology.index_map(domain.mesh.topology.dim).size_local)
+    if cells > MAX_CELLS:
+        log.warning("run --tol: the next mesh would have %d cells (more than %d): stopped",
+                    cells, MAX_CELLS)
+        return True
+    return False
+
+
+def promote_final(outdir: Path, index: int) -> list[Path]:
+    """Move the final pass's files from outdir/pass_<index> into outdir (rank 0).
+
+    Returns:
+        The files' new paths.
+    """
+    src, moved = outdir / f"pass_{index}", []
+    for f in sorted(src.iterdir()):
+        target = outdir / f.name
+        f.replace(target)
+        moved.append(target)
+    src.rmdir()
+    return moved
