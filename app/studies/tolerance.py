@@ -75,7 +75,14 @@ def check_tolerance_case(case, raw: dict) -> None:
 
 
 def scale_of(steps: list[dict]) -> float:
-    """max_n (||sigma_n||_Q + ||u_n||_V + ||kappa_n||_Y) over the step records."""
+    """The solution's scale.
+
+    Args:
+        steps: the run's step records.
+
+    Returns:
+        max_n (||sigma_n||_Q + ||u_n||_V + ||kappa_n||_Y) over them (0 without steps).
+    """
     return max((sum(r.get(k) or 0.0 for k in NORMS) for r in steps), default=0.0)
 
 
@@ -104,18 +111,34 @@ class PeakIndicators(Observer):
         self.space, self.eta2 = None, None
 
     def start(self, sim) -> None:
-        """Find the run's ErrorEstimate (Simulation.setup adds it)."""
+        """Find the run's ErrorEstimate (Simulation.setup adds it).
+
+        Args:
+            sim: the Simulation, set up.
+        """
         from vpcontact.post.estimators import ErrorEstimate
         est = next(o for o in sim.observers if isinstance(o, ErrorEstimate))
         self.space = est.space
 
     def step(self, sim, record: dict) -> None:
-        """Keep eta_K^2 if step n raised est_max."""
+        """Keep eta_K^2 if step n raised est_max.
+
+        Args:
+            sim: the Simulation.
+            record: step n's record (with est_total and est_max).
+        """
         if record.get("est_total") is not None and record["est_total"] == record["est_max"]:
             self.eta2 = self.space.update().sum(axis=1)
 
     def marked(self, comm) -> np.ndarray:
-        """This rank's local cells marked by Doerfler (theta = THETA) over all ranks."""
+        """The cells Doerfler marks (theta = THETA) over all ranks (collective).
+
+        Args:
+            comm: the MPI communicator.
+
+        Returns:
+            This rank's marked local cells.
+        """
         if self.eta2 is None:
             return np.zeros(0, dtype=np.int32)
         everything = np.concatenate(comm.allgather(self.eta2))
@@ -123,7 +146,14 @@ class PeakIndicators(Observer):
 
 
 def finer_in_time(raw: dict) -> dict:
-    """The raw case with N doubled (k halved) and time.adaptive's max_change halved."""
+    """The next pass's time grid.
+
+    Args:
+        raw: the case's raw dict (not modified).
+
+    Returns:
+        A copy with N doubled (k halved) and time.adaptive's max_change halved.
+    """
     raw = copy.deepcopy(raw)
     t = raw["time"]
     t["N"] = 2 * (t["N"] if "N" in t else int(round(float(t["T"]) / float(t.pop("k")))))
@@ -133,14 +163,28 @@ def finer_in_time(raw: dict) -> dict:
 
 
 def what_next(estimate: dict) -> str:
-    """"h", "k" or "h+k": the part(s) within a factor 2 of the larger (module docstring)."""
+    """What the next pass refines.
+
+    Args:
+        estimate: the pass's summary error_estimate ("space", "time").
+
+    Returns:
+        "h", "k" or "h+k": the part(s) within a factor 2 of the larger (module docstring).
+    """
     space, tpart = estimate["space"] or 0.0, estimate["time"] or 0.0
     parts = [p for p, a, b in (("h", space, tpart), ("k", tpart, space)) if a >= 0.5 * b]
     return "+".join(parts)
 
 
 def write_passes(outdir: Path, passes: list[Pass], tol: float, met: bool) -> None:
-    """passes.csv and passes.json (rank 0)."""
+    """passes.csv and passes.json (rank 0).
+
+    Args:
+        outdir: the run's output directory.
+        passes: the passes so far.
+        tol: the tolerance.
+        met: whether the last pass met it.
+    """
     rows = [asdict(p) for p in passes]
     cols = list(rows[0]) if rows else []
     lines = [",".join(cols)] + [",".join("" if r[c] is None else str(r[c]) for c in cols)
@@ -151,7 +195,12 @@ def write_passes(outdir: Path, passes: list[Pass], tol: float, met: bool) -> Non
 
 
 def log_table(passes: list[Pass], tol: float) -> None:
-    """The final table of the passes."""
+    """The final table of the passes, in the log.
+
+    Args:
+        passes: the passes.
+        tol: the tolerance.
+    """
     log.info("pass  cells    dofs  steps  est_max (time, space)       relative  wall_s")
     for p in passes:
         log.info("%4d %6d %7d %6d  %.4g (%.3g, %.3g)  %.3g  %.2f", p.index, p.cells, p.dofs,
@@ -228,6 +277,10 @@ def _too_large(domain, comm) -> bool:
 
 def promote_final(outdir: Path, index: int) -> list[Path]:
     """Move the final pass's files from outdir/pass_<index> into outdir (rank 0).
+
+    Args:
+        outdir: the run's output directory.
+        index: the final pass.
 
     Returns:
         The files' new paths.
