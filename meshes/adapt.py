@@ -1,4 +1,4 @@
-"""Local refinement of the built-in rectangle or box: the marked cells' edges are split by
+"""Local refinement of the built-in rectangle or box (or a gmsh mesh: meshes/retag.py): the marked cells' edges are split by
 dolfinx's ``mesh.refine`` (Plaza's algorithm; neighbours are split as far as conformity
 needs), and the sides are tagged again by their planes (``rectangle.tag_sides``), so the
 refined mesh keeps the named boundary groups.  A refined mesh is unstructured: ``n`` and
@@ -39,13 +39,20 @@ def refine_cells(domain: RectangleMesh, cells: np.ndarray) -> RectangleMesh:
     """The domain with the given cells refined (collective; each rank gives its own).
 
     Args:
-        domain: a RectangleMesh or BoxMesh (the built-in meshes).
+        domain: a RectangleMesh or BoxMesh (the built-in meshes), or a FileMesh.
         cells: this rank's local indices of the cells to refine.
 
     Returns:
-        A mesh of the same class, sides tagged, redistributed over the ranks.
+        A mesh of the same class: the built-in meshes with their sides tagged again,
+        redistributed over the ranks; a FileMesh with its groups carried over
+        (``meshes.retag.refine_file_mesh``).
     """
     from dolfinx import mesh as dmesh
+
+    from .gmshfile import FileMesh
+    if isinstance(domain, FileMesh):
+        from .retag import refine_file_mesh
+        return refine_file_mesh(domain, marked_edges(domain.mesh, cells))
 
     msh = dmesh.refine(domain.mesh, marked_edges(domain.mesh, cells), redistribute=True)
     L = (domain.L1, domain.L2, domain.L3)[:domain.dim]

@@ -65,9 +65,6 @@ def check_tolerance_case(case, raw: dict) -> None:
     Raises:
         CaseError: one line naming the file, the key and what --tol allows.
     """
-    if case.mesh.file is not None:
-        raise CaseError(f"{case.source}: mesh.file: run --tol refines the built-in mesh only "
-                        "(mesh: kind structured or unstructured without file)")
     given = set(raw.get("time", {})) & {"times", "grading"}
     if given:
         raise CaseError(f"{case.source}: time.{sorted(given)[0]}: run --tol halves a grid "
