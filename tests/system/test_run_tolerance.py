@@ -90,16 +90,13 @@ def test_refined_mesh_keeps_the_contact_side(tmp_path):
 
 def test_tolerance_not_reached_and_refusals(tmp_path):
     """--max-passes 2 too few: the warning and exit 1 with the outputs of pass 2; a
-    mesh.file case and --restart refused with exit 2 before any computation."""
+    --restart refused with exit 2 before any computation (a mesh.file case is refined:
+    test_run_tolerance_meshfile.py)."""
     proc = _tol_run(tmp_path / "few", 0.3, "--max-passes", "2")
     assert proc.returncode == 1
     assert "not reached after 2 passes" in proc.stdout + proc.stderr
     rows, js = _passes(tmp_path / "few")
     assert len(rows) == 2 and not js["met"]
-    proc = run_cli(["run", ROOT / "cases" / "hertz_cylinder.yaml", "--tol", "0.1", "--out",
-                    tmp_path / "hertz"])
-    assert proc.returncode == 2
-    assert "mesh.file: run --tol refines the built-in mesh only" in proc.stderr
     proc = _tol_run(tmp_path / "r", 0.3, "--restart", tmp_path / "few")
     assert proc.returncode == 2 and "--tol" in proc.stderr
 
