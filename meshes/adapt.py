@@ -1,7 +1,7 @@
-"""Local refinement of the built-in rectangle or box (or a gmsh mesh: meshes/retag.py): the marked cells' edges are split by
+"""Local refinement of the built-in rectangle or box: the marked cells' edges are split by
 dolfinx's ``mesh.refine`` (Plaza's algorithm; neighbours are split as far as conformity
 needs), and the sides are tagged again by their planes (``rectangle.tag_sides``), so the
-refined mesh keeps the named boundary groups.  A refined mesh is unstructured: ``n`` and
+refined mesh keeps the named boundary groups (a gmsh mesh's groups: meshes/retag.py).  A refined mesh is unstructured: ``n`` and
 ``diagonal`` are None, ``h`` its largest cell diameter.
 """
 from __future__ import annotations

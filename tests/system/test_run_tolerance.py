@@ -11,7 +11,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import PAPER_CASE, ROOT, run_cli
+from conftest import PAPER_CASE, run_cli
 
 SMALL = ["--set", "mesh.n=4", "--set", "time.N=8", "--quiet"]
 
