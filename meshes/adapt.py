@@ -1,8 +1,9 @@
 """Local refinement of the built-in rectangle or box: the marked cells' edges are split by
 dolfinx's ``mesh.refine`` (Plaza's algorithm; neighbours are split as far as conformity
 needs), and the sides are tagged again by their planes (``rectangle.tag_sides``), so the
-refined mesh keeps the named boundary groups (a gmsh mesh's groups: meshes/retag.py).  A refined mesh is unstructured: ``n`` and
-``diagonal`` are None, ``h`` its largest cell diameter.
+refined mesh keeps the named boundary groups (a gmsh mesh's groups: meshes/retag.py).  A
+refined mesh is unstructured: ``n`` and ``diagonal`` are None, ``h`` its largest cell
+diameter.
 """
 from __future__ import annotations
 
