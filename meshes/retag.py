@@ -6,10 +6,9 @@ geometrically: dolfinx 0.5.2's ``refine`` with an edge list gives no parent cell
   nested); it takes that parent's tag when all its vertices lie on the parent facet (the
   segment in 2D, the triangle in 3D, up to 1e-9 of the parent's size).  The parent's tagged
   facets are gathered to every rank (boundary groups: few facets).
-- A cell of the refined mesh lies in exactly one parent cell; it takes that cell's tag, the
-  parent found by the refined cell's centroid in the parent's local cells
-  (``dolfinx.geometry``).  This needs the refined cells on the rank of their parent: the
-  refinement is not redistributed (``refine_file_mesh``).
+- A cell of the refined mesh lies in exactly one parent cell and takes its tag, found the
+  same way among the parent's cells gathered to every rank (skipped for a body of one
+  group: every cell takes its tag).
 
 New vertices are edge midpoints: a curved boundary (the Hertz arc) keeps the chords of the
 mesh read, as in the uniform refinement of meshes/refine.py (gmsh's geometry is not used).
@@ -43,16 +42,41 @@ def entity_points(msh, dim: int, entities: np.ndarray) -> np.ndarray:
     return msh.geometry.x[:, :msh.geometry.dim][nodes.reshape(len(entities), dim + 1)]
 
 
-def _gathered_facets(parent, comm) -> tuple[np.ndarray, np.ndarray]:
-    """The parent's tagged facets from every rank: ((n, tdim, gdim) vertices, (n,) tags)."""
-    ft, fdim = parent.facet_tags, parent.mesh.topology.dim - 1
-    pts = entity_points(parent.mesh, fdim, ft.indices)
+def _gathered(msh, tags, comm) -> tuple[np.ndarray, np.ndarray]:
+    """Tagged entities from every rank: ((n, dim + 1, gdim) vertices, (n,) tags)."""
+    pts = entity_points(msh, tags.dim, tags.indices)
     pts = np.concatenate(comm.allgather(pts))
-    return pts, np.concatenate(comm.allgather(np.asarray(ft.values)))
+    return pts, np.concatenate(comm.allgather(np.asarray(tags.values)))
 
 
-def on_facets(points: np.ndarray, facets: np.ndarray) -> np.ndarray:
-    """Whether points lie on simplices (segments or triangles) of one dimension less.
+def locate(parents: np.ndarray, tags: np.ndarray, children: np.ndarray) -> np.ndarray:
+    """The tag of the parent simplex holding each child simplex.
+
+    Args:
+        parents: (n, m, gdim) the parent simplices' vertices.
+        tags: (n,) their tags.
+        children: (c, k, gdim) the child simplices' vertices.
+
+    Returns:
+        (c,) the tag of a parent holding all k vertices of the child (``in_simplices``), -1
+        where none does.
+    """
+    from scipy.spatial import cKDTree
+
+    out = np.full(len(children), -1, dtype=np.int32)
+    if len(parents) and len(children):
+        centre = parents.mean(axis=1)                 # a child's centre is within reach
+        reach = np.linalg.norm(parents - centre[:, None], axis=2).max(axis=1) * (1 + 1e-6)
+        near = cKDTree(children.mean(axis=1)).query_ball_point(centre, reach)
+        j = np.repeat(np.arange(len(parents)), [len(n) for n in near])
+        i = np.fromiter((k for n in near for k in n), dtype=np.int64, count=len(j))
+        hit = in_simplices(children[i], parents[j])
+        out[i[hit]] = tags[j[hit]]
+    return out
+
+
+def in_simplices(points: np.ndarray, facets: np.ndarray) -> np.ndarray:
+    """Whether points lie in simplices (segments, triangles, tetrahedra; flat or not).
 
     Args:
         points: (n, k, gdim) k points per pair.
@@ -71,71 +95,38 @@ def on_facets(points: np.ndarray, facets: np.ndarray) -> np.ndarray:
     return inside & (off <= EPS * size)
 
 
-def transfer_facet_tags(parent, msh, comm):
-    """The parent's facet tags on the refined mesh (module docstring); collective.
+def transfer_tags(parent, parent_tags, msh, comm):
+    """Tags of the parent mesh on the refined mesh (module docstring); collective.
 
     Args:
-        parent: the FileMesh refined.
+        parent: the parent dolfinx mesh.
+        parent_tags: its MeshTags (facets or cells).
         msh: the refined dolfinx mesh.
         comm: the MPI communicator.
 
     Returns:
-        The refined mesh's facet MeshTags (every local facet lying on a tagged parent facet).
-    """
-    from dolfinx.mesh import meshtags
-    from scipy.spatial import cKDTree
-
-    fdim = msh.topology.dim - 1
-    pfacets, ptags = _gathered_facets(parent, comm)
-    msh.topology.create_entities(fdim)
-    imap = msh.topology.index_map(fdim)
-    local = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
-    child = entity_points(msh, fdim, local)
-    tags = np.full(len(local), -1, dtype=np.int32)
-    if len(pfacets) and len(local):
-        centre = pfacets.mean(axis=1)
-        reach = np.linalg.norm(pfacets - centre[:, None], axis=2).max() * (1 + 1e-6)
-        near = cKDTree(centre).query_ball_point(child.mean(axis=1), reach)
-        i = np.repeat(np.arange(len(local)), [len(n) for n in near])
-        j = np.fromiter((k for n in near for k in n), dtype=np.int64, count=len(i))
-        hit = on_facets(child[i], pfacets[j])
-        tags[i[hit]] = ptags[j[hit]]
-    keep = np.flatnonzero(tags >= 0).astype(np.int32)
-    return meshtags(msh, fdim, keep, tags[keep])
-
-
-def transfer_cell_tags(parent, msh):
-    """The parent's cell tags on the refined mesh (its cells on their parents' rank).
-
-    Args:
-        parent: the FileMesh refined.
-        msh: the refined dolfinx mesh, not redistributed.
-
-    Returns:
-        The refined mesh's cell MeshTags (all local cells).
+        The refined mesh's MeshTags of that dimension: every local entity lying in a tagged
+        parent entity.
 
     Raises:
-        RuntimeError: a refined cell's centroid is in no local parent cell (the refined
-            mesh was redistributed).
+        RuntimeError: a refined cell lies in no parent cell.
     """
-    from dolfinx import geometry
     from dolfinx.mesh import meshtags
 
-    tdim, pm = msh.topology.dim, parent.mesh
-    pimap = pm.topology.index_map(tdim)
-    ptag = np.full(pimap.size_local + pimap.num_ghosts, -1, dtype=np.int32)
-    ptag[parent.cell_tags.indices] = parent.cell_tags.values
-    imap = msh.topology.index_map(tdim)
-    cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
-    centroid = np.zeros((len(cells), 3))
-    centroid[:, :msh.geometry.dim] = entity_points(msh, tdim, cells).mean(axis=1)
-    tree = geometry.BoundingBoxTree(pm, tdim)
-    hits = geometry.compute_colliding_cells(pm, geometry.compute_collisions(tree, centroid),
-                                            centroid)
-    count = np.diff(hits.offsets)
-    if np.any(count == 0):
-        raise RuntimeError("a refined cell lies in no local cell of the mesh refined")
-    return meshtags(msh, tdim, cells, ptag[hits.array[hits.offsets[:-1]]])
+    dim = parent_tags.dim
+    msh.topology.create_entities(dim)
+    imap = msh.topology.index_map(dim)
+    local = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
+    values = np.asarray(parent_tags.values)
+    one = comm.allgather(np.unique(values))
+    if dim == msh.topology.dim and len(np.unique(np.concatenate(one))) == 1:
+        tags = np.full(len(local), np.concatenate(one)[0], dtype=np.int32)   # one body
+    else:
+        tags = locate(*_gathered(parent, parent_tags, comm), entity_points(msh, dim, local))
+    if dim == msh.topology.dim and np.any(tags < 0):
+        raise RuntimeError("a cell of the refined mesh lies in no cell of the mesh refined")
+    keep = np.flatnonzero(tags >= 0).astype(np.int32)
+    return meshtags(msh, dim, keep, tags[keep])
 
 
 def refine_file_mesh(domain, edges: np.ndarray):
@@ -146,14 +137,14 @@ def refine_file_mesh(domain, edges: np.ndarray):
         edges: this rank's local edges to split (``meshes.adapt.marked_edges``).
 
     Returns:
-        A FileMesh of the refined mesh: the same groups and names, the refined cells on the
-        rank of their parent (not redistributed), h, h_min and bbox of the refined mesh.
+        A FileMesh of the refined mesh (redistributed): the same groups and names, h,
+        h_min and bbox of the refined mesh.
     """
     from dolfinx import mesh as dmesh
 
-    msh = dmesh.refine(domain.mesh, edges, redistribute=False)
-    ct = transfer_cell_tags(domain, msh)
-    ft = transfer_facet_tags(domain, msh, msh.comm)
+    msh = dmesh.refine(domain.mesh, edges, redistribute=True)
+    ct = transfer_tags(domain.mesh, domain.cell_tags, msh, msh.comm)
+    ft = transfer_tags(domain.mesh, domain.facet_tags, msh, msh.comm)
     h_min, h_max, bbox = mesh_extent(msh)
     return dataclasses.replace(domain, mesh=msh, cell_tags=ct, facet_tags=ft, h=h_max,
                                h_min=h_min, bbox=bbox)

@@ -9,7 +9,7 @@ from mpi4py import MPI
 from conftest import ROOT
 from vpcontact.meshes import load_mesh_file
 from vpcontact.meshes.adapt import refine_cells
-from vpcontact.meshes.retag import entity_points, on_facets
+from vpcontact.meshes.retag import entity_points, in_simplices
 
 NAMES = {"foot": 10, "cap": 11, "base": 1, "top": 2, "sym": 3, "side": 4}
 
@@ -73,12 +73,15 @@ def test_refined_facets_keep_their_group():
     assert set(exterior) <= set(ft.indices.tolist())
 
 
-def test_on_facets_against_hand_cases():
+def test_in_simplices_against_hand_cases():
     """Points on, beside and beyond a segment and a triangle."""
     seg = np.array([[[0.0, 0.0], [2.0, 0.0]]] * 3)
     pts = np.array([[[0.5, 0.0], [2.0, 0.0]], [[0.5, 1e-6], [1.0, 0.0]],
                     [[1.0, 0.0], [2.1, 0.0]]])
-    assert on_facets(pts, seg).tolist() == [True, False, False]
+    assert in_simplices(pts, seg).tolist() == [True, False, False]
     tri = np.array([[[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]]] * 2)
     pts = np.array([[[0.5, 0.5, 1.0], [0.1, 0.2, 1.0]], [[0.6, 0.6, 1.0], [0.1, 0.2, 1.0]]])
-    assert on_facets(pts, tri).tolist() == [True, False]
+    assert in_simplices(pts, tri).tolist() == [True, False]
+    tet = np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]] * 2)
+    pts = np.array([[[0.2, 0.2, 0.2], [0.0, 0.0, 1.0]], [[0.2, 0.2, 0.2], [0.4, 0.4, 0.4]]])
+    assert in_simplices(pts, tet).tolist() == [True, False]
