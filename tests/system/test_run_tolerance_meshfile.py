@@ -77,3 +77,31 @@ def test_hertz_mpirun_equals_serial(tmp_path):
     for a, b in zip(runs[1], runs[2]):
         assert (a["cells"], a["dofs"], a["next"]) == (b["cells"], b["dofs"], b["next"])
         assert float(b["est_max"]) == pytest.approx(float(a["est_max"]), rel=1e-10)
+
+
+@pytest.mark.mpi
+def test_bimaterial_keeps_its_materials_on_two_ranks(tmp_path):
+    """cases/bimaterial_punch.yaml (foot y < 0.25, cap above) refined under mpirun -n 2 and
+    serially: the same passes, and the final mesh's material field (the cells' physical tag)
+    is the foot's (10) exactly at the cells whose centroid is below y = 0.25."""
+    rows = {}
+    for n in (1, 2):
+        out = tmp_path / f"np{n}"
+        proc = run_cli(["run", ROOT / "cases" / "bimaterial_punch.yaml", "--out", out, "--tol",
+                        "0.2", "--set", "mesh.size=4", "--set", "time.N=2", "--set",
+                        "time.T=0.2", "--quiet"], nprocs=n)
+        assert proc.returncode == 0, proc.stderr
+        with open(out / "passes.csv") as f:
+            rows[n] = list(csv.DictReader(f))
+        with h5py.File(out / "solution.h5") as f:
+            x, cells = f["Mesh"]["mesh"]["geometry"][:], f["Mesh"]["mesh"]["topology"][:]
+            group = f["Function"]["material"]
+            material = group[sorted(group)[-1]][:, 0]
+        assert len(cells) == int(rows[n][-1]["cells"]) > int(rows[n][0]["cells"])
+        below = x[cells].mean(axis=1)[:, 1] < 0.25
+        assert below.any() and (~below).any()
+        assert np.array_equal(material == 10, below) and set(material) == {10.0, 11.0}
+    assert [(r["cells"], r["steps"]) for r in rows[1]] == [(r["cells"], r["steps"])
+                                                         for r in rows[2]]
+    for a, b in zip(rows[1], rows[2]):
+        assert float(b["est_max"]) == pytest.approx(float(a["est_max"]), rel=1e-10)
