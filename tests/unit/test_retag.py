@@ -85,3 +85,28 @@ def test_in_simplices_against_hand_cases():
     tet = np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]] * 2)
     pts = np.array([[[0.2, 0.2, 0.2], [0.0, 0.0, 1.0]], [[0.2, 0.2, 0.2], [0.4, 0.4, 0.4]]])
     assert in_simplices(pts, tet).tolist() == [True, False]
+
+
+def _simplex_measure(pts):
+    """Lengths, areas or volumes of simplices (n, m, gdim), any m <= gdim + 1."""
+    e = pts[:, 1:] - pts[:, :1]
+    return np.sqrt(np.abs(np.linalg.det(e @ np.transpose(e, (0, 2, 1))))) / np.prod(
+        np.arange(1, e.shape[1] + 1))
+
+
+def test_3d_groups_keep_their_measure():
+    """cases/sphere3d.geo refined in its lower half: every facet group keeps its area and every
+    cell group its volume (a facet or cell missed or mistagged would change them), and the
+    refined mesh has more tagged facets."""
+    body = load_mesh_file(MPI.COMM_SELF, ROOT / "cases" / "sphere3d.geo", 3, 4.0)
+    n = body.mesh.topology.index_map(3).size_local
+    mid = entity_points(body.mesh, 3, np.arange(n, dtype=np.int32)).mean(axis=1)
+    fine = refine_cells(body, np.flatnonzero(mid[:, 2] < np.median(mid[:, 2])).astype(np.int32))
+    assert fine.mesh.topology.index_map(3).size_local > 1.5 * n
+    for d, a, b in ((2, body.facet_tags, fine.facet_tags), (3, body.cell_tags, fine.cell_tags)):
+        ma = _simplex_measure(entity_points(body.mesh, d, a.indices))
+        mb = _simplex_measure(entity_points(fine.mesh, d, b.indices))
+        assert set(a.values) == set(b.values)
+        for t in set(a.values):
+            assert mb[b.values == t].sum() == pytest.approx(ma[a.values == t].sum(), rel=1e-12)
+    assert len(fine.facet_tags.indices) > len(body.facet_tags.indices)
