@@ -10,7 +10,7 @@ from one mesh to another in the middle of a run.  After pass i:
   grid if the time part is at least half the space part (both when they are comparable).
   Space: Doerfler marking (theta = 0.5) of the cell indicators eta_K^2 = eta_Q,K^2 +
   eta_V,K^2 + eta_Y,K^2 at the step of est_max (``PeakIndicators``), whose cells are
-  refined by ``meshes.adapt.refine_cells``.  Time: N doubled (k halved); with
+  refined by ``meshes.adapt.refine_cells``.  Time: k halved (N twice as large); with
   ``time.adaptive`` also its max_change halved.
 
 The stop is also reached after ``max_passes`` passes or when the next mesh would exceed
