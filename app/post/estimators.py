@@ -41,6 +41,7 @@ log = logging.getLogger("vpcontact")
 
 PARTS = ("est_space_sigma_Q", "est_space_u_V", "est_space_kappa_Y", "est_space_contact")
 COLUMNS = ("est_time", "est_space", "est_total", "est_max") + PARTS + ("est_time_gamma3",)
+NORMS = ("norm_sigma_Q", "norm_u_V", "norm_kappa_Y")
 
 
 class HistoryRates:
@@ -240,7 +241,23 @@ class ErrorEstimate(Observer):
         """
         if self.best is None:
             return
-        summary.error_estimate = dict(self.best)
-        b = self.best
-        log.info("error estimate: %.4g (time %.4g, space %.4g) at step %d (t = %g)",
-                 b["estimate"], b["time"], b["space"], b["n_max"], b["t_max"])
+        b = dict(self.best)
+        b["scale"] = scale_of(sim.steps)
+        b["relative"] = b["estimate"] / b["scale"] if b["scale"] > 0 else None
+        summary.error_estimate = b
+        relative = f": {100 * b['relative']:.3g} % of the solution's scale {b['scale']:.4g}" \
+            if b["relative"] is not None else ""
+        log.info("error estimate: %.4g (time %.4g, space %.4g) at step %d (t = %g)%s",
+                 b["estimate"], b["time"], b["space"], b["n_max"], b["t_max"], relative)
+
+
+def scale_of(steps: list[dict]) -> float:
+    """The solution's scale, against which an estimate is relative (``run --tol`` too).
+
+    Args:
+        steps: the run's step records.
+
+    Returns:
+        max_n (||sigma_n||_Q + ||u_n||_V + ||kappa_n||_Y) over them (0 without steps).
+    """
+    return max((sum(r.get(k) or 0.0 for k in NORMS) for r in steps), default=0.0)

@@ -34,7 +34,6 @@ log = logging.getLogger("vpcontact")
 
 THETA = 0.5                 # Doerfler's bulk fraction
 MAX_CELLS = 2_000_000       # the largest mesh a pass may refine to
-NORMS = ("norm_sigma_Q", "norm_u_V", "norm_kappa_Y")
 
 
 @dataclass
@@ -69,18 +68,6 @@ def check_tolerance_case(case, raw: dict) -> None:
     if given:
         raise CaseError(f"{case.source}: time.{sorted(given)[0]}: run --tol halves a grid "
                         "of T with N or k (allowed: N, k, adaptive)")
-
-
-def scale_of(steps: list[dict]) -> float:
-    """The solution's scale.
-
-    Args:
-        steps: the run's step records.
-
-    Returns:
-        max_n (||sigma_n||_Q + ||u_n||_V + ||kappa_n||_Y) over them (0 without steps).
-    """
-    return max((sum(r.get(k) or 0.0 for k in NORMS) for r in steps), default=0.0)
 
 
 def doerfler(eta2: np.ndarray, theta: float = THETA) -> float:
@@ -236,8 +223,8 @@ def run_passes(raw: dict, case, comm, tol: float, max_passes: int, outdir: Path,
         comm.barrier()
         result = run(case, comm, [peak, *observers()], outdir=where, mesh=domain)
         s, est = result.summary, result.summary.get("error_estimate") or {}
-        scale = scale_of(s["steps"])
-        rel = est["estimate"] / scale if est and scale > 0 else None
+        scale = est.get("scale", 0.0)                  # estimators.scale_of of the pass
+        rel = est.get("relative")
         met = result.status == "completed" and rel is not None and rel <= tol
         nxt = "stop" if met or result.status != "completed" or not est else what_next(est)
         if nxt != "stop" and i < max_passes:

@@ -160,7 +160,8 @@ def _cli_outputs(out):
 
 def test_cli_writes_the_estimate(tmp_path):
     """history.csv has the est_* columns equal to summary.json's steps; summary.json's
-    error_estimate is the max of est_total; the log has its line; solution.xdmf has eta."""
+    error_estimate is the max of est_total, with its scale and the relative estimate; the
+    log has its line; solution.xdmf has eta."""
     out = tmp_path / "run"
     proc = run_cli(["run", PAPER_CASE, "--out", out, "--set", "mesh.n=4", "--set", "time.N=3"])
     assert proc.returncode == 0, proc.stderr
@@ -172,7 +173,15 @@ def test_cli_writes_the_estimate(tmp_path):
     e = summary["error_estimate"]
     assert e["estimate"] == max(r["est_total"] for r in steps) == steps[-1]["est_max"]
     assert e["estimate"] == pytest.approx(e["time"] + e["space"], rel=1e-14)
-    assert "error estimate: " in proc.stdout + proc.stderr
+    # relative to the solution's scale max_n (||sigma_n||_Q + ||u_n||_V + ||kappa_n||_Y),
+    # taken here from history.csv's norms
+    scale = max(sum(float(row[c]) for c in ("norm_sigma_Q", "norm_u_V", "norm_kappa_Y"))
+                for row in rows)
+    assert e["scale"] == pytest.approx(scale, rel=1e-12)
+    assert e["relative"] == pytest.approx(e["estimate"] / scale, rel=1e-12)
+    assert (f"error estimate: {e['estimate']:.4g} " in proc.stdout + proc.stderr
+            and f"{100 * e['relative']:.3g} % of the solution's scale {scale:.4g}"
+            in proc.stdout + proc.stderr)
     with h5py.File(out / "solution.h5") as f:
         names = set(f["Function"].keys())
     assert "eta" in names
