@@ -222,20 +222,26 @@ def test_convergence_reports_the_effectivity(tmp_path):
         assert "effectivity " in proc.stdout + proc.stderr
 
 
+def _uninterrupted_and_restarted(case, nprocs: int, tmp_path) -> tuple[dict, dict]:
+    """summary.json of the case (mesh.n = 8, 6 steps, a checkpoint every 3) run through, and
+    of the run restarted from its step-3 checkpoint on ``nprocs`` ranks."""
+    full, re_ = tmp_path / "full", tmp_path / "re"
+    opts = ["--set", "mesh.n=8", "--set", "time.N=6", "--set", "output.checkpoint_every=3",
+            "--quiet"]
+    assert run_cli(["run", case, "--out", full, *opts]).returncode == 0
+    proc = run_cli(["run", case, "--out", re_, *opts, "--restart",
+                    full / "checkpoint_000003.npz"], nprocs=nprocs)
+    assert proc.returncode == 0, proc.stderr
+    return _cli_outputs(full)[0], _cli_outputs(re_)[0]
+
+
 @pytest.mark.mpi
 @pytest.mark.parametrize("nprocs", [1, 2], ids=["serial", "serial-checkpoint-on-2-ranks"])
 def test_restart_reports_the_uninterrupted_estimate(nprocs, tmp_path):
     """A run restarted from step 3 (a serial checkpoint, continued serially or under
     mpirun -n 2) reports the uninterrupted run's est_* in every step to 1e-12: the
     propagated time error (delta H, delta kappa) is in the checkpoint."""
-    full, re_ = tmp_path / "full", tmp_path / "re"
-    opts = ["--set", "mesh.n=8", "--set", "time.N=6", "--set", "output.checkpoint_every=3",
-            "--quiet"]
-    assert run_cli(["run", PAPER_CASE, "--out", full, *opts]).returncode == 0
-    proc = run_cli(["run", PAPER_CASE, "--out", re_, *opts, "--restart",
-                    full / "checkpoint_000003.npz"], nprocs=nprocs)
-    assert proc.returncode == 0, proc.stderr
-    a, b = (_cli_outputs(o)[0] for o in (full, re_))
+    a, b = _uninterrupted_and_restarted(PAPER_CASE, nprocs, tmp_path)
     assert a["steps"][3]["est_time"] > 0.1 * a["steps"][3]["est_total"]  # the time part counts
     for ra, rb in zip(a["steps"], b["steps"], strict=True):
         for c in EST:
@@ -251,14 +257,8 @@ def test_restart_keeps_the_gamma3_time_term(case, nprocs, tmp_path):
     error) are in the checkpoint: a run restarted from step 3 (serially, or the serial
     checkpoint under mpirun -n 2) reports the uninterrupted est_time_gamma3 and est_time
     to 1e-12."""
-    full, re_, path = tmp_path / "full", tmp_path / "re", ROOT / "cases" / f"{case}.yaml"
-    opts = ["--set", "mesh.n=8", "--set", "time.N=6", "--set", "output.checkpoint_every=3",
-            "--quiet"]
-    assert run_cli(["run", path, "--out", full, *opts]).returncode == 0
-    proc = run_cli(["run", path, "--out", re_, *opts, "--restart",
-                    full / "checkpoint_000003.npz"], nprocs=nprocs)
-    assert proc.returncode == 0, proc.stderr
-    a, b = (_cli_outputs(o)[0]["steps"] for o in (full, re_))
+    a, b = (s["steps"] for s in _uninterrupted_and_restarted(
+        ROOT / "cases" / f"{case}.yaml", nprocs, tmp_path))
     assert a[3]["est_time_gamma3"] > 0
     for ra, rb in zip(a, b, strict=True):
         for c in ("est_time_gamma3", "est_time", "est_total"):
