@@ -61,7 +61,8 @@ def history_columns(dim: int, groups: list[str], contact: bool,
         on each group (reaction_<group>_x, ...), each rigid cap's motion and resultant
         (rigid_columns), the Gamma3 node counts (nodes_bound, ...), the error estimate
         (app/post/estimators.py: est_time, est_space, est_total, est_max, est_space's
-        parts and est_time's Gamma3 part), Newton and linear iterations, the step's wall time.
+        parts, est_time's Gamma3 part, the step's local time error est_time_local), Newton
+        and linear iterations, the step's wall time.
     """
     axes = "xyz"[:dim]
     cols = ["n", "t", "k", "norm_u_V", "norm_sigma_Q", "norm_kappa_Y", "max_vm", "max_kappa"]
@@ -73,7 +74,8 @@ def history_columns(dim: int, groups: list[str], contact: bool,
     if contact:
         cols += [f"nodes_{s}" for s in STATES]
     cols += ["est_time", "est_space", "est_total", "est_max", "est_space_sigma_Q",
-             "est_space_u_V", "est_space_kappa_Y", "est_space_contact", "est_time_gamma3"]
+             "est_space_u_V", "est_space_kappa_Y", "est_space_contact", "est_time_gamma3",
+             "est_time_local"]
     return cols + ["newton_iterations", "linear_iterations", "wall_s"]
 
 

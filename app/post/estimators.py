@@ -23,8 +23,9 @@ kappa(t_n)||_Y), split into a time part and a space part.
   with them and reports the uninterrupted run's estimate.
 
 Each step record gets est_time, est_space, est_total (their sum), est_max (the running max
-of est_total, the measure's max_n), est_space's four parts and est_time's Gamma3 part;
-summary.json gets ``error_estimate``.
+of est_total, the measure's max_n), est_space's four parts, est_time's Gamma3 part and
+est_time_local, the error made in step n alone (||l_n|| plus the rise of the Gamma3 part:
+what ``run --tol`` grades the time steps by); summary.json gets ``error_estimate``.
 """
 from __future__ import annotations
 
@@ -40,7 +41,8 @@ from vpcontact.post.gamma3error import Gamma3TimeError
 log = logging.getLogger("vpcontact")
 
 PARTS = ("est_space_sigma_Q", "est_space_u_V", "est_space_kappa_Y", "est_space_contact")
-COLUMNS = ("est_time", "est_space", "est_total", "est_max") + PARTS + ("est_time_gamma3",)
+COLUMNS = ("est_time", "est_space", "est_total", "est_max") + PARTS + ("est_time_gamma3",
+                                                                       "est_time_local")
 NORMS = ("norm_sigma_Q", "norm_u_V", "norm_kappa_Y")
 
 
@@ -91,6 +93,7 @@ class TimeError:
         self.implicit = bool(problem.implicit)
         self.previous = self._state_rates(k)
         self.delta = None
+        self.local = 0.0          # ||l_n||_Q + ||l_kappa,n||_Y of the last step
 
     def _state_rates(self, k: float):
         """(sigma, kappa, G, Gk) of the current state; None if the law fails on a rank."""
@@ -112,12 +115,13 @@ class TimeError:
         now, before = self._state_rates(k), self.previous
         self.previous = now
         if now is None or before is None:
-            self.delta = None
+            self.delta, self.local = None, float("nan")
             return float("nan")
         local = [0.5 * k * (a - b) for a, b in zip(now[2:], before[2:])]
+        self.local = self._norm(local)
         if self.delta is None:                    # the first step: no error before it
             self.delta = [-x if not self.implicit else x for x in local]
-            return self._norm()
+            return self._norm(self.delta)
         at = now if self.implicit else before
         sig = at[0] - self.delta[0].reshape(-1)
         moved = _collective(self.problem.comm, self.rates, k, sig, at[1] - self.delta[1])
@@ -127,7 +131,7 @@ class TimeError:
         sign = 1.0 if self.implicit else -1.0
         self.delta = [d + k * (g - gm) + sign * x
                       for d, g, gm, x in zip(self.delta, at[2:], moved, local)]
-        return self._norm()
+        return self._norm(self.delta)
 
     def state(self) -> dict | None:
         """delta_n for a checkpoint.
@@ -147,13 +151,13 @@ class TimeError:
         self.delta = None if state is None else [np.array(state["dH"], dtype=float),
                                                  np.array(state["dkappa"], dtype=float)]
 
-    def _norm(self) -> float:
-        """||delta H||_Q + ||delta kappa||_Y over the owned cells of all ranks."""
+    def _norm(self, fields: list) -> float:
+        """||H-like field||_Q + ||kappa-like field||_Y over the owned cells of all ranks."""
         p = self.problem
         n = p.num_owned_cells
         vol = p.cell_volumes()[:n]
         return float(sum(np.sqrt(p.reduce(float(vol @ np.einsum("ij,ij->i", d[:n], d[:n])),
-                                          "SUM")) for d in self.delta))
+                                          "SUM")) for d in fields))
 
 
 def _collective(comm, call, *args):
@@ -172,6 +176,7 @@ class ErrorEstimate(Observer):
     def __init__(self):
         self.space = self.time = self.gamma3 = None
         self.best = None
+        self.gamma3_before = 0.0      # est_time_gamma3 of the step before
 
     def start(self, sim) -> None:
         """The indicators, and G at the initial (or restored) state, with the restored
@@ -198,6 +203,7 @@ class ErrorEstimate(Observer):
         for rec in sim.steps:                 # restored steps: their running max goes on
             if "est_total" in rec:
                 self._keep(rec)
+                self.gamma3_before = rec.get("est_time_gamma3") or 0.0
 
     def check(self, sim, record: dict) -> None:
         """Add the estimates of step n to its record.
@@ -215,6 +221,9 @@ class ErrorEstimate(Observer):
         est["est_time_gamma3"] = self.gamma3.step(record["k"], record["t"]) \
             if self.gamma3 is not None else 0.0
         est["est_time"] += est["est_time_gamma3"]
+        est["est_time_local"] = (self.time.local if self.time is not None else 0.0) + max(
+            est["est_time_gamma3"] - self.gamma3_before, 0.0)
+        self.gamma3_before = est["est_time_gamma3"]
         est["est_total"] = est["est_time"] + est["est_space"]
         # an estimate that is not finite (rates that overflow) is absent, never a reason
         # for the blow-up monitor to stop the run

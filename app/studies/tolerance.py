@@ -10,8 +10,11 @@ from one mesh to another in the middle of a run.  After pass i:
   grid if the time part is at least half the space part (both when they are comparable).
   Space: Doerfler marking (theta = 0.5) of the cell indicators eta_K^2 = eta_Q,K^2 +
   eta_V,K^2 + eta_Y,K^2 at the step of est_max (``PeakIndicators``), whose cells are
-  refined by ``meshes.adapt.refine_cells``.  Time: k halved (N twice as large); with
-  ``time.adaptive`` also its max_change halved.
+  refined by ``meshes.adapt.refine_cells``.  Time: each step split into m_n equal parts,
+  m_n from the time error the step made (est_time_local, ``split_counts``), so that the
+  time part falls to its share of the tolerance (``time_ratio``): the grid grades itself
+  to where the history changes fast (the paper case: the load applied at t = 0+).  With
+  ``time.adaptive``: k halved (N twice as large) and its max_change halved.
 
 The stop is also reached after ``max_passes`` passes or when the next mesh would exceed
 ``MAX_CELLS``, with a line saying that the tolerance was not met.
@@ -34,6 +37,8 @@ log = logging.getLogger("vpcontact")
 
 THETA = 0.5                 # Doerfler's bulk fraction
 MAX_CELLS = 2_000_000       # the largest mesh a pass may refine to
+MAX_SPLIT = 16              # the most parts a time step is split into in one pass
+SAFETY = 0.8                # the share of the time part's budget aimed at
 
 
 @dataclass
@@ -64,10 +69,11 @@ def check_tolerance_case(case, raw: dict) -> None:
     Raises:
         CaseError: one line naming the file, the key and what --tol allows.
     """
-    given = set(raw.get("time", {})) & {"times", "grading"}
-    if given:
-        raise CaseError(f"{case.source}: time.{sorted(given)[0]}: run --tol halves a grid "
-                        "of T with N or k (allowed: N, k, adaptive)")
+    t = raw.get("time", {})
+    if "adaptive" in t and "times" in t:
+        raise CaseError(f"{case.source}: time.times: run --tol with time.adaptive halves a "
+                        "grid of T with N or k (allowed: N, k, grading; or times without "
+                        "adaptive)")
 
 
 def doerfler(eta2: np.ndarray, theta: float = THETA) -> float:
@@ -129,17 +135,110 @@ class PeakIndicators(Observer):
         return np.flatnonzero(self.eta2 >= doerfler(everything)).astype(np.int32)
 
 
-def finer_in_time(raw: dict) -> dict:
+class LocalTimeErrors(Observer):
+    """Each step's (t, k, est_time_local): the time error made in that step alone
+    (app/post/estimators.py), by which ``graded_times`` splits the steps."""
+
+    def __init__(self):
+        self.steps = []
+
+    def step(self, sim, record: dict) -> None:
+        """Keep step n's time error.
+
+        Args:
+            sim: the Simulation.
+            record: step n's record.
+        """
+        self.steps.append((record["t"], record["k"], record.get("est_time_local")))
+
+
+def split_counts(local: np.ndarray, ratio: float, cap: int = MAX_SPLIT) -> np.ndarray:
+    """Into how many equal parts each step is split so that the time error falls by ratio.
+
+    A step's error, l_n, falls as l_n / m when it is split into m (the first order of the
+    scheme: m parts of a smooth step each make l_n / m^2; a jump of the data is met by the
+    first part alone, with l_n / m).  The time part is the propagated sum of the l_n, damped
+    by a relaxing history (app/post/estimators.py): the steps are made to equidistribute
+    their error below max_n l_n / ratio, m_n = ceil(ratio l_n / max_j l_j) (a uniform l_n
+    gives m_n = ratio, a jump in step 1 alone m_1 = ratio), at least 1, at most ``cap``.
+
+    Args:
+        local: l_n of every step (a step without one, NaN, counts as the largest).
+        ratio: the factor by which the time error is to fall (> 1).
+        cap: the most parts of one step in one pass.
+
+    Returns:
+        m_n per step (integers).
+    """
+    lam = np.asarray(local, dtype=float)
+    finite = np.isfinite(lam)
+    top = lam[finite].max() if finite.any() else 0.0
+    if top <= 0.0:
+        return np.full(len(lam), min(int(np.ceil(ratio)), cap))
+    lam = np.where(finite, lam, top).clip(min=0.0)
+    return np.clip(np.ceil(ratio * lam / top * (1.0 - 1e-12)), 1, cap).astype(int)
+
+
+def graded_times(times, local, ratio: float) -> list[float]:
+    """The next pass's time points: step n of the grid split into m_n equal parts
+    (``split_counts``).
+
+    Args:
+        times: the time points t_0..t_N of the pass.
+        local: l_n, n = 1..N (est_time_local of each step).
+        ratio: the factor by which the time error is to fall.
+
+    Returns:
+        The new time points (t_0..t_N kept).
+    """
+    times = np.asarray(times, dtype=float)
+    out = [times[:1]]
+    for a, b, m in zip(times[:-1], times[1:], split_counts(local, ratio)):
+        out.append(a + (b - a) * np.arange(1, m + 1) / m)
+    new = np.concatenate(out)
+    new[-1] = times[-1]
+    return [float(t) for t in new]
+
+
+def time_ratio(estimate: dict, tol: float) -> float:
+    """The factor by which the next pass's time part is to fall: to its budget, the
+    tolerance less the space part, at most half the tolerance when the space part is refined
+    too, times SAFETY; at least 2 (a pass refining k halves it at least).
+
+    Args:
+        estimate: the pass's summary error_estimate ("time", "space", "scale").
+        tol: the relative tolerance.
+
+    Returns:
+        time / budget, at least 2.
+    """
+    allowed = tol * estimate["scale"]
+    space = estimate["space"] or 0.0
+    budget = SAFETY * (allowed - space if space < 0.5 * allowed else 0.5 * allowed)
+    return max(2.0, (estimate["time"] or 0.0) / budget)
+
+
+def finer_in_time(raw: dict, local: list | None = None, ratio: float = 2.0) -> dict:
     """The next pass's time grid.
 
     Args:
         raw: the case's raw dict (not modified).
+        local: (t_n, k_n, est_time_local_n) of the pass's steps; None, or a case with
+            ``time.adaptive``: the uniform refinement.
+        ratio: the factor by which the time error is to fall (``time_ratio``).
 
     Returns:
-        A copy with N doubled (k halved) and time.adaptive's max_change halved.
+        A copy with the steps split by ``graded_times`` (time.times); with time.adaptive,
+        N doubled (k halved) and its max_change halved.
     """
     raw = copy.deepcopy(raw)
     t = raw["time"]
+    if local is not None and "adaptive" not in t:
+        times = [0.0] + [row[0] for row in local]
+        raw["time"] = {key: v for key, v in t.items()
+                       if key not in ("T", "N", "k", "grading", "times")}
+        raw["time"]["times"] = graded_times(times, [row[2] for row in local], ratio)
+        return raw
     t["N"] = 2 * (t["N"] if "N" in t else int(round(float(t["T"]) / float(t.pop("k")))))
     if isinstance(t.get("adaptive"), dict):
         t["adaptive"]["max_change"] = 0.5 * float(t["adaptive"].get("max_change", 0.2))
@@ -217,11 +316,11 @@ def run_passes(raw: dict, case, comm, tol: float, max_passes: int, outdir: Path,
     for i in range(1, max_passes + 1):
         wall = time.perf_counter()
         domain = domain if domain is not None else build_mesh(case, comm)
-        peak, where = PeakIndicators(), outdir / f"pass_{i}"
+        peak, steps, where = PeakIndicators(), LocalTimeErrors(), outdir / f"pass_{i}"
         if comm.rank == 0:
             where.mkdir(parents=True, exist_ok=True)
         comm.barrier()
-        result = run(case, comm, [peak, *observers()], outdir=where, mesh=domain)
+        result = run(case, comm, [peak, steps, *observers()], outdir=where, mesh=domain)
         s, est = result.summary, result.summary.get("error_estimate") or {}
         scale = est.get("scale", 0.0)                  # estimators.scale_of of the pass
         rel = est.get("relative")
@@ -231,7 +330,7 @@ def run_passes(raw: dict, case, comm, tol: float, max_passes: int, outdir: Path,
             if "h" in nxt:
                 domain = refine_cells(domain, peak.marked(comm))
             if "k" in nxt:
-                raw = finer_in_time(raw)
+                raw = finer_in_time(raw, steps.steps, time_ratio(est, tol))
                 case = validate(raw, case.source)
         row = Pass(i, s["mesh"]["cells"], s["mesh"]["dofs"], s["time"]["N"], result.status,
                    est.get("estimate"), est.get("time"), est.get("space"), scale, rel,
