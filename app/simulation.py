@@ -30,6 +30,7 @@ from petsc4py import PETSc
 
 from vpcontact.case import Case, CaseError, rescale_for_length
 from vpcontact.case.meshrules import MAX_VERTICES
+from vpcontact.io.errors import StepSolveError
 from vpcontact.io.output import OutputError
 from vpcontact.meshes import build_box, build_rectangle
 from vpcontact.meshes.gmshfile import MeshFileError, load_mesh_file
@@ -48,7 +49,7 @@ from vpcontact.post.phases import PhaseClock
 from vpcontact.post.ratewatch import RateWatch, needs_watch
 from vpcontact.records import HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
 from vpcontact.solvers import select_solver, threads
-from vpcontact.solvers.snesvi import StepSolveError, describe_petsc_error
+from vpcontact.solvers.snesvi import describe_petsc_error
 
 log = logging.getLogger("vpcontact")
 

@@ -30,12 +30,11 @@ from mpi4py import MPI
 
 from conftest import cli_in_process, make_case, paper_raw, run_case
 from vpcontact.io.checkpoint import Checkpoint
-from vpcontact.io.errors import CaseError
+from vpcontact.io.errors import CaseError, StepSolveError
 from vpcontact.model.coulomb import MAX_ITERATIONS, CoulombPressure
 from vpcontact.observers import Checkpointer, Observer
 from vpcontact.post.quantities import contact_table
 from vpcontact.simulation import run
-from vpcontact.solvers.snesvi import StepSolveError
 
 P, MU, E, C_NU, DELTA = 8.0, 0.3, 1000.0, 100.0, 1e-7
 Q = 0.5 * MU * P

@@ -68,7 +68,7 @@ import sys
 import time
 from mpi4py import MPI
 from vpcontact.solvers import threads
-from vpcontact.solvers.snesvi import StepSolveError
+from vpcontact.io.errors import StepSolveError
 comm = MPI.COMM_WORLD
 
 def busy():
