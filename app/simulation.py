@@ -28,6 +28,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from vpcontact import threads
 from vpcontact.case import Case, CaseError, rescale_for_length
 from vpcontact.case.meshrules import MAX_VERTICES
 from vpcontact.io.errors import StepSolveError
@@ -48,7 +49,7 @@ from vpcontact.post.pairreport import pair_lines
 from vpcontact.post.phases import PhaseClock
 from vpcontact.post.ratewatch import RateWatch, needs_watch
 from vpcontact.records import HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
-from vpcontact.solvers import select_solver, threads
+from vpcontact.solvers import select_solver
 from vpcontact.solvers.snesvi import describe_petsc_error
 
 log = logging.getLogger("vpcontact")

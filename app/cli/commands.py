@@ -143,6 +143,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
     if case is None:
         return EXIT_BAD_INPUT
 
+    from vpcontact import threads
     from vpcontact.cli.progress import ProgressBar, ReaderWatch
     from vpcontact.observers import (
         Checkpointer,
@@ -155,7 +156,6 @@ def cmd_run(args, petsc_cli: dict) -> int:
         written_files,
     )
     from vpcontact.simulation import run
-    from vpcontact.solvers import threads
 
     if args.verbose:
         petsc_cli = {"snes_monitor": None, "snes_converged_reason": None, **petsc_cli}

@@ -67,7 +67,7 @@ import pathlib
 import sys
 import time
 from mpi4py import MPI
-from vpcontact.solvers import threads
+from vpcontact import threads
 from vpcontact.io.errors import StepSolveError
 comm = MPI.COMM_WORLD
 

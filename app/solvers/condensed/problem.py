@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from vpcontact import kernels
+from vpcontact import kernels, threads
 from vpcontact.io.errors import StepSolveError
 from vpcontact.model.contact_laws import ContactLaw
-from vpcontact.solvers import dense, threads
+from vpcontact.solvers import dense
 from vpcontact.solvers.nodal import NodalContact
 
 _EPS = np.finfo(float).eps
