@@ -510,7 +510,7 @@ def cmd_bench(args) -> int:
     Returns:
         The exit code: 0 done, 1 a configuration failed, 2 bad input, 3 interrupted.
     """
-    from vpcontact.io.cachedirs import unusable
+    from vpcontact.cachepaths import unusable
     from vpcontact.studies import bench as bm
     from vpcontact.studies.benchref import References
     from vpcontact.studies.benchrun import run_overrides
