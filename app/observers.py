@@ -34,9 +34,9 @@ from vpcontact.io.output import (
     write_contact_csv,
     write_json,
 )
-from vpcontact.model.outputfields import derived_outputs, law_rows
 from vpcontact.model.state import KappaOutput
 from vpcontact.post import quantities
+from vpcontact.post.outputfields import derived_outputs, law_rows
 from vpcontact.records import HINT_OUTPUT, StepFailure
 from vpcontact.startup import resume_collector
 
@@ -173,7 +173,7 @@ class FieldOutput(Observer):
 
     def _write(self, t: float) -> None:
         """The fields at time t (the law's named internal variables copied from kappa, the
-        derived fields of app/model/outputfields.py computed)."""
+        derived fields of app/post/outputfields.py computed)."""
         if self.kappa is not None:
             self.kappa.update()
         columns = {}

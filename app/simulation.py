@@ -28,8 +28,10 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from vpcontact import threads
 from vpcontact.case import Case, CaseError, rescale_for_length
 from vpcontact.case.meshrules import MAX_VERTICES
+from vpcontact.io.errors import StepSolveError
 from vpcontact.io.output import OutputError
 from vpcontact.meshes import build_box, build_rectangle
 from vpcontact.meshes.gmshfile import MeshFileError, load_mesh_file
@@ -41,14 +43,16 @@ from vpcontact.model.stepping import StepTooSmall, make_stepper
 from vpcontact.observers import Observer, StopRun
 from vpcontact.post import quantities
 from vpcontact.post.diagnostics import diagnose
+from vpcontact.post.divergence import stress_scale
 from vpcontact.post.estimators import ErrorEstimate
 from vpcontact.post.lawreport import law_report
 from vpcontact.post.pairreport import pair_lines
 from vpcontact.post.phases import PhaseClock
 from vpcontact.post.ratewatch import RateWatch, needs_watch
 from vpcontact.records import HINT_SOLVER, HINT_STEP_TOO_SMALL, RunSummary, StepFailure
-from vpcontact.solvers import select_solver, threads
-from vpcontact.solvers.snesvi import StepSolveError, describe_petsc_error
+from vpcontact.solvers import select_solver
+from vpcontact.solvers.coulomb import CoulombFixedPoint
+from vpcontact.solvers.snesvi import describe_petsc_error
 
 log = logging.getLogger("vpcontact")
 
@@ -228,10 +232,14 @@ class Simulation:
                                                 self.contact_laws)
         self.history = build_history(case, problem)
         problem.set_initial_values()
-        self.gamma3_history = build_gamma3_history(case, problem)
-        problem.state.attach_gamma3(self.gamma3_history)
+        self.gamma3_history = g3 = build_gamma3_history(case, problem)
+        problem.state.attach_gamma3(g3)
+        coulomb = g3 is not None and g3.coulomb is not None
+        scale = stress_scale(problem.case, problem) if coulomb else None     # collective
         threads.configure(self.comm)
         self.solver = select_solver(case, problem)
+        if coulomb:         # Coulomb friction: the fixed point on p_n around the step solver
+            self.solver = CoulombFixedPoint(self.solver, g3, scale)
         self._clock["setup"] = time.perf_counter() - self._clock["start"]
         self._log_case()
         self.diagnostics = diagnose(problem, self.solver)
@@ -369,9 +377,9 @@ class Simulation:
             p.set_time(t_new, k)                    # f_n, prescribed displacements, k_n
             if p.hold is not None and self.n == 0:  # held only by contact: the first step
                 self._start_in_contact()
-            # u_n in U^h, (3.4); with Coulomb friction a fixed point on p_n (Gamma3History)
+            # u_n in U^h, (3.4); with Coulomb friction a fixed point on p_n (CoulombFixedPoint)
             with stage("solve"):
-                its = g3.solve(self.solver) if g3 else self.solver.solve()
+                its = self.solver.solve()
             # sigma_n (explicit: E eps(u_n) + H_n, (3.2))
             with stage("stress update"):
                 norms = history.after_solve(p, k) if history else p.update_sigma()

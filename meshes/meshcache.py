@@ -8,7 +8,7 @@ builds the distributed dolfinx mesh and its tags from them with the calls model_
 in its order, so a mesh from the cache is the mesh gmsh's model gives (same arrays, same
 calls): the results of a run do not depend on whether its mesh came from the cache.
 
-The entries live in the ``meshes`` directory of the run cache (app/io/cachedirs.py), one
+The entries live in the ``meshes`` directory of the run cache (app/cachepaths.py), one
 ``.npz`` per key: a hash of the builder's name and parameters, the text of the module that
 builds the model and gmsh's version (read from gmsh.py without importing it), so that a change
 of any of them builds anew.  An entry is written atomically (a temporary file renamed); one
@@ -75,7 +75,7 @@ def cache_key(builder: str, params: dict, source: Path) -> str:
 
 
 def _directory() -> Path:
-    from vpcontact.io.cachedirs import cache_root
+    from vpcontact.cachepaths import cache_root
     return cache_root() / "meshes"
 
 

@@ -106,7 +106,7 @@ def cli_in_process(args) -> int:
     import logging
 
     import vpcontact.cli.main as cli
-    from vpcontact.model.lawmodule import forget_law_module
+    from vpcontact.io.lawfile import forget_law_module
     logger = logging.getLogger("vpcontact")
     state = logger.handlers[:], logger.propagate, logger.level
     try:

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import re
 
-from vpcontact.case.reading import GROUP_MAPS
 from vpcontact.case.schema import SCHEMA
 from vpcontact.case.schemacheck import fill_defaults
+from vpcontact.io.casekey import GROUP_MAPS
 from vpcontact.io.errors import CaseError
 
 # the contact laws a pair may carry (the contact section's own keys)

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import yaml
 
+from vpcontact.io.casekey import GROUP_MAPS
 from vpcontact.io.errors import CaseError
 
 MAX_INT_DIGITS = 30
@@ -24,8 +25,6 @@ MAX_FILE_BYTES = 50_000_000
 # magnitude of a nonzero number of the case (outside PETSc options): products and squares
 # of a few data values stay within double precision
 MIN_MAGNITUDE, MAX_MAGNITUDE = 1e-100, 1e100
-# the maps of loads keyed by boundary group: a name, or (YAML's integer keys) a physical tag
-GROUP_MAPS = ("traction", "pressure", "displacement", "rigid")
 
 
 class CaseLoader(yaml.SafeLoader):

@@ -12,7 +12,7 @@ from vpcontact.case import expressions
 from vpcontact.case.anisotropy import check_material_elasticity
 from vpcontact.case.materialrules import material_sections, section_errors
 from vpcontact.case.model import case_name
-from vpcontact.case.reading import GROUP_MAPS
+from vpcontact.io.casekey import GROUP_MAPS
 from vpcontact.io.errors import CaseError
 from vpcontact.meshes.rectangle import SIDES
 

@@ -9,8 +9,8 @@ import re
 from typing import TYPE_CHECKING
 
 from vpcontact.case import schemamemo
-from vpcontact.case.reading import GROUP_MAPS
 from vpcontact.case.schema import SCHEMA
+from vpcontact.io.casekey import GROUP_MAPS
 from vpcontact.io.errors import CaseError
 
 if TYPE_CHECKING:

@@ -9,7 +9,7 @@ mapping with keys that are not strings (JSON would confuse 1 and '1') or values 
 not JSON has no digest and is always checked.  Only passes are remembered: a mapping that
 fails is checked, and reported, every time.
 
-The digests live in one file of the run cache (app/io/cachedirs.py), the last
+The digests live in one file of the run cache (app/cachepaths.py), the last
 ``MAX_ENTRIES`` of them.  Anyone who may write that file may also write the compiled kernels
 next to it, which run in every process; an unreadable or unwritable cache only means that
 every case is checked.
@@ -60,7 +60,7 @@ def digest(view: dict) -> str | None:
 
 
 def _path() -> Path:
-    from vpcontact.io.cachedirs import cache_root
+    from vpcontact.cachepaths import cache_root
     return cache_root() / FILE
 
 

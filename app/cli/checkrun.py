@@ -97,7 +97,7 @@ def info() -> list[str]:
     from petsc4py import PETSc
 
     from vpcontact import __version__
-    from vpcontact.io.cachedirs import caches
+    from vpcontact.cachepaths import caches
 
     v = PETSc.Sys.getVersion()
     pkgs = ["mumps", "superlu_dist", "suitesparse", "hypre", "metis", "parmetis", "scalapack",

@@ -143,6 +143,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
     if case is None:
         return EXIT_BAD_INPUT
 
+    from vpcontact import threads
     from vpcontact.cli.progress import ProgressBar, ReaderWatch
     from vpcontact.observers import (
         Checkpointer,
@@ -155,7 +156,6 @@ def cmd_run(args, petsc_cli: dict) -> int:
         written_files,
     )
     from vpcontact.simulation import run
-    from vpcontact.solvers import threads
 
     if args.verbose:
         petsc_cli = {"snes_monitor": None, "snes_converged_reason": None, **petsc_cli}
@@ -510,7 +510,7 @@ def cmd_bench(args) -> int:
     Returns:
         The exit code: 0 done, 1 a configuration failed, 2 bad input, 3 interrupted.
     """
-    from vpcontact.io.cachedirs import unusable
+    from vpcontact.cachepaths import unusable
     from vpcontact.studies import bench as bm
     from vpcontact.studies.benchref import References
     from vpcontact.studies.benchrun import run_overrides

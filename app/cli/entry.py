@@ -79,7 +79,7 @@ def prepare_process() -> None:
     """Set up the command line's process, before numpy, MPI, ufl or dolfinx are imported.
 
     One BLAS thread (multithreaded OpenBLAS makes the small dense per-cell algebra 30-100x
-    slower; the large operations widen it, app/solvers/threads.py), OpenBLAS's idle threads
+    slower; the large operations widen it, app/threads.py), OpenBLAS's idle threads
     asleep after 2^20 cycles instead of 2^28 (OPENBLAS_THREAD_TIMEOUT), one OpenMP thread
     (OMP_THREAD_LIMIT: CHOLMOD's loops ask for 4), a usable TMPDIR, MPI
     initialised (a light singleton without a launcher), every cache writable or replaced

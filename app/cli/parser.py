@@ -8,7 +8,7 @@ import math
 import re
 
 from vpcontact import __version__
-from vpcontact.io.cachedirs import CACHE_SEARCH
+from vpcontact.cachepaths import CACHE_SEARCH
 from vpcontact.io.messages import EXIT_BAD_INPUT, error_line
 
 _PETSC_OPT = re.compile(r"^-[A-Za-z][A-Za-z0-9_]*$")

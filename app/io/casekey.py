@@ -18,9 +18,9 @@ from __future__ import annotations
 
 import copy
 
-from vpcontact.case.reading import GROUP_MAPS
-
 SECTIONS = ("mesh", "material", "contact", "loads", "initial", "boundaries")
+# the maps of loads keyed by boundary group: a name, or (YAML's integer keys) a physical tag
+GROUP_MAPS = ("traction", "pressure", "displacement", "rigid")
 
 
 def group_map(body) -> dict:

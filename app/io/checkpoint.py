@@ -31,6 +31,7 @@ import numpy as np
 from vpcontact.io.canonical import stable_json
 from vpcontact.io.casekey import SECTIONS, group_map, normalised_sections
 from vpcontact.io.errors import CaseError
+from vpcontact.io.lawfile import law_module_digest, python_law_classes
 from vpcontact.io.output import on_rank0
 
 PATTERN = "checkpoint_*.npz"
@@ -127,10 +128,9 @@ def law_module(case) -> dict | None:
         case: the validated Case.
 
     Returns:
-        {"path", "sha256"} of the loaded module (app/model/lawmodule.py), or None: the case
+        {"path", "sha256"} of the loaded module (app/io/lawfile.py), or None: the case
         names no python law, or no module is loaded (laws given through the API instead).
     """
-    from vpcontact.model.lawmodule import law_module_digest, python_law_classes
     return law_module_digest() if python_law_classes(case.raw) else None
 
 

@@ -19,7 +19,6 @@ from vpcontact.io.files import atomic_write, overwrite_in_place
 from vpcontact.io.h5files import open_h5
 from vpcontact.io.xdmf import TemporalXdmf, XdmfLayoutError, dolfinx_layout, dolfinx_time_key
 from vpcontact.native import loaded_libraries
-from vpcontact.post.quantities import SEPARATED_RATIO, U_ROUNDOFF
 
 HDF5_MARGIN = 64 * 1024      # bytes of HDF5 metadata a time's datasets may add (B-trees, heaps)
 OUTPUT_FILES = ("solution.xdmf", "solution.h5", "summary.json", "contact.csv", "contact.xdmf",
@@ -395,6 +394,13 @@ class FieldWriter:
                 if p.is_symlink() or p.exists():
                     p.unlink()
         self.comm.barrier()
+
+
+# separated: p_n <= SEPARATED_RATIO max p_n (the forces' round-off: classify, and
+# slip_states of app/post/quantities.py)
+SEPARATED_RATIO = 1e-6
+# the displacements' round-off, relative to their largest value on Gamma3
+U_ROUNDOFF = 1e-9
 
 
 def classify(data: dict, g: float | None, compliance: bool | tuple = True,

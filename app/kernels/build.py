@@ -3,7 +3,7 @@
 Each compiled library (``Library``) is made of C files of this package: its ``.c`` files,
 compiled as one translation unit in the given order, and their ``.h`` files, whose
 prototypes are cffi's cdef (preprocessor lines and comments stripped).  The build goes to
-the ``kernels`` directory of the cache (app/io/cachedirs.py) under a name keyed by a hash of
+the ``kernels`` directory of the cache (app/cachepaths.py) under a name keyed by a hash of
 everything it depends on: the contents of every ``.c``/``.h`` used, the compiler flags, the
 libraries and include directories, and the Python version.  Concurrent builds (mpirun ranks)
 write to private directories and publish the library by an atomic rename; a cached library
@@ -37,9 +37,9 @@ def cache_dir() -> Path:
     """Where the compiled kernels are kept.
 
     Returns:
-        The ``kernels`` directory of the cache (app/io/cachedirs.py).
+        The ``kernels`` directory of the cache (app/cachepaths.py).
     """
-    from vpcontact.io.cachedirs import caches
+    from vpcontact.cachepaths import caches
     return caches().kernels
 
 

@@ -331,31 +331,21 @@ class Gamma3History:
             self.theta = problem.theta
             self.coulomb = CoulombPressure(problem, mu, NodalField(problem.V, self.nodes,
                                                                    "p_n"), problem.hold)
-            self._set_coulomb(mu * self.coulomb.p)
+            self.set_coulomb_bound(mu * self.coulomb.p)
         self.path = SlipPath(m) if slip is not None or mu is not None else None
 
-    def _set_coulomb(self, mu_p: np.ndarray) -> None:
+    def set_coulomb_bound(self, mu_p: np.ndarray) -> None:
         """theta = mu p_n (times theta(s_n) with slip) at the nodes (with laws per pair:
-        at the nodes of Coulomb's pairs; theta(s_n) or 1 at the others)."""
+        at the nodes of Coulomb's pairs; theta(s_n) or 1 at the others).
+
+        Args:
+            mu_p: mu p_n at the local Gamma3 nodes (owned and ghost), shape (m,).
+        """
         theta = None if self.slip is None else self.slip.theta()
         bound = mu_p if theta is None else mu_p * theta
         if self.coulomb_rows is not None:
             bound = np.where(self.coulomb_rows, bound, 1.0 if theta is None else theta)
         self.theta.set(bound)
-
-    def solve(self, solver) -> int:
-        """Step n's solve: the Coulomb fixed point on p_n (``CoulombPressure.solve``), else
-        the solver's own.
-
-        Args:
-            solver: the step solver.
-
-        Returns:
-            The step solver's iterations.
-        """
-        if self.coulomb is None:
-            return solver.solve()
-        return self.coulomb.solve(solver, self._set_coulomb)
 
     def state(self) -> dict:
         """The history at the local Gamma3 nodes (owned and ghost).
@@ -385,7 +375,7 @@ class Gamma3History:
             self.theta.set(self.slip.theta())
         if self.coulomb is not None:
             self.coulomb.load_state(state.get("coulomb"))
-            self._set_coulomb(self.coulomb.mu * self.coulomb.p)
+            self.set_coulomb_bound(self.coulomb.mu * self.coulomb.p)
         if self.path is not None:
             self.path.load_state(state.get("path"))
 

@@ -3,7 +3,8 @@ every rank, once per process) and ``material.viscoplastic.law: python`` with ``c
 builds ``Name(elasticity, **params)`` from it, ``contact.normal_compliance`` or
 ``contact.friction`` with ``law: python`` builds ``Name(**params)`` (app/model/userlaw.py
 wraps and checks them).  A case file alone never runs code: without the option a ``python``
-law is refused.  The SHA-256 of the module's bytes (``law_module_digest``) enters the
+law is refused.  The SHA-256 of the module's bytes (``law_module_digest``,
+app/io/lawfile.py, where the loaded module is recorded) enters the
 checkpoints' fingerprint of a case with a python law, so a restart with an edited module is
 refused.
 """
@@ -16,11 +17,11 @@ import traceback
 from pathlib import Path
 
 from vpcontact.io.errors import CaseError
+from vpcontact.io.lawfile import loaded_law_module, python_law_classes, remember_law_module
 from vpcontact.model.material import Elasticity
 from vpcontact.model.usercode import USER_ERRORS, raised
 
 OPTION = "--law-module FILE.py"
-_loaded: dict = {}                   # "path", "module": the module of --law-module
 
 
 def load_law_module(path) -> object:
@@ -52,47 +53,8 @@ def load_law_module(path) -> object:
                  if Path(f.filename).resolve() == path.resolve()]
         at = f" (line {lines[-1]})" if lines else ""
         raise CaseError(f"--law-module {path}: importing it {raised(exc)}{at}") from None
-    _loaded.update(path=path, module=module, sha256=digest)
+    remember_law_module(path, module, digest)
     return module
-
-
-def law_module_digest() -> dict | None:
-    """The loaded law module's file and the SHA-256 of its bytes as imported.
-
-    Returns:
-        {"path", "sha256"}, or None if no module is loaded.
-    """
-    if "module" not in _loaded:
-        return None
-    return {"path": str(_loaded["path"]), "sha256": _loaded["sha256"]}
-
-
-def forget_law_module() -> None:
-    """Forget the loaded module (a process that runs several cases, e.g. the tests)."""
-    _loaded.clear()
-
-
-def python_law_classes(raw: dict) -> list[tuple[str, str]]:
-    """The ``python`` laws a case names.
-
-    Args:
-        raw: the case mapping (Case.raw).
-
-    Returns:
-        [(key path, class name)] of material.viscoplastic, of each materials group and of
-        contact.normal_compliance and contact.friction.
-    """
-    sections = [("material", raw.get("material"))]
-    sections += [(f"materials.{group}", section)
-                 for group, section in (raw.get("materials") or {}).items()]
-    out = [(f"{path}.viscoplastic", sec["viscoplastic"]["class"]) for path, sec in sections
-           if isinstance(sec, dict) and isinstance(sec.get("viscoplastic"), dict)
-           and sec["viscoplastic"].get("law") == "python"]
-    contact = raw.get("contact") or {}
-    return out + [(f"contact.{key}", contact[key]["class"])
-                  for key in ("normal_compliance", "friction")
-                  if isinstance(contact.get(key), dict)
-                  and contact[key].get("law") == "python"]
 
 
 def prepare_law_module(raw: dict, path) -> None:
@@ -143,11 +105,12 @@ def python_law(vp, elasticity: Elasticity, key: str = "material.viscoplastic"):
             the law breaks the protocol (app/model/userlaw.py).
     """
     from vpcontact.model.userlaw import as_viscoplastic_law
-    if "module" not in _loaded:
+    loaded = loaded_law_module()
+    if loaded is None:
         raise CaseError(f"{key}.law: python runs the class {vp.cls} of a Python module: "
                         f"give the module with {OPTION} (a case file alone never runs code)")
-    path = _loaded["path"]
-    cls = _law_class(_loaded["module"], path, vp.cls, key)
+    path, module = loaded
+    cls = _law_class(module, path, vp.cls, key)
     where = f"--law-module {path}: class {vp.cls}"
     params = dict(vp.params or {})
     try:
@@ -185,11 +148,12 @@ def python_contact_laws(contact, skip=()) -> dict:
 def _contact_law(spec, key: str, part: str):
     """``spec.cls(**spec.params)`` of the loaded module as a UserContactLaw."""
     from vpcontact.model.userlaw import UserContactLaw
-    if "module" not in _loaded:
+    loaded = loaded_law_module()
+    if loaded is None:
         raise CaseError(f"{key}.law: python runs the class {spec.cls} of a Python module: "
                         f"give the module with {OPTION} (a case file alone never runs code)")
-    path = _loaded["path"]
-    cls = _law_class(_loaded["module"], path, spec.cls, key)
+    path, module = loaded
+    cls = _law_class(module, path, spec.cls, key)
     where = f"--law-module {path}: class {spec.cls}"
     try:
         obj = cls(**spec.params)

@@ -25,8 +25,9 @@ Gamma3 node is half-way into the gap (on the bound without a compliance), SNES V
 one Newton step with those nodes' normal dofs held (``pinned_slots``,
 ``SNESVISolver.press_next``: touching the bound, the body's Gamma3 residual is 0 and the VI
 sees no active node), and ``pressure_start`` gives Coulomb's fixed point
-(app/model/coulomb.py) the last p_n scaled to the step's normal resultant, or that
-resultant spread uniformly (with p_n = 0 nothing holds the tangential motion).  The
+(app/solvers/coulomb.py, through app/model/coulomb.py) the last p_n scaled to the step's
+normal resultant, or that resultant spread uniformly (with p_n = 0 nothing holds the
+tangential motion).  The
 condensed solver takes S as only positive semidefinite (``reduce``,
 app/solvers/condensed/condensation.py).
 """

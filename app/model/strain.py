@@ -28,9 +28,8 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from vpcontact import kernels
+from vpcontact import kernels, threads
 from vpcontact.forms.elasticity import elasticity_operator, eps, lame_constants
-from vpcontact.solvers import threads
 
 
 def _inverse(J: np.ndarray) -> np.ndarray:

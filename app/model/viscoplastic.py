@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vpcontact import kernels
+from vpcontact import kernels, threads
 from vpcontact.model.laws import ExplicitUpdate, ViscoplasticLaw
 from vpcontact.model.material import (
     FLAT,
@@ -22,7 +22,6 @@ from vpcontact.model.material import (
     VonMisesProjection,
     make_projection,
 )
-from vpcontact.solvers import threads
 
 
 class Perzyna(ViscoplasticLaw):

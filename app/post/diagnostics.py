@@ -31,9 +31,10 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
+from vpcontact import threads
 from vpcontact.forms.elasticity import eps
 from vpcontact.model.history import UPDATE_ERRORS, first_failure
-from vpcontact.solvers import dense, threads
+from vpcontact.solvers import dense
 from vpcontact.solvers.amg import AMG_PETSC, AMG_PREFIX, near_nullspace, rigid_body_modes
 from vpcontact.solvers.options import push_options, remove_options
 from vpcontact.solvers.schur import LAPACK_MIN

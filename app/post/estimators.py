@@ -3,7 +3,7 @@ estimates"): max_n (||sigma_n - sigma(t_n)||_Q + ||u_n - u(t_n)||_V + ||kappa_n 
 kappa(t_n)||_Y), split into a time part and a space part.
 
 - Space, per step: (eta_Q^2 + eta_C^2)^(1/2) + eta_V + eta_Y, the recovery indicators of
-  app/model/recovery.py summed over the cells (each a global L2 norm, as the error
+  app/post/recovery.py summed over the cells (each a global L2 norm, as the error
   measure's three norms; eta_C, the contact boundary's, is part of the stress error).
 - Time: the error of the history update, embedded and propagated.  The explicit sums
   (3.2)-(3.3) take G at the left end point; the trapezoidal (second order) update differs
@@ -34,9 +34,9 @@ import logging
 import numpy as np
 
 from vpcontact.model.history import UPDATE_ERRORS, first_failure
-from vpcontact.model.recovery import space_indicators
 from vpcontact.observers import Observer
 from vpcontact.post.gamma3error import Gamma3TimeError
+from vpcontact.post.recovery import space_indicators
 
 log = logging.getLogger("vpcontact")
 

@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
+from vpcontact.io.output import SEPARATED_RATIO, U_ROUNDOFF
+
 
 def norm(problem, which: str) -> float:
     """A norm of the step record, reduced over ranks; collective.
@@ -82,10 +84,6 @@ def bulk_residual(problem) -> np.ndarray:
 SLIP_CODES = {"separated": -1, "stick": 0, "slip": 1}
 # slip in step n: a slip increment beyond SLIP_DELTAS delta (slip_threshold)
 SLIP_DELTAS = 10.0
-# separated: p_n <= SEPARATED_RATIO max p_n (the forces' round-off, as classify's)
-SEPARATED_RATIO = 1e-6
-# the displacements' round-off, relative to their largest value on Gamma3
-U_ROUNDOFF = 1e-9
 
 
 def slip_threshold(delta: float, u_scale: float) -> float:

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from vpcontact import kernels
-from vpcontact.solvers.threads import blas_threads
+from vpcontact.threads import blas_threads
 
 PCG_MIN = 1000              # Gamma3 dofs from which the factor is kept and reused by CG
 PCG_MAX_ITERATIONS = 15     # CG iterations worth about one factorisation (m ~ 3000)

@@ -26,7 +26,7 @@ from vpcontact.solvers.schur import (
     mirror_upper,
     spd_cholesky,
 )
-from vpcontact.solvers.threads import root_call
+from vpcontact.threads import root_call
 
 log = logging.getLogger("vpcontact")
 

@@ -334,7 +334,7 @@ def _schur_pair_cholesky(factor: GLastLDL) -> tuple[np.ndarray, np.ndarray] | No
     """
     from scipy.linalg.lapack import dlauum
 
-    from vpcontact.solvers.threads import blas_threads
+    from vpcontact.threads import blas_threads
     D_G = factor.D[factor.n - factor.m:]
     if not np.all(D_G > 0):
         return None
@@ -363,7 +363,7 @@ def spd_cholesky(S: np.ndarray) -> np.ndarray | None:
     """
     from scipy.linalg.lapack import dpotrf
 
-    from vpcontact.solvers.threads import blas_threads
+    from vpcontact.threads import blas_threads
     with blas_threads(large=len(S) > LAPACK_MIN):
         C, info = dpotrf(S, lower=1, clean=1)
     return C if info == 0 else None

@@ -17,6 +17,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from vpcontact.io.errors import StepSolveError
 from vpcontact.solvers.amg import InactiveSetAMG, rigid_body_modes
 from vpcontact.solvers.bulkresidual import BulkProductResidual
 from vpcontact.solvers.levels import SymmetricCopy, is_symmetric
@@ -51,20 +52,6 @@ STAGNATION = (4, 1e-6)
 RUNAWAY_HINT = ("the Newton iterate ran away (|u| beyond 1000 times the body's size): the "
                 "Newton matrix is (nearly) singular, e.g. a body free in a rigid motion that "
                 "only a contact not yet active holds")
-
-
-class StepSolveError(RuntimeError):
-    """A step solve of (3.4) failed (raised by every StepSolver); carries the SNES
-    converged reason, if SNES ran.
-
-    Args:
-        message: what failed, on one line where possible.
-        reason: the SNES converged reason (negative), or None.
-    """
-
-    def __init__(self, message: str, reason: int | None = None):
-        super().__init__(message)
-        self.reason = reason
 
 
 def describe_petsc_error(exc: Exception) -> str:

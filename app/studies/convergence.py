@@ -268,7 +268,7 @@ def check_cache_dir(cache_dir: Path | None, comm) -> None:
     """
     if cache_dir is None:
         return
-    from vpcontact.io.cachedirs import unusable
+    from vpcontact.cachepaths import unusable
     why = comm.bcast(unusable(Path(cache_dir)) if comm.rank == 0 else None, root=0)
     if why:
         raise CaseError(f"--cache-dir {cache_dir}: not a writable directory ({why})")

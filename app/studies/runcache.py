@@ -31,9 +31,9 @@ def default_cache_dir() -> Path:
     """The run cache of the convergence study.
 
     Returns:
-        app/io/cachedirs.py's cache root (``CACHE_SEARCH``, or its replacement).
+        app/cachepaths.py's cache root (``CACHE_SEARCH``, or its replacement).
     """
-    from vpcontact.io.cachedirs import cache_root
+    from vpcontact.cachepaths import cache_root
     return cache_root()
 
 

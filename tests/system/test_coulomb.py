@@ -30,12 +30,12 @@ from mpi4py import MPI
 
 from conftest import cli_in_process, make_case, paper_raw, run_case
 from vpcontact.io.checkpoint import Checkpoint
-from vpcontact.io.errors import CaseError
-from vpcontact.model.coulomb import MAX_ITERATIONS, CoulombPressure
+from vpcontact.io.errors import CaseError, StepSolveError
+from vpcontact.model.coulomb import CoulombPressure
 from vpcontact.observers import Checkpointer, Observer
 from vpcontact.post.quantities import contact_table
 from vpcontact.simulation import run
-from vpcontact.solvers.snesvi import StepSolveError
+from vpcontact.solvers.coulomb import MAX_ITERATIONS, CoulombFixedPoint
 
 P, MU, E, C_NU, DELTA = 8.0, 0.3, 1000.0, 100.0, 1e-7
 Q = 0.5 * MU * P
@@ -152,10 +152,11 @@ def test_fixed_point_that_does_not_converge_fails_the_step():
 
     fp = CoulombPressure.__new__(CoulombPressure)
     fp.problem = type("Problem", (), {"comm": Comm()})()
-    fp.mu, fp.p, fp.iterations, fp.floor = MU, np.zeros(3), 0, 0.0
+    fp.mu, fp.p = MU, np.zeros(3)
     fp.measure = lambda: np.full(3, 1.0 + Solver.calls % 2)
+    history = type("History", (), {"coulomb": fp, "set_coulomb_bound": lambda mu_p: None})
     with pytest.raises(StepSolveError, match="Coulomb friction: the fixed point"):
-        fp.solve(Solver(), lambda mu_p: None)
+        CoulombFixedPoint(Solver(), history, 0.0).solve()
     assert Solver.calls == MAX_ITERATIONS
 
 

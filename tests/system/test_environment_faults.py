@@ -93,9 +93,9 @@ def test_empty_or_relative_xdg_values_are_ignored(tmp_path, var, value):
     work, home = tmp_path / "work", tmp_path / "home"
     work.mkdir()
     code = ("from vpcontact.cli.entry import prepare_process; prepare_process(); "
-            "import matplotlib; from dolfinx import jit; from vpcontact.io import cachedirs; "
+            "import matplotlib; from dolfinx import jit; from vpcontact import cachepaths; "
             "print(jit.DOLFINX_DEFAULT_JIT_PARAMETERS['cache_dir'][0]); "
-            "print(cachedirs.cache_root()); print(matplotlib.get_cachedir())")
+            "print(cachepaths.cache_root()); print(matplotlib.get_cachedir())")
     env = {k: v for k, v in os.environ.items() if k not in CACHE_VARS}
     env.update(MPI_ENV, PYTHONPATH=str(ROOT), HOME=str(home), **{var: value})
     proc = subprocess.run([sys.executable, "-c", code], cwd=work, env=env,

@@ -1,4 +1,4 @@
-"""The a posteriori error estimate of every run (app/post/estimators.py, app/model/recovery.py):
+"""The a posteriori error estimate of every run (app/post/estimators.py, app/post/recovery.py):
 the space part vanishes on a homogeneous stress (patch test) and equals an independent numpy
 recovery on the paper case; the time part of Norton relaxation: its first step's closed
 form after the load's jump, and under a smooth load 0.9 to 1.1 times the true error;
@@ -269,8 +269,8 @@ def test_the_recovery_is_computed_once_a_step(monkeypatch):
     """The estimate and the eta output share one SpaceIndicators, which projects again only
     when u, sigma or kappa changed: an output step's second call costs no projection, and
     its result is the first's."""
-    from vpcontact.model import recovery
-    from vpcontact.model.outputfields import EtaOutput, owned_rows
+    from vpcontact.post import recovery
+    from vpcontact.post.outputfields import EtaOutput, owned_rows
     from vpcontact.simulation import Simulation
     sim = Simulation(make_case(mesh={"n": 4}, time={"N": 2}), MPI.COMM_WORLD)
     sim.setup()
@@ -330,7 +330,7 @@ def test_contact_boundary_term_equals_numpy():
     """The contact boundary's eta_C^2 on the Hertz cylinder equals the numpy sum of h_K
     ||sigma* nu - t_h||^2 over the Gamma3 facets to 1e-10, and is not round-off."""
     from vpcontact.case import load_case
-    from vpcontact.model.recovery import SpaceIndicators
+    from vpcontact.post.recovery import SpaceIndicators
     from vpcontact.simulation import Simulation
     if MPI.COMM_WORLD.size > 1:
         pytest.skip("serial numpy reference")

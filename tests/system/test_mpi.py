@@ -67,8 +67,8 @@ import pathlib
 import sys
 import time
 from mpi4py import MPI
-from vpcontact.solvers import threads
-from vpcontact.solvers.snesvi import StepSolveError
+from vpcontact import threads
+from vpcontact.io.errors import StepSolveError
 comm = MPI.COMM_WORLD
 
 def busy():

@@ -96,7 +96,8 @@ def test_adaptive_rejection_restores_every_history(monkeypatch):
     dependence active, the result must equal the fixed grid N = 4 to round-off."""
     from conftest import ROOT
     from vpcontact.case import load_raw
-    from vpcontact.solvers.snesvi import SNESVISolver, StepSolveError
+    from vpcontact.io.errors import StepSolveError
+    from vpcontact.solvers.snesvi import SNESVISolver
 
     raw = load_raw(ROOT / "cases" / "memory.yaml")
     raw["mesh"]["n"] = 8

@@ -133,7 +133,8 @@ def test_duck_typed_law_runs():
     from mpi4py import MPI
 
     from conftest import make_case, paper_raw
-    from vpcontact.model.lawmodule import forget_law_module, load_law_module
+    from vpcontact.io.lawfile import forget_law_module
+    from vpcontact.model.lawmodule import load_law_module
     from vpcontact.model.problem import ContactProblem
     from vpcontact.simulation import build_mesh
     raw = paper_raw()
@@ -267,7 +268,8 @@ def test_fingerprint(part):
 
     from conftest import make_case, paper_raw
     from vpcontact.io.checkpoint import case_fingerprint
-    from vpcontact.model.lawmodule import forget_law_module, load_law_module
+    from vpcontact.io.lawfile import forget_law_module
+    from vpcontact.model.lawmodule import load_law_module
     case = make_case(mesh={"n": 4}, time={"N": 4})
     assert case_fingerprint(case) == _sections_hash(case)
     raw = paper_raw()

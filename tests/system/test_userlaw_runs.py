@@ -255,7 +255,8 @@ def test_run_cache_key_follows_the_law_module(tmp_path):
     edited module is another law (another key), the same bytes elsewhere the same key; a
     case without a python law keeps the key of its sections alone."""
     from vpcontact.case import load_raw, validate
-    from vpcontact.model.lawmodule import forget_law_module, prepare_law_module
+    from vpcontact.io.lawfile import forget_law_module
+    from vpcontact.model.lawmodule import prepare_law_module
     from vpcontact.studies.runcache import cache_key
     raw = load_raw(PAPER_CASE, ["mesh.n=4", "time.N=4"])
     plain = cache_key(validate(raw, PAPER_CASE))

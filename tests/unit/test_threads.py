@@ -5,7 +5,7 @@ import os
 import pytest
 from mpi4py import MPI
 
-from vpcontact.solvers import threads
+from vpcontact import threads
 
 threadpoolctl = pytest.importorskip("threadpoolctl")
 

@@ -11,8 +11,7 @@ import logging
 
 import numpy as np
 
-from vpcontact import kernels
-from vpcontact.solvers import threads
+from vpcontact import kernels, threads
 from vpcontact.solvers.dense import cholesky_solve
 from vpcontact.solvers.schur import (
     GLastLDL,

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vpcontact.solvers.threads import GAMMA3_ROOT
+from vpcontact.threads import GAMMA3_ROOT
 
 
 class Gamma3Layout:

@@ -34,7 +34,7 @@ from vpcontact.solvers.dense import (  # the one-body direction's kept factor an
     symmetric_product,
 )
 from vpcontact.solvers.nodal import NodalContact
-from vpcontact.solvers.threads import GAMMA3_ROOT
+from vpcontact.threads import GAMMA3_ROOT
 
 
 class PairRightHandSide:

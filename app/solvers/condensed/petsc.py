@@ -11,7 +11,7 @@ import logging
 
 import numpy as np
 
-from vpcontact.solvers import threads
+from vpcontact import threads
 from vpcontact.solvers.options import FAST_PREFIX, PREFIX, push_options, remove_options
 from vpcontact.solvers.schur import gamma3_schur_pair
 

@@ -14,11 +14,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from vpcontact import kernels
+from vpcontact import kernels, threads
+from vpcontact.io.errors import StepSolveError
 from vpcontact.model.contact_laws import ContactLaw
-from vpcontact.solvers import dense, threads
+from vpcontact.solvers import dense
 from vpcontact.solvers.nodal import NodalContact
-from vpcontact.solvers.snesvi import StepSolveError
 
 _EPS = np.finfo(float).eps
 MAX_ITERATIONS = 200        # of the projected Newton method, per step

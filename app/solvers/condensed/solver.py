@@ -23,6 +23,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from vpcontact.forms.elasticity import eps
+from vpcontact.io.errors import StepSolveError
 from vpcontact.solvers.choice import held_by_contact
 from vpcontact.solvers.condensed.caps import CapRightHandSide, cap_stiffness
 from vpcontact.solvers.condensed.condensation import factorise
@@ -39,7 +40,6 @@ from vpcontact.solvers.condensed.problem import Gamma3Problem
 from vpcontact.solvers.condensed.rhs import StepRightHandSide
 from vpcontact.solvers.nodal import gamma3_points
 from vpcontact.solvers.pairmap import PairVariables
-from vpcontact.solvers.snesvi import StepSolveError
 
 log = logging.getLogger("vpcontact")
 

@@ -4,7 +4,7 @@
 The recovered field f* of a cellwise field f_h is its L2 projection onto P1 with the lumped
 (row-sum) mass: f*_i = (f_h, phi_i) / (1, phi_i), the volume-weighted mean of the cells
 around node i; a uniform field is reproduced exactly.  ``sigma_nodal`` of solution.xdmf is
-this projection of sigma (app/model/outputfields.py), and the space indicators compare the
+this projection of sigma (app/post/outputfields.py), and the space indicators compare the
 three fields of the paper's error measure with theirs, cell by cell:
 
     eta_Q,K = ||sigma* - sigma_h||_L2(K)          (Frobenius, the norm ||.||_Q)

@@ -17,7 +17,7 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
-from vpcontact.model.recovery import LumpedProjection, space_indicators
+from vpcontact.post.recovery import LumpedProjection, space_indicators
 
 
 def owned_rows(problem) -> np.ndarray:
@@ -190,7 +190,7 @@ class NodalStressOutput:
     """``sigma_nodal``: the stress averaged at the nodes (P1 tensor, N/m^2), the L2
     projection of the DG0 sigma onto P1 with the lumped (row-sum) mass: sigma_i = (sigma,
     phi_i) / (1, phi_i), the volume-weighted mean of the cells around node i (a uniform
-    stress is reproduced exactly; app/model/recovery.py: LumpedProjection).  In 2D plane
+    stress is reproduced exactly; app/post/recovery.py: LumpedProjection).  In 2D plane
     strain a 3 x 3 tensor with sigma_33; in 2D plane stress the 2 x 2 one (sigma_33 = 0).
 
     Args:
@@ -226,7 +226,7 @@ class NodalStressOutput:
 
 class EtaOutput:
     """``eta``: the space error indicator per cell (DG0 scalar), (eta_Q,K^2 + eta_V,K^2 +
-    eta_Y,K^2)^(1/2) of app/model/recovery.py (the stress, strain and kappa parts of the
+    eta_Y,K^2)^(1/2) of app/post/recovery.py (the stress, strain and kappa parts of the
     paper's error measure, each against its recovered nodal field).
 
     Args:
