@@ -201,11 +201,13 @@ def _add_run(sub) -> None:
                      help="run in passes from t = 0 until the error estimate est_max is at "
                           "most TOL times the solution's scale max_n (||sigma_n||_Q + "
                           "||u_n||_V + ||kappa_n||_Y): after each pass the built-in mesh is "
-                          "refined where the space indicator is large and/or k halved, by "
-                          "the estimate's parts; passes.csv and passes.json, the final "
+                          "refined where the space indicator is large and/or the time steps "
+                          "split where the step's time error is large, by the estimate's "
+                          "parts; passes.csv and passes.json, the final "
                           "pass's outputs in DIR, the others in DIR/pass_<i>")
-    run.add_argument("--max-passes", type=int_range(1, 32), default=8, metavar="N",
-                     help="with --tol: the most passes (default 8)")
+    run.add_argument("--max-passes", type=int_range(1, 32), default=16, metavar="N",
+                     help="with --tol: the most passes (default 16; a pass that refines the "
+                          "mesh about doubles its cells)")
 
 
 def _add_plot_check_info(sub) -> None:
