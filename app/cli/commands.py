@@ -365,6 +365,7 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
     from mpi4py import MPI
 
     from vpcontact.studies import convergence as cv
+    from vpcontact.studies import errorwall
     from vpcontact.studies.runcache import default_cache_dir
 
     cache_dir = None if args.no_cache else Path(args.cache_dir or default_cache_dir())
@@ -374,6 +375,7 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
         levels, reference = cv.resolve_levels(c, args.levels, args.reference)
         if reference >= 1:            # a mesh.file's finest level within the size limit
             cv.check_level_sizes(c, MPI.COMM_WORLD, "--reference", reference)
+        errorwall.check_adaptive(c, args.adaptive, levels, args.vary)
         cv.plan_runs(levels, reference, args.vary, c, args.deltas)
         cv.check_cache_dir(cache_dir, MPI.COMM_WORLD)
         chosen.update(levels=levels, reference=reference)
@@ -385,6 +387,7 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
     log.info("vpcontact %s: convergence study of %s -> %s (cache: %s, %d MPI rank%s)",
              __version__, args.case, outdir, cache_dir or "off", comm.size,
              "s" if comm.size > 1 else "")
+    t0 = time.perf_counter()
     try:
         res = cv.study(raw, args.case, chosen["levels"], chosen["reference"], args.vary,
                        args.deltas, comm, cache_dir, petsc_cli)
@@ -392,6 +395,8 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
             cv.write_csv(outdir / "convergence.csv", res)
             cv.write_markdown(outdir / "convergence.md", res, case.name)
             cv.write_plot(outdir / "convergence.png", res)
+        if args.adaptive:
+            _error_vs_wall(args, comm, raw, res, outdir, petsc_cli)
     except CaseError as exc:
         return error(str(exc), EXIT_BAD_INPUT)
     except RuntimeError as exc:
@@ -405,9 +410,28 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
                      "-" if r["rate"] is None else f"{r['rate']:.3f}",
                      "-" if r["effectivity"] is None else f"{r['effectivity']:.3f}",
                      r["solve_s"], " (cached)" if r["cached"] else "")
-        log.info("done in %.1f s: %s/{%s}", res["total_s"], outdir, ", ".join(CONVERGENCE_FILES))
+        written = CONVERGENCE_FILES if args.adaptive else CONVERGENCE_FILES[:3]
+        log.info("done in %.1f s: %s/{%s}", time.perf_counter() - t0, outdir,
+                 ", ".join(written))
     comm.barrier()
     return 0
+
+
+def _error_vs_wall(args, comm, raw: dict, res: dict, outdir: Path, petsc_cli: dict) -> None:
+    """convergence --adaptive: the passes of each tolerance, error_vs_wall.csv and .png
+    (app/studies/errorwall.py); collective."""
+    from vpcontact.studies import errorwall
+    rows = errorwall.study_rows(res, args.adaptive, outdir, comm, raw, args.case, petsc_cli,
+                                args.max_passes)
+    if comm.rank == 0:
+        errorwall.write_csv(outdir / "error_vs_wall.csv", rows)
+        errorwall.write_plot(outdir / "error_vs_wall.png", rows, args.adaptive)
+        for r in rows:
+            if r["kind"] == "adaptive":
+                log.info("run --tol %g pass %d: %d cells, %d steps, estimate / scale %.3g, "
+                         "cumulative wall %.2f s (steps %.2f s)", r["tol"], r["pass"],
+                         r["cells"], r["steps"], r["relative"] or float("nan"), r["wall_s"],
+                         r["steps_s"])
 
 
 def _convergence_interrupted(exc: KeyboardInterrupt, cache_dir: Path | None,
