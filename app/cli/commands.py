@@ -425,7 +425,7 @@ def _error_vs_wall(args, comm, raw: dict, res: dict, outdir: Path, petsc_cli: di
                                 args.max_passes)
     if comm.rank == 0:
         errorwall.write_csv(outdir / "error_vs_wall.csv", rows)
-        errorwall.write_plot(outdir / "error_vs_wall.png", rows, args.adaptive)
+        errorwall.write_plot(outdir / "error_vs_wall.png", rows, args.adaptive, res["file"])
         for r in rows:
             if r["kind"] == "adaptive":
                 log.info("run --tol %g pass %d: %d cells, %d steps, estimate / scale %.3g, "

@@ -146,27 +146,41 @@ def adaptive_run(raw: dict, source: str, level: int, delta: float, tol: float, c
 
 
 def uniform_rows(res: dict, delta: float) -> list[dict]:
-    """The rows of the uniform levels of one delta.
+    """The rows of the uniform levels of one delta, and of the reference if it has that
+    delta (kind "reference": its estimate, no Error).
 
     Args:
         res: the result of convergence.study.
         delta: the delta.
 
     Returns:
-        One dict per level (COLUMNS).
+        One dict per level (COLUMNS), then the reference's.
     """
     out = []
     for r in (r for r in res["rows"] if r["delta"] == delta):
-        scale = r.get("scale")
-        out.append({"kind": "uniform", "delta": delta, "level": r["level"],
-                    "cells": None, "dofs": r["dofs"], "steps": r["steps"],
-                    "wall_s": r["setup_s"] + r["solve_s"], "steps_s": r["solve_s"],
-                    "estimate": r["estimate"], "est_time": r["est_time"],
-                    "est_space": r["est_space"], "scale": scale,
-                    "relative": r["estimate"] / scale if scale and r["estimate"] is not None
-                    else None, "error": r["error"],
-                    "error_relative": r["error"] / scale if scale else None})
+        out.append(_uniform_row("uniform", delta, r["level"], r["dofs"], r["steps"],
+                                r["setup_s"], r["solve_s"], r, r["error"]))
+    ref = res["reference"]
+    if res["ref_delta"] == delta and ref.estimate is not None:
+        e = ref.estimate
+        out.append(_uniform_row("reference", delta, res["reference_level"], ref.dofs, ref.N,
+                                ref.setup_s, ref.solve_s,
+                                {"estimate": e["estimate"], "est_time": e["time"],
+                                 "est_space": e["space"], "scale": e.get("scale")}, None))
     return out
+
+
+def _uniform_row(kind, delta, level, dofs, steps, setup_s, solve_s, est: dict,
+                 error) -> dict:
+    """A row of a uniform run: its wall times, its estimate and (a level's) Error, each
+    relative to the run's scale."""
+    scale = est["scale"]
+    return {"kind": kind, "delta": delta, "level": level, "dofs": dofs, "steps": steps,
+            "wall_s": setup_s + solve_s, "steps_s": solve_s, "estimate": est["estimate"],
+            "est_time": est["est_time"], "est_space": est["est_space"], "scale": scale,
+            "relative": est["estimate"] / scale if scale and est["estimate"] is not None
+            else None, "error": error,
+            "error_relative": error / scale if scale and error is not None else None}
 
 
 def adaptive_rows(tol: float, delta: float, passes_json: dict, outdir: Path) -> list[dict]:
@@ -206,13 +220,14 @@ def write_csv(path: Path, rows: list[dict]) -> None:
     atomic_write(path, csv_text(COLUMNS, rows))
 
 
-def figure(rows: list[dict], tols: list[float]):
+def figure(rows: list[dict], tols: list[float], file: bool = False):
     """Estimate / scale (and the uniform levels' Error / scale) against wall time, log-log:
     the whole cost (left) and the steps only (right), a tolerance line per run to it.
 
     Args:
         rows: uniform_rows and adaptive_rows.
         tols: the tolerances.
+        file: the levels are refinements of a mesh.file (their labels).
 
     Returns:
         The matplotlib Figure (laid out, not saved).
@@ -224,24 +239,25 @@ def figure(rows: list[dict], tols: list[float]):
     from vpcontact.studies.convergence import _log_ticks
 
     fig, axes = plt.subplots(1, 2, figsize=(11.5, 4.6))
-    uni = [r for r in rows if r["kind"] == "uniform" and r["relative"] is not None]
+    uni = [r for r in rows if r["kind"] in ("uniform", "reference")
+           and r["relative"] is not None]
     for ax, key in zip(axes, ("wall_s", "steps_s")):
         x = [max(r[key], 1e-4) for r in uni]
         ax.loglog(x, [r["relative"] for r in uni], "o-", color="k",
-                  label="uniform h = k: estimate")
-        ax.loglog(x, [r["error_relative"] for r in uni], "o--", color="grey", mfc="none",
-                  label="uniform h = k: true Error")
+                  label="uniform levels (and the reference): estimate")
+        ax.loglog([xi for xi, r in zip(x, uni) if r["error"] is not None],
+                  [r["error_relative"] for r in uni if r["error"] is not None], "o--",
+                  color="grey", mfc="none", label="uniform levels: true Error")
         for r, xi in zip(uni, x):
-            ax.annotate(f"1/{r['level']}" if isinstance(r["level"], int) and r["level"] > 0
-                        and r["cells"] is None else str(r["level"]), (xi, r["relative"]),
-                        textcoords="offset points", xytext=(4, 4), fontsize=7)
+            ax.annotate(_level_name(r, file), (xi, r["relative"]), textcoords="offset points",
+                        xytext=(4, 4), fontsize=7)
         for i, tol in enumerate(tols):
             ad = [r for r in rows if r["kind"] == "adaptive" and r["tol"] == tol
                   and r["relative"] is not None]
             colour = f"C{i}"
             ax.loglog([max(r[key], 1e-4) for r in ad], [r["relative"] for r in ad], "s-",
-                      color=colour, label=f"run --tol {tol:g}: passes' estimate")
-            ax.axhline(tol, color=colour, ls=":", lw=1)
+                      color=colour, label=f"run --tol {tol:g}: the passes' estimates")
+            ax.axhline(tol, color=colour, ls=":", lw=1, label=f"tol {tol:g}")
         _log_ticks(ax.xaxis)
         _log_ticks(ax.yaxis)
         ax.grid(True, which="both", alpha=0.3)
@@ -255,18 +271,25 @@ def figure(rows: list[dict], tols: list[float]):
     return fig
 
 
-def write_plot(path: Path, rows: list[dict], tols: list[float]) -> None:
+def _level_name(row: dict, file: bool) -> str:
+    """A uniform run's label: h = k = 1/L (r = L for a mesh.file's refinements)."""
+    name = f"r = {row['level']}" if file else f"1/{row['level']}"
+    return name + (" (reference)" if row["kind"] == "reference" else "")
+
+
+def write_plot(path: Path, rows: list[dict], tols: list[float], file: bool = False) -> None:
     """error_vs_wall.png (matplotlib, Agg), atomically.
 
     Args:
         path: the PNG file.
         rows: uniform_rows and adaptive_rows.
         tols: the tolerances.
+        file: the levels are refinements of a mesh.file.
     """
     import matplotlib.pyplot as plt
 
     from vpcontact.io.files import write_replacing
-    fig = figure(rows, tols)
+    fig = figure(rows, tols, file)
     write_replacing(path, lambda tmp: fig.savefig(tmp, dpi=120))
     plt.close(fig)
 
