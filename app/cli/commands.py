@@ -395,14 +395,18 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
             cv.write_csv(outdir / "convergence.csv", res)
             cv.write_markdown(outdir / "convergence.md", res, case.name)
             cv.write_plot(outdir / "convergence.png", res)
-        if args.adaptive:
-            _error_vs_wall(args, comm, raw, res, outdir, petsc_cli)
+        failed = _error_vs_wall(args, comm, raw, res, outdir, petsc_cli) if args.adaptive \
+            else None
     except CaseError as exc:
         return error(str(exc), EXIT_BAD_INPUT)
     except RuntimeError as exc:
         return error(str(exc), EXIT_FAILED)
     except KeyboardInterrupt as exc:
         return interrupted(_convergence_interrupted(exc, cache_dir, outdir))
+    except errorwall.PassesInterrupted as exc:
+        return interrupted(f"convergence --adaptive: a signal stopped {exc}; the study's "
+                           f"report is written (convergence.csv, .md, .png in {outdir}), "
+                           "error_vs_wall.csv and .png are not")
     if comm.rank == 0:
         for r in res["rows"]:
             log.info("delta %-8g h %-9.5g k %-9.5g Error %.6g  rate %s  effectivity %s  wall "
@@ -414,15 +418,25 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
         log.info("done in %.1f s: %s/{%s}", time.perf_counter() - t0, outdir,
                  ", ".join(written))
     comm.barrier()
-    return 0
+    return error(failed, EXIT_FAILED, rank=comm.rank) if failed else 0
 
 
-def _error_vs_wall(args, comm, raw: dict, res: dict, outdir: Path, petsc_cli: dict) -> None:
+def _error_vs_wall(args, comm, raw: dict, res: dict, outdir: Path,
+                   petsc_cli: dict) -> str | None:
     """convergence --adaptive: the passes of each tolerance, error_vs_wall.csv and .png
-    (app/studies/errorwall.py); collective."""
+    (app/studies/errorwall.py); collective.
+
+    Returns:
+        None, or the error line of a pass that failed (its rows are in the files).
+    """
     from vpcontact.studies import errorwall
     rows = errorwall.study_rows(res, args.adaptive, outdir, comm, raw, args.case, petsc_cli,
                                 args.max_passes)
+    bad = [r for r in rows or [] if r.get("status") not in (None, "completed")]
+    failed = comm.bcast(f"convergence --adaptive {bad[0]['tol']:g}: pass {bad[0]['pass']} "
+                        f"{bad[0]['status']} (see {errorwall.tol_dir(outdir, bad[0]['tol'])}"
+                        "/passes.json); error_vs_wall.csv and .png show the passes up to it"
+                        if bad else None, root=0)
     if comm.rank == 0:
         errorwall.write_csv(outdir / "error_vs_wall.csv", rows)
         errorwall.write_plot(outdir / "error_vs_wall.png", rows, args.adaptive, res["file"])
@@ -432,6 +446,7 @@ def _error_vs_wall(args, comm, raw: dict, res: dict, outdir: Path, petsc_cli: di
                          "cumulative wall %.2f s (steps %.2f s)", r["tol"], r["pass"],
                          r["cells"], r["steps"], r["relative"] or float("nan"), r["wall_s"],
                          r["steps_s"])
+    return failed
 
 
 def _convergence_interrupted(exc: KeyboardInterrupt, cache_dir: Path | None,

@@ -36,9 +36,22 @@ from vpcontact.io.output import csv_text
 
 log = logging.getLogger("vpcontact")
 
-COLUMNS = ["kind", "tol", "delta", "level", "pass", "cells", "dofs", "steps", "wall_s",
-           "steps_s", "estimate", "est_time", "est_space", "scale", "relative", "error",
-           "error_relative", "met"]
+COLUMNS = ["kind", "tol", "delta", "level", "pass", "status", "cells", "dofs", "steps",
+           "wall_s", "steps_s", "estimate", "est_time", "est_space", "scale", "relative",
+           "error", "error_relative", "met"]
+
+
+class PassesInterrupted(Exception):
+    """A signal (SIGINT, SIGTERM) stopped the passes of a tolerance.
+
+    Args:
+        tol: the tolerance.
+        where: the directory of its passes.
+    """
+
+    def __init__(self, tol: float, where: Path):
+        super().__init__(f"the passes of --adaptive {tol:g} ({where})")
+        self.tol, self.where = tol, where
 
 
 def tol_dir(outdir: Path, tol: float) -> Path:
@@ -202,7 +215,8 @@ def adaptive_rows(tol: float, delta: float, passes_json: dict, outdir: Path) -> 
         summary = json.loads((outdir / f"pass_{p['index']}" / "summary.json").read_text())
         steps += summary["solve_s"]
         out.append({"kind": "adaptive", "tol": tol, "delta": delta, "pass": p["index"],
-                    "cells": p["cells"], "dofs": p["dofs"], "steps": p["steps"],
+                    "status": p["status"], "cells": p["cells"], "dofs": p["dofs"],
+                    "steps": p["steps"],
                     "wall_s": wall, "steps_s": steps, "estimate": p["est_max"],
                     "est_time": p["est_time"], "est_space": p["est_space"],
                     "scale": p["scale"], "relative": p["relative"],
@@ -311,13 +325,21 @@ def study_rows(res: dict, tols: list[float], outdir: Path, comm, raw: dict, sour
 
     Returns:
         uniform_rows followed by each tolerance's adaptive_rows (rank 0).
+
+    Raises:
+        PassesInterrupted: a signal stopped a pass (or came between two).
     """
     delta = res["deltas"][0]
     rows = uniform_rows(res, delta)
     for tol in tols:
         where = tol_dir(outdir, tol)
-        passes = adaptive_run(raw, source, res["levels"][0], delta, tol, comm, where,
-                              petsc_cli, max_passes)
+        try:
+            passes = adaptive_run(raw, source, res["levels"][0], delta, tol, comm, where,
+                                  petsc_cli, max_passes)
+        except KeyboardInterrupt:
+            raise PassesInterrupted(tol, where) from None
+        if passes["passes"][-1]["status"] == "interrupted":
+            raise PassesInterrupted(tol, where)
         if comm.rank == 0:
             rows += adaptive_rows(tol, delta, passes, where)
     return rows if comm.rank == 0 else None

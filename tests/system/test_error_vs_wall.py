@@ -48,15 +48,15 @@ def test_adaptive_rows_are_the_passes(study):
         assert float(r["scale"]) == p["scale"] and float(r["relative"]) == p["relative"]
         assert float(r["wall_s"]) == pytest.approx(wall, rel=1e-12)
         assert float(r["steps_s"]) == pytest.approx(steps, rel=1e-12)
-        assert r["error"] == ""                 # no true Error for a pass (module docstring)
+        assert r["error"] == "" and r["status"] == p["status"] == "completed"
     assert [r["met"] for r in rows] == [""] * (len(rows) - 1) + ["True"]
     assert float(rows[-1]["relative"]) <= 0.3 < float(rows[-2]["relative"])
 
 
 def test_uniform_rows_are_the_study_table(study):
     """One row per level with the study's estimate and Error (convergence.csv), relative
-    to the level's scale, and the reference's row (no Error); the first pass is level 4's run again (h = k = 1/4): the same
-    estimate and scale."""
+    to the level's scale, and the reference's row (no Error); the first pass is level 4's
+    run again (h = k = 1/4): the same estimate and scale."""
     table = _csv(study / "convergence.csv")
     rows = _csv(study / "error_vs_wall.csv")
     uni = [r for r in rows if r["kind"] == "uniform"]
