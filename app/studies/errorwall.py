@@ -252,7 +252,7 @@ def figure(rows: list[dict], tols: list[float], file: bool = False):
 
     from vpcontact.studies.convergence import _log_ticks
 
-    fig, axes = plt.subplots(1, 2, figsize=(11.5, 4.6))
+    fig, axes = plt.subplots(1, 2, figsize=(11.5, 5.4))
     uni = [r for r in rows if r["kind"] in ("uniform", "reference")
            and r["relative"] is not None]
     for ax, key in zip(axes, ("wall_s", "steps_s")):
@@ -276,12 +276,12 @@ def figure(rows: list[dict], tols: list[float], file: bool = False):
         _log_ticks(ax.yaxis)
         ax.grid(True, which="both", alpha=0.3)
         ax.set_ylabel("estimate (or Error) / scale")
-        ax.legend(fontsize=8)
     axes[0].set_xlabel("wall time [s]: set-up + steps (passes: cumulative)")
     axes[1].set_xlabel("wall time [s]: steps only (passes: cumulative)")
     axes[0].set_title("error against wall time, uniform vs adaptive")
     axes[1].set_title("the same, time steps only")
-    fig.tight_layout()
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="lower center", ncol=3, fontsize=8)
+    fig.tight_layout(rect=(0, 0.12, 1, 1))        # the legend below both panels
     return fig
 
 
