@@ -117,3 +117,33 @@ def test_cases_and_options_the_passes_cannot_run_are_refused(tmp_path):
     text = _refused(tmp_path, "--levels", "1", "--reference", "2", "--adaptive", "0.3",
                     case=PAPER_CASE.parent / "hertz_cylinder.yaml")
     assert "--levels 0" in text
+
+
+def test_mpirun_equals_serial(study, tmp_path):
+    """Under mpirun -n 2 the same rows: levels, passes, cells, steps, estimates to 1e-12."""
+    out = tmp_path / "np2"
+    proc = run_cli(["convergence", PAPER_CASE, *CHEAP, "--adaptive", "0.3", "--out", out,
+                    "--no-cache", "--quiet"], nprocs=2)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    serial, parallel = _csv(study / "error_vs_wall.csv"), _csv(out / "error_vs_wall.csv")
+    assert [(r["kind"], r["level"], r["pass"], r["cells"], r["steps"]) for r in parallel] == \
+        [(r["kind"], r["level"], r["pass"], r["cells"], r["steps"]) for r in serial]
+    for a, b in zip(serial, parallel):
+        assert float(b["estimate"]) == pytest.approx(float(a["estimate"]), rel=1e-12)
+
+
+def test_a_mesh_file_starts_from_its_mesh_as_read(tmp_path):
+    """hertz_cylinder (mesh.size 8, one step): the first pass is level 0 (the mesh as read)
+    again, the passes refine the mesh only (one step each) until 0.15 is met."""
+    out = tmp_path / "hertz"
+    proc = run_cli(["convergence", PAPER_CASE.parent / "hertz_cylinder.yaml", "--set",
+                    "mesh.size=8", "--levels", "0", "1", "--reference", "2", "--adaptive",
+                    "0.15", "--out", out, "--no-cache", "--quiet"])
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    rows = _csv(out / "error_vs_wall.csv")
+    level0 = next(r for r in rows if r["kind"] == "uniform" and r["level"] == "0")
+    passes = [r for r in rows if r["kind"] == "adaptive"]
+    assert passes[0]["dofs"] == level0["dofs"] and len(passes) >= 2
+    assert float(passes[0]["estimate"]) == pytest.approx(float(level0["estimate"]), rel=1e-10)
+    assert {r["steps"] for r in passes} == {"1"} and passes[-1]["met"] == "True"
+    assert [int(r["cells"]) for r in passes] == sorted({int(r["cells"]) for r in passes})
