@@ -446,6 +446,9 @@ def _error_vs_wall(args, comm, raw: dict, res: dict, outdir: Path,
                          "cumulative wall %.2f s (steps %.2f s)", r["tol"], r["pass"],
                          r["cells"], r["steps"], r["relative"] or float("nan"), r["wall_s"],
                          r["steps_s"])
+            if r["kind"] == "adaptive" and r["met"] is False:
+                log.warning("run --tol %g: not reached after %d passes (raise --max-passes)",
+                            r["tol"], r["pass"])
     return failed
 
 

@@ -12,9 +12,10 @@ error_vs_wall.png then put side by side:
 - one row per adaptive pass: the cumulative wall time of the passes so far (the sum of
   passes.json's wall_s: the stop rule needs them all) and the pass's estimate and scale.
   The passes have no true Error: their meshes are refined locally by bisection
-  (meshes/adapt.py), which does not nest in the reference's uniform grid, and from h =
-  1/512 at the corners finer than it, so the exact prolongation of ``run_error`` does not
-  apply; their time grids (k halved per pass) can also be finer than the reference's.
+  (meshes/adapt.py), which does not nest in the reference's uniform grid and near the
+  corners is finer than it (h = 1/512 at tol 0.05 against 1/128), so the exact
+  prolongation of ``run_error`` does not apply; their time grids (k halved per pass) can
+  also be finer than the reference's, whose time points are then not all of theirs.
 
 Wall times: ``wall_s`` is what a run costs without outputs: a uniform level's set-up
 (mesh, forms, matrices) plus its steps, a pass's whole time (passes.json's wall_s: mesh
@@ -128,7 +129,7 @@ def _validated(raw: dict, source: str, petsc_cli: dict):
 
 
 def adaptive_run(raw: dict, source: str, level: int, delta: float, tol: float, comm,
-                 outdir: Path, petsc_cli: dict, max_passes: int) -> list[dict]:
+                 outdir: Path, petsc_cli: dict, max_passes: int) -> dict:
     """The passes of ``run --tol`` for one tolerance (collective), without outputs but each
     pass's summary.json (for its steps' time).
 
@@ -144,15 +145,20 @@ def adaptive_run(raw: dict, source: str, level: int, delta: float, tol: float, c
         max_passes: the most passes.
 
     Returns:
-        The rows of passes.json (on every rank).
+        The content of passes.json: tol, met, theta and the passes' rows (on every rank).
     """
     from vpcontact.observers import RunFiles
     from vpcontact.studies.tolerance import run_passes
     raw0, case = start_case(raw, level, delta, source, petsc_cli)
     log.info("adaptive: run --tol %g from %s (delta = %g) -> %s", tol,
              "the mesh.file as read" if case.mesh.file else f"h = k = 1/{level}", delta, outdir)
-    run_passes(raw0, case, comm, tol, max_passes, outdir, lambda: [RunFiles()],
-               lambda r, s: _validated(r, s, petsc_cli))
+    loglevel = log.level
+    log.setLevel(max(loglevel, logging.WARNING))   # the passes' lines at the end, as the study
+    try:
+        run_passes(raw0, case, comm, tol, max_passes, outdir, lambda: [RunFiles()],
+                   lambda r, s: _validated(r, s, petsc_cli))
+    finally:
+        log.setLevel(loglevel)
     comm.barrier()
     rows = json.loads((outdir / "passes.json").read_text()) if comm.rank == 0 else None
     return comm.bcast(rows, root=0)

@@ -147,3 +147,15 @@ def test_a_mesh_file_starts_from_its_mesh_as_read(tmp_path):
     assert float(passes[0]["estimate"]) == pytest.approx(float(level0["estimate"]), rel=1e-10)
     assert {r["steps"] for r in passes} == {"1"} and passes[-1]["met"] == "True"
     assert [int(r["cells"]) for r in passes] == sorted({int(r["cells"]) for r in passes})
+
+
+def test_a_tolerance_not_reached_is_said(tmp_path):
+    """--max-passes 2 too few for 0.3: a warning, the two passes in the csv, the last not
+    met; the study's files are complete (exit 0)."""
+    out = tmp_path / "few"
+    proc = run_cli(["convergence", PAPER_CASE, *CHEAP, "--adaptive", "0.3", "--max-passes",
+                    "2", "--out", out, "--no-cache"])
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "run --tol 0.3: not reached after 2 passes" in proc.stdout + proc.stderr
+    rows = [r for r in _csv(out / "error_vs_wall.csv") if r["kind"] == "adaptive"]
+    assert [r["met"] for r in rows] == ["", "False"]
