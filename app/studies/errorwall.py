@@ -10,12 +10,13 @@ error_vs_wall.png then put side by side:
   estimate est_max and its true Error (the study's, against the reference), each also
   relative to the level's scale max_n (||sigma_n||_Q + ||u_n||_V + ||kappa_n||_Y);
 - one row per adaptive pass: the cumulative wall time of the passes so far (the sum of
-  passes.json's wall_s: the stop rule needs them all) and the pass's estimate and scale.
-  The passes have no true Error: their meshes are refined locally by bisection
-  (meshes/adapt.py), which does not nest in the reference's uniform grid and near the
-  corners is finer than it (h = 1/512 at tol 0.05 against 1/128), so the exact
-  prolongation of ``run_error`` does not apply; their time grids (k halved per pass) can
-  also be finer than the reference's, whose time points are then not all of theirs.
+  passes.json's wall_s: the stop rule needs them all) and the pass's estimate and scale;
+  the last pass also has its true Error against the study's reference where it is
+  defined as the uniform levels' is: its mesh, refined locally by bisection
+  (meshes/adapt.py), does not nest in the reference grid, so the Error is integrated
+  exactly on the overlay of the two meshes (app/studies/overlay.py), over the pass's time
+  points if they are all reference time points (none otherwise: k halved per pass can be
+  finer than the reference's; none for a mesh.file study either).
 
 Wall times: ``wall_s`` is what a run costs without outputs: a uniform level's set-up
 (mesh, forms, matrices) plus its steps, a pass's whole time (passes.json's wall_s: mesh
@@ -29,6 +30,7 @@ import copy
 import dataclasses
 import json
 import logging
+import time
 from pathlib import Path
 
 from vpcontact.io.errors import CaseError
@@ -129,7 +131,7 @@ def _validated(raw: dict, source: str, petsc_cli: dict):
 
 
 def adaptive_run(raw: dict, source: str, level: int, delta: float, tol: float, comm,
-                 outdir: Path, petsc_cli: dict, max_passes: int) -> dict:
+                 outdir: Path, petsc_cli: dict, max_passes: int) -> tuple[dict, object]:
     """The passes of ``run --tol`` for one tolerance (collective), without outputs but each
     pass's summary.json (for its steps' time).
 
@@ -145,23 +147,31 @@ def adaptive_run(raw: dict, source: str, level: int, delta: float, tol: float, c
         max_passes: the most passes.
 
     Returns:
-        The content of passes.json: tol, met, theta and the passes' rows (on every rank).
+        (the content of passes.json: tol, met, theta and the passes' rows, on every rank;
+        the last pass's overlay.MeshSamples, its samples on rank 0).
     """
     from vpcontact.observers import RunFiles
+    from vpcontact.studies.overlay import MeshSamples
     from vpcontact.studies.tolerance import run_passes
     raw0, case = start_case(raw, level, delta, source, petsc_cli)
+    last = []
+
+    def observers():
+        last[:] = [MeshSamples()]             # the fields of the pass, kept for the last
+        return [RunFiles(), last[0]]
+
     log.info("adaptive: run --tol %g from %s (delta = %g) -> %s", tol,
              "the mesh.file as read" if case.mesh.file else f"h = k = 1/{level}", delta, outdir)
     loglevel = log.level
     log.setLevel(max(loglevel, logging.WARNING))   # the passes' lines at the end, as the study
     try:
-        run_passes(raw0, case, comm, tol, max_passes, outdir, lambda: [RunFiles()],
+        run_passes(raw0, case, comm, tol, max_passes, outdir, observers,
                    lambda r, s: _validated(r, s, petsc_cli))
     finally:
         log.setLevel(loglevel)
     comm.barrier()
     rows = json.loads((outdir / "passes.json").read_text()) if comm.rank == 0 else None
-    return comm.bcast(rows, root=0)
+    return comm.bcast(rows, root=0), last[0]
 
 
 def uniform_rows(res: dict, delta: float) -> list[dict]:
@@ -230,6 +240,35 @@ def adaptive_rows(tol: float, delta: float, passes_json: dict, outdir: Path) -> 
     return out
 
 
+def final_error(samples, res: dict, scale: float | None) -> dict:
+    """The true Error of the last pass against the study's reference (rank 0), exact on the
+    overlay of its mesh and the reference grid (app/studies/overlay.py), and relative to its
+    scale; none for a mesh.file study (its reference is not a structured grid) or when a
+    time point of the pass is not a reference time point (said in the log).
+
+    Args:
+        samples: the last pass's overlay.MeshSamples.
+        res: the result of convergence.study.
+        scale: the pass's scale.
+
+    Returns:
+        {"error", "error_relative"}, or {} without an Error.
+    """
+    from vpcontact.studies.overlay import overlay_error
+    ref = res["reference"]
+    if res["file"] or not samples.snaps:
+        return {}
+    t0 = time.perf_counter()
+    e = overlay_error(samples, ref, ref.grid)
+    if e is None:
+        log.info("adaptive: the last pass's time points are not all reference time points: "
+                 "no true Error")
+        return {}
+    log.info("adaptive: the last pass's true Error %.6g (on the overlay with the reference, "
+             "%.1f s)", e["error"], time.perf_counter() - t0)
+    return {"error": e["error"], "error_relative": e["error"] / scale if scale else None}
+
+
 def write_csv(path: Path, rows: list[dict]) -> None:
     """error_vs_wall.csv (COLUMNS; floats at full precision), atomically.
 
@@ -278,6 +317,10 @@ def figure(rows: list[dict], tols: list[float], file: bool = False):
             ax.loglog([max(r[key], 1e-4) for r in ad], [r["relative"] for r in ad], "s-",
                       color=colour, label=f"run --tol {tol:g}: the passes' estimates")
             ax.axhline(tol, color=colour, ls=":", lw=1, label=f"tol {tol:g}")
+            if ad and ad[-1].get("error_relative") is not None:
+                ax.loglog([max(ad[-1][key], 1e-4)], [ad[-1]["error_relative"]], "s",
+                          mfc="none", ms=9, color=colour,
+                          label=f"run --tol {tol:g}: true Error of the last pass")
         _log_ticks(ax.xaxis)
         _log_ticks(ax.yaxis)
         ax.grid(True, which="both", alpha=0.3)
@@ -340,12 +383,13 @@ def study_rows(res: dict, tols: list[float], outdir: Path, comm, raw: dict, sour
     for tol in tols:
         where = tol_dir(outdir, tol)
         try:
-            passes = adaptive_run(raw, source, res["levels"][0], delta, tol, comm, where,
-                                  petsc_cli, max_passes)
+            passes, samples = adaptive_run(raw, source, res["levels"][0], delta, tol, comm,
+                                           where, petsc_cli, max_passes)
         except KeyboardInterrupt:
             raise PassesInterrupted(tol, where) from None
         if passes["passes"][-1]["status"] == "interrupted":
             raise PassesInterrupted(tol, where)
         if comm.rank == 0:
             rows += adaptive_rows(tol, delta, passes, where)
+            rows[-1].update(final_error(samples, res, rows[-1]["scale"]))
     return rows if comm.rank == 0 else None

@@ -48,7 +48,7 @@ def test_adaptive_rows_are_the_passes(study):
         assert float(r["scale"]) == p["scale"] and float(r["relative"]) == p["relative"]
         assert float(r["wall_s"]) == pytest.approx(wall, rel=1e-12)
         assert float(r["steps_s"]) == pytest.approx(steps, rel=1e-12)
-        assert r["error"] == "" and r["status"] == p["status"] == "completed"
+        assert r["status"] == p["status"] == "completed"
     assert [r["met"] for r in rows] == [""] * (len(rows) - 1) + ["True"]
     assert float(rows[-1]["relative"]) <= 0.3 < float(rows[-2]["relative"])
 
@@ -78,6 +78,29 @@ def test_uniform_rows_are_the_study_table(study):
     assert (first["dofs"], first["steps"]) == (uni[0]["dofs"], uni[0]["steps"])
     assert float(first["estimate"]) == pytest.approx(float(uni[0]["estimate"]), rel=1e-10)
     assert float(first["scale"]) == pytest.approx(float(uni[0]["scale"]), rel=1e-10)
+
+
+def test_the_true_error_of_the_last_pass(study, tmp_path):
+    """--adaptive 2: met by pass 1, the uniform level 4 again: its Error on the overlay
+    (app/studies/overlay.py) is the study's (exact prolongation) to the 10 digits printed;
+    --adaptive 0.7: the last pass (locally refined, 16 steps = the reference's) has an Error,
+    relative to its scale; --adaptive 0.3 ends with 32 steps, finer than the reference's 16:
+    none."""
+    out = tmp_path / "err"
+    proc = run_cli(["convergence", PAPER_CASE, *CHEAP, "--adaptive", "2", "0.7", "--out",
+                    out, "--no-cache", "--quiet"])
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    rows = _csv(out / "error_vs_wall.csv")
+    level4 = next(r for r in rows if r["kind"] == "uniform" and r["level"] == "4")
+    one = [r for r in rows if r["kind"] == "adaptive" and r["tol"] == "2.0"]
+    assert len(one) == 1 and one[0]["dofs"] == level4["dofs"]
+    assert float(one[0]["error"]) == pytest.approx(float(level4["error"]), rel=1e-9)
+    last = [r for r in rows if r["kind"] == "adaptive" and r["tol"] == "0.7"][-1]
+    assert last["steps"] == "16" and int(last["cells"]) > 32 and float(last["error"]) > 0
+    assert float(last["error_relative"]) == pytest.approx(
+        float(last["error"]) / float(last["scale"]), rel=1e-14)
+    fixture_last = [r for r in _csv(study / "error_vs_wall.csv") if r["kind"] == "adaptive"][-1]
+    assert fixture_last["steps"] == "32" and fixture_last["error"] == ""
 
 
 def test_the_png(study):
@@ -130,6 +153,9 @@ def test_mpirun_equals_serial(study, tmp_path):
         [(r["kind"], r["level"], r["pass"], r["cells"], r["steps"]) for r in serial]
     for a, b in zip(serial, parallel):
         assert float(b["estimate"]) == pytest.approx(float(a["estimate"]), rel=1e-12)
+        assert (a["error"] == "") == (b["error"] == "")
+        if a["error"]:
+            assert float(b["error"]) == pytest.approx(float(a["error"]), rel=1e-12)
 
 
 def test_a_mesh_file_starts_from_its_mesh_as_read(tmp_path):
