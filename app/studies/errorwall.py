@@ -131,7 +131,8 @@ def _validated(raw: dict, source: str, petsc_cli: dict):
 
 
 def adaptive_run(raw: dict, source: str, level: int, delta: float, tol: float, comm,
-                 outdir: Path, petsc_cli: dict, max_passes: int) -> tuple[dict, object]:
+                 outdir: Path, petsc_cli: dict, max_passes: int,
+                 ref_times=()) -> tuple[dict, object]:
     """The passes of ``run --tol`` for one tolerance (collective), without outputs but each
     pass's summary.json (for its steps' time).
 
@@ -145,6 +146,7 @@ def adaptive_run(raw: dict, source: str, level: int, delta: float, tol: float, c
         outdir: the directory of the passes (passes.json, pass_<i>/summary.json).
         petsc_cli: PETSc options of the command line.
         max_passes: the most passes.
+        ref_times: the reference's time points (the passes' fields are kept at those only).
 
     Returns:
         (the content of passes.json: tol, met, theta and the passes' rows, on every rank;
@@ -157,7 +159,7 @@ def adaptive_run(raw: dict, source: str, level: int, delta: float, tol: float, c
     last = []
 
     def observers():
-        last[:] = [MeshSamples()]             # the fields of the pass, kept for the last
+        last[:] = [MeshSamples(ref_times)]    # the fields of the pass, kept for the last
         return [RunFiles(), last[0]]
 
     log.info("adaptive: run --tol %g from %s (delta = %g) -> %s", tol,
@@ -256,7 +258,10 @@ def final_error(samples, res: dict, scale: float | None) -> dict:
     """
     from vpcontact.studies.overlay import overlay_error
     ref = res["reference"]
-    if res["file"] or not samples.snaps:
+    if res["file"] or samples.off or not samples.snaps:
+        if samples.off and not res["file"]:
+            log.info("adaptive: the last pass's time points are not all reference time "
+                     "points: no true Error")
         return {}
     t0 = time.perf_counter()
     e = overlay_error(samples, ref, ref.grid)
@@ -384,7 +389,8 @@ def study_rows(res: dict, tols: list[float], outdir: Path, comm, raw: dict, sour
         where = tol_dir(outdir, tol)
         try:
             passes, samples = adaptive_run(raw, source, res["levels"][0], delta, tol, comm,
-                                           where, petsc_cli, max_passes)
+                                           where, petsc_cli, max_passes,
+                                           () if res["file"] else res["reference"].times)
         except KeyboardInterrupt:
             raise PassesInterrupted(tol, where) from None
         if passes["passes"][-1]["status"] == "interrupted":

@@ -25,10 +25,16 @@ from vpcontact.studies.grid import Grid, cell_strains, cell_vertices
 class MeshSamples(Observer):
     """Samples, per owned cell, eps(u_n) (e11, e22, e12), sigma_n and kappa_n at t_0 and
     after every step, with the cells' vertices; all on rank 0 (an observer of the run).
+    At the first time point that is not one of ``ref_times`` it stops and drops what it
+    had (``off``): there will be no Error, and the samples would only take memory.
+
+    Args:
+        ref_times: the reference's time points (none: no samples).
     """
 
-    def __init__(self):
-        self.cells, self.snaps, self.times = None, [], []
+    def __init__(self, ref_times):
+        self.ref_times = np.asarray(ref_times, dtype=float)
+        self.cells, self.snaps, self.times, self.off = None, [], [], False
         self._dofs = None
 
     def start(self, sim) -> None:
@@ -57,6 +63,11 @@ class MeshSamples(Observer):
         self._sample(sim)
 
     def _sample(self, sim) -> None:
+        t = float(sim.t)
+        if self.off or not self.ref_times.size or \
+                np.abs(self.ref_times - t).min() > 1e-12 * max(1.0, abs(t)):
+            self.off, self.snaps, self.times = True, [], []     # the same on every rank
+            return
         p, nc = sim.problem, sim.problem.num_owned_cells
         u = p.u.x.array.reshape(-1, 2)[self._dofs]                  # (nc, 3, 2)
         eps = triangle_strains(self._x, u)
@@ -66,7 +77,7 @@ class MeshSamples(Observer):
         if sim.comm.rank == 0:
             self.snaps.append({key: np.concatenate([q[i] for q in parts])
                                for i, key in enumerate(("eps", "sigma", "kappa"))})
-            self.times.append(float(sim.t))
+            self.times.append(t)
 
 
 def triangle_strains(x: np.ndarray, u: np.ndarray) -> np.ndarray:
