@@ -365,6 +365,7 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
     from mpi4py import MPI
 
     from vpcontact.studies import convergence as cv
+    from vpcontact.studies import errorwall
     from vpcontact.studies.runcache import default_cache_dir
 
     cache_dir = None if args.no_cache else Path(args.cache_dir or default_cache_dir())
@@ -374,6 +375,7 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
         levels, reference = cv.resolve_levels(c, args.levels, args.reference)
         if reference >= 1:            # a mesh.file's finest level within the size limit
             cv.check_level_sizes(c, MPI.COMM_WORLD, "--reference", reference)
+        errorwall.check_adaptive(c, args.adaptive, levels, args.vary)
         cv.plan_runs(levels, reference, args.vary, c, args.deltas)
         cv.check_cache_dir(cache_dir, MPI.COMM_WORLD)
         chosen.update(levels=levels, reference=reference)
@@ -385,6 +387,7 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
     log.info("vpcontact %s: convergence study of %s -> %s (cache: %s, %d MPI rank%s)",
              __version__, args.case, outdir, cache_dir or "off", comm.size,
              "s" if comm.size > 1 else "")
+    t0 = time.perf_counter()
     try:
         res = cv.study(raw, args.case, chosen["levels"], chosen["reference"], args.vary,
                        args.deltas, comm, cache_dir, petsc_cli)
@@ -392,12 +395,18 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
             cv.write_csv(outdir / "convergence.csv", res)
             cv.write_markdown(outdir / "convergence.md", res, case.name)
             cv.write_plot(outdir / "convergence.png", res)
+        failed = _error_vs_wall(args, comm, raw, res, outdir, petsc_cli) if args.adaptive \
+            else None
     except CaseError as exc:
         return error(str(exc), EXIT_BAD_INPUT)
     except RuntimeError as exc:
         return error(str(exc), EXIT_FAILED)
     except KeyboardInterrupt as exc:
         return interrupted(_convergence_interrupted(exc, cache_dir, outdir))
+    except errorwall.PassesInterrupted as exc:
+        return interrupted(f"convergence --adaptive: a signal stopped {exc}; the study's "
+                           f"report is written (convergence.csv, .md, .png in {outdir}), "
+                           "error_vs_wall.csv and .png are not")
     if comm.rank == 0:
         for r in res["rows"]:
             log.info("delta %-8g h %-9.5g k %-9.5g Error %.6g  rate %s  effectivity %s  wall "
@@ -405,9 +414,42 @@ def cmd_convergence(args, petsc_cli: dict) -> int:
                      "-" if r["rate"] is None else f"{r['rate']:.3f}",
                      "-" if r["effectivity"] is None else f"{r['effectivity']:.3f}",
                      r["solve_s"], " (cached)" if r["cached"] else "")
-        log.info("done in %.1f s: %s/{%s}", res["total_s"], outdir, ", ".join(CONVERGENCE_FILES))
+        written = CONVERGENCE_FILES if args.adaptive else CONVERGENCE_FILES[:3]
+        log.info("done in %.1f s: %s/{%s}", time.perf_counter() - t0, outdir,
+                 ", ".join(written))
     comm.barrier()
-    return 0
+    return error(failed, EXIT_FAILED, rank=comm.rank) if failed else 0
+
+
+def _error_vs_wall(args, comm, raw: dict, res: dict, outdir: Path,
+                   petsc_cli: dict) -> str | None:
+    """convergence --adaptive: the passes of each tolerance, error_vs_wall.csv and .png
+    (app/studies/errorwall.py); collective.
+
+    Returns:
+        None, or the error line of a pass that failed (its rows are in the files).
+    """
+    from vpcontact.studies import errorwall
+    rows = errorwall.study_rows(res, args.adaptive, outdir, comm, raw, args.case, petsc_cli,
+                                args.max_passes)
+    bad = [r for r in rows or [] if r.get("status") not in (None, "completed")]
+    failed = comm.bcast(f"convergence --adaptive {bad[0]['tol']:g}: pass {bad[0]['pass']} "
+                        f"{bad[0]['status']} (see {errorwall.tol_dir(outdir, bad[0]['tol'])}"
+                        "/passes.json); error_vs_wall.csv and .png show the passes up to it"
+                        if bad else None, root=0)
+    if comm.rank == 0:
+        errorwall.write_csv(outdir / "error_vs_wall.csv", rows)
+        errorwall.write_plot(outdir / "error_vs_wall.png", rows, args.adaptive, res["file"])
+        for r in rows:
+            if r["kind"] == "adaptive":
+                log.info("run --tol %g pass %d: %d cells, %d steps, estimate / scale %.3g, "
+                         "cumulative wall %.2f s (steps %.2f s)", r["tol"], r["pass"],
+                         r["cells"], r["steps"], r["relative"] or float("nan"), r["wall_s"],
+                         r["steps_s"])
+            if r["kind"] == "adaptive" and r["met"] is False:
+                log.warning("run --tol %g: not reached after %d passes (raise --max-passes)",
+                            r["tol"], r["pass"])
+    return failed
 
 
 def _convergence_interrupted(exc: KeyboardInterrupt, cache_dir: Path | None,

@@ -10,7 +10,8 @@ from pathlib import Path
 from vpcontact.io.errors import CaseError
 
 # the files of each command besides a run's (app/io/output.py OUTPUT_FILES)
-CONVERGENCE_FILES = ("convergence.csv", "convergence.md", "convergence.png")
+CONVERGENCE_FILES = ("convergence.csv", "convergence.md", "convergence.png",
+                     "error_vs_wall.csv", "error_vs_wall.png", "adaptive")   # --adaptive
 STABILITY_FILES = ("stability.csv", "stability.md")
 BENCH_FILES = ("bench.json", "bench.md", "bench3d.png")
 TOLERANCE_FILES = ("passes.csv", "passes.json")    # run --tol, with the pass_<i> directories

@@ -55,6 +55,8 @@ MAX_REFINEMENTS = 30     # a mesh.file refined r times has >= 4^r cells: 30 is b
 MAX_THREADS = 1024       # BLAS threads of run --threads
 MAX_RANKS = 4096         # bench --ranks (bench refuses more than the machine's cores)
 MAX_REPEAT = 100         # bench --repeat (app/studies/bench.py MAX_REPEAT)
+MAX_PASSES = 32          # run --tol and convergence --adaptive: --max-passes
+DEFAULT_PASSES = 16      # a pass that refines the mesh about doubles its cells
 _INTEGER = re.compile(r"^\s*[-+]?[0-9]+\s*$")
 
 
@@ -205,9 +207,15 @@ def _add_run(sub) -> None:
                           "split where the step's time error is large, by the estimate's "
                           "parts; passes.csv and passes.json, the final "
                           "pass's outputs in DIR, the others in DIR/pass_<i>")
-    run.add_argument("--max-passes", type=int_range(1, 32), default=16, metavar="N",
-                     help="with --tol: the most passes (default 16; a pass that refines the "
-                          "mesh about doubles its cells)")
+    _max_passes_option(run, "--tol")
+
+
+def _max_passes_option(parser, with_option: str) -> None:
+    """--max-passes of run --tol and convergence --adaptive (app/studies/tolerance.py)."""
+    parser.add_argument("--max-passes", type=int_range(1, MAX_PASSES), default=DEFAULT_PASSES,
+                        metavar="N", help=f"with {with_option}: the most passes (default "
+                                          f"{DEFAULT_PASSES}; a pass that refines the mesh about "
+                                          "doubles its cells)")
 
 
 def _add_plot_check_info(sub) -> None:
@@ -271,6 +279,15 @@ def _add_convergence(sub) -> None:
                            "the reference uses the smallest of these and the case's")
     _case_options(conv, "study", "results/<case name>/convergence")
     _law_module_option(conv)
+    conv.add_argument("--adaptive", type=positive_float, nargs="+", metavar="TOL",
+                      help="after the study, for each TOL the passes of run --tol TOL from "
+                           "the coarsest level h = k = 1/L (L the first of --levels; a "
+                           "mesh.file: the mesh as read, --levels 0 ...) with the first of "
+                           "--deltas, in DIR/adaptive/tol_<TOL>; then error_vs_wall.csv and "
+                           "error_vs_wall.png: estimate (and the uniform levels' Error) "
+                           "relative to the solution's scale against wall time, the uniform "
+                           "levels against each run's passes (TOL > 0; with --vary both)")
+    _max_passes_option(conv, "--adaptive")
     conv.add_argument("--cache-dir", metavar="DIR", type=_path_arg,
                       help=f"run cache (default: {CACHE_SEARCH})")
     conv.add_argument("--no-cache", action="store_true", help="recompute every run")

@@ -86,7 +86,7 @@ class RunRecord:
         last_step: the record of the run's last step (summary.json's, e.g. contact_force and
             reactions) for a computed run; None for a cached one.
         estimate: the run's a posteriori error estimate (summary.json's error_estimate:
-            estimate, time, space), or None (a cached run of an earlier version).
+            estimate, time, space, scale), or None (a cached run of an earlier version).
     """
 
     n: int
@@ -274,12 +274,28 @@ def check_cache_dir(cache_dir: Path | None, comm) -> None:
         raise CaseError(f"--cache-dir {cache_dir}: not a writable directory ({why})")
 
 
-def _case_at(raw: dict, n: int, N: int, delta: float, source: str):
+def raw_at(raw: dict, n: int, N: int, delta: float) -> dict:
+    """The case as read at a level of a built-in mesh: n cells per side, N uniform steps and
+    the regularisation width delta.
+
+    Args:
+        raw: the case as read (not modified).
+        n: cells per side.
+        N: time steps.
+        delta: the regularisation width.
+
+    Returns:
+        A copy with mesh.n, time.N (time.k removed) and solver.delta set.
+    """
     raw = copy.deepcopy(raw)
     raw["mesh"]["n"], raw["time"]["N"] = n, N
     raw["time"].pop("k", None)
     raw.setdefault("solver", {})["delta"] = delta
-    return validate(raw, source)
+    return raw
+
+
+def _case_at(raw: dict, n: int, N: int, delta: float, source: str):
+    return validate(raw_at(raw, n, N, delta), source)
 
 
 def _case_at_level(raw: dict, path, N: int, delta: float, source: str):
@@ -330,8 +346,9 @@ class GridSamples(Observer):
 
 
 def _from_cache(path: Path | None, case, grid: Grid):
-    """(times, snaps, meta) of the cached run at ``path``, or None: not cached, or an entry
-    that is damaged or does not fit the run (a warning; the run is computed again)."""
+    """(times, snaps, meta) of the cached run at ``path``, or None: not cached, an entry
+    that is damaged or does not fit the run (a warning; the run is computed again), or one
+    of an earlier version whose estimate has no scale (computed again, said in the log)."""
     if path is None or not path.exists():
         return None
     if isinstance(grid, NestedLevel):
@@ -340,10 +357,15 @@ def _from_cache(path: Path | None, case, grid: Grid):
         n = grid.n
         shapes = {"u": (n + 1, n + 1, 2), "sigma": (n, n, 2, 2, 2), "kappa": (n, n, 2)}
     try:
-        return runcache.load(path, case.time.times, shapes)
+        entry = runcache.load(path, case.time.times, shapes)
     except runcache.Unreadable as exc:
         log.warning("run cache entry %s is not usable (%s): computing the run again", path, exc)
         return None
+    if "scale" not in (entry[2].get("estimate") or {}):
+        log.info("run cache entry %s is of an earlier version (no estimate scale): computing "
+                 "the run again", path.name)
+        return None
+    return entry
 
 
 def obtain_run(raw: dict, n: int, N: int, delta: float, source: str, petsc_cli: dict, comm,
@@ -432,9 +454,9 @@ def _keep(rec: RunRecord, what: str, path: Path | None, times, comm) -> None:
 
 
 def _estimate(summary: dict) -> dict | None:
-    """The run's error estimate (estimate, time, space) from its summary, or None."""
+    """The run's error estimate (estimate, time, space, scale) from its summary, or None."""
     e = summary.get("error_estimate")
-    return None if e is None else {k: e[k] for k in ("estimate", "time", "space")}
+    return None if e is None else {k: e[k] for k in ("estimate", "time", "space", "scale")}
 
 
 def _final_table(problem, comm) -> dict | None:
@@ -531,7 +553,7 @@ def matches_paper(raw: dict) -> bool:
 
 COLUMNS = ["delta", "level", "h", "k", "n", "N", "dofs", "steps", "error", "e_sigma", "e_u",
            "e_kappa", "n_max", "t_max", "rate", "estimate", "est_time", "est_space",
-           "effectivity", "solve_s", "setup_s", "newton_total", "cached"]
+           "scale", "effectivity", "solve_s", "setup_s", "newton_total", "cached"]
 
 
 def study(raw: dict, source: str, levels: list[int], reference: int, vary: str,
@@ -652,12 +674,14 @@ def _level_rows(levels, recs, ref, vary, T, delta, comm) -> list[dict]:
 
 
 def _effectivity(estimate: dict | None, error: float) -> dict:
-    """The columns of the run's error estimate: estimate, its time and space parts and the
-    effectivity estimate / Error (None without an estimate or with a zero Error)."""
+    """The columns of the run's error estimate: estimate, its time and space parts, the
+    run's scale max_n (||sigma_n||_Q + ||u_n||_V + ||kappa_n||_Y) and the effectivity
+    estimate / Error (None without an estimate or with a zero Error)."""
     if estimate is None:
-        return {"estimate": None, "est_time": None, "est_space": None, "effectivity": None}
+        return {"estimate": None, "est_time": None, "est_space": None, "scale": None,
+                "effectivity": None}
     return {"estimate": estimate["estimate"], "est_time": estimate["time"],
-            "est_space": estimate["space"],
+            "est_space": estimate["space"], "scale": estimate.get("scale"),
             "effectivity": estimate["estimate"] / error if error > 0 else None}
 
 

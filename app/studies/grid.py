@@ -169,6 +169,51 @@ def _ratio(coarse: Grid, fine: Grid) -> int:
 
 
 # ----------------------------------------------------------------------------- norms
+def cell_strains(d: np.ndarray, grid: Grid) -> np.ndarray:
+    """eps(d) of a P1 vector field on every cell: (e11, e22, e12).
+
+    Args:
+        d: vertex values (n+1, n+1, 2).
+        grid: the grid.
+
+    Returns:
+        (n, n, 2, 3): the constant strain of cell (i, j, t).
+    """
+    hx, hy = grid.hx, grid.hy
+    d00, d10, d01, d11 = d[:-1, :-1], d[1:, :-1], d[:-1, 1:], d[1:, 1:]
+    if grid.diagonal == "right":
+        grads = [((d10 - d00) / hx, (d11 - d10) / hy),       # t = 0: (0,0),(1,0),(1,1)
+                 ((d11 - d01) / hx, (d01 - d00) / hy)]       # t = 1: (0,0),(1,1),(0,1)
+    else:
+        grads = [((d10 - d00) / hx, (d01 - d00) / hy),       # t = 0: (0,0),(1,0),(0,1)
+                 ((d11 - d01) / hx, (d11 - d10) / hy)]       # t = 1: (1,0),(1,1),(0,1)
+    out = np.empty(d00.shape[:2] + (2, 3))
+    for t, (gx, gy) in enumerate(grads):   # gx[..., c] = d d_c / dx
+        out[:, :, t] = np.stack([gx[..., 0], gy[..., 1], 0.5 * (gy[..., 0] + gx[..., 1])],
+                                axis=-1)
+    return out
+
+
+def cell_vertices(grid: Grid) -> np.ndarray:
+    """The vertices of every cell, in the order of ``cell_strains``'s comments.
+
+    Args:
+        grid: the grid.
+
+    Returns:
+        (n, n, 2, 3, 2): the (x, y) of the three vertices of cell (i, j, t).
+    """
+    local = ([[(0, 0), (1, 0), (1, 1)], [(0, 0), (1, 1), (0, 1)]] if grid.diagonal == "right"
+             else [[(0, 0), (1, 0), (0, 1)], [(1, 0), (1, 1), (0, 1)]])
+    i, j = np.meshgrid(np.arange(grid.n), np.arange(grid.n), indexing="ij")
+    out = np.empty((grid.n, grid.n, 2, 3, 2))
+    for t in range(2):
+        for v, (a, b) in enumerate(local[t]):
+            out[:, :, t, v, 0] = (i + a) * grid.hx
+            out[:, :, t, v, 1] = (j + b) * grid.hy
+    return out
+
+
 def strain_norm(d: np.ndarray, grid: Grid) -> float:
     """||eps(d)||_L2 (Frobenius), the norm ||.||_V of a P1 vector field.
 
@@ -179,19 +224,9 @@ def strain_norm(d: np.ndarray, grid: Grid) -> float:
     Returns:
         The norm.
     """
-    hx, hy = grid.hx, grid.hy
-    d00, d10, d01, d11 = d[:-1, :-1], d[1:, :-1], d[:-1, 1:], d[1:, 1:]
-    if grid.diagonal == "right":
-        grads = [((d10 - d00) / hx, (d11 - d10) / hy),       # t = 0: (0,0),(1,0),(1,1)
-                 ((d11 - d01) / hx, (d01 - d00) / hy)]       # t = 1: (0,0),(1,1),(0,1)
-    else:
-        grads = [((d10 - d00) / hx, (d01 - d00) / hy),       # t = 0: (0,0),(1,0),(0,1)
-                 ((d11 - d01) / hx, (d11 - d10) / hy)]       # t = 1: (1,0),(1,1),(0,1)
-    total = 0.0
-    for gx, gy in grads:   # gx[..., c] = d d_c / dx
-        e11, e22, e12 = gx[..., 0], gy[..., 1], 0.5 * (gy[..., 0] + gx[..., 1])
-        total += np.sum(e11**2 + e22**2 + 2 * e12**2)
-    return float(np.sqrt(total * hx * hy / 2))
+    e = cell_strains(d, grid)
+    total = np.sum(e[..., 0] ** 2 + e[..., 1] ** 2 + 2 * e[..., 2] ** 2)
+    return float(np.sqrt(total * grid.hx * grid.hy / 2))
 
 
 def cell_l2_norm(f: np.ndarray, grid: Grid) -> float:
