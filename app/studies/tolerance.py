@@ -37,7 +37,7 @@ log = logging.getLogger("vpcontact")
 
 THETA = 0.5                 # Doerfler's bulk fraction
 MAX_CELLS = 2_000_000       # the largest mesh a pass may refine to
-MAX_SPLIT = 16              # the most parts a time step is split into in one pass
+MAX_SPLIT = 16              # the most parts a time step is split into in one pass (2^4)
 SAFETY = 0.8                # the share of the time part's budget aimed at
 
 
@@ -159,8 +159,11 @@ def split_counts(local: np.ndarray, ratio: float, cap: int = MAX_SPLIT) -> np.nd
     scheme: m parts of a smooth step each make l_n / m^2; a jump of the data is met by the
     first part alone, with l_n / m).  The time part is the propagated sum of the l_n, damped
     by a relaxing history (app/post/estimators.py): the steps are made to equidistribute
-    their error below max_n l_n / ratio, m_n = ceil(ratio l_n / max_j l_j) (a uniform l_n
-    gives m_n = ratio, a jump in step 1 alone m_1 = ratio), at least 1, at most ``cap``.
+    their error below max_n l_n / ratio, m_n >= ratio l_n / max_j l_j (a uniform l_n gives
+    m_n = ratio, a jump in step 1 alone m_1 = ratio), rounded up to a power of 2, at most
+    ``cap``: the grids of the passes are nested, as the meshes are, and a grid refined from
+    h = k = 1/L keeps its points on a dyadic reference's (``convergence --adaptive``
+    measures the true Error there).
 
     Args:
         local: l_n of every step (a step without one, NaN, counts as the largest).
@@ -173,10 +176,11 @@ def split_counts(local: np.ndarray, ratio: float, cap: int = MAX_SPLIT) -> np.nd
     lam = np.asarray(local, dtype=float)
     finite = np.isfinite(lam)
     top = lam[finite].max() if finite.any() else 0.0
-    if top <= 0.0:
-        return np.full(len(lam), min(int(np.ceil(ratio)), cap))
-    lam = np.where(finite, lam, top).clip(min=0.0)
-    return np.clip(np.ceil(ratio * lam / top * (1.0 - 1e-12)), 1, cap).astype(int)
+    want = np.full(len(lam), float(ratio))
+    if top > 0.0:
+        want = ratio * np.where(finite, lam, top).clip(min=0.0) / top
+    powers = np.ceil(np.log2(np.maximum(want, 1.0)) * (1.0 - 1e-12))
+    return np.minimum(2 ** powers.astype(int), cap)
 
 
 def graded_times(times, local, ratio: float) -> list[float]:

@@ -83,24 +83,24 @@ def test_uniform_rows_are_the_study_table(study):
 def test_the_true_error_of_the_last_pass(study, tmp_path):
     """--adaptive 2: met by pass 1, the uniform level 4 again: its Error on the overlay
     (app/studies/overlay.py) is the study's (exact prolongation) to the 10 digits printed;
-    --adaptive 0.7: the last pass (locally refined, 16 steps = the reference's) has an Error,
-    relative to its scale; --adaptive 0.3 ends with 32 steps, finer than the reference's 16:
-    none."""
+    against the reference 1/64, --adaptive 0.3's last pass (locally refined, its graded
+    steps on the reference's grid) has an Error, relative to its scale; against the
+    reference 1/16 (the fixture) the same pass's steps of 1/64 are finer: none."""
     out = tmp_path / "err"
-    proc = run_cli(["convergence", PAPER_CASE, *CHEAP, "--adaptive", "2", "0.7", "--out",
-                    out, "--no-cache", "--quiet"])
+    proc = run_cli(["convergence", PAPER_CASE, "--levels", "4", "8", "--reference", "64",
+                    "--adaptive", "2", "0.3", "--out", out, "--no-cache", "--quiet"])
     assert proc.returncode == 0, proc.stdout + proc.stderr
     rows = _csv(out / "error_vs_wall.csv")
     level4 = next(r for r in rows if r["kind"] == "uniform" and r["level"] == "4")
     one = [r for r in rows if r["kind"] == "adaptive" and r["tol"] == "2.0"]
     assert len(one) == 1 and one[0]["dofs"] == level4["dofs"]
     assert float(one[0]["error"]) == pytest.approx(float(level4["error"]), rel=1e-9)
-    last = [r for r in rows if r["kind"] == "adaptive" and r["tol"] == "0.7"][-1]
-    assert last["steps"] == "16" and int(last["cells"]) > 32 and float(last["error"]) > 0
+    last = [r for r in rows if r["kind"] == "adaptive" and r["tol"] == "0.3"][-1]
+    assert int(last["cells"]) > 32 and float(last["error"]) > 0
     assert float(last["error_relative"]) == pytest.approx(
         float(last["error"]) / float(last["scale"]), rel=1e-14)
     fixture_last = [r for r in _csv(study / "error_vs_wall.csv") if r["kind"] == "adaptive"][-1]
-    assert fixture_last["steps"] == "32" and fixture_last["error"] == ""
+    assert fixture_last["steps"] == last["steps"] and fixture_last["error"] == ""
 
 
 def test_the_png(study):
@@ -127,10 +127,11 @@ def test_a_tolerance_not_above_zero_is_refused(tmp_path, value):
 
 
 def test_cases_and_options_the_passes_cannot_run_are_refused(tmp_path):
-    """A time grid run --tol refuses (time.times), a repeated tolerance, --vary h, and a
-    mesh.file study not starting at its mesh as read: exit 2, one line naming --adaptive."""
+    """A time grid run --tol refuses (time.times with time.adaptive), a repeated tolerance,
+    --vary h, and a mesh.file study not starting at its mesh as read: exit 2, one line
+    naming --adaptive."""
     raw = paper_raw()
-    raw["time"] = {"times": [0.0, 0.5, 1.0]}
+    raw["time"] = {"times": [0.0, 0.5, 1.0], "adaptive": {}}
     case = tmp_path / "times.yaml"
     case.write_text(yaml.safe_dump(json.loads(json.dumps(raw))))
     text = _refused(tmp_path, *CHEAP, "--adaptive", "0.3", case=case)

@@ -16,19 +16,20 @@ from vpcontact.studies.tolerance import (
 
 
 def test_uniform_errors_split_every_step_by_the_ratio():
+    """m_n = the ratio, rounded up to a power of 2."""
     assert split_counts(np.full(5, 0.3), 2.0).tolist() == [2] * 5
-    assert split_counts(np.full(3, 0.3), 2.5).tolist() == [3] * 3
+    assert split_counts(np.full(3, 0.3), 2.5).tolist() == [4] * 3      # a power of 2
 
 
 def test_a_jump_in_the_first_step_splits_it_alone():
-    """l = (8, 1, 2, 0.5), ratio 4: m_n = ceil(4 l_n / 8) = (4, 1, 1, 1)."""
+    """l = (8, 1, 2, 0.5), ratio 4: 4 l_n / 8 = (4, 0.5, 1, 0.25) -> m_n = (4, 1, 1, 1)."""
     assert split_counts(np.array([8.0, 1.0, 2.0, 0.5]), 4.0).tolist() == [4, 1, 1, 1]
     assert split_counts(np.array([8.0, 1.0, 2.0, 4.0]), 4.0).tolist() == [4, 1, 1, 2]
 
 
 def test_counts_are_capped_and_missing_errors_count_as_the_largest():
-    assert split_counts(np.array([1.0, 0.1]), 100.0).tolist() == [MAX_SPLIT, 10]
-    assert split_counts(np.array([1.0, np.nan, 0.0]), 3.0).tolist() == [3, 3, 1]
+    assert split_counts(np.array([1.0, 0.1]), 50.0).tolist() == [MAX_SPLIT, 8]
+    assert split_counts(np.array([1.0, np.nan, 0.0]), 3.0).tolist() == [4, 4, 1]
     assert split_counts(np.zeros(2), 2.0).tolist() == [2, 2]
 
 
@@ -37,9 +38,9 @@ def test_graded_times_keep_the_old_points_and_split_evenly():
     new = graded_times(times, [4.0, 1.0, 2.0], 2.0)         # m = (2, 1, 1)
     assert new == pytest.approx([0.0, 0.25, 0.5, 0.75, 1.0], abs=1e-15)
     assert new[-1] == 1.0
-    new = graded_times(times, [1.0, 1.0, 1.0], 3.0)         # m = 3 everywhere
-    assert len(new) == 10 and all(t in new for t in times)
-    assert np.diff(new) == pytest.approx(np.repeat(np.diff(times) / 3, 3))
+    new = graded_times(times, [1.0, 1.0, 1.0], 3.0)         # m = 4 everywhere
+    assert len(new) == 13 and all(t in new for t in times)
+    assert np.diff(new) == pytest.approx(np.repeat(np.diff(times) / 4, 4))
 
 
 def test_time_ratio_against_its_budget():
