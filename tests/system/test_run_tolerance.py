@@ -22,6 +22,11 @@ def _passes(out):
     return rows, json.loads((out / "passes.json").read_text())
 
 
+def _times(where):
+    with open(where / "history.csv") as f:
+        return np.array([float(r["t"]) for r in csv.DictReader(f)])
+
+
 def _tol_run(out, tol, *extra, nprocs=1):
     return run_cli(["run", PAPER_CASE, "--out", out, "--tol", tol, *SMALL, *extra],
                    nprocs=nprocs)
@@ -60,6 +65,12 @@ def test_passes_reach_the_tolerance(tmp_path):
         if "k" in a["next"]:                      # the time part fell by at least 2
             assert float(b["est_time"]) <= 0.5 * float(a["est_time"])
     assert "k" in rows[0]["next"]
+    grids = [_times(out / f"pass_{i}") for i in range(1, len(rows))] + [_times(out)]
+    for a, b in zip(grids, grids[1:]):  # nested; the load's first step split most
+        assert set(np.round(a, 12)) <= set(np.round(b, 12))
+        k = np.diff(np.concatenate([[0.0], b]))
+        assert k[0] == pytest.approx(k.min(), rel=1e-12)
+        assert np.allclose(np.log2(np.diff(np.concatenate([[0.0], a]))[0] / k[0]) % 1, 0)
     for i, r in enumerate(rows[:-1], 1):          # the passes' own summaries
         s = json.loads((out / f"pass_{i}" / "summary.json").read_text())
         assert s["error_estimate"]["estimate"] == pytest.approx(float(r["est_max"]), rel=1e-14)
