@@ -86,9 +86,9 @@ lint: setup
 # view across the friction regularisation). Runs are cached in the run cache: $VPCONTACT_CACHE,
 # else $XDG_CACHE_HOME/vpcontact, else ~/.cache/vpcontact (./vpcontact info names it).
 # --adaptive: then run --tol to each CONV_TOLS from h = k = 1/8 with the first delta, and
-# error_vs_wall.csv/.png (error against wall time, uniform vs adaptive). Measured: about
-# 110 s from an empty run cache (--tol 0.01's 13 passes 36 s of it), about 50 s with the
-# study's runs cached (the passes run again).
+# error_vs_wall.csv/.png (error against wall time, uniform vs adaptive). Measured: 432 s
+# from an empty run cache on a loaded machine (--tol 0.01's 13 passes under the case's SNES VI
+# 372 s of it); CONV_TOLS="0.1 0.05": 62 to 101 s.
 CONV_DELTAS ?= 1e-7 1e-3 1e-2
 CONV_TOLS ?= 0.1 0.05 0.01
 convergence: setup
