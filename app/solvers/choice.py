@@ -153,19 +153,21 @@ def condensed_dofs(problem) -> int:
 
 def choose_linear(case, n_dofs: int) -> str:
     """The linear solver of SNES VI's Newton systems: ``solver.linear``, and for ``auto``
-    algebraic multigrid in 3D with more than AUTO_AMG_MIN_DOFS dofs, else LU.
+    algebraic multigrid in 3D with more than AUTO_AMG_MIN_DOFS dofs, else the Gamma3 Schur
+    complement on one factorisation of K (app/solvers/inactiveschur.py; SNES VI takes LU
+    where it does not apply, and logs why).
 
     Args:
         case: the validated Case.
         n_dofs: the global number of dofs of u.
 
     Returns:
-        "direct" or "amg".
+        "direct" (LU of every Newton system), "schur" or "amg".
     """
     linear = case.numerics.linear
     if linear != "auto":
         return linear
-    return "amg" if case.dim == 3 and n_dofs > AUTO_AMG_MIN_DOFS else "direct"
+    return "amg" if case.dim == 3 and n_dofs > AUTO_AMG_MIN_DOFS else "schur"
 
 
 def gamma3_dofs(problem) -> int:

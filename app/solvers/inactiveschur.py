@@ -1,0 +1,255 @@
+"""SNES VI's Newton systems by one factorisation of the bulk stiffness K per run and a dense
+Gamma3 Schur complement per Newton iteration (serial, explicit scheme, one body).
+
+With the explicit scheme the Jacobian of (3.4) is J = K + B: K the constant bulk stiffness
+(E eps(du), eps(v)) and B the Gamma3 terms, which couple Gamma3 dofs only (the nodal or
+facet rule of the Gamma3 integrals).  The bounds u_nu <= g act only on normal dofs of the
+Gamma3 nodes, so every inactive set I of vinewtonrsls holds every bulk dof b (the dofs
+outside the Gamma3 dofs G) and a subset gI of G.  With x_gA = 0 on the active dofs,
+    J_II x = r  <=>  (S + B)_{gI,gI} x_gI = r_gI - (K_Gb K_bb^-1 r_b)_gI,
+                     x_b = K_bb^-1 (r_b - K_bG x_G),
+with the Schur complement S = K_GG - K_Gb K_bb^-1 K_bG (dense m x m, m = |G|).  K is
+factorised once, with G last, by the condensed solver's back end (CholmodCondensation,
+app/solvers/condensed/cholmod.py: its forward sweep gives r_G - K_Gb K_bb^-1 r_b, its
+backward sweep x_b); per Newton iteration only the dense (S + B)_{gI,gI} (|gI| <= m) is
+factorised (LU: friction makes B unsymmetric).  ``InactiveSetSchur`` is the python PC
+(KSP preonly) that applies J_II^-1 so; ``schur_refusal`` says where it does not apply (SNES
+VI then factorises J_II by LU at every Newton iteration, as before).
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import scipy.linalg
+from petsc4py import PETSc
+
+from vpcontact.solvers.options import DEFAULT_PETSC
+
+log = logging.getLogger("vpcontact")
+
+SNES_TYPE = "vinewtonrsls"      # the reduced-space SNES VI whose J_II this PC inverts
+
+
+def user_linear_options(options: dict) -> list[str]:
+    """The options that choose SNES VI's linear solver themselves (a ksp_* or pc_* option
+    other than a default of DEFAULT_PETSC).
+
+    Args:
+        options: SNES VI's PETSc options (name without '-' -> value).
+
+    Returns:
+        Their names, sorted (empty: the linear solver is ours to choose).
+    """
+    return sorted(k for k, v in options.items()
+                  if str(k).startswith(("ksp_", "pc_")) and DEFAULT_PETSC.get(k) != v)
+
+
+def schur_refusal(problem, options: dict, reuse: bool, rotated: bool) -> str:
+    """Why the Schur complement PC cannot solve SNES VI's Newton systems here ("" where it
+    can).
+
+    Args:
+        problem: the ContactProblem.
+        options: SNES VI's PETSc options.
+        reuse: the bulk Jacobian K is constant (explicit scheme: SNESVISolver.reuse).
+        rotated: SNES VI solves in nodal frames or for rigid caps' amplitudes.
+
+    Returns:
+        The reason, or "".
+    """
+    from vpcontact import kernels
+    snes_type = options.get("snes_type", SNES_TYPE)
+    given = user_linear_options(options)
+    reasons = [
+        (problem.comm.size > 1, "under mpirun (the compiled sweeps are serial)"),
+        (problem.pairs is not None, "two bodies (contact pairs)"),
+        (not reuse, "the bulk Jacobian changes (implicit scheme)"),
+        (rotated, "nodal frames (curved Gamma3) or rigid caps"),
+        (problem.hold is not None, "a body held only by contact (K singular)"),
+        (problem.gamma3 is None or len(problem.gamma3.nodes) == 0, "no Gamma3 dofs"),
+        (snes_type != SNES_TYPE, f"snes_type {snes_type} (not {SNES_TYPE})"),
+        (bool(given), "the PETSc options " + ", ".join(given) + " choose the linear solver"),
+    ]
+    for refused, why in reasons:
+        if refused:
+            return why
+    if kernels.load() is None:
+        return "the compiled kernels are not available"
+    return ""
+
+
+class GammaSchur:
+    """K factorised once with the Gamma3 dofs G last, S, and the solves of J_II x = r of
+    the module docstring (one per SNES VI solver, shared by its SNESes' PCs).
+
+    Args:
+        problem: the ContactProblem (one body, serial).
+        K: the bulk stiffness (assembled, the Dirichlet rows and columns the identity).
+        gamma3_terms: returns B, the assembled matrix of the Gamma3 terms of the current
+            Jacobian (None: no Gamma3 terms).
+
+    Raises:
+        np.linalg.LinAlgError: S is not positive definite (K singular).
+    """
+
+    def __init__(self, problem, K: PETSc.Mat, gamma3_terms):
+        from vpcontact import kernels
+        from vpcontact.solvers.condensed.cholmod import CholmodCondensation
+        from vpcontact.solvers.condensed.layout import Gamma3Layout
+        self.layout = Gamma3Layout(problem, K.getOwnershipRange()[0])
+        self.G = self.layout.global_rows().astype(np.int64)
+        self.m, self.n = len(self.G), K.getSize()[0]
+        self.condensation = CholmodCondensation(K, self.G.astype(np.int32), problem.dim,
+                                                kernels.load(), problem.comm)
+        self.S = self.condensation.S
+        self.position = np.full(self.n, -1, dtype=np.int64)    # a dof's place in G, or -1
+        self.position[self.G] = np.arange(self.m)
+        self.gamma3_terms = gamma3_terms
+        self.b, self.x = K.createVecs()
+        self.factorisations = 1
+
+    def covers(self, lb: PETSc.Vec, ub: PETSc.Vec) -> bool:
+        """Whether every bounded dof is a Gamma3 dof (so every bulk dof stays inactive).
+
+        Args:
+            lb: SNES VI's lower bounds.
+            ub: its upper bounds.
+
+        Returns:
+            True if the bounds act on G only.
+        """
+        bounded = (lb.array_r > PETSc.NINFINITY) | (ub.array_r < PETSc.INFINITY)
+        return bool(np.all(self.position[np.flatnonzero(bounded)] >= 0))
+
+    def gamma3_block(self) -> np.ndarray:
+        """B_GG, the Gamma3 terms of the current Jacobian on G (dense, G order).
+
+        Returns:
+            The (m, m) array.
+
+        Raises:
+            RuntimeError: B has a nonzero entry outside G x G (the PC would be wrong).
+        """
+        out = np.zeros((self.m, self.m))
+        B = self.gamma3_terms()
+        if B is None:
+            return out
+        ai, aj, av = B.getValuesCSR()
+        rows = np.repeat(np.arange(len(ai) - 1), np.diff(ai))
+        pr, pc = self.position[rows], self.position[aj]
+        inside = (pr >= 0) & (pc >= 0)
+        if np.any(av[~inside] != 0.0):
+            raise RuntimeError("the Gamma3 terms couple dofs outside the Gamma3 nodes: the "
+                               "Schur complement solver of SNES VI does not apply")
+        out[pr[inside], pc[inside]] = av[inside]
+        return out
+
+    def factor(self, rows: np.ndarray | None) -> tuple[np.ndarray, tuple]:
+        """The LU factors of (S + B)_{gI,gI} for the inactive set ``rows``.
+
+        Args:
+            rows: the inactive dofs (local, sorted), or None for all.
+
+        Returns:
+            (gI: the inactive positions in G, scipy's lu_factor of the matrix).
+
+        Raises:
+            RuntimeError: a bulk dof is active (the bounds act outside G).
+        """
+        if rows is None:
+            gI = np.arange(self.m)
+        else:
+            pos = self.position[rows]
+            if len(rows) - np.count_nonzero(pos >= 0) != self.n - self.m:
+                raise RuntimeError("SNES VI's inactive set misses bulk dofs: the Schur "
+                                   "complement solver does not apply")
+            gI = pos[pos >= 0]
+        M = (self.S + self.gamma3_block())[np.ix_(gI, gI)]
+        return gI, scipy.linalg.lu_factor(M, check_finite=False)
+
+    def solve(self, rows: np.ndarray | None, gI: np.ndarray, lu: tuple, r: np.ndarray,
+              out: np.ndarray) -> None:
+        """x = J_II^-1 r by the condensation (module docstring).
+
+        Args:
+            rows: the inactive dofs (local), or None for all.
+            gI: their positions in G (``factor``).
+            lu: the factors of (S + B)_{gI,gI} (``factor``).
+            r: the right-hand side on the inactive dofs.
+            out: x on the inactive dofs, overwritten.
+        """
+        b = self.b.array
+        if rows is None:
+            b[:] = r
+        else:
+            b[:] = 0.0
+            b[rows] = r
+        reduced = self.condensation.reduce(self.b)
+        y = np.zeros(self.m)
+        y[gI] = scipy.linalg.lu_solve(lu, reduced[gI], check_finite=False)
+        self.condensation.expand(y, self.x)
+        out[:] = self.x.array_r if rows is None else self.x.array_r[rows]
+
+    def destroy(self) -> None:
+        """Free the work vectors and the factorisation."""
+        self.condensation.destroy()
+        for obj in (self.b, self.x):
+            obj.destroy()
+
+
+class InactiveSetSchur:
+    """A PETSc python PC (KSP preonly) applying J_II^-1 exactly for SNES vinewtonrsls by
+    GammaSchur: set up per Newton iteration from SNES's inactive set.
+
+    Args:
+        snes: the SNES whose KSP uses this PC (its inactive set is read in setUp).
+        schur: the solver's GammaSchur.
+    """
+
+    def __init__(self, snes: PETSc.SNES, schur: GammaSchur):
+        self.snes, self.schur = snes, schur
+        self.rows = self.gI = self.lu = None
+        self.setups = 0
+
+    def setUp(self, pc: PETSc.PC) -> None:
+        """Factorise (S + B)_{gI,gI} for this Newton iteration's inactive set and Jacobian.
+
+        Args:
+            pc: the python PC (its operator: J_II of this Newton iteration, or J).
+
+        Raises:
+            RuntimeError: the inactive set does not match the operator's size.
+        """
+        _, P = pc.getOperators()
+        size = P.getSize()[0]
+        x = self.snes.getSolution()
+        if size == x.getSize():
+            self.rows = None
+        else:
+            self.rows = self.snes.getVIInactiveSet().getIndices() - x.getOwnershipRange()[0]
+            if len(self.rows) != size:
+                raise RuntimeError(f"SNES VI's inactive set has {len(self.rows)} dofs, its "
+                                   f"Newton matrix {size}")
+        self.gI, self.lu = self.schur.factor(self.rows)
+        self.setups += 1
+
+    def apply(self, pc: PETSc.PC, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        """y = J_II^-1 x.
+
+        Args:
+            pc: the python PC.
+            x: the residual on the inactive dofs.
+            y: output, the Newton direction on the inactive dofs.
+        """
+        self.schur.solve(self.rows, self.gI, self.lu, x.array_r, y.array)
+
+    def view(self, pc: PETSc.PC, viewer: PETSc.Viewer) -> None:
+        """Say what this PC does (-ksp_view).
+
+        Args:
+            pc: the python PC.
+            viewer: where to say it.
+        """
+        viewer.printfASCII(f"  Gamma3 Schur complement ({self.schur.m} Gamma3 dofs) on one "
+                           "factorisation of K\n")
