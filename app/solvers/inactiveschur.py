@@ -29,6 +29,8 @@ from vpcontact.solvers.options import DEFAULT_PETSC
 log = logging.getLogger("vpcontact")
 
 SNES_TYPE = "vinewtonrsls"      # the reduced-space SNES VI whose J_II this PC inverts
+# SNES VI's linear solver options with this PC (in place of DEFAULT_PETSC's LU)
+SCHUR_PETSC = {"ksp_type": "preonly", "pc_type": "python"}
 
 
 def user_linear_options(options: dict) -> list[str]:

@@ -19,7 +19,12 @@ from petsc4py import PETSc
 
 from vpcontact.solvers.amg import InactiveSetAMG, rigid_body_modes
 from vpcontact.solvers.bulkresidual import BulkProductResidual
-from vpcontact.solvers.inactiveschur import GammaSchur, InactiveSetSchur, schur_refusal
+from vpcontact.solvers.inactiveschur import (
+    SCHUR_PETSC,
+    GammaSchur,
+    InactiveSetSchur,
+    schur_refusal,
+)
 from vpcontact.solvers.levels import SymmetricCopy, is_symmetric
 from vpcontact.solvers.matrices import share_pattern
 from vpcontact.solvers.options import PREFIX, push_options, remove_options
@@ -367,11 +372,8 @@ class SNESVISolver:
             pc.setType("python")
             pc.setPythonContext(InactiveSetAMG(snes, self._rigid_body_modes(), self.prefix,
                                                self._changing_rows))
-        elif self.linear == "schur":
-            snes.getKSP().setType("preonly")
-            pc = snes.getKSP().getPC()
-            pc.setType("python")
-            pc.setPythonContext(InactiveSetSchur(snes, self.schur))
+        elif self.linear == "schur":             # (KSP preonly, PC python: SCHUR_PETSC)
+            snes.getKSP().getPC().setPythonContext(InactiveSetSchur(snes, self.schur))
         return snes
 
     def _setup_schur(self, framed: bool) -> None:
@@ -402,6 +404,10 @@ class SNESVISolver:
                      "does not apply: %s)", why)
             return
         self.factorisations = 1
+        # in the database: vinewtonrsls resets its KSP from the options when the inactive
+        # set changes (KSPResetFromOptions), and pc_type lu there would replace this PC
+        self.options.update(SCHUR_PETSC)
+        push_options(SCHUR_PETSC, self.prefix)
         log.info("  SNES VI: one factorisation of K, the Newton systems by the Gamma3 Schur "
                  "complement (%d Gamma3 dofs)", self.schur.m)
 

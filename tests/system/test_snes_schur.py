@@ -33,6 +33,11 @@ class _Steps(Observer):
         sim.solver.snes.setMonitor(
             lambda snes, its, fnorm: self.iterates.append(snes.getSolution().array.copy()))
 
+    def end(self, sim, summary):
+        pc = sim.solver.snes.getKSP().getPC()
+        self.pc = pc.getType(), getattr(pc.getPythonContext(), "setups", None) \
+            if pc.getType() == "python" else None
+
     def step(self, sim, record):
         self.u.append(sim.problem.u.x.array.copy())
         self.tables.append(contact_table(sim.problem))
@@ -62,6 +67,9 @@ def _same_steps(raw: dict, **sections) -> None:
     assert schur.summary["solver"]["linear"] == "schur"
     assert schur.summary["solver"]["factorisations"] == 1
     assert a.iterations == b.iterations and sum(a.iterations) > len(a.iterations)
+    # every Newton system by this PC (vinewtonrsls resets its KSP from the options database
+    # when the inactive set changes: a pc_type lu there would have taken over)
+    assert b.pc == ("python", sum(b.iterations)) and a.pc[0] == "lu"
     assert len(a.u) == len(b.u) > 1
     assert len(a.iterates) == len(b.iterates) > len(a.u)
     for xa, xb in zip(a.iterates, b.iterates):
