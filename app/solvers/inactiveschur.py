@@ -24,6 +24,7 @@ import numpy as np
 import scipy.linalg
 from petsc4py import PETSc
 
+from vpcontact.solvers import dense, threads
 from vpcontact.solvers.options import DEFAULT_PETSC
 
 log = logging.getLogger("vpcontact")
@@ -124,28 +125,26 @@ class GammaSchur:
         bounded = (lb.array_r > PETSc.NINFINITY) | (ub.array_r < PETSc.INFINITY)
         return bool(np.all(self.position[np.flatnonzero(bounded)] >= 0))
 
-    def gamma3_block(self) -> np.ndarray:
-        """B_GG, the Gamma3 terms of the current Jacobian on G (dense, G order).
+    def gamma3_entries(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """B_GG, the Gamma3 terms of the current Jacobian on G, as entries.
 
         Returns:
-            The (m, m) array.
+            (rows, columns, values): positions in G and the values there.
 
         Raises:
             RuntimeError: B has a nonzero entry outside G x G (the PC would be wrong).
         """
-        out = np.zeros((self.m, self.m))
         B = self.gamma3_terms()
         if B is None:
-            return out
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
         ai, aj, av = B.getValuesCSR()
-        rows = np.repeat(np.arange(len(ai) - 1), np.diff(ai))
-        pr, pc = self.position[rows], self.position[aj]
+        pr = self.position[np.repeat(np.arange(len(ai) - 1), np.diff(ai))]
+        pc = self.position[aj]
         inside = (pr >= 0) & (pc >= 0)
         if np.any(av[~inside] != 0.0):
             raise RuntimeError("the Gamma3 terms couple dofs outside the Gamma3 nodes: the "
                                "Schur complement solver of SNES VI does not apply")
-        out[pr[inside], pc[inside]] = av[inside]
-        return out
+        return pr[inside], pc[inside], av[inside]
 
     def factor(self, rows: np.ndarray | None) -> tuple[np.ndarray, tuple]:
         """The LU factors of (S + B)_{gI,gI} for the inactive set ``rows``.
@@ -167,8 +166,15 @@ class GammaSchur:
                 raise RuntimeError("SNES VI's inactive set misses bulk dofs: the Schur "
                                    "complement solver does not apply")
             gI = pos[pos >= 0]
-        M = (self.S + self.gamma3_block())[np.ix_(gI, gI)]
-        return gI, scipy.linalg.lu_factor(M, check_finite=False)
+        M = self.S[np.ix_(gI, gI)]
+        where = np.full(self.m, -1, dtype=np.int64)     # a G position's place in gI
+        where[gI] = np.arange(len(gI))
+        pr, pc, v = self.gamma3_entries()
+        pr, pc = where[pr], where[pc]
+        keep = (pr >= 0) & (pc >= 0)
+        np.add.at(M, (pr[keep], pc[keep]), v[keep])
+        with threads.blas_threads(large=len(gI) >= dense.PCG_MIN):
+            return gI, scipy.linalg.lu_factor(M, overwrite_a=True, check_finite=False)
 
     def solve(self, rows: np.ndarray | None, gI: np.ndarray, lu: tuple, r: np.ndarray,
               out: np.ndarray) -> None:
