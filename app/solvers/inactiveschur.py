@@ -36,7 +36,7 @@ SCHUR_PETSC = {"ksp_type": "preonly", "pc_type": "python"}
 
 def user_linear_options(options: dict) -> list[str]:
     """The options that choose SNES VI's linear solver themselves (a ksp_* or pc_* option
-    other than a default of DEFAULT_PETSC).
+    other than a default of DEFAULT_PETSC; monitors and views only look, and are not).
 
     Args:
         options: SNES VI's PETSc options (name without '-' -> value).
@@ -45,7 +45,8 @@ def user_linear_options(options: dict) -> list[str]:
         Their names, sorted (empty: the linear solver is ours to choose).
     """
     return sorted(k for k, v in options.items()
-                  if str(k).startswith(("ksp_", "pc_")) and DEFAULT_PETSC.get(k) != v)
+                  if str(k).startswith(("ksp_", "pc_")) and DEFAULT_PETSC.get(k) != v
+                  and not any(w in str(k) for w in ("monitor", "view")))
 
 
 def schur_refusal(problem, options: dict, reuse: bool, rotated: bool) -> str:

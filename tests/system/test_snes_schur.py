@@ -106,3 +106,12 @@ def test_schur_refused_for_the_implicit_scheme(caplog):
         result, _ = _run(paper_raw(), "schur", mesh={"n": 4}, time={"N": 2, "scheme": "implicit"})
     assert result.summary["solver"]["linear"] == "direct"
     assert "implicit scheme" in caplog.text
+
+
+def test_user_linear_options_are_those_that_choose_a_solver():
+    from vpcontact.solvers.inactiveschur import user_linear_options
+    from vpcontact.solvers.options import DEFAULT_PETSC
+    assert user_linear_options(dict(DEFAULT_PETSC)) == []
+    assert user_linear_options({**DEFAULT_PETSC, "ksp_view": None, "ksp_monitor": None}) == []
+    assert user_linear_options({**DEFAULT_PETSC, "ksp_type": "gmres", "pc_type": "ilu"}) == \
+        ["ksp_type", "pc_type"]
