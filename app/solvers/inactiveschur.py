@@ -12,7 +12,9 @@ with the Schur complement S = K_GG - K_Gb K_bb^-1 K_bG (dense m x m, m = |G|).  
 factorised once, with G last, by the condensed solver's back end (CholmodCondensation,
 app/solvers/condensed/cholmod.py: its forward sweep gives r_G - K_Gb K_bb^-1 r_b, its
 backward sweep x_b); per Newton iteration only the dense (S + B)_{gI,gI} (|gI| <= m) is
-factorised (LU: friction makes B unsymmetric).  ``InactiveSetSchur`` is the python PC
+factorised: by the condensed solver's compiled Cholesky of the free block
+(dense.NewtonDirection) where B is made of symmetric nodal blocks (the nodal Gamma3 rule,
+a convex contact energy), else by LU.  ``InactiveSetSchur`` is the python PC
 (KSP preonly) that applies J_II^-1 so; ``schur_refusal`` says where it does not apply (SNES
 VI then factorises J_II by LU at every Newton iteration, as before).
 """
@@ -112,6 +114,9 @@ class GammaSchur:
         self.gamma3_terms = gamma3_terms
         self.b, self.x = K.createVecs()
         self.factorisations = 1
+        self.d = problem.dim
+        # (S + W)_ff by the condensed solver's compiled Cholesky (W: B's nodal blocks)
+        self.direction = dense.NewtonDirection(self.S, self.d, dense.load())
 
     def covers(self, lb: PETSc.Vec, ub: PETSc.Vec) -> bool:
         """Whether every bounded dof is a Gamma3 dof (so every bulk dof stays inactive).
@@ -148,13 +153,15 @@ class GammaSchur:
         return pr[inside], pc[inside], av[inside]
 
     def factor(self, rows: np.ndarray | None) -> tuple[np.ndarray, tuple]:
-        """The LU factors of (S + B)_{gI,gI} for the inactive set ``rows``.
+        """What solves with (S + B)_{gI,gI} for the inactive set ``rows``: B's nodal blocks W
+        where B is symmetric and couples no two nodes (the nodal Gamma3 rule; the Cholesky
+        factorisation comes with the solve, ``solve``), else the LU factors.
 
         Args:
             rows: the inactive dofs (local, sorted), or None for all.
 
         Returns:
-            (gI: the inactive positions in G, scipy's lu_factor of the matrix).
+            (gI: the inactive positions in G, ("cholesky", W) or ("lu", scipy's lu_factor)).
 
         Raises:
             RuntimeError: a bulk dof is active (the bounds act outside G).
@@ -167,24 +174,60 @@ class GammaSchur:
                 raise RuntimeError("SNES VI's inactive set misses bulk dofs: the Schur "
                                    "complement solver does not apply")
             gI = pos[pos >= 0]
+        pr, pc, v = self.gamma3_entries()
+        W = self._nodal_blocks(pr, pc, v)
+        if W is not None:
+            return gI, ("cholesky", W)
+        return gI, ("lu", self._lu(gI, pr, pc, v))
+
+    def _nodal_blocks(self, pr, pc, v) -> np.ndarray | None:
+        """B's entries as symmetric nodal d x d blocks (m / d, d, d), or None if B couples
+        two nodes or is not symmetric."""
+        d = self.d
+        nonzero = v != 0.0
+        if np.any(pr[nonzero] // d != pc[nonzero] // d):
+            return None
+        W = np.zeros((self.m // d, d, d))
+        same = pr // d == pc // d                       # (B's pattern holds zeros between)
+        W[pr[same] // d, pr[same] % d, pc[same] % d] = v[same]
+        return W if np.array_equal(W, W.transpose(0, 2, 1)) else None
+
+    def _lu(self, gI, pr, pc, v) -> tuple:
+        """scipy's LU factors of (S + B)_{gI,gI} from B's entries."""
         M = self.S[np.ix_(gI, gI)]
         where = np.full(self.m, -1, dtype=np.int64)     # a G position's place in gI
         where[gI] = np.arange(len(gI))
-        pr, pc, v = self.gamma3_entries()
         pr, pc = where[pr], where[pc]
         keep = (pr >= 0) & (pc >= 0)
         np.add.at(M, (pr[keep], pc[keep]), v[keep])
         with threads.blas_threads(large=len(gI) >= dense.PCG_MIN):
-            return gI, scipy.linalg.lu_factor(M, overwrite_a=True, check_finite=False)
+            return scipy.linalg.lu_factor(M, overwrite_a=True, check_finite=False)
 
-    def solve(self, rows: np.ndarray | None, gI: np.ndarray, lu: tuple, r: np.ndarray,
+    def _gamma3_solve(self, gI: np.ndarray, how: tuple, r: np.ndarray) -> np.ndarray:
+        """y with (S + B)_{gI,gI} y_gI = r_gI, y = 0 off gI (Cholesky by NewtonDirection,
+        which returns -(S + W)_ff^-1 g_f for g = -r; LU where B is not nodal and symmetric,
+        or the matrix not positive definite)."""
+        kind, data = how
+        if kind == "cholesky":
+            binding = np.ones(self.m, dtype=bool)
+            binding[gI] = False
+            y = self.direction(data, -r, binding)
+            if y is not None:
+                return y
+            pr, pc, v = self.gamma3_entries()
+            data = self._lu(gI, pr, pc, v)
+        y = np.zeros(self.m)
+        y[gI] = scipy.linalg.lu_solve(data, r[gI], check_finite=False)
+        return y
+
+    def solve(self, rows: np.ndarray | None, gI: np.ndarray, how: tuple, r: np.ndarray,
               out: np.ndarray) -> None:
         """x = J_II^-1 r by the condensation (module docstring).
 
         Args:
             rows: the inactive dofs (local), or None for all.
             gI: their positions in G (``factor``).
-            lu: the factors of (S + B)_{gI,gI} (``factor``).
+            how: the solve with (S + B)_{gI,gI} (``factor``).
             r: the right-hand side on the inactive dofs.
             out: x on the inactive dofs, overwritten.
         """
@@ -194,9 +237,7 @@ class GammaSchur:
         else:
             b[:] = 0.0
             b[rows] = r
-        reduced = self.condensation.reduce(self.b)
-        y = np.zeros(self.m)
-        y[gI] = scipy.linalg.lu_solve(lu, reduced[gI], check_finite=False)
+        y = self._gamma3_solve(gI, how, np.array(self.condensation.reduce(self.b)))
         self.condensation.expand(y, self.x)
         out[:] = self.x.array_r if rows is None else self.x.array_r[rows]
 
@@ -218,7 +259,7 @@ class InactiveSetSchur:
 
     def __init__(self, snes: PETSc.SNES, schur: GammaSchur):
         self.snes, self.schur = snes, schur
-        self.rows = self.gI = self.lu = None
+        self.rows = self.gI = self.how = None
         self.setups = 0
 
     def setUp(self, pc: PETSc.PC) -> None:
@@ -240,7 +281,7 @@ class InactiveSetSchur:
             if len(self.rows) != size:
                 raise RuntimeError(f"SNES VI's inactive set has {len(self.rows)} dofs, its "
                                    f"Newton matrix {size}")
-        self.gI, self.lu = self.schur.factor(self.rows)
+        self.gI, self.how = self.schur.factor(self.rows)
         self.setups += 1
 
     def apply(self, pc: PETSc.PC, x: PETSc.Vec, y: PETSc.Vec) -> None:
@@ -251,7 +292,7 @@ class InactiveSetSchur:
             x: the residual on the inactive dofs.
             y: output, the Newton direction on the inactive dofs.
         """
-        self.schur.solve(self.rows, self.gI, self.lu, x.array_r, y.array)
+        self.schur.solve(self.rows, self.gI, self.how, x.array_r, y.array)
 
     def view(self, pc: PETSc.PC, viewer: PETSc.Viewer) -> None:
         """Say what this PC does (-ksp_view).

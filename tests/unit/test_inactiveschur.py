@@ -43,16 +43,19 @@ def test_inactive_solve_equals_a_sparse_lu_of_the_submatrix():
         assert np.isin(B_rows, rows).any()
         r = np.random.default_rng(2).standard_normal(len(rows))
         expected = scipy.sparse.linalg.spsolve(J_II, r)
-        gI, lu = schur.factor(rows)
+        gI, how = schur.factor(rows)
         assert len(gI) == schur.m - len(active)
-        x = np.empty(len(rows))
-        schur.solve(rows, gI, lu, r, x)
-        assert np.abs(x - expected).max() < 1e-10 * np.abs(expected).max()
+        assert how[0] == "cholesky"             # the nodal rule: symmetric nodal blocks
+        lu = ("lu", schur._lu(gI, *schur.gamma3_entries()))     # the general path
+        for way in (how, lu):
+            x = np.empty(len(rows))
+            schur.solve(rows, gI, way, r, x)
+            assert np.abs(x - expected).max() < 1e-10 * np.abs(expected).max()
         # all dofs inactive (the first Newton iteration's operator J itself)
-        gI, lu = schur.factor(None)
+        gI, how = schur.factor(None)
         r = np.random.default_rng(3).standard_normal(schur.n)
         x = np.empty(schur.n)
-        schur.solve(None, gI, lu, r, x)
+        schur.solve(None, gI, how, r, x)
         expected = scipy.sparse.linalg.spsolve(J.tocsc(), r)
         assert np.abs(x - expected).max() < 1e-10 * np.abs(expected).max()
     finally:
