@@ -477,6 +477,41 @@ class SNESVISolver:
             Z[:, j] = zr.array
         return Z
 
+    @property
+    def gamma3(self) -> bool:
+        """Whether this solver holds K's Schur complement on Gamma3 (linear "schur"): the
+        (2.6) diagnostic's bound of ||gamma||^2 (app/post/diagnostics.py) reads ``S``,
+        ``C``, ``layout`` and ``m`` then, as of the condensed solver."""
+        return self.schur is not None
+
+    @property
+    def S(self) -> np.ndarray:
+        """K's Schur complement on Gamma3 (linear "schur" only: else AttributeError)."""
+        return self._schur_part("S")
+
+    @property
+    def C(self) -> np.ndarray:
+        """S's lower Cholesky factor (linear "schur" only)."""
+        return self._schur_part("C")
+
+    @property
+    def layout(self):
+        """The Gamma3Layout of S (linear "schur" only)."""
+        return self._schur_part("layout")
+
+    @property
+    def m(self) -> int:
+        """The Gamma3 dofs of S (linear "schur" only)."""
+        return self._schur_part("m")
+
+    def _schur_part(self, name: str):
+        """An attribute of the GammaSchur (C: its condensation's), or AttributeError
+        without one."""
+        if self.schur is None:
+            raise AttributeError(f"{name}: SNES VI holds no Schur complement (linear "
+                                 f"{self.linear})")
+        return getattr(self.schur.condensation if name == "C" else self.schur, name)
+
     def describe(self) -> str:
         """The solver as the run's log line names it.
 
