@@ -13,8 +13,9 @@ factorised once, with G last, by the condensed solver's back end (CholmodCondens
 app/solvers/condensed/cholmod.py: its forward sweep gives r_G - K_Gb K_bb^-1 r_b, its
 backward sweep x_b); per Newton iteration only the dense (S + B)_{gI,gI} (|gI| <= m) is
 factorised: by the condensed solver's compiled Cholesky of the free block
-(dense.NewtonDirection) where B is made of symmetric nodal blocks (the nodal Gamma3 rule,
-a convex contact energy), else by LU.  ``InactiveSetSchur`` is the python PC
+(dense.NewtonDirection; in 3D, from 1000 dofs, CG with the kept factor of an earlier
+iteration first, as the condensed solver does) where B is made of symmetric nodal blocks
+(the nodal Gamma3 rule, a convex contact energy), else by LU.  ``InactiveSetSchur`` is the python PC
 (KSP preonly) that applies J_II^-1 so; ``schur_refusal`` says where it does not apply (SNES
 VI then factorises J_II by LU at every Newton iteration, as before).
 """
@@ -33,6 +34,11 @@ log = logging.getLogger("vpcontact")
 SNES_TYPE = "vinewtonrsls"      # the reduced-space SNES VI whose J_II this PC inverts
 # SNES VI's linear solver options with this PC (in place of DEFAULT_PETSC's LU)
 SCHUR_PETSC = {"ksp_type": "preonly", "pc_type": "python"}
+# from dense.PCG_MIN Gamma3 dofs (3D), (S + B)_{gI,gI} y = r by CG preconditioned with the
+# kept Cholesky factor of an earlier Newton iteration (dense.NewtonDirection), to this
+# relative residual (a new factorisation where CG does not get there in a few iterations):
+# the Newton iterates stay those of LU to 1e-10 (tests/system/test_snes_schur.py)
+CG_RTOL = 1e-12
 
 
 def user_linear_options(options: dict) -> list[str]:
@@ -206,13 +212,14 @@ class GammaSchur:
 
     def _gamma3_solve(self, gI: np.ndarray, how: tuple, r: np.ndarray) -> np.ndarray:
         """y with (S + B)_{gI,gI} y_gI = r_gI, y = 0 off gI (Cholesky by NewtonDirection,
-        which returns -(S + W)_ff^-1 g_f for g = -r; LU where B is not nodal and symmetric,
-        or the matrix not positive definite)."""
+        which returns -(S + W)_ff^-1 g_f for g = -r, from PCG_MIN dofs CG with its kept
+        factor to CG_RTOL first; LU where B is not nodal and symmetric, or the matrix not
+        positive definite)."""
         kind, data = how
         if kind == "cholesky":
             binding = np.ones(self.m, dtype=bool)
             binding[gI] = False
-            y = self.direction(data, -r, binding)
+            y = self.direction(data, -r, binding, rtol=CG_RTOL)
             if y is not None:
                 return y
             pr, pc, v = self.gamma3_entries()

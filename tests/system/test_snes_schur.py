@@ -34,6 +34,9 @@ class _Steps(Observer):
             lambda snes, its, fnorm: self.iterates.append(snes.getSolution().array.copy()))
 
     def end(self, sim, summary):
+        schur = getattr(sim.solver, "schur", None)
+        self.dense = None if schur is None else \
+            (schur.direction.factorisations, schur.direction.cg_iterations)
         pc = sim.solver.snes.getKSP().getPC()
         self.pc = pc.getType(), getattr(pc.getPythonContext(), "setups", None) \
             if pc.getType() == "python" else None
@@ -79,10 +82,22 @@ def _same_steps(raw: dict, **sections) -> None:
         assert ta.keys() == tb.keys()
         for key in ta:
             assert _relative(np.asarray(ta[key], float), np.asarray(tb[key], float)) < TOL, key
+    return b
 
 
 def test_schur_takes_the_lu_iterates_on_the_paper_case():
-    _same_steps(paper_raw(), mesh={"n": 16}, time={"N": 16})
+    steps = _same_steps(paper_raw(), mesh={"n": 16}, time={"N": 16})
+    assert steps.dense == (sum(steps.iterations), 0)    # a Cholesky per Newton iteration
+
+
+def test_schur_with_cg_on_the_kept_factor_takes_the_lu_iterates(monkeypatch):
+    """The 3D path (CG preconditioned by the kept Cholesky factor of an earlier Newton
+    iteration, from dense.PCG_MIN Gamma3 dofs) on the paper case, with PCG_MIN lowered."""
+    from vpcontact.solvers import dense
+    monkeypatch.setattr(dense, "PCG_MIN", 0)
+    steps = _same_steps(paper_raw(), mesh={"n": 16}, time={"N": 16})
+    factorisations, cg_iterations = steps.dense
+    assert cg_iterations > 0 and factorisations < sum(steps.iterations)
 
 
 def test_schur_takes_the_lu_iterates_with_coulomb_friction():
