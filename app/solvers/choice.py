@@ -25,7 +25,8 @@ DENSE_BYTES_PER_ENTRY = 48
 # auto: SNES VI's Newton systems by CG + GAMG (app/solvers/amg.py) in 3D above this many dofs
 # (LU's fill grows like dofs^(4/3) in 3D).  box3d, 8 steps, whole process: n = 16 (14,739
 # dofs) LU 15.3 s, CG + GAMG 7.2 s; n = 24 (46,875) 130 s against 40 s (docs/performance.md).
-# Below, LU costs seconds and takes indefinite Jacobians (beyond (2.6)) as they come.
+# Below, a direct solve (the Gamma3 Schur complement, LU where it does not apply) costs
+# seconds and takes indefinite Jacobians (beyond (2.6)) as they come.
 AUTO_AMG_MIN_DOFS = 20_000
 
 
