@@ -466,10 +466,15 @@ SCHEMA = _obj({
                                   "and vertex quadrature; fast is its former name), auto "
                                   "(condensed where it applies and Gamma3 has at most 6000 "
                                   "dofs)"},
-        "linear": {"enum": ["direct", "amg", "auto"], "default": "auto",
-                   "description": "Newton systems of snes_vi: direct (LU), amg (CG with "
+        "linear": {"enum": ["direct", "schur", "amg", "auto"], "default": "auto",
+                   "description": "Newton systems of snes_vi: direct (LU of every Newton "
+                                  "system), schur (one factorisation of the bulk stiffness "
+                                  "per run and a dense Gamma3 Schur complement per Newton "
+                                  "iteration; serial, explicit scheme, one body without "
+                                  "nodal frames, else direct), amg (CG with "
                                   "algebraic multigrid, GAMG, knowing the rigid body modes; "
-                                  "for large 3D meshes), auto (amg in 3D above 20000 dofs)"},
+                                  "for large 3D meshes), auto (amg in 3D above 20000 dofs, "
+                                  "else schur)"},
         "delta": {**_pos, "default": 1.0e-7,
                   "description": "regularisation width of |u_tau| (friction) and u_nu^+ "
                                  "(memory term) [m]"},

@@ -25,7 +25,8 @@ DENSE_BYTES_PER_ENTRY = 48
 # auto: SNES VI's Newton systems by CG + GAMG (app/solvers/amg.py) in 3D above this many dofs
 # (LU's fill grows like dofs^(4/3) in 3D).  box3d, 8 steps, whole process: n = 16 (14,739
 # dofs) LU 15.3 s, CG + GAMG 7.2 s; n = 24 (46,875) 130 s against 40 s (docs/performance.md).
-# Below, LU costs seconds and takes indefinite Jacobians (beyond (2.6)) as they come.
+# Below, a direct solve (the Gamma3 Schur complement, LU where it does not apply) costs
+# seconds and takes indefinite Jacobians (beyond (2.6)) as they come.
 AUTO_AMG_MIN_DOFS = 20_000
 
 
@@ -153,19 +154,21 @@ def condensed_dofs(problem) -> int:
 
 def choose_linear(case, n_dofs: int) -> str:
     """The linear solver of SNES VI's Newton systems: ``solver.linear``, and for ``auto``
-    algebraic multigrid in 3D with more than AUTO_AMG_MIN_DOFS dofs, else LU.
+    algebraic multigrid in 3D with more than AUTO_AMG_MIN_DOFS dofs, else the Gamma3 Schur
+    complement on one factorisation of K (app/solvers/inactiveschur.py; SNES VI takes LU
+    where it does not apply, and logs why).
 
     Args:
         case: the validated Case.
         n_dofs: the global number of dofs of u.
 
     Returns:
-        "direct" or "amg".
+        "direct" (LU of every Newton system), "schur" or "amg".
     """
     linear = case.numerics.linear
     if linear != "auto":
         return linear
-    return "amg" if case.dim == 3 and n_dofs > AUTO_AMG_MIN_DOFS else "direct"
+    return "amg" if case.dim == 3 and n_dofs > AUTO_AMG_MIN_DOFS else "schur"
 
 
 def gamma3_dofs(problem) -> int:

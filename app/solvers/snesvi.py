@@ -20,6 +20,12 @@ from petsc4py import PETSc
 from vpcontact.io.errors import StepSolveError
 from vpcontact.solvers.amg import InactiveSetAMG, rigid_body_modes
 from vpcontact.solvers.bulkresidual import BulkProductResidual
+from vpcontact.solvers.inactiveschur import (
+    SCHUR_PETSC,
+    GammaSchur,
+    InactiveSetSchur,
+    schur_refusal,
+)
 from vpcontact.solvers.levels import SymmetricCopy, is_symmetric
 from vpcontact.solvers.matrices import share_pattern
 from vpcontact.solvers.options import PREFIX, push_options, remove_options
@@ -251,13 +257,16 @@ class SNESVISolver:
 
     The Newton systems are solved by ``options`` (default: LU) or, with ``linear="amg"``, by
     the KSP the options give (CG) preconditioned by GAMG with the rigid body modes restricted
-    to the inactive set (app/solvers/amg.py).
+    to the inactive set (app/solvers/amg.py), or, with ``linear="schur"`` where it applies,
+    by one factorisation of K per run and a dense Gamma3 Schur complement per Newton
+    iteration (app/solvers/inactiveschur.py; elsewhere LU, the reason logged).
 
     Args:
         problem: the ContactProblem (forms F, J, bounds, Dirichlet conditions).
         options: PETSc options (name without '-' -> value), set under ``prefix``.
         prefix: the PETSc options prefix of the SNES.
-        linear: "direct" (the options' KSP and PC) or "amg" (InactiveSetAMG as the PC).
+        linear: "direct" (the options' KSP and PC), "amg" (InactiveSetAMG as the PC) or
+            "schur" (InactiveSetSchur as the PC where it applies, else "direct").
         roundoff_floor: the absolute tolerance is the options' snes_atol or the residual's
             round-off floor (RoundoffFloor), whichever is larger, at every iteration; False
             (a snes_atol the user gave): the options' snes_atol alone.
@@ -265,7 +274,7 @@ class SNESVISolver:
 
     ROBUST = {"snes_linesearch_type": "bt"}
     name = "snes_vi"
-    factorisations = None          # SNES VI refactorises in every Newton iteration
+    factorisations = None          # refactorised in every Newton iteration (not "schur": 1)
 
     def __init__(self, problem, options: dict, prefix: str = PREFIX, linear: str = "direct",
                  roundoff_floor: bool = True):
@@ -298,6 +307,9 @@ class SNESVISolver:
             self.A_frames = self.frames.product(self.A)
         self.options, self.prefix = dict(options), prefix
         push_options(self.options, prefix)      # in the database while the solver lives
+        self.schur = None                        # linear "schur": app/solvers/inactiveschur.py
+        if linear == "schur":
+            self._setup_schur(self.frames is not None)
         self._lb = self._ub = None               # the bounds (set with the first VI SNES)
         self.snes = self._create()
         self._keep_bulk()
@@ -347,7 +359,44 @@ class SNESVISolver:
             pc.setType("python")
             pc.setPythonContext(InactiveSetAMG(snes, self._rigid_body_modes(), self.prefix,
                                                self._changing_rows))
+        elif self.linear == "schur":             # (KSP preonly, PC python: SCHUR_PETSC)
+            snes.getKSP().getPC().setPythonContext(InactiveSetSchur(snes, self.schur))
         return snes
+
+    def _setup_schur(self, framed: bool) -> None:
+        """The Newton systems by one factorisation of K and the Gamma3 Schur complement
+        (app/solvers/inactiveschur.py) where it applies, else (logged with the reason) by LU
+        at every Newton iteration (``linear`` becomes "direct").  A holds K alone here.
+
+        Args:
+            framed: SNES VI solves in nodal frames or for rigid caps' amplitudes.
+        """
+        why = schur_refusal(self.problem, self.options, self.reuse, framed)
+        if not why:
+            try:
+                self.schur = GammaSchur(self.problem, self.A, lambda: self.B)
+            except np.linalg.LinAlgError:
+                why = "K's Schur complement on Gamma3 is not positive definite"
+        if self.schur is not None:
+            lb, ub = self.problem.bounds()
+            if not self.schur.covers(lb, ub):
+                why = "bounds on dofs outside the Gamma3 nodes"
+            for obj in (lb, ub):
+                obj.destroy()
+        if why:
+            if self.schur is not None:
+                self.schur.destroy()
+            self.schur, self.linear = None, "direct"
+            log.info("  SNES VI: LU of every Newton system (the Gamma3 Schur complement "
+                     "does not apply: %s)", why)
+            return
+        self.factorisations = 1
+        # in the database: vinewtonrsls resets its KSP from the options when the inactive
+        # set changes (KSPResetFromOptions), and pc_type lu there would replace this PC
+        self.options.update(SCHUR_PETSC)
+        push_options(SCHUR_PETSC, self.prefix)
+        log.info("  SNES VI: one factorisation of K, the Newton systems by the Gamma3 Schur "
+                 "complement (%d Gamma3 dofs)", self.schur.m)
 
     def _changing_rows(self) -> np.ndarray | None:
         """The local rows of SNES's Jacobian that change between Newton iterations (explicit
@@ -415,13 +464,50 @@ class SNESVISolver:
             Z[:, j] = zr.array
         return Z
 
+    @property
+    def gamma3(self) -> bool:
+        """Whether this solver holds K's Schur complement on Gamma3 (linear "schur"): the
+        (2.6) diagnostic's bound of ||gamma||^2 (app/post/diagnostics.py) reads ``S``,
+        ``C``, ``layout`` and ``m`` then, as of the condensed solver."""
+        return self.schur is not None
+
+    @property
+    def S(self) -> np.ndarray:
+        """K's Schur complement on Gamma3 (linear "schur" only: else AttributeError)."""
+        return self._schur_part("S")
+
+    @property
+    def C(self) -> np.ndarray:
+        """S's lower Cholesky factor (linear "schur" only)."""
+        return self._schur_part("C")
+
+    @property
+    def layout(self):
+        """The Gamma3Layout of S (linear "schur" only)."""
+        return self._schur_part("layout")
+
+    @property
+    def m(self) -> int:
+        """The Gamma3 dofs of S (linear "schur" only)."""
+        return self._schur_part("m")
+
+    def _schur_part(self, name: str):
+        """An attribute of the GammaSchur (C: its condensation's), or AttributeError
+        without one."""
+        if self.schur is None:
+            raise AttributeError(f"{name}: SNES VI holds no Schur complement (linear "
+                                 f"{self.linear})")
+        return getattr(self.schur.condensation if name == "C" else self.schur, name)
+
     def describe(self) -> str:
         """The solver as the run's log line names it.
 
         Returns:
             'SNES <type>', e.g. 'SNES vinewtonrsls'.
         """
-        linear = ", CG + GAMG with the rigid body modes" if self.linear == "amg" else ""
+        linear = {"amg": ", CG + GAMG with the rigid body modes",
+                  "schur": ", one factorisation of K and the Gamma3 Schur complement"}.get(
+                      self.linear, "")
         return f"SNES {self.snes.getType()}{linear}"
 
     def amg_stats(self) -> dict | None:
@@ -775,7 +861,7 @@ class SNESVISolver:
         PETSc's database."""
         remove_options(self.options, self.prefix)
         for obj in (self.snes, self._robust, self.A, self.b, self.x, self.K, self.B,
-                    self.floor, self._residual):
+                    self.floor, self._residual, self.schur):
             if obj is not None:
                 obj.destroy()
         if self.frames is not None:

@@ -184,7 +184,8 @@ def _row(n: int, N: int, nprocs: int, s: dict, wall: float, runs: list, out: Pat
     contact nodes' displacements of contact.csv, for the solvers' difference)."""
     steps = [st["wall_s"] for st in s["steps"]]
     row = {"n": n, "h": 1.0 / n, "N": N, "dofs": s["mesh"]["dofs"],
-           "method": s["solver"]["used"], "nprocs": nprocs, "wall_s": wall,
+           "method": s["solver"]["used"], "linear": s["solver"].get("linear"),
+           "nprocs": nprocs, "wall_s": wall,
            "wall_runs_s": [r[0] for r in runs],
            "setup_s": s["setup_s"], "loop_s": s["loop_s"],
            "step_min_s": min(steps), "step_median_s": statistics.median(steps),
@@ -195,6 +196,14 @@ def _row(n: int, N: int, nprocs: int, s: dict, wall: float, runs: list, out: Pat
     with open(out / "contact.csv") as f:
         row["_u"] = np.array([[float(r["u_x"]), float(r["u_y"])] for r in csv.DictReader(f)])
     return row
+
+
+def _solver_cell(row: dict) -> str:
+    """The solver column of a bench row: the step solver, SNES VI's with its linear solver
+    (e.g. 'snes_vi (schur)')."""
+    linear = row.get("linear")
+    return f"{row['method']} ({linear})" if row["method"] == "snes_vi" and linear \
+        else row["method"]
 
 
 def _cost_exponents(rows: list[dict], methods) -> None:
@@ -312,8 +321,10 @@ def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None,
              "Whole-process wall time (start-up, imports, mesh, set-up, steps, output at T), "
              "measured from outside after a warm-up run that fills the JIT cache: the fastest "
              "of the repeated runs (all of them under 'runs'; every solver is repeated alike). "
-             "Per-step times and set-up from that run's summary.json. Speed-up = SNES VI wall "
-             "/ fast wall in the same bench run; difference = max |u_fast - u_snes| / max |u| "
+             "Per-step times and set-up from that run's summary.json. SNES VI's linear solver in "
+             "brackets (schur: one factorisation of K and the Gamma3 Schur complement, "
+             "direct: LU of every Newton system). Speed-up = SNES VI wall "
+             "/ condensed wall in the same bench run; difference = max |u_fast - u_snes| / max |u| "
              "on Gamma3. " + REFERENCE_TEXT,
              "", "| h | N | dofs | solver | ranks | wall s | runs s | set-up s | steps s | "
              "step min s | step median s | Newton | factorisations | speed-up | difference | "
@@ -325,7 +336,7 @@ def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None,
                          f"failed: {r['failed']} |" + " |" * 15)
             continue
         lines.append("| " + " | ".join([
-            f"1/{r['n']}", str(r["N"]), str(r["dofs"]), r["method"], str(r["nprocs"]),
+            f"1/{r['n']}", str(r["N"]), str(r["dofs"]), _solver_cell(r), str(r["nprocs"]),
             f"{r['wall_s']:.2f}", " ".join(f"{w:.2f}" for w in r["wall_runs_s"]),
             f"{r['setup_s']:.2f}", f"{r['loop_s']:.2f}",
             f"{r['step_min_s']:.4f}", f"{r['step_median_s']:.4f}", str(r["newton_total"]),

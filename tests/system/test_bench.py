@@ -175,9 +175,12 @@ def test_bench_command(tmp_path):
         assert r["reference_dofs"] == r["dofs"]
         assert r["solution_difference"] < 1e-9 and r["speedup_fast_vs_snes"] > 0
         # condensed: one factorisation, serial and under mpirun (MUMPS with Gamma3 as Schur
-        # variables)
-        expected = 1 if r["method"] == "condensed" else None
+        # variables); SNES VI: one serially (the Gamma3 Schur complement PC), LU of every
+        # Newton system under mpirun
+        expected = 1 if r["method"] == "condensed" or r["nprocs"] == 1 else None
         assert r["factorisations"] == expected
+        assert r["linear"] == (None if r["method"] == "condensed" else
+                               "schur" if r["nprocs"] == 1 else "direct")
         assert {"dofs", "wall_s", "setup_s", "step_median_s", "newton_total"} <= set(r)
         assert len(r["wall_runs_s"]) == 1 and r["wall_s"] == min(r["wall_runs_s"])
     mem = data["memory_term"]

@@ -55,3 +55,22 @@ def test_bound_brackets_the_trace_constant_on_the_paper_case():
     c = np.linalg.eigvalsh(problem.elasticity.Cmat)
     assert value * (1 - 1e-9) <= bound <= value * c[-1] / c[0] * (1 + 1e-9)
     solver.destroy()
+
+
+def test_snes_vi_with_the_schur_complement_gives_the_condensed_bound():
+    """SNES VI's Gamma3 Schur complement PC holds the same S (of the same K): the same
+    bound; with LU of every Newton system, none (the diagnostic computes ||gamma||^2)."""
+    from vpcontact.model.problem import ContactProblem
+    from vpcontact.simulation import build_mesh
+    from vpcontact.solvers.condensed import CondensedStepSolver
+    from vpcontact.solvers.snesvi import SNESVISolver
+    case = validate_raw(paper_raw())
+    problem = ContactProblem(case, build_mesh(case, MPI.COMM_WORLD))
+    condensed = CondensedStepSolver(problem)
+    expected = diagnostics.trace_constant_bound(problem, condensed)
+    condensed.destroy()
+    for linear, bound in (("schur", pytest.approx(expected, rel=1e-10)), ("direct", None)):
+        solver = SNESVISolver(problem, case.petsc, linear=linear)
+        assert solver.linear == linear
+        assert diagnostics.trace_constant_bound(problem, solver) == bound
+        solver.destroy()
