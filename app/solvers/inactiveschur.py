@@ -26,7 +26,8 @@ import logging
 import numpy as np
 from petsc4py import PETSc
 
-from vpcontact.solvers import dense, threads
+from vpcontact import threads
+from vpcontact.solvers import dense
 from vpcontact.solvers.options import DEFAULT_PETSC
 
 log = logging.getLogger("vpcontact")
