@@ -207,8 +207,8 @@ def test_the_shipped_law_is_the_recipe(tube_case):
     """The rates of law norton in plane strain (G, p', eps_vp33') equal PlaneStrainNorton's
     on random stresses and out-of-plane creep strains, n = 3 and n = 1."""
     from vpcontact.forms.elasticity import plane_strain_moduli
+    from vpcontact.model.lawregistry import viscoplastic_law
     from vpcontact.model.material import Elasticity
-    from vpcontact.model.viscoplastic import viscoplastic_law
     case = tube_case
     el = Elasticity(*plane_strain_moduli(case.material.E, case.material.nu), 2)
     rng = np.random.default_rng(3)
