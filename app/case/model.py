@@ -3,7 +3,9 @@ validated, default-filled mapping (``build_case``).
 
 Adding a key to the case file: its entry in the schema (app/case/schema.py), its field here
 (and its line in ``build_case``), and its rule in app/case/rules.py if it has one beyond the
-schema's.
+schema's.  A built-in viscoplastic law's keys are none of these: its LawSpec declares them
+(app/model/lawspec.py, in the law's module), and the schema, the rules and ``Viscoplastic``
+read them from the registry app/model/lawregistry.py.
 """
 from __future__ import annotations
 
