@@ -226,6 +226,20 @@ def _growth(vp, T: float, S: float) -> float:
     return max(S, abs(vp.Q), T * (2.0 * S / vp.K) ** vp.n)
 
 
+def _stress_scaling(vp: dict, factor: float) -> dict[str, float]:
+    """sigma -> factor sigma with E: k, K, C, Q by ``factor`` (f / K unchanged; gamma, b, n
+    are pure numbers).
+
+    Args:
+        vp: the material.viscoplastic section as given.
+        factor: the scaling factor.
+
+    Returns:
+        {key: factor} of those keys present in the section.
+    """
+    return {k: factor for k in ("k", "K", "C", "Q") if k in vp}
+
+
 # the declaration of the law (app/model/lawspec.py), collected by app/model/lawregistry.py
 SPEC = LawSpec(
     name="chaboche", title="Chaboche",
@@ -254,4 +268,4 @@ SPEC = LawSpec(
     build=lambda vp, elasticity, plane: Chaboche(elasticity, vp.k, vp.K, vp.n, vp.C,
                                                  vp.gamma, vp.Q, vp.b, plane),
     kappa_growth=_growth, shown=("k", "K", "n", "C", "gamma", "Q", "b"), check=_check,
-    carries_sigma33=True)
+    carries_sigma33=True, stress_scaling=_stress_scaling)

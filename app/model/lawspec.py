@@ -68,6 +68,10 @@ class LawSpec:
         check_plane_strain: the same in 2D plane strain, or None.
         carries_sigma33: in plane strain the law carries sigma_33 with the 3D E, nu of an
             isotropic E (app/model/planestrain.py).
+        stress_scaling: (vp, factor) -> {key: multiplier} of the section's keys that make
+            sigma scale by ``factor`` with u and the viscoplastic strain unchanged (E scaled
+            too; the stability sweep's scaled variants, app/studies/variantsections.py), or
+            the reason (a str) the data cannot be scaled; None: not known.
     """
 
     name: str
@@ -82,6 +86,7 @@ class LawSpec:
     check: Callable | None = None
     check_plane_strain: Callable | None = None
     carries_sigma33: bool = False
+    stress_scaling: Callable | None = None
 
     def required(self) -> dict[str, str]:
         """The keys the law requires, with what they are.

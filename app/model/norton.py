@@ -286,6 +286,21 @@ def _growth(vp, T: float, S: float) -> float:
     return T * vp.A * S ** vp.n
 
 
+def _stress_scaling(vp: dict, factor: float) -> dict[str, float] | str:
+    """sigma -> factor sigma with E: A by factor^-n (A sigma_eq^n unchanged; p is a strain).
+
+    Args:
+        vp: the material.viscoplastic section as given.
+        factor: the scaling factor.
+
+    Returns:
+        {"A": factor^-n}, or the reason where n is not a number.
+    """
+    if not isinstance(vp.get("n"), (int, float)):
+        return "Norton's exponent n is not a number"
+    return {"A": factor ** -vp["n"]}
+
+
 # the declaration of the law (app/model/lawspec.py), collected by app/model/lawregistry.py
 SPEC = LawSpec(
     name="norton", title="Norton",
@@ -301,4 +316,4 @@ SPEC = LawSpec(
           "n": LawKey(EXPONENT, "the exponent n >= 1 of sigma_eq^n", "-")},
     build=lambda vp, elasticity, plane: Norton(elasticity, vp.A, vp.n, plane),
     kappa_growth=_growth, shown=("A", "n"), check_plane_strain=_check_plane_strain,
-    carries_sigma33=True)
+    carries_sigma33=True, stress_scaling=_stress_scaling)

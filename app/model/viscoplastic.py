@@ -278,6 +278,20 @@ def _power_growth(vp, T: float, S: float) -> float:
     return _perzyna_growth(vp, T, S) * max(1.0, S / vp.s_ref) ** (vp.n - 1.0)
 
 
+def _lambda1_scaling(vp: dict, factor: float) -> dict[str, float]:
+    """sigma -> factor sigma with E: lambda1 and kappa0 (G = -E (sigma - P sigma) / (2
+    lambda1)) and the power law's s_ref scale by ``factor``.
+
+    Args:
+        vp: the material.viscoplastic section as given.
+        factor: the scaling factor.
+
+    Returns:
+        {key: factor} of those keys present in the section.
+    """
+    return {k: factor for k in ("lambda1", "kappa0", "s_ref") if k in vp}
+
+
 PERZYNA = LawSpec(
     name="perzyna", title="Perzyna",
     summary="the paper's G = -1/(2 lambda1) E (sigma - P sigma), Gk = 2/(3 lambda2) "
@@ -285,7 +299,7 @@ PERZYNA = LawSpec(
     kappa0=_HARDENING, kappa_unit="N/m^2",
     keys={"lambda1": _LAMBDA1, "lambda2": _LAMBDA2},
     build=lambda vp, elasticity, plane: Perzyna(elasticity, vp.lambda1, vp.lambda2),
-    kappa_growth=_perzyna_growth)
+    kappa_growth=_perzyna_growth, stress_scaling=_lambda1_scaling)
 
 POWER = LawSpec(
     name="power", title="power-law Perzyna",
@@ -300,4 +314,4 @@ POWER = LawSpec(
                               "sigma||_VM / s_ref [N/m^2 = Pa]")},
     build=lambda vp, elasticity, plane: PowerLaw(elasticity, vp.lambda1, vp.lambda2, vp.n,
                                                  vp.s_ref),
-    kappa_growth=_power_growth, shown=("n", "s_ref"))
+    kappa_growth=_power_growth, shown=("n", "s_ref"), stress_scaling=_lambda1_scaling)

@@ -182,3 +182,20 @@ def test_a_new_law_is_one_spec(monkeypatch):
 def _elasticity():
     from vpcontact.model.material import Elasticity
     return Elasticity(1000.0, 0.4, 2)
+
+
+def test_stress_scaling_of_the_stability_sweep():
+    """sigma -> 10 sigma with u and the creep strain unchanged: E, lambda1, kappa0, s_ref, k,
+    K, C, Q times 10; Norton's A times 10^-n (A sigma_eq^n unchanged); a user's law: none."""
+    from vpcontact.studies.variantsections import scaled_material
+    power = {"E": 1.0, "viscoplastic": {**SECTIONS["power"], "kappa0": 0.5}}
+    assert scaled_material("material", power, 10.0)[0] == {
+        "material.E": ("scale", 10.0), "material.viscoplastic.lambda1": ("scale", 10.0),
+        "material.viscoplastic.kappa0": ("scale", 10.0),
+        "material.viscoplastic.s_ref": ("scale", 10.0)}
+    norton = scaled_material("material", {"E": 1.0, "viscoplastic": SECTIONS["norton"]}, 10.0)
+    assert norton[0]["material.viscoplastic.A"][1] == pytest.approx(1e-3)
+    chaboche = scaled_material("material", {"viscoplastic": SECTIONS["chaboche"]}, 2.0)[0]
+    assert sorted(k.split(".")[-1] for k in chaboche) == ["C", "K", "Q", "k"]
+    assert scaled_material("material", {"E": 1.0, "viscoplastic": {"law": "python"}}, 2.0) \
+        == ({}, "python's law: its parameters' units are unknown")
