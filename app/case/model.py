@@ -3,13 +3,17 @@ validated, default-filled mapping (``build_case``).
 
 Adding a key to the case file: its entry in the schema (app/case/schema.py), its field here
 (and its line in ``build_case``), and its rule in app/case/rules.py if it has one beyond the
-schema's.
+schema's.  A built-in viscoplastic law's keys are none of these: its LawSpec declares them
+(app/model/lawspec.py, in the law's module), and the schema, the rules and ``Viscoplastic``
+read them from the registry app/model/lawregistry.py.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from vpcontact.model.lawregistry import DEFAULT_LAW, LAWS, USER_LAW, key_owners
 
 # solver.method's former names -> the names the Case holds
 METHOD_NAMES = {"fast": "condensed"}
@@ -53,27 +57,36 @@ class Boundaries:
 
 @dataclass(frozen=True)
 class Viscoplastic:
-    """``material.viscoplastic``: the law ("perzyna", "power", "norton" or "chaboche"),
-    lambda1, lambda2 (perzyna, power; else None), kappa0, the exponent n (power, norton,
-    chaboche), the power law's stress scale s_ref, Norton's A, Chaboche's k, K, C, gamma, Q,
-    b, the user's class and its params (law "python") (each None where the law does not use
-    it)."""
+    """``material.viscoplastic``: the law (a built-in law's name, app/model/lawregistry.py,
+    or "python"), kappa0, the built-in law's ``constants`` ({key: float}: its keys of the
+    case file, defaults filled, as its LawSpec declares them), the user's class and its
+    params (law "python").  A constant reads as an attribute too (``vp.lambda1``); a key of
+    another built-in law reads as None."""
 
-    lambda1: float | None
-    lambda2: float | None
+    law: str
     kappa0: float | str
-    law: str = "perzyna"
-    n: float | None = None
-    s_ref: float | None = None
-    A: float | None = None
-    k: float | None = None
-    K: float | None = None
-    C: float | None = None
-    gamma: float | None = None
-    Q: float | None = None
-    b: float | None = None
+    constants: dict = field(default_factory=dict)
     cls: str | None = None              # law python: the class of --law-module
     params: dict | None = None          # law python: its constructor's keyword arguments
+
+    def __getattr__(self, name: str):
+        """A constant of the law by its key (None for a key of another built-in law).
+
+        Args:
+            name: the key.
+
+        Returns:
+            Its value, or None.
+
+        Raises:
+            AttributeError: not a key of any built-in law.
+        """
+        constants = self.__dict__.get("constants")
+        if constants is not None and name in constants:
+            return constants[name]
+        if constants is not None and name in key_owners():
+            return None
+        raise AttributeError(f"Viscoplastic has no attribute {name!r}")
 
 
 @dataclass(frozen=True)
@@ -617,38 +630,21 @@ def _rows(matrix) -> tuple:
 
 
 def _viscoplastic(vp: dict) -> Viscoplastic:
-    """The Viscoplastic of the material.viscoplastic section (law absent: perzyna; the power
-    law's n absent: 1)."""
-    law = vp.get("law", "perzyna")
-    power = law == "power"
-    if law == "python":
-        return Viscoplastic(None, None, vp["kappa0"] if isinstance(vp["kappa0"], str)
-                            else float(vp["kappa0"]), law, cls=vp["class"],
+    """The Viscoplastic of the material.viscoplastic section (law absent: perzyna; a
+    constant absent: its LawSpec's default)."""
+    law = vp.get("law", DEFAULT_LAW)
+    kappa0 = vp["kappa0"] if isinstance(vp["kappa0"], str) else float(vp["kappa0"])
+    if law == USER_LAW:
+        return Viscoplastic(law, kappa0, cls=vp["class"],
                             params={k: float(v) for k, v in vp.get("params", {}).items()})
-    if law in ("norton", "chaboche"):
-        return Viscoplastic(None, None, vp["kappa0"] if isinstance(vp["kappa0"], str)
-                            else float(vp["kappa0"]), law, float(vp["n"]),
-                            **{key: float(vp[key]) for key in _LAW_CONSTANTS[law]})
-    return Viscoplastic(float(vp["lambda1"]), float(vp["lambda2"]),
-                        vp["kappa0"] if isinstance(vp["kappa0"], str) else float(vp["kappa0"]),
-                        law, float(vp.get("n", 1.0)) if power else None,
-                        float(vp["s_ref"]) if power else None)
+    return Viscoplastic(law, kappa0, LAWS[law].constants(vp))
 
 
 def _law_title(vp: Viscoplastic) -> str:
     """The law's name and constants for the run log's active terms."""
-    if vp.law == "perzyna":
-        return "Perzyna"
-    if vp.law == "power":
-        return f"power-law Perzyna (n = {vp.n:g}, s_ref = {vp.s_ref:g})"
-    if vp.law == "python":
+    if vp.law == USER_LAW:
         return f"the user's law {vp.cls} (--law-module)"
-    keys = ("A", "n") if vp.law == "norton" else ("k", "K", "n", "C", "gamma", "Q", "b")
-    return f"{vp.law.capitalize()} ({', '.join(f'{k} = {getattr(vp, k):g}' for k in keys)})"
-
-
-# the constants of the laws without lambda1, lambda2 (besides n)
-_LAW_CONSTANTS = {"norton": ("A",), "chaboche": ("k", "K", "C", "gamma", "Q", "b")}
+    return LAWS[vp.law].title_of(vp)
 
 
 def _mesh_spec(mesh: dict) -> MeshSpec:

@@ -15,6 +15,7 @@ from vpcontact.case.model import case_name
 from vpcontact.io.casekey import GROUP_MAPS
 from vpcontact.io.errors import CaseError
 from vpcontact.meshes.rectangle import SIDES
+from vpcontact.model.lawregistry import DEFAULT_LAW, LAWS, USER_LAW, key_owners
 
 
 def _check_components(items, path: str, dim: int, source: str, in_time: bool = True,
@@ -114,19 +115,19 @@ def _check_material(material: dict, dim: int, source: str) -> None:
 
 
 def _check_plane_strain_law(material: dict, vp: dict, source: str) -> None:
-    """Laws norton and chaboche in plane strain carry sigma_33 with the 3D E, nu of an
-    isotropic E (app/model/planestrain.py) and eps_vp33 in kappa, which starts at 0."""
-    law = vp.get("law", "perzyna")
-    if law not in ("norton", "chaboche"):
+    """The laws that carry sigma_33 in plane strain (their LawSpec's ``carries_sigma33``:
+    norton, chaboche) need the 3D E, nu of an isotropic E (app/model/planestrain.py); then
+    the law's own plane strain checks (norton: eps_vp33 in kappa starts at 0)."""
+    law = vp.get("law", DEFAULT_LAW)
+    spec = LAWS.get(law)
+    if spec is None or not spec.carries_sigma33:
         return
     if "elasticity" in material:
         raise CaseError(f"{source}: material.elasticity: law {law} in plane strain "
                         "(material.plane: strain) needs an isotropic E (material.E, "
                         "material.nu) for its out-of-plane stress sigma_33")
-    if law == "norton" and vp["kappa0"] != 0:
-        raise CaseError(f"{source}: material.viscoplastic.kappa0: law norton in plane strain "
-                        "(material.plane: strain) starts from p = 0, eps_vp33 = 0 (allowed: "
-                        "0 or absent)")
+    if spec.check_plane_strain is not None:
+        spec.check_plane_strain(vp, source)
 
 
 def _check_group(ref, path: str, builtin: bool, dim: int, source: str, named: bool) -> None:
@@ -372,37 +373,22 @@ def _check_static_kinetic(fr: dict, source: str) -> None:
                         "static/kinetic pair is the slip dependence; give one of them)")
 
 
-# the keys of material.viscoplastic that only some laws use
-LAW_KEYS = {"lambda1": ("perzyna", "power"), "lambda2": ("perzyna", "power"),
-            "n": ("power", "norton", "chaboche"), "s_ref": ("power",), "A": ("norton",),
-            **dict.fromkeys(("k", "K", "C", "gamma", "Q", "b"), ("chaboche",))}
-# the keys each law requires, with what they are (the schema has no defaults for them)
-LAW_REQUIRED = {
-    "perzyna": {"lambda1": "the viscosity of G, in N s/m^2",
-                "lambda2": "the viscosity of Gk, in s"},
-    "power": {"lambda1": "the viscosity of G, in N s/m^2",
-              "lambda2": "the viscosity of Gk, in s",
-              "s_ref": "the stress scale of the overstress r = ||sigma - P sigma||_VM / "
-                       "s_ref, in Pa"},
-    "norton": {"A": "the coefficient of eps_vp' = A sigma_eq^n N, in Pa^-n s^-1",
-               "n": "the exponent n >= 1 of sigma_eq^n"},
-    "chaboche": {"k": "the initial yield stress, in Pa", "K": "the drag stress, in Pa",
-                 "n": "the exponent n >= 1 of <f/K>^n", "C": "the kinematic modulus, in Pa",
-                 "gamma": "the dynamic recovery", "Q": "the saturated isotropic hardening, "
-                                                  "in Pa", "b": "the isotropic rate"}}
-
-# law python: the class of --law-module and its constructor's keyword arguments
-LAW_KEYS.update({"class": ("python",), "params": ("python",)})
-LAW_REQUIRED["python"] = {"class": "the name of the law's class in the module of "
-                                   "--law-module FILE.py"}
+# the keys of material.viscoplastic that only some laws use, and the keys each law requires
+# with what they are (the schema has no defaults for them): from each law's LawSpec
+# (app/model/lawregistry.py); law python: the class of --law-module and its constructor's
+# keyword arguments
+LAW_KEYS = {**key_owners(), "class": (USER_LAW,), "params": (USER_LAW,)}
+LAW_REQUIRED = {**{name: spec.required() for name, spec in LAWS.items()},
+                USER_LAW: {"class": "the name of the law's class in the module of "
+                                    "--law-module FILE.py"}}
 
 
 def _check_law_keys(vp: dict, source: str) -> None:
     """material.viscoplastic: a key of another law (n, s_ref with perzyna, lambda1 with
     norton, ...) is refused; each law's own keys are required (the schema has no defaults for
-    them, so a key present here was given); chaboche starts from X = R = p = 0, so its kappa0
-    may only be 0."""
-    law = vp.get("law", "perzyna")
+    them, so a key present here was given); then the law's own checks (its LawSpec's
+    ``check``: chaboche starts from X = R = p = 0, so its kappa0 may only be 0, ...)."""
+    law = vp.get("law", DEFAULT_LAW)
     for key, owners in LAW_KEYS.items():
         if key in vp and law not in owners:
             raise CaseError(f"{source}: material.viscoplastic.{key}: not used with law "
@@ -412,12 +398,9 @@ def _check_law_keys(vp: dict, source: str) -> None:
         if key not in vp:
             raise CaseError(f"{source}: material.viscoplastic.{key}: required with law {law} "
                             f"({what})")
-    if law == "chaboche" and vp["kappa0"] != 0:
-        raise CaseError(f"{source}: material.viscoplastic.kappa0: law chaboche starts from "
-                        "X = 0, R = 0, p = 0 (allowed: 0 or absent)")
-    if law == "chaboche" and vp["k"] + vp["Q"] < 0:
-        raise CaseError(f"{source}: material.viscoplastic.Q: k + Q must be >= 0 (the yield "
-                        f"radius k + R tends to k + Q), got {vp['k'] + vp['Q']:g}")
+    spec = LAWS.get(law)
+    if spec is not None and spec.check is not None:
+        spec.check(vp, source)
 
 
 def _check_memory(mem: dict, source: str) -> None:

@@ -10,6 +10,14 @@ PETSc defaults are the solvers' (app/solvers/options.py).
 """
 from __future__ import annotations
 
+from vpcontact.model.lawregistry import (
+    LAWS,
+    USER_LAW,
+    kappa0_description,
+    key_schemas,
+    law_description,
+)
+
 _num = {"type": "number"}
 _pos = {"type": "number", "exclusiveMinimum": 0}
 _nonneg = {"type": "number", "minimum": 0}
@@ -194,68 +202,14 @@ SCHEMA = _obj({
         }, description="an anisotropic elasticity E instead of E and nu: exactly one of "
                        "orthotropic and voigt; refused unless positive definite (check "
                        "prints m_E)"),
-        "viscoplastic": _obj({
-            "lambda1": {**_pos, "description": "viscosity lambda1 of Gfun [N s/m^2] (laws "
-                                              "perzyna and power: required there)"},
-            "lambda2": {**_pos, "description": "lambda2 of the kappa law Gk [s] (laws perzyna "
-                                              "and power: required there)"},
+        "viscoplastic": _obj({      # the built-in laws' keys: app/model/lawregistry.py
             "kappa0": {"oneOf": [_nonneg, _expr], "default": 0.0,
-                       "description": "initial internal state variable kappa0 [N/m^2] (law "
-                                      "norton: the initial accumulated creep strain p0, "
-                                      "dimensionless, only 0 in plane strain; law chaboche: "
-                                      "only 0, its X, R, p start "
-                                      "at 0): a "
-                                      "number or an expression in x, y, z"},
-            "law": {"enum": ["perzyna", "power", "norton", "chaboche", "python"],
-                    "description": "the viscoplastic law (absent: perzyna): perzyna, the "
-                                   "paper's G = -1/(2 lambda1) E (sigma - P sigma), Gk = "
-                                   "2/(3 lambda2) ||sigma - P sigma||_VM; power, Perzyna with "
-                                   "a power overstress: both rates times r^(n-1), r = "
-                                   "||sigma - P sigma||_VM / s_ref (n = 1: perzyna); norton, "
-                                   "creep without a yield surface: eps_vp' = A sigma_eq^n N, "
-                                   "sigma_eq = ||sigma||_VM (2D plane stress: the paper's "
-                                   "norm, sigma_33 = 0), N = d sigma_eq / d sigma, kappa = p "
-                                   "the accumulated creep strain, p' = A sigma_eq^n; "
-                                   "chaboche, unified viscoplasticity with nonlinear "
-                                   "kinematic and isotropic hardening: f = ||sigma - X||_VM - "
-                                   "R - k, p' = <f/K>^n, eps_vp' = p' N(sigma - X), X' = 2/3 C "
-                                   "eps_vp' - gamma X p', R' = b (Q - R) p', kappa = (X, R, "
-                                   "p), m = 8, starting from 0; G = -E eps_vp' for both; in "
-                                   "2D plane strain both carry sigma_33 = nu (sigma_11 + "
-                                   "sigma_22) - E eps_vp33 in the 3D norm, eps_vp33 one more "
-                                   "internal variable (m = 2 and 9; an isotropic E, kappa0 0; "
-                                   "perzyna and power keep the paper's 2D norm there); "
-                                   "python, a law written by the user: the class named by "
-                                   "class in the module given with --law-module FILE.py"},
-            "n": {"type": "number", "minimum": 1,
-                  "description": "the exponent n >= 1 (dimensionless): law power, of the "
-                                 "overstress r^(n-1) (absent: 1); law norton, of sigma_eq^n "
-                                 "(required); law chaboche, of <f/K>^n (required); not used "
-                                 "with perzyna"},
-            "A": {**_pos, "description": "law norton (required there): the Norton coefficient "
-                                        "A of eps_vp' = A sigma_eq^n N [Pa^-n s^-1]"},
-            "k": {**_nonneg, "description": "law chaboche (required there): the initial yield "
-                                           "stress k of f = ||sigma - X||_VM - R - k [Pa]"},
-            "K": {**_pos, "description": "law chaboche (required there): the drag stress K "
-                                        "of p' = <f/K>^n [Pa]"},
-            "C": {**_nonneg, "description": "law chaboche (required there): the kinematic "
-                                           "hardening modulus C of X' = 2/3 C eps_vp' - gamma "
-                                           "X p' [Pa]"},
-            "gamma": {**_nonneg, "description": "law chaboche (required there): the dynamic "
-                                               "recovery gamma of X' = 2/3 C eps_vp' - gamma "
-                                               "X p' (dimensionless; 0: linear kinematic "
-                                               "hardening)"},
-            "Q": {"type": "number", "description": "law chaboche (required there): the "
-                                                   "saturated isotropic hardening Q of R' = "
-                                                   "b (Q - R) p' [Pa] (negative: softening, "
-                                                   "with k + Q >= 0)"},
-            "b": {**_nonneg, "description": "law chaboche (required there): the rate b of the "
-                                           "isotropic hardening R' = b (Q - R) p' "
-                                           "(dimensionless)"},
-            "s_ref": {**_pos, "description": "law power (required there): the stress scale "
-                                            "s_ref of the overstress r = ||sigma - P "
-                                            "sigma||_VM / s_ref [N/m^2 = Pa]; not used with "
-                                            "perzyna"},
+                       "description": kappa0_description()},
+            "law": {"enum": [*LAWS, USER_LAW],
+                    "description": law_description(
+                        "a law written by the user: the class named by class in the module "
+                        "given with --law-module FILE.py")},
+            **key_schemas(),
             "class": {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_]*$",
                       "maxLength": 100,
                       "description": "law python (required there): the name of the law's "
@@ -264,8 +218,8 @@ SCHEMA = _obj({
                                      "never runs code); built as Class(elasticity, "
                                      "**params)"},
             "params": _LAW_PARAMS,
-        }, description="viscoplastic law: Perzyna's, its power overstress variant, "
-                       "Norton's creep, Chaboche's or a class written by the user (absent: "
+        }, description="viscoplastic law: a built-in law (law; each declared in its module, "
+                       "app/model/lawregistry.py) or a class written by the user (absent: "
                        "elastic body, no history update)"),
         "plane": {"enum": ["stress", "strain"], "default": "stress",
                   "description": "2D: plane stress (the paper's, a thin plate) or plane strain "

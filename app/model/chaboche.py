@@ -17,12 +17,24 @@ in 2D (sigma_13 = sigma_23 = 0):
 - plane strain: sigma_33 = nu (sigma_11 + sigma_22) - E eps_vp33, with eps_vp33 the ninth
   internal variable (eps_vp33' = the 33 component of eps_vp'), and G = -(C3 eps_vp')_in-plane
   (app/model/planestrain.py: an isotropic E).
+
+SPEC, at the end of the module, declares the law (app/model/lawspec.py): its keys k, K, n,
+C, gamma, Q, b, its rules, kappa's growth bound and its factory.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from vpcontact.io.errors import CaseError
 from vpcontact.model.laws import ViscoplasticLaw
+from vpcontact.model.lawspec import (
+    EXPONENT,
+    NONNEGATIVE,
+    NUMBER,
+    POSITIVE,
+    LawKey,
+    LawSpec,
+)
 from vpcontact.model.material import Elasticity
 from vpcontact.model.norton import M3 as _M3
 from vpcontact.model.norton import W3 as _W3
@@ -75,9 +87,7 @@ class Chaboche(ViscoplasticLaw):
 
     def constants(self):
         """Returns: k, K [Pa], n [-], C [Pa], gamma [-], Q [Pa], b [-] (the case's keys)."""
-        return {"k": (self.k, "Pa"), "K": (self.K, "Pa"), "n": (self.n, "-"),
-                "C": (self.C, "Pa"), "gamma": (self.gamma, "-"), "Q": (self.Q, "Pa"),
-                "b": (self.b, "-")}
+        return SPEC.constants_of(self)
 
     @property
     def hardens(self) -> bool:
@@ -178,3 +188,84 @@ class Chaboche(ViscoplasticLaw):
             (n,) booleans.
         """
         return ~(self._overstress(t, kappa)[2] > 0.0)
+
+
+def _check(vp: dict, source: str) -> None:
+    """X, R, p start at 0 (kappa0 only 0), and the yield radius k + R tends to k + Q >= 0.
+
+    Args:
+        vp: the material.viscoplastic section (default-filled, its keys present).
+        source: the case file, for messages.
+
+    Raises:
+        CaseError: kappa0 != 0, or k + Q < 0.
+    """
+    if vp["kappa0"] != 0:
+        raise CaseError(f"{source}: material.viscoplastic.kappa0: law chaboche starts from "
+                        "X = 0, R = 0, p = 0 (allowed: 0 or absent)")
+    if vp["k"] + vp["Q"] < 0:
+        raise CaseError(f"{source}: material.viscoplastic.Q: k + Q must be >= 0 (the yield "
+                        f"radius k + R tends to k + Q), got {vp['k'] + vp['Q']:g}")
+
+
+def _growth(vp, T: float, S: float) -> float:
+    """||X||_VM stays below the bound S (X moves toward sigma - X), R between 0 and Q, and
+    p' = <f/K>^n <= (2 S / K)^n: the largest of S, |Q| and T (2 S / K)^n.
+
+    Args:
+        vp: K, n, Q as attributes.
+        T: the final time.
+        S: the bound of ||sigma||_VM.
+
+    Returns:
+        The growth bound.
+
+    Raises:
+        OverflowError: (2 S / K)^n overflows.
+    """
+    return max(S, abs(vp.Q), T * (2.0 * S / vp.K) ** vp.n)
+
+
+def _stress_scaling(vp: dict, factor: float) -> dict[str, float]:
+    """sigma -> factor sigma with E: k, K, C, Q by ``factor`` (f / K unchanged; gamma, b, n
+    are pure numbers).
+
+    Args:
+        vp: the material.viscoplastic section as given.
+        factor: the scaling factor.
+
+    Returns:
+        {key: factor} of those keys present in the section.
+    """
+    return {k: factor for k in ("k", "K", "C", "Q") if k in vp}
+
+
+# the declaration of the law (app/model/lawspec.py), collected by app/model/lawregistry.py
+SPEC = LawSpec(
+    name="chaboche", title="Chaboche",
+    summary="unified viscoplasticity with nonlinear kinematic and isotropic hardening: f = "
+            "||sigma - X||_VM - R - k, p' = <f/K>^n, eps_vp' = p' N(sigma - X), X' = 2/3 C "
+            "eps_vp' - gamma X p', R' = b (Q - R) p', kappa = (X, R, p), m = 8, starting "
+            "from 0, G = -E eps_vp' (plane strain: kappa = (X, R, p, eps_vp33), m = 9)",
+    kappa0="only 0, its X, R, p start at 0", kappa_unit="-",
+    keys={"k": LawKey(NONNEGATIVE, "the initial yield stress, in Pa", "Pa",
+                      doc="the initial yield stress k of f = ||sigma - X||_VM - R - k [Pa]"),
+          "K": LawKey(POSITIVE, "the drag stress, in Pa", "Pa",
+                      doc="the drag stress K of p' = <f/K>^n [Pa]"),
+          "n": LawKey(EXPONENT, "the exponent n >= 1 of <f/K>^n", "-"),
+          "C": LawKey(NONNEGATIVE, "the kinematic modulus, in Pa", "Pa",
+                      doc="the kinematic hardening modulus C of X' = 2/3 C eps_vp' - gamma X "
+                          "p' [Pa]"),
+          "gamma": LawKey(NONNEGATIVE, "the dynamic recovery", "-",
+                          doc="the dynamic recovery gamma of X' = 2/3 C eps_vp' - gamma X p' "
+                              "(dimensionless; 0: linear kinematic hardening)"),
+          "Q": LawKey(NUMBER, "the saturated isotropic hardening, in Pa", "Pa",
+                      doc="the saturated isotropic hardening Q of R' = b (Q - R) p' [Pa] "
+                          "(negative: softening, with k + Q >= 0)"),
+          "b": LawKey(NONNEGATIVE, "the isotropic rate", "-",
+                      doc="the rate b of the isotropic hardening R' = b (Q - R) p' "
+                          "(dimensionless)")},
+    build=lambda vp, elasticity, plane: Chaboche(elasticity, vp.k, vp.K, vp.n, vp.C,
+                                                 vp.gamma, vp.Q, vp.b, plane),
+    kappa_growth=_growth, shown=("k", "K", "n", "C", "gamma", "Q", "b"), check=_check,
+    carries_sigma33=True, stress_scaling=_stress_scaling)

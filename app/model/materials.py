@@ -23,9 +23,9 @@ from mpi4py import MPI
 from vpcontact.case import Case, CaseError
 from vpcontact.case.materialrules import renamed
 from vpcontact.forms.elasticity import plane_strain_moduli
+from vpcontact.model.lawregistry import viscoplastic_law
 from vpcontact.model.material import CellElasticity, Elasticity
 from vpcontact.model.stiffness import case_elasticity, global_bounds
-from vpcontact.model.viscoplastic import viscoplastic_law
 
 
 @dataclass

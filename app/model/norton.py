@@ -17,12 +17,17 @@ in tau : sigma (Elasticity.weights w), so N_t = M t / (w sigma_eq).  In 3D this 
   sigma_22, sigma_33, sigma_12), the creep is isochoric, kappa carries eps_vp33
   (eps_vp33' = A sigma_eq^n N_33) and G = -(C3 eps_vp')_in-plane, the 3D E on the 3D creep
   rate (-2 mu eps_vp' in the plane for isotropic E, the creep being isochoric).
+
+SPEC, at the end of the module, declares the law (app/model/lawspec.py): its keys A and n,
+its rule in plane strain, kappa's growth bound and its factory.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from vpcontact.io.errors import CaseError
 from vpcontact.model.laws import ViscoplasticLaw
+from vpcontact.model.lawspec import EXPONENT, POSITIVE, LawKey, LawSpec
 from vpcontact.model.material import Elasticity, _von_mises_matrix
 from vpcontact.model.planestrain import PlaneStrain
 
@@ -118,7 +123,7 @@ class Norton(ViscoplasticLaw):
 
     def constants(self):
         """Returns: A [Pa^-n s^-1], n [-] (as the case file's keys)."""
-        return {"A": (self.A, "Pa^-n s^-1"), "n": (self.n, "-")}
+        return SPEC.constants_of(self)
 
     def _linear_part(self) -> np.ndarray:
         """The matrix of sigma -> E N' sigma in t-coordinates, N' sigma = sigma_eq N
@@ -246,3 +251,69 @@ class Norton(ViscoplasticLaw):
         if self.plane_strain is not None:
             return flow_direction(self.plane_strain.stress(t, kappa[:, 1]), M3, W3)[0] == 0.0
         return flow_direction(t, self._M, self._w)[0] == 0.0
+
+
+def _check_plane_strain(vp: dict, source: str) -> None:
+    """In plane strain kappa = (p, eps_vp33) starts at 0: kappa0 only 0.
+
+    Args:
+        vp: the material.viscoplastic section (default-filled).
+        source: the case file, for messages.
+
+    Raises:
+        CaseError: kappa0 != 0.
+    """
+    if vp["kappa0"] != 0:
+        raise CaseError(f"{source}: material.viscoplastic.kappa0: law norton in plane strain "
+                        "(material.plane: strain) starts from p = 0, eps_vp33 = 0 (allowed: "
+                        "0 or absent)")
+
+
+def _growth(vp, T: float, S: float) -> float:
+    """kappa = p, p' = A sigma_eq^n <= A S^n: p moves at most T A S^n in [0, T].
+
+    Args:
+        vp: A and n as attributes.
+        T: the final time.
+        S: the bound of ||sigma||_VM.
+
+    Returns:
+        The growth bound.
+
+    Raises:
+        OverflowError: S^n overflows.
+    """
+    return T * vp.A * S ** vp.n
+
+
+def _stress_scaling(vp: dict, factor: float) -> dict[str, float] | str:
+    """sigma -> factor sigma with E: A by factor^-n (A sigma_eq^n unchanged; p is a strain).
+
+    Args:
+        vp: the material.viscoplastic section as given.
+        factor: the scaling factor.
+
+    Returns:
+        {"A": factor^-n}, or the reason where n is not a number.
+    """
+    if not isinstance(vp.get("n"), (int, float)):
+        return "Norton's exponent n is not a number"
+    return {"A": factor ** -vp["n"]}
+
+
+# the declaration of the law (app/model/lawspec.py), collected by app/model/lawregistry.py
+SPEC = LawSpec(
+    name="norton", title="Norton",
+    summary="creep without a yield surface: eps_vp' = A sigma_eq^n N, sigma_eq = "
+            "||sigma||_VM (2D plane stress: the paper's norm, sigma_33 = 0), N = d sigma_eq / "
+            "d sigma, kappa = p the accumulated creep strain, p' = A sigma_eq^n, G = -E "
+            "eps_vp' (plane strain: kappa = (p, eps_vp33), m = 2)",
+    kappa0="the initial accumulated creep strain p0, dimensionless, only 0 in plane strain",
+    kappa_unit="-",
+    keys={"A": LawKey(POSITIVE, "the coefficient of eps_vp' = A sigma_eq^n N, in Pa^-n s^-1",
+                      "Pa^-n s^-1", doc="the Norton coefficient A of eps_vp' = A sigma_eq^n "
+                                        "N [Pa^-n s^-1]"),
+          "n": LawKey(EXPONENT, "the exponent n >= 1 of sigma_eq^n", "-")},
+    build=lambda vp, elasticity, plane: Norton(elasticity, vp.A, vp.n, plane),
+    kappa_growth=_growth, shown=("A", "n"), check_plane_strain=_check_plane_strain,
+    carries_sigma33=True, stress_scaling=_stress_scaling)

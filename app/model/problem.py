@@ -33,6 +33,7 @@ from vpcontact.model.fullstress import full_stress
 from vpcontact.model.gamma3 import NodalField
 from vpcontact.model.history import ImplicitViscoplasticHistory
 from vpcontact.model.lawmodule import python_contact_laws
+from vpcontact.model.lawregistry import viscoplastic_law
 from vpcontact.model.layer import BoundaryLayer
 from vpcontact.model.loads import TimeData
 from vpcontact.model.loadvector import LoadVector
@@ -44,7 +45,6 @@ from vpcontact.model.state import State
 from vpcontact.model.stiffness import case_elasticity, stress_operator
 from vpcontact.model.strain import StrainOperator
 from vpcontact.model.userlaw import as_viscoplastic_law
-from vpcontact.model.viscoplastic import viscoplastic_law
 
 
 class _Constants(dict):

@@ -4,10 +4,13 @@ sigma' = E eps(u') + G(sigma, kappa), kappa' = Gk(sigma, kappa) (1.2)-(1.3).
 Perzyna's law of the paper's Section 4 (m = 1) uses its compiled update
 (app/kernels/perzyna.c) where a C compiler is available; PowerLaw, Perzyna's with a power
 overstress r^(n-1), uses the protocol's defaults; Norton's creep law and Chaboche's are in
-modules of their own (app/model/norton.py, app/model/chaboche.py).  ``viscoplastic_law``
-builds the law a case names.  In 2D plane strain Perzyna and PowerLaw keep the paper's 2D
-norm (sigma_33 = 0 in ||sigma||_VM, as in plane stress: the paper's results bit for bit);
-Norton and Chaboche carry sigma_33 there (app/model/planestrain.py).
+modules of their own (app/model/norton.py, app/model/chaboche.py).  Each law is declared once
+(its keys, title, checks, kappa's growth bound and factory: app/model/lawspec.py), here
+PERZYNA and POWER at the end of the module; ``viscoplastic_law`` of
+app/model/lawregistry.py builds the law a case names.  In 2D plane strain Perzyna and
+PowerLaw keep the paper's 2D norm (sigma_33 = 0 in ||sigma||_VM, as in plane stress: the
+paper's results bit for bit); Norton and Chaboche carry sigma_33 there
+(app/model/planestrain.py).
 """
 from __future__ import annotations
 
@@ -15,6 +18,7 @@ import numpy as np
 
 from vpcontact import kernels, threads
 from vpcontact.model.laws import ExplicitUpdate, ViscoplasticLaw
+from vpcontact.model.lawspec import EXPONENT, POSITIVE, LawKey, LawSpec
 from vpcontact.model.material import (
     FLAT,
     FROM,
@@ -46,7 +50,7 @@ class Perzyna(ViscoplasticLaw):
 
     def constants(self):
         """Returns: lambda1 [N s/m^2], lambda2 [s] (as the case file's keys)."""
-        return {"lambda1": (self.lambda1, "N s/m^2"), "lambda2": (self.lambda2, "s")}
+        return PERZYNA.constants_of(self)
 
     def lipschitz_constant(self) -> float:
         """L_G = lambda_max(E) / (2 lambda1) in the energy norm |tau|_E = (E tau : tau)^1/2:
@@ -201,8 +205,7 @@ class PowerLaw(ViscoplasticLaw):
 
     def constants(self):
         """Returns: lambda1 [N s/m^2], lambda2 [s], n [-], s_ref [N/m^2]."""
-        return {"lambda1": (self.lambda1, "N s/m^2"), "lambda2": (self.lambda2, "s"),
-                "n": (self.n, "-"), "s_ref": (self.s_ref, "N/m^2")}
+        return POWER.constants_of(self)
 
     def lipschitz_constant(self) -> float | None:
         """L_G: Perzyna's lambda_max(E) / (2 lambda1) for n = 1; for n > 1 the slope
@@ -235,36 +238,80 @@ class PowerLaw(ViscoplasticLaw):
             (((2.0 / (3.0 * self.lambda2)) * f) * vm)[:, None]
 
 
-def viscoplastic_law(vp, elasticity: Elasticity, plane: str = "stress"
-                     ) -> ViscoplasticLaw | None:
-    """The case's viscoplastic law.
+# the declarations of the two laws (app/model/lawspec.py), collected by app/model/lawregistry.py
+_LAMBDA1 = LawKey(POSITIVE, "the viscosity of G, in N s/m^2", "N s/m^2",
+                  doc="the viscosity lambda1 of G [N s/m^2]")
+_LAMBDA2 = LawKey(POSITIVE, "the viscosity of Gk, in s", "s",
+                  doc="the viscosity lambda2 of the kappa law Gk [s]")
+_HARDENING = "the initial hardening kappa0 [N/m^2], the radius of K(kappa0)"
+
+
+def _perzyna_growth(vp, T: float, S: float) -> float:
+    """kappa' = 2/(3 lambda2) ||sigma - P sigma||_VM <= 2/(3 lambda2) S: kappa moves at most
+    2 T S / (3 lambda2) in [0, T].
 
     Args:
-        vp: the case's ``material.viscoplastic`` section (or None: an elastic body); its
-            ``law`` (absent: "perzyna") picks Perzyna, PowerLaw (with ``n``, ``s_ref``),
-            Norton (``A``, ``n``; app/model/norton.py) or Chaboche (``k``, ``K``, ``n``,
-            ``C``, ``gamma``, ``Q``, ``b``; app/model/chaboche.py) or a user's class
-            (``python``: ``cls``, ``params``; app/model/lawmodule.py).
-        elasticity: the elasticity E.
-        plane: the 2D model, ``material.plane`` ("stress" or "strain"): Norton and
-            Chaboche carry sigma_33 in plane strain (app/model/planestrain.py); Perzyna and
-            PowerLaw keep the paper's 2D norm (sigma_33 = 0 in ||sigma||_VM) in both.
+        vp: lambda2 as an attribute.
+        T: the final time.
+        S: the bound of ||sigma||_VM.
 
     Returns:
-        The law, or None.
+        The growth bound.
     """
-    if vp is None:
-        return None
-    law = getattr(vp, "law", "perzyna")
-    if law == "power":
-        return PowerLaw(elasticity, vp.lambda1, vp.lambda2, vp.n, vp.s_ref)
-    if law == "norton":
-        from vpcontact.model.norton import Norton
-        return Norton(elasticity, vp.A, vp.n, plane)
-    if law == "chaboche":
-        from vpcontact.model.chaboche import Chaboche
-        return Chaboche(elasticity, vp.k, vp.K, vp.n, vp.C, vp.gamma, vp.Q, vp.b, plane)
-    if law == "python":                 # the class of --law-module (app/model/lawmodule.py)
-        from vpcontact.model.lawmodule import python_law
-        return python_law(vp, elasticity)
-    return Perzyna(elasticity, vp.lambda1, vp.lambda2)
+    return 2.0 * T / (3.0 * vp.lambda2) * S
+
+
+def _power_growth(vp, T: float, S: float) -> float:
+    """Perzyna's bound times the overstress factor r^(n-1), r = S / s_ref, at least 1.
+
+    Args:
+        vp: lambda2, n, s_ref as attributes.
+        T: the final time.
+        S: the bound of ||sigma||_VM.
+
+    Returns:
+        The growth bound.
+
+    Raises:
+        OverflowError: the factor overflows (no bound on kappa).
+    """
+    return _perzyna_growth(vp, T, S) * max(1.0, S / vp.s_ref) ** (vp.n - 1.0)
+
+
+def _lambda1_scaling(vp: dict, factor: float) -> dict[str, float]:
+    """sigma -> factor sigma with E: lambda1 and kappa0 (G = -E (sigma - P sigma) / (2
+    lambda1)) and the power law's s_ref scale by ``factor``.
+
+    Args:
+        vp: the material.viscoplastic section as given.
+        factor: the scaling factor.
+
+    Returns:
+        {key: factor} of those keys present in the section.
+    """
+    return {k: factor for k in ("lambda1", "kappa0", "s_ref") if k in vp}
+
+
+PERZYNA = LawSpec(
+    name="perzyna", title="Perzyna",
+    summary="the paper's G = -1/(2 lambda1) E (sigma - P sigma), Gk = 2/(3 lambda2) "
+            "||sigma - P sigma||_VM",
+    kappa0=_HARDENING, kappa_unit="N/m^2",
+    keys={"lambda1": _LAMBDA1, "lambda2": _LAMBDA2},
+    build=lambda vp, elasticity, plane: Perzyna(elasticity, vp.lambda1, vp.lambda2),
+    kappa_growth=_perzyna_growth, stress_scaling=_lambda1_scaling)
+
+POWER = LawSpec(
+    name="power", title="power-law Perzyna",
+    summary="Perzyna with a power overstress: both rates times r^(n-1), r = ||sigma - P "
+            "sigma||_VM / s_ref (n = 1: perzyna)",
+    kappa0=_HARDENING, kappa_unit="N/m^2",
+    keys={"lambda1": _LAMBDA1, "lambda2": _LAMBDA2,
+          "n": LawKey(EXPONENT, "the exponent n >= 1 of the overstress r^(n-1)", "-", 1.0),
+          "s_ref": LawKey(POSITIVE, "the stress scale of the overstress r = ||sigma - P "
+                                    "sigma||_VM / s_ref, in Pa", "N/m^2",
+                          doc="the stress scale s_ref of the overstress r = ||sigma - P "
+                              "sigma||_VM / s_ref [N/m^2 = Pa]")},
+    build=lambda vp, elasticity, plane: PowerLaw(elasticity, vp.lambda1, vp.lambda2, vp.n,
+                                                 vp.s_ref),
+    kappa_growth=_power_growth, shown=("n", "s_ref"), stress_scaling=_lambda1_scaling)

@@ -18,12 +18,13 @@ dozen steps while the run still "completes".
 A step is diverged if a value is not finite, or if max ||sigma_n||_VM exceeds
 BLOWUP_FACTOR (L / h) times that scale (L / h allows for stresses concentrated at corners
 and on single contact nodes), or max kappa_n (its largest component, for m > 1) exceeds
-kappa_0 plus the growth the law allows under that stress bound S: 2 T / (3 lambda2) S for
-Perzyna's (for the power law times r^(n-1), r = S / s_ref, when r > 1); T A S^n for Norton's
-(kappa = p, p' = A sigma_eq^n); for Chaboche's the largest of S (the back stress moves
-toward sigma - X, so ||X||_VM stays below sup ||sigma||_VM and each component of X below
-that), |Q| (R moves from 0 toward Q) and T (2 S / K)^n (p' = <f/K>^n with f <=
-||sigma||_VM + ||X||_VM); none for a user's law.  The factor is generous: a run near
+kappa_0 plus the growth the law allows under that stress bound S, each built-in law's
+``kappa_growth`` (its LawSpec, app/model/lawspec.py; app/model/lawregistry.kappa_growth):
+2 T / (3 lambda2) S for Perzyna's (for the power law times r^(n-1), r = S / s_ref, when
+r > 1); T A S^n for Norton's (kappa = p, p' = A sigma_eq^n); for Chaboche's the largest of S
+(the back stress moves toward sigma - X, so ||X||_VM stays below sup ||sigma||_VM and each
+component of X below that), |Q| (R moves from 0 toward Q) and T (2 S / K)^n (p' = <f/K>^n
+with f <= ||sigma||_VM + ||X||_VM); none for a user's law.  The factor is generous: a run near
 the explicit limit whose norms stay bounded is never stopped, and a genuinely exploding run
 is stopped after a few steps.
 """
@@ -34,6 +35,7 @@ import math
 
 import numpy as np
 
+from vpcontact.model.lawregistry import kappa_growth
 from vpcontact.model.userlaw import UserLaw
 from vpcontact.observers import Observer, StopRun
 from vpcontact.post.quantities import cell_max
@@ -102,34 +104,6 @@ def stress_scale(case, problem) -> float:
     return max(data if math.isfinite(data) else 0.0, cell_max(problem, problem.sigma_vm))
 
 
-def _overstress_factor(vp, bound: float) -> float:
-    """The power law's factor r^(n-1) on kappa's rate at the overstress ``bound``,
-    r = bound / s_ref (app/model/viscoplastic.py, PowerLaw), at least 1; 1 for Perzyna's;
-    inf where it overflows (no bound on kappa then)."""
-    if vp.law != "power":
-        return 1.0
-    try:
-        return max(1.0, bound / vp.s_ref) ** (vp.n - 1.0)
-    except OverflowError:
-        return math.inf
-
-
-def _kappa_growth(vp, T: float, bound: float) -> float:
-    """How far the largest component of kappa can move in [0, T] under stresses of von
-    Mises norm at most ``bound`` (see the module docstring); inf where unknown (a user's
-    law) or where it overflows."""
-    try:
-        if vp.law in ("perzyna", "power"):
-            return 2.0 * T / (3.0 * vp.lambda2) * bound * _overstress_factor(vp, bound)
-        if vp.law == "norton":
-            return T * vp.A * bound ** vp.n
-        if vp.law == "chaboche":     # ||X||_VM <= the bound, R between 0 and Q, p' <= (f/K)^n
-            return max(bound, abs(vp.Q), T * (2.0 * bound / vp.K) ** vp.n)
-    except OverflowError:
-        pass
-    return math.inf
-
-
 class BlowUpMonitor(Observer):
     """Stops a run as "diverged" at the first step whose record leaves the bounds (see the
     module docstring): an observer whose ``check`` refuses the step, so the last good
@@ -152,7 +126,7 @@ class BlowUpMonitor(Observer):
         h = problem.body.h
         self.bound = BLOWUP_FACTOR * (problem.length_scale / h) * self.scale
         self.kappa_bound = kappa0_max + max(
-            (_kappa_growth(vp, case.time.T, self.bound) for vp in laws), default=0.0)
+            (kappa_growth(vp, case.time.T, self.bound) for vp in laws), default=0.0)
         if isinstance(problem.law, UserLaw):      # a user's law (also one given in Python)
             self.kappa_bound = math.inf
 

@@ -420,14 +420,14 @@ def history(res: Results, path: Path) -> None:
 
 
 def _kappa_unit(case: dict) -> str:
-    """" [unit]" of kappa for the laws of a case (perzyna, power: a stress, N/m^2; norton,
-    chaboche: their accumulated strain p, dimensionless), "" for a user's law or laws of
-    both kinds."""
+    """" [unit]" of kappa for the laws of a case (each built-in law's LawSpec.kappa_unit:
+    perzyna, power: a stress, N/m^2; norton, chaboche: their accumulated strain p,
+    dimensionless), "" for a user's law or laws of both kinds."""
+    from vpcontact.model.lawregistry import DEFAULT_LAW, LAWS
     materials = [case.get("material") or {}, *(case.get("materials") or {}).values()]
-    laws = {(m.get("viscoplastic") or {}).get("law", "perzyna")
+    laws = {(m.get("viscoplastic") or {}).get("law", DEFAULT_LAW)
             for m in materials if m.get("viscoplastic")}
-    units = {{"perzyna": "N/m^2", "power": "N/m^2", "norton": "-", "chaboche": "-"}.get(law)
-             for law in laws}
+    units = {LAWS[law].kappa_unit if law in LAWS else None for law in laws}
     return f" [{units.pop()}]" if len(units) == 1 and None not in units else ""
 
 

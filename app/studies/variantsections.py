@@ -15,8 +15,10 @@ report lists; a group none of whose sections admits it is left out.
 """
 from __future__ import annotations
 
+from vpcontact.model.lawregistry import DEFAULT_LAW, LAWS, key_owners
+
 # the viscoplastic laws with Perzyna's viscosity lambda1 (the stiff-viscosity variant)
-LAMBDA1_LAWS = ("perzyna", "power")
+LAMBDA1_LAWS = key_owners()["lambda1"]
 # the friction keys that are not law (4.2)'s b, c1, c2, u1
 OTHER_FRICTION = ("coulomb", "table", "law")
 
@@ -85,7 +87,7 @@ def contact_sections(raw: dict) -> list[tuple[str, object, dict]]:
 def _law(m: dict) -> str | None:
     """The viscoplastic law's name of a material section (None: elastic)."""
     vp = m.get("viscoplastic")
-    return None if not isinstance(vp, dict) else vp.get("law", "perzyna")
+    return None if not isinstance(vp, dict) else vp.get("law", DEFAULT_LAW)
 
 
 def viscosity_plan(raw: dict) -> tuple[list, list[str]]:
@@ -184,10 +186,10 @@ def elastic_plan(raw: dict) -> tuple[list, list[str]]:
 
 def scaled_material(prefix, m: dict, factor: float) -> tuple[dict, str | None]:
     """The changes that multiply a material's stress-like data by ``factor`` so that u
-    and the viscoplastic strain are unchanged, sigma scales: E; Perzyna's and the power
-    law's lambda1 and kappa0 (G = -E (sigma - P sigma) / (2 lambda1)), the power law's s_ref;
-    Norton's A by factor^-n (A sigma_eq^n unchanged; p is a strain); Chaboche's k, K, C, Q
-    (f / K unchanged; gamma, b, n are pure numbers).
+    and the viscoplastic strain are unchanged, sigma scales: E and the law's keys its
+    LawSpec's ``stress_scaling`` names (app/model/lawspec.py: Perzyna's and the power law's
+    lambda1 and kappa0, the power law's s_ref; Norton's A by factor^-n; Chaboche's k, K, C,
+    Q).
 
     Args:
         prefix: the section's prefix.
@@ -198,20 +200,15 @@ def scaled_material(prefix, m: dict, factor: float) -> tuple[dict, str | None]:
         (the changes, None), or ({}, why) where the law's data cannot be scaled.
     """
     law, vp = _law(m), m.get("viscoplastic")
-    keys = ["E"]
-    if law in LAMBDA1_LAWS:
-        keys += ["viscoplastic.lambda1", "viscoplastic.kappa0", "viscoplastic.s_ref"]
-    elif law == "chaboche":
-        keys += [f"viscoplastic.{k}" for k in ("k", "K", "C", "Q")]
-    elif law == "norton":
-        if not isinstance(vp.get("n"), (int, float)):
-            return {}, "Norton's exponent n is not a number"
-    elif law is not None:
-        return {}, f"{law}'s law: its parameters' units are unknown"
-    out = {key(prefix, k): ("scale", factor) for k in keys
-           if k.split(".")[-1] in (vp if k.startswith("viscoplastic.") else m)}
-    if law == "norton":
-        out[key(prefix, "viscoplastic.A")] = ("scale", factor ** -vp["n"])
+    out = {key(prefix, "E"): ("scale", factor)} if "E" in m else {}
+    if law is None:
+        return out, None
+    spec = LAWS.get(law)
+    scales = spec.stress_scaling(vp, factor) if spec is not None and \
+        spec.stress_scaling is not None else f"{law}'s law: its parameters' units are unknown"
+    if isinstance(scales, str):
+        return {}, scales
+    out.update({key(prefix, f"viscoplastic.{k}"): ("scale", v) for k, v in scales.items()})
     return out, None
 
 

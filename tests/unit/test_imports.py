@@ -60,9 +60,11 @@ ALLOWED = _allowed_packages()
 # a higher layer it may import
 EXCEPTIONS = {
     # the light modules of the solvers that the case layer asks (eligibility, PETSc defaults,
-    # the options' checks)
+    # the options' checks), and the registry of the built-in viscoplastic laws (their keys,
+    # rules and titles, each declared in the law's module)
     "vpcontact.case": {"vpcontact.solvers.choice", "vpcontact.solvers.options",
-                       "vpcontact.solvers.optioncheck", "vpcontact.solvers.optionpolicy"},
+                       "vpcontact.solvers.optioncheck", "vpcontact.solvers.optionpolicy",
+                       "vpcontact.model.lawregistry"},
     # Observers of app/post/: BlowUpMonitor, RateWatch, ErrorEstimate
     "vpcontact.post.divergence": {"vpcontact.observers", "vpcontact.records"},
     "vpcontact.post.ratewatch": {"vpcontact.observers"},

@@ -12,9 +12,9 @@ from scipy.integrate import solve_ivp
 from conftest import make_case, paper_raw
 from vpcontact.io.errors import CaseError
 from vpcontact.model.chaboche import Chaboche
+from vpcontact.model.lawregistry import viscoplastic_law
 from vpcontact.model.laws import ExplicitUpdate
 from vpcontact.model.material import Elasticity
-from vpcontact.model.viscoplastic import viscoplastic_law
 
 E_, NU = 1000.0, 0.3
 K0, KD, N_EXP, C_, GAMMA, Q_, B_ = 10.0, 20.0, 3.0, 2000.0, 50.0, 5.0, 10.0

@@ -10,10 +10,10 @@ import pytest
 from conftest import make_case, paper_raw
 from vpcontact.forms.elasticity import plane_strain_moduli
 from vpcontact.io.errors import CaseError
+from vpcontact.model.lawregistry import viscoplastic_law
 from vpcontact.model.laws import ExplicitUpdate
 from vpcontact.model.material import Elasticity
 from vpcontact.model.norton import Norton
-from vpcontact.model.viscoplastic import viscoplastic_law
 
 E_, NU = 1000.0, 0.3
 A_, N_EXP = 1e-6, 3.0

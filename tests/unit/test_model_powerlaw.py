@@ -11,9 +11,10 @@ from scipy.integrate import solve_ivp
 
 from conftest import make_case, paper_raw, run_case
 from vpcontact.io.errors import CaseError
+from vpcontact.model.lawregistry import viscoplastic_law
 from vpcontact.model.laws import ExplicitUpdate
 from vpcontact.model.material import Elasticity, from_voigt
-from vpcontact.model.viscoplastic import Perzyna, PowerLaw, viscoplastic_law
+from vpcontact.model.viscoplastic import Perzyna, PowerLaw
 
 E_, NU = 1000.0, 0.3
 EL3 = Elasticity(E_, NU, 3)

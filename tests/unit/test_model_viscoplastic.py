@@ -6,9 +6,10 @@ interface's defaults."""
 import numpy as np
 import pytest
 
+from vpcontact.model.lawregistry import viscoplastic_law
 from vpcontact.model.laws import ExplicitUpdate, ViscoplasticLaw
 from vpcontact.model.material import Elasticity, from_voigt
-from vpcontact.model.viscoplastic import Perzyna, viscoplastic_law
+from vpcontact.model.viscoplastic import Perzyna
 
 EL = Elasticity(1000.0, 0.4, 2)
 
