@@ -13,10 +13,10 @@ A Simulation calls, in the order the observers were added (``sim.add``):
 
 An observer stops a run by raising StopRun (status and StepFailure); an OutputError raised
 by ``start`` or ``step`` ends the run as "failed" (the files written before stay intact).
-The command line registers FieldOutput, ContactOutput, HistoryOutput, Checkpointer, StepLog,
-RunFiles and its progress bar (ProgressBar, app/cli/progress.py) in app/cli/commands.py;
-every run has the blow-up monitor (app/post/divergence.py); the convergence study adds its
-sampler (app/studies/convergence.py).
+The command line registers CollectorAfterSetUp, FieldOutput, ContactOutput, HistoryOutput,
+Checkpointer, StepLog, RunFiles and its progress bar (ProgressBar, app/cli/progress.py) in
+app/cli/commands.py; every run has the blow-up monitor
+(app/post/divergence.py); the convergence study adds its sampler (app/studies/convergence.py).
 """
 from __future__ import annotations
 
@@ -38,6 +38,7 @@ from vpcontact.model.state import KappaOutput
 from vpcontact.post import quantities
 from vpcontact.post.outputfields import derived_outputs, law_rows
 from vpcontact.records import HINT_OUTPUT, StepFailure
+from vpcontact.startup import resume_collector
 
 log = logging.getLogger("vpcontact")
 
@@ -110,6 +111,19 @@ def written_files(observers) -> list[Path]:
         The paths, observer by observer in their order.
     """
     return [f for o in observers for f in o.written()]
+
+
+class CollectorAfterSetUp(Observer):
+    """Turns Python's garbage collector back on once the run is set up, where the command
+    line turned it off for the start-up (app/startup.py); the first of its observers."""
+
+    def start(self, sim) -> None:
+        """Resume the collector (nothing if it was not paused).
+
+        Args:
+            sim: the Simulation, set up.
+        """
+        resume_collector()
 
 
 def is_output_step(sim) -> bool:

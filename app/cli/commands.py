@@ -19,6 +19,7 @@ from vpcontact.cli.logs import log, setup_logging
 from vpcontact.cli.outdir import CONVERGENCE_FILES, STABILITY_FILES
 from vpcontact.io.errors import CaseError
 from vpcontact.io.messages import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED, error, interrupted
+from vpcontact.startup import resume_collector
 
 
 def start(args, subdir: str | None, files=None, check=None, petsc_cli=None):
@@ -146,6 +147,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
     from vpcontact.cli.progress import ProgressBar, ReaderWatch
     from vpcontact.observers import (
         Checkpointer,
+        CollectorAfterSetUp,
         ContactOutput,
         FieldOutput,
         HistoryOutput,
@@ -163,8 +165,9 @@ def cmd_run(args, petsc_cli: dict) -> int:
     bar = not args.quiet and not args.verbose
 
     def make_observers():
-        return [FieldOutput(), ContactOutput(), HistoryOutput(), Checkpointer(),
-                *([ProgressBar()] if bar else []), ReaderWatch(), StepLog(), RunFiles()]
+        return [CollectorAfterSetUp(), FieldOutput(), ContactOutput(), HistoryOutput(),
+                Checkpointer(), *([ProgressBar()] if bar else []), ReaderWatch(), StepLog(),
+                RunFiles()]
 
     observers = make_observers()
     threads.request(args.threads)
@@ -183,6 +186,7 @@ def cmd_run(args, petsc_cli: dict) -> int:
             if plots(outdir, painter=painter, drawn=files) == "interrupted":
                 return EXIT_INTERRUPTED
     finally:
+        resume_collector()             # also where the run stopped before its start
         if painter is not None:
             painter.cancel()
     code = report_run(comm, s, outdir, files)

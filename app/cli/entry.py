@@ -110,6 +110,8 @@ def prepare_process() -> None:
 
 def console() -> None:
     """The command line: ``python -m vpcontact``, ``./vpcontact`` and the console script."""
+    from vpcontact.startup import pause_collector
+    pause_collector()                    # until the run is set up (app/startup.py)
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _interrupted_while_starting)
     prepare_process()

@@ -12,6 +12,7 @@ from vpcontact.cli import commands, ending
 from vpcontact.cli.parser import build_parser, split_petsc_args
 from vpcontact.io.errors import CaseError
 from vpcontact.io.messages import EXIT_BAD_INPUT, EXIT_FAILED, error, internal_error, interrupted
+from vpcontact.startup import resume_collector
 
 # command -> (function, takes the command line's PETSc options); a command that does not
 # take them refuses them (exit 2) rather than dropping them
@@ -67,6 +68,8 @@ def dispatch(args, petsc_cli: dict) -> int:
         takers = ", ".join(name for name, (_, takes) in COMMANDS.items() if takes)
         return error(f"{args.command}: PETSc option(s) {given} are not used by this command "
                      f"(allowed with: {takers})", EXIT_BAD_INPUT)
+    if args.command != "run":          # run: once set up (observers.CollectorAfterSetUp)
+        resume_collector()
     return command(args, petsc_cli) if takes_petsc else command(args)
 
 

@@ -111,6 +111,57 @@ def test_installed_version_reads_the_metadata_importlib_reads(name):
     assert installed_version(name) == expected
 
 
+@pytest.fixture
+def collector():
+    """The collector as the test found it, afterwards."""
+    import gc
+    enabled = gc.isenabled()
+    yield gc
+    from vpcontact import startup
+    startup._paused = False
+    (gc.enable if enabled else gc.disable)()
+
+
+def test_collector_paused_for_the_start_up_and_frozen_after(collector):
+    from vpcontact import startup
+    collector.enable()
+    startup.pause_collector()
+    assert not collector.isenabled()
+    frozen = collector.get_freeze_count()
+    startup.resume_collector()
+    assert collector.isenabled() and collector.get_freeze_count() > frozen
+
+
+def test_a_program_that_turned_the_collector_off_keeps_it_off(collector):
+    from vpcontact import startup
+    collector.disable()
+    startup.resume_collector()                  # vpcontact did not pause it: not its to resume
+    assert not collector.isenabled()
+    startup.pause_collector()
+    startup.resume_collector()
+    assert not collector.isenabled()
+
+
+@pytest.mark.parametrize("command", ["run", "check"])
+def test_the_command_line_resumes_the_collector(collector, command, tmp_path, monkeypatch):
+    """A run collects garbage from its first step on; the other commands from their start."""
+    from conftest import PAPER_CASE
+    from vpcontact import observers, startup
+    from vpcontact.cli import main
+    seen = []
+    monkeypatch.setattr(observers.FieldOutput, "step",
+                        lambda self, sim, record: seen.append(collector.isenabled()))
+    collector.enable()
+    startup.pause_collector()
+    argv = [command, str(PAPER_CASE)]
+    if command == "run":
+        argv += ["--out", str(tmp_path / "out"), "--quiet", "--no-plots",
+                 "--set", "mesh.n=4", "--set", "time.N=3"]
+    assert main.main(argv) == 0
+    assert collector.isenabled()
+    assert seen == ([True] * 3 if command == "run" else [])
+
+
 FACTOR_THREADS = """
 import os
 import numpy as np
