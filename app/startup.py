@@ -17,6 +17,8 @@ is timed as a whole process, about 3 s).
   ... one by one) takes 0.12-0.15 s (measured).  ``quick_exit`` does what that teardown does
   that matters (flush the streams, run the atexit handlers, finalise PETSc and MPI) and
   ends the process without the rest.
+
+What each saves of the commands' wall time, measured: docs/performance.md section 5.
 """
 from __future__ import annotations
 
