@@ -198,10 +198,8 @@ def graded_times(times, local, ratio: float) -> list[float]:
     times = np.asarray(times, dtype=float)
     out = [times[:1]]
     for a, b, m in zip(times[:-1], times[1:], split_counts(local, ratio)):
-        out.append(a + (b - a) * np.arange(1, m + 1) / m)
-    new = np.concatenate(out)
-    new[-1] = times[-1]
-    return [float(t) for t in new]
+        out.append(np.append(a + (b - a) * np.arange(1, m) / m, b))   # b itself, exactly
+    return [float(t) for t in np.concatenate(out)]
 
 
 def time_ratio(estimate: dict, tol: float) -> float:
