@@ -424,8 +424,8 @@ SCHEMA = _obj({
                    "description": "Newton systems of snes_vi: direct (LU of every Newton "
                                   "system), schur (one factorisation of the bulk stiffness "
                                   "per run and a dense Gamma3 Schur complement per Newton "
-                                  "iteration; serial, explicit scheme, one body without "
-                                  "nodal frames, else direct), amg (CG with "
+                                  "iteration; explicit scheme, one body without nodal "
+                                  "frames, else direct; under mpirun on rank 0), amg (CG with "
                                   "algebraic multigrid, GAMG, knowing the rigid body modes; "
                                   "for large 3D meshes), auto (amg in 3D above 20000 dofs, "
                                   "else schur)"},

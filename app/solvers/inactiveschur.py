@@ -1,5 +1,5 @@
 """SNES VI's Newton systems by one factorisation of the bulk stiffness K per run and a dense
-Gamma3 Schur complement per Newton iteration (serial, explicit scheme, one body).
+Gamma3 Schur complement per Newton iteration (explicit scheme, one body).
 
 With the explicit scheme the Jacobian of (3.4) is J = K + B: K the constant bulk stiffness
 (E eps(du), eps(v)) and B the Gamma3 terms, which couple Gamma3 dofs only (the nodal or
@@ -15,7 +15,10 @@ backward sweep x_b); per Newton iteration only the dense (S + B)_{gI,gI} (|gI| <
 factorised: by the condensed solver's compiled Cholesky of the free block
 (dense.NewtonDirection; in 3D, from 1000 dofs, CG with the kept factor of an earlier
 iteration first, as the condensed solver does) where B is made of symmetric nodal blocks
-(the nodal Gamma3 rule, a convex contact energy), else by LU.  ``InactiveSetSchur`` is the python PC
+(the nodal Gamma3 rule, a convex contact energy), else by LU.  Under mpirun K is gathered
+and factorised on GAMMA3_ROOT (RootCondensation): each Newton system's right-hand side is
+gathered there and its solution scattered back, B_GG and the inactive set's Gamma3 part
+pass as entries, while the other ranks wait asleep.  ``InactiveSetSchur`` is the python PC
 (KSP preonly) that applies J_II^-1 so; ``schur_refusal`` says where it does not apply (SNES
 VI then factorises J_II by LU at every Newton iteration, as before).
 """
@@ -24,11 +27,13 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from vpcontact import threads
 from vpcontact.solvers import dense
 from vpcontact.solvers.options import DEFAULT_PETSC
+from vpcontact.threads import GAMMA3_ROOT
 
 log = logging.getLogger("vpcontact")
 
@@ -59,7 +64,7 @@ def user_linear_options(options: dict) -> list[str]:
 
 def schur_refusal(problem, options: dict, reuse: bool, rotated: bool) -> str:
     """Why the Schur complement PC cannot solve SNES VI's Newton systems here ("" where it
-    can).
+    can; the same on every rank: collective).
 
     Args:
         problem: the ContactProblem.
@@ -73,20 +78,21 @@ def schur_refusal(problem, options: dict, reuse: bool, rotated: bool) -> str:
     from vpcontact import kernels
     snes_type = options.get("snes_type", SNES_TYPE)
     given = user_linear_options(options)
+    comm = problem.comm
+    gamma3 = 0 if problem.gamma3 is None else len(problem.gamma3.nodes)
     reasons = [
-        (problem.comm.size > 1, "under mpirun (the compiled sweeps are serial)"),
         (problem.pairs is not None, "two bodies (contact pairs)"),
         (not reuse, "the bulk Jacobian changes (implicit scheme)"),
         (rotated, "nodal frames (curved Gamma3) or rigid caps"),
         (problem.hold is not None, "a body held only by contact (K singular)"),
-        (problem.gamma3 is None or len(problem.gamma3.nodes) == 0, "no Gamma3 dofs"),
+        (comm.allreduce(gamma3) == 0, "no Gamma3 dofs"),
         (snes_type != SNES_TYPE, f"snes_type {snes_type} (not {SNES_TYPE})"),
         (bool(given), "the PETSc options " + ", ".join(given) + " choose the linear solver"),
     ]
     for refused, why in reasons:
         if refused:
             return why
-    if kernels.load() is None:
+    if not comm.allreduce(kernels.load() is not None, op=MPI.LAND):
         return "the compiled kernels are not available"
     return ""
 
@@ -107,84 +113,105 @@ class GammaSchur:
 
     def __init__(self, problem, K: PETSc.Mat, gamma3_terms):
         from vpcontact import kernels
-        from vpcontact.solvers.condensed.cholmod import CholmodCondensation
         from vpcontact.solvers.condensed.layout import Gamma3Layout
-        self.layout = Gamma3Layout(problem, K.getOwnershipRange()[0])
+        self.comm = problem.comm
+        self.start, end = K.getOwnershipRange()
+        self.layout = Gamma3Layout(problem, self.start)
         self.G = self.layout.global_rows().astype(np.int64)
         self.m, self.n = len(self.G), K.getSize()[0]
-        self.condensation = CholmodCondensation(K, self.G.astype(np.int32), problem.dim,
-                                                kernels.load(), problem.comm)
-        self.S = self.condensation.S
+        self.condensation = _condensation(K, self.G.astype(np.int32), problem.dim,
+                                          kernels.load(), self.comm)
+        self.S = self.condensation.S                # on GAMMA3_ROOT, None elsewhere
         self.position = np.full(self.n, -1, dtype=np.int64)    # a dof's place in G, or -1
         self.position[self.G] = np.arange(self.m)
+        self.bulk = np.count_nonzero(self.position[self.start:end] < 0)   # this rank's
         self.gamma3_terms = gamma3_terms
         self.b, self.x = K.createVecs()
         self.factorisations = 1
         self.d = problem.dim
         # (S + W)_ff by the condensed solver's compiled Cholesky (W: B's nodal blocks)
-        self.direction = dense.NewtonDirection(self.S, self.d, dense.load())
+        self.direction = None if self.S is None else \
+            dense.NewtonDirection(self.S, self.d, dense.load())
+        self._entries = None        # B_GG's entries of this Newton iteration, on the root
 
     def covers(self, lb: PETSc.Vec, ub: PETSc.Vec) -> bool:
-        """Whether every bounded dof is a Gamma3 dof (so every bulk dof stays inactive).
+        """Whether every bounded dof is a Gamma3 dof (so every bulk dof stays inactive;
+        collective).
 
         Args:
             lb: SNES VI's lower bounds.
             ub: its upper bounds.
 
         Returns:
-            True if the bounds act on G only.
+            True if the bounds act on G only, on every rank.
         """
         bounded = (lb.array_r > PETSc.NINFINITY) | (ub.array_r < PETSc.INFINITY)
-        return bool(np.all(self.position[np.flatnonzero(bounded)] >= 0))
+        inside = bool(np.all(self.position[self.start + np.flatnonzero(bounded)] >= 0))
+        return self.comm.allreduce(inside, op=MPI.LAND)
 
-    def gamma3_entries(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """B_GG, the Gamma3 terms of the current Jacobian on G, as entries.
+    def gamma3_entries(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """B_GG, the Gamma3 terms of the current Jacobian on G, as entries (collective).
 
         Returns:
-            (rows, columns, values): positions in G and the values there.
+            (rows, columns, values): positions in G and the values there, every rank's, on
+            GAMMA3_ROOT; None elsewhere.
 
         Raises:
-            RuntimeError: B has a nonzero entry outside G x G (the PC would be wrong).
+            RuntimeError: B has a nonzero entry outside G x G (the PC would be wrong), on
+                every rank.
         """
         B = self.gamma3_terms()
         if B is None:
-            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
-        ai, aj, av = B.getValuesCSR()
-        pr = self.position[np.repeat(np.arange(len(ai) - 1), np.diff(ai))]
-        pc = self.position[aj]
-        inside = (pr >= 0) & (pc >= 0)
-        if np.any(av[~inside] != 0.0):
-            raise RuntimeError("the Gamma3 terms couple dofs outside the Gamma3 nodes: the "
-                               "Schur complement solver of SNES VI does not apply")
-        return pr[inside], pc[inside], av[inside]
+            entries = (np.zeros(0, dtype=np.int64),) * 2 + (np.zeros(0),)
+        else:
+            ai, aj, av = B.getValuesCSR()
+            pr = self.position[self.start + np.repeat(np.arange(len(ai) - 1), np.diff(ai))]
+            pc = self.position[aj]
+            inside = (pr >= 0) & (pc >= 0)
+            outside = bool(np.any(av[~inside] != 0.0))
+            if self.comm.allreduce(outside, op=MPI.LOR):
+                raise RuntimeError("the Gamma3 terms couple dofs outside the Gamma3 nodes: "
+                                   "the Schur complement solver of SNES VI does not apply")
+            entries = pr[inside], pc[inside], av[inside]
+        if self.comm.size == 1:
+            return entries
+        parts = self.comm.gather(entries, root=GAMMA3_ROOT)
+        return None if parts is None else tuple(np.concatenate(a) for a in zip(*parts))
 
-    def factor(self, rows: np.ndarray | None) -> tuple[np.ndarray, tuple]:
+    def factor(self, rows: np.ndarray | None) -> tuple[np.ndarray, tuple] | tuple[None, None]:
         """What solves with (S + B)_{gI,gI} for the inactive set ``rows``: B's nodal blocks W
         where B is symmetric and couples no two nodes (the nodal Gamma3 rule; the Cholesky
-        factorisation comes with the solve, ``solve``), else the LU factors.
+        factorisation comes with the solve, ``solve``), else the LU factors (collective).
 
         Args:
-            rows: the inactive dofs (local, sorted), or None for all.
+            rows: this rank's inactive dofs (local, sorted), or None for all.
 
         Returns:
-            (gI: the inactive positions in G, ("cholesky", W) or ("lu", scipy's lu_factor)).
+            On GAMMA3_ROOT (gI: the inactive positions in G, ("cholesky", W) or ("lu",
+            scipy's lu_factor)); (None, None) elsewhere.
 
         Raises:
-            RuntimeError: a bulk dof is active (the bounds act outside G).
+            RuntimeError: a bulk dof is active (the bounds act outside G), on every rank.
         """
         if rows is None:
             gI = np.arange(self.m)
         else:
-            pos = self.position[rows]
-            if len(rows) - np.count_nonzero(pos >= 0) != self.n - self.m:
+            pos = self.position[self.start + rows]
+            gI = pos[pos >= 0]
+            missed = len(rows) - len(gI) != self.bulk
+            if self.comm.allreduce(missed, op=MPI.LOR):
                 raise RuntimeError("SNES VI's inactive set misses bulk dofs: the Schur "
                                    "complement solver does not apply")
-            gI = pos[pos >= 0]
-        pr, pc, v = self.gamma3_entries()
-        W = self._nodal_blocks(pr, pc, v)
+            if self.comm.size > 1:
+                parts = self.comm.gather(gI, root=GAMMA3_ROOT)
+                gI = None if parts is None else np.sort(np.concatenate(parts))
+        self._entries = self.gamma3_entries()
+        if self.S is None:
+            return None, None
+        W = self._nodal_blocks(*self._entries)
         if W is not None:
             return gI, ("cholesky", W)
-        return gI, ("lu", self._lu(gI, pr, pc, v))
+        return gI, ("lu", self._lu(gI, *self._entries))
 
     def _nodal_blocks(self, pr, pc, v) -> np.ndarray | None:
         """B's entries as symmetric nodal d x d blocks (m / d, d, d), or None if B couples
@@ -223,8 +250,7 @@ class GammaSchur:
             y = self.direction(data, -r, binding, rtol=CG_RTOL)
             if y is not None:
                 return y
-            pr, pc, v = self.gamma3_entries()
-            data = self._lu(gI, pr, pc, v)
+            data = self._lu(gI, *self._entries)
         import scipy.linalg
         y = np.zeros(self.m)
         y[gI] = scipy.linalg.lu_solve(data, r[gI], check_finite=False)
@@ -232,14 +258,15 @@ class GammaSchur:
 
     def solve(self, rows: np.ndarray | None, gI: np.ndarray, how: tuple, r: np.ndarray,
               out: np.ndarray) -> None:
-        """x = J_II^-1 r by the condensation (module docstring).
+        """x = J_II^-1 r by the condensation (module docstring; collective: the Gamma3 solve
+        on GAMMA3_ROOT).
 
         Args:
-            rows: the inactive dofs (local), or None for all.
-            gI: their positions in G (``factor``).
-            how: the solve with (S + B)_{gI,gI} (``factor``).
-            r: the right-hand side on the inactive dofs.
-            out: x on the inactive dofs, overwritten.
+            rows: this rank's inactive dofs (local), or None for all.
+            gI: their positions in G (``factor``; on the root).
+            how: the solve with (S + B)_{gI,gI} (``factor``; on the root).
+            r: the right-hand side on this rank's inactive dofs.
+            out: x on this rank's inactive dofs, overwritten.
         """
         b = self.b.array
         if rows is None:
@@ -247,7 +274,8 @@ class GammaSchur:
         else:
             b[:] = 0.0
             b[rows] = r
-        y = self._gamma3_solve(gI, how, np.array(self.condensation.reduce(self.b)))
+        reduced = self.condensation.reduce(self.b)
+        y = None if reduced is None else self._gamma3_solve(gI, how, np.array(reduced))
         self.condensation.expand(y, self.x)
         out[:] = self.x.array_r if rows is None else self.x.array_r[rows]
 
@@ -256,6 +284,16 @@ class GammaSchur:
         self.condensation.destroy()
         for obj in (self.b, self.x):
             obj.destroy()
+
+
+def _condensation(K: PETSc.Mat, G: np.ndarray, d: int, module, comm):
+    """K's G-last factorisation: CholmodCondensation, or under mpirun RootCondensation (the
+    same on GAMMA3_ROOT, right-hand sides gathered there; app/solvers/condensed/cholmod.py).
+    """
+    from vpcontact.solvers.condensed.cholmod import CholmodCondensation, RootCondensation
+    if comm.size == 1:
+        return CholmodCondensation(K, G, d, module, comm)
+    return RootCondensation(K, G, d, module, comm)
 
 
 class InactiveSetSchur:
@@ -283,15 +321,15 @@ class InactiveSetSchur:
             RuntimeError: the inactive set does not match the operator's size.
         """
         _, P = pc.getOperators()
-        size = P.getSize()[0]
         x = self.snes.getSolution()
-        if size == x.getSize():
+        if P.getSize()[0] == x.getSize():
             self.rows = None
         else:
             self.rows = self.snes.getVIInactiveSet().getIndices() - x.getOwnershipRange()[0]
+            size = P.getLocalSize()[0]
             if len(self.rows) != size:
-                raise RuntimeError(f"SNES VI's inactive set has {len(self.rows)} dofs, its "
-                                   f"Newton matrix {size}")
+                raise RuntimeError(f"SNES VI's inactive set has {len(self.rows)} dofs here, "
+                                   f"its Newton matrix {size}")
         self.gI, self.how = self.schur.factor(self.rows)
         self.setups += 1
 

@@ -5,16 +5,21 @@ and contact table agree to 1e-10 and every step's Newton iterations are equal, o
 case and on a Coulomb slide (the linear solves differ by round-off only; the Gamma3 block
 B scaled by 1 - 1e-6 moved the paper case's iterates by 2.7e-8, measured, while the
 converged steps stay within 1e-10).  Where the PC does not apply, SNES VI keeps LU and says
-why.
+why.  Under mpirun -n 2 (K factorised on rank 0, right-hand sides gathered there) the
+steps equal the serial run's to 1e-10, also where rank 0 owns no Gamma3 node and where the
+Gauss rule's B couples neighbouring nodes (LU of (S + B)_{gI,gI}).
 """
 import copy
+import csv
+import json
 import logging
 
 import numpy as np
+import pytest
 from mpi4py import MPI
 from test_coulomb import _raw as coulomb_raw
 
-from conftest import make_case, paper_raw
+from conftest import PAPER_CASE, make_case, paper_raw, run_cli
 from vpcontact.observers import Observer
 from vpcontact.post.quantities import contact_table
 from vpcontact.simulation import run
@@ -130,3 +135,36 @@ def test_user_linear_options_are_those_that_choose_a_solver():
     assert user_linear_options({**DEFAULT_PETSC, "ksp_view": None, "ksp_monitor": None}) == []
     assert user_linear_options({**DEFAULT_PETSC, "ksp_type": "gmres", "pc_type": "ilu"}) == \
         ["ksp_type", "pc_type"]
+
+
+def _cli(tmp_path, nprocs: int, sets: list[str]) -> tuple[dict, dict]:
+    """summary.json and contact.csv's columns of a schur run by the command line."""
+    out = tmp_path / f"np{nprocs}"
+    args = ["run", PAPER_CASE, "--out", out, "--quiet", "--set", "solver.linear=schur"]
+    for s in sets:
+        args += ["--set", s]
+    proc = run_cli(args, nprocs=nprocs)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    rows = list(csv.DictReader(open(out / "contact.csv")))
+    return json.loads((out / "summary.json").read_text()), \
+        {k: [r[k] for r in rows] for k in rows[0]}
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("sets", [
+    ["mesh.n=16", "time.N=16"],
+    ["mesh.n=4", "time.N=4"],                         # rank 0 owns no Gamma3 node
+    ["mesh.n=8", "time.N=4", "solver.quadrature=gauss"],
+], ids=["paper", "no-gamma3-on-root", "gauss"])
+def test_schur_under_mpirun_takes_the_serial_steps(tmp_path, sets):
+    serial, a = _cli(tmp_path, 1, sets)
+    parallel, b = _cli(tmp_path, 2, sets)
+    for summary in (serial, parallel):
+        assert summary["solver"]["linear"] == "schur"
+        assert summary["solver"]["factorisations"] == 1
+    assert parallel["mpi_ranks"] == 2
+    assert [s["newton_iterations"] for s in serial["steps"]] == \
+        [s["newton_iterations"] for s in parallel["steps"]]
+    assert a["state"] == b["state"] and len(a["x"]) > 0
+    for col in ("x", "u_x", "u_y", "neg_sigma_nu", "neg_sigma_tau"):
+        assert _relative(np.array(a[col], float), np.array(b[col], float)) < TOL, col

@@ -3,17 +3,22 @@
 S = L_GG D_G L_GG^T, and a step's condensation and expansion as one forward and one backward
 sweep through L's interior columns (kernels.GLastSolve: node blocks, compiled).  At h = 1/128
 about 6 ms per step against 9.4-12 ms for the two PETSc back-substitutions of
-PetscCondensation (measured).
+PetscCondensation.  ``RootCondensation`` is the same on GAMMA3_ROOT under mpirun: K gathered
+there once, each right-hand side gathered and each solution scattered back by PETSc (n values
+each way), while the other ranks wait asleep.
 """
 from __future__ import annotations
 
 import logging
 
 import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
 
 from vpcontact import kernels, threads
 from vpcontact.solvers.dense import cholesky_solve
 from vpcontact.solvers.schur import (
+    CSR,
     GLastLDL,
     GLastLU,
     g_last_factor,
@@ -31,7 +36,7 @@ class CholmodCondensation:
     (serial).
 
     Args:
-        K: the assembled elasticity matrix.
+        K: the assembled elasticity matrix, or its CSR (schur.gather_csr).
         G_rows: the rows of the Gamma3 dofs in G order, shape (m,).
         d: the dofs per node.
         module: the compiled kernels (kernels.load()).
@@ -44,7 +49,7 @@ class CholmodCondensation:
 
     def __init__(self, K, G_rows: np.ndarray, d: int, module, comm,
                  semidefinite: bool = False):
-        A = gather_csr(K, comm)
+        A = K if isinstance(K, CSR) else gather_csr(K, comm)
         with threads.blas_threads(large=A.n >= THREADED_FACTOR_MIN):
             # K singular in a motion G holds: its last pivots vanish, which CHOLMOD refuses
             factor = GLastLU(A, G_rows, d) if semidefinite else g_last_factor(A, G_rows, d)
@@ -95,6 +100,90 @@ class CholmodCondensation:
     def destroy(self) -> None:
         """Nothing to free: the factor goes with this object."""
 
+
+class RootCondensation:
+    """A Condensation (condensation.py) under mpirun by CholmodCondensation on GAMMA3_ROOT
+    (collective): K gathered there and factorised once, each right-hand side gathered there
+    and each solution scattered back (PETSc's scatter to zero), the sweeps on the root while
+    the other ranks wait asleep (threads.root_call).  S and C are on the root, None elsewhere.
+
+    Args:
+        K: the assembled elasticity matrix (distributed).
+        G_rows: the global rows of the Gamma3 dofs in G order, shape (m,), m > 0.
+        d: the dofs per node.
+        module: the compiled kernels (kernels.load(), on the root).
+        comm: the run's communicator.
+
+    Raises:
+        np.linalg.LinAlgError: S is not positive definite (on every rank).
+    """
+
+    def __init__(self, K, G_rows: np.ndarray, d: int, module, comm):
+        self.comm = comm
+        A = gather_csr(K, comm)
+        self._b, self._x = K.createVecs()
+        self._scatter, self._whole = PETSc.Scatter.toZero(self._b)
+        self._root = None           # the CholmodCondensation, on the root
+
+        def factorise():
+            self._root = CholmodCondensation(A, G_rows, d, module, MPI.COMM_SELF)
+
+        threads.root_call(comm, factorise)
+        self.S = None if self._root is None else self._root.S
+        self.C = None if self._root is None else self._root.C
+        self.factorisations = 1
+
+    def condense(self, b) -> np.ndarray | None:
+        """y0 = S^-1 r (collective; ``CholmodCondensation.condense``).
+
+        Args:
+            b: the right-hand side (distributed).
+
+        Returns:
+            y0 in G order on the root; None on the others.
+        """
+        self._gather(b)
+        return self._on_root(lambda: self._root.condense(self._whole))
+
+    def reduce(self, b) -> np.ndarray | None:
+        """r = b_G - K_GI K_II^-1 b_I (collective; ``CholmodCondensation.reduce``).
+
+        Args:
+            b: the right-hand side (distributed).
+
+        Returns:
+            r in G order on the root; None on the others.
+        """
+        self._gather(b)
+        return self._on_root(lambda: self._root.reduce(self._whole))
+
+    def expand(self, y: np.ndarray, x) -> None:
+        """The backward sweep with x_G = y on the root, scattered to x (collective).
+
+        Args:
+            y: the Gamma3 values (read on the root).
+            x: the solution (distributed), overwritten.
+        """
+        self._on_root(lambda: self._root.expand(y, self._whole))
+        self._scatter.scatter(self._whole, x, PETSc.InsertMode.INSERT,
+                              PETSc.ScatterMode.REVERSE)
+
+    def _gather(self, b) -> None:
+        """The whole b on the root (collective)."""
+        self._scatter.scatter(b, self._whole, PETSc.InsertMode.INSERT,
+                              PETSc.ScatterMode.FORWARD)
+
+    def _on_root(self, work):
+        """work() on the root while the others wait asleep; its result there, None
+        elsewhere (collective; an exception is raised on every rank)."""
+        out = []
+        threads.root_call(self.comm, lambda: out.append(work()))
+        return out[0] if out else None
+
+    def destroy(self) -> None:
+        """Free the gather's vectors and scatter."""
+        for obj in (self._b, self._x, self._scatter, self._whole):
+            obj.destroy()
 
 def _semidefinite_schur(factor) -> tuple[np.ndarray, np.ndarray | None]:
     """(S, C) of ``schur_pair``, or (S, None) where S is only positive semidefinite (a body
