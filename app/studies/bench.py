@@ -173,10 +173,42 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "condensed"), nprocs=(
                 for r in (a, b):
                     r["speedup_fast_vs_snes"] = a["wall_s"] / b["wall_s"]
                     r["solution_difference"] = diff
+        _ranks_ratios(finals, nprocs)
     for r in rows:
         r.pop("_u", None)
     _cost_exponents(rows, methods)
     return rows
+
+
+def _ranks_ratios(finals: dict, nprocs) -> None:
+    """Each parallel row's wall time over the serial row's of its solver and level
+    (``wall_vs_serial``, measured in the same bench run).
+
+    Args:
+        finals: {(method, ranks): row} of one level.
+        nprocs: the rank counts timed.
+    """
+    for (method, ranks), row in finals.items():
+        serial = finals.get((method, 1))
+        if ranks > 1 and serial is not None:
+            row["wall_vs_serial"] = row["wall_s"] / serial["wall_s"]
+
+
+def _ranks_markdown(rows: list[dict]) -> list[str]:
+    """bench.md's table of the parallel rows against the serial ones (none: empty)."""
+    parallel = [r for r in rows if "wall_vs_serial" in r]
+    if not parallel:
+        return []
+    lines = ["", "## Under mpirun against serial", "",
+             "Whole-process wall time of each parallel row over the serial row of the same "
+             "solver and level, both in this bench run (below 1: the ranks are faster).", "",
+             "| h | N | solver | ranks | wall s | serial wall s | wall / serial |",
+             "|---|---|---|---|---|---|---|"]
+    for r in parallel:
+        lines.append(f"| 1/{r['n']} | {r['N']} | {_solver_cell(r)} | {r['nprocs']} | "
+                     f"{r['wall_s']:.2f} | {r['wall_s'] / r['wall_vs_serial']:.2f} | "
+                     f"{r['wall_vs_serial']:.2f} |")
+    return lines
 
 
 def _row(n: int, N: int, nprocs: int, s: dict, wall: float, runs: list, out: Path) -> dict:
@@ -346,6 +378,7 @@ def write(outdir: Path, rows: list[dict], memory: list[dict] | None = None,
             f"{r['solution_difference']:.1e}" if "solution_difference" in r else "-",
             f"{r['step_cost_exponent']:.2f}" if "step_cost_exponent" in r else "-",
             *reference_cells(r, ("wall_ratio", "setup_ratio", "loop_ratio"))]) + " |")
+    lines += _ranks_markdown(rows)
     if memory:
         lines += ["", "## Memory term: cost per step", "",
                   "cases/memory.yaml (h = 1/16, fast solver): the exponential kernel's exact "
