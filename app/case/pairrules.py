@@ -17,12 +17,14 @@ from vpcontact.case.schema import SCHEMA
 from vpcontact.case.schemacheck import fill_defaults
 from vpcontact.io.casekey import GROUP_MAPS
 from vpcontact.io.errors import CaseError
+from vpcontact.model.contactregistry import KERNELS, builtin_keys
 
 # the contact laws a pair may carry (the contact section's own keys)
 LAW_KEYS = ("normal_compliance", "memory", "friction")
 # the memory kernel's keys that pairs with different laws share (b0 may differ: the
-# Gamma3 history sums b0(x_i) u_nu^+ with one kernel shape, app/model/gamma3.py)
-MEMORY_SHAPE = ("kernel", "beta", "alpha", "tau", "table", "sum")
+# Gamma3 history sums b0(x_i) u_nu^+ with one kernel shape, app/model/gamma3.py): kernel,
+# every kernel's keys (app/model/contactregistry.py), sum
+MEMORY_SHAPE = ("kernel", *builtin_keys(KERNELS), "sum")
 
 
 def settle_pairs(data: dict, source: str) -> dict:

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from vpcontact.io.files import write_replacing
-from vpcontact.model import contact_laws
+from vpcontact.model.contactregistry import BOUNDS, NORMALS, chosen
 from vpcontact.post.results import Results, contact_scene, round_125
 
 LINE_FIGURES = ("fig3_deformed_contact.png", "fig4_tangential.png", "fig2_laws.png",
@@ -286,24 +286,23 @@ def fig4_tangential(res: Results, path: Path) -> None:
 
 
 def _normal_law(nc, g, r):
-    """-sigma_nu = p(u_nu) at u_nu = r <= g: c_nu u_nu^+ of (4.1), c_nu (u_nu^+)^m or the
-    table of contact.normal_compliance ``nc`` (None, or c_nu(x): 0) (Fig. 2a)."""
+    """-sigma_nu = p(u_nu) at u_nu = r <= g: the built-in law of contact.normal_compliance
+    ``nc`` chosen by its keys (``NORMALS``: c_nu u_nu^+ of (4.1), c_nu (u_nu^+)^m, the
+    table, ...; None, or c_nu(x): 0) (Fig. 2a)."""
     nc = nc or {}
-    if "table" in nc:
-        return contact_laws.TableCompliance(nc["table"]).derivative(r)
-    c_nu = nc.get("c_nu") if not isinstance(nc.get("c_nu"), str) else None
-    if "m" in nc:
-        return contact_laws.PowerCompliance(c_nu or 0.0, float(nc["m"])).derivative(r)
-    return contact_laws.NormalCompliance(c_nu or 0.0).derivative(r)
+    spec = chosen(NORMALS, nc)
+    constants = {k: v for k, v in spec.constants(nc).items() if not isinstance(v, str)}
+    if not all(k in constants for k in spec.required()):    # none, or c_nu(x)
+        return 0.0 * np.maximum(np.asarray(r, dtype=float), 0.0)
+    return spec.build(constants, lambda name, value: value, None).derivative(r)
 
 
 def _tangential_law(fr, rho):
-    """|sigma_tau| = psi'(rho) of (4.2) or of the friction table at slips rho = |u_tau| > 0;
-    fr: b, c1, c2, u1 or table (Fig. 2b)."""
-    if "table" in fr:
-        return contact_laws.TableFriction(fr["table"]).derivative(rho)
-    psi = contact_laws.PiecewiseLinearFriction(fr["b"], fr["c1"], fr["c2"], fr["u1"])
-    return psi.derivative(rho)
+    """|sigma_tau| = psi'(rho) of the built-in bound of contact.friction ``fr`` chosen by
+    its keys (``BOUNDS``: (4.2)'s b, c1, c2, u1, the friction table, ...) at slips
+    rho = |u_tau| > 0 (Fig. 2b)."""
+    spec = chosen(BOUNDS, fr)
+    return spec.build(spec.constants(fr), lambda name, value: value).derivative(rho)
 
 
 def fig2_laws(res: Results, path: Path) -> None:
