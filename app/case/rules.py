@@ -324,8 +324,7 @@ def _check_friction(fr: dict, source: str) -> None:
 def _check_coulomb(fr: dict, source: str) -> None:
     """contact.friction.coulomb: mu >= 0, or mu_s, mu_k, slip_length; not with another
     friction law's keys."""
-    other = [k for k in ("b", "c1", "c2", "u1", "table", "law", "class", "params")
-             if k in fr]
+    other = [k for k in (*builtin_keys(BOUNDS), "law", "class", "params") if k in fr]
     if other:
         raise CaseError(f"{source}: contact.friction.{other[0]}: not with coulomb (the "
                         f"Coulomb law mu p_n is the friction law; remove {', '.join(other)})")

@@ -66,6 +66,7 @@ from vpcontact.model.contactspec import (
     TABLE,
     ContactKey,
     ContactLawSpec,
+    Drawing,
     table_points,
 )
 from vpcontact.model.laws import ScalarLaw
@@ -501,7 +502,9 @@ FRICTION = ContactLawSpec(
     build=lambda c, param: PiecewiseLinearFriction(*(param(k, c[k])
                                                      for k in ("b", "c1", "c2", "u1"))),
     check=_check_friction,
-    levels=lambda c: [abs(c["b"]), abs(c["c1"] * c["u1"]), abs(c["c2"] * c["u1"])])
+    levels=lambda c: [abs(c["b"]), abs(c["c1"] * c["u1"]), abs(c["c2"] * c["u1"])],
+    drawing=lambda c: Drawing(3 * c["u1"], "psi'(|u_tau|)", c["b"],
+                              "|u_tau| = 0: [0, b] (stick)", (c["u1"], "u1")))
 
 
 # ----------------------------------------------------------------------------- composition

@@ -23,6 +23,7 @@ from vpcontact.model.contactspec import (
     TABLE,
     ContactKey,
     ContactLawSpec,
+    Drawing,
     table_points,
     table_values,
 )
@@ -264,4 +265,6 @@ FRICTION_TABLE = ContactLawSpec(
                                               "beyond the last point (its slope >= 0); psi "
                                               "its exact primitive"})},
     build=lambda c, param: TableFriction(c["table"]), check=_check_friction_table,
-    levels=lambda c: table_values(c["table"]))
+    levels=lambda c: table_values(c["table"]),
+    drawing=lambda c: Drawing(1.5 * c["table"][-1][0], "tau(|u_tau|) (table)", c["table"][0][1],
+                              "|u_tau| = 0: [0, tau(0)] (stick)"))

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from vpcontact.io.errors import CaseError
 
@@ -54,6 +55,25 @@ class ContactKey:
     only: str = ""
 
 
+class Drawing(NamedTuple):
+    """How the figure of the case's laws (Fig. 2, app/post/linefigures.py) draws a friction
+    bound psi'(rho).
+
+    Attributes:
+        upto: the largest slip rho drawn [m].
+        label: the curve's label.
+        stick: the bound at zero slip, drawn as the stick interval [0, stick].
+        stick_label: its label.
+        mark: (slip, name) marked on the slip axis, or None.
+    """
+
+    upto: float
+    label: str
+    stick: float
+    stick_label: str
+    mark: tuple | None = None
+
+
 @dataclass(frozen=True)
 class ContactLawSpec:
     """The declaration of one built-in contact law (see the module docstring).
@@ -74,6 +94,7 @@ class ContactLawSpec:
             (app/post/divergence.py; a kind's further arguments as ``build``), or None.
         recursive: a memory kernel with the exact O(1) recursion of its sum.
         title: its name in the run log's active terms, or "" (the kind's).
+        drawing: (constants) -> the ``Drawing`` of a friction bound in Fig. 2, or None.
     """
 
     name: str
@@ -84,6 +105,7 @@ class ContactLawSpec:
     levels: Callable | None = None
     recursive: bool = False
     title: str = ""
+    drawing: Callable | None = None
 
     def required(self) -> tuple[str, ...]:
         """Returns: the keys the law needs, in the order of ``keys``."""
