@@ -113,7 +113,7 @@ def test_the_case_holds_tagged_sections():
     assert c.memory == Memory(3.0, "power", {"alpha": 0.5, "tau": 2.0}, "auto")
     assert c.memory.beta is None and c.memory.alpha == 0.5
     with pytest.raises(AttributeError):
-        c.memory.gamma
+        _ = c.memory.gamma
     tables = _case(normal_compliance={"table": [[0, 0], [0.01, 1]]},
                    friction={"table": [[0, 1], [0.01, 0.5], [0.02, 0.6]]}).contact
     assert tables.normal.law == "table" and tables.c_nu is None
