@@ -66,8 +66,40 @@ class Boundaries:
     contact: tuple
 
 
+class _Constants:
+    """A built-in law's constants read as attributes (``vp.lambda1``, ``slip.theta_inf``):
+    a key of another law of its kind (``_kind_keys``: the viscoplastic laws' of
+    app/model/lawregistry.py, a contact law's registry ``REGISTRY`` of
+    app/model/contactregistry.py) reads as None."""
+
+    REGISTRY: dict = {}
+
+    def _kind_keys(self):
+        """Returns: the keys of every law of the kind."""
+        return builtin_keys(self.REGISTRY)
+
+    def __getattr__(self, name: str):
+        """A constant of the law by its key (None for a key of another law of its kind).
+
+        Args:
+            name: the key.
+
+        Returns:
+            Its value, or None.
+
+        Raises:
+            AttributeError: not a key of any law of the kind.
+        """
+        constants = self.__dict__.get("constants")
+        if constants is not None and name in constants:
+            return constants[name]
+        if constants is not None and name in self._kind_keys():
+            return None
+        raise AttributeError(f"{type(self).__name__} has no attribute {name!r}")
+
+
 @dataclass(frozen=True)
-class Viscoplastic:
+class Viscoplastic(_Constants):
     """``material.viscoplastic``: the law (a built-in law's name, app/model/lawregistry.py,
     or "python"), kappa0, the built-in law's ``constants`` ({key: float}: its keys of the
     case file, defaults filled, as its LawSpec declares them), the user's class and its
@@ -80,24 +112,9 @@ class Viscoplastic:
     cls: str | None = None              # law python: the class of --law-module
     params: dict | None = None          # law python: its constructor's keyword arguments
 
-    def __getattr__(self, name: str):
-        """A constant of the law by its key (None for a key of another built-in law).
-
-        Args:
-            name: the key.
-
-        Returns:
-            Its value, or None.
-
-        Raises:
-            AttributeError: not a key of any built-in law.
-        """
-        constants = self.__dict__.get("constants")
-        if constants is not None and name in constants:
-            return constants[name]
-        if constants is not None and name in key_owners():
-            return None
-        raise AttributeError(f"Viscoplastic has no attribute {name!r}")
+    def _kind_keys(self):
+        """Returns: the keys of every built-in viscoplastic law."""
+        return key_owners()
 
 
 @dataclass(frozen=True)
@@ -132,32 +149,6 @@ class Material:
     viscoplastic: Viscoplastic | None
     plane: str | None = "stress"
     elasticity: Anisotropic | None = None
-
-
-class _Constants:
-    """A built-in contact law's constants read as attributes (``slip.theta_inf``): a key of
-    another law of its kind (``REGISTRY``, app/model/contactregistry.py) reads as None."""
-
-    REGISTRY: dict = {}
-
-    def __getattr__(self, name: str):
-        """A constant of the law by its key (None for a key of another law of its kind).
-
-        Args:
-            name: the key.
-
-        Returns:
-            Its value, or None.
-
-        Raises:
-            AttributeError: not a key of any law of the kind.
-        """
-        constants = self.__dict__.get("constants")
-        if constants is not None and name in constants:
-            return constants[name]
-        if constants is not None and name in builtin_keys(self.REGISTRY):
-            return None
-        raise AttributeError(f"{type(self).__name__} has no attribute {name!r}")
 
 
 @dataclass(frozen=True)
@@ -277,16 +268,6 @@ class Contact:
     def c_nu(self) -> float | str | None:
         """The coefficient c_nu of the built-in compliance c_nu (r^+)^m, else None."""
         return self.normal.c_nu if isinstance(self.normal, Compliance) else None
-
-    @property
-    def compliance_m(self) -> float | None:
-        """The exponent m of c_nu (r^+)^m, None where absent ((4.1)) or another law."""
-        return self.normal.m if isinstance(self.normal, Compliance) else None
-
-    @property
-    def compliance_table(self) -> tuple | None:
-        """The compliance table [[r, p], ...], or None."""
-        return self.normal.table if isinstance(self.normal, Compliance) else None
 
     @property
     def compliance_python(self) -> PythonLaw | None:

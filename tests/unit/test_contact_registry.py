@@ -106,7 +106,7 @@ def test_the_case_holds_tagged_sections():
               friction={**LAW42, "slip": {"table": [[0, 1], [0.01, 0.5]]}},
               memory={"b0": 3, "kernel": "power", "alpha": 0.5, "tau": 2}).contact
     assert c.normal == Compliance("power", {"c_nu": 200.0, "m": 2.0})
-    assert (c.c_nu, c.compliance_m, c.compliance_table) == (200.0, 2.0, None)
+    assert (c.c_nu, c.normal.m, c.normal.table) == (200.0, 2.0, None)
     assert c.friction == Friction("4.2", LAW42, Slip("table", {"table": ((0.0, 1.0),
                                                                          (0.01, 0.5))}))
     assert (c.friction.u1, c.friction.table, c.friction.slip.s0) == (0.01, None, None)

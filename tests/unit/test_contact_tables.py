@@ -245,14 +245,14 @@ def test_case_keys_and_the_laws_they_build():
     """The new keys reach the Case (not default-filled: the paper's Case keeps None) and
     contact_law builds the general laws from them."""
     paper = make_case(paper_raw()).contact
-    assert (paper.compliance_m, paper.compliance_table, paper.friction.table) == \
+    assert (paper.normal.m, paper.normal.table, paper.friction.table) == \
         (None, None, None)
     case = make_case(_contact(normal_compliance={"table": COMPLIANCE},
                               friction={"table": NONMONOTONE,
                                         "slip": {"table": [[0.0, 1.0], [0.01, 0.5]]}},
                               memory={"b0": "2 + x", "beta": 1.0}))
     c = case.contact
-    assert c.c_nu is None and c.compliance and c.compliance_table[1] == (0.008, 0.8)
+    assert c.c_nu is None and c.compliance and c.normal.table[1] == (0.008, 0.8)
     assert c.friction.b is None and c.friction.slip.table == ((0.0, 1.0), (0.01, 0.5))
     assert c.memory.b0 == "2 + x"
     law = registry.contact_law(c, 1e-7)
