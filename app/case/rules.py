@@ -25,6 +25,7 @@ from vpcontact.model.contactregistry import (
     alternatives,
     builtin_keys,
     chosen,
+    field_keys,
     recursive_kernels,
 )
 from vpcontact.model.lawregistry import DEFAULT_LAW, LAWS, USER_LAW, key_owners
@@ -302,9 +303,9 @@ def _check_compliance(nc: dict | None, dim: int, source: str) -> None:
     if nc is None or _python_contact_law(nc, path, source):
         return
     _one_law(nc, path, NORMALS, source)
-    for key, value in nc.items():
-        if isinstance(value, str) and key in builtin_keys(NORMALS):
-            _check_component(value, f"{path}.{key}", tuple("xyz"[:dim]), source)
+    for key in field_keys(NORMALS):          # c_nu(x), ...: an expression in x, y, z
+        if isinstance(nc.get(key), str):
+            _check_component(nc[key], f"{path}.{key}", tuple("xyz"[:dim]), source)
 
 
 def _check_friction(fr: dict, source: str) -> None:

@@ -480,7 +480,8 @@ COMPLIANCE = ContactLawSpec(
     keys={"c_nu": ContactKey({"oneOf": [NONNEGATIVE, EXPRESSION],
                               "description": "stiffness of p(r) = c_nu (r^+)^m [N/m^(2+m)] "
                                              "(m = 1: N/m^3): a number >= 0 or an expression "
-                                             "in x, y, z, >= 0 on Gamma3 (p(x, r))"}),
+                                             "in x, y, z, >= 0 on Gamma3 (p(x, r))"},
+                             field="the compliance coefficient"),
           "m": ContactKey({"type": "number", "minimum": 1,
                            "description": "exponent m >= 1 of p(r) = c_nu (r^+)^m "
                                           "(dimensionless; absent: 1, the law (4.1)); only "

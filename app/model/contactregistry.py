@@ -117,6 +117,19 @@ def alternatives(registry: dict[str, ContactLawSpec]) -> str:
     return ", or ".join(", ".join(s.required()) for s in registry.values())
 
 
+def field_keys(registry: dict[str, ContactLawSpec]) -> dict[str, str]:
+    """The keys of one kind's laws that may be fields of x, y, z (``ContactKey.field``).
+
+    Args:
+        registry: KERNELS, SLIPS, NORMALS or BOUNDS.
+
+    Returns:
+        {key: what it is}, in the registry's order.
+    """
+    return {k: use.field for spec in registry.values() for k, use in spec.keys.items()
+            if use.field}
+
+
 def builtin_keys(registry: dict[str, ContactLawSpec]) -> tuple[str, ...]:
     """Every key of one kind's laws.
 

@@ -48,11 +48,15 @@ class ContactKey:
         only: where the key is given with another law of its kind, the refusal's reason
             (e.g. "only with c_nu (a table gives p(r) itself)"); "" for a key the rules do
             not refuse there.
+        field: what the value is where it may be an expression in x, y, z, a field >= 0 on
+            Gamma3 (e.g. "the compliance coefficient": its expression is checked to parse
+            and, at the data's sample points, to be >= 0), or "": a number or table only.
     """
 
     schema: dict
     required: bool = True
     only: str = ""
+    field: str = ""
 
 
 class Drawing(NamedTuple):
