@@ -24,10 +24,18 @@ from vpcontact.model.contact_laws import (
     PowerCompliance,
     SlipWeakening,
     TableSlip,
+    space_field,
+    varies_in_space,
 )
 from vpcontact.model.contact_tables import TableCompliance, TableFriction
 from vpcontact.model.contactregistry import BOUNDS, KERNELS, NORMALS, SLIPS
-from vpcontact.model.contactspec import POSITIVE, ContactKey, ContactLawSpec
+from vpcontact.model.contactspec import (
+    EXPRESSION,
+    NONNEGATIVE,
+    POSITIVE,
+    ContactKey,
+    ContactLawSpec,
+)
 from vpcontact.model.gamma3 import section_kernel
 from vpcontact.model.memory_kernels import ExponentialKernel, PowerKernel, TableKernel
 from vpcontact.post.divergence import _law_levels
@@ -195,7 +203,8 @@ def test_an_unknown_kernel_is_refused_with_the_kernels():
 
 @pytest.fixture
 def toys(monkeypatch):
-    """A toy law of each kind added to its registry, and the schema's sections rebuilt from
+    """A toy law of each kind added to its registry (the normal law's key may be a field of
+    x), and the schema's sections rebuilt from
     the registries as app/case/schema.py builds them (its memo of passed mappings off)."""
     kernel = ContactLawSpec(
         name="hyperbolic", formula="b0 / (1 + t/t_half)",
@@ -212,11 +221,19 @@ def toys(monkeypatch):
         build=lambda c, param: PiecewiseLinearFriction(param("tau0", c["tau0"]), 0.0, 0.0,
                                                        1.0),
         levels=lambda c: [c["tau0"]])
-    for reg, spec in ((KERNELS, kernel), (SLIPS, slip), (BOUNDS, bound)):
+    normal = ContactLawSpec(
+        name="linear", formula="k r^+",
+        keys={"k": ContactKey({"oneOf": [NONNEGATIVE, EXPRESSION], "description": "k"},
+                              field="the toy stiffness")},
+        build=lambda c, param, x: NormalCompliance(
+            space_field(c["k"], x) if isinstance(c["k"], str) else param("k", c["k"])),
+        levels=lambda c, r: [] if isinstance(c["k"], str) else [c["k"] * r])
+    for reg, spec in ((KERNELS, kernel), (SLIPS, slip), (BOUNDS, bound), (NORMALS, normal)):
         monkeypatch.setitem(reg, spec.name, spec)
     for section, keys in (("memory", registry.kernel_keys()),
                           ("slip", registry.key_schemas(SLIPS)),
-                          ("friction", registry.key_schemas(BOUNDS))):
+                          ("friction", registry.key_schemas(BOUNDS)),
+                          ("normal_compliance", registry.key_schemas(NORMALS))):
         for key, schema in keys.items():
             monkeypatch.setitem(SECTIONS[section], key, schema)
     monkeypatch.setattr(schemamemo, "passed", lambda key: False)
@@ -243,6 +260,12 @@ def test_a_new_law_is_one_spec():
     assert "flat friction" in case.active_terms()
     assert _law_levels(c, 1.0, 0.1) == pytest.approx([100.0 * 0.1, 7.0 * 0.1, 3.0],
                                                      rel=1e-15)
+    linear = _case(normal_compliance={"k": "5 + 10 * x"}).contact
+    assert linear.normal == Compliance("linear", {"k": "5 + 10 * x"}) and linear.c_nu is None
+    law = registry.contact_law(linear, 1e-7, x=np.array([[0.0, 0.0], [0.5, 0.0]]))
+    assert law.normal.c_nu.tolist() == [5.0, 10.0]
+    assert varies_in_space(linear) and _law_levels(linear, 1.0, 0.1) == [1.0, 0.6, 0.6]
+    assert _law_levels(_case(normal_compliance={"k": 40}).contact, 1.0, 0.1)[0] == 4.0
 
 
 @pytest.mark.usefixtures("toys")
@@ -258,6 +281,10 @@ def test_a_new_law_is_refused_by_the_same_rules():
         _refusal(friction={"law": "python", "class": "F", "tau0": 1.0})
     assert "contact.friction.tau0: not with coulomb" in \
         _refusal(friction={"coulomb": {"mu": 0.3}, "tau0": 1.0})
+    assert ("contact.normal_compliance.k: not with c_nu (give c_nu, or table, or k; only "
+            "one)") in _refusal(normal_compliance={"c_nu": 1.0, "k": 2.0})
+    assert "contact.normal_compliance.k: " in _refusal(normal_compliance={"k": "5 + t"})
+    assert "contact.normal_compliance.k" in _refusal(normal_compliance={"k": "1 - 10 * x"})
 
 
 def test_two_laws_of_a_kind_may_not_declare_one_key(monkeypatch):
@@ -269,7 +296,6 @@ def test_two_laws_of_a_kind_may_not_declare_one_key(monkeypatch):
 
 
 def test_a_field_coefficient_has_no_level_and_varies_in_space():
-    from vpcontact.model.contact_laws import varies_in_space
     c = _case(normal_compliance={"c_nu": "100 + 10 * x"}).contact
     assert varies_in_space(c) and not varies_in_space(_case().contact)
     assert _law_levels(c, 1.0, 0.1) == [1.0, 0.6, 0.6]
