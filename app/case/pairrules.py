@@ -151,7 +151,7 @@ def fill_pair_defaults(data: dict, source: str) -> None:
             raise CaseError(f"{source}: contact.pairs[{i}].memory.{key}: "
                             f"{shape[key]!r}, but contact.pairs[{first[0]}].memory.{key}: "
                             f"{first[1][key]!r}: the pairs' memory terms share the kernel "
-                            "(kernel, beta, alpha, tau, table, sum); b0 may differ")
+                            f"({', '.join(MEMORY_SHAPE)}); b0 may differ")
 
 
 def _check_groups(data: dict, pairs: list, source: str) -> None:
