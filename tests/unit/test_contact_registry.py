@@ -15,6 +15,7 @@ import pytest
 from conftest import paper_raw
 from vpcontact.case import schemamemo, validate
 from vpcontact.case.model import Compliance, Friction, Memory, Slip
+from vpcontact.case.pairrules import MEMORY_SHAPE
 from vpcontact.case.schema import SCHEMA
 from vpcontact.io.errors import CaseError
 from vpcontact.model import contactregistry as registry
@@ -79,6 +80,7 @@ def test_the_registries_hold_the_built_in_laws():
     assert {n: list(s.keys) for n, s in BOUNDS.items()} == \
         {"4.2": ["b", "c1", "c2", "u1"], "table": ["table"]}
     assert [k for k, s in KERNELS.items() if s.recursive] == ["exponential"]
+    assert MEMORY_SHAPE == ("kernel", "beta", "alpha", "tau", "table", "sum")
 
 
 @pytest.mark.parametrize("section", list(SECTIONS))
