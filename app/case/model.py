@@ -5,7 +5,10 @@ Adding a key to the case file: its entry in the schema (app/case/schema.py), its
 (and its line in ``build_case``), and its rule in app/case/rules.py if it has one beyond the
 schema's.  A built-in viscoplastic law's keys are none of these: its LawSpec declares them
 (app/model/lawspec.py, in the law's module), and the schema, the rules and ``Viscoplastic``
-read them from the registry app/model/lawregistry.py.
+read them from the registry app/model/lawregistry.py; a built-in contact law's keys (a
+memory kernel, a slip law, a normal compliance, a friction bound) likewise by its
+ContactLawSpec (app/model/contactspec.py), read from app/model/contactregistry.py into the
+tagged sections ``Memory``, ``Slip``, ``Compliance`` and ``Friction``.
 """
 from __future__ import annotations
 
@@ -13,6 +16,14 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from vpcontact.model.contactregistry import (
+    BOUNDS,
+    KERNELS,
+    NORMALS,
+    SLIPS,
+    builtin_keys,
+    chosen,
+)
 from vpcontact.model.lawregistry import DEFAULT_LAW, LAWS, USER_LAW, key_owners
 
 # solver.method's former names -> the names the Case holds
@@ -55,8 +66,40 @@ class Boundaries:
     contact: tuple
 
 
+class _Constants:
+    """A built-in law's constants read as attributes (``vp.lambda1``, ``slip.theta_inf``):
+    a key of another law of its kind (``_kind_keys``: the viscoplastic laws' of
+    app/model/lawregistry.py, a contact law's registry ``REGISTRY`` of
+    app/model/contactregistry.py) reads as None."""
+
+    REGISTRY: dict = {}
+
+    def _kind_keys(self):
+        """Returns: the keys of every law of the kind."""
+        return builtin_keys(self.REGISTRY)
+
+    def __getattr__(self, name: str):
+        """A constant of the law by its key (None for a key of another law of its kind).
+
+        Args:
+            name: the key.
+
+        Returns:
+            Its value, or None.
+
+        Raises:
+            AttributeError: not a key of any law of the kind.
+        """
+        constants = self.__dict__.get("constants")
+        if constants is not None and name in constants:
+            return constants[name]
+        if constants is not None and name in self._kind_keys():
+            return None
+        raise AttributeError(f"{type(self).__name__} has no attribute {name!r}")
+
+
 @dataclass(frozen=True)
-class Viscoplastic:
+class Viscoplastic(_Constants):
     """``material.viscoplastic``: the law (a built-in law's name, app/model/lawregistry.py,
     or "python"), kappa0, the built-in law's ``constants`` ({key: float}: its keys of the
     case file, defaults filled, as its LawSpec declares them), the user's class and its
@@ -69,24 +112,9 @@ class Viscoplastic:
     cls: str | None = None              # law python: the class of --law-module
     params: dict | None = None          # law python: its constructor's keyword arguments
 
-    def __getattr__(self, name: str):
-        """A constant of the law by its key (None for a key of another built-in law).
-
-        Args:
-            name: the key.
-
-        Returns:
-            Its value, or None.
-
-        Raises:
-            AttributeError: not a key of any built-in law.
-        """
-        constants = self.__dict__.get("constants")
-        if constants is not None and name in constants:
-            return constants[name]
-        if constants is not None and name in key_owners():
-            return None
-        raise AttributeError(f"Viscoplastic has no attribute {name!r}")
+    def _kind_keys(self):
+        """Returns: the keys of every built-in viscoplastic law."""
+        return key_owners()
 
 
 @dataclass(frozen=True)
@@ -124,13 +152,26 @@ class Material:
 
 
 @dataclass(frozen=True)
-class Slip:
-    """``contact.friction.slip``: theta(s) = theta_inf + (1 - theta_inf) exp(-s/s0), or the
-    piecewise-linear ``table`` [[s, theta], ...] (then theta_inf and s0 are None)."""
+class Slip(_Constants):
+    """``contact.friction.slip``: its law's name in ``SLIPS`` (app/model/contactregistry.py:
+    "weakening", theta(s) = theta_inf + (1 - theta_inf) exp(-s/s0); "table", [[s, theta],
+    ...]) and its constants ({key: value}, as attributes too)."""
 
-    theta_inf: float | None
-    s0: float | None
-    table: tuple | None = None
+    REGISTRY = SLIPS
+    law: str
+    constants: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Compliance(_Constants):
+    """``contact.normal_compliance``, a built-in law: its name in ``NORMALS``
+    (app/model/contactregistry.py: "power", c_nu (r^+)^m with c_nu a number or an
+    expression in x, y, z and m absent for (4.1); "table", [[r, p], ...]) and its constants
+    ({key: value}, as attributes too)."""
+
+    REGISTRY = NORMALS
+    law: str
+    constants: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -163,32 +204,32 @@ class Coulomb:
 
 
 @dataclass(frozen=True)
-class Friction:
-    """``contact.friction``: the parameters of law (4.2) and the slip dependence or None;
-    or the friction stress ``table`` [[rho, tau], ...], or the user's law ``python`` (then
-    b, c1, c2, u1 are None)."""
+class Friction(_Constants):
+    """``contact.friction``: a built-in bound (``law``, its name in ``BOUNDS`` of
+    app/model/contactregistry.py: "4.2", law (4.2) of b, c1, c2, u1; "table", the friction
+    stress [[rho, tau], ...]; its ``constants`` as attributes too), or the user's law
+    ``python``, or ``coulomb`` (then law is None and every constant reads as None); and
+    the slip dependence or None."""
 
-    b: float | None
-    c1: float | None
-    c2: float | None
-    u1: float | None
+    REGISTRY = BOUNDS
+    law: str | None
+    constants: dict = field(default_factory=dict)
     slip: Slip | None = None
-    table: tuple | None = None
     python: PythonLaw | None = None
     coulomb: Coulomb | None = None
 
 
 @dataclass(frozen=True)
-class Memory:
-    """``contact.memory``: the memory kernel b(t) and how its sum is computed; b0 a number
-    or an expression of x, y, z (b(t, x) = b0(x) times the kernel's shape)."""
+class Memory(_Constants):
+    """``contact.memory``: the memory kernel b(t) (``kernel``, its name in ``KERNELS`` of
+    app/model/contactregistry.py, with its ``constants``, as attributes too) and how its
+    sum is computed; b0 a number or an expression of x, y, z (b(t, x) = b0(x) times the
+    kernel's shape)."""
 
+    REGISTRY = KERNELS
     b0: float | str
-    beta: float
     kernel: str
-    alpha: float | None
-    tau: float | None
-    table: tuple | None
+    constants: dict
     sum: str
 
 
@@ -211,27 +252,32 @@ class ContactPair:
 @dataclass(frozen=True)
 class Contact:
     """The ``contact`` section: gap g (a number, an expression in x, y, z, or None),
-    normal compliance c_nu (4.1) (a number or an expression in x, y, z) with its exponent
-    compliance_m (None: absent, the law (4.1)) or the compliance_table [[r, p], ...] (then
-    c_nu is None) or the user's law compliance_python, friction, memory, and the fixed unit
-    approach direction (None: the outward normal of Gamma3), and the pairs of two bodies
-    (``ContactPair``; empty: one body against the rigid foundation)."""
+    the normal compliance ``normal`` (a built-in law's ``Compliance``, the user's
+    ``PythonLaw``, or None), friction, memory, and the fixed unit approach direction (None:
+    the outward normal of Gamma3), and the pairs of two bodies (``ContactPair``; empty: one
+    body against the rigid foundation)."""
 
     g: float | str | None
-    c_nu: float | str | None
+    normal: Compliance | PythonLaw | None
     friction: Friction | None
     memory: Memory | None = None
     direction: tuple | None = None
-    compliance_m: float | None = None
-    compliance_table: tuple | None = None
-    compliance_python: PythonLaw | None = None
     pairs: tuple = ()
+
+    @property
+    def c_nu(self) -> float | str | None:
+        """The coefficient c_nu of the built-in compliance c_nu (r^+)^m, else None."""
+        return self.normal.c_nu if isinstance(self.normal, Compliance) else None
+
+    @property
+    def compliance_python(self) -> PythonLaw | None:
+        """The user's normal compliance (``law: python``), or None."""
+        return self.normal if isinstance(self.normal, PythonLaw) else None
 
     @property
     def compliance(self) -> bool:
         """A normal compliance law is present (c_nu, a table or the user's law)."""
-        return self.c_nu is not None or self.compliance_table is not None \
-            or self.compliance_python is not None
+        return self.normal is not None
 
     @property
     def sections(self) -> tuple:
@@ -459,9 +505,7 @@ def _law_terms(c: Contact) -> list[str]:
         fr = c.friction
         terms.append(f"friction (the user's law {fr.python.cls}, --law-module)"
                      if fr.python is not None else
-                     fr.coulomb.title
-                     if fr.coulomb is not None else "nonmonotone friction (4.2)"
-                     if fr.table is None else "nonmonotone friction (table)")
+                     fr.coulomb.title if fr.coulomb is not None else BOUNDS[fr.law].title)
         if fr.slip is not None:
             terms.append("slip-dependent friction theta(s_n)")
     return terms
@@ -532,36 +576,31 @@ def _contact(contact: dict) -> Contact:
     own = any(key in p for p in pairs for key in laws)
     return Contact(
         g if isinstance(g, str) else float(g) if g is not None else None,
-        _number_or_expression(contact.get("normal_compliance", {}).get("c_nu")),
-        _friction(fr, fr.get("slip")) if fr else None,
-        Memory(_number_or_expression(mem["b0"]), float(mem["beta"]), mem["kernel"],
-               mem.get("alpha"), mem.get("tau"),
-               tuple(map(tuple, mem["table"])) if "table" in mem else None,
-               mem["sum"]) if mem else None,
+        _compliance(contact.get("normal_compliance")),
+        _friction(fr) if fr else None,
+        _memory(mem) if mem else None,
         tuple(float(x) / math.hypot(*d) for x in d) if d is not None else None,
-        *_compliance(contact.get("normal_compliance")),
         tuple(ContactPair(p["surface"], p["target"], float(p.get("g", 0.0)),
                           p.get("rule", "mortar"),
                           _contact({k: p[k] for k in laws if k in p}) if own else None)
               for p in pairs))
 
 
-def _number_or_expression(value):
-    """A number as a float, an expression (str) as it is, None as None."""
-    return value if value is None or isinstance(value, str) else float(value)
+def _memory(mem: dict) -> Memory:
+    """The Memory of contact.memory: b0, its kernel's constants (``KERNELS``), the sum."""
+    b0 = mem["b0"] if isinstance(mem["b0"], str) else float(mem["b0"])
+    return Memory(b0, mem["kernel"], KERNELS[mem["kernel"]].constants(mem), mem["sum"])
 
 
-def _table(rows) -> tuple | None:
-    """A table [[a, b], ...] as a tuple of float pairs (None: None)."""
-    return None if rows is None else tuple((float(a), float(b)) for a, b in rows)
-
-
-def _compliance(nc: dict | None) -> tuple:
-    """(compliance_m, compliance_table, compliance_python) of contact.normal_compliance
-    (absent: None, None, None)."""
-    nc = nc or {}
-    m = nc.get("m")
-    return (None if m is None else float(m)), _table(nc.get("table")), _python_law(nc)
+def _compliance(nc: dict | None) -> Compliance | PythonLaw | None:
+    """The law of contact.normal_compliance: a built-in law of ``NORMALS`` chosen by its
+    keys, the user's law, or None (absent)."""
+    if not nc:
+        return None
+    if nc.get("law") == "python":
+        return _python_law(nc)
+    spec = chosen(NORMALS, nc)
+    return Compliance(spec.name, spec.constants(nc))
 
 
 def _python_law(section: dict) -> PythonLaw | None:
@@ -572,15 +611,19 @@ def _python_law(section: dict) -> PythonLaw | None:
                      {k: float(v) for k, v in section.get("params", {}).items()})
 
 
-def _friction(fr: dict, slip: dict | None) -> Friction:
-    """The Friction of contact.friction: law (4.2)'s b, c1, c2, u1 or a table."""
+def _friction(fr: dict) -> Friction:
+    """The Friction of contact.friction: a bound of ``BOUNDS`` chosen by its keys, the
+    user's law or Coulomb's; its slip law of ``SLIPS``."""
+    slip = fr.get("slip")
     s = None
     if slip:
-        s = Slip(*(None if k not in slip else float(slip[k]) for k in ("theta_inf", "s0")),
-                 _table(slip.get("table")))
-    return Friction(*(None if k not in fr else float(fr[k]) for k in ("b", "c1", "c2", "u1")),
-                    s, _table(fr.get("table")), _python_law(fr),
-                    _coulomb(fr["coulomb"]) if "coulomb" in fr else None)
+        spec = chosen(SLIPS, slip)
+        s = Slip(spec.name, spec.constants(slip))
+    if "coulomb" in fr or fr.get("law") == "python":
+        return Friction(None, {}, s, _python_law(fr),
+                        _coulomb(fr["coulomb"]) if "coulomb" in fr else None)
+    bound = chosen(BOUNDS, fr)
+    return Friction(bound.name, bound.constants(fr), s)
 
 
 def _coulomb(c: dict) -> Coulomb:

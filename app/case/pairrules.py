@@ -17,12 +17,14 @@ from vpcontact.case.schema import SCHEMA
 from vpcontact.case.schemacheck import fill_defaults
 from vpcontact.io.casekey import GROUP_MAPS
 from vpcontact.io.errors import CaseError
+from vpcontact.model.contactregistry import KERNELS, builtin_keys
 
 # the contact laws a pair may carry (the contact section's own keys)
 LAW_KEYS = ("normal_compliance", "memory", "friction")
 # the memory kernel's keys that pairs with different laws share (b0 may differ: the
-# Gamma3 history sums b0(x_i) u_nu^+ with one kernel shape, app/model/gamma3.py)
-MEMORY_SHAPE = ("kernel", "beta", "alpha", "tau", "table", "sum")
+# Gamma3 history sums b0(x_i) u_nu^+ with one kernel shape, app/model/gamma3.py): kernel,
+# every kernel's keys (app/model/contactregistry.py), sum
+MEMORY_SHAPE = ("kernel", *builtin_keys(KERNELS), "sum")
 
 
 def settle_pairs(data: dict, source: str) -> dict:
@@ -149,7 +151,7 @@ def fill_pair_defaults(data: dict, source: str) -> None:
             raise CaseError(f"{source}: contact.pairs[{i}].memory.{key}: "
                             f"{shape[key]!r}, but contact.pairs[{first[0]}].memory.{key}: "
                             f"{first[1][key]!r}: the pairs' memory terms share the kernel "
-                            "(kernel, beta, alpha, tau, table, sum); b0 may differ")
+                            f"({', '.join(MEMORY_SHAPE)}); b0 may differ")
 
 
 def _check_groups(data: dict, pairs: list, source: str) -> None:

@@ -2,7 +2,9 @@
 each key alone): the boundary groups (known sides of the built-in mesh, disjoint roles),
 the loads' groups and vector lengths, expressions that parse with the names they may use,
 tables that increase in time, the contact section (the gap's expression, the approach
-direction, the friction law's sign, the memory kernel).  Each rule is written once, here;
+direction; the built-in contact laws' keys and checks, from their registries
+app/model/contactregistry.py).  Each rule is written once, here (a built-in law's own
+in the law's module);
 the values of the data at points of the body are checked in app/case/values.py."""
 from __future__ import annotations
 
@@ -15,6 +17,17 @@ from vpcontact.case.model import case_name
 from vpcontact.io.casekey import GROUP_MAPS
 from vpcontact.io.errors import CaseError
 from vpcontact.meshes.rectangle import SIDES
+from vpcontact.model.contactregistry import (
+    BOUNDS,
+    KERNELS,
+    NORMALS,
+    SLIPS,
+    alternatives,
+    builtin_keys,
+    chosen,
+    field_keys,
+    recursive_kernels,
+)
 from vpcontact.model.lawregistry import DEFAULT_LAW, LAWS, USER_LAW, key_owners
 
 
@@ -228,10 +241,6 @@ def _check_contact(contact: dict, dim: int, source: str) -> None:
         raise CaseError(f"{source}: contact.friction.coulomb: needs a contact pressure p_n: "
                         "give contact.normal_compliance or contact.g (a pair's bound is "
                         "always there)")
-    if fr and not {"table", "law", "coulomb"} & set(fr) and fr["b"] - fr["c1"] * fr["u1"] < 0:
-        raise CaseError(f"{source}: contact.friction: b - c1 u1 must be >= 0 (the friction "
-                        f"force of law (4.2) may not change sign), got "
-                        f"{fr['b'] - fr['c1'] * fr['u1']:g}")
     if contact.get("memory"):
         _check_memory(contact["memory"], source)
     if isinstance((contact.get("memory") or {}).get("b0"), str):
@@ -239,42 +248,40 @@ def _check_contact(contact: dict, dim: int, source: str) -> None:
                          source)
 
 
-def _either(given: dict, path: str, keys: tuple, table: str, source: str) -> None:
-    """Exactly one of the parameters ``keys`` (all of them) and ``table`` is given."""
-    have = [k for k in keys if k in given]
-    if table in given and have:
-        raise CaseError(f"{source}: {path}.{table}: not with {', '.join(have)} (give "
-                        f"{', '.join(keys)}, or {table}; not both)")
-    if table not in given and len(have) < len(keys):
-        missing = [k for k in keys if k not in given][0]
-        raise CaseError(f"{source}: {path}.{missing}: required (give {', '.join(keys)}, or "
-                        f"{table})")
-
-
-def _table_points(rows, path: str, source: str) -> tuple[list, list]:
-    """The abscissae of a law's table start at 0 and increase strictly."""
-    xs, ys = [r[0] for r in rows], [r[1] for r in rows]
-    if xs[0] != 0.0 or any(b <= a for a, b in zip(xs, xs[1:])):
-        raise CaseError(f"{source}: {path}: the first column must start at 0 and increase "
-                        "strictly")
-    return xs, ys
-
-
-# the keys of the built-in contact laws, refused with law: python
-BUILTIN_CONTACT_KEYS = {"contact.normal_compliance": ("c_nu", "m", "table"),
-                        "contact.friction": ("b", "c1", "c2", "u1", "table")}
+def _one_law(given: dict, path: str, registry: dict, source: str) -> None:
+    """The keys of exactly one built-in law of a kind (app/model/contactregistry.py: the
+    first whose required keys are given, else the kind's default), all its required keys,
+    no other law's optional key; then the law's own checks (its ContactLawSpec's
+    ``check``)."""
+    choice = alternatives(registry)
+    have = [(spec, [k for k in spec.required() if k in given]) for spec in registry.values()]
+    have = [(spec, keys) for spec, keys in have if keys]
+    if len(have) > 1:
+        (_, first), (_, second) = have[:2]
+        raise CaseError(f"{source}: {path}.{second[0]}: not with {', '.join(first)} (give "
+                        f"{choice}; {'not both' if len(registry) == 2 else 'only one'})")
+    spec = chosen(registry, given)
+    missing = [k for k in spec.required() if k not in given]
+    if missing:
+        raise CaseError(f"{source}: {path}.{missing[0]}: required (give {choice})")
+    for other in registry.values():
+        for key, use in other.keys.items():
+            if other is not spec and key in given and key not in spec.keys:
+                raise CaseError(f"{source}: {path}.{key}: {use.only or f'only with {other.name}'}")
+    if spec.check is not None:
+        spec.check(given, path, source)
 
 
 def _python_contact_law(given: dict, path: str, source: str) -> bool:
     """A contact law written by the user (``law: python``): class required, the built-in
-    law's keys refused; class and params only with law python.  Returns: law python."""
+    laws' keys refused; class and params only with law python.  Returns: law python."""
     if given.get("law") != "python":
         for key in ("class", "params"):
             if key in given:
                 raise CaseError(f"{source}: {path}.{key}: only with law: python (a law "
                                 "written by the user)")
         return False
-    builtin = [k for k in BUILTIN_CONTACT_KEYS[path] if k in given]
+    builtin = [k for k in builtin_keys(BUILTIN_CONTACT_LAWS[path]) if k in given]
     if builtin:
         raise CaseError(f"{source}: {path}.{builtin[0]}: not with law: python (the user's "
                         f"class gives the law; remove {', '.join(builtin)})")
@@ -284,58 +291,41 @@ def _python_contact_law(given: dict, path: str, source: str) -> bool:
     return True
 
 
+# the built-in laws of a section that law: python replaces
+BUILTIN_CONTACT_LAWS = {"contact.normal_compliance": NORMALS, "contact.friction": BOUNDS}
+
+
 def _check_compliance(nc: dict | None, dim: int, source: str) -> None:
-    """contact.normal_compliance: c_nu (with m) or a table, nondecreasing from [0, 0]; or a
-    law written by the user."""
-    if nc is None or _python_contact_law(nc, "contact.normal_compliance", source):
+    """contact.normal_compliance: the keys of one built-in law (``NORMALS``: c_nu with m, a
+    table nondecreasing from [0, 0], ...), an expression in x, y, z; or a law written by
+    the user."""
+    path = "contact.normal_compliance"
+    if nc is None or _python_contact_law(nc, path, source):
         return
-    _either(nc, "contact.normal_compliance", ("c_nu",), "table", source)
-    if "m" in nc and "c_nu" not in nc:
-        raise CaseError(f"{source}: contact.normal_compliance.m: only with c_nu (a table "
-                        "gives p(r) itself)")
-    if isinstance(nc.get("c_nu"), str):
-        _check_component(nc["c_nu"], "contact.normal_compliance.c_nu", tuple("xyz"[:dim]),
-                         source)
-    if "table" in nc:
-        path = "contact.normal_compliance.table"
-        _, ps = _table_points(nc["table"], path, source)
-        if ps[0] != 0.0 or any(b < a for a, b in zip(ps, ps[1:])):
-            raise CaseError(f"{source}: {path}: p must start at [0, 0] and be nondecreasing "
-                            "(H(p): an increasing compliance)")
+    _one_law(nc, path, NORMALS, source)
+    for key in field_keys(NORMALS):          # c_nu(x), ...: an expression in x, y, z
+        if isinstance(nc.get(key), str):
+            _check_component(nc[key], f"{path}.{key}", tuple("xyz"[:dim]), source)
 
 
 def _check_friction(fr: dict, source: str) -> None:
-    """contact.friction: b, c1, c2, u1 or a table (tau(0) > 0, tau >= 0, last slope >= 0);
-    or a law written by the user; its slip: theta_inf, s0 or a table in [0, 1]."""
+    """contact.friction: the keys of one built-in bound (``BOUNDS``: b, c1, c2, u1 with
+    b - c1 u1 >= 0, or a table with tau(0) > 0, tau >= 0, last slope >= 0, ...); or
+    Coulomb's; or a law written by the user; its slip: one slip law's keys (``SLIPS``:
+    theta_inf, s0, or a table in [0, 1], ...)."""
     if "coulomb" in fr:
         _check_coulomb(fr, source)
     elif not _python_contact_law(fr, "contact.friction", source):
-        _either(fr, "contact.friction", ("b", "c1", "c2", "u1"), "table", source)
-    if "table" in fr:
-        path = "contact.friction.table"
-        rho, tau = _table_points(fr["table"], path, source)
-        if not tau[0] > 0:
-            raise CaseError(f"{source}: {path}: tau(0) must be > 0 (the friction bound at "
-                            f"zero slip), got {tau[0]:g}")
-        if min(tau) < 0 or tau[-1] < tau[-2]:
-            raise CaseError(f"{source}: {path}: tau must be >= 0 and its last segment "
-                            "nondecreasing (it is extrapolated linearly): the friction "
-                            "force may not change sign")
+        _one_law(fr, "contact.friction", BOUNDS, source)
     slip = fr.get("slip")
     if slip is not None:
-        _either(slip, "contact.friction.slip", ("theta_inf", "s0"), "table", source)
-    if slip is not None and "table" in slip:
-        path = "contact.friction.slip.table"
-        _, theta = _table_points(slip["table"], path, source)
-        if any(not 0.0 <= v <= 1.0 for v in theta):
-            raise CaseError(f"{source}: {path}: theta must be in [0, 1]")
+        _one_law(slip, "contact.friction.slip", SLIPS, source)
 
 
 def _check_coulomb(fr: dict, source: str) -> None:
     """contact.friction.coulomb: mu >= 0, or mu_s, mu_k, slip_length; not with another
     friction law's keys."""
-    other = [k for k in ("b", "c1", "c2", "u1", "table", "law", "class", "params")
-             if k in fr]
+    other = [k for k in (*builtin_keys(BOUNDS), "law", "class", "params") if k in fr]
     if other:
         raise CaseError(f"{source}: contact.friction.{other[0]}: not with coulomb (the "
                         f"Coulomb law mu p_n is the friction law; remove {', '.join(other)})")
@@ -404,21 +394,19 @@ def _check_law_keys(vp: dict, source: str) -> None:
 
 
 def _check_memory(mem: dict, source: str) -> None:
-    need = {"power": ("alpha", "tau"), "table": ("table",)}.get(mem["kernel"], ())
-    for key in need:
+    """contact.memory: the required keys of its kernel (``KERNELS``), the recursion only for
+    a recursive kernel, the kernel's own checks."""
+    spec = KERNELS[mem["kernel"]]
+    for key in spec.required():
         if key not in mem:
             raise CaseError(f"{source}: contact.memory.{key}: required for the "
                             f"{mem['kernel']} kernel")
-    if mem["sum"] == "recursion" and mem["kernel"] != "exponential":
+    if mem["sum"] == "recursion" and not spec.recursive:
         raise CaseError(f"{source}: contact.memory.sum: the recursion is exact only for the "
-                        "exponential kernel (allowed here: auto, direct)")
-    if mem["kernel"] == "table":
-        ts = [row[0] for row in mem["table"]]
-        if ts[0] != 0.0 or any(b <= a for a, b in zip(ts, ts[1:])) \
-                or any(row[1] < 0 for row in mem["table"]):
-            raise CaseError(f"{source}: contact.memory.table: times must start at 0 and "
-                            "increase strictly; values must be >= 0")
-
+                        f"{' and '.join(recursive_kernels())} kernel (allowed here: auto, "
+                        "direct)")
+    if spec.check is not None:
+        spec.check(mem, "contact.memory", source)
 
 
 def check_name(data: dict, source: str) -> None:

@@ -10,20 +10,24 @@ PETSc defaults are the solvers' (app/solvers/options.py).
 """
 from __future__ import annotations
 
+from vpcontact.model.contactregistry import (
+    BOUNDS,
+    NORMALS,
+    SLIPS,
+    kernel_keys,
+    key_schemas,
+    recursive_kernels,
+)
+from vpcontact.model.contactspec import EXPRESSION, NONNEGATIVE, NUMBER, POSITIVE, TABLE
 from vpcontact.model.lawregistry import (
     LAWS,
     USER_LAW,
     kappa0_description,
-    key_schemas,
     law_description,
 )
+from vpcontact.model.lawregistry import key_schemas as law_key_schemas
 
-_num = {"type": "number"}
-_pos = {"type": "number", "exclusiveMinimum": 0}
-_nonneg = {"type": "number", "minimum": 0}
-_expr = {"type": "string", "minLength": 1, "maxLength": 500}
-_table = {"type": "array", "minItems": 1, "maxItems": 100000,
-          "items": {"type": "array", "items": _num, "minItems": 2, "maxItems": 2}}
+_num, _pos, _nonneg, _expr, _table = NUMBER, POSITIVE, NONNEGATIVE, EXPRESSION, TABLE
 # a component of a load: a number, an expression in t, x, y, z, or a table in time
 _component = {"oneOf": [_num, _expr, {"type": "object", "additionalProperties": False,
                                       "required": ["table"], "properties": {"table": _table}}]}
@@ -209,7 +213,7 @@ SCHEMA = _obj({
                     "description": law_description(
                         "a law written by the user: the class named by class in the module "
                         "given with --law-module FILE.py")},
-            **key_schemas(),
+            **law_key_schemas(),
             "class": {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_]*$",
                       "maxLength": 100,
                       "description": "law python (required there): the name of the law's "
@@ -246,19 +250,8 @@ SCHEMA = _obj({
                                      "the gap is measured along d, as linear (Hertz) theory "
                                      "does (absent: the target's normal at the closest "
                                      "point)"},
-        "normal_compliance": _obj({
-            "c_nu": {"oneOf": [_nonneg, _expr],
-                     "description": "stiffness of p(r) = c_nu (r^+)^m [N/m^(2+m)] (m = 1: "
-                                    "N/m^3): a number >= 0 or an expression in x, y, z, "
-                                    ">= 0 on Gamma3 (p(x, r))"},
-            "m": {"type": "number", "minimum": 1,
-                  "description": "exponent m >= 1 of p(r) = c_nu (r^+)^m (dimensionless; "
-                                 "absent: 1, the law (4.1)); only with c_nu"},
-            "table": {**_table, "minItems": 2,
-                      "description": "[[r, p], ...]: p(r) [N/m^2] piecewise linear in the "
-                                     "normal displacement r [m], nondecreasing, starting at "
-                                     "[0, 0], constant beyond the last point (instead of "
-                                     "c_nu)"},
+        "normal_compliance": _obj({      # the built-in laws' keys: contactregistry.py
+            **key_schemas(NORMALS),
             **_python_law("contact.normal_compliance", "the normal compliance energy P(r) "
                           "(p = P' against the normal displacement r = u_nu [m], P'' its "
                           "slope)"),
@@ -269,41 +262,17 @@ SCHEMA = _obj({
                    "description": "memory kernel amplitude b0 [N/(m^3 s)]: a number >= 0 or "
                                   "an expression in x, y, z, >= 0 on Gamma3 (b(t, x) = "
                                   "b0(x) times the kernel's shape)"},
-            "beta": {**_nonneg, "default": 0.0,
-                     "description": "decay rate of the exponential kernel b0 exp(-beta t) [1/s]"},
-            "kernel": {"enum": ["exponential", "power", "table"], "default": "exponential",
-                       "description": "b(t) = b0 exp(-beta t), b0 (1 + t/tau)^-alpha, or b0 "
-                                      "times the piecewise-linear table"},
-            "alpha": {**_pos, "description": "exponent of the power kernel"},
-            "tau": {**_pos, "description": "time scale of the power kernel [s]"},
-            "table": {**_table, "description": "[[t, b], ...] of the table kernel"},
+            **kernel_keys(),                # each kernel's keys: contactregistry.py
             "sum": {"enum": ["auto", "recursion", "direct"], "default": "auto",
-                    "description": "auto: exact O(1) recursion for the exponential kernel, "
-                                   "stored history and direct sum otherwise"},
+                    "description": "auto: exact O(1) recursion for the "
+                                   f"{' and '.join(recursive_kernels())} kernel, stored "
+                                   "history and direct sum otherwise"},
         }, required=["b0"], description="memory term xi(t) = int_0^t b(t-s) u_nu^+(s) ds "
                                           "(absent: no memory term)"),
         "friction": _obj({
-            "b": {**_nonneg, "description": "friction bound at zero slip [N/m^2]"},
-            "c1": {**_nonneg, "description": "softening slope on 0 < |u_tau| < u1"},
-            "c2": {**_nonneg, "description": "hardening slope on |u_tau| >= u1"},
-            "u1": {**_pos, "description": "slip where softening turns into hardening [m]"},
-            "table": {**_table, "minItems": 2,
-                      "description": "[[rho, tau], ...]: the friction stress tau(rho) = "
-                                     "psi'(rho) [N/m^2] piecewise linear in the slip rho = "
-                                     "|u_tau| [m] (instead of b, c1, c2, u1): rho increasing "
-                                     "from 0, tau(0) > 0 the bound at zero slip, tau >= 0, "
-                                     "nonmonotone allowed (m_j of (2.6) is the largest "
-                                     "decreasing slope), extrapolated linearly beyond the "
-                                     "last point (its slope >= 0); psi its exact primitive"},
+            **key_schemas(BOUNDS),          # the built-in bounds' keys: contactregistry.py
             "slip": _obj({
-                "theta_inf": {"type": "number", "minimum": 0, "maximum": 1,
-                              "description": "limit of theta(s) for large accumulated slip"},
-                "s0": {**_pos, "description": "slip scale of theta(s) [m s]"},
-                "table": {**_table, "minItems": 2,
-                          "description": "[[s, theta], ...]: theta(s) piecewise linear in "
-                                         "the accumulated slip s [m s], s increasing from "
-                                         "0, theta in [0, 1] (dimensionless), constant "
-                                         "beyond the last point (instead of theta_inf, s0)"},
+                **key_schemas(SLIPS),       # the slip laws' keys: contactregistry.py
             }, description="slip dependence j = theta(s) psi, theta(s) = theta_inf + "
                            "(1 - theta_inf) exp(-s/s0) or a table, s = int_0^t |u_tau| "
                            "(absent: none; give theta_inf and s0, or table)"),

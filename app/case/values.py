@@ -13,6 +13,7 @@ from vpcontact.case.materialrules import material_sections, section_errors
 from vpcontact.case.meshrules import DEFAULT_BOUNDARIES
 from vpcontact.case.model import Case
 from vpcontact.io.errors import CaseError
+from vpcontact.model.contactregistry import NORMALS, field_keys
 
 
 def check_values(case: Case, length: float | None = None, samples=None) -> float:
@@ -58,9 +59,10 @@ def check_values(case: Case, length: float | None = None, samples=None) -> float
         sections = [("contact", contact)] + [(f"contact.pairs[{i}]", p) for i, p in
                                              enumerate(contact.get("pairs") or [])]
         for path, section in sections:       # the contact section, a pair's own laws
-            datacheck.check_gap(section.get("normal_compliance", {}).get("c_nu"),
-                                bounds["contact"], samples,
-                                f"{path}.normal_compliance.c_nu", "the compliance coefficient")
+            for key, what in field_keys(NORMALS).items():    # c_nu(x) >= 0, ...
+                datacheck.check_gap(section.get("normal_compliance", {}).get(key),
+                                    bounds["contact"], samples,
+                                    f"{path}.normal_compliance.{key}", what)
             datacheck.check_gap((section.get("memory") or {}).get("b0"), bounds["contact"],
                                 samples, f"{path}.memory.b0", "the memory kernel's amplitude")
         u0, sigma0 = datacheck.check_initial(data.get("initial", {}), None, g, samples,

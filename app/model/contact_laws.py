@@ -35,17 +35,20 @@ expression b0 of x) is summed by app/model/gamma3.py.
 
 ``ContactLaw`` composes them into the nodal energy density of (3.4),
     phi(r, tau; xi, theta) = P(r) + xi r^+_delta + theta psi(|tau|_delta),
-and ``contact_law`` builds it from a case.  A new law (a user's superpotential) is a new
-class with the three methods; the condensed solver's nodal problem (app/solvers/nodal.py)
-and the forms use it as they are (the compiled kernel serves only the paper's laws with
-numbers; any other law takes its numpy path).  A user's law replaces P or psi of the case's
-through the Python API (``Simulation(case, comm, contact_laws={"normal": P, "friction":
-psi})``, ``replace_laws``); ``ContactProblem.contact_law`` (app/model/problem.py) composes the
-run's laws in one place for the forms, the condensed solver and the reports.  A law written by
-the user named in the case file (``law: python`` of contact.normal_compliance or
-contact.friction, the class of ``--law-module FILE.py``) takes the same path: the case's
-part is a ``PythonLawSlot`` that ContactProblem replaces by the law built from the module
-(app/model/lawmodule.py: ``python_contact_laws``).
+and ``contact_law`` (app/model/contactregistry.py) builds it from a case.  A new law (a
+user's superpotential) is a new class with the three methods; the condensed solver's nodal problem
+(app/solvers/nodal.py) and the forms use it as they are (the compiled kernel serves only
+the paper's laws with numbers; any other law takes its numpy path).  A user's law replaces
+P or psi of the case's through the Python API (``Simulation(case, comm,
+contact_laws={"normal": P, "friction": psi})``, ``replace_laws``);
+``ContactProblem.contact_law`` (app/model/problem.py) composes the run's laws in one place
+for the forms, the condensed solver and the reports.  A law written by the user named in
+the case file (``law: python`` of contact.normal_compliance or contact.friction, the class
+of ``--law-module FILE.py``) takes the same path: the case's part is a ``PythonLawSlot``
+that ContactProblem replaces by the law built from the module (app/model/lawmodule.py:
+``python_contact_laws``).  The built-in laws' declarations as laws of the case file
+(``ContactLawSpec``, app/model/contactspec.py) follow the classes: SLIP_WEAKENING,
+SLIP_TABLE, COMPLIANCE, FRICTION.
 """
 from __future__ import annotations
 
@@ -54,7 +57,18 @@ from typing import NamedTuple
 
 import numpy as np
 
-from vpcontact.model.contact_tables import TableCompliance, TableFriction
+from vpcontact.io.errors import CaseError
+from vpcontact.model.contact_tables import TableCompliance, TableFriction  # noqa: F401
+from vpcontact.model.contactspec import (
+    EXPRESSION,
+    NONNEGATIVE,
+    POSITIVE,
+    TABLE,
+    ContactKey,
+    ContactLawSpec,
+    Drawing,
+    table_points,
+)
 from vpcontact.model.laws import ScalarLaw
 from vpcontact.model.primitives import NUMPY, backend
 
@@ -420,18 +434,78 @@ class StaticKineticSlip:
         return 1.0 - self._drop * np.minimum(s / self.slip_length, 1.0)
 
 
-def slip_law(slip):
-    """theta(s) of a case's ``contact.friction.slip``.
+def _check_slip_table(given: dict, path: str, source: str) -> None:
+    """contact.friction.slip.table: s from 0, increasing; theta in [0, 1]."""
+    _, theta = table_points(given["table"], f"{path}.table", source)
+    if any(not 0.0 <= v <= 1.0 for v in theta):
+        raise CaseError(f"{source}: {path}.table: theta must be in [0, 1]")
 
-    Args:
-        slip: the Slip (theta_inf and s0, or a table).
 
-    Returns:
-        A SlipWeakening or a TableSlip.
-    """
-    if getattr(slip, "table", None) is not None:
-        return TableSlip(slip.table)
-    return SlipWeakening(slip.theta_inf, slip.s0)
+def _check_friction(given: dict, path: str, source: str) -> None:
+    """Law (4.2): b - c1 u1 >= 0 (the friction force may not change sign)."""
+    if given["b"] - given["c1"] * given["u1"] < 0:
+        raise CaseError(f"{source}: {path}: b - c1 u1 must be >= 0 (the friction "
+                        f"force of law (4.2) may not change sign), got "
+                        f"{given['b'] - given['c1'] * given['u1']:g}")
+
+
+def _compliance(c: dict, param, x):
+    """(4.1) for c_nu without m, else c_nu (r^+)^m; c_nu a number or an expression of x."""
+    c_nu = space_field(c["c_nu"], x) if isinstance(c["c_nu"], str) else param("c_nu", c["c_nu"])
+    return NormalCompliance(c_nu) if c.get("m") is None else PowerCompliance(c_nu, c["m"])
+
+
+# the laws of this module as laws of the case file (app/model/contactspec.py), collected by
+# app/model/contactregistry.py: the slip laws (SLIPS: build(constants)), the normal
+# compliance c_nu (r^+)^m (NORMALS: build(constants, param, x)) and law (4.2) (BOUNDS:
+# build(constants, param)); the tables' are app/model/contact_tables.py's
+SLIP_WEAKENING = ContactLawSpec(
+    name="weakening", formula="theta_inf + (1 - theta_inf) exp(-s/s0)",
+    keys={"theta_inf": ContactKey({"type": "number", "minimum": 0, "maximum": 1,
+                                   "description": "limit of theta(s) for large accumulated "
+                                                  "slip"}),
+          "s0": ContactKey({**POSITIVE, "description": "slip scale of theta(s) [m s]"})},
+    build=lambda c: SlipWeakening(c["theta_inf"], c["s0"]))
+SLIP_TABLE = ContactLawSpec(
+    name="table", formula="a table",
+    keys={"table": ContactKey({**TABLE, "minItems": 2,
+                               "description": "[[s, theta], ...]: theta(s) piecewise linear "
+                                              "in the accumulated slip s [m s], s "
+                                              "increasing from 0, theta in [0, 1] "
+                                              "(dimensionless), constant beyond the last "
+                                              "point (instead of theta_inf, s0)"})},
+    build=lambda c: TableSlip(c["table"]), check=_check_slip_table)
+COMPLIANCE = ContactLawSpec(
+    name="power", formula="c_nu (r^+)^m",
+    keys={"c_nu": ContactKey({"oneOf": [NONNEGATIVE, EXPRESSION],
+                              "description": "stiffness of p(r) = c_nu (r^+)^m [N/m^(2+m)] "
+                                             "(m = 1: N/m^3): a number >= 0 or an expression "
+                                             "in x, y, z, >= 0 on Gamma3 (p(x, r))"},
+                             field="the compliance coefficient"),
+          "m": ContactKey({"type": "number", "minimum": 1,
+                           "description": "exponent m >= 1 of p(r) = c_nu (r^+)^m "
+                                          "(dimensionless; absent: 1, the law (4.1)); only "
+                                          "with c_nu"},
+                          required=False, only="only with c_nu (a table gives p(r) itself)")},
+    build=_compliance,
+    levels=lambda c, r: [] if isinstance(c["c_nu"], str) else
+    [c["c_nu"] * r ** (c.get("m") or 1.0)])
+FRICTION = ContactLawSpec(
+    name="4.2", formula="law (4.2)", title="nonmonotone friction (4.2)",
+    keys={"b": ContactKey({**NONNEGATIVE, "description": "friction bound at zero slip "
+                                                         "[N/m^2]"}),
+          "c1": ContactKey({**NONNEGATIVE, "description": "softening slope on 0 < |u_tau| < "
+                                                          "u1"}),
+          "c2": ContactKey({**NONNEGATIVE, "description": "hardening slope on |u_tau| >= "
+                                                          "u1"}),
+          "u1": ContactKey({**POSITIVE, "description": "slip where softening turns into "
+                                                       "hardening [m]"})},
+    build=lambda c, param: PiecewiseLinearFriction(*(param(k, c[k])
+                                                     for k in ("b", "c1", "c2", "u1"))),
+    check=_check_friction,
+    levels=lambda c: [abs(c["b"]), abs(c["c1"] * c["u1"]), abs(c["c2"] * c["u1"])],
+    drawing=lambda c: Drawing(3 * c["u1"], "psi'(|u_tau|)", c["b"],
+                              "|u_tau| = 0: [0, b] (stick)", (c["u1"], "u1")))
 
 
 # ----------------------------------------------------------------------------- composition
@@ -514,33 +588,6 @@ class ContactLaw:
         return values, names
 
 
-def contact_law(contact, delta, const=None, x=None) -> ContactLaw:
-    """The laws of a case's contact section.
-
-    Args:
-        contact: the case's ``contact`` section (c_nu or a compliance table, friction,
-            memory).
-        delta: the regularisation width (``solver.delta``).
-        const: (name, value) -> the parameter in the laws (the forms' dolfinx Constants);
-            None: the numbers themselves.
-        x: where a parameter given as an expression of x, y, z (c_nu(x)) is evaluated: a
-            UFL SpatialCoordinate (the forms) or the nodes' coordinates (n, d) (numpy);
-            needed only by such a parameter (``varies_in_space``).
-
-    Returns:
-        The ContactLaw.
-    """
-    param = const if const is not None else (lambda name, value: value)
-    fr = contact.friction
-    friction = friction_law(fr, param)
-    normal = _normal_law(contact, param, x)
-    d = param("delta", delta) if fr is not None or contact.memory is not None else None
-    return ContactLaw(
-        normal=normal,
-        memory=None if contact.memory is None else RegularisedPositivePart(d),
-        friction=friction, norm=None if fr is None else RegularisedNorm(d))
-
-
 REPLACEABLE = {"normal": "contact.normal_compliance", "friction": "contact.friction"}
 
 
@@ -614,48 +661,6 @@ class PythonLawSlot(ScalarLaw):
 COULOMB_PSI = {"b": 1.0, "c1": 0.0, "c2": 0.0, "u1": 1.0}
 
 
-def friction_law(fr, const=None) -> ScalarLaw | None:
-    """The friction potential psi of a case's ``contact.friction``.
-
-    Args:
-        fr: the Friction (b, c1, c2, u1 of (4.2), or a table), or None.
-        const: (name, value) -> the parameter in the law (the forms' Constants); None: the
-            numbers themselves.
-
-    Returns:
-        A PiecewiseLinearFriction (psi(rho) = rho for Coulomb), a TableFriction or the
-        PythonLawSlot of the user's law; None without friction.
-    """
-    param = const if const is not None else (lambda name, value: value)
-    if fr is None:
-        return None
-    if getattr(fr, "python", None) is not None:
-        return PythonLawSlot("contact.friction", fr.python)
-    if getattr(fr, "table", None) is not None:
-        return TableFriction(fr.table)
-    if getattr(fr, "coulomb", None) is not None:    # psi(rho) = rho, its factor mu p_n
-        return PiecewiseLinearFriction(*(param(k, v) for k, v in COULOMB_PSI.items()))
-    return PiecewiseLinearFriction(*(param(k, getattr(fr, k)) for k in ("b", "c1", "c2", "u1")))
-
-
-def _normal_law(contact, param, x):
-    """The normal compliance of a contact section (None: none): (4.1) for a number c_nu
-    without m, else c_nu(x) (r^+)^m, the table's law, or the user's law's place."""
-    if getattr(contact, "compliance_python", None) is not None:
-        return PythonLawSlot("contact.normal_compliance", contact.compliance_python)
-    table = getattr(contact, "compliance_table", None)
-    if table is not None:
-        return TableCompliance(table)
-    if contact.c_nu is None:
-        return None
-    m = getattr(contact, "compliance_m", None)
-    if isinstance(contact.c_nu, str):
-        c_nu = space_field(contact.c_nu, x)
-    else:
-        c_nu = param("c_nu", contact.c_nu)
-    return NormalCompliance(c_nu) if m is None else PowerCompliance(c_nu, float(m))
-
-
 def varies_in_space(contact) -> bool:
     """Whether a contact law's parameter is an expression of x, y, z (c_nu(x)).
 
@@ -665,7 +670,8 @@ def varies_in_space(contact) -> bool:
     Returns:
         True if the laws need the coordinates ``x`` of ``contact_law``.
     """
-    return isinstance(contact.c_nu, str)
+    normal = getattr(contact, "normal", None)
+    return any(isinstance(v, str) for v in getattr(normal, "constants", {}).values())
 
 
 def space_field(text: str, x):

@@ -9,12 +9,24 @@ points, written once for numpy and UFL.
   beyond its last point, psi its exact primitive; m_j of (2.6) is its steepest softening.
 
 The slip table theta(s) is ``TableSlip`` in app/model/contact_laws.py, beside the slip
-weakening; ``contact_law`` there builds every law from a case.
+weakening; ``contact_law`` of app/model/contactregistry.py builds every law from a case.
+COMPLIANCE_TABLE and FRICTION_TABLE, at the end of the module, declare the two tables as
+laws of the case file (app/model/contactspec.py; the registries NORMALS and BOUNDS of
+app/model/contactregistry.py).
 """
 from __future__ import annotations
 
 import numpy as np
 
+from vpcontact.io.errors import CaseError
+from vpcontact.model.contactspec import (
+    TABLE,
+    ContactKey,
+    ContactLawSpec,
+    Drawing,
+    table_points,
+    table_values,
+)
 from vpcontact.model.laws import ScalarLaw
 from vpcontact.model.primitives import backend, positive_slip
 
@@ -204,3 +216,55 @@ class TableFriction(ScalarLaw):
             psi''(rho), elementwise.
         """
         return self.tau.slope(rho)
+
+
+def _check_compliance_table(given: dict, path: str, source: str) -> None:
+    """contact.normal_compliance.table: r from 0, increasing; p from [0, 0], nondecreasing."""
+    path = f"{path}.table"
+    _, ps = table_points(given["table"], path, source)
+    if ps[0] != 0.0 or any(b < a for a, b in zip(ps, ps[1:])):
+        raise CaseError(f"{source}: {path}: p must start at [0, 0] and be nondecreasing "
+                        "(H(p): an increasing compliance)")
+
+
+def _check_friction_table(given: dict, path: str, source: str) -> None:
+    """contact.friction.table: rho from 0, increasing; tau(0) > 0, tau >= 0, its last
+    segment nondecreasing."""
+    path = f"{path}.table"
+    _, tau = table_points(given["table"], path, source)
+    if not tau[0] > 0:
+        raise CaseError(f"{source}: {path}: tau(0) must be > 0 (the friction bound at "
+                        f"zero slip), got {tau[0]:g}")
+    if min(tau) < 0 or tau[-1] < tau[-2]:
+        raise CaseError(f"{source}: {path}: tau must be >= 0 and its last segment "
+                        "nondecreasing (it is extrapolated linearly): the friction "
+                        "force may not change sign")
+
+
+# the tables as laws of the case file (app/model/contactspec.py): NORMALS' build(constants,
+# param, x), BOUNDS' build(constants, param); their stress levels for the blow-up bound
+COMPLIANCE_TABLE = ContactLawSpec(
+    name="table", formula="a table",
+    keys={"table": ContactKey({**TABLE, "minItems": 2,
+                               "description": "[[r, p], ...]: p(r) [N/m^2] piecewise linear "
+                                              "in the normal displacement r [m], "
+                                              "nondecreasing, starting at [0, 0], constant "
+                                              "beyond the last point (instead of c_nu)"})},
+    build=lambda c, param, x: TableCompliance(c["table"]), check=_check_compliance_table,
+    levels=lambda c, r: [max(p for _, p in c["table"])])
+FRICTION_TABLE = ContactLawSpec(
+    name="table", formula="a friction table", title="nonmonotone friction (table)",
+    keys={"table": ContactKey({**TABLE, "minItems": 2,
+                               "description": "[[rho, tau], ...]: the friction stress "
+                                              "tau(rho) = psi'(rho) [N/m^2] piecewise linear "
+                                              "in the slip rho = |u_tau| [m] (instead of b, "
+                                              "c1, c2, u1): rho increasing from 0, tau(0) > 0 "
+                                              "the bound at zero slip, tau >= 0, nonmonotone "
+                                              "allowed (m_j of (2.6) is the largest "
+                                              "decreasing slope), extrapolated linearly "
+                                              "beyond the last point (its slope >= 0); psi "
+                                              "its exact primitive"})},
+    build=lambda c, param: TableFriction(c["table"]), check=_check_friction_table,
+    levels=lambda c: table_values(c["table"]),
+    drawing=lambda c: Drawing(1.5 * c["table"][-1][0], "tau(|u_tau|) (table)", c["table"][0][1],
+                              "|u_tau| = 0: [0, tau(0)] (stick)"))

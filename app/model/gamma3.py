@@ -24,9 +24,10 @@ from __future__ import annotations
 import numpy as np
 from dolfinx import fem
 
-from vpcontact.model.contact_laws import SlipWeakening, StaticKineticSlip, slip_law, space_field
+from vpcontact.model.contact_laws import SlipWeakening, StaticKineticSlip, space_field
+from vpcontact.model.contactregistry import KERNELS, slip_law
 from vpcontact.model.coulomb import CoulombPressure
-from vpcontact.model.memory_kernels import FieldKernel, MemoryKernel, memory_kernel
+from vpcontact.model.memory_kernels import FieldKernel, MemoryKernel
 from vpcontact.model.primitives import NUMPY
 
 
@@ -443,14 +444,14 @@ def section_kernel(mk) -> MemoryKernel:
     describing itself with the expression (``FieldKernel``).
 
     Args:
-        mk: the case's Memory (contact.memory, or a pair's).
+        mk: the case's Memory (contact.memory, or a pair's): its kernel of ``KERNELS``
+            (app/model/contactregistry.py) and constants.
 
     Returns:
         The kernel.
     """
     field = isinstance(mk.b0, str)
-    kernel = memory_kernel(mk.kernel, 1.0 if field else mk.b0, beta=mk.beta,
-                           alpha=mk.alpha or 1.0, tau=mk.tau or 1.0, table=mk.table)
+    kernel = KERNELS[mk.kernel].build(mk.constants, 1.0 if field else mk.b0)
     return FieldKernel(kernel, mk.b0) if field else kernel
 
 
@@ -487,8 +488,7 @@ def _pair_history(c, problem) -> Gamma3History | None:
         mk, fr = section.memory, section.friction
         if mk is not None:
             b0[rows] = space_field(mk.b0, x[rows]) if isinstance(mk.b0, str) else mk.b0
-            kernel = memory_kernel(mk.kernel, 1.0, beta=mk.beta, alpha=mk.alpha or 1.0,
-                                   tau=mk.tau or 1.0, table=mk.table)
+            kernel = KERNELS[mk.kernel].build(mk.constants, 1.0)
             recursion = None if mk.sum == "auto" else mk.sum == "recursion"
         if fr is not None and fr.coulomb is not None:
             mu[rows], coulomb_rows[rows] = fr.coulomb.mu, True

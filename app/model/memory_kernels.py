@@ -1,13 +1,29 @@
 """The memory kernels b(t) of the memory term xi(t) = int_0^t b(t - s) u_nu^+(s) ds (H(b)):
 exponential b0 exp(-beta t) (with its exact O(1) recursion), power b0 (1 + t/tau)^-alpha, a
 table, and b0(x) b(t) with b0 an expression of x (``FieldKernel``).  The nodal sums xi_n are
-app/model/gamma3.py's; ``memory_kernel`` builds the kernel a case names.
+app/model/gamma3.py's.
+
+Each kernel is declared once here by its ``ContactLawSpec`` (app/model/contactspec.py:
+EXPONENTIAL, POWER, TABLE, after the classes): its keys of ``contact.memory``, its formula
+for the schema, its checks, its factory and its stress level; the registry ``KERNELS`` of
+app/model/contactregistry.py collects them (its ``memory_kernel`` builds a kernel by
+name).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+
+from vpcontact.io.errors import CaseError
+from vpcontact.model.contactspec import (
+    NONNEGATIVE,
+    POSITIVE,
+    TABLE,
+    ContactKey,
+    ContactLawSpec,
+    table_values,
+)
 
 
 class MemoryKernel:
@@ -207,28 +223,32 @@ class FieldKernel(MemoryKernel):
         return self.kernel.recursion(xi, r_plus, k)
 
 
-def memory_kernel(kind: str, b0: float, beta: float = 0.0, alpha: float = 1.0,
-                  tau: float = 1.0, table=None) -> MemoryKernel:
-    """The memory kernel a case names.
+def _check_table(given: dict, path: str, source: str) -> None:
+    """The table kernel's table: times from 0, increasing strictly; values >= 0."""
+    ts = [row[0] for row in given["table"]]
+    if ts[0] != 0.0 or any(b <= a for a, b in zip(ts, ts[1:])) \
+            or any(row[1] < 0 for row in given["table"]):
+        raise CaseError(f"{source}: {path}.table: times must start at 0 and increase "
+                        "strictly; values must be >= 0")
 
-    Args:
-        kind: "exponential", "power" or "table".
-        b0: the factor b0.
-        beta: the exponential kernel's rate.
-        alpha: the power law's exponent.
-        tau: the power law's time scale.
-        table: (t, b) points of the table kernel.
 
-    Returns:
-        The kernel.
-
-    Raises:
-        ValueError: an unknown ``kind``.
-    """
-    if kind == "exponential":
-        return ExponentialKernel(b0, beta)
-    if kind == "power":
-        return PowerKernel(b0, alpha, tau)
-    if kind == "table":
-        return TableKernel(b0, table)
-    raise ValueError(f"unknown kernel {kind!r}")
+# the kernels' declarations (app/model/contactspec.py), collected by KERNELS of
+# app/model/contactregistry.py: build(constants, b0) -> the kernel of factor b0
+EXPONENTIAL = ContactLawSpec(
+    name="exponential", formula="b0 exp(-beta t)", recursive=True,
+    keys={"beta": ContactKey({**NONNEGATIVE, "default": 0.0,
+                              "description": "decay rate of the exponential kernel b0 "
+                                             "exp(-beta t) [1/s]"}, required=False)},
+    build=lambda c, b0: ExponentialKernel(b0, c.get("beta", 0.0)))
+POWER = ContactLawSpec(
+    name="power", formula="b0 (1 + t/tau)^-alpha",
+    keys={"alpha": ContactKey({**POSITIVE, "description": "exponent of the power kernel"}),
+          "tau": ContactKey({**POSITIVE, "description": "time scale of the power kernel "
+                                                        "[s]"})},
+    build=lambda c, b0: PowerKernel(b0, c["alpha"], c["tau"]))
+TABLE_KERNEL = ContactLawSpec(
+    name="table", formula="b0 times the piecewise-linear table",
+    keys={"table": ContactKey({**TABLE, "description": "[[t, b], ...] of the table "
+                                                       "kernel"})},
+    build=lambda c, b0: TableKernel(b0, c["table"]), check=_check_table,
+    levels=lambda c: table_values(c["table"]))

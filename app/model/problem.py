@@ -27,7 +27,8 @@ from vpcontact.forms.step import (
     build_boundary_forms,
     build_step_forms,
 )
-from vpcontact.model.contact_laws import ContactLaw, contact_law, replace_laws, varies_in_space
+from vpcontact.model.contact_laws import ContactLaw, replace_laws, varies_in_space
+from vpcontact.model.contactregistry import contact_law
 from vpcontact.model.discretisation import Discretisation
 from vpcontact.model.fullstress import full_stress
 from vpcontact.model.gamma3 import NodalField

@@ -660,7 +660,7 @@ def friction_constant(case, friction=None, section=None) -> float | None:
     Returns:
         m_j, or None: the case's friction law is written by the user and states none.
     """
-    from vpcontact.model.contact_laws import friction_law, slip_law
+    from vpcontact.model.contactregistry import friction_law, slip_law
     section = case.contact if section is None else section
     if getattr(friction, "m_j", None) is None:
         friction = friction_law(section.friction)

@@ -12,7 +12,8 @@ dozen steps while the run still "completes".
   |sigma0| and E |u0| / L, sampled over the body and the time grid when the case was
   validated (Case.data_stress, app/case/datacheck.py);
 - the contact laws: c_nu g (the normal compliance force at the bound), the memory force
-  b0 T g, the friction bound's constants;
+  b0 T g, the friction bound's constants (each built-in contact law's ``levels``, its
+  ContactLawSpec, app/model/contactspec.py);
 - the elastic stress of a displacement g over the body, E_max g / L;
 - the initial state as built: max ||sigma_0||_VM, and max kappa_0 for kappa's bound.
 A step is diverged if a value is not finite, or if max ||sigma_n||_VM exceeds
@@ -33,8 +34,7 @@ from __future__ import annotations
 import logging
 import math
 
-import numpy as np
-
+from vpcontact.model.contactregistry import BOUNDS, KERNELS, NORMALS
 from vpcontact.model.lawregistry import kappa_growth
 from vpcontact.model.userlaw import UserLaw
 from vpcontact.observers import Observer, StopRun
@@ -68,23 +68,21 @@ def contact_scale(case, E_max: float, length: float, gap: float | None = None) -
 
 def _law_levels(c, T: float, r: float) -> list[float]:
     """The stress levels of one set of contact laws (``contact_scale``) at the normal
-    displacement r (the gap, or the length without one)."""
+    displacement r (the gap, or the length without one): each built-in law's ``levels``
+    (its ContactLawSpec, app/model/contactregistry.py)."""
     values = []
-    if isinstance(c.c_nu, float):       # p(r) = c_nu r^m (a field c_nu(x): not known here)
-        values.append(c.c_nu * r ** (c.compliance_m or 1.0))
-    if c.compliance_table is not None:
-        values.append(max(p for _, p in c.compliance_table))
+    normal = NORMALS.get(getattr(c.normal, "law", None))     # a user's law: not known
+    if normal is not None:          # c_nu r^m (a field c_nu(x): not known here), a table
+        values += normal.levels(c.normal.constants, r)
     if c.memory is not None:
         b = abs(c.memory.b0 or 0.0) if not isinstance(c.memory.b0, str) else 0.0
-        if c.memory.table:
-            b = max(b, float(np.max(np.abs(np.asarray(c.memory.table, dtype=float)[:, 1]))))
+        kernel = KERNELS[c.memory.kernel]
+        if kernel.levels is not None:
+            b = max([b, *kernel.levels(c.memory.constants)])
         values.append(b * T * r)
-    if c.friction is not None and c.friction.python is None and \
-            getattr(c.friction, "coulomb", None) is None:
+    if c.friction is not None and c.friction.law is not None:
         # a user's law: not known; Coulomb's bound mu p_n: of the normal laws' scale
-        fr = c.friction
-        values += [abs(tau) for _, tau in fr.table] if fr.table is not None else \
-            [abs(fr.b), abs(fr.c1 * fr.u1), abs(fr.c2 * fr.u1)]
+        values += BOUNDS[c.friction.law].levels(c.friction.constants)
     return values
 
 

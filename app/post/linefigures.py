@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from vpcontact.io.files import write_replacing
-from vpcontact.model import contact_laws
+from vpcontact.model.contactregistry import BOUNDS, NORMALS, chosen
 from vpcontact.post.results import Results, contact_scene, round_125
 
 LINE_FIGURES = ("fig3_deformed_contact.png", "fig4_tangential.png", "fig2_laws.png",
@@ -286,24 +286,33 @@ def fig4_tangential(res: Results, path: Path) -> None:
 
 
 def _normal_law(nc, g, r):
-    """-sigma_nu = p(u_nu) at u_nu = r <= g: c_nu u_nu^+ of (4.1), c_nu (u_nu^+)^m or the
-    table of contact.normal_compliance ``nc`` (None, or c_nu(x): 0) (Fig. 2a)."""
+    """-sigma_nu = p(u_nu) at u_nu = r <= g: the built-in law of contact.normal_compliance
+    ``nc`` chosen by its keys (``NORMALS``: c_nu u_nu^+ of (4.1), c_nu (u_nu^+)^m, the
+    table, ...; None, or c_nu(x): 0) (Fig. 2a)."""
     nc = nc or {}
-    if "table" in nc:
-        return contact_laws.TableCompliance(nc["table"]).derivative(r)
-    c_nu = nc.get("c_nu") if not isinstance(nc.get("c_nu"), str) else None
-    if "m" in nc:
-        return contact_laws.PowerCompliance(c_nu or 0.0, float(nc["m"])).derivative(r)
-    return contact_laws.NormalCompliance(c_nu or 0.0).derivative(r)
+    spec = chosen(NORMALS, nc)
+    constants = {k: v for k, v in spec.constants(nc).items() if not isinstance(v, str)}
+    if not all(k in constants for k in spec.required()):    # none, or c_nu(x)
+        return 0.0 * np.maximum(np.asarray(r, dtype=float), 0.0)
+    return spec.build(constants, lambda name, value: value, None).derivative(r)
 
 
-def _tangential_law(fr, rho):
-    """|sigma_tau| = psi'(rho) of (4.2) or of the friction table at slips rho = |u_tau| > 0;
-    fr: b, c1, c2, u1 or table (Fig. 2b)."""
-    if "table" in fr:
-        return contact_laws.TableFriction(fr["table"]).derivative(rho)
-    psi = contact_laws.PiecewiseLinearFriction(fr["b"], fr["c1"], fr["c2"], fr["u1"])
-    return psi.derivative(rho)
+def _draw_bound(ax, fr) -> None:
+    """Fig. 2b: |sigma_tau| = psi'(rho) of the built-in bound of contact.friction ``fr``
+    chosen by its keys (``BOUNDS``: (4.2)'s b, c1, c2, u1, the friction table, ...) at slips
+    rho = |u_tau| > 0, its stick interval and mark (the spec's ``drawing``)."""
+    spec = chosen(BOUNDS, fr)
+    constants = spec.constants(fr)
+    how = spec.drawing(constants)
+    rho = np.linspace(0, how.upto, 300)[1:]
+    law = spec.build(constants, lambda name, value: value)
+    ax.plot(rho, law.derivative(rho), color="tab:blue", label=how.label)
+    ax.vlines(0, 0, how.stick, color="tab:blue", lw=3, label=how.stick_label)
+    if how.mark is not None:
+        ax.axvline(how.mark[0], color="tab:red", ls="--", lw=1)
+        ax.text(how.mark[0], 0, f" {how.mark[1]}", color="tab:red", va="bottom")
+    ax.legend(fontsize=8)
+    ax.set_ylim(bottom=0)
 
 
 def fig2_laws(res: Results, path: Path) -> None:
@@ -352,21 +361,8 @@ def fig2_laws(res: Results, path: Path) -> None:
     elif fr and "coulomb" in fr:
         ax.text(0.5, 0.5, f"Coulomb: |sigma_tau| <= mu p_n, mu = {fr['coulomb']['mu']:g}",
                 ha="center", transform=ax.transAxes)
-    elif fr and "table" in fr:
-        rho = np.linspace(0, 1.5 * fr["table"][-1][0], 300)[1:]
-        ax.plot(rho, _tangential_law(fr, rho), color="tab:blue", label="tau(|u_tau|) (table)")
-        ax.vlines(0, 0, fr["table"][0][1], color="tab:blue", lw=3,
-                  label="|u_tau| = 0: [0, tau(0)] (stick)")
-        ax.legend(fontsize=8)
-        ax.set_ylim(bottom=0)
     elif fr:
-        rho = np.linspace(0, 3 * fr["u1"], 300)[1:]
-        ax.plot(rho, _tangential_law(fr, rho), color="tab:blue", label="psi'(|u_tau|)")
-        ax.vlines(0, 0, fr["b"], color="tab:blue", lw=3, label="|u_tau| = 0: [0, b] (stick)")
-        ax.axvline(fr["u1"], color="tab:red", ls="--", lw=1)
-        ax.text(fr["u1"], 0, " u1", color="tab:red", va="bottom")
-        ax.legend(fontsize=8)
-        ax.set_ylim(bottom=0)
+        _draw_bound(ax, fr)
     else:
         ax.text(0.5, 0.5, "frictionless", ha="center", transform=ax.transAxes)
     ax.set_xlabel("|[u]_tau| [m] (relative)" if res.pairs else "|u_tau| [m]")

@@ -11,12 +11,8 @@ import numpy as np
 import pytest
 
 from conftest import make_case, paper_raw, run_case
-from vpcontact.model.contact_laws import (
-    PowerCompliance,
-    TableCompliance,
-    TableFriction,
-    contact_law,
-)
+from vpcontact.model.contact_laws import PowerCompliance, TableCompliance, TableFriction
+from vpcontact.model.contactregistry import contact_law
 from vpcontact.post.quantities import contact_table
 
 SMALL = {"mesh": {"n": 4}, "time": {"N": 8}}

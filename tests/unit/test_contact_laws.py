@@ -2,14 +2,14 @@
 and the UFL back ends (app/model/primitives.py); their hand-written derivatives against
 UFL's differentiation of the same energy; closed forms of (4.1)-(4.2), theta(s) and the
 memory kernels; the composition ContactLaw and the builder from a case."""
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import ufl
 
+from vpcontact.case.model import Compliance, Contact, Friction
 from vpcontact.model import contact_laws as laws
-from vpcontact.model import memory_kernels
+from vpcontact.model import contactregistry as registry
 from vpcontact.model.primitives import NUMPY, UFL, backend
 
 FR = (1.0, 60.0, 60.0, 0.01)                 # b, c1, c2, u1 of the paper's Sec. 4
@@ -119,20 +119,20 @@ def test_slip_weakening_theta():
 
 def test_memory_kernels_closed_forms():
     t = np.array([0.0, 0.3, 2.0])
-    exp = memory_kernels.memory_kernel("exponential", 3.0, beta=2.5)
+    exp = registry.memory_kernel("exponential", 3.0, beta=2.5)
     assert np.allclose(exp(t), 3.0 * np.exp(-2.5 * t), rtol=1e-15) and exp.recursive
     xi, r, k = np.array([1.0, 2.0]), np.array([0.5, 0.0]), 0.1
     assert np.allclose(exp.recursion(xi, r, k), np.exp(-0.25) * (xi + 0.3 * r), rtol=1e-15)
-    power = memory_kernels.memory_kernel("power", 2.0, alpha=0.7, tau=0.3)
+    power = registry.memory_kernel("power", 2.0, alpha=0.7, tau=0.3)
     assert np.allclose(power(t), 2.0 * (1.0 + t / 0.3) ** -0.7, rtol=1e-15)
-    table = memory_kernels.memory_kernel("table", 2.0, table=[[0, 1.0], [0.5, 0.2], [2, 0.0]])
+    table = registry.memory_kernel("table", 2.0, table=[[0, 1.0], [0.5, 0.2], [2, 0.0]])
     assert np.allclose(table(t), [2.0, 2.0 * (1.0 - 0.8 * 0.6), 0.0], rtol=1e-15)
     for kernel in (power, table):
         assert not kernel.recursive
         with pytest.raises(NotImplementedError, match="no exact recursion"):
             kernel.recursion(xi, r, k)
     with pytest.raises(ValueError, match="unknown kernel"):
-        memory_kernels.memory_kernel("bogus", 1.0)
+        registry.memory_kernel("bogus", 1.0)
 
 
 def _paper_law(memory=True, normal=True):
@@ -162,20 +162,20 @@ def test_composition_terms_and_names():
 def test_contact_law_from_a_case():
     """The builder: each parameter through ``const`` once (delta shared by the memory term
     and the norm), in the order the forms' Constants were always made; absent parts None."""
-    fr = SimpleNamespace(b=1.0, c1=60.0, c2=50.0, u1=0.01, slip=None)
-    contact = SimpleNamespace(c_nu=100.0, friction=fr, memory=object())
+    fr = Friction("4.2", {"b": 1.0, "c1": 60.0, "c2": 50.0, "u1": 0.01})
+    contact = Contact(None, Compliance("power", {"c_nu": 100.0}), fr, memory=object())
     made = []
 
     def const(name, value):
         made.append(name)
         return ("C", name, value)
-    law = laws.contact_law(contact, 1e-7, const)
+    law = registry.contact_law(contact, 1e-7, const)
     assert made == ["b", "c1", "c2", "u1", "c_nu", "delta"]
     assert law.normal == laws.NormalCompliance(("C", "c_nu", 100.0))
     assert law.friction.c2 == ("C", "c2", 50.0)
     assert law.memory.delta is law.norm.delta
-    plain = laws.contact_law(SimpleNamespace(c_nu=None, friction=None, memory=None), 1e-7)
+    plain = registry.contact_law(Contact(None, None, None), 1e-7)
     assert plain == laws.ContactLaw()
-    numbers = laws.contact_law(contact, 1e-7)
+    numbers = registry.contact_law(contact, 1e-7)
     assert numbers.friction == laws.PiecewiseLinearFriction(1.0, 60.0, 50.0, 0.01)
     assert numbers.norm == laws.RegularisedNorm(1e-7)

@@ -16,6 +16,7 @@ from conftest import make_case, paper_raw
 from vpcontact import kernels
 from vpcontact.io.errors import CaseError
 from vpcontact.model import contact_laws as laws
+from vpcontact.model import contactregistry as registry
 from vpcontact.model import memory_kernels
 from vpcontact.solvers.nodal import NodalContact, nodal_contact_numpy
 
@@ -129,7 +130,7 @@ def test_memory_sum_with_b0_of_x(kind):
     b0 = laws.space_field("2 + 3 * x", x)
     assert b0.tolist() == [2.0, 2.9, 5.0]
     kernel = memory_kernels.FieldKernel(
-        memory_kernels.memory_kernel(kind, 1.0, beta=1.5, alpha=2.0, tau=0.5), "2 + 3 * x")
+        registry.memory_kernel(kind, 1.0, beta=1.5, alpha=2.0, tau=0.5), "2 + 3 * x")
     assert kernel.constants()["b0"][0] == "2 + 3 * x"
     times = np.cumsum(np.concatenate([[0.0], rng.uniform(0.05, 0.2, 6)]))
     r = rng.uniform(0.0, 0.01, (6, 3))
@@ -244,22 +245,22 @@ def test_case_keys_and_the_laws_they_build():
     """The new keys reach the Case (not default-filled: the paper's Case keeps None) and
     contact_law builds the general laws from them."""
     paper = make_case(paper_raw()).contact
-    assert (paper.compliance_m, paper.compliance_table, paper.friction.table) == \
+    assert (paper.normal.m, paper.normal.table, paper.friction.table) == \
         (None, None, None)
     case = make_case(_contact(normal_compliance={"table": COMPLIANCE},
                               friction={"table": NONMONOTONE,
                                         "slip": {"table": [[0.0, 1.0], [0.01, 0.5]]}},
                               memory={"b0": "2 + x", "beta": 1.0}))
     c = case.contact
-    assert c.c_nu is None and c.compliance and c.compliance_table[1] == (0.008, 0.8)
+    assert c.c_nu is None and c.compliance and c.normal.table[1] == (0.008, 0.8)
     assert c.friction.b is None and c.friction.slip.table == ((0.0, 1.0), (0.01, 0.5))
     assert c.memory.b0 == "2 + x"
-    law = laws.contact_law(c, 1e-7)
+    law = registry.contact_law(c, 1e-7)
     assert isinstance(law.normal, laws.TableCompliance)
     assert isinstance(law.friction, laws.TableFriction)
-    assert isinstance(laws.slip_law(c.friction.slip), laws.TableSlip)
+    assert isinstance(registry.slip_law(c.friction.slip), laws.TableSlip)
     power = make_case(_contact(normal_compliance={"c_nu": "100 + 10 * x", "m": 2})).contact
-    law = laws.contact_law(power, 1e-7, x=np.array([[0.0, 0.0], [0.5, 0.0]]))
+    law = registry.contact_law(power, 1e-7, x=np.array([[0.0, 0.0], [0.5, 0.0]]))
     assert isinstance(law.normal, laws.PowerCompliance) and law.normal.m == 2.0
     assert law.normal.c_nu.tolist() == [100.0, 105.0]
 

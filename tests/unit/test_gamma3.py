@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from vpcontact.model.contact_laws import SlipWeakening, StaticKineticSlip
+from vpcontact.model.contactregistry import memory_kernel
 from vpcontact.model.gamma3 import (
     MemorySum,
     NodewiseSlip,
@@ -12,7 +13,6 @@ from vpcontact.model.gamma3 import (
     SlipSum,
     build_gamma3_history,
 )
-from vpcontact.model.memory_kernels import memory_kernel
 
 
 def _steps(rng, n=40):
@@ -172,9 +172,9 @@ def test_history_built_from_the_case_laws():
     """build_gamma3_history: the case's kernel and theta(s) laws, the sum it asks for, and
     one step of xi_n = k b(t_n - t_{n-1}) u_nu^+ and s_n = k |u_tau| from u_{n-1}."""
     assert build_gamma3_history(_case(), _problem([[0.0, 0.0]], [[0.0, -1.0]])) is None
-    memory = SimpleNamespace(kernel="power", b0=2.0, beta=0.0, alpha=0.7, tau=0.3, table=None,
+    memory = SimpleNamespace(kernel="power", b0=2.0, constants={"alpha": 0.7, "tau": 0.3},
                              sum="auto")
-    slip = SimpleNamespace(theta_inf=0.4, s0=0.01)
+    slip = SimpleNamespace(law="weakening", constants={"theta_inf": 0.4, "s0": 0.01})
     u = [[0.003, -0.002], [-0.001, 0.005]]               # u_nu = -u_y: 0.002, -0.005
     problem = _problem(u, [[0.0, -1.0], [0.0, -1.0]])
     history = build_gamma3_history(_case(memory, slip), problem)
@@ -187,7 +187,7 @@ def test_history_built_from_the_case_laws():
     np.testing.assert_allclose(history.slip.s, [0.25 * 0.003, 0.25 * 0.001], rtol=1e-15)
     np.testing.assert_allclose(problem.theta.values,
                                0.4 + 0.6 * np.exp(-history.slip.s / 0.01), rtol=1e-15)
-    memory.sum, memory.kernel = "direct", "exponential"
+    memory.sum, memory.kernel, memory.constants = "direct", "exponential", {"beta": 0.0}
     direct = build_gamma3_history(_case(memory, None), _problem(u, [[0.0, -1.0]] * 2))
     assert not direct.memory.recursion and direct.slip is None
 

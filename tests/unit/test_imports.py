@@ -61,10 +61,11 @@ ALLOWED = _allowed_packages()
 EXCEPTIONS = {
     # the light modules of the solvers that the case layer asks (eligibility, PETSc defaults,
     # the options' checks), and the registry of the built-in viscoplastic laws (their keys,
-    # rules and titles, each declared in the law's module)
+    # rules and titles, each declared in the law's module) and of the built-in contact laws
     "vpcontact.case": {"vpcontact.solvers.choice", "vpcontact.solvers.options",
                        "vpcontact.solvers.optioncheck", "vpcontact.solvers.optionpolicy",
-                       "vpcontact.model.lawregistry"},
+                       "vpcontact.model.lawregistry", "vpcontact.model.contactregistry",
+                       "vpcontact.model.contactspec"},
     # Observers of app/post/: BlowUpMonitor, RateWatch, ErrorEstimate
     "vpcontact.post.divergence": {"vpcontact.observers", "vpcontact.records"},
     "vpcontact.post.ratewatch": {"vpcontact.observers"},
