@@ -1,24 +1,24 @@
 """Process start-up and exit costs that are not the computation's (the reference run
-is timed as a whole process, about 3 s).
+is timed as a whole process, so they count).
 
 - ufl and ffcx 2022.2 (Debian bookworm) import ``pkg_resources`` only to read their own
   version, ``pkg_resources.get_distribution(name).version``; importing it scans every
-  installed distribution: 0.09-0.17 s per run (measured, python -X importtime).
-  ``install_pkg_resources_stand_in`` puts a stand-in module in its place that answers that
-  call from importlib.metadata; any other use of it loads the real module and forwards to it.
+  installed distribution.  ``install_pkg_resources_stand_in`` puts a stand-in module in its
+  place that answers that call from importlib.metadata; any other use of it loads the real
+  module and forwards to it.
 - Python's cyclic garbage collector scans every tracked object of the start-up's imports
-  (dolfinx, ufl, numpy, ...) again and again while they load: 40-50 ms of a run in about 140
-  collections (measured with gc.callbacks, the 2D reference and box3d n = 32).
+  (dolfinx, ufl, numpy, ...) again and again while they load.
   ``pause_collector`` turns it off for the start-up and the set-up, ``resume_collector``
   moves what exists then into the permanent generation (``gc.freeze``: never scanned
-  again) and turns it back on: 3-4 ms of collections in the same runs.  The cycles made
-  meanwhile (some 40,000 objects, a few MB) stay until the process ends.
+  again) and turns it back on.  The cycles made meanwhile (some 40,000 objects, a few MB)
+  stay until the process ends.
 - The interpreter's teardown of a finished run (clearing the modules of dolfinx, ufl, numpy,
-  ... one by one) takes 0.12-0.15 s (measured).  ``quick_exit`` does what that teardown does
+  ... one by one) is slow.  ``quick_exit`` does what that teardown does
   that matters (flush the streams, run the atexit handlers, finalise PETSc and MPI) and
   ends the process without the rest.
 
-What each saves of the commands' wall time, measured: docs/performance.md section 5.
+What each costs, and what each saves of the commands' wall time: docs/performance.md
+section 5.
 """
 from __future__ import annotations
 
@@ -65,7 +65,8 @@ def _normalised(name: str) -> str:
 def installed_version(name: str) -> str | None:
     """The version of an installed distribution from the first metadata of that name on
     sys.path (a .dist-info's METADATA, an .egg-info's PKG-INFO), read as a file:
-    importlib.metadata and the email parser it imports cost 0.02 s of a run (measured).
+    importlib.metadata and the email parser it imports cost more (docs/performance.md,
+    section 3).
 
     Args:
         name: the distribution's name (any spelling PEP 503 normalises alike).

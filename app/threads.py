@@ -1,9 +1,9 @@
 """BLAS threads for the few large dense operations of a run, and the cores they run on.
 
-The environment keeps OpenBLAS single-threaded (small dense solves slow down 30-100x with more
-threads).  A serial run of a large 3D scene has cores idle during its BLAS-bound kernels, the
-G-last CHOLMOD factorisation and the dense work of the Gamma3 problem: ``blas_threads`` lets
-exactly those use the cores this process may run on.
+The environment keeps OpenBLAS single-threaded (small dense solves slow down with more
+threads: docs/performance.md, section 5).  A serial run of a large 3D scene has cores idle
+during its BLAS-bound kernels, the G-last CHOLMOD factorisation and the dense work of the
+Gamma3 problem: ``blas_threads`` lets exactly those use the cores this process may run on.
 
 Under mpirun the condensed solver's Gamma3 problem is solved on one rank (GAMMA3_ROOT), while the
 others wait asleep in ``idle_bcast`` (spinning in MPI would keep their cores busy).  That
@@ -157,8 +157,7 @@ def _threads(n: int, lent: set[int] | None):
 def _blas():
     """threadpoolctl's controller of the BLAS libraries loaded (numpy's, which CHOLMOD and
     LAPACK share), found at the first use: a new search of the process's libraries at every
-    ``blas_threads`` cost 3 ms (0.4 s over the 119 large operations of box3d n = 32, 32 steps;
-    measured)."""
+    ``blas_threads`` was slow, and there are many (docs/performance.md, section 9)."""
     global _controller
     if _controller is None:
         _controller = ThreadpoolController()

@@ -1,5 +1,6 @@
 """A cache of the meshes gmsh builds for the built-in geometries (the rectangle, the box), so
-that a run whose mesh was built before neither imports gmsh (0.4-0.8 s) nor meshes again.
+that a run whose mesh was built before neither imports gmsh (docs/performance.md, section 3)
+nor meshes again.
 
 What is kept is exactly what ``dolfinx.io.gmshio.model_to_mesh`` (dolfinx 0.5.2) reads from
 gmsh's model on rank 0: the node coordinates, the cells and the marked facets (gmsh's node
@@ -158,7 +159,8 @@ def _cell_tags(mesh, cells: np.ndarray, a: dict):
     """The cell tags of gmsh's physical volumes (surfaces in 2D).  One volume (the built-in
     rectangle and box): every local cell, owned and ghost, carries its tag, which is what
     distributing the cells' data finds (``_distributed_tags``) without its search of the
-    cells by their vertices (box3d n = 48, the mesh from the cache: 3.9 -> 2.65 s; measured)."""
+    cells by their vertices, a large part of a 3D mesh's construction (docs/performance.md,
+    section 9)."""
     tdim = mesh.topology.dim
     if a["one_cell_value"] is None:
         ct = _distributed_tags(mesh, tdim, cells, a["cell_values"])

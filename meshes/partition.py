@@ -3,9 +3,9 @@ one rank without building the distributed dual graph and calling the graph parti
 
 dolfinx 0.5.2's ``create_mesh`` partitions the cells before it builds the topology, also on
 one rank: the default partitioner builds the cells' dual graph and hands it to the graph
-partitioner (SCOTCH or ParMETIS), to learn that every cell belongs to rank 0.  That costs
-0.14 s of 0.39 s for the box at n = 32 (196,608 tetrahedra; measured) and grows with the
-mesh.  ``cell_partitioner`` answers that question directly on one rank; the mesh built is the
+partitioner (SCOTCH or ParMETIS), to learn that every cell belongs to rank 0.  That costs a
+third of the mesh's construction and grows with the mesh (docs/performance.md, section 3).
+``cell_partitioner`` answers that question directly on one rank; the mesh built is the
 same array for array (the cells are reordered afterwards by dolfinx in either case).  Runs on
 several ranks keep dolfinx's partitioner.
 """

@@ -11,7 +11,7 @@ of fine ones): the convergence study relies on this.  They are built by gmsh as 
 mesh by default (its vertices then put exactly on the grid (L / n) i) or, with
 ``engine="dolfinx"``, by dolfinx's ``create_rectangle``: the same triangles and bitwise the
 same coordinates (tests/unit/test_mesh.py checks both), without the cost of importing gmsh
-(about 0.4 s) and of its meshing.
+(docs/performance.md, section 3) and of its meshing.
 Unstructured meshes always come from gmsh, which runs on one rank only; the mesh is
 distributed as dolfinx's ``gmshio.model_to_mesh`` does.  A mesh gmsh built is kept in the
 mesh cache (meshes/meshcache.py), so that a later run with the same rectangle neither imports

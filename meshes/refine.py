@@ -319,9 +319,9 @@ def write_msh(gmsh, level: MeshLevel, path) -> None:
     gmsh.model.remove()
 
 
-# refine_file's peak memory per vertex of the finest level [bytes], measured (peak RSS):
-# the hierarchy, the edge search and gmsh's copy written as .msh; 610 B in 2D
-# (punch_relaxation.geo refined 4 -> 5 times: 0.57 -> 2.0 GB), 1.6 kB in 3D (sphere3d.geo)
+# refine_file's peak memory per vertex of the finest level [bytes] (peak RSS: the hierarchy,
+# the edge search and gmsh's copy written as .msh), with a margin over what it was found to
+# be (docs/performance.md, section 9)
 REFINE_BYTES = {2: 700, 3: 2000}
 
 

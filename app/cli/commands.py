@@ -233,8 +233,8 @@ def _run_to_tolerance(args, comm, raw: dict, case, outdir: Path, make_observers)
 
 def _early_painter(comm, no_plots: bool):
     """The pictures' process of a serial run, started before the run so that its start-up
-    (pyvista, OpenGL: about 0.8 s) overlaps the computation; None under mpirun (every core
-    has a rank) or without figures."""
+    (pyvista, OpenGL; docs/performance.md, section 9) overlaps the computation; None under
+    mpirun (every core has a rank) or without figures."""
     if no_plots or comm.size > 1:
         return None
     from vpcontact.post.plot import Painter

@@ -55,12 +55,11 @@ def _init_mpi():
     """Initialise MPI; a run without a launcher as a light Open MPI singleton, a run under
     mpirun on one node with the ob1 layer named (``mpi_settings``).
 
-    A singleton's MPI_Init probes the UCX network layer and starts a runtime daemon: 0.29 s
-    of a 3 s run (measured; 0.04 s with these settings).  One process communicates with
-    nobody, so the shared-memory/self transports suffice.  Under mpirun, opening the other
-    messaging layers cost every rank about 0.2 s of its start-up (``mpirun -n 2 python -c
-    'from mpi4py import MPI'``: 0.41-0.54 s, with ob1 named 0.21-0.31 s; measured) for the
-    same choice (Debian's openmpi-mca-params.conf excludes UCX; ob1 is selected either
+    A singleton's MPI_Init probes the UCX network layer and starts a runtime daemon, a
+    noticeable part of a short run.  One process communicates with nobody, so the
+    shared-memory/self transports suffice.  Under mpirun, opening the other messaging layers
+    costs every rank part of its start-up for the same choice (both: docs/performance.md,
+    section 5; Debian's openmpi-mca-params.conf excludes UCX; ob1 is selected either
     way, so results do not change).  Runs across nodes or under other launchers keep the
     launcher's settings; any variable already set (``mpirun --mca``) wins.
     """
@@ -78,25 +77,23 @@ def _init_mpi():
 def prepare_process() -> None:
     """Set up the command line's process, before numpy, MPI, ufl or dolfinx are imported.
 
-    One BLAS thread (multithreaded OpenBLAS makes the small dense per-cell algebra 30-100x
-    slower; the large operations widen it, app/threads.py), OpenBLAS's idle threads
-    asleep after 2^20 cycles instead of 2^28 (OPENBLAS_THREAD_TIMEOUT), one OpenMP thread
-    (OMP_THREAD_LIMIT: CHOLMOD's loops ask for 4), a usable TMPDIR, MPI
-    initialised (a light singleton without a launcher), every cache writable or replaced
-    (before dolfinx reads its JIT cache directory), the stand-in for ``pkg_resources``
+    One BLAS thread (multithreaded OpenBLAS makes the small dense per-cell algebra much slower:
+    docs/performance.md, section 5; the large operations widen it, app/threads.py), OpenBLAS's
+    idle threads asleep after 2^20 cycles instead of 2^28 (OPENBLAS_THREAD_TIMEOUT), one OpenMP
+    thread (OMP_THREAD_LIMIT: CHOLMOD's loops ask for 4), a usable TMPDIR, MPI initialised (a
+    light singleton without a launcher), every cache writable or replaced (before dolfinx reads
+    its JIT cache directory), the stand-in for ``pkg_resources``
     (app/startup.py) and usable standard streams.
     """
     for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
         os.environ.setdefault(var, "1")
-    # a thread of the Gamma3 work's BLAS spinning on after it (~0.1 s) took a core from the
-    # two-thread sweeps; with 20 the steps' solves of box3d n = 32 with 32 steps took
-    # 5.4-5.9 s against 6.3-6.4 s, the dense work as fast (measured); 4 made it slower
+    # a thread of the Gamma3 work's BLAS spinning on after it took a core from the
+    # two-thread sweeps; 20 leaves the dense work as fast (docs/performance.md, section 7)
     os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "20")
     # CHOLMOD's supernodal factorisation runs its scatter loops on 4 OpenMP threads (a
     # constant compiled into libcholmod, whatever OMP_NUM_THREADS says); on 2 cores their
-    # spinning took the 2D reference's set-up from 0.26-0.27 to 0.33-0.34 s, and box3d
-    # n = 32's set-up was no faster with them (measured): one thread (read by libgomp when
-    # it loads, with libcholmod, after this)
+    # spinning slows the set-up and gains nothing (docs/performance.md, section 5): one
+    # thread (read by libgomp when it loads, with libcholmod, after this)
     os.environ.setdefault("OMP_THREAD_LIMIT", "1")
     _usable_tmpdir()
     MPI = _init_mpi()

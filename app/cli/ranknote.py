@@ -3,10 +3,8 @@ usually as fast at that size (``small_case_note``)."""
 from __future__ import annotations
 
 # Below this many dofs per rank `mpirun -n 2` was never faster than one rank on the 2-core
-# machines (whole process, interleaved runs, docs/performance.md section 5): the paper case
-# at h = k = 1/128 (16,641 per rank, condensed) 1.44 s serial against 2.13 s (10.8 s on a
-# busy machine), the two cylinders (1,678 per rank) 1.54 s against 1.72 s; box3d n = 32
-# (53,906 per rank) about even.
+# machines; box3d n = 32, about 54,000 per rank, is about even (whole process, interleaved
+# runs: docs/performance.md, section 5).
 SMALL_DOFS_PER_RANK = 50_000
 
 

@@ -6,7 +6,7 @@ closes it without an error while the ids it frees fail to flush ("file write fai
 printed as "Exception ignored"), and the half-closed file then crashes the process when it
 ends (segmentation fault: H5Idec_ref on the file's id at interpreter exit, then serial
 HDF5's own termination in H5D_close; exit 139 before or after the run recorded its
-failure; measured with a 64 kB tmpfs and Debian's libhdf5_serial 1.10).  ``open_h5``
+failure; observed with a 64 kB tmpfs and Debian's libhdf5_serial 1.10).  ``open_h5``
 therefore keeps a failed file's id alive for good (one more reference, never released),
 does not print h5py's tracebacks and raises one OSError naming the file and the errno
 HDF5 reports; ``h5py_module`` imports h5py with serial HDF5's termination at exit turned

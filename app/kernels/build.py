@@ -244,8 +244,8 @@ class Library:
 
     def load(self):
         """The compiled library (``.lib``, ``.ffi``), built into cache_dir() if it is not
-        there yet; found once per process (``name`` reads and hashes every file: 35-160 us,
-        and some callers load per step).
+        there yet; found once per process (``name`` reads and hashes every file, and some
+        callers load per step; docs/performance.md, section 9).
 
         Returns:
             The cffi module, or None if it cannot be built here (a warning says so).

@@ -15,9 +15,8 @@ import numpy as np
 from vpcontact.kernels.build import buf
 
 # cells from which two threads share a pass over the cells (cell_pass, the Perzyna update):
-# the cells are independent (measured in whole runs, one machine state: the Perzyna update
-# of box3d n = 32, 196,608 cells, 15 against 21-25 ms per step; h = 1/128, 32,768 cells,
-# 1.0 against 1.1 ms)
+# the cells are independent; below it the threads gain next to nothing (docs/performance.md,
+# sections 7 and 9)
 SPLIT_MIN_CELLS = 10000
 
 

@@ -1,11 +1,11 @@
 """The explicit Perzyna update (3.2)-(3.3) compiled (perzyna.c).
 
-At h = 1/128 the explicit Perzyna update of the 32,768 cells took 10 ms per step in numpy
-(whole-array Newton iterations on the secular equation, temporaries): more than the two
-back-substitutions of the fast solver.  The same algorithm as material.VonMisesProjection,
-one cell at a time in C, takes well under a millisecond.  The law's numpy update
-(app/model/laws.py: ExplicitUpdate from Perzyna.rates) stays the reference
-(tests/unit/test_kernels.py compares them) and the fallback when no C compiler is available.
+The explicit Perzyna update in numpy (whole-array Newton iterations on the secular equation,
+temporaries) took more than the two back-substitutions of the fast solver.  The same algorithm
+as material.VonMisesProjection, one cell at a time in C, is several times faster
+(docs/performance.md, section 4).  The law's numpy update (app/model/laws.py: ExplicitUpdate
+from Perzyna.rates) stays the reference (tests/unit/test_kernels.py compares them) and the
+fallback when no C compiler is available.
 The kernel knows no law object: its data (E, the von Mises form, the projection's
 eigenbasis, the coordinates' positions in the tensor) are passed in.  It takes one E for
 every cell (isotropic or any homogeneous matrix: Elasticity, MatrixElasticity); for E per
@@ -23,7 +23,7 @@ from vpcontact.kernels.cells import split_threads
 class PerzynaKernel:
     """perzyna_advance for one Perzyna law, on flat DG0 arrays.  Each cell's
     secular-equation root is kept between calls as the next call's start (``mu``): the
-    roots change little from step to step (1.6 against 1.8 ms per call at h = 1/128).
+    roots change little from step to step (docs/performance.md, section 4).
 
     Args:
         law: the elasticity: its ``dim``, ``m``, ``Cmat`` and von Mises form ``M``.

@@ -211,7 +211,7 @@ class BodyParts:
 def _local_components(V) -> tuple[np.ndarray, np.ndarray]:
     """(the local component of each local node, the cell-node table of the local cells):
     the compiled union-find (kernels/cells.c), else scipy's connected_components (whose
-    import, 0.03 s, the compiled kernel spares a run; measured)."""
+    import the compiled kernel spares a run; docs/performance.md, section 9)."""
     imap = V.dofmap.index_map
     n = imap.size_local + imap.num_ghosts
     cells = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)

@@ -8,8 +8,8 @@ With P1 displacements sigma_n is constant on each cell, so (sigma_n, eps(phi_i))
 the cells around node i: r is exact at these nodes from the cells that touch them alone, a
 thin layer of the mesh (StrainOperator.stress_load, the compiled cell pass over those cells),
 and f_n is the run's LoadVector.  Against an assembly of the bulk residual form on the
-layer's cells (0.6-0.8 ms per step at h = 1/128, 6 ms in box3d at n = 32, measured): the
-same values to round-off, from the stress instead of E eps(u) + H_n.
+layer's cells: the same values to round-off, from the stress instead of E eps(u) + H_n, in
+a fraction of the time (docs/performance.md, sections 2 and 9).
 """
 from __future__ import annotations
 

@@ -8,14 +8,13 @@ matrix-vector product thus replaces an interpolation of sigma_n = E eps(u_n) + H
 one an assembly of the pre-stress load (H_n, eps(v)) of (3.4) in every step, and the norms
 ||u||_V = ||eps(u)||_L2 and ||sigma||_Q are exact cell sums.
 
-With the compiled kernels (kernels.cell_pass, cell_load) the same operator D is applied cell
-by cell from |c| grad phi_a of the cell's d + 1 vertex functions (from the cell geometry: a
-quarter of the data of D's rows, and D itself is then never assembled; set-up 0.14 -> 0.03 s
-at h = 1/128): sigma, its von Mises norm and the squared norms ||eps(u)||^2, ||sigma||_Q^2 in
-one pass, D^T H in another.  At h = 1/128 they take about 1.0 and 0.4 ms per step (from D's
-rows 1.0-1.6 and 0.5-1.1 ms; the PETSc products, the numpy von Mises norm and the A-norm
-about 6 ms).  The PETSc products of the assembled D stay the reference
-(tests/unit/test_strain.py) and the fallback.
+With the compiled kernels (kernels.cell_pass, cell_load) the same operator D is applied cell by
+cell from |c| grad phi_a of the cell's d + 1 vertex functions (from the cell geometry: a quarter
+of the data of D's rows, and D itself is then never assembled, which shortens the set-up):
+sigma, its von Mises norm and the squared norms ||eps(u)||^2, ||sigma||_Q^2 in one pass, D^T H
+in another, faster than from D's rows and much faster than the PETSc products
+(docs/performance.md, sections 3, 4 and 9).  The PETSc products of the assembled D stay the
+reference (tests/unit/test_strain.py) and the fallback.
 """
 from __future__ import annotations
 
@@ -34,8 +33,8 @@ from vpcontact.forms.elasticity import elasticity_operator, eps, lame_constants
 
 def _inverse(J: np.ndarray) -> np.ndarray:
     """The inverses of a stack of 2 x 2 or 3 x 3 matrices by their adjugates (np.linalg.inv
-    calls LAPACK once per matrix: 20-60 ms for the 32,768 cells at h = 1/128, against 4 ms;
-    measured).  For columns c0, c1(, c2) of J the rows of J^-1 are orthogonal to the other
+    calls LAPACK once per matrix, several times slower: docs/performance.md, section 3).
+    For columns c0, c1(, c2) of J the rows of J^-1 are orthogonal to the other
     columns: (c1 x c2, c2 x c0, c0 x c1) / det in 3D."""
     if J.shape[-1] == 2:
         a, b, c, e = J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1]

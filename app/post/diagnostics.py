@@ -52,13 +52,12 @@ TRACE_PREFIX = PREFIX + "trace_"        # the iterative K^-1 of trace_constant
 # LOBPCG (the iterative path of trace_constant) stops at a residual of EIGEN_RTOL times the
 # value in the norm of the preconditioner (about K^-1's); the value's error is about the
 # square of that over the gap to the next eigenvalue.  It replaced Lanczos on K^-1 M, whose
-# every iteration was a CG solve to 1e-6 (box3d n = 16: 17 preconditioner applications
-# instead of 7 solves of about 18 CG iterations each; 0.41 s instead of 1.22 s, n = 32:
-# 2.5 s instead of 6.6 s; the value the same to 1e-8; measured).
+# every iteration was a CG solve to 1e-6: far fewer preconditioner applications for the same
+# value (docs/performance.md, section 7, "Forcing version 3, no copy of K").
 EIGEN_RTOL = 1e-4
 # Its GAMG, set up once: smoothed aggregation, whose set-up costs more and whose iterations
-# are fewer and do not grow with the mesh (box3d n = 16 and 32: 17 and 18 iterations,
-# against 28 and 45 with the unsmoothed aggregation of SNES VI's path; measured).
+# are fewer and do not grow with the mesh, unlike the unsmoothed aggregation of SNES VI's
+# path (docs/performance.md, section 9).
 TRACE_GAMG = {"pc_gamg_agg_nsmooths": 1}
 
 
@@ -334,10 +333,9 @@ def trace_constant_bound(problem, solver) -> float | None:
 
 def _gamma3_block(M: PETSc.Mat, layout):
     """M's block on the Gamma3 dofs, G order, on GAMMA3_ROOT (None on the other ranks;
-    collective): a scipy CSR matrix, or below LAPACK_MIN dofs a dense array (no scipy import,
-    0.05 s of a 2D run's start-up).  Sparse: the dense m x m block (box3d n = 32, m = 3168)
-    took 0.45 s to extract, gather and symmetrise and half of each Lanczos step's time
-    (measured)."""
+    collective): a scipy CSR matrix, or below LAPACK_MIN dofs a dense array (no scipy import
+    at start-up).  Sparse: a dense m x m block is slow to extract, gather and symmetrise at
+    3D sizes and doubles each Lanczos step (docs/performance.md, section 9)."""
     g_rows = layout.global_rows()                    # collective
     order = np.argsort(g_rows)
     ai, aj, av = M.getValuesCSR()
@@ -365,9 +363,9 @@ def _largest_generalised_eigenvalue(A, C: np.ndarray) -> float:
     """lam_max of A x = lam S x (A symmetric positive semidefinite, dense or scipy sparse;
     S = C C^T symmetric positive definite with its Cholesky factor C at hand), as lam_max of
     C^-1 A C^-T: Lanczos (ARPACK) with O(m^2) products and triangular solves, or the dense
-    reduction if ARPACK does not converge.  (The dense reduction alone cost 7.9 s of a 31 s
-    run at box3d n = 32, m = 3267; measured.)  Below LAPACK_MIN dofs the dense reduction by
-    numpy (the 2D runs: m = 256 at h = 1/128, a few ms, no scipy import)."""
+    reduction if ARPACK does not converge (the dense reduction alone is a large part of a 3D
+    run; docs/performance.md, section 9).  Below LAPACK_MIN dofs the dense reduction by
+    numpy (the 2D runs; cheap there, no scipy import)."""
     if len(C) < LAPACK_MIN:
         A = A.toarray() if hasattr(A, "toarray") else A
         B = np.linalg.solve(C, np.linalg.solve(C, A).T)          # C^-1 A C^-T, A symmetric

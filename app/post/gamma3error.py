@@ -13,13 +13,12 @@ per Gamma3 node: the error of the sums against the integrals of (1.6)-(1.7).  On
 they act as a contact traction error: D^xi_n in the normal direction where u_nu > 0 (the
 force of xi_n v_nu^+), and the friction stress of the laws (app/post/quantities.py
 ``law_friction``) times theta(s_n + D^s_n) / theta(s_n) - 1 in the tangential one.  Its
-effect on the step is that of a load: the linearised step (the Jacobian of (3.4) at u_n,
-with the Dirichlet conditions) solved for the nodal forces w_i dt_i (the nodal rule's
-weights), e, and the term is ||E eps(e)||_Q + ||e||_V.  One more Jacobian assembly and
-direct solve (MUMPS, its analysis kept) per step where dt is not 0: on the memory case at
-h = 1/48, 32 steps, 0.4 s of a 2.3 s step loop whose own solves (the condensed solver)
-take 0.1 s.  The error of u_n fed back into the later sums and the history is
-not followed.  One body only (pairs: no term).
+effect on the step is that of a load: the linearised step (the Jacobian of (3.4) at u_n, with
+the Dirichlet conditions) solved for the nodal forces w_i dt_i (the nodal rule's weights), e,
+and the term is ||E eps(e)||_Q + ||e||_V.  One more Jacobian assembly and direct solve (MUMPS,
+its analysis kept) per step where dt is not 0, several times the condensed solver's own solves
+(docs/performance.md, section 9).  The error of u_n fed back into the later sums and the history
+is not followed.  One body only (pairs: no term).
 """
 from __future__ import annotations
 

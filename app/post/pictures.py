@@ -21,7 +21,7 @@ app/post/plot.py, which also hands it some of the line figures; a second such pr
 --no-pictures draws the other line figures meanwhile): VTK's wheel is built with
 the old C++ string ABI, and in a process that has loaded dolfinx its std::regex code binds to
 dolfinx's instantiations and aborts (std::bad_alloc as soon as a scalar bar is drawn;
-measured).  This module, app/post/plot.py and linefigures.py import no dolfinx.
+observed).  This module, app/post/plot.py and linefigures.py import no dolfinx.
 """
 from __future__ import annotations
 
@@ -97,7 +97,8 @@ UNIFORM_COLOUR = "lightsteelblue"    # a uniform field: one colour, its value in
 
 
 def _save(plotter, path: Path) -> None:
-    """Render and write the PNG (PIL, zlib level 1: 3x faster than the default 6)."""
+    """Render and write the PNG (PIL, zlib level 1: faster than the default 6;
+    docs/performance.md, section 9)."""
     from PIL import Image
     Image.fromarray(plotter.screenshot(return_img=True)).save(path, compress_level=1)
 
@@ -384,7 +385,7 @@ def animation_scale(solution: Dataset, times) -> ColourScale:
 
 class GifStream:
     """A GIF file written a frame at a time (Pillow's ``save_all`` holds every frame until
-    it writes the file: 1.9 GB for 1501 frames).  Each frame after the first is the
+    it writes the file: docs/performance.md, section 9).  Each frame after the first is the
     rectangle where it differs from the one before (drawn over it, as Pillow writes them),
     with its own colour table.
 
@@ -423,15 +424,15 @@ class GifStream:
 
 def warm_up(pictures: bool = True) -> None:
     """Load matplotlib, the figures' module (and h5py, which it reads with) and, for the
-    pictures, pyvista's plotting modules, and start VTK's OpenGL (EGL) once: 0.8-1 s that a
-    process started ahead of time spends while the run computes (measured).
+    pictures, pyvista's plotting modules, and start VTK's OpenGL (EGL) once, in a process
+    started ahead of time while the run computes (docs/performance.md, section 9).
 
     Args:
         pictures: also pyvista and OpenGL (False: a process for line figures only).
     """
     import h5py  # noqa: F401
 
-    plt = pyplot()                              # matplotlib's first figure costs 0.1-0.2 s
+    plt = pyplot()                              # matplotlib's first figure is slow: drawn here
     fig = plt.figure(figsize=(1, 1))
     fig.text(0.5, 0.5, "x")
     fig.savefig(os.devnull, format="png")

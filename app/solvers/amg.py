@@ -13,7 +13,7 @@ rank the levels are then kept by app/solvers/levels.py (the finest product forme
 rows that change, the finest level applied in the SBAIJ format).
 The options of the inner PC have the prefix ``<prefix>amg_`` (e.g.
 -vpcontact_amg_pc_gamg_threshold 0.02; -vpcontact_amg_pc_type hypre works too, but BoomerAMG
-sees no modes: box3d n = 16 took 99 s of steps against 4 s with GAMG).
+sees no modes and is much slower; docs/performance.md, section 9).
 """
 from __future__ import annotations
 
@@ -29,24 +29,16 @@ AMG_PREFIX = "amg_"
 # overrides them.  The KSP tolerance is relative to the true residual of the Newton system
 # (Newton then contracts at least by ksp_rtol per iteration near the solution).  Unsmoothed
 # aggregation (agg_nsmooths 0): the set-up, repeated whenever the inactive set changes,
-# costs a third of the smoothed one; CG needs more iterations, box3d n = 24 costs 30% less.
+# costs a third of the smoothed one, for more CG iterations and less time in all.
 # Inexact Newton (Eisenstat-Walker forcing, snes_ksp_ew): the Krylov tolerance follows
-# Newton's progress, loose far from the solution.  box3d, 8 steps, SNES VI with CG + GAMG,
-# back to back on the idle machine: n = 24 solves 23.9 -> 19.9 s, n = 32 72.3 -> 51.8 s
-# (Krylov 51.2 -> 16.6 s; Newton iterations 43 -> 76, so GAMG is set up more often:
-# 17 -> 28 s), n = 64 1030 -> 685 s whole process (peak 5.44 -> 5.99 GB); the solution the
-# same to 3e-12 (n = 32), 4e-11 (n = 64): SNES's own tolerances decide it.  Its version 3
-# (Eisenstat-Walker's choice 2 with two safeguards: the tolerance falls no faster than
-# gamma rtol_last^alpha, and it is never tighter than what reaches SNES's relative
-# tolerance, snes_rtol ||F_0|| / ||F_k||, so that the last solve does not over-solve)
-# against the default 2, back to back: CG iterations n = 32 780 -> 611, n = 48 890 -> 769,
-# the steps' solves 34.4 -> 29.7 s and 127.5 -> 114.5 s (alpha = 2 or rtol0 = 0.1 on top:
-# the same to within the machine's noise; version 1: 804 iterations at n = 32).
-# Aggregation keeps every nonzero of the graph (threshold 0, was 0.01) and stops coarsening
-# below 2000 equations (coarse_eq_limit, PETSc's default 50), whose LU is cheap: box3d
-# n = 32, back to back, CG iterations 611 -> 427, the steps' solves 35.3-36.0 -> 27.7-28.9 s
-# (threshold 0 alone 552 iterations, the limit alone 491); n = 64: 912 -> 752 iterations,
-# the steps 342.7 -> 333.3 s (Krylov 198 -> 178 s, the set-ups 89 -> 95 s).
+# Newton's progress, loose far from the solution; SNES's own tolerances decide the
+# solution.  Its version 3 (Eisenstat-Walker's choice 2 with two safeguards: the tolerance
+# falls no faster than gamma rtol_last^alpha, and it is never tighter than what reaches
+# SNES's relative tolerance, snes_rtol ||F_0|| / ||F_k||, so that the last solve does not
+# over-solve) takes fewer CG iterations than the default 2.  Aggregation keeps every nonzero
+# of the graph (threshold 0, was 0.01) and stops coarsening below 2000 equations
+# (coarse_eq_limit, PETSc's default 50), whose LU is cheap: fewer CG iterations.  The
+# measurements behind each choice: docs/performance.md, section 7 ("SNES VI with CG + GAMG").
 AMG_PETSC = {
     "snes_ksp_ew": True,
     "snes_ksp_ew_version": 3,
@@ -146,12 +138,11 @@ class InactiveSetAMG:
     the Galerkin products and smoothers (GAMG's re-set-up under MPI; on one rank
     ``GalerkinLevels``: the finest product from the rows that change only, unless
     ``<prefix>amg_incremental`` is false, and the finest level applied by Jt's SBAIJ copy
-    when Jt is symmetric, unless ``<prefix>amg_fine_sbaij`` is false; box3d n = 64, 8 steps:
-    the set-ups 95 -> 62 s and the Krylov solves 178 -> 112 s, docs/performance.md).
-    box3d n = 24, 8 steps, against GAMG on J_II
-    built anew at every change of the inactive set: set-up 9.7 -> 3.0 s, the same Krylov
-    iterations (854 -> 833); with one interpolation for the whole run (from the first
-    Jacobian, without contact) the Krylov iterations grew to 1012-1120 (measured).
+    when Jt is symmetric, unless ``<prefix>amg_fine_sbaij`` is false).  Against GAMG on
+    J_II built anew at every change of the inactive set the set-ups are far cheaper for
+    the same Krylov iterations; one interpolation for the whole run (from the first
+    Jacobian, without contact) costs more Krylov iterations (docs/performance.md, section 7,
+    "SNES VI with CG + GAMG").
 
     When the inactive set is the one of the previous set-up, the PC is kept (built on an
     earlier Jacobian: they differ by the Gamma3 terms only) while the Krylov iterations of

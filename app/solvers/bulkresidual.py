@@ -5,8 +5,8 @@ With the explicit scheme the bulk part of the residual is linear in u:
 K = (E eps(du), eps(v)) the bulk Jacobian, which SNES VI assembles once per run
 (app/solvers/snesvi.py), H_n and f_n fixed during a step's solve.  So a residual evaluation
 is one product with K, the sum with c_n (assembled once per solve) and the assembly of the
-Gamma3 terms alone, instead of a volume assembly over every cell (box3d n = 32: 26 ms of
-assembly and 11 ms of packing and lifting per evaluation).
+Gamma3 terms alone, instead of a volume assembly over every cell and its packing and lifting
+(docs/performance.md, section 9).
 
 The Dirichlet conditions as in dolfinx's nonlinear residual (assemble, lift with the
 Jacobian at x, set_bc(b, bcs, x, -1)): rows i off the Dirichlet dofs D get

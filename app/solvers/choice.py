@@ -11,9 +11,9 @@ only with its compiled back end (serially) or MUMPS (under mpirun).
 """
 from __future__ import annotations
 
-# auto: the condensed solver while its Gamma3 problem (dense m x m algebra) is small.
-# box3d n = 32 (m = 3267), 8 steps: condensed 25.9 s whole process, 2.4 GB; SNES VI (fresh LU
-# every Newton iteration) 622 s (measured); m = 6000 keeps the dense matrices near 1.5 GB.
+# auto: the condensed solver while its Gamma3 problem (dense m x m algebra) is small, where it
+# is much faster than SNES VI; m = 6000 keeps the dense matrices near 1.5 GB
+# (docs/performance.md, section 9).
 AUTO_FAST_MAX_GAMMA3_DOFS = 6000
 # bytes per entry of m x m that the condensed solver's Gamma3 problem holds at once on the
 # rank that solves it (S, its Cholesky factor, the Newton matrix's work, the kept factor in
@@ -23,8 +23,7 @@ AUTO_FAST_MAX_GAMMA3_DOFS = 6000
 # auto, and refused when asked for (``dense_fits``).
 DENSE_BYTES_PER_ENTRY = 48
 # auto: SNES VI's Newton systems by CG + GAMG (app/solvers/amg.py) in 3D above this many dofs
-# (LU's fill grows like dofs^(4/3) in 3D).  box3d, 8 steps, whole process: n = 16 (14,739
-# dofs) LU 15.3 s, CG + GAMG 7.2 s; n = 24 (46,875) 130 s against 40 s (docs/performance.md).
+# (LU's fill grows like dofs^(4/3) in 3D; docs/performance.md, section 9).
 # Below, a direct solve (the Gamma3 Schur complement, LU where it does not apply) costs
 # seconds and takes indefinite Jacobians (beyond (2.6)) as they come.
 AUTO_AMG_MIN_DOFS = 20_000

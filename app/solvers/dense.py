@@ -9,20 +9,19 @@ definite where the step energy is strictly convex ((2.6)), so it is factorised b
 
 The compiled version (kernels/dense.c with cffi, LAPACK's dpotrf/dpotrs) gathers the free
 block straight from S and the nodal blocks, so only the nf x nf block is built and
-factorised; at h = 1/128 (m = 256, about 180 free dofs) that is a third of the flops of
-factorising the whole m x m matrix with the binding rows replaced by the identity, and no
-copy of S per iteration.
+factorised: a fraction of the flops of factorising the whole m x m matrix with the binding
+rows replaced by the identity (docs/performance.md, section 4), and no copy of S per
+iteration.
 Without a C compiler or LAPACK the same direction is computed with numpy
 (``NewtonDirection._numpy``, the tests' reference).
 
-Large Gamma3 problems (m >= PCG_MIN, 3D) keep the last factor: the Newton matrix of the
-next iteration (or step) differs from it by the change of the nodal blocks W and of a few
-binding dofs, so preconditioned CG with the kept factor solves it in a few matrix-vector
-products (O(m^2) each) instead of a new O(m^3) factorisation (box3d n = 32, m = 3168: 0.17 s
-per factorisation against about 5 ms per CG iteration).  The Newton iteration asks for the
-accuracy it needs (an inexact Newton method: relative residual ``rtol``, down to its own
-convergence); where CG needs more than PCG_MAX_ITERATIONS, or too many dofs changed their
-binding state, the matrix is factorised afresh.
+Large Gamma3 problems (m >= PCG_MIN, 3D) keep the last factor: the Newton matrix of the next
+iteration (or step) differs from it by the change of the nodal blocks W and of a few binding
+dofs, so preconditioned CG with the kept factor solves it in a few matrix-vector products
+(O(m^2) each) instead of a new O(m^3) factorisation (docs/performance.md, section 7).  The
+Newton iteration asks for the accuracy it needs (an inexact Newton method: relative residual
+``rtol``, down to its own convergence); where CG needs more than PCG_MAX_ITERATIONS, or too many
+dofs changed their binding state, the matrix is factorised afresh.
 """
 from __future__ import annotations
 
@@ -50,10 +49,9 @@ def load():
 
 def cholesky_solve(C: np.ndarray, r: np.ndarray) -> np.ndarray:
     """S^-1 r from S's Cholesky factor C: two triangular solves by BLAS trsv in C's precision,
-    through the compiled library where it is built (no scipy import: 0.05 s of a 2D run's
-    start-up), else scipy's.  LAPACK's potrs goes through the matrix-matrix trsm: 9.1 against
-    4.4 ms at m = 3168 in double, 4.2-4.7 against 0.93 ms at 2700 in single precision
-    (measured).
+    through the compiled library where it is built (no scipy import in a 2D run), else
+    scipy's.  LAPACK's potrs goes through the matrix-matrix trsm, about twice as slow in
+    double and four times in single precision (docs/performance.md, section 9).
 
     Args:
         C: lower triangular (m, m), Fortran order, float64 or float32 (only the lower
@@ -77,8 +75,8 @@ def cholesky_solve(C: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 def symmetric_product(S: np.ndarray):
     """x -> S x for a symmetric S: from PCG_MIN dofs by BLAS dsymv, which reads one triangle
-    (the product is bound by memory traffic: 1.8 ms against 3.5 ms for numpy's general
-    product at m = 3168, one thread; measured), else numpy's product.
+    (the product is bound by memory traffic; docs/performance.md, section 7), else numpy's
+    product.
 
     Args:
         S: dense (m, m), symmetric, C order (exactly symmetric: one triangle is read).
@@ -97,9 +95,8 @@ class _Kept:
     """The kept Cholesky factor of (S + W)_ff, in single precision: L (nf x nf, lower,
     Fortran order), the free dofs f and every dof's position in f (-1 if binding).  It only
     preconditions CG, and its triangular solves are bound by memory traffic: in single
-    precision they take half the time (2.9 ms against 5.4 ms at nf = 2700; measured), and
-    by BLAS strsv (cholesky_solve) rather than LAPACK's spotrs 0.9-1.0 ms against
-    3.7-4.7 ms (nf = 2700, one or two threads; measured)."""
+    precision they take half the time, and by BLAS strsv (cholesky_solve) rather than
+    LAPACK's spotrs a quarter (docs/performance.md, sections 7 and 9)."""
 
     def __init__(self, L: np.ndarray, free: np.ndarray, m: int):
         # only the lower triangle is L (cholesky_solve reads no other); the compiled

@@ -227,7 +227,7 @@ class GammaSchur:
 
     def _lu(self, gI, pr, pc, v) -> tuple:
         """scipy's LU factors of (S + B)_{gI,gI} from B's entries (scipy imported here: the
-        nodal rule's runs do without it, 0.05 s of a 2D run's start-up)."""
+        nodal rule's runs do without its start-up cost: docs/performance.md, section 3)."""
         import scipy.linalg
         M = self.S[np.ix_(gI, gI)]
         where = np.full(self.m, -1, dtype=np.int64)     # a G position's place in gI

@@ -8,9 +8,8 @@ schur.GLastLDL).  The order is the caller's: CHOLMOD_GIVEN without postordering,
 factor's permutation is checked against it.  The supernodal factor is not converted to
 CHOLMOD's simplicial form: its interior columns go straight into the node blocks of the
 split solve (kernels.GLastSolve), written over CHOLMOD's own value array, and the trailing
-Gamma3 block L_GG is read out densely (at h = 1/128: 13 ms of conversion, 33 + 22 MB of
-fresh memory and 30-50 ms of block building from the simplicial copy saved; set-up faults
-18.3k -> 11.0k, measured).
+Gamma3 block L_GG is read out densely: no conversion, no fresh copy and fewer page faults
+(docs/performance.md, section 3).
 
 The wrapper (kernels/cholmod_ldl.c) is compiled with cffi like the other kernels and linked to
 libcholmod; where that is not possible (no headers, no compiler) ``load`` returns None and
@@ -66,7 +65,7 @@ class Factor:
     complement: ``D``, ``L_GG`` (dense unit lower, m x m) and ``blocks`` = (bs, nbc, Bp, Bi,
     Bx, Ld), the interior columns of L in bs x bs blocks.  Bx is written over CHOLMOD's own
     value array where that is safe (it is for the nodal orders of schur.py): no copy of the
-    factor at all, so the factor's memory (22 MB at h = 1/128) is touched once; it lives as
+    factor at all, so the factor's memory is touched once; it lives as
     long as this object.  ``in_place=False`` (or an order where it is not safe) copies the
     blocks into a new array and frees CHOLMOD's factor; ``blocks=False`` keeps D and L_GG
     only.  Numpy reference: ``ldl_numpy``.

@@ -8,9 +8,9 @@ products, then every level's smoother handed its operator again: Chebyshev re-es
 eigenvalues, Jacobi takes the new diagonal, the coarse LU refactors) instead of GAMG's
 set-up, which resets the finest smoother to Jt.  So the finest smoother and residual can
 apply ``SymmetricCopy``, Jt in the SBAIJ format (3 x 3 blocks, upper triangle), whose
-product costs about 0.4x the AIJ one (box3d n = 48, 353k dofs: 5.9 against 14.5 ms,
-measured): the smoother's four products and the residual's one per V-cycle are most of the
-Krylov time.  GAMG itself needs AIJ (its graph), so Jt stays AIJ for the set-ups and the
+product costs well under half the AIJ one (docs/performance.md, section 7): the smoother's
+four products and the residual's one per V-cycle are most of the Krylov time.  GAMG itself
+needs AIJ (its graph), so Jt stays AIJ for the set-ups and the
 copy's values are gathered from it (one numpy take per set-up).  Serial only: under MPI the
 finest level applies Jt (AIJ) as before.
 """
@@ -55,7 +55,8 @@ def _array(mat: PETSc.Mat, n: int, get: str) -> tuple[np.ndarray, ctypes.c_void_
 @contextmanager
 def _row_ij(mat: PETSc.Mat):
     """A sequential AIJ matrix's row pointers and column indices, not copied (MatGetRowIJ;
-    petsc4py's getRowIJ copies them: 0.15 GB at box3d n = 64)."""
+    petsc4py's getRowIJ copies them, a large transient at 3D sizes: docs/performance.md,
+    section 9)."""
     lib = libpetsc()
     cint = np.ctypeslib.as_ctypes_type(PETSc.IntType)
     n, done = cint(), ctypes.c_int()
@@ -179,7 +180,7 @@ class FineProduct:
     ``changing`` and their columns (the Gamma3 dofs: contact terms, the active set) and in
     the rows R that couple to them: A_c = C0 + P_R^T (Jt_R P), with Jt_R = Jt's rows R
     (all columns), P_R = P's rows R and C0 = P^T Jt P - P_R^T (Jt_R P) of the first Jt,
-    kept.  box3d n = 32: R is 9% of the rows (9,702 of 107,811), n = 64 about 5%.
+    kept; R is a small part of the rows (docs/performance.md, section 7).
     C0 carries the rounding error of A_c's largest entry; so the first A_c must not exceed
     C0 by more than MAX_RANGE (a stiff compliance: B ~ 1e16 K would leave K's digits in
     it), or ``usable`` is false and the full product is used.

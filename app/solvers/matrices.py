@@ -7,8 +7,8 @@ from petsc4py import PETSc
 
 def share_pattern(A: PETSc.Mat):
     """How to duplicate a matrix that keeps A's nonzero pattern: sharing A's column
-    indices where PETSc can (AIJ: a third less memory per copy; box3d n = 64: 0.27 GB of
-    each 0.8 GB matrix), else as a copy of A's values (BAIJ).
+    indices where PETSc can (AIJ: a third less memory per copy; docs/performance.md,
+    section 9), else as a copy of A's values (BAIJ).
 
     Args:
         A: the matrix.

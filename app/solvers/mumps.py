@@ -152,8 +152,8 @@ class SchurMumps:
     def _factor(self, S: np.ndarray | None) -> None:
         """The numerical factorisation (JOB = 2), repeated with the workspace margin ICNTL(14)
         doubled while MUMPS reports its workspace estimate too small (INFOG(1) = -8, -9:
-        the remedy its user guide names).  Measured: the punch under mpirun -n 2 met -9 in
-        3 of 20 runs at the default margin (20 %), as the partition varies."""
+        the remedy its user guide names): the default margin is too small now and then, as
+        the partition varies (docs/performance.md, section 9)."""
         h, lib = self._h, self.lib
         messages = lib.ms_icntl(h, 1)
         lib.ms_set_icntl(h, 1, 0)                   # no MUMPS message for a retried attempt

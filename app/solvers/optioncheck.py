@@ -50,7 +50,7 @@ MAX_OPTIONS = 100                 # PETSc's database holds 512 in all (its own o
 # the step problem is a variational inequality: only SNES VI types honour the bound
 VI_SNES_TYPES = ("vinewtonrsls", "vinewtonssls")
 # the condensed solver's matrix (app/solvers/condensed/): BAIJ in serial, AIJ under mpirun;
-# the packages that factorise it exactly, by PC type (measured with this PETSc build)
+# the packages that factorise it exactly, by PC type (as tried with this PETSc build)
 FAST_PACKAGES = {(True, "lu"): ("mumps", "petsc"), (True, "cholesky"): ("petsc",),
                  (False, "lu"): ("mumps", "superlu_dist"),
                  (False, "cholesky"): ("mumps", "superlu_dist")}

@@ -4,16 +4,16 @@ factorisation with the Gamma3 dofs ordered last.
 If the rows and columns of K are ordered so that the Gamma3 dofs G come last and K = L U
 (no pivoting: K is symmetric positive definite, so U = D L^T), the trailing blocks satisfy
     S = K_GG - K_GI K_II^-1 K_IG = L_GG U_GG = C C^T,      C = L_GG D_G^1/2,
-so the Schur complement costs one factorisation and a product of two m x m triangles instead
-of m back-substitutions (at h = 1/128, m = 256: 0.55 s with SuperLU against 1.4 s with
-PETSc's LU and 44 s with MUMPS column by column under mpirun -n 2; measured).  The interior
-is ordered by CHOLMOD's fill-reducing order (AMD or METIS; PETSc's nested dissection where
-CHOLMOD is missing) of the node graph, so a node's dofs stay together,
+so the Schur complement costs one factorisation and a product of two m x m triangles instead of
+m back-substitutions, which cost far more with every back end (docs/performance.md, section 3).
+The interior is ordered by CHOLMOD's fill-reducing order (AMD or METIS; PETSc's nested
+dissection where CHOLMOD is missing) of the node graph, so a node's dofs stay together,
 the factorisation is CHOLMOD's L D L^T (app/solvers/ldl.py) or, without it, SuperLU's L U (scipy),
 on rank 0 with the matrix gathered there (the condensed solver is for problems whose Gamma3 is
 small; the matrix itself is a few MB at the sizes it is chosen for).  The CHOLMOD path needs
 numpy and PETSc only: importing scipy.sparse pulls in scipy.linalg and scipy.sparse.csgraph
-(0.1 s of start-up, measured), so scipy is imported for the SuperLU fallback alone.
+(start-up time: docs/performance.md, section 3), so scipy is imported for the SuperLU
+fallback alone.
 """
 from __future__ import annotations
 
@@ -78,7 +78,8 @@ def gather_csr(K: PETSc.Mat, comm) -> CSR | None:
         On rank 0, the CSR of the whole matrix (rows in global order); None elsewhere.
     """
     indptr, indices, data = K.getValuesCSR()
-    if comm.size == 1:          # no gather: it pickles the arrays (0.15 s at 108k dofs)
+    # one rank: no gather, which pickles the arrays (docs/performance.md, section 3)
+    if comm.size == 1:
         return CSR(indptr, indices, data)
     parts = comm.gather((indptr, indices, data), root=0)
     if comm.rank != 0:
@@ -118,8 +119,9 @@ def _metis_order(indptr: np.ndarray, indices: np.ndarray) -> np.ndarray | None:
     """CHOLMOD's fill-reducing order of a symmetric graph (AMD or METIS, postordered:
     kernels/cholmod_ldl.c), or None where CHOLMOD is not available or fails.  Vertices with
     no neighbour (the Dirichlet dofs, whose couplings are stored zeros) come first: they
-    cause no fill.  On box3d's matrix at n = 24 this order (nodal graph) costs 3.1e10 flops,
-    CHOLMOD's own on the dof matrix 3.2e10, PETSc's nested dissection 1.6e11 (measured)."""
+    cause no fill.  This order of the nodal graph costs about what CHOLMOD's own order of the
+    dof matrix does, a fraction of PETSc's nested dissection (docs/performance.md, section
+    9)."""
     from vpcontact.solvers import ldl
     module = ldl.load()
     if module is None:
@@ -223,9 +225,9 @@ class GLastLU:
 
 class GLastLDL:
     """K = L D L^T by CHOLMOD (app/solvers/ldl.py) in the same order as GLastLU (interior by nested
-    dissection, G last): half the work of an L U factorisation (at h = 1/128: 0.16-0.19 s
-    against 0.35-0.48 s for SuperLU, measured).  ``D``: the pivots; ``blocks``: the interior
-    columns of L in blocks, ready for kernels.GLastSolve (ldl.Factor); U = D L^T.
+    dissection, G last): half the work of an L U factorisation (docs/performance.md,
+    section 3).  ``D``: the pivots; ``blocks``: the interior columns of L in blocks, ready
+    for kernels.GLastSolve (ldl.Factor); U = D L^T.
 
     Args:
         A: the symmetric positive definite matrix K.
@@ -243,7 +245,7 @@ class GLastLDL:
         self.n, self.m = A.n, len(G)
         self.perm = interior_last_ordering(A, G, bs)
         # the factor's pattern is the ordering's graph: no stored zeros (with them, the
-        # Dirichlet dofs' couplings fill: 3-5x the flops at box3d n = 24; measured)
+        # Dirichlet dofs' couplings fill; docs/performance.md, section 9)
         A = A.without_zeros()
         self._factor = Factor(module, A.indptr, A.indices, A.data, self.perm, self.m, bs,
                               blocks=blocks)
@@ -264,8 +266,8 @@ class GLastLDL:
 
     def release_L_GG(self) -> np.ndarray:
         """L_GG's memory for the caller to overwrite (the Schur pair's work array: pages
-        touched already, where a fresh m x m array costs its page faults, 80 MB at
-        m = 3168); L_GG and ``trailing`` are gone afterwards.
+        touched already, where a fresh m x m array costs its page faults; docs/performance.md,
+        section 7); L_GG and ``trailing`` are gone afterwards.
 
         Returns:
             L_GG, dense (m, m), Fortran order.
@@ -297,7 +299,7 @@ def g_last_factor(A: CSR, G: np.ndarray, bs: int = 1, blocks: bool = True):
     return GLastLU(A, G, bs)
 
 
-LAPACK_MIN = 600    # Gamma3 dofs above which scipy's LAPACK (0.1 s to import) pays off
+LAPACK_MIN = 600    # Gamma3 dofs above which scipy's LAPACK (slow to import) pays off
 
 
 def schur_pair(factor: GLastLU | GLastLDL) -> tuple[np.ndarray, np.ndarray]:
@@ -325,8 +327,8 @@ def schur_pair(factor: GLastLU | GLastLDL) -> tuple[np.ndarray, np.ndarray]:
 
 def _schur_pair_cholesky(factor: GLastLDL) -> tuple[np.ndarray, np.ndarray] | None:
     """C = L_GG D_G^1/2 is S's Cholesky factor, and S = C C^T by LAPACK's triangular
-    product (dlauum: m^3/3 flops, against 2 m^3 for a general product; box3d n = 32,
-    m = 3168: about 0.3 s; measured).
+    product (dlauum: m^3/3 flops, against 2 m^3 for a general product; docs/performance.md,
+    section 9).
 
     Returns:
         (S, C), or None if a pivot of D_G is not positive (K not positive definite there;
@@ -389,7 +391,7 @@ def mirror_upper(U: np.ndarray, block: int = 256) -> None:
 def symmetric_in_place(U: np.ndarray, block: int = 256, chunk: int = 1 << 16) -> np.ndarray:
     """J (U + U^T - diag U) J, J the reversal, in U's own memory: the S of
     ``_schur_pair_cholesky`` from dlauum's upper triangle without a new m x m array (whose
-    first touch, 85 MB at m = 3267, cost 0.06-0.23 s of page faults in a run; measured).
+    first touch costs page faults; docs/performance.md, section 7).
 
     U's lower triangle is filled from its upper one (``mirror_upper``), and then the
     reversed matrix is U's memory read backwards: for a symmetric A in Fortran order,

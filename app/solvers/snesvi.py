@@ -43,10 +43,9 @@ INDEFINITE = (PETSc.KSP.ConvergedReason.DIVERGED_INDEFINITE_PC,
               PETSc.KSP.ConvergedReason.DIVERGED_INDEFINITE_MAT)
 INDEFINITE_KSP = {"ksp_type": "gmres", "ksp_gmres_restart": 100}
 # the residual's round-off floor: ROUNDOFF_FACTOR eps || |J| |x| ||_2 (RoundoffFloor), the
-# componentwise bound of the error of a computed residual.  Measured: the nearly
-# incompressible plane-strain square (nu = 0.4999, h = 1/16) stalls at 3e-11 = 0.11 eps
-# || |J| |u| || (> snes_atol 1e-11); on the paper's case the floor is 5.4e-13, 1/18 of its
-# snes_atol (the same results as without it)
+# componentwise bound of the error of a computed residual: a nearly incompressible body
+# stalls above snes_atol, while the paper's case keeps the results it has without the floor
+# (docs/performance.md, section 9)
 ROUNDOFF_FACTOR = 1.0
 # an iterate with |x| beyond BLOWUP times the body's size has run away (small strains):
 # the floor is not raised there, and a failure says why
@@ -91,10 +90,10 @@ def reason_name(reason: int) -> str:
 
 
 def direct_solver(A: PETSc.Mat, comm, prefix: str | None = None) -> PETSc.KSP:
-    """A KSP applying A^-1 by LU: PETSc's own LU with nested dissection in serial (the
-    fastest back-substitution measured here), MUMPS in parallel.  Options under
-    ``prefix`` (e.g. -vpcontact_fast_pc_factor_mat_solver_type mumps) are read by the caller's
-    setFromOptions.
+    """A KSP applying A^-1 by LU: PETSc's own LU with nested dissection in serial (the fastest
+    back-substitution on these machines: docs/performance.md, section 3), MUMPS in parallel.
+    Options under ``prefix`` (e.g. -vpcontact_fast_pc_factor_mat_solver_type mumps) are read by
+    the caller's setFromOptions.
 
     Args:
         A: the matrix to factorise (square, assembled).
@@ -197,8 +196,8 @@ class RoundoffFloor:
     Jacobian (its magnitude, not its value, matters).  |J| is kept for the run: on one rank,
     where J is symmetric with whole d x d blocks (the Hessian of the step energy), in the
     SBAIJ format (app/solvers/levels.py: the upper block triangle, about half of the AIJ
-    copy's values: 0.28 against 0.53 GB at box3d n = 64), else as an AIJ matrix sharing
-    J's pattern.
+    copy's values; docs/performance.md, section 7), else as an AIJ matrix sharing J's
+    pattern.
     """
 
     def __init__(self):
@@ -542,8 +541,8 @@ class SNESVISolver:
         time x_{n-1} + (t_n - t_{n-1}) / (t_{n-1} - t_{n-2}) (x_{n-1} - x_{n-2}) of the
         last two solutions, put into the bounds (SNES VI starts from a feasible point).
         Unchanged where they are not the last two steps of this run (first step, a
-        restart, a rejected or repeated step).  The step problems change smoothly in t:
-        box3d n = 24, 8 steps, CG + GAMG: Newton iterations 70 -> 60 (measured)."""
+        restart, a rejected or repeated step).  The step problems change smoothly in t, so
+        Newton needs fewer iterations (docs/performance.md, section 7)."""
         t = float(self.problem.time_data.t.value)
         x = self.x.array
         ok = len(self._past) == 2 and t > self._past[1][0] > self._past[0][0] \
@@ -610,7 +609,7 @@ class SNESVISolver:
         Gamma3 facets' dofs only, and A's entries there are set to K's values (kept,
         GammaEntries) plus B's: J = K + B in A with J's sparsity pattern throughout (the
         direct solver keeps its symbolic factorisation and only refactorises numerically)
-        and no copy of K (box3d n = 64: 0.3 GB).  (Not A <- A - B_old + B_new: a stiff
+        and no copy of K (docs/performance.md, section 7).  (Not A <- A - B_old + B_new: a stiff
         compliance, c_nu = 1e20 with B about 1e16 K, loses K's digits in the subtraction.)
         A SNES that rewrites J in place (REWRITES_J: vinewtonssls scales its rows and shifts
         its diagonal) gets A from a kept copy of K first (``_keep_bulk``)."""
@@ -640,10 +639,9 @@ class SNESVISolver:
 
     def _release_last_system(self, snes) -> None:
         """Before a new Jacobian, the KSP lets go of the last Newton system (CG + GAMG path):
-        vinewtonrsls extracts the next J_II while the KSP still holds the last one, two
-        copies of the largest matrix at once (box3d n = 32, 8 steps: peak 869 -> 747 MB,
-        the same iterations and time; measured).  The direct path keeps its KSP (the LU's
-        symbolic factorisation is reused)."""
+        vinewtonrsls extracts the next J_II while the KSP still holds the last one, two copies
+        of the largest matrix at once (the peak memory it saves: docs/performance.md, section
+        7).  The direct path keeps its KSP (the LU's symbolic factorisation is reused)."""
         if self.linear == "amg":
             snes.getKSP().reset()
 

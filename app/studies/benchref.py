@@ -1,10 +1,10 @@
 """The bench's yardstick: one elasticity solve on a row's mesh, timed in the same bench run.
 
-Machines differ by 1.5-2x (box3d n = 32 x 32: 14.1 s on one, 20-24 s on another), so every
-bench row also gives its times as ratios to a reference measured in the same bench run on
-the same mesh: the elasticity matrix K = (eps(u), eps(v)) on V^h (P1, every boundary facet
-clamped) assembled, factorised and solved once for a load of ones, with the linear solver
-SNES VI would take on that mesh (``choose_linear``: its serial LU, or above AUTO_AMG_MIN_DOFS
+Machines differ by 1.5-2x (docs/performance.md, section 8), so every bench row also gives
+its times as ratios to a reference measured in the same bench run on the same mesh: the
+elasticity matrix K = (eps(u), eps(v)) on V^h (P1, every boundary facet clamped)
+assembled, factorised and solved once for a load of ones, with the linear solver SNES VI
+would take on that mesh (``choose_linear``: its serial LU, or above AUTO_AMG_MIN_DOFS
 in 3D, where LU's fill would not fit, CG + GAMG with the rigid body modes).  The form is
 compiled and the mesh built before the clock starts; the fastest of ``REPEAT`` timings
 counts.  It runs as a process of its own (``python -m vpcontact.studies.benchref CASE --set

@@ -1,9 +1,9 @@
 """The serial back end of the Condensation: K = L D L^T by CHOLMOD with the Gamma3 dofs last
 (SuperLU's L U where CHOLMOD is missing; app/solvers/schur.py), its trailing blocks giving
 S = L_GG D_G L_GG^T, and a step's condensation and expansion as one forward and one backward
-sweep through L's interior columns (kernels.GLastSolve: node blocks, compiled).  At h = 1/128
-about 6 ms per step against 9.4-12 ms for the two PETSc back-substitutions of
-PetscCondensation.  ``RootCondensation`` is the same on GAMMA3_ROOT under mpirun: K gathered
+sweep through L's interior columns (kernels.GLastSolve: node blocks, compiled), faster than
+the two PETSc back-substitutions of PetscCondensation (docs/performance.md, section 4).
+``RootCondensation`` is the same on GAMMA3_ROOT under mpirun: K gathered
 there once, each right-hand side gathered and each solution scattered back by PETSc (n values
 each way), while the other ranks wait asleep.
 """

@@ -115,7 +115,8 @@ class Gamma3Layout:
         """
         rows = np.ascontiguousarray(local_rows, dtype=float)
         pos = np.ascontiguousarray(self.owned_positions, dtype=np.int64)
-        if self.comm.size == 1:           # no pickled copy of the m x m rows (0.8 s, m = 3168)
+        # one rank: no pickled copy of the m x m rows (docs/performance.md, section 9)
+        if self.comm.size == 1:
             out = np.empty((self.m, self.m))
             out[pos] = rows
             return out

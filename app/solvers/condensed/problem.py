@@ -190,13 +190,13 @@ class Gamma3Problem:
             yt = np.minimum(np.maximum(y + alpha * p, lb), ub)
             Et, gt, Ht = energy_grad(yt)
             # Armijo, or a step so small that the energy cannot resolve it any more.
-            # (Accepting steps up to the round-off of E instead let the iteration zig-zag
-            # at h = 1/256: 670 iterations against 278 for 32 steps; measured.)
+            # (Accepting steps up to the round-off of E instead let the iteration zig-zag:
+            # docs/performance.md, section 2.)
             if Et <= E + 1e-4 * g @ (yt - y) or np.abs(yt - y).max() <= 1e-16 * scale:
                 break
             # Where the predicted decrease is below the round-off of E, the energy cannot
-            # judge the step: the projected gradient does (3D, box3d n = 16: steps stalled
-            # for 160-200 iterations at |pg| ~ 1e-11 with |g.dy| ~ 1e-21, E ~ 1e-4).
+            # judge the step: the projected gradient does (else steps stall in 3D;
+            # docs/performance.md, section 9).
             if abs(g @ (yt - y)) <= 1e3 * _EPS * max(abs(E), abs(Et)) and \
                     _projected(yt, gt, lo, hi) < 0.5 * np.abs(pg).max():
                 break
@@ -212,9 +212,9 @@ class Gamma3Problem:
 
     def _start(self, y0: np.ndarray, t: float) -> np.ndarray:
         """The iteration's start: the linear extrapolation in time of the last two steps'
-        solutions (the step problems change smoothly: 276 Newton iterations against 351 from
-        the last solution alone at h = k = 1/128, measured), the last solution after one
-        step or a restart, y0 (the free solution) at the first step."""
+        solutions (the step problems change smoothly, so Newton needs fewer iterations:
+        docs/performance.md, section 2), the last solution after one step or a restart, y0
+        (the free solution) at the first step."""
         if len(self._y_prev) == 2:
             (t0, y_0), (t1, y_1) = self._y_prev
             if t0 is not None and t > t1 > t0:
