@@ -168,7 +168,8 @@ class FieldOutput(Observer):
         fields = [p.u, p.sigma, p.sigma_vm] + (
             self.kappa.functions if kappa is not None else []) + [
             f for out in self.derived for f in out.functions]
-        self.writer = FieldWriter(sim.comm, Path(sim.outdir) / "solution.xdmf", p.mesh, fields)
+        self.writer = FieldWriter(sim.comm, Path(sim.outdir) / "solution.xdmf", p.disc.mesh,
+                                  fields)
         self._write(sim.t)
 
     def _write(self, t: float) -> None:
@@ -224,7 +225,7 @@ class ContactOutput(Observer):
         c = sim.case.contact
         table = quantities.contact_table(sim.problem, sim.boundary_residual)   # None: assembled
         return gather_contact_table(sim.comm, table, c.g, compliance=c.compliances,
-                                    length=sim.problem.length_scale)
+                                    length=sim.problem.disc.length_scale)
 
     def start(self, sim) -> None:
         """Write the facet mesh and the table at the start time.
@@ -235,11 +236,11 @@ class ContactOutput(Observer):
         Raises:
             OutputError: contact.xdmf cannot be written.
         """
-        p = sim.problem
-        if p.gamma3 is None:
+        disc = sim.problem.disc
+        if disc.gamma3 is None:
             return
         self.writer = ContactWriter(sim.comm, Path(sim.outdir) / "contact.xdmf",
-                                    p.gamma3_facet_coordinates(), p.dim)
+                                    disc.gamma3_facet_coordinates(), disc.dim)
         self.writer.write(sim.t, self._table(sim))
 
     def step(self, sim, record: dict) -> None:
@@ -282,13 +283,13 @@ class HistoryOutput(Observer):
         Raises:
             OutputError: history.csv cannot be written.
         """
-        p = sim.problem
-        groups = [str(g.name) for g in p.dirichlet.groups]
-        columns = history_columns(p.dim, groups, p.gamma3 is not None,
+        disc = sim.problem.disc
+        groups = [str(g.name) for g in disc.dirichlet.groups]
+        columns = history_columns(disc.dim, groups, disc.gamma3 is not None,
                                   [(str(q.surface), str(q.target)) for q in sim.case.contact.pairs],
                                   [str(g) for g in sim.case.loads.rigid])
         self.writer = HistoryWriter(sim.comm, Path(sim.outdir) / "history.csv", columns,
-                                    p.dim, sim.steps)
+                                    disc.dim, sim.steps)
 
     def step(self, sim, record: dict) -> None:
         """Append the row of step n.
@@ -400,11 +401,11 @@ class RunFiles(Observer):
         """
         outdir, steps = Path(sim.outdir), sim.steps
         try:
-            if sim.problem.gamma3 is not None and steps:
+            if sim.problem.disc.gamma3 is not None and steps:
                 summary.contact_states = write_contact_csv(
                     sim.comm, outdir / "contact.csv", quantities.contact_table(sim.problem),
                     sim.case.contact.g, compliance=sim.case.contact.compliances,
-                    length=sim.problem.length_scale)
+                    length=sim.problem.disc.length_scale)
                 self.files.append(outdir / "contact.csv")
         except OutputError as exc:
             summary.fail(StepFailure.output(summary.last_good_step, steps[-1]["t"], exc))

@@ -263,10 +263,10 @@ class Simulation:
 
     def _log_case(self) -> None:
         """The run's first lines: mesh, dofs, steps, adaptive steps, active terms."""
-        case, p = self.case, self.problem
+        case, p, disc = self.case, self.problem, self.problem.disc
         ks = [b - a for a, b in zip(case.time.times, case.time.times[1:])]
         log.info("case %s (%dD): %d cells, %d vertices, %d dofs, %d steps (k = %s)", case.name,
-                 p.dim, p.num_cells, p.num_vertices, p.num_dofs, case.time.N,
+                 disc.dim, disc.num_cells, disc.num_vertices, disc.num_dofs, case.time.N,
                  f"{ks[0]:g}" if case.time.uniform else f"{min(ks):g}..{max(ks):g}")
         if case.time.adaptive is not None:
             log.info("adaptive time steps: starting from k = %g to T = %g", ks[0], case.time.T)
@@ -274,14 +274,14 @@ class Simulation:
         if case.contact.pairs:       # two bodies: each pair (app/post/pairreport.py)
             for line in pair_lines(p):
                 log.info("%s", line)
-        elif p.frames is not None:
+        elif disc.frames is not None:
             d = case.contact.direction
             log.info("Gamma3 (%s): %d nodes, normal %s%s",
-                     ", ".join(map(str, case.boundaries.contact)), p.num_gamma3_nodes,
+                     ", ".join(map(str, case.boundaries.contact)), disc.num_gamma3_nodes,
                      f"the fixed direction {tuple(round(x, 6) for x in d)}" if d is not None
                      else "nodal (the mesh's outward normals)",
                      "; SNES VI and the fast solver in rotated nodal frames"
-                     if p.frames.rotated else "")
+                     if disc.frames.rotated else "")
 
     # ------------------------------------------------------------------ the loop
     @property
@@ -485,10 +485,10 @@ class Simulation:
             record["contact_force"] = forces["contact_force"]
         if forces["pair_forces"] is not None:
             record["pair_forces"] = forces["pair_forces"]
-        if p.caps is not None:                  # the rigid caps' motion and resultant
-            owned = p.V.dofmap.index_map.size_local * p.dim
-            record["rigid"] = p.caps.report(p.u.x.array[:owned],
-                                            self.boundary_residual.ravel())
+        caps = p.disc.caps
+        if caps is not None:                  # the rigid caps' motion and resultant
+            owned = p.disc.V.dofmap.index_map.size_local * p.disc.dim
+            record["rigid"] = caps.report(p.u.x.array[:owned], self.boundary_residual.ravel())
         if self.gamma3_history:
             record["gamma3_history_s"] = t_g3       # memory term / slip update of this step
         if self.solver.fallback:
@@ -581,9 +581,10 @@ class Simulation:
     def summary(self) -> RunSummary:
         """Returns: the RunSummary of the run so far (summary.json without contact_states)."""
         case, p, stepper = self.case, self.problem, self.stepper
+        disc = p.disc
         return RunSummary(
             case=case.name, source=case.source, case_data=case.raw, status=self.status,
-            mesh={"cells": p.num_cells, "vertices": p.num_vertices, "dofs": p.num_dofs,
+            mesh={"cells": disc.num_cells, "vertices": disc.num_vertices, "dofs": disc.num_dofs,
                   **self._mesh_kind(), "h": self.domain.h,
                   "diagonal": self.domain.diagonal},
             time={"T": case.time.T, "N": self.n, "uniform": case.time.uniform,

@@ -33,11 +33,12 @@ def report(case, comm) -> list[str]:
         lo, hi = body.bbox
         case = rescale_for_length(case, float(np.max(hi - lo)), check_data_on_mesh(case, body))
     problem = ContactProblem(case, body)
+    disc = problem.disc
     ks = np.diff(case.time.times)
-    n_dofs = gamma3_dofs(problem)
-    n_g = n_dofs // problem.dim
-    ok, why = condensed_eligible(case, problem)
-    method = choose_method(case, n_dofs, problem)
+    n_dofs = gamma3_dofs(disc)
+    n_g = n_dofs // disc.dim
+    ok, why = condensed_eligible(case, disc)
+    method = choose_method(case, n_dofs, disc)
     m = case.mesh
     if m.file is not None:
         mesh = f"{m.file}, h = {body.h_min:.3g}..{body.h:.3g}"
@@ -50,7 +51,7 @@ def report(case, comm) -> list[str]:
     pairs = ", ".join(f"{p.surface} -> {p.target}" for p in case.contact.pairs)
     lines = [
         f"case {case.name} ({case.source}): valid",
-        f"mesh: {m.dim}D, {mesh}, {problem.num_cells} cells, {problem.num_vertices} vertices",
+        f"mesh: {m.dim}D, {mesh}, {disc.num_cells} cells, {disc.num_vertices} vertices",
         f"boundary groups: {groups or 'none'}; clamped: {', '.join(map(str, b.clamped)) or '-'}"
         + (f"; contact pairs: {pairs}" if pairs
            else f"; contact: {', '.join(map(str, b.contact)) or '-'}")
@@ -58,7 +59,7 @@ def report(case, comm) -> list[str]:
            if case.loads.displacement else "")
         + (f"; rigid caps: {', '.join(map(str, case.loads.rigid))}"
            if case.loads.rigid else ""),
-        f"dofs: {problem.num_dofs} (P1 displacement), Gamma3 nodes: {n_g}",
+        f"dofs: {disc.num_dofs} (P1 displacement), Gamma3 nodes: {n_g}",
         f"time: T = {case.time.T:g}, {case.time.N} steps, k = "
         + (f"{ks[0]:g}" if case.time.uniform else f"{ks.min():g}..{ks.max():g}")
         + f", {case.time.scheme} history scheme"
@@ -69,7 +70,7 @@ def report(case, comm) -> list[str]:
                                     else "") + ("" if ok else f"; condensed not possible: {why}"),
     ]
     if problem.materials:        # one material per group of cells (app/model/materials.py)
-        counts = problem.materials.cell_counts(problem.num_owned_cells, problem.comm)
+        counts = problem.materials.cell_counts(disc.num_owned_cells, disc.comm)
         lines.insert(4, "cell groups (materials): " + ", ".join(
             f"{ref} (tag {tag}, {n} cells)" for ref, tag, n in counts))
     lines += pair_lines(problem)         # two bodies: each pair (app/post/pairreport.py)

@@ -234,10 +234,10 @@ def points(problem, V) -> np.ndarray:
     Returns:
         (local dofs, 3 or 4) coordinates.
     """
-    x = V.tabulate_dof_coordinates()
-    if getattr(problem, "pairs", None) is None or V.ufl_element().degree() != 1:
+    x, disc = V.tabulate_dof_coordinates(), problem.disc
+    if disc.pairs is None or V.ufl_element().degree() != 1:
         return x
-    return np.column_stack([x, problem.pair_node_labels * problem.length_scale])
+    return np.column_stack([x, disc.pair_node_labels * disc.length_scale])
 
 
 def _owned_rows(problem, function):
@@ -323,7 +323,7 @@ def save(outdir: Path, sim) -> Path:
     if comm.rank == 0:
         st = sim.stepper.state()
         mem = g3["memory"] if g3 is not None else None
-        groups = group_map(problem.body)
+        groups = group_map(problem.disc.body)
         meta = {"n": sim.n, "t": sim.t, "fingerprint": case_fingerprint(sim.case, laws),
                 "case_key": case_key(sim.case, groups, laws), "groups": groups,
                 "steps": sim.steps,
@@ -344,9 +344,10 @@ def _gamma3_arrays(comm, problem, g3: dict, arrays: dict) -> None:
     """The Gamma3 history's nodal values (xi_n, the direct sum's u_nu^+ history, s_n, the
     Coulomb p_n, the slip path's u_{n-1,tau} and accumulated slip) at the owned Gamma3
     nodes, with their coordinates, gathered into ``arrays`` on rank 0."""
-    own = problem.gamma3.nodes                       # owned Gamma3 nodes (local index)
-    pos = np.searchsorted(problem.gamma3_local_nodes, own)
-    xg = problem.V.tabulate_dof_coordinates()[own]
+    disc = problem.disc
+    own = disc.gamma3.nodes                       # owned Gamma3 nodes (local index)
+    pos = np.searchsorted(disc.gamma3_local_nodes, own)
+    xg = disc.V.tabulate_dof_coordinates()[own]
     cols = {}
     mem, slip = g3["memory"], g3["slip"]
     if mem is not None:
@@ -376,14 +377,15 @@ def _time_error_arrays(comm, sim, arrays: dict) -> None:
     if estimate is None:
         return
     err = estimate.time.state() if estimate.time is not None else None
-    n = problem.num_owned_cells
+    disc = problem.disc
+    n = disc.num_owned_cells
     cols = {} if err is None else {
         name: (points(problem, problem.state.H.function_space)[:n], v[:n])
         for name, v in err.items()}
     if estimate.gamma3 is not None:
-        own = problem.gamma3.nodes
-        pos = np.searchsorted(problem.gamma3_local_nodes, own)
-        xg = problem.V.tabulate_dof_coordinates()[own]
+        own = disc.gamma3.nodes
+        pos = np.searchsorted(disc.gamma3_local_nodes, own)
+        xg = disc.V.tabulate_dof_coordinates()[own]
         cols.update({f"g3_{name}": (xg, v[pos][:, None])
                      for name, v in estimate.gamma3.state().items() if v is not None})
     for name, (x, v) in cols.items():
@@ -651,9 +653,10 @@ class Checkpoint:
             CheckpointError: the checkpoint does not fit the problem.
         """
         problem = sim.problem
-        comm = problem.comm
+        disc = problem.disc
+        comm = disc.comm
         self.check_laws(sim)
-        n_g3 = comm.allreduce(len(problem.gamma3.nodes) if problem.gamma3 is not None else 0)
+        n_g3 = comm.allreduce(len(disc.gamma3.nodes) if disc.gamma3 is not None else 0)
         try:
             self._restore_fields(problem, problem.state, n_g3)
             self._restore_time_error(problem, problem.state, n_g3)
@@ -705,7 +708,7 @@ class Checkpoint:
             f.x.array[:] = values.reshape(-1)
         if g3 is None:
             return
-        xg = problem.V.tabulate_dof_coordinates()[problem.gamma3_local_nodes]
+        xg = problem.disc.V.tabulate_dof_coordinates()[problem.disc.gamma3_local_nodes]
         state = {"memory": None, "slip": None}
         if g3.memory is not None:
             mem = self.meta["memory"]
@@ -733,7 +736,8 @@ class Checkpoint:
             self.time_error = {name: self._lookup(f"est_{name}", x, rows).copy()
                                for name in ("dH", "dkappa")}
         names = [k for k in ("right", "ds") if f"est_g3_{k}_x" in self.arrays]
-        if names and problem.gamma3 is not None:
-            xg = problem.V.tabulate_dof_coordinates()[problem.gamma3_local_nodes]
+        disc = problem.disc
+        if names and disc.gamma3 is not None:
+            xg = disc.V.tabulate_dof_coordinates()[disc.gamma3_local_nodes]
             self.gamma3_error = {k: self._lookup(f"est_g3_{k}", xg, n_g3)[:, 0].copy()
                                  for k in names}

@@ -38,8 +38,9 @@ class CoulombPressure:
 
     def __init__(self, problem, mu: float, field, hold=None):
         self.problem, self.mu, self.field, self.hold = problem, mu, field, hold
-        self.p = np.zeros(len(problem.gamma3_local_nodes))
-        self.owned = np.searchsorted(problem.gamma3_local_nodes, problem.gamma3.nodes)
+        nodes = problem.disc.gamma3_local_nodes
+        self.p = np.zeros(len(nodes))
+        self.owned = np.searchsorted(nodes, problem.disc.gamma3.nodes)
 
     def measure(self) -> np.ndarray:
         """p_n = (-sigma_nu)^+ at the current u: minus the normal component of the bulk
@@ -48,7 +49,7 @@ class CoulombPressure:
         Returns:
             p_n at the local Gamma3 nodes (owned and ghost), shape (m,).
         """
-        p, gm, fr = self.problem, self.problem.gamma3, self.problem.frames
+        p, gm, fr = self.problem, self.problem.disc.gamma3, self.problem.disc.frames
         pos = np.searchsorted(fr.nodes, gm.nodes)
         p.current_stress()
         r = p.boundary_layer.residual()[gm.nodes]      # the bulk residual (app/model/layer.py)
@@ -68,11 +69,11 @@ class CoulombPressure:
 
     def _loads(self) -> np.ndarray:
         """The step's owned nodal loads f_n, (owned nodes, d)."""
-        p = self.problem
-        owned = p.V.dofmap.index_map.size_local
+        p, d = self.problem, self.problem.disc.dim
+        owned = p.disc.V.dofmap.index_map.size_local
         if p.load_vector is None:
-            return np.zeros((owned, p.dim))
-        return p.load_vector.at_current_time().array_r.reshape(-1, p.dim)[:owned]
+            return np.zeros((owned, d))
+        return p.load_vector.at_current_time().array_r.reshape(-1, d)[:owned]
 
     def _spread(self, owned: np.ndarray) -> np.ndarray:
         """p at the local Gamma3 nodes (owned and ghost) from its owned values."""

@@ -24,7 +24,7 @@ from vpcontact.meshes.bodycheck import interior_role
 from vpcontact.model.dirichlet import build_dirichlet, check_rigid_motions
 from vpcontact.model.frames import ContactFrames, build_frames, facet_normals, gap_values
 from vpcontact.model.loads import TimeData
-from vpcontact.model.pairs import project_pairs
+from vpcontact.model.pairs import PairOperators, node_labels, project_pairs
 from vpcontact.model.rigidcap import build_caps
 
 
@@ -317,6 +317,21 @@ class Discretisation:
             vec.destroy()
         return self._vol
 
+    def cell_average(self, expr, f) -> None:
+        """f = P_{Q^h} expr, the L2 projection onto DG0 (cell averages).
+
+        Args:
+            expr: a UFL expression of the shape of f's values.
+            f: a DG0 Function (on Q^h or Y^h); its owned and ghost values are set.
+        """
+        w = ufl.TestFunction(f.function_space)
+        vec = fem.petsc.assemble_vector(fem.form(ufl.inner(expr, w) * ufl.dx))
+        bs = f.function_space.dofmap.index_map_bs
+        owned = vec.array.size
+        vol = np.repeat(self.cell_volumes()[:owned // bs], bs)
+        f.x.array[:owned] = vec.array / vol
+        f.x.scatter_forward()
+        vec.destroy()
 
     def reduce(self, value: float, op) -> float:
         """``value`` reduced over the ranks; collective.
@@ -331,3 +346,76 @@ class Discretisation:
         if self.comm.size == 1:
             return value
         return self.comm.allreduce(value, op=getattr(MPI, op))
+
+    def refuse(self, bad: bool, key: str, why: str) -> None:
+        """Raise CaseError on every rank if ``bad`` on any (the exact check on the mesh).
+
+        Args:
+            bad: this rank's verdict.
+            key: the case key at fault.
+            why: the message.
+
+        Raises:
+            CaseError: on every rank, if ``bad`` on some rank.
+        """
+        if self.comm.allreduce(bool(bad), op=MPI.LOR):
+            raise CaseError(f"{self.case.source}: {key}: {why}")
+
+    # ------------------------------------------------------------------ Gamma3
+    @cached_property
+    def pair_node_labels(self) -> np.ndarray:
+        """The local nodes' pair labels (1 surface, 2 target, 0 neither; app/model/pairs.py
+        ``node_labels``), for checkpoints; collective when first used."""
+        return node_labels(self)
+
+    @cached_property
+    def pair_operators(self) -> PairOperators:
+        """The jump B, the normal coupling S and the offsets of the pairs (two bodies,
+        app/model/pairs.py: ``PairOperators``); built when first used (collective)."""
+        return PairOperators(self)
+
+    def normal_ufl(self):
+        """nu in the forms of J_n (3.4): a constant vector where every Gamma3 node has the
+        same normal (a flat Gamma3 or a fixed direction), else the P1 field of the nodal
+        normals (exact at the nodes, where the nodal rule evaluates the Gamma3 terms);
+        collective.
+
+        Returns:
+            A UFL vector or a Function on V^h.
+        """
+        nu = self.frames.normal
+        first = nu[0] if len(nu) else None
+        firsts = [f for f in self.comm.allgather(first) if f is not None]
+        ref = firsts[0] if firsts else np.zeros(self.dim)
+        same = np.abs(nu - ref).max(initial=0.0) <= 1e-12 and all(
+            np.abs(f - ref).max() <= 1e-12 for f in firsts)
+        if self.comm.allreduce(bool(same), op=MPI.LAND):
+            return ufl.as_vector([float(v) for v in ref])
+        field = fem.Function(self.V, name="nu")
+        arr = field.x.array.reshape(-1, self.dim)
+        arr[:] = self.facet_normals
+        arr[self.frames.nodes] = nu
+        return field
+
+    def bounds(self, like: PETSc.Vec) -> tuple[PETSc.Vec, PETSc.Vec]:
+        """Box bounds of U^h (3.4): u_nu <= g at the Gamma3 nodes, in the nodal frames (the
+        dof ``slot`` of node i is sign_i u_nu), +-inf elsewhere.
+
+        Args:
+            like: a vector of V^h (u's) whose layout the bounds take.
+
+        Returns:
+            (lower, upper) bound vectors like ``like`` (owned and ghost entries set).
+        """
+        lb, ub = like.duplicate(), like.duplicate()
+        with lb.localForm() as lo, ub.localForm() as up:
+            lo.set(PETSc.NINFINITY)
+            up.set(PETSc.INFINITY)
+            fr = self.frames
+            if fr is not None and fr.g is not None:
+                on = fr.bounded
+                dofs = self.dim * fr.nodes[on] + fr.slot[on]
+                plus = fr.sign[on] > 0
+                up.array[dofs[plus]] = fr.g[on][plus]       # u_nu = +u_slot <= g
+                lo.array[dofs[~plus]] = -fr.g[on][~plus]    # u_nu = -u_slot <= g
+        return lb, ub

@@ -132,9 +132,9 @@ def full_stress(problem) -> FullStress | None:
         A FullStress over the rows of the DG0 fields, or None.
     """
     case = problem.case
-    if problem.dim != 2 or case.all_materials[0].plane != "strain":
+    if problem.disc.dim != 2 or case.all_materials[0].plane != "strain":
         return None
-    n = len(problem.Y.dofmap.list.array)
+    n = len(problem.disc.Y.dofmap.list.array)
     groups = problem.materials.groups if problem.materials else None
     pieces = [(g.rows, g.law, g.elasticity) for g in groups] if groups else \
         [(np.arange(n), problem.law, problem.elasticity)]
@@ -148,8 +148,9 @@ def full_stress(problem) -> FullStress | None:
         r = getattr(el, "out_of_plane", None)
         if r is not None:
             fs.set_rows(rows, r)
-    unknown = problem.comm.allreduce(fs.unknown, op=MPI.LOR)
-    if unknown and problem.comm.rank == 0:
+    comm = problem.disc.comm
+    unknown = comm.allreduce(fs.unknown, op=MPI.LOR)
+    if unknown and comm.rank == 0:
         log.warning("plane strain with a 2D Voigt matrix (material.elasticity.voigt): no "
                     "out-of-plane data, so sigma_33 is written NaN and sigma_vm is the "
                     "in-plane norm (sigma_33 = 0) in its cells")

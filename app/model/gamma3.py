@@ -314,9 +314,10 @@ class Gamma3History:
                  coulomb_rows: np.ndarray | None = None):
         self.b0, self.coulomb_rows = b0, coulomb_rows
         self.problem = problem
-        self.nodes = problem.gamma3_local_nodes
-        self.normal = problem.frames.normal          # (m, d): nu_i at the nodes
-        self.dim = problem.dim
+        disc = problem.disc
+        self.nodes = disc.gamma3_local_nodes
+        self.normal = disc.frames.normal          # (m, d): nu_i at the nodes
+        self.dim = disc.dim
         m = len(self.nodes)
         self.memory = self.slip = None
         if kernel is not None:
@@ -330,7 +331,7 @@ class Gamma3History:
         self.coulomb = None
         if mu is not None:
             self.theta = problem.theta
-            self.coulomb = CoulombPressure(problem, mu, NodalField(problem.V, self.nodes,
+            self.coulomb = CoulombPressure(problem, mu, NodalField(disc.V, self.nodes,
                                                                    "p_n"), problem.hold)
             self.set_coulomb_bound(mu * self.coulomb.p)
         self.path = SlipPath(m) if slip is not None or mu is not None else None
@@ -426,8 +427,8 @@ def build_gamma3_history(case, problem) -> Gamma3History | None:
     if c.memory is not None:
         mk = c.memory
         if isinstance(mk.b0, str):          # b(t, x) = b0(x) times the kernel of factor 1
-            x = problem.V.tabulate_dof_coordinates()[problem.gamma3_local_nodes,
-                                                     :problem.dim]
+            disc = problem.disc
+            x = disc.V.tabulate_dof_coordinates()[disc.gamma3_local_nodes, :disc.dim]
             b0 = space_field(mk.b0, x)
         kernel = section_kernel(mk)
         recursion = None if mk.sum == "auto" else mk.sum == "recursion"
@@ -478,9 +479,10 @@ def _pair_history(c, problem) -> Gamma3History | None:
     xi_n with one kernel of factor 1 and b0 of each pair's memory term at its nodes (0
     without), theta(s_n) of each pair's slip law (``NodewiseSlip``), mu of each pair's
     Coulomb friction (mu_s of the static/kinetic law)."""
-    pair = problem.pairs.pair                  # the pair of each local Gamma3 node
+    disc = problem.disc
+    pair = disc.pairs.pair                  # the pair of each local Gamma3 node
     m = len(pair)
-    x = problem.V.tabulate_dof_coordinates()[problem.gamma3_local_nodes, :problem.dim]
+    x = disc.V.tabulate_dof_coordinates()[disc.gamma3_local_nodes, :disc.dim]
     kernel = recursion = None
     b0, mu, coulomb_rows, slips = np.zeros(m), np.zeros(m), np.zeros(m, dtype=bool), []
     for i, section in enumerate(c.sections):

@@ -97,7 +97,7 @@ class ViscoplasticHistory:
     def __init__(self, problem, law: ViscoplasticLaw):
         self.law = law
         self.state = problem.state
-        self.comm = problem.comm
+        self.comm = problem.disc.comm
         self.update = law.explicit()         # compiled for Perzyna where it can be
 
     @property
@@ -217,8 +217,9 @@ class ImplicitViscoplasticHistory:
                 nothing is committed on any).
         """
         ok = self.trial(problem, k)      # at the converged u_n
-        if problem.comm.size > 1:
-            ok = problem.comm.allreduce(ok, op=MPI.LAND)
+        comm = problem.disc.comm
+        if comm.size > 1:
+            ok = comm.allreduce(ok, op=MPI.LAND)
         if not ok:
             raise LocalFailure("implicit Perzyna update failed at the converged step")
         law = self.elasticity

@@ -17,26 +17,26 @@ import numpy as np
 from dolfinx import mesh as dmesh
 
 
-def layer_cells(problem, groups: list[str]) -> np.ndarray:
+def layer_cells(disc, groups: list[str]) -> np.ndarray:
     """The owned cells with a vertex on one of the facet groups, as rows of the DG0 space Q
     (the StrainOperator's cell order).
 
     Args:
-        problem: the ContactProblem (mesh, facets of its groups, Q).
+        disc: the Discretisation (mesh, facets of its groups, Q).
         groups: facet group names (Dirichlet groups, Gamma3 sides, pair targets).
 
     Returns:
         Sorted rows of Q's owned blocks.
     """
-    msh, tdim = problem.mesh, problem.dim
-    facets = np.unique(np.concatenate([problem.disc.facets[g] for g in groups] or
+    msh, tdim = disc.mesh, disc.dim
+    facets = np.unique(np.concatenate([disc.facets[g] for g in groups] or
                                       [np.zeros(0, np.int32)])).astype(np.int32)
     msh.topology.create_connectivity(tdim - 1, 0)
     msh.topology.create_connectivity(0, tdim)
     verts = dmesh.compute_incident_entities(msh, facets, tdim - 1, 0)
     cells = np.unique(dmesh.compute_incident_entities(msh, verts, 0, tdim))
     cells = cells[cells < msh.topology.index_map(tdim).size_local]
-    return np.sort(problem.Q.dofmap.list.array[cells])    # DG0: one block per cell
+    return np.sort(disc.Q.dofmap.list.array[cells])    # DG0: one block per cell
 
 
 class BoundaryLayer:
@@ -50,7 +50,7 @@ class BoundaryLayer:
 
     def __init__(self, problem, groups: list[str]):
         self.problem = problem
-        self.cells = problem.strain_operator.subset(layer_cells(problem, groups))
+        self.cells = problem.strain_operator.subset(layer_cells(problem.disc, groups))
 
     def residual(self) -> np.ndarray:
         """r at the owned nodes (exact at the layer's; collective).
@@ -58,9 +58,9 @@ class BoundaryLayer:
         Returns:
             (owned nodes, d) nodal forces.
         """
-        p = self.problem
-        owned = p.V.dofmap.index_map.size_local * p.dim
+        p, d = self.problem, self.problem.disc.dim
+        owned = p.disc.V.dofmap.index_map.size_local * d
         r = p.strain_operator.stress_load(p.sigma, self.cells).array_r[:owned].copy()
         if p.load_vector is not None:
             r -= p.load_vector.at_current_time().array_r[:owned]
-        return r.reshape(-1, p.dim)
+        return r.reshape(-1, d)

@@ -192,16 +192,16 @@ def project_pairs(disc, nodes: np.ndarray, outward: np.ndarray) -> PairGeometry:
     pair = np.full(m, -1)
     for i, p in enumerate(case.contact.pairs):
         mine = np.isin(nodes, surface_nodes(disc, p.surface))
-        _refuse(disc, (mine & (pair >= 0)).any(), f"contact.pairs[{i}].surface",
-                "shares a node with another pair's surface")
+        disc.refuse((mine & (pair >= 0)).any(), f"contact.pairs[{i}].surface",
+                    "shares a node with another pair's surface")
         pair[mine] = i
     geo = PairGeometry(pair, np.zeros((m, d)), np.zeros(m), np.zeros(m))
     couplings = []
     for i, p in enumerate(case.contact.pairs):
         sel = pair == i
         target, surface = gathered_facets(disc, p.target), gathered_facets(disc, p.surface)
-        _refuse(disc, sel.any() and len(target[0]) == 0, f"contact.pairs[{i}].target",
-                f"the group {p.target!r} has no facets")
+        disc.refuse(sel.any() and len(target[0]) == 0, f"contact.pairs[{i}].target",
+                    f"the group {p.target!r} has no facets")
         if case.contact.direction is not None:                        # collective
             _check_direction(disc, p, outward[sel], x[sel])
         project = projector(case.contact.direction, target)
@@ -372,12 +372,6 @@ def _check_distance(disc, i, p, geo, sel, x) -> None:
     geo.distance[sel] = np.maximum(d, 0.0)
 
 
-def _refuse(disc, bad: bool, key: str, why: str) -> None:
-    """Raise CaseError on every rank if ``bad`` on any."""
-    if disc.comm.allreduce(bool(bad), op=MPI.LOR):
-        raise CaseError(f"{disc.case.source}: {key}: {why}")
-
-
 def _refuse_count(disc, bad: np.ndarray, x: np.ndarray, key: str, what: str) -> None:
     """Raise CaseError on every rank naming how many nodes are ``bad`` and the first."""
     count = disc.comm.allreduce(int(bad.sum()), op=MPI.SUM)
@@ -436,12 +430,12 @@ class PairOperators:
     - c_w = d_i nu_i at the Gamma3 nodes: w = B u - c_w.
 
     Args:
-        problem: the ContactProblem (V, frames, pairs' geometry, Gamma3 nodes).
+        disc: the Discretisation (V, frames, pairs' geometry, Gamma3 nodes).
     """
 
-    def __init__(self, problem):
-        V, d, fr, geo = problem.V, problem.dim, problem.frames, problem.disc.pairs
-        self.comm = problem.comm
+    def __init__(self, disc):
+        V, d, fr, geo = disc.V, disc.dim, disc.frames, disc.pairs
+        self.comm = disc.comm
         imap = V.dofmap.index_map
         n = imap.size_local
         self.n_local = n * d

@@ -40,7 +40,6 @@ from vpcontact.model.loads import TimeData
 from vpcontact.model.loadvector import LoadVector
 from vpcontact.model.material import Elasticity
 from vpcontact.model.materials import body_materials
-from vpcontact.model.pairs import PairOperators, node_labels
 from vpcontact.model.semicoercive import ContactHold
 from vpcontact.model.state import State
 from vpcontact.model.stiffness import case_elasticity, stress_operator
@@ -74,9 +73,9 @@ class ContactProblem:
             None.
 
     Attributes:
-        disc: the Discretisation (app/model/discretisation.py); its spaces V, Q, Y, groups,
-            Dirichlet data ``dirichlet``/``bcs``, Gamma3 nodes ``gamma3`` and ``frames``
-            are read through the problem too.
+        disc: the Discretisation (app/model/discretisation.py): the mesh, its spaces V, Q,
+            Y, groups, Dirichlet data ``dirichlet``/``bcs``, Gamma3 nodes ``gamma3`` and
+            ``frames``, the bounds of U^h (``bounds``); read as ``problem.disc.V``, ...
         elasticity: the elasticity E of the case (app/model/material.py: Elasticity, or
             MatrixElasticity / CellElasticity built by app/model/stiffness.py).
         elastic_operator: tau -> E tau in UFL (forms.elasticity).
@@ -104,13 +103,13 @@ class ContactProblem:
         # their parts like the API's; a part given through the API takes precedence
         self.contact_replacements = {**python_contact_laws(case.contact, skip=given), **given}
         self.time_data = TimeData(body.mesh)
-        self.disc = Discretisation(case, body, self.time_data)
-        d = self.dim
+        disc = self.disc = Discretisation(case, body, self.time_data)
+        d = disc.dim
         # materials: one per group of cells (app/model/materials.py), E per cell, their laws
-        self.materials = body_materials(case, body, self.Q) if case.materials else None
+        self.materials = body_materials(case, body, disc.Q) if case.materials else None
         try:     # E(x), orthotropic or voigt (app/model/stiffness.py); None: numbers E, nu
             general = self.materials.elasticity if self.materials else \
-                case_elasticity(case.material, d, self.Q)
+                case_elasticity(case.material, d, disc.Q)
         except ValueError as e:
             raise CaseError(f"{case.source}: {e}") from None
         if general is None:
@@ -130,7 +129,7 @@ class ContactProblem:
         init = case.initial
         has_H = self.law is not None or init.u0 is not None or init.sigma0 is not None
         plane_strain = d == 2 and case.all_materials[0].plane == "strain"
-        self.state = State(self.V, self.Q, self.Y, has_H,
+        self.state = State(disc.V, disc.Q, disc.Y, has_H,
                            self.law.m if self.law is not None else None,
                            rollback=case.time.adaptive is not None, sigma_33=plane_strain)
         # sigma_33 and the 3D von Mises norm in plane strain (app/model/fullstress.py)
@@ -142,33 +141,33 @@ class ContactProblem:
         self.k = None                      # the step k_n of set_time (the implicit update's)
         if self.implicit:
             m = self.elasticity.m
-            self.C_alg = fem.Function(fem.TensorFunctionSpace(self.mesh, ("DG", 0),
+            self.C_alg = fem.Function(fem.TensorFunctionSpace(disc.mesh, ("DG", 0),
                                                               shape=(m, m)), name="C_alg")
         self.xi = self.theta = None
         c = case.contact
         if c.active:
             if any(s.memory is not None for s in c.sections):
-                self.xi = NodalField(self.V, self.gamma3_local_nodes, "xi")
+                self.xi = NodalField(disc.V, disc.gamma3_local_nodes, "xi")
             if any(s.friction is not None and (s.friction.slip is not None or s.friction.coulomb
                                                is not None) for s in c.sections):
-                self.theta = NodalField(self.V, self.gamma3_local_nodes, "theta")
+                self.theta = NodalField(disc.V, disc.gamma3_local_nodes, "theta")
                 self.theta.function.x.array[:] = 1.0
         # two bodies: the Gamma3 terms act on w, the relative displacement less the
         # initial distance at the Gamma3 nodes (app/model/pairs.py)
-        self.w = fem.Function(self.V, name="w") if self.disc.pairs is not None else None
+        self.w = fem.Function(disc.V, name="w") if disc.pairs is not None else None
         self.pair_forms = None
         self.forms = self._step_forms()
         # sigma_n = E eps(u_n) + H_n per cell (exact: eps(u) is constant on cells),
         # app/model/strain.py
         self.strain_operator = StrainOperator(
-            self.V, self.Q, self.E, self.nu,
+            disc.V, disc.Q, self.E, self.nu,
             None if isinstance(self.elasticity, Elasticity) else self.elastic_operator)
         # the implicit scheme's local update, run by the residual hook (before_residual)
         self.implicit_update = ImplicitViscoplasticHistory(self, self.law) \
             if self.implicit else None
         # a body held only by contact: its loads checked for every step
         # (app/model/semicoercive.py)
-        held = self.disc.held_by_contact
+        held = disc.held_by_contact
         self.hold = ContactHold(self, held) if held else None
         if self.hold is not None:
             self.hold.check_loads(case.time.times[1:])
@@ -203,7 +202,7 @@ class ContactProblem:
         Returns:
             (owned cells, 3, 3).
         """
-        n, d = self.num_owned_cells, self.dim
+        n, d = self.disc.num_owned_cells, self.disc.dim
         sig = self.sigma.x.array.reshape(-1, d, d)[:n]
         if d == 3:
             return sig.copy()
@@ -229,30 +228,31 @@ class ContactProblem:
         if k is not None:
             self.k = k
         self.time_data.set_time(t)
-        self.dirichlet.set_time()
+        self.disc.dirichlet.set_time()
 
     def _step_forms(self):
         """J_n's data (loads, laws (4.1)-(4.2), history fields) and forms/step.py's forms."""
-        case, msh, ft, d = self.case, self.mesh, self.body.facet_tags, self.dim
+        case, disc = self.case, self.disc
+        msh, ft, d = disc.mesh, disc.body.facet_tags, disc.dim
         c = case.contact
         ds = ufl.Measure("ds", domain=msh, subdomain_data=ft)
-        self.ds_c = gamma3_measure(msh, ft, self.gamma3_tags, case.numerics.quadrature,
+        self.ds_c = gamma3_measure(msh, ft, disc.gamma3_tags, case.numerics.quadrature,
                                    case.numerics.gauss_degree) if c.active else None
         # Parameters enter the forms as Constants: one compiled form serves every value.
         const = self.constants = _Constants(msh)
         E = const("E", self.E) if self.E is not None else None
         nu = const("nu", self.nu) if self.nu is not None else None
         # tau -> E tau in UFL (the initial H_0, the condensed solver's stiffness)
-        self.elastic_operator = stress_operator(self.elasticity, self.Q, E, nu)
+        self.elastic_operator = stress_operator(self.elasticity, disc.Q, E, nu)
         f0 = self.time_data.vector(case.loads.f0) if case.loads.f0 else None
         tractions = []
         for name, comps in case.loads.traction.items():
             vec = self.time_data.vector(comps)
             if vec is not None:
-                tractions.append((vec, self.tags[name]))
+                tractions.append((vec, disc.tags[name]))
         n_facet = ufl.FacetNormal(msh)
         for name, p in case.loads.pressure.items():
-            tractions.append((-self.time_data.scalar(p) * n_facet, self.tags[name]))
+            tractions.append((-self.time_data.scalar(p) * n_facet, disc.tags[name]))
         bulk = BulkData(E, nu, d, H=None if self.implicit else self.H, f0=f0,
                         tractions=tractions, ds=ds,
                         stress=self.sigma if self.implicit else None, tangent=self.C_alg,
@@ -264,18 +264,6 @@ class ContactProblem:
         forms.terms += terms
         return forms
 
-    @cached_property
-    def pair_node_labels(self) -> np.ndarray:
-        """The local nodes' pair labels (1 surface, 2 target, 0 neither; app/model/pairs.py
-        ``node_labels``), for checkpoints; collective when first used."""
-        return node_labels(self.disc)
-
-    @cached_property
-    def pair_operators(self):
-        """The jump B, the normal coupling S and the offsets of the pairs (two bodies,
-        app/model/pairs.py: ``PairOperators``); built when first used."""
-        return PairOperators(self)
-
     def contact_u(self) -> np.ndarray:
         """The displacement the Gamma3 terms act on, at the local Gamma3 nodes (owned and
         ghost): u (one body), or w = [u] - d nu (two bodies: the relative displacement less
@@ -284,11 +272,12 @@ class ContactProblem:
         Returns:
             (m, d) values in ``gamma3_local_nodes`` order.
         """
+        d, nodes = self.disc.dim, self.disc.gamma3_local_nodes
         if self.w is None:
-            return self.u.x.array.reshape(-1, self.dim)[self.gamma3_local_nodes]
-        self.pair_operators.jump(self.u.vector, self.w.vector)
+            return self.u.x.array.reshape(-1, d)[nodes]
+        self.disc.pair_operators.jump(self.u.vector, self.w.vector)
         self.w.x.scatter_forward()
-        return self.w.x.array.reshape(-1, self.dim)[self.gamma3_local_nodes]
+        return self.w.x.array.reshape(-1, d)[nodes]
 
     def contact_law(self, const=None, x=None, section=None) -> ContactLaw:
         """The contact laws of the run: the case's (app/model/contact_laws.py:
@@ -345,10 +334,10 @@ class ContactProblem:
     def _contact_data(self) -> ContactData:
         """The Gamma3 part of J_n: the normal field and the laws' parameters."""
         c = self.case.contact
-        law = self.contact_law(self.constants, ufl.SpatialCoordinate(self.mesh)
+        law = self.contact_law(self.constants, ufl.SpatialCoordinate(self.disc.mesh)
                                if varies_in_space(c) else None)
         return ContactData(
-            self.ds_c, self._normal_ufl(), law=law,
+            self.ds_c, self.disc.normal_ufl(), law=law,
             theta=self.theta.function if self.theta else None,
             xi=self.xi.function if self.xi else None)
 
@@ -359,37 +348,20 @@ class ContactProblem:
         sections = self.case.contact.sections
         if len(sections) == 1:
             return [self._contact_data()]
-        c, ft, nu = self.case.numerics, self.body.facet_tags, self._normal_ufl()
-        x = ufl.SpatialCoordinate(self.mesh)
+        disc = self.disc
+        c, ft, nu = self.case.numerics, disc.body.facet_tags, disc.normal_ufl()
+        x = ufl.SpatialCoordinate(disc.mesh)
         out = []
         for pair, section, law in zip(self.case.contact.pairs, sections,
                                       self.section_laws(self.constants, x)):
             fr = section.friction
             out.append(ContactData(
-                gamma3_measure(self.mesh, ft, (self.tags[pair.surface],), c.quadrature,
+                gamma3_measure(disc.mesh, ft, (disc.tags[pair.surface],), c.quadrature,
                                c.gauss_degree), nu, law=law,
                 theta=self.theta.function if fr is not None and (
                     fr.slip is not None or fr.coulomb is not None) else None,
                 xi=self.xi.function if section.memory is not None else None))
         return out
-
-    def _normal_ufl(self):
-        """nu in the forms: a constant vector where every Gamma3 node has the same normal
-        (a flat Gamma3 or a fixed direction), else the P1 field of the nodal normals (exact
-        at the nodes, where the nodal rule evaluates the Gamma3 terms)."""
-        nu = self.frames.normal
-        first = nu[0] if len(nu) else None
-        firsts = [f for f in self.comm.allgather(first) if f is not None]
-        ref = firsts[0] if firsts else np.zeros(self.dim)
-        same = np.abs(nu - ref).max(initial=0.0) <= 1e-12 and all(
-            np.abs(f - ref).max() <= 1e-12 for f in firsts)
-        if self.comm.allreduce(bool(same), op=MPI.LAND):
-            return ufl.as_vector([float(v) for v in ref])
-        field = self.nu_h = fem.Function(self.V, name="nu")
-        arr = field.x.array.reshape(-1, self.dim)
-        arr[:] = self.disc.facet_normals
-        arr[self.frames.nodes] = nu
-        return field
 
     # The step residual and Jacobian (SNES VI) and the strain interpolation (the numpy
     # stress path) are compiled when first used: the fast solver with the compiled kernels
@@ -406,19 +378,19 @@ class ContactProblem:
 
     @cached_property
     def _eps_fn(self):
-        return fem.Function(self.Q)
+        return fem.Function(self.disc.Q)
 
     @cached_property
     def _eps_expr(self):
-        return fem.Expression(eps(self.u), self.Q.element.interpolation_points())
+        return fem.Expression(eps(self.u), self.disc.Q.element.interpolation_points())
 
     @cached_property
     def boundary_layer(self) -> BoundaryLayer:
         """The nodal forces at the nodes of the Dirichlet groups, of Gamma3, of the pairs'
         targets and of the rigid caps (app/model/layer.py); built when first used
         (collective)."""
-        refs = [g.name for g in self.dirichlet.groups] + list(self.case.boundaries.contact) \
-            + [q.target for q in self.case.contact.pairs] \
+        refs = [g.name for g in self.disc.dirichlet.groups] \
+            + list(self.case.boundaries.contact) + [q.target for q in self.case.contact.pairs] \
             + list(self.case.loads.rigid)      # two bodies: the targets; the rigid caps
         return BoundaryLayer(self, refs)
 
@@ -438,11 +410,11 @@ class ContactProblem:
             CaseError: if the initial values are not finite, kappa0 < 0 somewhere, or u0
                 violates u = 0 on Gamma1 or u_nu <= g on Gamma3 (on every rank).
         """
-        init, scalar = self.case.initial, self.time_data.scalar
+        init, scalar, disc = self.case.initial, self.time_data.scalar, self.disc
         kappa = self.state.kappa
         if init.u0 is not None:
             vec = ufl.as_vector([scalar(c) for c in init.u0])
-            self.u.interpolate(fem.Expression(vec, self.V.element.interpolation_points()))
+            self.u.interpolate(fem.Expression(vec, disc.V.element.interpolation_points()))
             self.u.x.scatter_forward()
             self._check_initial_u()
         if self.H is not None:
@@ -450,9 +422,9 @@ class ContactProblem:
             if init.sigma0 is not None:
                 H0 = H0 + ufl.as_matrix([[scalar(c) for c in row]
                                          for row in init.sigma0])
-            self._cell_average(H0, self.H)
-            self._refuse(not np.isfinite(self.H.x.array).all(), "initial.sigma0",
-                         "not a finite number in a cell of the mesh")
+            disc.cell_average(H0, self.H)
+            disc.refuse(not np.isfinite(self.H.x.array).all(), "initial.sigma0",
+                        "not a finite number in a cell of the mesh")
         if kappa is not None and self.materials:
             for g in self.materials.groups:
                 if g.law is not None:
@@ -467,62 +439,28 @@ class ContactProblem:
         """kappa = kappa0 (3.3) on the cells ``rows``, in each of the law's m components (a
         number, or the cell averages of an expression of x, y, z, refused if negative)."""
         if isinstance(k0, str):
-            work = fem.Function(self.Y)
-            self._cell_average(self.time_data.scalar(k0), work)
+            work = fem.Function(self.disc.Y)
+            self.disc.cell_average(self.time_data.scalar(k0), work)
             k0 = work.x.array[rows][:, None]
-            self._refuse(not (k0 >= 0).all(), key, "must be a finite number >= 0 everywhere")
+            self.disc.refuse(not (k0 >= 0).all(), key,
+                             "must be a finite number >= 0 everywhere")
         self.state.kappa_cells[rows, :m] = k0
-
-    def _cell_average(self, expr, f) -> None:
-        """f = P_{Q^h} expr, the L2 projection onto DG0 (cell averages)."""
-        w = ufl.TestFunction(f.function_space)
-        vec = fem.petsc.assemble_vector(fem.form(ufl.inner(expr, w) * ufl.dx))
-        bs = f.function_space.dofmap.index_map_bs
-        owned = vec.array.size
-        vol = np.repeat(self.cell_volumes()[:owned // bs], bs)
-        f.x.array[:owned] = vec.array / vol
-        f.x.scatter_forward()
-        vec.destroy()
-
-    def _refuse(self, bad: bool, key: str, why: str) -> None:
-        """Raise CaseError on every rank if ``bad`` on any (the exact check on the mesh)."""
-        if self.comm.allreduce(bool(bad), op=MPI.LOR):
-            raise CaseError(f"{self.case.source}: {key}: {why}")
 
     def _check_initial_u(self) -> None:
         """u0 at the mesh nodes: zero on Gamma1 (up to round-off of its largest value),
         u_nu <= g on Gamma3 (the case's validation checked sample points already)."""
-        uu = self.u.x.array.reshape(-1, self.dim)
-        self._refuse(not np.isfinite(uu).all(), "initial.u0",
-                     "not a finite number at a node of the mesh")
-        scale = self.reduce(float(np.abs(uu).max(initial=0.0)), "MAX")
-        self._refuse(np.abs(uu[self.disc.clamped_nodes]).max(initial=0.0) > 1e-12 * scale,
-                     "initial.u0", "must vanish on Gamma1 (boundaries.clamped)")
-        fr = self.frames
+        disc = self.disc
+        uu = self.u.x.array.reshape(-1, disc.dim)
+        disc.refuse(not np.isfinite(uu).all(), "initial.u0",
+                    "not a finite number at a node of the mesh")
+        scale = disc.reduce(float(np.abs(uu).max(initial=0.0)), "MAX")
+        disc.refuse(np.abs(uu[disc.clamped_nodes]).max(initial=0.0) > 1e-12 * scale,
+                    "initial.u0", "must vanish on Gamma1 (boundaries.clamped)")
+        fr = disc.frames
         if fr is not None and fr.g is not None:
             u_nu = np.einsum("ij,ij->i", uu[fr.nodes], fr.normal)
-            self._refuse((fr.bounded & (u_nu > fr.g + 1e-12 * np.maximum(fr.g, scale))).any(),
-                         "initial.u0", "violates u_nu <= g on Gamma3")
-
-    def bounds(self) -> tuple[PETSc.Vec, PETSc.Vec]:
-        """Box bounds of U^h: u_nu <= g at the Gamma3 nodes, in the nodal frames (the
-        dof ``slot`` of node i is sign_i u_nu), +-inf elsewhere.
-
-        Returns:
-            (lower, upper) bound vectors like u (owned and ghost entries set).
-        """
-        lb, ub = self.u.vector.duplicate(), self.u.vector.duplicate()
-        with lb.localForm() as lo, ub.localForm() as up:
-            lo.set(PETSc.NINFINITY)
-            up.set(PETSc.INFINITY)
-            fr = self.frames
-            if fr is not None and fr.g is not None:
-                on = fr.bounded
-                dofs = self.dim * fr.nodes[on] + fr.slot[on]
-                plus = fr.sign[on] > 0
-                up.array[dofs[plus]] = fr.g[on][plus]       # u_nu = +u_slot <= g
-                lo.array[dofs[~plus]] = -fr.g[on][~plus]    # u_nu = -u_slot <= g
-        return lb, ub
+            disc.refuse((fr.bounded & (u_nu > fr.g + 1e-12 * np.maximum(fr.g, scale))).any(),
+                        "initial.u0", "violates u_nu <= g on Gamma3")
 
     def update_sigma(self) -> tuple[float, float] | None:
         """sigma_n = E eps(u_n) + H_n (3.2) and its von Mises norm, per cell.
@@ -580,7 +518,8 @@ class ContactProblem:
         if self.implicit_update is None:
             return True
         ok = self.implicit_update.trial(self, self.k)
-        return ok if self.comm.size == 1 else self.comm.allreduce(ok, op=MPI.LAND)
+        comm = self.disc.comm
+        return ok if comm.size == 1 else comm.allreduce(ok, op=MPI.LAND)
 
 
 def _shared_delta(const, name: str, value):
@@ -588,20 +527,3 @@ def _shared_delta(const, name: str, value):
     changes it: app/solvers/snesvi.py)."""
     return const[name] if name in const else const(name, value)
 
-
-# The discretisation's attributes, read through the step problem (its callers use both).
-_FROM_DISCRETISATION = (
-    "mesh", "comm", "dim", "body", "V", "Q", "Y", "tags", "dirichlet", "bcs", "gamma3",
-    "gamma3_local_nodes", "frames", "gamma3_tags", "group_tag", "gamma3_facet_coordinates",
-    "gamma3_exact_measure", "num_cells", "num_vertices", "num_dofs", "num_gamma3_nodes",
-    "num_owned_cells", "length_scale", "gap_scale", "cell_volumes", "reduce", "pairs", "caps")
-
-
-def _discretisation_attribute(name: str) -> property:
-    """A read-only attribute of the step problem that is its discretisation's."""
-    return property(lambda self: getattr(self.disc, name),
-                    doc=f"The discretisation's ``{name}`` (app/model/discretisation.py).")
-
-
-for _name in _FROM_DISCRETISATION:
-    setattr(ContactProblem, _name, _discretisation_attribute(_name))

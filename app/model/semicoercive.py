@@ -64,15 +64,16 @@ class ContactHold:
 
     def __init__(self, problem, parts: list):
         self.problem, self.parts = problem, parts
-        gm, fr, d = problem.gamma3, problem.frames, problem.dim
-        owned = problem.V.dofmap.index_map.size_local
-        x = problem.V.tabulate_dof_coordinates()[:owned, :d]
+        disc = problem.disc
+        gm, fr, d = disc.gamma3, disc.frames, disc.dim
+        owned = disc.V.dofmap.index_map.size_local
+        x = disc.V.tabulate_dof_coordinates()[:owned, :d]
         self.modes = [p.modes(x) * p.nodes[:owned, None, None] for p in parts]
         self.pos = np.searchsorted(fr.nodes, gm.nodes)   # owned Gamma3 nodes in frames
         self.normal, self.tangents = fr.normal[self.pos], fr.tangents[self.pos]
         self.g = None if fr.g is None else fr.g[self.pos]
         self.nodes, self.w, self.x = gm.nodes, gm.weight, x[gm.nodes]
-        pair = None if problem.pairs is None else problem.pairs.pair[self.pos]
+        pair = None if disc.pairs is None else disc.pairs.pair[self.pos]
         self.sign = [_signs(p, gm.nodes, pair) for p in parts]
         self.mine = [s != 0 for s in self.sign]
         self.mu, self.bound, self.compliance = self._laws(pair)
@@ -87,7 +88,7 @@ class ContactHold:
             else pair
         mu, bound, comp = (np.full(len(self.nodes), np.nan), np.full(len(self.nodes), np.nan),
                            np.zeros(len(self.nodes), dtype=bool))
-        big = 1e6 * self.problem.length_scale
+        big = 1e6 * self.problem.disc.length_scale
         for i, section in enumerate(sections):
             at = index == i
             law = self.problem.contact_law(section=section)
@@ -115,21 +116,22 @@ class ContactHold:
         lv, t0 = p.load_vector, float(p.time_data.t.value)
         cones = [self._generators(k) for k in range(len(self.parts))]
         inside = [[] for _ in self.parts]       # the load directions found inside
+        disc = p.disc
         for i, t in enumerate(times):
             if lv is not None and not lv.timed and i > 0:
                 break                           # the same load at every step
             p.time_data.set_time(float(t))
-            f = np.zeros(p.V.dofmap.index_map.size_local * p.dim) if lv is None else \
+            f = np.zeros(disc.V.dofmap.index_map.size_local * disc.dim) if lv is None else \
                 lv.at_current_time().array_r
             for k in range(len(self.parts)):
-                self._check_part(k, f.reshape(-1, p.dim), float(t), cones[k], inside[k])
+                self._check_part(k, f.reshape(-1, disc.dim), float(t), cones[k], inside[k])
         p.time_data.set_time(t0)
 
     def _check_part(self, k: int, f: np.ndarray, t: float, cone: tuple,
                     inside: list) -> None:
         """The cone test of part k at time t (``f``: the owned nodal loads; ``cone``: its
         generators; ``inside``: the unit loads found inside so far, extended)."""
-        comm = self.problem.comm
+        comm = self.problem.disc.comm
         cap_work, cap_force = self._cap_loads(k, t)
         W = comm.allreduce(np.einsum("nd,ndr->r", f, self.modes[k][:len(f)]), op=MPI.SUM) \
             + cap_work
@@ -151,10 +153,11 @@ class ContactHold:
         (collective)."""
         from vpcontact.case.caprules import component_value
         from vpcontact.model.rigidcap import _ORDER
-        caps, part = self.problem.caps, self.parts[k]
-        W, F = np.zeros(part.free.shape[1]), np.zeros(self.problem.dim)
+        disc = self.problem.disc
+        caps, part = disc.caps, self.parts[k]
+        W, F = np.zeros(part.free.shape[1]), np.zeros(disc.dim)
         for c in () if caps is None else caps.caps:
-            if not self.problem.comm.allreduce(bool(part.nodes[c.nodes].any()), op=MPI.LOR):
+            if not disc.comm.allreduce(bool(part.nodes[c.nodes].any()), op=MPI.LOR):
                 continue
             d = len(c.reference)
             at = rigid_modes(((c.reference - part.centre) / part.scale)[None, :])[0]
@@ -175,7 +178,7 @@ class ContactHold:
         mu, bound = self.mu[mine], self.bound[mine]
         coulomb = ~np.isnan(mu) & (mu > 0)
         gens = [(-nu)[~coulomb]] + [(-nu + mu[:, None] * _direction(tau, a))[coulomb]
-                                    for a in _angles(self.problem.dim)]
+                                    for a in _angles(self.problem.disc.dim)]
         sel = [~coulomb] + [coulomb] * (len(gens) - 1)
         A = np.concatenate([np.einsum("nd,ndr->rn", g, M[m]) for g, m in zip(gens, sel)],
                            axis=1)
@@ -183,14 +186,15 @@ class ContactHold:
         B = np.concatenate([np.vstack([np.einsum("nd,ndr->rn", tau[tb, i], M[tb]),
                                        (w * bound)[tb][None] / np.sqrt(j)])
                             for i in range(j)], axis=1)
-        comm = self.problem.comm
+        comm = self.problem.disc.comm
         return (np.concatenate(comm.allgather(A), axis=1),
                 np.concatenate(comm.allgather(B), axis=1))
 
     def _why(self, k: int, F: np.ndarray, W: np.ndarray, box: np.ndarray, t: float) -> str:
         """The refusal's words for part k at time t (F: the applied force resultant, W: the
         loads' work on the free motions)."""
-        c, mine = self.problem.comm, self.mine[k]
+        disc = self.problem.disc
+        c, mine = disc.comm, self.mine[k]
         nbar = self._mean_normal(k)
         P = float(F @ nbar)                     # the load pressing along the outward normal
         Q = float(np.linalg.norm(F - P * nbar))
@@ -214,7 +218,7 @@ class ContactHold:
                     f"tangential motion (tangential resultant {Q:.6g}); add friction or "
                     "prescribe a tangential component")
         # 3D: the cone is its inscribed polygon of COULOMB_DIRECTIONS sides (mu cos(pi/16))
-        inner = 1.0 if self.problem.dim == 2 else float(np.cos(np.pi / COULOMB_DIRECTIONS))
+        inner = 1.0 if disc.dim == 2 else float(np.cos(np.pi / COULOMB_DIRECTIONS))
         if mu > 0 and Q >= mu * P * (1 - 1e-9):
             return (f"{keys} / {fkey}.coulomb.mu: {at}: tangential resultant "
                     f"{Q:.6g} >= mu P = {mu:g} x {P:.6g} = {mu * P:.6g}: the body would slide "
@@ -225,7 +229,7 @@ class ContactHold:
                     f"check takes the friction cone as its inscribed {COULOMB_DIRECTIONS}-gon "
                     f"({inner:.4f} mu), so this load is refused as at the onset of sliding; "
                     "lower the tangential load or prescribe a tangential component")
-        cap = float(box[-1].sum()) / np.sqrt(self.problem.dim - 1)   # sum_i w_i psi'(oo)
+        cap = float(box[-1].sum()) / np.sqrt(disc.dim - 1)   # sum_i w_i psi'(oo)
         if bounded and Q >= cap * (1 - 1e-9):
             return (f"{keys} / {fkey}: {at}: tangential resultant {Q:.6g} >= the friction "
                     f"bound's resultant {cap:.6g} (psi'(oo) w_i over Gamma3): the body would "
@@ -241,7 +245,7 @@ class ContactHold:
         return (f"boundaries.clamped / loads.displacement: the prescribed displacements leave "
                 f"{free.shape[1]} rigid motion(s) of the "
                 f"{'body' if len(self.parts) == 1 else f'part {k + 1}'} free (like "
-                f"{motion_names(free, self.problem.dim)}), and at t = {t:g} no load ({keys}) "
+                f"{motion_names(free, self.problem.disc.dim)}), and at t = {t:g} no load ({keys}) "
                 "presses it onto Gamma3; clamp a group, prescribe more components or press "
                 "the body")
 
@@ -249,7 +253,7 @@ class ContactHold:
         """The unit mean of sigma_ik w_i nu_i over part k's Gamma3 nodes (collective): the
         direction in which the contact presses the part outward."""
         mine = self.mine[k]
-        n = self.problem.comm.allreduce(
+        n = self.problem.disc.comm.allreduce(
             ((self.sign[k][mine] * self.w[mine])[:, None] * self.normal[mine]).sum(0),
             op=MPI.SUM)
         return n / max(np.linalg.norm(n), 1e-300)
@@ -270,15 +274,16 @@ class ContactHold:
         p = self.problem
         r = np.einsum("nd,nd->n", p.contact_u()[self.pos], self.normal)
         target = self._target()
-        arr, changed = u.x.array.reshape(-1, p.dim), False
+        disc = p.disc
+        arr, changed = u.x.array.reshape(-1, disc.dim), False
         for k, part in enumerate(self.parts):
             mine = self.mine[k]
-            if p.comm.allreduce(bool(np.any(r[mine] > 0)), op=MPI.LOR):
+            if disc.comm.allreduce(bool(np.any(r[mine] > 0)), op=MPI.LOR):
                 continue                         # in contact somewhere
             nbar = self._mean_normal(k)
             cos = self.sign[k][mine] * (self.normal[mine] @ nbar)
             ok = cos > 1e-6
-            s = p.comm.allreduce(float(np.min(((target - r)[mine] / np.where(ok, cos, 1))[ok],
+            s = disc.comm.allreduce(float(np.min(((target - r)[mine] / np.where(ok, cos, 1))[ok],
                                               initial=np.inf)), op=MPI.MIN)
             if not np.isfinite(s) or s == 0.0:
                 continue
@@ -299,17 +304,17 @@ class ContactHold:
         Returns:
             Local dof indices.
         """
-        p, fr = self.problem, self.problem.frames
+        p, fr = self.problem, self.problem.disc.frames
         r = np.einsum("nd,nd->n", p.contact_u()[self.pos], self.normal)
         tol = 1e-9 * max(float(np.max(np.abs(self._target()), initial=0.0)),
-                         1e-12 * p.length_scale)
+                         1e-12 * p.disc.length_scale)
         on = np.any(self.mine, axis=0) & (r >= self._target() - tol) & fr.bounded[self.pos]
-        return (p.dim * self.nodes[on] + fr.slot[self.pos][on]).astype(np.int32)
+        return (p.disc.dim * self.nodes[on] + fr.slot[self.pos][on]).astype(np.int32)
 
     def _target(self) -> np.ndarray:
         """u_nu (w_nu) at which a Gamma3 node is in contact for the start (owned nodes)."""
         if self.g is None:
-            return np.full(len(self.nodes), 1e-3 * self.problem.length_scale)
+            return np.full(len(self.nodes), 1e-3 * self.problem.disc.length_scale)
         return np.where(self.compliance, 0.5 * self.g, self.g)
 
     def pressure_start(self, f: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -326,7 +331,7 @@ class ContactHold:
         Returns:
             p (owned Gamma3 nodes).
         """
-        c, out = self.problem.comm, p.copy()
+        c, out = self.problem.disc.comm, p.copy()
         for k, part in enumerate(self.parts):
             mine = self.mine[k]
             t = float(self.problem.time_data.t.value)

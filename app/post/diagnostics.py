@@ -137,31 +137,32 @@ def _jacobian_radius(law, t, kappa, eps, rel_step: float) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(jac))))
 
 
-def _gamma3_mass(problem) -> PETSc.Mat:
-    """M = (v, w)_{L2(Gamma3)} on V^h (Gauss degree 2: exact for P1)."""
-    u, v = ufl.TrialFunction(problem.V), ufl.TestFunction(problem.V)
-    M = fem.petsc.assemble_matrix(fem.form(ufl.inner(u, v) * problem.gamma3_exact_measure()))
+def _gamma3_mass(disc) -> PETSc.Mat:
+    """M = (v, w)_{L2(Gamma3)} on V^h of the Discretisation ``disc`` (Gauss degree 2: exact
+    for P1)."""
+    u, v = ufl.TrialFunction(disc.V), ufl.TestFunction(disc.V)
+    M = fem.petsc.assemble_matrix(fem.form(ufl.inner(u, v) * disc.gamma3_exact_measure()))
     M.assemble()
     return M
 
 
-def _stiffness_solver(K: PETSc.Mat, problem, linear: str) -> PETSc.KSP:
+def _stiffness_solver(K: PETSc.Mat, disc, linear: str) -> PETSc.KSP:
     """A KSP applying K^-1 (LU), or for ``linear="amg"`` one V-cycle of GAMG (``preonly``) as
     SNES VI's iterative path sets it up (app/solvers/amg.AMG_PETSC) but with smoothed
     aggregation (TRACE_GAMG) and the rigid body modes as near-nullspace.
 
     Args:
         K: the stiffness (eps(u), eps(v)) with the Dirichlet rows and columns set.
-        problem: the ContactProblem (V, comm).
+        disc: the Discretisation (V, comm).
         linear: "direct" or "amg".
 
     Returns:
         The KSP, set up for "amg".
     """
     if linear != "amg":
-        return direct_solver(K, problem.comm)
-    K.setNearNullSpace(near_nullspace(rigid_body_modes(problem.V), K))
-    ksp = PETSc.KSP().create(problem.comm)
+        return direct_solver(K, disc.comm)
+    K.setNearNullSpace(near_nullspace(rigid_body_modes(disc.V), K))
+    ksp = PETSc.KSP().create(disc.comm)
     ksp.setOptionsPrefix(TRACE_PREFIX)
     ksp.setOperators(K)
     ksp.setType("preonly")
@@ -177,7 +178,7 @@ def _stiffness_solver(K: PETSc.Mat, problem, linear: str) -> PETSc.KSP:
     return ksp
 
 
-def trace_constant(problem, rtol: float = 1e-8, max_iter: int = 500,
+def trace_constant(disc, rtol: float = 1e-8, max_iter: int = 500,
                    linear: str = "direct") -> tuple[float, int]:
     """The squared trace constant ||gamma||^2 of (2.6) on the discrete space; collective.
 
@@ -189,7 +190,7 @@ def trace_constant(problem, rtol: float = 1e-8, max_iter: int = 500,
     is below EIGEN_RTOL times the value (``_lobpcg``).
 
     Args:
-        problem: the ContactProblem.
+        disc: the Discretisation (app/model/discretisation.py).
         rtol: the relative change of the power iteration that stops it (see above).
         max_iter: iterations allowed.
         linear: "direct" (LU and the power iteration) or "amg" (GAMG and LOBPCG).
@@ -197,20 +198,20 @@ def trace_constant(problem, rtol: float = 1e-8, max_iter: int = 500,
     Returns:
         (||gamma||^2, the iterations used).
     """
-    V, comm = problem.V, problem.comm
+    V, comm, bcs = disc.V, disc.comm, disc.bcs
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     a = fem.form(ufl.inner(eps(u), eps(v)) * ufl.dx)
     K = fem.petsc.create_matrix(a, "baij" if comm.size == 1 and linear != "amg" else None)
-    fem.petsc.assemble_matrix(K, a, bcs=problem.bcs)
+    fem.petsc.assemble_matrix(K, a, bcs=bcs)
     K.assemble()
-    M = _gamma3_mass(problem)                                        # Dirichlet rows: below
-    ksp = _stiffness_solver(K, problem, linear)
+    M = _gamma3_mass(disc)                                           # Dirichlet rows: below
+    ksp = _stiffness_solver(K, disc, linear)
     x = K.createVecRight()
     x.setRandom(PETSc.Random().create(comm))
-    fem.petsc.set_bc(x, problem.bcs, scale=0.0)
+    fem.petsc.set_bc(x, bcs, scale=0.0)
     iterate = _lobpcg if linear == "amg" else _power_iteration
     try:
-        return iterate(K, M, ksp, x, problem.bcs, rtol if linear != "amg" else EIGEN_RTOL,
+        return iterate(K, M, ksp, x, bcs, rtol if linear != "amg" else EIGEN_RTOL,
                        max_iter)
     finally:
         for obj in (K, M, ksp, x):
@@ -320,14 +321,14 @@ def trace_constant_bound(problem, solver) -> float | None:
     """
     if not getattr(solver, "gamma3", False) or not hasattr(solver, "S"):
         return None
-    M = _gamma3_mass(problem)
+    M = _gamma3_mass(problem.disc)
     MG = _gamma3_block(M, solver.layout)             # on the rank that holds S
     M.destroy()
 
     def largest():
         with threads.blas_threads(large=solver.m >= dense.PCG_MIN):
             return _largest_generalised_eigenvalue(0.5 * (MG + MG.T), solver.C)
-    lam_K = threads.root_call(problem.comm, largest)
+    lam_K = threads.root_call(problem.disc.comm, largest)
     return problem.elasticity.bounds()[1] * lam_K
 
 
@@ -571,7 +572,8 @@ def diagnose(problem, solver=None) -> Diagnostics:
         if bound is not None and m_E - m_j * bound > 0:
             gamma2, is_bound = bound, True
         else:
-            gamma2, _ = trace_constant(problem, linear=getattr(solver, "linear", "direct"))
+            gamma2, _ = trace_constant(problem.disc,
+                                       linear=getattr(solver, "linear", "direct"))
         margin = m_E - max(np.sqrt(3) * 0.0, m_j) * gamma2
         unique = margin > 0
     return Diagnostics(case.time.scheme, k_max, rate, indicator, STABILITY_LIMIT,
@@ -591,14 +593,15 @@ def _law_rate(problem) -> tuple:
     if law is None:
         return None, None, None, None, None, None
     # the largest over the ranks: with E per cell a law sees only this rank's cells
-    lipschitz = _largest_over_ranks(problem.comm, law.lipschitz_constant())
-    rate = _largest_over_ranks(problem.comm, law.relaxation_rate())   # None if unknown
+    comm = problem.disc.comm
+    lipschitz = _largest_over_ranks(comm, law.lipschitz_constant())
+    rate = _largest_over_ranks(comm, law.relaxation_rate())   # None if unknown
     rate = lipschitz if rate is None else rate
     if rate is not None:
         return rate, lipschitz, None, "law", None, None
     scale = stress_scale(problem.case, problem)
     at_scale = getattr(law, "rate_at_stress", lambda _: None)(scale) if scale > 0 else None
-    at_scale = _largest_over_ranks(problem.comm, at_scale)
+    at_scale = _largest_over_ranks(comm, at_scale)
     if at_scale is not None:
         return None, None, at_scale, "stress_scale", scale, None
     el, H = problem.elasticity, problem.state.H       # sigma_0 = E eps(u_0) + H_0 (3.2)
@@ -641,7 +644,7 @@ def state_rate(problem, t: np.ndarray, eps: np.ndarray | None = None) -> float |
     for g, rows in parts:          # a group's E per cell is the body's: select its rows
         with nullcontext() if isinstance(rows, slice) else g.elasticity.rows(rows):
             found.append(estimated_rate(g, t[rows], kappa[rows, :g.m],
-                                        None if eps is None else eps[rows], problem.comm))
+                                        None if eps is None else eps[rows], problem.disc.comm))
     return max((e for e in found if e is not None), default=None)
 
 

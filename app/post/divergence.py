@@ -97,8 +97,8 @@ def stress_scale(case, problem) -> float:
         The scale (0 if the data has no stress at all).
     """
     E_max = problem.elasticity.bounds()[1]
-    data = max(case.data_stress, contact_scale(case, E_max, problem.length_scale,
-                                               problem.gap_scale))
+    data = max(case.data_stress, contact_scale(case, E_max, problem.disc.length_scale,
+                                               problem.disc.gap_scale))
     return max(data if math.isfinite(data) else 0.0, cell_max(problem, problem.sigma_vm))
 
 
@@ -121,8 +121,8 @@ class BlowUpMonitor(Observer):
         """
         laws = [m.viscoplastic for m in case.all_materials if m.viscoplastic]   # materials
         self.scale = stress_scale(case, problem)
-        h = problem.body.h
-        self.bound = BLOWUP_FACTOR * (problem.length_scale / h) * self.scale
+        h = problem.disc.body.h
+        self.bound = BLOWUP_FACTOR * (problem.disc.length_scale / h) * self.scale
         self.kappa_bound = kappa0_max + max(
             (kappa_growth(vp, case.time.T, self.bound) for vp in laws), default=0.0)
         if isinstance(problem.law, UserLaw):      # a user's law (also one given in Python)

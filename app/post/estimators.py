@@ -98,7 +98,7 @@ class TimeError:
     def _state_rates(self, k: float):
         """(sigma, kappa, G, Gk) of the current state; None if the law fails on a rank."""
         p = self.problem
-        out = _collective(p.comm, self.rates, k)
+        out = _collective(p.disc.comm, self.rates, k)
         if out is None:
             return None
         return (p.sigma.x.array.copy(), p.state.kappa_cells.copy()) + out
@@ -124,7 +124,7 @@ class TimeError:
             return self._norm(self.delta)
         at = now if self.implicit else before
         sig = at[0] - self.delta[0].reshape(-1)
-        moved = _collective(self.problem.comm, self.rates, k, sig, at[1] - self.delta[1])
+        moved = _collective(self.problem.disc.comm, self.rates, k, sig, at[1] - self.delta[1])
         if moved is None:
             self.delta = None
             return float("nan")
@@ -154,9 +154,10 @@ class TimeError:
     def _norm(self, fields: list) -> float:
         """||H-like field||_Q + ||kappa-like field||_Y over the owned cells of all ranks."""
         p = self.problem
-        n = p.num_owned_cells
-        vol = p.cell_volumes()[:n]
-        return float(sum(np.sqrt(p.reduce(float(vol @ np.einsum("ij,ij->i", d[:n], d[:n])),
+        disc = p.disc
+        n = disc.num_owned_cells
+        vol = disc.cell_volumes()[:n]
+        return float(sum(np.sqrt(disc.reduce(float(vol @ np.einsum("ij,ij->i", d[:n], d[:n])),
                                           "SUM")) for d in fields))
 
 
@@ -196,7 +197,7 @@ class ErrorEstimate(Observer):
                 self.time.load_state(restart.time_error)
         g3 = p.state.gamma3
         if g3 is not None and (g3.memory is not None or g3.slip is not None) \
-                and p.pairs is None:
+                and p.disc.pairs is None:
             self.gamma3 = Gamma3TimeError(p)
             if restart is not None and restart.gamma3_error is not None:
                 self.gamma3.load_state(restart.gamma3_error)

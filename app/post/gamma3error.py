@@ -48,17 +48,18 @@ class Gamma3TimeError:
         self.right = np.zeros(m) if mem is not None and mem.recursion else None
         self.ds = np.zeros(m) if self.g3.slip is not None else None
         self.abs_tau = self._components()[1]
-        gm = problem.gamma3
+        disc = problem.disc
+        gm = disc.gamma3
         self.own = np.searchsorted(self.g3.nodes, gm.nodes)   # the owned nodes' rows
         self.weight = gm.weight
-        self.e = fem.Function(problem.V, name="gamma3_time_error")
+        self.e = fem.Function(disc.V, name="gamma3_time_error")
         strain = ufl.sym(ufl.grad(self.e))
         stress = problem.elastic_operator(strain)
         self.norms = [fem.form(ufl.inner(stress, stress) * ufl.dx),
                       fem.form(ufl.inner(strain, strain) * ufl.dx)]
         self.A = fem_petsc.create_matrix(problem.J_form)   # one pattern: one analysis
         self.f, self.x = self.A.createVecLeft(), self.A.createVecRight()
-        self.ksp = PETSc.KSP().create(problem.comm)
+        self.ksp = PETSc.KSP().create(disc.comm)
         self.ksp.setOperators(self.A)
         self.ksp.setType("preonly")
         self.ksp.getPC().setType("lu")
@@ -138,18 +139,19 @@ class Gamma3TimeError:
         """
         p = self.problem
         dt = self.traction(k, t_n)
-        if not p.comm.allreduce(bool(np.any(dt[self.own])), op=MPI.LOR):
+        disc = p.disc
+        if not disc.comm.allreduce(bool(np.any(dt[self.own])), op=MPI.LOR):
             return 0.0                               # no traction error: no solve
-        bs = p.V.dofmap.index_map_bs
+        bs = disc.V.dofmap.index_map_bs
         f, A = self.f, self.A
         f.set(0.0)
-        f.getArray().reshape(-1, bs)[p.gamma3.nodes] = self.weight[:, None] * dt[self.own]
-        fem_petsc.set_bc(f, p.bcs, scale=0.0)
+        f.getArray().reshape(-1, bs)[disc.gamma3.nodes] = self.weight[:, None] * dt[self.own]
+        fem_petsc.set_bc(f, disc.bcs, scale=0.0)
         A.zeroEntries()
-        fem_petsc.assemble_matrix(A, p.J_form, bcs=p.bcs)
+        fem_petsc.assemble_matrix(A, p.J_form, bcs=disc.bcs)
         A.assemble()
         self.ksp.solve(f, self.x)
         self.e.x.array[:len(self.x.getArray())] = self.x.getArray()
         self.e.x.scatter_forward()
-        return float(sum(np.sqrt(max(p.comm.allreduce(fem.assemble_scalar(a)), 0.0))
+        return float(sum(np.sqrt(max(disc.comm.allreduce(fem.assemble_scalar(a)), 0.0))
                          for a in self.norms))

@@ -36,7 +36,7 @@ def _elasticity(problem) -> dict:
         return problem.materials.describe()
     if hasattr(el, "constants"):
         return _entry(el)
-    kind = f"isotropic, plane {mat.plane}" if problem.dim == 2 else "isotropic (3D)"
+    kind = f"isotropic, plane {mat.plane}" if problem.disc.dim == 2 else "isotropic (3D)"
     return {"name": kind, "constants": {"E": [_value(mat.E), "N/m^2"],
                                         "nu": [_value(mat.nu), "-"]}}
 

@@ -29,7 +29,7 @@ def owned_rows(problem) -> np.ndarray:
     Returns:
         (owned cells,) row indices.
     """
-    return np.asarray(problem.Y.dofmap.list.array)[:problem.num_owned_cells]
+    return np.asarray(problem.disc.Y.dofmap.list.array)[:problem.disc.num_owned_cells]
 
 
 class StressOutput:
@@ -74,11 +74,11 @@ def law_rows(problem) -> np.ndarray | None:
     groups = problem.materials.groups if problem.materials else None
     if problem.law is None or not groups:
         return None
-    has = np.zeros((len(problem.Y.dofmap.list.array), problem.law.m), dtype=bool)
+    has = np.zeros((len(problem.disc.Y.dofmap.list.array), problem.law.m), dtype=bool)
     for g in groups:
         if g.law is not None:
             has[g.rows, :g.law.m] = True
-    every = problem.comm.allreduce(bool(has.all()), op=MPI.LAND)
+    every = problem.disc.comm.allreduce(bool(has.all()), op=MPI.LAND)
     return None if every else has
 
 
@@ -93,16 +93,17 @@ class MaterialOutput:
 
     def __init__(self, problem):
         self.functions = []
-        ct = getattr(problem.body, "cell_tags", None)
+        disc = problem.disc
+        ct = getattr(disc.body, "cell_tags", None)
         if ct is None:
             return
         tags = np.unique(np.asarray(ct.values))
-        every = set().union(*problem.comm.allgather(set(tags.tolist())))
+        every = set().union(*disc.comm.allgather(set(tags.tolist())))
         if len(every) < 2:
             return
-        f = fem.Function(problem.Y, name="material")
+        f = fem.Function(disc.Y, name="material")
         f.x.array[:] = np.nan
-        f.x.array[np.asarray(problem.Y.dofmap.list.array)[ct.indices]] = ct.values
+        f.x.array[np.asarray(disc.Y.dofmap.list.array)[ct.indices]] = ct.values
         self.functions = [f]
 
     def update(self) -> None:
@@ -127,16 +128,17 @@ class StrainOutput:
 
     def __init__(self, problem):
         self.problem = problem
-        self.eps = fem.Function(problem.Q, name="eps")
+        disc = problem.disc
+        self.eps = fem.Function(disc.Q, name="eps")
         self.functions = [self.eps]
         self.eps_vp = None
         if problem.law is not None:
-            self.eps_vp = fem.Function(problem.Q, name="eps_vp")
+            self.eps_vp = fem.Function(disc.Q, name="eps_vp")
             self.functions.append(self.eps_vp)
             has = law_rows(problem)
             self.absent = None if has is None else ~has[:, 0]
             self.compliance = _compliances(problem.elasticity)
-            self.eps_vp33 = np.zeros(len(problem.Y.dofmap.list.array))
+            self.eps_vp33 = np.zeros(len(disc.Y.dofmap.list.array))
 
     def update(self) -> None:
         """eps(u), eps_vp from u, sigma and kappa (owned and ghost cells)."""
@@ -199,9 +201,9 @@ class NodalStressOutput:
 
     def __init__(self, problem):
         self.problem = problem
-        d, full = problem.dim, problem.sigma_33 is not None
+        d, full = problem.disc.dim, problem.sigma_33 is not None
         shape = (3, 3) if full else (d, d)
-        msh = problem.mesh
+        msh = problem.disc.mesh
         self.cells = fem.Function(fem.TensorFunctionSpace(msh, ("DG", 0), shape=shape))
         self.projection = LumpedProjection(msh, self.cells, shape, name="sigma_nodal")
         self.nodal = self.projection.nodal
@@ -210,7 +212,7 @@ class NodalStressOutput:
     def update(self) -> None:
         """Project the current sigma (with sigma_33 in plane strain) onto P1 (collective)."""
         p = self.problem
-        d = p.dim
+        d = p.disc.dim
         if p.sigma_33 is None:
             self.cells.x.array[:] = p.sigma.x.array
         else:
@@ -236,7 +238,7 @@ class EtaOutput:
     def __init__(self, problem):
         self.problem = problem
         self.indicators = space_indicators(problem)   # the estimate's: computed once a step
-        self.eta = fem.Function(problem.Y, name="eta")
+        self.eta = fem.Function(problem.disc.Y, name="eta")
         self.functions = [self.eta]
 
     def update(self) -> None:

@@ -27,8 +27,8 @@ def norm(problem, which: str) -> float:
     op = problem.strain_operator
     if which == "V":
         return float(np.sqrt(max(op.strain_norm2(problem.u), 0.0)))
-    local = op.energy_norm2(problem.sigma.x.array[:op.n_owned * problem.dim**2])
-    return float(np.sqrt(problem.reduce(local, "SUM")))
+    local = op.energy_norm2(problem.sigma.x.array[:op.n_owned * problem.disc.dim**2])
+    return float(np.sqrt(problem.disc.reduce(local, "SUM")))
 
 
 def cell_norm(problem, f) -> float:
@@ -41,12 +41,13 @@ def cell_norm(problem, f) -> float:
     Returns:
         The norm.
     """
-    n = problem.num_owned_cells
-    vol = problem.cell_volumes()[:n]
+    disc = problem.disc
+    n = disc.num_owned_cells
+    vol = disc.cell_volumes()[:n]
     bs = f.function_space.dofmap.index_map_bs
     a = f.x.array[:n * bs].reshape(n, bs)
     local = float(vol @ np.einsum("ij,ij->i", a, a))
-    return float(np.sqrt(problem.reduce(local, "SUM")))
+    return float(np.sqrt(disc.reduce(local, "SUM")))
 
 
 def cell_max(problem, f) -> float:
@@ -60,9 +61,9 @@ def cell_max(problem, f) -> float:
     Returns:
         The maximum (-inf without cells).
     """
-    n = problem.num_owned_cells * f.function_space.dofmap.index_map_bs
+    n = problem.disc.num_owned_cells * f.function_space.dofmap.index_map_bs
     local = float(np.max(f.x.array[:n])) if n else -np.inf
-    return float(problem.reduce(local, "MAX"))
+    return float(problem.disc.reduce(local, "MAX"))
 
 
 def bulk_residual(problem) -> np.ndarray:
@@ -144,7 +145,7 @@ def held_nodes(problem) -> np.ndarray:
     Returns:
         A boolean mask over problem.gamma3.nodes.
     """
-    return problem.dirichlet.fixed[problem.gamma3.nodes].any(axis=1)
+    return problem.disc.dirichlet.fixed[problem.disc.gamma3.nodes].any(axis=1)
 
 
 def law_friction(problem, pos: np.ndarray, u_tau: np.ndarray) -> np.ndarray:
@@ -164,7 +165,8 @@ def law_friction(problem, pos: np.ndarray, u_tau: np.ndarray) -> np.ndarray:
     out = np.zeros_like(u_tau, dtype=float)
     theta = np.ones(len(pos)) if problem.theta is None else \
         problem.theta.function.x.array[problem.theta.dofs[pos]]
-    section = np.zeros(len(pos), int) if problem.pairs is None else problem.pairs.pair[pos]
+    pairs = problem.disc.pairs
+    section = np.zeros(len(pos), int) if pairs is None else pairs.pair[pos]
     for k, law in enumerate(problem.section_laws()):
         rows = section == k
         if law.friction is None or not rows.any():
@@ -206,11 +208,12 @@ def contact_table(problem, r: np.ndarray | None = None) -> dict[str, np.ndarray]
     Returns:
         Column name -> values of the owned Gamma3 nodes (sorted by coordinates).
     """
-    gm, d, fr = problem.gamma3, problem.dim, problem.frames
+    disc = problem.disc
+    gm, d, fr = disc.gamma3, disc.dim, disc.frames
     rr = (bulk_residual(problem) if r is None else r)[gm.nodes]
     uu = problem.u.x.array.reshape(-1, d)[gm.nodes]
     pos = np.searchsorted(fr.nodes, gm.nodes)
-    ww = uu if problem.pairs is None else problem.contact_u()[pos]   # two bodies: [u] - d nu
+    ww = uu if disc.pairs is None else problem.contact_u()[pos]   # two bodies: [u] - d nu
     nu, tau = fr.normal[pos], fr.tangents[pos]
     axes = "xyz"[:d]
     table = {a: gm.x[:, i] for i, a in enumerate(axes)}
@@ -234,13 +237,13 @@ def contact_table(problem, r: np.ndarray | None = None) -> dict[str, np.ndarray]
     if problem.xi is not None:
         table["xi"] = problem.xi.function.x.array[problem.xi.dofs[pos]]
     _friction_columns(problem, table, pos, u_tau_vec)
-    if problem.comm.allreduce(bool(held.any()), op=MPI.LOR):
+    if disc.comm.allreduce(bool(held.any()), op=MPI.LOR):
         table["held"] = held.astype(float)
-    if isinstance(problem.case.contact.g, str) or problem.pairs is not None:
+    if isinstance(problem.case.contact.g, str) or disc.pairs is not None:
         table["g"] = fr.g[pos]
-    if problem.pairs is not None:      # two bodies: the pair and the initial distance d
-        table["pair"] = problem.pairs.pair[pos].astype(float)
-        table["d"] = problem.pairs.distance[pos]
+    if disc.pairs is not None:      # two bodies: the pair and the initial distance d
+        table["pair"] = disc.pairs.pair[pos].astype(float)
+        table["d"] = disc.pairs.distance[pos]
     # hidden (not a CSV column): the Dirichlet data prescribe u_nu here, so the force is
     # a support's reaction, not a contact pressure
     table["_prescribed"] = ~fr.bounded[pos]
@@ -261,8 +264,8 @@ def _friction_columns(problem, table: dict, pos: np.ndarray, u_tau: np.ndarray) 
     increment = np.zeros(len(pos)) if path is None else path.increment(u_tau, pos)
     if any(has):  # theta holds the bound mu p_n (theta(s_n)): slip where the node moves
         table["friction_bound"] = np.where(coulomb, theta, np.nan)
-        p_n = np.where(problem.frames.bounded[pos], table["neg_sigma_nu"], 0.0)
-        u_scale, p_scale = _global_max(problem.comm, [
+        p_n = np.where(problem.disc.frames.bounded[pos], table["neg_sigma_nu"], 0.0)
+        u_scale, p_scale = _global_max(problem.disc.comm, [
             float(np.abs(u_tau).max(initial=0.0)), float(p_n.max(initial=0.0))])
         state = slip_states(p_n, increment,
                             slip_threshold(problem.case.numerics.delta, u_scale), p_scale)
@@ -299,7 +302,7 @@ def coulomb_nodes(problem, pos: np.ndarray) -> np.ndarray:
     has = coulomb_sections(problem)
     if len(has) == 1:
         return np.full(len(pos), has[0])
-    return np.asarray(has)[problem.pairs.pair[pos]]
+    return np.asarray(has)[problem.disc.pairs.pair[pos]]
 
 
 def summed(comm, local: np.ndarray) -> np.ndarray:
@@ -340,22 +343,23 @@ def forces(problem, r: np.ndarray | None = None) -> dict:
         without contact, "pair_forces": pair_forces() or None without contact pairs}.
     """
     r = (bulk_residual(problem) if r is None else r).ravel()
-    d, groups = problem.dim, problem.dirichlet.groups
+    disc = problem.disc
+    d, groups = disc.dim, disc.dirichlet.groups
     moved = np.zeros_like(r)                    # the friction at held Gamma3 dofs
-    if problem.gamma3 is not None:
-        nodes = problem.gamma3.nodes
-        fixed = problem.dirichlet.fixed[nodes]
+    if disc.gamma3 is not None:
+        nodes = disc.gamma3.nodes
+        fixed = disc.dirichlet.fixed[nodes]
         moved.reshape(-1, d)[nodes] = held_friction(problem) * fixed
     rows = [np.bincount(grp.dofs % d, weights=(r - moved)[grp.dofs], minlength=d)
             for grp in groups]
-    if problem.gamma3 is not None:
+    if disc.gamma3 is not None:
         rows.append((r.reshape(-1, d)[nodes] * ~fixed).sum(axis=0)
                     + moved.reshape(-1, d)[nodes].sum(axis=0))
-    total = summed(problem.comm, np.reshape(rows, (-1, d))).tolist()   # one reduction
+    total = summed(disc.comm, np.reshape(rows, (-1, d))).tolist()   # one reduction
     reactions = {str(grp.name): total[i] for i, grp in enumerate(groups)}
-    contact = total[-1] if problem.gamma3 is not None else None
+    contact = total[-1] if disc.gamma3 is not None else None
     return {"reactions": reactions, "contact_force": contact,
-            "pair_forces": pair_forces(problem, r, moved) if problem.pairs is not None
+            "pair_forces": pair_forces(problem, r, moved) if disc.pairs is not None
             else None}
 
 
@@ -370,13 +374,14 @@ def held_friction(problem) -> np.ndarray:
     Returns:
         (owned Gamma3 nodes, d) nodal forces.
     """
-    gm, fr = problem.gamma3, problem.frames
+    disc = problem.disc
+    gm, fr = disc.gamma3, disc.frames
     held = held_nodes(problem)
-    out = np.zeros((len(gm.nodes), problem.dim))
-    if not problem.comm.allreduce(bool(held.any()), op=MPI.LOR):
+    out = np.zeros((len(gm.nodes), disc.dim))
+    if not disc.comm.allreduce(bool(held.any()), op=MPI.LOR):
         return out
     pos = np.searchsorted(fr.nodes, gm.nodes)
-    w = problem.u.x.array.reshape(-1, problem.dim)[gm.nodes] if problem.pairs is None \
+    w = problem.u.x.array.reshape(-1, disc.dim)[gm.nodes] if disc.pairs is None \
         else problem.contact_u()[pos]
     nu = fr.normal[pos]
     u_tau = w - np.einsum("ij,ij->i", w, nu)[:, None] * nu
@@ -404,20 +409,21 @@ def pair_forces(problem, r: np.ndarray, moved: np.ndarray | None = None) -> list
         "on_target": [...]}.
     """
     from vpcontact.model.pairs import surface_nodes
-    d = problem.dim
+    disc = problem.disc
+    d = disc.dim
     r = r.reshape(-1, d)
-    fixed = problem.dirichlet.fixed
-    n_owned = problem.V.dofmap.index_map.size_local
-    pos = np.searchsorted(problem.frames.nodes, problem.gamma3.nodes)
+    fixed = disc.dirichlet.fixed
+    n_owned = disc.V.dofmap.index_map.size_local
+    pos = np.searchsorted(disc.frames.nodes, disc.gamma3.nodes)
     out = []
     for i, p in enumerate(problem.case.contact.pairs):
-        surface = problem.gamma3.nodes[problem.pairs.pair[pos] == i]
-        target = surface_nodes(problem.disc, p.target)
+        surface = disc.gamma3.nodes[disc.pairs.pair[pos] == i]
+        target = surface_nodes(disc, p.target)
         target = target[target < n_owned]
         local = [(r[nodes] * ~fixed[nodes]).sum(axis=0) for nodes in (surface, target)]
         if moved is not None:
             local[0] = local[0] + moved.reshape(-1, d)[surface].sum(axis=0)
-        on_surface, on_target = summed(problem.comm, np.array(local))
+        on_surface, on_target = summed(disc.comm, np.array(local))
         out.append({"surface": str(p.surface), "target": str(p.target),
                     "on_surface": [float(v) for v in on_surface],
                     "on_target": [float(v) for v in on_target]})

@@ -84,8 +84,9 @@ class SpaceIndicators:
     """
 
     def __init__(self, problem):
-        d, msh = problem.dim, problem.mesh
-        self.comm, self.owned = problem.comm, problem.num_owned_cells
+        disc = problem.disc
+        d, msh = disc.dim, disc.mesh
+        self.comm, self.owned = disc.comm, disc.num_owned_cells
         kappa = problem.state.kappa
         fields = [(problem.sigma, (d, d)), (ufl.sym(ufl.grad(problem.u)), (d, d))]
         if kappa is not None:
@@ -152,9 +153,10 @@ class ContactJump:
 
     def __init__(self, problem, recovered):
         self.problem, self.recovered = problem, recovered
-        self.active = problem.gamma3 is not None and problem.pairs is None
+        disc = problem.disc
+        self.active = disc.gamma3 is not None and disc.pairs is None
         if self.active:
-            self.traction = fem.Function(problem.V, name="contact_traction")
+            self.traction = fem.Function(disc.V, name="contact_traction")
 
     def form(self, w):
         """The facet integral of the contact boundary term.
@@ -165,12 +167,12 @@ class ContactJump:
         Returns:
             The UFL form h (sigma* nu - t_h)^2 w ds over Gamma3.
         """
-        p, msh = self.problem, self.problem.mesh
+        p, msh = self.problem, self.problem.disc.mesh
         nu, h = ufl.FacetNormal(msh), ufl.CellDiameter(msh)
         jump = ufl.dot(self.recovered, nu) - self.traction
-        ds = ufl.Measure("ds", domain=msh, subdomain_data=p.body.facet_tags,
+        ds = ufl.Measure("ds", domain=msh, subdomain_data=p.disc.body.facet_tags,
                          metadata={"quadrature_degree": 2})
-        return h * ufl.inner(jump, jump) * w * ds(p.gamma3_tags)
+        return h * ufl.inner(jump, jump) * w * ds(p.disc.gamma3_tags)
 
     def update(self) -> None:
         """t_h from the current state: -(neg_sigma_nu nu + neg_sigma_tau tau) of the contact
@@ -179,14 +181,15 @@ class ContactJump:
         if not self.active:
             return
         p = self.problem
-        gm, fr = p.gamma3, p.frames
+        disc = p.disc
+        gm, fr = disc.gamma3, disc.frames
         table = contact_table(p)
         pos = np.searchsorted(fr.nodes, gm.nodes)
-        sfx = [""] if p.dim == 2 else ["1", "2"]
+        sfx = [""] if disc.dim == 2 else ["1", "2"]
         t = -table["neg_sigma_nu"][:, None] * fr.normal[pos] - sum(
             table[f"neg_sigma_tau{x}"][:, None] * fr.tangents[pos][:, k]
             for k, x in enumerate(sfx))
-        values = self.traction.x.array.reshape(-1, p.dim)
+        values = self.traction.x.array.reshape(-1, disc.dim)
         values[:] = 0.0
         values[gm.nodes] = t
         self.traction.x.scatter_forward()

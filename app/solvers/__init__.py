@@ -76,11 +76,12 @@ def select_solver(case, problem) -> StepSolver:
     """
     # the default snes_atol is raised to the residual's round-off floor; a given one is kept
     default_atol = case.petsc.get("snes_atol") == case.petsc_defaults.get("snes_atol")
-    if choose_method(case, gamma3_dofs(problem), problem) == "condensed":
+    disc = problem.disc
+    if choose_method(case, gamma3_dofs(disc), disc) == "condensed":
         from vpcontact.solvers.condensed import CondensedStepSolver
         return CondensedStepSolver(problem, case.petsc, roundoff_floor=default_atol)
     from vpcontact.solvers.options import snes_vi_options
     from vpcontact.solvers.snesvi import SNESVISolver
-    linear = choose_linear(case, problem.V.dofmap.index_map.size_global * problem.dim)
+    linear = choose_linear(case, disc.num_dofs)
     return SNESVISolver(problem, snes_vi_options(case, linear), linear=linear,
                         roundoff_floor=default_atol)

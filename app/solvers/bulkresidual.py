@@ -38,7 +38,7 @@ class BulkProductResidual:
 
     def __init__(self, problem, bulk_form, boundary_form, b: PETSc.Vec):
         forms = problem.forms
-        self.bcs = problem.bcs
+        self.bcs = problem.disc.bcs
         self._K_form, self._B_form = bulk_form, boundary_form
         self._load = fem.form(forms.bulk_load) if forms.bulk_load is not None else None
         self._contact = (fem.form(forms.boundary_residual)

@@ -29,13 +29,13 @@ DENSE_BYTES_PER_ENTRY = 48
 AUTO_AMG_MIN_DOFS = 20_000
 
 
-def condensed_eligible(case, problem=None) -> tuple[bool, str]:
+def condensed_eligible(case, disc=None) -> tuple[bool, str]:
     """Can the condensed step solver solve this case?
 
     Args:
         case: the case.
-        problem: its ContactProblem, or None: the case's rules only.  With it, also the
-            rule of the mesh: a body whose rigid motion only contact holds
+        disc: its Discretisation (app/model/discretisation.py), or None: the case's rules
+            only.  With it, also the rule of the mesh: a body whose rigid motion only contact holds
             (``held_by_contact``) is refused with fast_* PETSc options.
 
     Returns:
@@ -45,8 +45,8 @@ def condensed_eligible(case, problem=None) -> tuple[bool, str]:
         return False, "the implicit history variant makes the bulk problem nonlinear"
     if case.numerics.quadrature != "vertex" and case.contact.active:
         return False, "the condensed solver needs the nodal (vertex) Gamma3 quadrature"
-    if problem is not None and \
-            any(str(k).startswith("fast_") for k in case.petsc) and held_by_contact(problem):
+    if disc is not None and \
+            any(str(k).startswith("fast_") for k in case.petsc) and held_by_contact(disc):
         return False, ("a body's rigid motion is held only by a contact pair or the "
                        "foundation: the condensed solver takes it with its compiled back end "
                        "(serially) or MUMPS (under mpirun) only, not with fast_* PETSc "
@@ -54,24 +54,23 @@ def condensed_eligible(case, problem=None) -> tuple[bool, str]:
     return True, ""
 
 
-def held_by_contact(problem) -> bool:
+def held_by_contact(disc) -> bool:
     """Whether the Dirichlet data leave a rigid motion of a part of the body free (held
     only by contact, a pair's or the foundation's: app/model/dirichlet.py
     ``check_rigid_motions``); collective.
 
     Args:
-        problem: the ContactProblem.
+        disc: the Discretisation.
 
     Returns:
         True if some part has a free rigid motion.
     """
     from vpcontact.model.dirichlet import body_parts, free_motions
-    free = free_motions(problem.V, problem.dirichlet.fixed, body_parts(problem.V),
-                        problem.caps)
+    free = free_motions(disc.V, disc.dirichlet.fixed, body_parts(disc.V), disc.caps)
     return any(f.shape[1] > 0 for f in free)
 
 
-def choose_method(case, n_gamma3_dofs: int, problem=None) -> str:
+def choose_method(case, n_gamma3_dofs: int, disc=None) -> str:
     """The step solver a case runs with: ``solver.method``, and for ``auto`` the condensed
     solver where it applies (``condensed_eligible``) and its Gamma3 problem has at most
     AUTO_FAST_MAX_GAMMA3_DOFS dofs (two bodies: those of G, ``condensed_dofs``) and its
@@ -82,7 +81,7 @@ def choose_method(case, n_gamma3_dofs: int, problem=None) -> str:
     Args:
         case: the validated Case.
         n_gamma3_dofs: the global number of Gamma3 dofs (nodes times dimension).
-        problem: the ContactProblem (collective then), or None: the case's rules only.
+        disc: the case's Discretisation (collective then), or None: the case's rules only.
 
     Returns:
         "condensed" or "snes_vi".
@@ -94,11 +93,11 @@ def choose_method(case, n_gamma3_dofs: int, problem=None) -> str:
     method = case.numerics.method
     if method == "snes_vi":
         return method
-    ok, why = condensed_eligible(case, problem)
-    if ok and problem is not None:
+    ok, why = condensed_eligible(case, disc)
+    if ok and disc is not None:
         if case.contact.pairs:
-            n_gamma3_dofs = condensed_dofs(problem)
-        ok, why = dense_fits(n_gamma3_dofs, problem.comm)
+            n_gamma3_dofs = condensed_dofs(disc)
+        ok, why = dense_fits(n_gamma3_dofs, disc.comm)
     if method == "condensed":
         if not ok:
             from vpcontact.io.errors import CaseError
@@ -131,24 +130,24 @@ def dense_fits(m: int, comm, memory: float | None = None) -> tuple[bool, str]:
                    f"matrices on one rank, more than the {memory / 1e9:.1f} GB available")
 
 
-def condensed_dofs(problem) -> int:
+def condensed_dofs(disc) -> int:
     """The dofs of the condensed solver's G (collective): the Gamma3 dofs, and with two
     bodies also those of the target nodes coupled to the surface nodes.
 
     Args:
-        problem: the ContactProblem.
+        disc: the Discretisation.
 
     Returns:
         The global number of G's nodes times the dimension.
     """
     import numpy as np
-    if problem.pairs is None:
-        return gamma3_dofs(problem)
-    imap = problem.V.dofmap.index_map
-    mine = np.concatenate([imap.local_to_global(problem.gamma3.nodes.astype(np.int32)),
-                           problem.pairs.cols]).astype(np.int64)
-    nodes = np.unique(np.concatenate(problem.comm.allgather(np.unique(mine))))
-    return len(nodes) * problem.dim
+    if disc.pairs is None:
+        return gamma3_dofs(disc)
+    imap = disc.V.dofmap.index_map
+    mine = np.concatenate([imap.local_to_global(disc.gamma3.nodes.astype(np.int32)),
+                           disc.pairs.cols]).astype(np.int64)
+    nodes = np.unique(np.concatenate(disc.comm.allgather(np.unique(mine))))
+    return len(nodes) * disc.dim
 
 
 def choose_linear(case, n_dofs: int) -> str:
@@ -170,14 +169,13 @@ def choose_linear(case, n_dofs: int) -> str:
     return "amg" if case.dim == 3 and n_dofs > AUTO_AMG_MIN_DOFS else "schur"
 
 
-def gamma3_dofs(problem) -> int:
-    """The global number of Gamma3 dofs of ``problem`` (collective).
+def gamma3_dofs(disc) -> int:
+    """The global number of Gamma3 dofs of a Discretisation (collective).
 
     Args:
-        problem: the ContactProblem.
+        disc: the Discretisation.
 
     Returns:
         Gamma3 nodes (over all ranks) times the dimension; 0 without Gamma3.
     """
-    nodes = problem.comm.allreduce(len(problem.gamma3.nodes) if problem.gamma3 else 0)
-    return nodes * problem.dim
+    return disc.num_gamma3_nodes * disc.dim

@@ -79,7 +79,7 @@ class CoulombFixedPoint:
                 iterate's; the step is not accepted).
         """
         pressure = self.history.coulomb
-        comm, its, change, scale = pressure.problem.comm, 0, np.inf, 0.0
+        comm, its, change, scale = pressure.problem.disc.comm, 0, np.inf, 0.0
         pressure.start_step()
         for i in range(1, MAX_ITERATIONS + 1):
             self.history.set_coulomb_bound(pressure.mu * pressure.p)

@@ -78,10 +78,11 @@ def schur_refusal(problem, options: dict, reuse: bool, rotated: bool) -> str:
     from vpcontact import kernels
     snes_type = options.get("snes_type", SNES_TYPE)
     given = user_linear_options(options)
-    comm = problem.comm
-    gamma3 = 0 if problem.gamma3 is None else len(problem.gamma3.nodes)
+    disc = problem.disc
+    comm = disc.comm
+    gamma3 = 0 if disc.gamma3 is None else len(disc.gamma3.nodes)
     reasons = [
-        (problem.pairs is not None, "two bodies (contact pairs)"),
+        (disc.pairs is not None, "two bodies (contact pairs)"),
         (not reuse, "the bulk Jacobian changes (implicit scheme)"),
         (rotated, "nodal frames (curved Gamma3) or rigid caps"),
         (problem.hold is not None, "a body held only by contact (K singular)"),
@@ -114,12 +115,13 @@ class GammaSchur:
     def __init__(self, problem, K: PETSc.Mat, gamma3_terms):
         from vpcontact import kernels
         from vpcontact.solvers.condensed.layout import Gamma3Layout
-        self.comm = problem.comm
+        disc = problem.disc
+        self.comm = disc.comm
         self.start, end = K.getOwnershipRange()
         self.layout = Gamma3Layout(problem, self.start)
         self.G = self.layout.global_rows().astype(np.int64)
         self.m, self.n = len(self.G), K.getSize()[0]
-        self.condensation = _condensation(K, self.G.astype(np.int32), problem.dim,
+        self.condensation = _condensation(K, self.G.astype(np.int32), disc.dim,
                                           kernels.load(), self.comm)
         self.S = self.condensation.S                # on GAMMA3_ROOT, None elsewhere
         self.position = np.full(self.n, -1, dtype=np.int64)    # a dof's place in G, or -1
@@ -128,7 +130,7 @@ class GammaSchur:
         self.gamma3_terms = gamma3_terms
         self.b, self.x = K.createVecs()
         self.factorisations = 1
-        self.d = problem.dim
+        self.d = disc.dim
         # (S + W)_ff by the condensed solver's compiled Cholesky (W: B's nodal blocks)
         self.direction = None if self.S is None else \
             dense.NewtonDirection(self.S, self.d, dense.load())

@@ -109,8 +109,8 @@ def gamma3_points(problem, layout):
     """
     if not varies_in_space(problem.case.contact):
         return None
-    return layout.place_on_all(layout.local_owned_g, problem.gamma3.x,
-                               (len(layout.g_nodes), problem.dim))
+    return layout.place_on_all(layout.local_owned_g, problem.disc.gamma3.x,
+                               (len(layout.g_nodes), problem.disc.dim))
 
 
 class NodalContact:

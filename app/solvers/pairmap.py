@@ -10,8 +10,8 @@ each Gamma3 node replaced by sign_i ([u]_nu - d_i):
     x = (I - S) R^T (u - c),
 
 where S (``PairOperators.lift`` = I + S) couples the slot dof of node i to the target nodes
-of its projection.  The bound is then the box sign_i x_slot <= g (``problem.bounds()``), P is
-invertible and the Newton matrix P^T K P + C^T J_w C stays symmetric (positive definite where
+of its projection.  The bound is then the box sign_i x_slot <= g (``Discretisation.bounds``),
+P is invertible and the Newton matrix P^T K P + C^T J_w C stays symmetric (positive definite where
 J_n is convex).  The Gamma3 terms are evaluated on w = B u - c_w = C x with C = B P
 (``PairOperators``), so
 
@@ -44,7 +44,8 @@ class PairVariables:
     (``PairMap``) and the condensed solver (app/solvers/condensed/pairs.py).
 
     Args:
-        problem: the ContactProblem with contact pairs (its ``pair_operators``).
+        problem: the ContactProblem with contact pairs (its Discretisation's
+            ``pair_operators``).
 
     Attributes:
         R, P, C, unlift, c: the nodal rotation, P = R (I + S), C = B P, I - S and the
@@ -54,9 +55,10 @@ class PairVariables:
 
     def __init__(self, problem):
         self.problem = problem
-        ops = problem.pair_operators
+        disc = problem.disc
+        ops = disc.pair_operators
         self.R = rotation_matrix(problem)
-        self.caps, self.T = problem.caps, None
+        self.caps, self.T = disc.caps, None
         self.P = self.R.matMult(ops.lift)
         if self.caps is not None:                  # u = T (R (I + S) x + c)
             self.T, self.T_inv = self.caps.matrices()
@@ -66,14 +68,14 @@ class PairVariables:
         self.unlift = ops.unlift
         self.c = ops.c
         self.x_work, self.y_work = self.c.duplicate(), self.c.duplicate()
-        imap = problem.V.dofmap.index_map
-        n = imap.size_local * problem.dim
-        dofs = np.unique(np.concatenate([bc.dof_indices()[0] for bc in problem.bcs]
+        imap = disc.V.dofmap.index_map
+        n = imap.size_local * disc.dim
+        dofs = np.unique(np.concatenate([bc.dof_indices()[0] for bc in disc.bcs]
                                         or [np.zeros(0, np.int32)]))
         if self.caps is not None:
             dofs = np.union1d(dofs, self.caps.fixed)
         self.dirichlet = dofs[dofs < n].astype(PETSc.IntType)
-        self.dirichlet_global = (self.dirichlet + imap.local_range[0] * problem.dim
+        self.dirichlet_global = (self.dirichlet + imap.local_range[0] * disc.dim
                                  ).astype(PETSc.IntType)
 
     def bulk_stiffness(self) -> PETSc.Mat:
@@ -111,7 +113,7 @@ class PairVariables:
         Args:
             x: a vector of x's layout.
         """
-        fem.petsc.set_bc(x, self.problem.bcs)
+        fem.petsc.set_bc(x, self.problem.disc.bcs)
         if self.caps is not None:
             self.caps.fix(x, self.time)
 
@@ -165,8 +167,8 @@ class PairMap(PairVariables):
     """The residual and Jacobian of the step problem of two bodies in x (module docstring).
 
     Args:
-        problem: the ContactProblem with contact pairs (its ``pair_operators``, ``w`` and
-            ``pair_forms``).
+        problem: the ContactProblem with contact pairs (its ``w`` and ``pair_forms``, its
+            Discretisation's ``pair_operators``).
     """
 
     def __init__(self, problem):

@@ -22,7 +22,8 @@ def rotation_matrix(problem) -> PETSc.Mat:
     Returns:
         The assembled AIJ matrix with u's row and column layout.
     """
-    V, d, fr = problem.V, problem.dim, problem.frames
+    disc = problem.disc
+    V, d, fr = disc.V, disc.dim, disc.frames
     imap = V.dofmap.index_map
     n = imap.size_local
     blocks = np.broadcast_to(np.eye(d), (n, d, d)).copy()
@@ -34,7 +35,7 @@ def rotation_matrix(problem) -> PETSc.Mat:
     indices = np.broadcast_to(cols, (n, d, d)).reshape(-1).astype(PETSc.IntType)
     indptr = np.arange(0, n * d * d + 1, d, dtype=PETSc.IntType)
     R = PETSc.Mat().createAIJ(size=((n * d, PETSc.DECIDE), (n * d, PETSc.DECIDE)),
-                              csr=(indptr, indices, blocks.reshape(-1)), comm=problem.comm)
+                              csr=(indptr, indices, blocks.reshape(-1)), comm=disc.comm)
     R.assemble()
     return R
 
@@ -52,7 +53,7 @@ class FrameMap:
     """
 
     def __init__(self, problem, template: PETSc.Vec):
-        self.problem, self.caps = problem, problem.caps
+        self.problem, self.caps = problem, problem.disc.caps
         self.R = rotation_matrix(problem)
         self.T = self.T_inv = None
         self.M = self.R

@@ -287,7 +287,8 @@ class SNESVISolver:
         self.b = fem.petsc.create_vector(problem.F_form)
         self.A = fem.petsc.create_matrix(problem.J_form)
         # two bodies: SNES solves for x of app/solvers/pairmap.py (the pairs' bound a box)
-        self.pairs = PairMap(problem) if problem.pairs is not None else None
+        disc = problem.disc
+        self.pairs = PairMap(problem) if disc.pairs is not None else None
         if self.pairs is None:
             self._setup_jacobian_reuse(problem)
         else:
@@ -296,12 +297,12 @@ class SNESVISolver:
         # curved Gamma3: SNES solves for x = R^T u in the nodal frames (app/solvers/rotation.py)
         self.frames = None
         # rigid caps: and for their amplitudes (app/model/rigidcap.py; two bodies: in PairMap)
-        rotated = problem.frames is not None and problem.frames.rotated
-        if (rotated or problem.caps is not None) and self.pairs is None:
+        rotated = disc.frames is not None and disc.frames.rotated
+        if (rotated or disc.caps is not None) and self.pairs is None:
             self.frames = FrameMap(problem, self.u.vector)
             self.b_frames = self.b.duplicate()
             if not self.reuse:                   # the pattern of J for the first PtAP
-                fem.petsc.assemble_matrix(self.A, problem.J_form, problem.bcs)
+                fem.petsc.assemble_matrix(self.A, problem.J_form, disc.bcs)
                 self.A.assemble()
             self.A_frames = self.frames.product(self.A)
         self.options, self.prefix = dict(options), prefix
@@ -323,7 +324,7 @@ class SNESVISolver:
         """A SNES reading this solver's options; ``robust``: with ROBUST on top (the
         database keeps this solver's options: ROBUST is put in for the SNES's
         setFromOptions only)."""
-        snes = PETSc.SNES().create(self.problem.comm)
+        snes = PETSc.SNES().create(self.problem.disc.comm)
         snes.setOptionsPrefix(self.prefix)
         if self.pairs is not None:
             snes.setFunction(self._F_pairs, self.b)
@@ -344,7 +345,7 @@ class SNESVISolver:
                 push_options({k: v for k, v in self.options.items() if k in self.ROBUST},
                              self.prefix)
         if snes.getType().startswith("vi"):
-            lb, ub = self.problem.bounds()
+            lb, ub = self.problem.disc.bounds(self.problem.u.vector)
             snes.setVariableBounds(lb, ub)
             self._lb, self._ub = lb, ub
         if self.floor is not None:
@@ -377,7 +378,7 @@ class SNESVISolver:
             except np.linalg.LinAlgError:
                 why = "K's Schur complement on Gamma3 is not positive definite"
         if self.schur is not None:
-            lb, ub = self.problem.bounds()
+            lb, ub = self.problem.disc.bounds(self.problem.u.vector)
             if not self.schur.covers(lb, ub):
                 why = "bounds on dofs outside the Gamma3 nodes"
             for obj in (lb, ub):
@@ -403,7 +404,7 @@ class SNESVISolver:
         the nodal frames mix a node's dofs); None when all may (implicit scheme, two bodies).
         """
         if not self.reuse or self.pairs is not None or self._lb is None \
-                or self.problem.comm.size > 1:
+                or self.problem.disc.comm.size > 1:
             return None
         bounded = (self._lb.array_r > PETSc.NINFINITY) | (self._ub.array_r < PETSc.INFINITY)
         if self.B is not None:
@@ -438,7 +439,7 @@ class SNESVISolver:
         inactive contact would hold), whose floor would grow with it and stop SNES at a
         residual of the order of the loads."""
         x = snes.getSolution()
-        if x.norm(PETSc.NormType.NORM_INFINITY) > BLOWUP * self.problem.length_scale:
+        if x.norm(PETSc.NormType.NORM_INFINITY) > BLOWUP * self.problem.disc.length_scale:
             self.ran_away = True
             snes.setTolerances(atol=atol)
             return
@@ -451,7 +452,7 @@ class SNESVISolver:
         Returns:
             (owned dofs, modes) array.
         """
-        Z = rigid_body_modes(self.problem.V)
+        Z = rigid_body_modes(self.problem.disc.V)
         if self.pairs is not None:
             return self.pairs.modes(Z)
         if self.frames is None:
@@ -547,7 +548,7 @@ class SNESVISolver:
         x = self.x.array
         ok = len(self._past) == 2 and t > self._past[1][0] > self._past[0][0] \
             and np.array_equal(x, self._past[1][1])
-        if not self.problem.comm.allreduce(ok, op=MPI.LAND):
+        if not self.problem.disc.comm.allreduce(ok, op=MPI.LAND):
             return
         (t0, x0), (t1, x1) = self._past
         x += (t - t1) / (t1 - t0) * (x1 - x0)
@@ -573,10 +574,11 @@ class SNESVISolver:
             with b.localForm() as bl:   # the local stress update failed: let SNES see NaN
                 bl.set(np.nan)
             return
+        bcs = self.problem.disc.bcs
         fem.petsc.assemble_vector(b, self.problem.F_form)
-        fem.petsc.apply_lifting(b, [self.problem.J_form], [self.problem.bcs], x0=[x], scale=-1.0)
+        fem.petsc.apply_lifting(b, [self.problem.J_form], [bcs], x0=[x], scale=-1.0)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        fem.petsc.set_bc(b, self.problem.bcs, x, -1.0)
+        fem.petsc.set_bc(b, bcs, x, -1.0)
 
     def _F_pairs(self, snes, x, b):
         """The residual of two bodies in x (app/solvers/pairmap.py)."""
@@ -621,7 +623,7 @@ class SNESVISolver:
         # K's assembly sets every entry of every cell's dofs (zeros included), so A keeps
         # the whole pattern of J = K + B: B couples the dofs of a Gamma3 facet's cell only
         bulk_form = fem.form(forms.bulk_jacobian)
-        fem.petsc.assemble_matrix(self.A, bulk_form, problem.bcs)
+        fem.petsc.assemble_matrix(self.A, bulk_form, problem.disc.bcs)
         self.A.assemble()
         self.reuse = True
         if forms.boundary_jacobian is not None:
@@ -649,7 +651,7 @@ class SNESVISolver:
         self._release_last_system(snes)
         if not self.reuse:                       # implicit scheme: the tangent changes
             A.zeroEntries()
-            fem.petsc.assemble_matrix(A, self.problem.J_form, self.problem.bcs)
+            fem.petsc.assemble_matrix(A, self.problem.J_form, self.problem.disc.bcs)
             A.assemble()
             return
         if self.K is not None:
@@ -657,7 +659,7 @@ class SNESVISolver:
         if self.B is not None:
             # Dirichlet rows/columns: skipped (their diagonal: K's 1 in A)
             self.B.zeroEntries()
-            _assemble_without_diagonal(self.B, self._boundary_form, self.problem.bcs)
+            _assemble_without_diagonal(self.B, self._boundary_form, self.problem.disc.bcs)
             self.B.assemble()
             if self._K_at_B is None:             # A holds K alone: its values at B's entries
                 self._K_at_B = GammaEntries(A, self.B)
@@ -772,7 +774,7 @@ class SNESVISolver:
         if delta is None:
             raise StepSolveError(f"{first}; with backtracking: {second}", second.reason)
         target = float(delta.value)
-        stages = continuation_deltas(target, self.problem.length_scale)
+        stages = continuation_deltas(target, self.problem.disc.length_scale)
         try:
             for d in stages:
                 delta.value = d
@@ -807,7 +809,7 @@ class SNESVISolver:
         held (their rows and columns of the Jacobian the identity, their increments 0),
         put into the bounds."""
         pinned, self._pinned = self._pinned, None
-        comm = self.problem.comm
+        comm = self.problem.disc.comm
         if self._lb is None or comm.allreduce(len(pinned)) == 0:
             return
         start = self.u.x.array.copy()
@@ -822,7 +824,7 @@ class SNESVISolver:
         M.zeroRowsColumns((pinned + self.x.getOwnershipRange()[0]).astype(PETSc.IntType),
                           diag=1.0)
         rhs.array[pinned] = 0.0
-        ksp = direct_solver(M, self.problem.comm)
+        ksp = direct_solver(M, self.problem.disc.comm)
         ksp.solve(rhs, dx)
         self.x.axpy(-1.0, dx)
         np.clip(self.x.array, self._lb.array_r, self._ub.array_r, out=self.x.array)

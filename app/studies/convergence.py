@@ -461,7 +461,7 @@ def _estimate(summary: dict) -> dict | None:
 
 def _final_table(problem, comm) -> dict | None:
     """The contact table at T of all ranks on rank 0 (None elsewhere, or without Gamma3)."""
-    return None if problem.gamma3 is None else _gather_table(contact_table(problem), comm)
+    return None if problem.disc.gamma3 is None else _gather_table(contact_table(problem), comm)
 
 
 def _gather_table(table: dict, comm) -> dict | None:

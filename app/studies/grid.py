@@ -252,13 +252,14 @@ class GridSampler:
     """
 
     def __init__(self, problem, grid: Grid):
-        self.grid, self.comm = grid, problem.comm
-        V = problem.V
+        disc = problem.disc
+        self.grid, self.comm = grid, disc.comm
+        V = disc.V
         nv = V.dofmap.index_map.size_local
         self._vI, self._vJ = grid.vertex_index(V.tabulate_dof_coordinates()[:nv])
         self._nv = nv
-        msh = problem.mesh
-        nc = problem.num_owned_cells
+        msh = disc.mesh
+        nc = disc.num_owned_cells
         x = msh.geometry.x
         dm = msh.geometry.dofmap
         cent = np.array([x[dm.links(c)].mean(axis=0) for c in range(nc)]).reshape(-1, 3)

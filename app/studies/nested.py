@@ -163,8 +163,9 @@ class LevelSampler:
     """
 
     def __init__(self, problem, level: NestedLevel):
-        self.level, self.comm = level, problem.comm
-        msh, V = problem.mesh, problem.V
+        disc = problem.disc
+        self.level, self.comm = level, disc.comm
+        msh, V = disc.mesh, disc.V
         d = msh.geometry.dim
         nv = V.dofmap.index_map.size_local
         geo = msh.geometry.dofmap.array.reshape(-1, d + 1)
@@ -173,7 +174,7 @@ class LevelSampler:
         node_of_dof[dofs.ravel()] = geo.ravel()
         original = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)
         vidx = original[node_of_dof[:nv]]
-        nc = problem.num_owned_cells
+        nc = disc.num_owned_cells
         cverts = original[geo[:nc]]
         xv = msh.geometry.x[node_of_dof[:nv], :d]
         parts = self.comm.gather((vidx, xv, cverts), root=0)

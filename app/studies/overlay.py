@@ -44,7 +44,7 @@ class MeshSamples(Observer):
             sim: the Simulation, set up.
         """
         p = sim.problem
-        nc, V = p.num_owned_cells, p.V
+        nc, V = p.disc.num_owned_cells, p.disc.V
         self._dofs = np.array([V.dofmap.cell_dofs(c) for c in range(nc)], dtype=np.int64)
         xdof = V.tabulate_dof_coordinates()[:, :2]
         self._x = xdof[self._dofs]                                  # (nc, 3, 2)
@@ -68,7 +68,7 @@ class MeshSamples(Observer):
                 np.abs(self.ref_times - t).min() > 1e-12 * max(1.0, abs(t)):
             self.off, self.snaps, self.times = True, [], []     # the same on every rank
             return
-        p, nc = sim.problem, sim.problem.num_owned_cells
+        p, nc = sim.problem, sim.problem.disc.num_owned_cells
         u = p.u.x.array.reshape(-1, 2)[self._dofs]                  # (nc, 3, 2)
         eps = triangle_strains(self._x, u)
         s = p.sigma.x.array.reshape(-1, 2, 2)[:nc]

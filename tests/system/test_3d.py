@@ -33,7 +33,7 @@ def test_3d_uniform_stress_patch(size):
     raw["loads"] = {"traction": {k: [float(v) for v in sigma @ n] for k, n in normals.items()}}
     raw["time"] = {"T": 1.0, "N": 1}
     p = run_case(validate_raw(raw)).problem
-    x = p.V.tabulate_dof_coordinates()
+    x = p.disc.V.tabulate_dof_coordinates()
     exact = np.outer(x[:, 0], [a, b, c])
     u = p.u.x.array.reshape(-1, 3)
     assert np.abs(u - exact).max() <= 1e-11 * np.abs(exact).max()

@@ -152,8 +152,8 @@ def test_orthotropic_box_rotated_with_its_axes_3d(tmp_path):
     for a, b in zip(ref.summary["steps"], turned.summary["steps"], strict=True):
         for key in NORMS:
             assert b[key] == pytest.approx(a[key], rel=1e-8, abs=1e-14), key
-    x_ref = ref.problem.V.tabulate_dof_coordinates()
-    back = turned.problem.V.tabulate_dof_coordinates() @ R       # R^T x, row-wise
+    x_ref = ref.problem.disc.V.tabulate_dof_coordinates()
+    back = turned.problem.disc.V.tabulate_dof_coordinates() @ R       # R^T x, row-wise
     i, j = _order(back), _order(x_ref)
     np.testing.assert_allclose(back[i], x_ref[j], atol=1e-12)
     u_ref = ref.problem.u.x.array.reshape(-1, 3)[j]
@@ -214,7 +214,7 @@ def test_layered_patch():
     res = run_case(validate(raw, "layered"))
     p = res.problem
     assert isinstance(p.elasticity, CellElasticity) and len(p.elasticity.mats) == 2
-    y = p.V.tabulate_dof_coordinates()[:, 1]
+    y = p.disc.V.tabulate_dof_coordinates()[:, 1]
     uy = np.where(y <= 0.5, s * y / 1000.0, s * 0.5 / 1000.0 + s * (y - 0.5) / 3000.0)
     u = p.u.x.array.reshape(-1, 2)
     np.testing.assert_allclose(u[:, 1], uy, rtol=0, atol=1e-12 * np.abs(uy).max())

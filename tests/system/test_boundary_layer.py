@@ -19,17 +19,17 @@ def _assembled(problem) -> np.ndarray:
     """(sigma, eps(v)) - f_n(v) over every cell, by dolfinx (owned nodes, d)."""
     b = fem.petsc.assemble_vector(fem.form(problem.forms.bulk_residual))
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    out = b.array_r.reshape(-1, problem.dim).copy()
+    out = b.array_r.reshape(-1, problem.disc.dim).copy()
     b.destroy()
     return out
 
 
 def _layer_nodes(problem) -> np.ndarray:
     """The owned nodes where the layer's r is exact."""
-    d, owned = problem.dim, problem.V.dofmap.index_map.size_local
-    nodes = [grp.dofs // d for grp in problem.dirichlet.groups]
-    if problem.gamma3 is not None:
-        nodes.append(problem.gamma3.nodes)
+    d, owned = problem.disc.dim, problem.disc.V.dofmap.index_map.size_local
+    nodes = [grp.dofs // d for grp in problem.disc.dirichlet.groups]
+    if problem.disc.gamma3 is not None:
+        nodes.append(problem.disc.gamma3.nodes)
     for pair in problem.case.contact.pairs:
         target = surface_nodes(problem.disc, pair.target)
         nodes.append(target[target < owned])

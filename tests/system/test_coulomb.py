@@ -151,7 +151,7 @@ def test_fixed_point_that_does_not_converge_fails_the_step():
             return 1
 
     fp = CoulombPressure.__new__(CoulombPressure)
-    fp.problem = type("Problem", (), {"comm": Comm()})()
+    fp.problem = type("Problem", (), {"disc": type("Disc", (), {"comm": Comm()})()})()
     fp.mu, fp.p = MU, np.zeros(3)
     fp.measure = lambda: np.full(3, 1.0 + Solver.calls % 2)
     history = type("History", (), {"coulomb": fp, "set_coulomb_bound": lambda mu_p: None})

@@ -35,7 +35,7 @@ def _run(path, overrides=(), **kwargs):
 def _cells(result):
     """sigma (cells, d, d) and kappa (cells, m) of a run at T."""
     p = result.problem
-    d = p.dim
+    d = p.disc.dim
     return p.sigma.x.array.reshape(-1, d, d), p.state.kappa.x.array.reshape(-1, p.law.m)
 
 
@@ -93,7 +93,7 @@ def test_norton_creep_under_constant_load(dim):
     for res in results.values():
         assert res.status == "completed"
         p = res.problem
-        x = p.V.tabulate_dof_coordinates()[:, :dim]
+        x = p.disc.V.tabulate_dof_coordinates()[:, :dim]
         u = p.u.x.array.reshape(-1, dim)
         np.testing.assert_allclose(u[:, 0], x[:, 0] * (s / E + creep), rtol=0, atol=1e-12)
         for j in range(1, dim):

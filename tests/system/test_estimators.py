@@ -44,10 +44,10 @@ def _numpy_eta_sigma(problem) -> float:
     """eta_Q of the current sigma by an independent recovery (serial): the volume-weighted
     nodal mean of sigma over the cells around each vertex, and the exact integral of a
     linear function, int_K (sum_i g_i lambda_i)^2 = |K| (sum g_i^2 + (sum g_i)^2) / 12."""
-    msh = problem.mesh
+    msh = problem.disc.mesh
     x = msh.geometry.x[:, :2]
     cells = msh.geometry.dofmap.array.reshape(-1, 3)
-    sig = problem.sigma.x.array.reshape(-1, 4)[np.asarray(problem.Q.dofmap.list.array)
+    sig = problem.sigma.x.array.reshape(-1, 4)[np.asarray(problem.disc.Q.dofmap.list.array)
                                                 .reshape(-1)[:len(cells)]]
     a, b, c = x[cells[:, 0]], x[cells[:, 1]], x[cells[:, 2]]
     vol = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1])
@@ -299,10 +299,10 @@ def _numpy_contact_jump(problem, recovered) -> float:
     from dolfinx.cpp.mesh import entities_to_geometry
 
     from vpcontact.post.quantities import contact_table
-    msh, gm, fr = problem.mesh, problem.gamma3, problem.frames
+    msh, gm, fr = problem.disc.mesh, problem.disc.gamma3, problem.disc.frames
     msh.topology.create_connectivity(1, 2)
-    ft = problem.body.facet_tags
-    facets = ft.indices[np.isin(ft.values, problem.gamma3_tags)]
+    ft = problem.disc.body.facet_tags
+    facets = ft.indices[np.isin(ft.values, problem.disc.gamma3_tags)]
     table = contact_table(problem)
     pos = np.searchsorted(fr.nodes, gm.nodes)
     t_nodes = -table["neg_sigma_nu"][:, None] * fr.normal[pos] \

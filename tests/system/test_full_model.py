@@ -186,7 +186,7 @@ def test_initial_displacement_is_kept_without_loads():
     raw["initial"] = {"u0": ["0.01*x*y", "0.02*x**2"]}
     res = run_case(validate_raw(raw))
     p = res.problem
-    x = p.V.tabulate_dof_coordinates()
+    x = p.disc.V.tabulate_dof_coordinates()
     u0 = np.column_stack([0.01 * x[:, 0] * x[:, 1], 0.02 * x[:, 0] ** 2])
     np.testing.assert_allclose(p.u.x.array.reshape(-1, 2), u0, atol=1e-13)
 
@@ -212,10 +212,10 @@ def test_kappa0_expression():
     raw["time"] = {"T": 1.0, "N": 1}
     res = run_case(validate_raw(raw))
     # kappa_1 = kappa_0 + k Gk(sigma_0 = 0, kappa_0) = kappa_0: the cell averages of 5 + 2x
-    msh = res.problem.mesh
+    msh = res.problem.disc.mesh
     x = msh.geometry.x
     dm = msh.geometry.dofmap
-    cx = np.array([x[dm.links(c)][:, 0].mean() for c in range(res.problem.num_owned_cells)])
+    cx = np.array([x[dm.links(c)][:, 0].mean() for c in range(res.problem.disc.num_owned_cells)])
     np.testing.assert_allclose(res.history.kappa.x.array[:len(cx)], 5 + 2 * cx, rtol=1e-12)
 
 

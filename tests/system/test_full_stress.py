@@ -140,7 +140,7 @@ def test_elastic_plane_strain_patch(tmp_path):
     sigma = lam * np.trace(e) * np.eye(3) + 2 * mu * e
     full = p.stress_3d()
     np.testing.assert_allclose(full, np.broadcast_to(sigma, full.shape), rtol=0, atol=1e-12)
-    n = p.num_owned_cells
+    n = p.disc.num_owned_cells
     np.testing.assert_allclose(p.sigma_33.x.array[:n], sigma[2, 2], rtol=0, atol=1e-12)
     want = vm3(sigma[0, 0], sigma[1, 1], sigma[2, 2], sigma[0, 1])
     np.testing.assert_allclose(p.sigma_vm.x.array[:n], want, rtol=1e-13)
@@ -150,11 +150,11 @@ def test_plane_strain_patch_nu_per_cell(tmp_path):
     """nu(x) an expression (one nu per cell, at its midpoint): sigma_33 = nu_cell (s11 +
     s22) in every cell, nu_cell evaluated here from the cells' vertices."""
     p = _patch(tmp_path, {"E": 1000.0, "nu": "0.1 + 0.3*x", "plane": "strain"})
-    n = p.num_owned_cells
-    geo = p.mesh.geometry
+    n = p.disc.num_owned_cells
+    geo = p.disc.mesh.geometry
     dofs = geo.dofmap.links if hasattr(geo.dofmap, "links") else None
     mid = np.array([geo.x[dofs(c)].mean(axis=0) for c in range(n)])
-    rows = p.Y.dofmap.list.array[:n]
+    rows = p.disc.Y.dofmap.list.array[:n]
     nu = 0.1 + 0.3 * mid[:, 0]
     s = p.sigma.x.array.reshape(-1, 2, 2)[rows]
     np.testing.assert_allclose(p.sigma_33.x.array[rows], nu * (s[:, 0, 0] + s[:, 1, 1]),
@@ -168,7 +168,7 @@ def test_plane_stress_keeps_sigma_33_zero(tmp_path):
     assert p.sigma_33 is None
     full = p.stress_3d()
     assert np.all(full[:, 2, :] == 0.0)
-    n = p.num_owned_cells
+    n = p.disc.num_owned_cells
     s = full[0]
     assert p.sigma_vm.x.array[0] == pytest.approx(vm3(s[0, 0], s[1, 1], 0.0, s[0, 1]),
                                                   rel=1e-13)
@@ -206,7 +206,7 @@ def test_voigt_plane_strain_has_no_sigma_33(tmp_path, caplog):
     with caplog.at_level("WARNING", logger="vpcontact"):
         p = _patch(tmp_path, {"plane": "strain", "elasticity": {"voigt": D}})
     assert any("sigma_33 is written NaN" in r.getMessage() for r in caplog.records)
-    n = p.num_owned_cells
+    n = p.disc.num_owned_cells
     assert np.isnan(p.sigma_33.x.array[:n]).all()
     s = p.sigma.x.array.reshape(-1, 2, 2)[0]
     assert p.sigma_vm.x.array[0] == pytest.approx(vm3(s[0, 0], s[1, 1], 0.0, s[0, 1]),

@@ -85,7 +85,7 @@ def _scaled_case(s: float, method: str):
 def test_a_tiny_body_gives_the_scaled_answer(method):
     unit = run_case(_scaled_case(1.0, method))
     tiny = run_case(_scaled_case(1e-9, method))
-    assert tiny.status == "completed" and len(tiny.problem.gamma3.nodes) == 4
+    assert tiny.status == "completed" and len(tiny.problem.disc.gamma3.nodes) == 4
     u1, u_tiny = unit.problem.u.x.array, tiny.problem.u.x.array / 1e-9
     assert np.abs(u1).max() > 1e-3
     assert np.abs(u_tiny - u1).max() <= 1e-12 * np.abs(u1).max()

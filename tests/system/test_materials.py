@@ -68,7 +68,7 @@ def test_two_materials_in_series(bar_file):
     result = run(validate(bar_raw(bar_file)), MPI.COMM_WORLD)
     assert result.status == "completed"
     p = result.problem
-    x = p.V.tabulate_dof_coordinates()[:, :2]
+    x = p.disc.V.tabulate_dof_coordinates()[:, :2]
     u = p.u.x.array.reshape(-1, 2)
     exact_x = np.where(x[:, 0] <= L1, T * x[:, 0] / E1, T * L1 / E1 + T * (x[:, 0] - L1) / E2)
     exact_y = -NU1 / E1 * T * x[:, 1]
@@ -123,7 +123,7 @@ def test_viscoplastic_group_in_series(bar_file, Eb_given):
     assert kappa > kappa0 + 1e-3 and H[1] > 1e-3 * T           # it flowed
     u_end = T * L1 / Ea + L2 * (T - H[0]) / Eb
     p = result.problem
-    x = p.V.tabulate_dof_coordinates()[:, :2]
+    x = p.disc.V.tabulate_dof_coordinates()[:, :2]
     u = p.u.x.array.reshape(-1, 2)
     right = np.isclose(x[:, 0], L1 + L2)
     assert np.allclose(u[right, 0], u_end, rtol=1e-10, atol=0) and np.abs(u[:, 1]).max() \

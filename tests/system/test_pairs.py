@@ -108,7 +108,7 @@ def _push(dim: int, sign: int) -> list:
 def _upper_u(result, dim: int) -> dict:
     """u at the upper block's nodes (y or z >= 0), keyed by rounded coordinates."""
     p = result.problem
-    x = p.V.tabulate_dof_coordinates()[:, :dim]
+    x = p.disc.V.tabulate_dof_coordinates()[:, :dim]
     u = p.u.x.array.reshape(-1, dim)
     keep = x[:, -1] >= 0
     # the interface y = 0 has a node of each body: the upper one is where u_y < 0 ...
@@ -166,7 +166,7 @@ def test_mirror_pair_equals_rigid_plane(tmp_path, dim, scheme):
     assert worst <= 1e-8 * scale
     # the lower block is the mirror image of the upper one
     p = two.problem
-    x = p.V.tabulate_dof_coordinates()[:, :dim]
+    x = p.disc.V.tabulate_dof_coordinates()[:, :dim]
     u = p.u.x.array.reshape(-1, dim)
     flip = np.ones(dim)
     flip[-1] = -1

@@ -173,7 +173,7 @@ def test_mpirun_equals_serial(tmp_path):
     with h5py.File(out / "solution.h5", "r") as f:
         last = max(f["Function/u"].keys(), key=lambda k: float(k.replace("_", ".")))
         x2, u2 = f["Mesh/mesh/geometry"][:, :2], f[f"Function/u/{last}"][:, :2]
-    x1 = serial.problem.V.tabulate_dof_coordinates()[:, :2]
+    x1 = serial.problem.disc.V.tabulate_dof_coordinates()[:, :2]
     u1 = serial.problem.u.x.array.reshape(-1, 2)
     # the blocks' corner nodes at y = 1 share coordinates: ties broken by u
     order = [np.lexsort((u[:, 0], u[:, 1], np.round(x[:, 1], 9), np.round(x[:, 0], 9)))
@@ -243,16 +243,15 @@ def test_rules():
     raw = _punch_raw("condensed")
     raw["petsc"] = {"fast_pc_factor_mat_solver_type": "mumps"}
     case = make_case(raw)
-    problem = ContactProblem(case, build_mesh(case, MPI.COMM_WORLD))
+    disc = ContactProblem(case, build_mesh(case, MPI.COMM_WORLD)).disc
     assert condensed_eligible(case)[0]                 # the case's rules alone: eligible
-    ok, why = condensed_eligible(case, problem)
+    ok, why = condensed_eligible(case, disc)
     assert not ok and "held only by a contact pair" in why and "fast_*" in why
     with pytest.raises(CaseError, match="'condensed' is not possible here: a body's rigid"):
-        choose_method(case, gamma3_dofs(problem), problem)
+        choose_method(case, gamma3_dofs(disc), disc)
     raw["solver"]["method"] = "auto"
-    assert choose_method(make_case(raw), gamma3_dofs(problem), problem) == "snes_vi"
-    assert choose_method(make_case(_punch_raw("auto")), gamma3_dofs(problem),
-                         problem) == "condensed"
+    assert choose_method(make_case(raw), gamma3_dofs(disc), disc) == "snes_vi"
+    assert choose_method(make_case(_punch_raw("auto")), gamma3_dofs(disc), disc) == "condensed"
     held = make_case(_blocks({}, {"upper_top": [None, "-0.01 * t"]}))
     assert held.numerics.method == "auto"
     assert run_case(held).summary["solver"]["used"] == "condensed"

@@ -70,7 +70,7 @@ def _punch_area(problem) -> float:
     """|punch| from the mesh: the triangles of the cells tagged "punch"."""
     body = problem.disc.body
     cells = body.cell_tags.indices[body.cell_tags.values == body.cell_groups["punch"]]
-    geo = problem.mesh.geometry
+    geo = problem.disc.mesh.geometry
     tri = geo.x[np.array([geo.dofmap.links(c) for c in cells])][:, :, :2]
     e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
     return float(np.sum(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])) / 2)
@@ -104,7 +104,7 @@ def test_mpirun_equals_serial(serial, tmp_path):
     with h5py.File(out / "solution.h5", "r") as f:
         last = max(f["Function/u"].keys(), key=lambda k: float(k.replace("_", ".")))
         x2, u2 = f["Mesh/mesh/geometry"][:, :2], f[f"Function/u/{last}"][:, :2]
-    V = result.problem.V
+    V = result.problem.disc.V
     x1 = V.tabulate_dof_coordinates()[:, :2]
     u1 = result.problem.u.x.array.reshape(-1, 2)
     # the punch's and the substrate's nodes on y = 0 may share coordinates: ties by u

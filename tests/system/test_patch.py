@@ -30,7 +30,7 @@ def test_uniform_stress_patch(mesh):
     res = run_case(make_case(raw))
     p = res.problem
     assert res.status == "completed" and res.history is None and p.H is None
-    x = p.V.tabulate_dof_coordinates()[:, :2]
+    x = p.disc.V.tabulate_dof_coordinates()[:, :2]
     exact = np.column_stack([a * x[:, 0], c * x[:, 0]])
     u = p.u.x.array.reshape(-1, 2)
     assert np.abs(u - exact).max() <= 1e-12 * np.abs(exact).max()

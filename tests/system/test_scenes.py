@@ -83,10 +83,10 @@ def test_hertz_fast_equals_snes_vi_and_kkt(tmp_path, direction):
         res = _run(path, [f"solver.method={method}"])
         tabs[method] = contact_table(res.problem)
         pb = res.problem
-        pos = np.searchsorted(pb.frames.nodes, pb.gamma3.nodes)
+        pos = np.searchsorted(pb.disc.frames.nodes, pb.disc.gamma3.nodes)
         # the nodes with no prescribed component (the roller's and the top's are reactions)
-        free = ~pb.dirichlet.fixed[pb.gamma3.nodes].any(axis=1)
-        g = pb.frames.g[pos][free]
+        free = ~pb.disc.dirichlet.fixed[pb.disc.gamma3.nodes].any(axis=1)
+        g = pb.disc.frames.g[pos][free]
     for col in ("u_x", "u_y", "u_nu", "neg_sigma_nu"):
         a, b = tabs["fast"][col], tabs["snes_vi"][col]
         assert np.abs(a - b).max() <= 1e-8 * np.abs(b).max(), col
@@ -150,8 +150,8 @@ def test_kinked_contact_boundary(tmp_path):
     path = _write(tmp_path, raw)
     runs = {m: _run(path, [f"solver.method={m}"]) for m in ("fast", "snes_vi")}
     p = runs["snes_vi"].problem
-    fr = p.frames
-    x = p.V.tabulate_dof_coordinates()[fr.nodes, :2]
+    fr = p.disc.frames
+    x = p.disc.V.tabulate_dof_coordinates()[fr.nodes, :2]
     corner = np.flatnonzero((np.abs(x[:, 0] - 1) < 1e-12) & (np.abs(x[:, 1]) < 1e-12))
     assert len(corner) == 1 and fr.rotated
     np.testing.assert_allclose(fr.normal[corner[0]], [2 ** -0.5, -2 ** -0.5], atol=1e-14)
@@ -283,7 +283,7 @@ def test_displacement_patch_test(tmp_path, method):
     raw["solver"] = {"method": method}
     res = _run(_write(tmp_path, raw))
     p = res.problem
-    x = p.V.tabulate_dof_coordinates()[:, :2]
+    x = p.disc.V.tabulate_dof_coordinates()[:, :2]
     exact = np.column_stack([0.001 * x[:, 0] + 0.0005 * x[:, 1],
                              0.0005 * x[:, 0] - 0.002 * x[:, 1]])
     np.testing.assert_allclose(p.u.x.array.reshape(-1, 2), exact, rtol=0, atol=1e-15)
@@ -306,7 +306,7 @@ def test_uniaxial_rollers_and_reactions(tmp_path, plane):
     E, nu = 1000.0, 0.3
     E_eff, nu_eff = (E, nu) if plane == "stress" else (E / (1 - nu ** 2), nu / (1 - nu))
     p = res.problem
-    x = p.V.tabulate_dof_coordinates()[:, :2]
+    x = p.disc.V.tabulate_dof_coordinates()[:, :2]
     exact = np.column_stack([0.001 * x[:, 0], -nu_eff * 0.001 * x[:, 1]])
     np.testing.assert_allclose(p.u.x.array.reshape(-1, 2), exact, rtol=0, atol=1e-15)
     for step in res.summary["steps"]:
@@ -326,7 +326,7 @@ def test_pressure_on_a_group(tmp_path, method):
     raw["solver"] = {"method": method}
     res = _run(_write(tmp_path, raw))
     p = res.problem
-    x = p.V.tabulate_dof_coordinates()[:, :2]
+    x = p.disc.V.tabulate_dof_coordinates()[:, :2]
     exact = np.column_stack([-2.0 * x[:, 0] / 1000.0, 0.3 * 2.0 * x[:, 1] / 1000.0])
     np.testing.assert_allclose(p.u.x.array.reshape(-1, 2), exact, rtol=0, atol=1e-15)
     for step in res.summary["steps"]:

@@ -73,7 +73,7 @@ def test_separation_and_compliance():
 def test_jacobian_is_symmetric(paper_run):
     """J_n is the Hessian of an energy: the assembled Jacobian must be symmetric."""
     p = paper_run.problem
-    A = fem.petsc.assemble_matrix(p.J_form, bcs=p.bcs)
+    A = fem.petsc.assemble_matrix(p.J_form, bcs=p.disc.bcs)
     A.assemble()
     assert A.isSymmetric(tol=1e-10 * A.norm())
     A.destroy()

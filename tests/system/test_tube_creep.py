@@ -155,8 +155,8 @@ def _run(case, law=None):
     summary = sim.run().as_dict()
     assert summary["status"] == "completed"
     p = sim.problem
-    nc = p.mesh.topology.index_map(2).size_local
-    xy = p.mesh.geometry.x[:, :2][p.mesh.geometry.dofmap.array.reshape(-1, 3)[:nc]]
+    nc = p.disc.mesh.topology.index_map(2).size_local
+    xy = p.disc.mesh.geometry.x[:, :2][p.disc.mesh.geometry.dofmap.array.reshape(-1, 3)[:nc]]
     x = xy.mean(axis=1)
     e1, e2 = xy[:, 1] - xy[:, 0], xy[:, 2] - xy[:, 0]
     area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])

@@ -231,7 +231,7 @@ def test_kappa0_expression_starts_every_component_of_a_law_with_m_2():
     assert sim.run().status == "completed"
     p = sim.problem
     cells = np.arange(p.state.kappa_cells.shape[0], dtype=np.int32)
-    x = compute_midpoints(p.mesh, p.mesh.topology.dim, cells)[:, 0]
+    x = compute_midpoints(p.disc.mesh, p.disc.mesh.topology.dim, cells)[:, 0]
     np.testing.assert_allclose(p.state.kappa_cells, np.column_stack([1 + x, 1 + x]),
                                rtol=1e-12)
 

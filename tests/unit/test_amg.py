@@ -82,7 +82,7 @@ def test_trace_constant_by_lobpcg_and_gamg_equals_power_iteration_with_lu():
     raw["mesh"]["n"] = 6
     case = validate(raw, "box")
     problem = ContactProblem(case, build_mesh(case, MPI.COMM_WORLD))
-    lu, _ = trace_constant(problem, rtol=1e-10, max_iter=2000)
-    lobpcg, its = trace_constant(problem, linear="amg")
+    lu, _ = trace_constant(problem.disc, rtol=1e-10, max_iter=2000)
+    lobpcg, its = trace_constant(problem.disc, linear="amg")
     assert lobpcg == pytest.approx(lu, rel=1e-6)
     assert its < 30

@@ -30,13 +30,13 @@ def _cholmod(s, G):
     module = kernels.load()
     if module is None:
         pytest.skip("no C compiler")
-    return CholmodCondensation(s.K, G, s.problem.dim, module, s.comm)
+    return CholmodCondensation(s.K, G, s.problem.disc.dim, module, s.comm)
 
 
 def _mumps(s, G):
     from vpcontact.solvers.condensed.mumps import MumpsCondensation
     K = s.K.convert("aij")                   # MUMPS reads AIJ rows
-    c = MumpsCondensation.build(K, G, s.problem.dim, s.comm)
+    c = MumpsCondensation.build(K, G, s.problem.disc.dim, s.comm)
     if c is None:
         pytest.skip("no MUMPS wrapper")
     return c

@@ -88,9 +88,9 @@ def test_a_part_held_by_one_component_is_refused(two_squares):
 
 def test_both_parts_held_pass(two_squares):
     problem = _problem(_raw(two_squares, ["left", "left2"]))
-    parts = body_parts(problem.V)
+    parts = body_parts(problem.disc.V)
     assert list(parts.cells) == [14, 14]
-    x = problem.V.tabulate_dof_coordinates()[:, 0]
+    x = problem.disc.V.tabulate_dof_coordinates()[:, 0]
     assert set(parts.label[x < 1.5]) == {0} and set(parts.label[x > 1.5]) == {1}
     np.testing.assert_allclose(parts.lo, [[0, 0], [2, 0]], atol=1e-12)
     np.testing.assert_allclose(parts.hi, [[1, 1], [3, 1]], atol=1e-12)
@@ -101,7 +101,7 @@ def test_parts_touching_at_a_vertex_are_one_part(tmp_path):
     geo = tmp_path / "touching.geo"
     geo.write_text(TOUCHING)
     problem = _problem(_raw(geo, ["left"]))
-    assert list(body_parts(problem.V).cells) == [28]
+    assert list(body_parts(problem.disc.V).cells) == [28]
 
 
 @pytest.mark.parametrize("build, cells", [
@@ -177,7 +177,7 @@ def test_a_3d_body_in_two_parts(tmp_path):
         in str(err.value), err.value
     raw["boundaries"]["clamped"] = ["left", "left2"]
     problem = _problem(raw)
-    parts = body_parts(problem.V)
-    assert len(parts.cells) == 2 and parts.cells.sum() == problem.num_cells
+    parts = body_parts(problem.disc.V)
+    assert len(parts.cells) == 2 and parts.cells.sum() == problem.disc.num_cells
     np.testing.assert_allclose(parts.lo, [[0, 0, 0], [2, 0, 0]], atol=1e-12)
     np.testing.assert_allclose(parts.hi, [[1, 1, 1], [3, 1, 1]], atol=1e-12)

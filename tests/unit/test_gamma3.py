@@ -155,10 +155,10 @@ def _problem(u_nodes, normal):
     the nodal fields xi and theta."""
     u = SimpleNamespace(x=SimpleNamespace(array=np.asarray(u_nodes, dtype=float).ravel()))
     values = np.asarray(u_nodes, dtype=float).reshape(len(u_nodes), -1)
-    return SimpleNamespace(u=u, contact_u=lambda: values,
-                           gamma3_local_nodes=np.arange(len(u_nodes)),
+    disc = SimpleNamespace(gamma3_local_nodes=np.arange(len(u_nodes)),
                            frames=SimpleNamespace(normal=np.asarray(normal, dtype=float)),
-                           dim=2, xi=_Field(), theta=_Field())
+                           dim=2)
+    return SimpleNamespace(u=u, contact_u=lambda: values, disc=disc, xi=_Field(), theta=_Field())
 
 
 def _case(memory=None, slip=None):

@@ -31,7 +31,7 @@ def test_inactive_solve_equals_a_sparse_lu_of_the_submatrix():
     try:
         assert solver.linear == "schur"
         schur = solver.schur
-        lb, ub = solver.problem.bounds()
+        lb, ub = solver.problem.disc.bounds(solver.problem.u.vector)
         bounded = np.flatnonzero((lb.array_r > PETSc.NINFINITY) | (ub.array_r < PETSc.INFINITY))
         active = bounded[::2]
         rows = np.setdiff1d(np.arange(schur.n), active)

@@ -140,7 +140,7 @@ def test_state_rate_of_a_group_with_E_per_cell_takes_its_own_cells_E():
     t = np.ones((5, 3))
     t[4] = [50.0, -20.0, 10.0]             # the hard group's most stressed cell: body row 4
     kappa = np.ones((5, 1))
-    problem = SimpleNamespace(law=GroupLaws(groups, body_el), comm=None,
+    problem = SimpleNamespace(law=GroupLaws(groups, body_el), disc=SimpleNamespace(comm=None),
                               state=SimpleNamespace(kappa_cells=kappa))
     want = estimated_rate(PowerLaw(el2, 1.0, 1.0, 3.0, 10.0), t[[4]], kappa[[4]])
     other = estimated_rate(PowerLaw(el1, 1.0, 1.0, 3.0, 10.0), t[[4]], kappa[[4]])

@@ -80,8 +80,8 @@ def test_kappa_with_m_components():
     """A law with m internal variables: kappa is DG0 with m components, (cells, m) per cell,
     and the cells view writes through to the Function."""
     p = _problem()
-    state = State(p.V, p.Q, p.Y, True, 8)
-    ncells = p.Y.dofmap.index_map.size_local + p.Y.dofmap.index_map.num_ghosts
+    state = State(p.disc.V, p.disc.Q, p.disc.Y, True, 8)
+    ncells = p.disc.Y.dofmap.index_map.size_local + p.disc.Y.dofmap.index_map.num_ghosts
     assert state.kappa_cells.shape == (ncells, 8)
     state.kappa_cells[:, 3] = 1.5
     assert state.kappa.x.array.reshape(-1, 8)[:, 3].tolist() == [1.5] * ncells

@@ -150,8 +150,8 @@ def test_level_norms_and_sampling_match_dolfinx(hertz_levels, tmp_path):
     snap = LevelSampler(p, level).sample(p, None)
     assert level.strain_norm(snap["u"]) == pytest.approx(norm(p, "V"), rel=1e-12)
     assert level.cell_l2_norm(snap["sigma"]) == pytest.approx(norm(p, "Q"), rel=1e-12)
-    xv = p.V.tabulate_dof_coordinates()[:, :2]
-    nv = p.V.dofmap.index_map.size_local
+    xv = p.disc.V.tabulate_dof_coordinates()[:, :2]
+    nv = p.disc.V.dofmap.index_map.size_local
     where = {tuple(np.round(x, 12)): i for i, x in enumerate(levels[1].x)}
     order = [where[tuple(np.round(x, 12))] for x in xv[:nv]]
     np.testing.assert_array_equal(snap["u"][order], p.u.x.array.reshape(-1, 2)[:nv])

@@ -66,8 +66,8 @@ def test_cell_passes_equal_the_assembled_operators(dim):
     assert np.abs(full + b_ref.array_r).max() <= 1e-13 * np.abs(b_ref.array_r).max()
     rows = np.arange(0, op.n_owned, 2)
     part = op.stress_load(p.H, op.subset(rows)).array_r
-    cells = p.V.dofmap.list.array.reshape(op.n_owned, -1)[np.argsort(
-        p.Q.dofmap.list.array[:op.n_owned])]                      # Q's order: D's rows
+    cells = p.disc.V.dofmap.list.array.reshape(op.n_owned, -1)[np.argsort(
+        p.disc.Q.dofmap.list.array[:op.n_owned])]                      # Q's order: D's rows
     inside = np.setdiff1d(np.arange(len(full) // dim), cells[np.setdiff1d(
         np.arange(op.n_owned), rows)].ravel())
     assert len(inside) > 0

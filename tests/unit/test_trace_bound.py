@@ -51,7 +51,7 @@ def test_bound_brackets_the_trace_constant_on_the_paper_case():
     problem = ContactProblem(case, build_mesh(case, MPI.COMM_WORLD))
     solver = CondensedStepSolver(problem)
     bound = diagnostics.trace_constant_bound(problem, solver)
-    value, _ = diagnostics.trace_constant(problem, rtol=1e-12, max_iter=5000)
+    value, _ = diagnostics.trace_constant(problem.disc, rtol=1e-12, max_iter=5000)
     c = np.linalg.eigvalsh(problem.elasticity.Cmat)
     assert value * (1 - 1e-9) <= bound <= value * c[-1] / c[0] * (1 + 1e-9)
     solver.destroy()

@@ -51,7 +51,7 @@ class CapRightHandSide:
         Args:
             b: a vector of K_z's row layout, overwritten.
         """
-        caps, t = self.problem.caps, float(self.problem.time_data.t.value)
+        caps, t = self.problem.disc.caps, float(self.problem.time_data.t.value)
         self.inner.assemble(self.F)
         self.z.set(0.0)
         caps.fix(self.z, t)

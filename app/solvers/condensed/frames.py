@@ -89,11 +89,11 @@ def normal_first(fr, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return T, order
 
 
-def work_frames(problem, layout) -> WorkFrames:
-    """The coordinates of the Gamma3 problem, from the problem's nodal frames (collective).
+def work_frames(disc, layout) -> WorkFrames:
+    """The coordinates of the Gamma3 problem, from the nodal frames (collective).
 
     Args:
-        problem: the ContactProblem (frames, Gamma3 nodes, Dirichlet data).
+        disc: the Discretisation (frames, Gamma3 nodes, Dirichlet data).
         layout: the Gamma3Layout.
 
     Returns:
@@ -103,17 +103,17 @@ def work_frames(problem, layout) -> WorkFrames:
         CaseError: a Gamma3 node has prescribed components and a normal that lies in them
             without being an axis.
     """
-    p, d = problem, problem.dim
-    fr, n = p.frames, len(layout.g_nodes)
-    pos = np.searchsorted(fr.nodes, p.gamma3.nodes)
+    d = disc.dim
+    fr, n = disc.frames, len(layout.g_nodes)
+    pos = np.searchsorted(fr.nodes, disc.gamma3.nodes)
     Q, slot, sign = fr.Q[pos], fr.slot[pos], fr.sign[pos]
     T, order = normal_first(fr, pos)
     axis = np.abs(Q).max(axis=1) == 1.0            # (nodes, d): column is +-e_a
     col_axis = np.argmax(np.abs(Q), axis=1)
-    fixed_nodes = p.dirichlet.fixed[p.gamma3.nodes]
+    fixed_nodes = disc.dirichlet.fixed[disc.gamma3.nodes]
     fixedQ = axis & np.take_along_axis(fixed_nodes, col_axis, axis=1)
     if (fixedQ.sum(axis=1) != fixed_nodes.sum(axis=1)).any():
-        raise CaseError(f"{p.case.source}: solver.method: the condensed solver cannot hold the "
+        raise CaseError(f"{disc.case.source}: solver.method: the condensed solver cannot hold the "
                         "prescribed components of a Gamma3 node whose normal lies in them "
                         "and is not an axis (allowed here: snes_vi)")
     fixedT = np.take_along_axis(fixedQ, order, axis=1)

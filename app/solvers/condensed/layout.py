@@ -33,12 +33,13 @@ class Gamma3Layout:
     """
 
     def __init__(self, problem, row_start: int, nodes=None, weight=None):
-        self.comm, d = problem.comm, problem.dim
+        disc = problem.disc
+        self.comm, d = disc.comm, disc.dim
         self.d = d
-        imap = problem.V.dofmap.index_map
-        owned_nodes = problem.gamma3.nodes if nodes is None else nodes
+        imap = disc.V.dofmap.index_map
+        owned_nodes = disc.gamma3.nodes if nodes is None else nodes
         glob_nodes = imap.local_to_global(owned_nodes.astype(np.int32))
-        parts = self.comm.allgather((glob_nodes, problem.gamma3.weight if weight is None
+        parts = self.comm.allgather((glob_nodes, disc.gamma3.weight if weight is None
                                      else weight))
         gn = np.concatenate([a for a, _ in parts])
         w = np.concatenate([b for _, b in parts])
@@ -99,7 +100,7 @@ class Gamma3Layout:
         Returns:
             The values in G's node order, shape (m / d,), on every rank.
         """
-        pos = np.searchsorted(problem.gamma3_local_nodes, problem.gamma3.nodes)
+        pos = np.searchsorted(problem.disc.gamma3_local_nodes, problem.disc.gamma3.nodes)
         return self.place_on_all(self.local_owned_g, field.function.x.array[field.dofs[pos]],
                                  len(self.g_nodes))
 

@@ -98,9 +98,9 @@ def pair_stiffness(pv) -> PETSc.Mat:
 def _surface_rows(problem, pv) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """C's rows at this rank's owned surface nodes as (local row, global column, value),
     the rows numbered d i + a for the i-th owned surface node."""
-    d = problem.dim
+    d = problem.disc.dim
     indptr, indices, data = pv.C.getValuesCSR()
-    rows = (problem.gamma3.nodes[:, None] * d + np.arange(d)).ravel()
+    rows = (problem.disc.gamma3.nodes[:, None] * d + np.arange(d)).ravel()
     counts = indptr[rows + 1] - indptr[rows]
     at = np.concatenate([np.arange(indptr[r], indptr[r + 1]) for r in rows] or
                         [np.zeros(0, np.int64)]).astype(np.int64)
@@ -123,18 +123,19 @@ class PairLayout(Gamma3Layout):
     """
 
     def __init__(self, problem, pv, row_start: int):
-        d, imap = problem.dim, problem.V.dofmap.index_map
+        disc = problem.disc
+        d, imap = disc.dim, disc.V.dofmap.index_map
         self.surface = Gamma3Layout(problem, row_start)
         rows, cols, vals = _surface_rows(problem, pv)
-        glob = np.unique(np.concatenate(problem.comm.allgather(np.unique(np.concatenate(
+        glob = np.unique(np.concatenate(disc.comm.allgather(np.unique(np.concatenate(
             [cols // d, self.surface.g_nodes])))))
         lo, hi = imap.local_range
         mine = glob[(glob >= lo) & (glob < hi)] - lo
         super().__init__(problem, row_start, nodes=mine.astype(np.int32),
                          weight=np.zeros(len(mine)))
         # C_G rotated: rows T_i^T C_i of the owned surface nodes, columns at G positions
-        fr = problem.frames
-        T, _ = normal_first(fr, np.searchsorted(fr.nodes, problem.gamma3.nodes))
+        fr = disc.frames
+        T, _ = normal_first(fr, np.searchsorted(fr.nodes, disc.gamma3.nodes))
         node, comp = rows // d, rows % d
         col = np.searchsorted(self.g_nodes, cols // d) * d + cols % d
         # (T_i^T C_i)[b, :] = sum_a T_i[a, b] C_i[a, :]
@@ -241,11 +242,12 @@ def pair_sections(problem, surface) -> list[PairSection] | None:
     sections = problem.case.contact.sections
     if len(sections) == 1:
         return None
-    d, n = problem.dim, len(surface.g_nodes)
-    owned = np.searchsorted(problem.gamma3_local_nodes, problem.gamma3.nodes)
-    pair = surface.place_on_all(surface.local_owned_g, problem.pairs.pair[owned], n,
+    disc = problem.disc
+    d, n = disc.dim, len(surface.g_nodes)
+    owned = np.searchsorted(disc.gamma3_local_nodes, disc.gamma3.nodes)
+    pair = surface.place_on_all(surface.local_owned_g, disc.pairs.pair[owned], n,
                                 dtype=np.int64)
-    x = surface.place_on_all(surface.local_owned_g, problem.gamma3.x, (n, d))
+    x = surface.place_on_all(surface.local_owned_g, disc.gamma3.x, (n, d))
     out = []
     for k, section in enumerate(sections):
         nodes = np.flatnonzero(pair == k)
@@ -397,18 +399,19 @@ def pair_frames(problem, layout: PairLayout) -> WorkFrames:
     Returns:
         The WorkFrames.
     """
-    d, fr, n = problem.dim, problem.frames, len(layout.g_nodes)
-    imap = problem.V.dofmap.index_map
+    disc = problem.disc
+    d, fr, n = disc.dim, disc.frames, len(layout.g_nodes)
+    imap = disc.V.dofmap.index_map
     owned = (layout.owned_dofs_local[::d] // d).astype(np.int64)
-    fixed = layout.place_on_all(layout.local_owned_g, problem.dirichlet.fixed[owned],
+    fixed = layout.place_on_all(layout.local_owned_g, disc.dirichlet.fixed[owned],
                                 (n, d), dtype=bool).ravel()
-    pos = np.searchsorted(fr.nodes, problem.gamma3.nodes)
+    pos = np.searchsorted(fr.nodes, disc.gamma3.nodes)
     on = fr.bounded[pos]
-    nodes = imap.local_to_global(problem.gamma3.nodes[on].astype(np.int32))
+    nodes = imap.local_to_global(disc.gamma3.nodes[on].astype(np.int32))
     at = np.searchsorted(layout.g_nodes, nodes) * d + fr.slot[pos][on]
     g, plus = fr.g[pos][on], fr.sign[pos][on] > 0
     lb, ub = np.full(n * d, -np.inf), np.full(n * d, np.inf)
     for side, where, values in ((ub, at[plus], g[plus]), (lb, at[~plus], -g[~plus])):
-        for where_r, values_r in problem.comm.allgather((where, values)):
+        for where_r, values_r in disc.comm.allgather((where, values)):
             side[where_r] = values_r
     return WorkFrames(None, fixed, lb.reshape(n, d), ub.reshape(n, d), np.eye(d)[0])

@@ -20,7 +20,7 @@ class StepRightHandSide:
 
     def __init__(self, problem, a):
         self.problem, self.a = problem, a
-        self._lift = None if problem.dirichlet.homogeneous else problem.u.vector.duplicate()
+        self._lift = None if problem.disc.dirichlet.homogeneous else problem.u.vector.duplicate()
 
     def assemble(self, b: PETSc.Vec) -> None:
         """b = F_n = f_n - B^T H_n (zero at the clamped dofs, u_D at the prescribed ones).
@@ -35,16 +35,17 @@ class StepRightHandSide:
             b.set(0.0)
         if p.H is not None:
             p.strain_operator.pre_stress_load(p.H, b)        # b -= B^T H_n
-        if p.dirichlet.homogeneous:
-            fem.petsc.set_bc(b, p.bcs, scale=0.0)
+        disc = p.disc
+        if disc.dirichlet.homogeneous:
+            fem.petsc.set_bc(b, disc.bcs, scale=0.0)
             return
         lift = self._lift
         with lift.localForm() as loc:
             loc.set(0.0)
-        fem.petsc.apply_lifting(lift, [self.a], [p.bcs])
+        fem.petsc.apply_lifting(lift, [self.a], [disc.bcs])
         lift.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         b.array[:] += lift.array_r
-        fem.petsc.set_bc(b, p.bcs)
+        fem.petsc.set_bc(b, disc.bcs)
 
     def destroy(self) -> None:
         """Free the PETSc vectors."""

@@ -70,13 +70,14 @@ class CondensedStepSolver:
 
     def __init__(self, problem, options: dict | None = None, rtol: float = 1e-13,
                  roundoff_floor: bool = True):
-        self.problem, self.u, self.comm = problem, problem.u, problem.comm
+        disc = problem.disc
+        self.problem, self.u, self.comm = problem, problem.u, disc.comm
         self.continuation_stages, self.fallback, self.sticky_robust = 0, None, False
         self.roundoff_floor = roundoff_floor
         self.options = options or {}
         self._snes = None
         # two bodies: the problem in x of app/solvers/pairmap.py (condensed/pairs.py)
-        self.pairs = None if problem.pairs is None else PairVariables(problem)
+        self.pairs = None if disc.pairs is None else PairVariables(problem)
         self.caps_T = None                   # one body's rigid caps: (T, T^+)
         self.K, self.rhs = self._stiffness()
         self.b, self.x = self.K.createVecRight(), self.K.createVecRight()
@@ -88,7 +89,7 @@ class CondensedStepSolver:
         # app/model/semicoercive.py) leaves S semidefinite: the Gamma3 problem takes r = S y0
         self.semidefinite = problem.hold is not None or \
             (self.pairs is not None and held_by_contact(problem))
-        self.condensation = factorise(self.K, G_rows, problem.dim, self.layout, self.options,
+        self.condensation = factorise(self.K, G_rows, disc.dim, self.layout, self.options,
                                       self.comm, self.semidefinite)
         self.factorisations = self.condensation.factorisations
         self.gamma3_problem = self._gamma3_problem(rtol) if self.gamma3 else None
@@ -104,25 +105,26 @@ class CondensedStepSolver:
         if self.pairs is not None:
             return pair_stiffness(self.pairs), PairRightHandSide(p, self.pairs)
         C = p.elastic_operator
-        du, v = ufl.TrialFunction(p.V), ufl.TestFunction(p.V)
+        disc = p.disc
+        du, v = ufl.TrialFunction(disc.V), ufl.TestFunction(disc.V)
         a = fem.form(ufl.inner(C(eps(du)), eps(v)) * ufl.dx)
         # serial: d x d blocks (BAIJ), the fastest PETSc back-substitution
-        blocks = self.comm.size == 1 and p.caps is None
+        blocks = self.comm.size == 1 and disc.caps is None
         K = fem.petsc.create_matrix(a, "baij" if blocks else None)
-        fem.petsc.assemble_matrix(K, a, bcs=p.bcs)
+        fem.petsc.assemble_matrix(K, a, bcs=disc.bcs)
         K.assemble()
-        if p.caps is None:
+        if disc.caps is None:
             return K, StepRightHandSide(p, a)
         # rigid caps: in z of u = T z (condensed/caps.py)
-        self.caps_T = p.caps.matrices()
-        return cap_stiffness(K, p.caps, self.caps_T[0]), \
+        self.caps_T = disc.caps.matrices()
+        return cap_stiffness(K, disc.caps, self.caps_T[0]), \
             CapRightHandSide(p, StepRightHandSide(p, a), K, self.caps_T[0])
 
     def _gamma3_problem(self, rtol: float) -> Gamma3Problem:
         """The Gamma3 problem on the condensed dofs (collective)."""
         p, layout = self.problem, self.layout
         if self.pairs is None:
-            return Gamma3Problem(self.comm, self.condensation.S, work_frames(p, layout),
+            return Gamma3Problem(self.comm, self.condensation.S, work_frames(p.disc, layout),
                                  layout.w, p.contact_law(x=gamma3_points(p, layout)), rtol,
                                  reduced=self.semidefinite)
         surface = layout.surface            # the nodal energy's nodes and weights
@@ -132,7 +134,7 @@ class CondensedStepSolver:
 
     def _layout(self) -> Gamma3Layout | None:
         """The Gamma3 dofs, or None where there are none to condense (collective)."""
-        if self.problem.gamma3 is None:
+        if self.problem.disc.gamma3 is None:
             return None
         start = self.K.getOwnershipRange()[0]
         layout = Gamma3Layout(self.problem, start) if self.pairs is None else \
