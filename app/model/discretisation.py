@@ -2,9 +2,12 @@
 Dirichlet data, and the Gamma3 nodes with their weights, normals, frames and gaps.
 
 V^h = continuous P1 vectors, Q^h = DG0 tensors (sigma, H_n), Y^h = DG0 scalars (kappa for
-m = 1, sigma_vm).  Everything here is fixed for a run: the step problem (app/model/problem.py)
-builds its forms on it, the State (app/model/state.py) its fields, the step solvers and the
-derived quantities (app/post/quantities.py) read its groups and Gamma3 nodes.
+m = 1, sigma_vm).  Everything here is fixed for a run, and so is what is built from it
+alone: the box bounds of U^h on the normal dofs of the Gamma3 nodes, the normal of the
+forms, the pairs' linear maps.  The step problem (app/model/problem.py) holds it as
+``disc`` and builds its forms on it, the State (app/model/state.py) its fields, the step
+solvers and the derived quantities (app/post/quantities.py) read its groups and Gamma3
+nodes.
 """
 from __future__ import annotations
 
@@ -48,10 +51,12 @@ class Discretisation:
         time_data: the loads' time constants (the prescribed displacements' data).
 
     Attributes:
+        case, body: the case and the mesh with its groups (as given).
         mesh, comm, dim: the mesh, its communicator and dimension d.
         V, Q, Y: the spaces V^h (P1 vectors), Q^h (DG0 tensors), Y^h (DG0 scalars).
         tags: group reference -> facet tag; ``facets`` group reference -> facets.
         dirichlet: the Dirichlet data (Gamma1 and loads.displacement); ``bcs`` its conditions.
+        caps: the rigid caps (app/model/rigidcap.py), or None.
         gamma3: the owned Gamma3 nodes and their weights, or None without contact.
         gamma3_local_nodes: the local (owned and ghost) Gamma3 nodes carrying contact.
         frames: the nodal normals, frames and gaps of Gamma3 (owned and ghost nodes), or None.

@@ -1,10 +1,10 @@
 """The step problem of scheme (3.2)-(3.4) on one mesh (2D or 3D): the forms of J_n and
-its derivatives (3.4), the box bounds of U^h on the normal dofs of the Gamma3 nodes, the data
-of step n (loads f_n at t_n, the step k_n) and the residual hook, and the stress update
-sigma_n = E eps(u_n) + H_n (3.2).
+its derivatives (3.4), the data of step n (loads f_n at t_n, the step k_n) and the residual
+hook, and the stress update sigma_n = E eps(u_n) + H_n (3.2).
 
 It is built on the case's Discretisation (app/model/discretisation.py: spaces, groups,
-Dirichlet data, Gamma3 nodes and frames) and holds the State (app/model/state.py: u, sigma,
+Dirichlet data, Gamma3 nodes and frames, the box bounds of U^h), which it holds as ``disc``
+without repeating its attributes, and holds the State (app/model/state.py: u, sigma,
 H, kappa, xi, s) whose fields the forms read; the quantities derived from a solved step
 (norms, forces, the contact table) are app/post/quantities.py's.
 """
