@@ -20,16 +20,16 @@ from mpi4py import MPI
 from vpcontact.post.recovery import LumpedProjection, space_indicators
 
 
-def owned_rows(problem) -> np.ndarray:
+def owned_rows(disc) -> np.ndarray:
     """The rows of the DG0 fields of the owned cells, in local cell order (the file's).
 
     Args:
-        problem: the ContactProblem.
+        disc: the Discretisation.
 
     Returns:
         (owned cells,) row indices.
     """
-    return np.asarray(problem.disc.Y.dofmap.list.array)[:problem.disc.num_owned_cells]
+    return np.asarray(disc.Y.dofmap.list.array)[:disc.num_owned_cells]
 
 
 class StressOutput:
@@ -56,7 +56,7 @@ class StressOutput:
         p = self.problem
         if p.sigma_33 is None:
             return {}
-        return {("sigma", 8): p.sigma_33.x.array[owned_rows(p)]}
+        return {("sigma", 8): p.sigma_33.x.array[owned_rows(p.disc)]}
 
 
 def law_rows(problem) -> np.ndarray | None:
@@ -171,7 +171,7 @@ class StrainOutput:
         p = self.problem
         if self.eps_vp is None or p.sigma_33 is None:
             return {}
-        return {("eps_vp", 8): self.eps_vp33[owned_rows(p)]}
+        return {("eps_vp", 8): self.eps_vp33[owned_rows(p.disc)]}
 
 
 def _compliances(elasticity) -> np.ndarray:
@@ -244,7 +244,7 @@ class EtaOutput:
     def update(self) -> None:
         """eta of the owned cells from the current state (collective)."""
         eta2 = self.indicators.update()
-        self.eta.x.array[owned_rows(self.problem)] = np.sqrt(eta2.sum(axis=1))
+        self.eta.x.array[owned_rows(self.problem.disc)] = np.sqrt(eta2.sum(axis=1))
 
     def columns(self) -> dict:
         """Returns: {} (nothing replaced)."""

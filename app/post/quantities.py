@@ -135,17 +135,17 @@ def slip_states(p_n: np.ndarray, increment: np.ndarray, threshold: float,
                     state).astype(float)
 
 
-def held_nodes(problem) -> np.ndarray:
+def held_nodes(disc) -> np.ndarray:
     """The owned Gamma3 nodes where a Dirichlet condition prescribes a component of u (a
     pushed side's corner, a roller's end): their residual holds the support's reaction.
 
     Args:
-        problem: the ContactProblem.
+        disc: the Discretisation.
 
     Returns:
-        A boolean mask over problem.gamma3.nodes.
+        A boolean mask over disc.gamma3.nodes.
     """
-    return problem.disc.dirichlet.fixed[problem.disc.gamma3.nodes].any(axis=1)
+    return disc.dirichlet.fixed[disc.gamma3.nodes].any(axis=1)
 
 
 def law_friction(problem, pos: np.ndarray, u_tau: np.ndarray) -> np.ndarray:
@@ -221,7 +221,7 @@ def contact_table(problem, r: np.ndarray | None = None) -> dict[str, np.ndarray]
     table["u_nu"] = np.einsum("ij,ij->i", ww, nu)
     u_tau = np.einsum("ij,ikj->ik", ww, tau)
     f_tau = -np.einsum("ij,ikj->ik", rr, tau) / gm.weight[:, None]
-    held = held_nodes(problem)
+    held = held_nodes(disc)
     u_tau_vec = ww - table["u_nu"][:, None] * nu
     if held.any():                       # the support's reaction: the laws' friction instead
         f_tau[held] = np.einsum("ij,ikj->ik", law_friction(problem, pos[held],
@@ -376,7 +376,7 @@ def held_friction(problem) -> np.ndarray:
     """
     disc = problem.disc
     gm, fr = disc.gamma3, disc.frames
-    held = held_nodes(problem)
+    held = held_nodes(disc)
     out = np.zeros((len(gm.nodes), disc.dim))
     if not disc.comm.allreduce(bool(held.any()), op=MPI.LOR):
         return out

@@ -284,7 +284,7 @@ def test_the_recovery_is_computed_once_a_step(monkeypatch):
     first = shared.update()
     eta.update()
     assert len(calls) == 3                    # sigma, eps(u), kappa: once
-    rows = owned_rows(sim.problem)
+    rows = owned_rows(sim.problem.disc)
     assert eta.eta.x.array[rows] == pytest.approx(np.sqrt(first.sum(axis=1)), rel=1e-14)
     sim.problem.u.x.array[:] += 1e-3 * np.arange(sim.problem.u.x.array.size)
     second = shared.update()

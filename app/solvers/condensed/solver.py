@@ -88,7 +88,7 @@ class CondensedStepSolver:
         # a rigid motion held only by the contact (a pair's, or the foundation's:
         # app/model/semicoercive.py) leaves S semidefinite: the Gamma3 problem takes r = S y0
         self.semidefinite = problem.hold is not None or \
-            (self.pairs is not None and held_by_contact(problem))
+            (self.pairs is not None and held_by_contact(disc))
         self.condensation = factorise(self.K, G_rows, disc.dim, self.layout, self.options,
                                       self.comm, self.semidefinite)
         self.factorisations = self.condensation.factorisations
