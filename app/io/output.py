@@ -427,7 +427,7 @@ def classify(data: dict, g: float | None, compliance: bool | tuple = True,
         compliance: the foundation has a normal compliance (else a node below its bound is
             'separated': the unilateral bound alone, Signorini contact); with laws per
             pair, one per pair (a tuple, read through the table's column ``pair``).
-        length: the body's length scale L (problem.length_scale; 0: the solution's
+        length: the body's length scale L (problem.disc.length_scale; 0: the solution's
             round-off alone).
 
     Returns:

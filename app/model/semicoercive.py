@@ -326,7 +326,7 @@ class ContactHold:
 
         Args:
             f: the owned nodal loads (n, d) of the step (the rigid caps' loads are added).
-            p: the last p_n at the owned Gamma3 nodes (``problem.gamma3``'s order).
+            p: the last p_n at the owned Gamma3 nodes (``problem.disc.gamma3``'s order).
 
         Returns:
             p (owned Gamma3 nodes).
