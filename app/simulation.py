@@ -263,7 +263,7 @@ class Simulation:
 
     def _log_case(self) -> None:
         """The run's first lines: mesh, dofs, steps, adaptive steps, active terms."""
-        case, p, disc = self.case, self.problem, self.problem.disc
+        case, disc = self.case, self.problem.disc
         ks = [b - a for a, b in zip(case.time.times, case.time.times[1:])]
         log.info("case %s (%dD): %d cells, %d vertices, %d dofs, %d steps (k = %s)", case.name,
                  disc.dim, disc.num_cells, disc.num_vertices, disc.num_dofs, case.time.N,
@@ -272,7 +272,7 @@ class Simulation:
             log.info("adaptive time steps: starting from k = %g to T = %g", ks[0], case.time.T)
         log.info("active terms: %s", ", ".join(case.active_terms()))
         if case.contact.pairs:       # two bodies: each pair (app/post/pairreport.py)
-            for line in pair_lines(p):
+            for line in pair_lines(disc):
                 log.info("%s", line)
         elif disc.frames is not None:
             d = case.contact.direction

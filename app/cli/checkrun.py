@@ -73,7 +73,7 @@ def report(case, comm) -> list[str]:
         counts = problem.materials.cell_counts(disc.num_owned_cells, disc.comm)
         lines.insert(4, "cell groups (materials): " + ", ".join(
             f"{ref} (tag {tag}, {n} cells)" for ref, tag, n in counts))
-    lines += pair_lines(problem)         # two bodies: each pair (app/post/pairreport.py)
+    lines += pair_lines(disc)            # two bodies: each pair (app/post/pairreport.py)
     diag = diagnose(problem)
     lines += law_lines(law_report(problem, build_gamma3_history(case, problem)), diag)
     lines += [text for _, text in diag.messages()]

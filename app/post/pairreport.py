@@ -63,16 +63,15 @@ class PairSummary:
                    "the mortar rule passes the contact patch test exactly" if coarser else ""))
 
 
-def pair_summaries(problem) -> list[PairSummary]:
-    """The pairs of a problem at the start (collective; empty without pairs).
+def pair_summaries(disc) -> list[PairSummary]:
+    """The pairs of a discretisation at the start (collective; empty without pairs).
 
     Args:
-        problem: the ContactProblem (its Discretisation's pairs, Gamma3 nodes and facets).
+        disc: the Discretisation (its pairs, Gamma3 nodes and facets).
 
     Returns:
         A PairSummary per entry of contact.pairs.
     """
-    disc = problem.disc
     geo, comm = disc.pairs, disc.comm
     if geo is None:
         return []
@@ -101,13 +100,13 @@ def _facet_size(disc, ref) -> tuple[int, float]:
     return n, disc.comm.allreduce(float(np.sum(longest)), op=MPI.SUM) / max(n, 1)
 
 
-def pair_lines(problem) -> list[str]:
+def pair_lines(disc) -> list[str]:
     """One line per pair (``PairSummary.line``); collective.
 
     Args:
-        problem: the ContactProblem.
+        disc: the Discretisation.
 
     Returns:
         The lines (none without pairs).
     """
-    return [s.line() for s in pair_summaries(problem)]
+    return [s.line() for s in pair_summaries(disc)]

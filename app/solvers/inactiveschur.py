@@ -118,7 +118,7 @@ class GammaSchur:
         disc = problem.disc
         self.comm = disc.comm
         self.start, end = K.getOwnershipRange()
-        self.layout = Gamma3Layout(problem, self.start)
+        self.layout = Gamma3Layout(disc, self.start)
         self.G = self.layout.global_rows().astype(np.int64)
         self.m, self.n = len(self.G), K.getSize()[0]
         self.condensation = _condensation(K, self.G.astype(np.int32), disc.dim,

@@ -57,7 +57,7 @@ class PairVariables:
         self.problem = problem
         disc = problem.disc
         ops = disc.pair_operators
-        self.R = rotation_matrix(problem)
+        self.R = rotation_matrix(problem.disc)
         self.caps, self.T = disc.caps, None
         self.P = self.R.matMult(ops.lift)
         if self.caps is not None:                  # u = T (R (I + S) x + c)

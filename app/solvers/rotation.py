@@ -13,16 +13,15 @@ import numpy as np
 from petsc4py import PETSc
 
 
-def rotation_matrix(problem) -> PETSc.Mat:
+def rotation_matrix(disc) -> PETSc.Mat:
     """R = diag(Q_i) over the owned nodes (identity where there is no frame, or no Gamma3).
 
     Args:
-        problem: the ContactProblem (V, frames).
+        disc: the Discretisation (V, frames).
 
     Returns:
         The assembled AIJ matrix with u's row and column layout.
     """
-    disc = problem.disc
     V, d, fr = disc.V, disc.dim, disc.frames
     imap = V.dofmap.index_map
     n = imap.size_local
@@ -54,7 +53,7 @@ class FrameMap:
 
     def __init__(self, problem, template: PETSc.Vec):
         self.problem, self.caps = problem, problem.disc.caps
-        self.R = rotation_matrix(problem)
+        self.R = rotation_matrix(problem.disc)
         self.T = self.T_inv = None
         self.M = self.R
         if self.caps is not None:

@@ -25,15 +25,14 @@ class Gamma3Layout:
         owned_rows: the global matrix rows of those dofs (K's row layout).
 
     Args:
-        problem: the ContactProblem (V, gamma3: its owned nodes and weights).
+        disc: the Discretisation (V, gamma3: its owned nodes and weights).
         row_start: the first global row of K this rank owns.
         nodes: this rank's owned nodes of G (None: its Gamma3 nodes; two bodies: also the
             target nodes coupled to them, app/solvers/condensed/pairs.py).
         weight: their nodal weights (None: those of the Gamma3 rule).
     """
 
-    def __init__(self, problem, row_start: int, nodes=None, weight=None):
-        disc = problem.disc
+    def __init__(self, disc, row_start: int, nodes=None, weight=None):
         self.comm, d = disc.comm, disc.dim
         self.d = d
         imap = disc.V.dofmap.index_map
@@ -90,17 +89,17 @@ class Gamma3Layout:
         return self.place_on_all(self.owned_positions, vec.array_r[self.owned_dofs_local],
                                  self.m)
 
-    def gather_nodal(self, problem, field) -> np.ndarray:
+    def gather_nodal(self, disc, field) -> np.ndarray:
         """A Gamma3 NodalField's values at the Gamma3 nodes (collective).
 
         Args:
-            problem: the ContactProblem (its Gamma3 nodes).
+            disc: the Discretisation (its Gamma3 nodes).
             field: the NodalField (xi_n or theta(s_n)).
 
         Returns:
             The values in G's node order, shape (m / d,), on every rank.
         """
-        pos = np.searchsorted(problem.disc.gamma3_local_nodes, problem.disc.gamma3.nodes)
+        pos = np.searchsorted(disc.gamma3_local_nodes, disc.gamma3.nodes)
         return self.place_on_all(self.local_owned_g, field.function.x.array[field.dofs[pos]],
                                  len(self.g_nodes))
 

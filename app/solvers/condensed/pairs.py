@@ -95,12 +95,13 @@ def pair_stiffness(pv) -> PETSc.Mat:
     return K
 
 
-def _surface_rows(problem, pv) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _surface_rows(disc, pv) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """C's rows at this rank's owned surface nodes as (local row, global column, value),
-    the rows numbered d i + a for the i-th owned surface node."""
-    d = problem.disc.dim
+    the rows numbered d i + a for the i-th owned surface node (``disc``: the
+    Discretisation)."""
+    d = disc.dim
     indptr, indices, data = pv.C.getValuesCSR()
-    rows = (problem.disc.gamma3.nodes[:, None] * d + np.arange(d)).ravel()
+    rows = (disc.gamma3.nodes[:, None] * d + np.arange(d)).ravel()
     counts = indptr[rows + 1] - indptr[rows]
     at = np.concatenate([np.arange(indptr[r], indptr[r + 1]) for r in rows] or
                         [np.zeros(0, np.int64)]).astype(np.int64)
@@ -117,21 +118,20 @@ class PairLayout(Gamma3Layout):
         coupling: the PairCoupling (C_G in the work frames, on GAMMA3_ROOT).
 
     Args:
-        problem: the ContactProblem with pairs.
+        disc: the Discretisation with pairs.
         pv: the PairVariables.
         row_start: the first global row of K_x this rank owns.
     """
 
-    def __init__(self, problem, pv, row_start: int):
-        disc = problem.disc
+    def __init__(self, disc, pv, row_start: int):
         d, imap = disc.dim, disc.V.dofmap.index_map
-        self.surface = Gamma3Layout(problem, row_start)
-        rows, cols, vals = _surface_rows(problem, pv)
+        self.surface = Gamma3Layout(disc, row_start)
+        rows, cols, vals = _surface_rows(disc, pv)
         glob = np.unique(np.concatenate(disc.comm.allgather(np.unique(np.concatenate(
             [cols // d, self.surface.g_nodes])))))
         lo, hi = imap.local_range
         mine = glob[(glob >= lo) & (glob < hi)] - lo
-        super().__init__(problem, row_start, nodes=mine.astype(np.int32),
+        super().__init__(disc, row_start, nodes=mine.astype(np.int32),
                          weight=np.zeros(len(mine)))
         # C_G rotated: rows T_i^T C_i of the owned surface nodes, columns at G positions
         fr = disc.frames
@@ -387,19 +387,18 @@ class PairNewtonDirection(ProjectedDirection):
         return (lambda free: CWC.diagonal()[free], lambda x: CWC @ x)
 
 
-def pair_frames(problem, layout: PairLayout) -> WorkFrames:
+def pair_frames(disc, layout: PairLayout) -> WorkFrames:
     """The Gamma3 problem's coordinates of two bodies: x itself (T = None), the box
     sign_i y_slot <= g at the surface nodes that carry the bound, the Dirichlet dofs of G
     fixed, the normal e_0 of the work frames of PairCoupling (collective).
 
     Args:
-        problem: the ContactProblem with pairs.
+        disc: the Discretisation with pairs.
         layout: the PairLayout.
 
     Returns:
         The WorkFrames.
     """
-    disc = problem.disc
     d, fr, n = disc.dim, disc.frames, len(layout.g_nodes)
     imap = disc.V.dofmap.index_map
     owned = (layout.owned_dofs_local[::d] // d).astype(np.int64)

@@ -129,18 +129,19 @@ class CondensedStepSolver:
                                  reduced=self.semidefinite)
         surface = layout.surface            # the nodal energy's nodes and weights
         law = pair_sections(p, surface) or p.contact_law(x=gamma3_points(p, surface))
-        return Gamma3Problem(self.comm, self.condensation.S, pair_frames(p, layout),
+        return Gamma3Problem(self.comm, self.condensation.S, pair_frames(p.disc, layout),
                              surface.w, law, rtol, coupling=layout.coupling)
 
     def _layout(self) -> Gamma3Layout | None:
         """The Gamma3 dofs, or None where there are none to condense (collective)."""
-        if self.problem.disc.gamma3 is None:
+        disc = self.problem.disc
+        if disc.gamma3 is None:
             return None
         start = self.K.getOwnershipRange()[0]
-        layout = Gamma3Layout(self.problem, start) if self.pairs is None else \
-            PairLayout(self.problem, self.pairs, start)
+        layout = Gamma3Layout(disc, start) if self.pairs is None else \
+            PairLayout(disc, self.pairs, start)
         if layout.m == 0:
-            # every Gamma3 node is fully prescribed (problem._gamma3_nodes drops those): a
+            # every Gamma3 node is fully prescribed (Discretisation._gamma3_nodes drops those): a
             # Gamma3 problem of size 0, nothing to condense -- u = K^-1 F_n, as SNES VI
             # solves it with no bound left (the same on every rank: g_nodes is gathered)
             log.info("  condensed solver: every Gamma3 node is prescribed, no Gamma3 problem")
@@ -245,8 +246,8 @@ class CondensedStepSolver:
         p = self.problem
         layout = self.layout if self.pairs is None else self.layout.surface
         self.gamma3_problem.set_data(
-            None if p.xi is None else layout.gather_nodal(p, p.xi),
-            None if p.theta is None else layout.gather_nodal(p, p.theta))
+            None if p.xi is None else layout.gather_nodal(p.disc, p.xi),
+            None if p.theta is None else layout.gather_nodal(p.disc, p.theta))
 
     def _set_u(self) -> None:
         """u = x (two bodies: u = P x + c), unless x is not finite anywhere (then
