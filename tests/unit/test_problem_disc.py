@@ -1,5 +1,5 @@
 """The step problem holds its Discretisation as ``problem.disc`` and does not repeat its
-attributes (issue 53): the mesh, spaces, groups and Gamma3 nodes are read there, and so is
+attributes: the mesh, spaces, groups and Gamma3 nodes are read there, and so is
 the box of U^h, u_nu <= g at the Gamma3 nodes (Discretisation.bounds)."""
 import numpy as np
 from mpi4py import MPI
