@@ -1,4 +1,4 @@
-"""The three back ends of the condensed solver's Condensation (CHOLMOD, MUMPS Schur, PETSc)
+"""The back ends of the Condensation (CHOLMOD, CHOLMOD on rank 0, MUMPS Schur, PETSc)
 against dense linear algebra on the paper case's elasticity matrix: S = K_GG - K_GI K_II^-1
 K_IG, condense(b) = (K^-1 b)_G, and expand(y) = the u with u_G = y whose interior rows of
 K u = b hold."""
@@ -33,6 +33,17 @@ def _cholmod(s, G):
     return CholmodCondensation(s.K, G, s.problem.disc.dim, module, s.comm)
 
 
+def _root(s, G):
+    """CHOLMOD on rank 0 with gathered right-hand sides (SNES VI's back end under mpirun;
+    serial here: the gather is a copy)."""
+    from vpcontact import kernels
+    from vpcontact.solvers.condensed.cholmod import RootCondensation
+    module = kernels.load()
+    if module is None:
+        pytest.skip("no C compiler")
+    return RootCondensation(s.K, G, s.problem.disc.dim, module, s.comm)
+
+
 def _mumps(s, G):
     from vpcontact.solvers.condensed.mumps import MumpsCondensation
     K = s.K.convert("aij")                   # MUMPS reads AIJ rows
@@ -47,7 +58,8 @@ def _petsc(s, G):
     return PetscCondensation(s.K, G, s.layout, {}, s.comm)
 
 
-@pytest.mark.parametrize("build", [_cholmod, _mumps, _petsc], ids=["cholmod", "mumps", "petsc"])
+@pytest.mark.parametrize("build", [_cholmod, _root, _mumps, _petsc],
+                         ids=["cholmod", "root", "mumps", "petsc"])
 def test_condensation_equals_dense_algebra(solver, build):
     G = solver.layout.global_rows()
     Kd = gather_csr(solver.K, solver.comm).scipy().toarray()

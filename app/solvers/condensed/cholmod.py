@@ -121,7 +121,7 @@ class RootCondensation:
     def __init__(self, K, G_rows: np.ndarray, d: int, module, comm):
         self.comm = comm
         A = gather_csr(K, comm)
-        self._b, self._x = K.createVecs()
+        self._b = K.createVecRight()          # (the layout of the scatter to the root)
         self._scatter, self._whole = PETSc.Scatter.toZero(self._b)
         self._root = None           # the CholmodCondensation, on the root
 
@@ -182,8 +182,9 @@ class RootCondensation:
 
     def destroy(self) -> None:
         """Free the gather's vectors and scatter."""
-        for obj in (self._b, self._x, self._scatter, self._whole):
+        for obj in (self._b, self._scatter, self._whole):
             obj.destroy()
+
 
 def _semidefinite_schur(factor) -> tuple[np.ndarray, np.ndarray | None]:
     """(S, C) of ``schur_pair``, or (S, None) where S is only positive semidefinite (a body
