@@ -29,7 +29,7 @@ from vpcontact.solvers.choice import condensed_eligible
 from vpcontact.studies import bench3d, scenebench
 from vpcontact.studies.bench3d import BOX3D
 from vpcontact.studies.benchref import REFERENCE_TEXT, References, ratio_text, reference_cells
-from vpcontact.studies.benchrun import ENV, run_overrides
+from vpcontact.studies.benchrun import ENV, busy_text, run_overrides
 
 MAX_REPEAT = 100             # --repeat: more gives no better minimum, only a longer bench
 
@@ -165,7 +165,7 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "condensed"), nprocs=(
                 log(f"  h = 1/{n}, N = {N}, {method:8s} np {np_}: {wall:7.2f} s whole process, "
                     f"set-up {s['setup_s']:.2f} s, steps {s['loop_s']:.2f} s, "
                     f"{s['newton_iterations_total']} Newton iterations, "
-                    f"{ratio_text(rows[-1], 'wall_ratio')} the reference")
+                    f"{ratio_text(rows[-1], 'wall_ratio')} the reference{busy_text(rows[-1])}")
         for np_ in nprocs:
             a, b = finals.get(("snes_vi", np_)), finals.get(("condensed", np_))
             if a and b:
@@ -173,25 +173,25 @@ def bench(case, outdir: Path, levels, methods=("snes_vi", "condensed"), nprocs=(
                 for r in (a, b):
                     r["speedup_fast_vs_snes"] = a["wall_s"] / b["wall_s"]
                     r["solution_difference"] = diff
-        _ranks_ratios(finals, nprocs)
+        _ranks_ratios(finals)
     for r in rows:
         r.pop("_u", None)
     _cost_exponents(rows, methods)
     return rows
 
 
-def _ranks_ratios(finals: dict, nprocs) -> None:
+def _ranks_ratios(finals: dict) -> None:
     """Each parallel row's wall time over the serial row's of its solver and level
-    (``wall_vs_serial``, measured in the same bench run).
+    (``wall_vs_serial``, measured in the same bench run), with the serial row's others.
 
     Args:
         finals: {(method, ranks): row} of one level.
-        nprocs: the rank counts timed.
     """
     for (method, ranks), row in finals.items():
         serial = finals.get((method, 1))
         if ranks > 1 and serial is not None:
             row["wall_vs_serial"] = row["wall_s"] / serial["wall_s"]
+            row["serial_others_cores"] = serial.get("others_cores")
 
 
 def _ranks_markdown(rows: list[dict]) -> list[str]:
@@ -201,14 +201,23 @@ def _ranks_markdown(rows: list[dict]) -> list[str]:
         return []
     lines = ["", "## Under mpirun against serial", "",
              "Whole-process wall time of each parallel row over the serial row of the same "
-             "solver and level, both in this bench run (below 1: the ranks are faster).", "",
-             "| h | N | solver | ranks | wall s | serial wall s | wall / serial |",
-             "|---|---|---|---|---|---|---|"]
+             "solver and level, both in this bench run (below 1: the ranks are faster). "
+             "Others: the cores other processes kept busy on average during the fastest run "
+             "(the machine's busy CPU time less the run's own, over its wall time); ranks "
+             "suffer most from them, as a waiting rank holds the others at every exchange.",
+             "", "| h | N | solver | ranks | wall s | serial wall s | wall / serial | "
+             "others, cores (serial, ranks) |", "|---|---|---|---|---|---|---|---|"]
     for r in parallel:
         lines.append(f"| 1/{r['n']} | {r['N']} | {_solver_cell(r)} | {r['nprocs']} | "
                      f"{r['wall_s']:.2f} | {r['wall_s'] / r['wall_vs_serial']:.2f} | "
-                     f"{r['wall_vs_serial']:.2f} |")
+                     f"{r['wall_vs_serial']:.2f} | {_cores(r.get('serial_others_cores'))}, "
+                     f"{_cores(r.get('others_cores'))} |")
     return lines
+
+
+def _cores(value: float | None) -> str:
+    """A cores cell: '0.85', or '-' where unknown."""
+    return "-" if value is None else f"{value:.2f}"
 
 
 def _row(n: int, N: int, nprocs: int, s: dict, wall: float, runs: list, out: Path) -> dict:
@@ -223,7 +232,7 @@ def _row(n: int, N: int, nprocs: int, s: dict, wall: float, runs: list, out: Pat
            "step_min_s": min(steps), "step_median_s": statistics.median(steps),
            "newton_total": s["newton_iterations_total"],
            "factorisations": s["solver"].get("factorisations"),
-           "phases": s.get("phases")}
+           "phases": s.get("phases"), "others_cores": s.get("_others_cores")}
     row["final"] = [s["steps"][-1][k] for k in ("norm_u_V", "norm_sigma_Q", "norm_kappa_Y")]
     with open(out / "contact.csv") as f:
         row["_u"] = np.array([[float(r["u_x"]), float(r["u_y"])] for r in csv.DictReader(f)])

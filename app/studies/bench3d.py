@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from vpcontact.studies.benchref import REFERENCE_TEXT, References, reference_cells
-from vpcontact.studies.benchrun import measured_run
+from vpcontact.studies.benchrun import busy_text, measured_run
 
 CASES = Path(__file__).resolve().parents[2] / "cases"
 BOX3D = CASES / "box3d.yaml"
@@ -49,7 +49,8 @@ def _row(label: str, n: int, N: int, nprocs: int, run: tuple) -> dict:
             "iterations": its, "max_iterations": max(its), "newton_total": sum(its),
             "gamma3_dofs": g3.get("dofs"), "gamma3_factorisations": g3.get("factorisations"),
             "gamma3_cg_iterations": g3.get("cg_iterations"),
-            "final_norm_u_V": s["steps"][-1]["norm_u_V"], "phases": s.get("phases")}
+            "final_norm_u_V": s["steps"][-1]["norm_u_V"], "phases": s.get("phases"),
+            "others_cores": s.get("_others_cores")}
 
 
 _warmed: set = set()
@@ -79,7 +80,7 @@ def _attempt(rows, label, case, out, n, N, nprocs, overrides, log,
     log(f"  {label}: {row['wall_s']:.2f} s whole process, set-up {row['setup_s']:.2f} s, "
         f"steps {row['loop_s']:.2f} s, {row['method']}, iterations per step "
         f"{' '.join(map(str, row['iterations']))}, peak {row['peak_rss_gb']:.2f} GB, "
-        f"{reference_cells(row, ('wall_ratio',))[1]} the reference")
+        f"{reference_cells(row, ('wall_ratio',))[1]} the reference{busy_text(row)}")
     return row
 
 

@@ -24,7 +24,9 @@ def measured_run(case: Path, out: Path, overrides: list[str], nprocs: int = 1):
         nprocs: MPI ranks (mpirun above 1).
 
     Returns:
-        (wall s, peak resident set in bytes of the largest process, summary.json as a dict).
+        (wall s, peak resident set in bytes of the largest process, summary.json as a dict
+        with "_others_cores": the cores other processes kept busy on average meanwhile,
+        ``others_cores``).
 
     Raises:
         RuntimeError: the run failed (its command and the end of its error output).
@@ -37,7 +39,7 @@ def measured_run(case: Path, out: Path, overrides: list[str], nprocs: int = 1):
         cmd = ["mpirun", "-n", str(nprocs), *cmd]
     err = out.parent / f"{out.name}.stderr"
     out.parent.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
+    t0, busy0 = time.perf_counter(), busy_cpu_seconds()
     with open(err, "w") as stderr:
         proc = subprocess.Popen(cmd, env={**os.environ, **ENV}, stdout=subprocess.DEVNULL,
                                 stderr=stderr)
@@ -47,11 +49,72 @@ def measured_run(case: Path, out: Path, overrides: list[str], nprocs: int = 1):
             stop_child(proc)
             raise
     wall = time.perf_counter() - t0
+    busy = busy_cpu_seconds()
     proc.returncode = os.waitstatus_to_exitcode(status)
     if proc.returncode != 0:
         raise RuntimeError(f"bench run failed ({' '.join(cmd)}):\n{err.read_text()[-2000:]}")
     peak = usage.ru_maxrss * 1024                      # kilobytes on Linux
-    return wall, peak, json.loads((out / "summary.json").read_text())
+    summary = json.loads((out / "summary.json").read_text())
+    summary["_others_cores"] = others_cores(busy0, busy, usage.ru_utime + usage.ru_stime, wall)
+    return wall, peak, summary
+
+
+BUSY_CORES = 0.1       # others_cores from which a bench row's log line names them
+
+
+def busy_text(row: dict) -> str:
+    """", other processes busy on 0.85 cores meanwhile" for a bench row whose run had
+    others beside it (``others_cores`` >= BUSY_CORES), else "".
+
+    Args:
+        row: a bench row (its "others_cores", or None).
+
+    Returns:
+        The text.
+    """
+    others = row.get("others_cores")
+    if others is None or others < BUSY_CORES:
+        return ""
+    return f", other processes busy on {others:.2f} cores meanwhile"
+
+
+def busy_cpu_seconds() -> float | None:
+    """The machine's busy CPU time so far, all cores (/proc/stat: user, nice, system, irq,
+    softirq, steal), or None where /proc/stat cannot be read.
+
+    Returns:
+        Seconds.
+    """
+    try:
+        with open("/proc/stat") as f:
+            fields = f.readline().split()
+    except OSError:
+        return None
+    if not fields or fields[0] != "cpu":
+        return None
+    user, nice, system, _idle, _iowait, irq, softirq, steal = map(int, fields[1:9])
+    return (user + nice + system + irq + softirq + steal) / os.sysconf("SC_CLK_TCK")
+
+
+def others_cores(busy0: float | None, busy1: float | None, own: float, wall: float
+                 ) -> float | None:
+    """The cores other processes kept busy on average during a run: the machine's busy CPU
+    time over the run less the run's own (its processes and their waited-for children, an
+    mpirun's ranks), over its wall time; timings of a run with others busy beside it are
+    slower, under mpirun most (docs/performance.md, section 5).
+
+    Args:
+        busy0: ``busy_cpu_seconds`` before the run.
+        busy1: after it.
+        own: the run's CPU seconds (user + system, from wait4).
+        wall: its wall time [s].
+
+    Returns:
+        Cores (>= 0, rounded to 0.01), or None without /proc/stat.
+    """
+    if busy0 is None or busy1 is None or wall <= 0:
+        return None
+    return round(max(busy1 - busy0 - own, 0.0) / wall, 2)
 
 
 def stop_child(proc: subprocess.Popen) -> None:

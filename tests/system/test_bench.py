@@ -182,6 +182,7 @@ def test_bench_command(tmp_path):
                   (r["n"], r["method"], 1)]
         assert r.get("wall_vs_serial") == (None if r["nprocs"] == 1 else
                                            r["wall_s"] / serial[0]["wall_s"])
+        assert r["others_cores"] >= 0.0
         assert {"dofs", "wall_s", "setup_s", "step_median_s", "newton_total"} <= set(r)
         assert len(r["wall_runs_s"]) == 1 and r["wall_s"] == min(r["wall_runs_s"])
     mem = data["memory_term"]
@@ -203,7 +204,8 @@ def test_bench_command(tmp_path):
     for r in rows:
         if r["nprocs"] == 2:
             assert f"| {r['wall_s']:.2f} | {r['wall_s'] / r['wall_vs_serial']:.2f} | " \
-                   f"{r['wall_vs_serial']:.2f} |" in md
+                   f"{r['wall_vs_serial']:.2f} | {r['serial_others_cores']:.2f}, " \
+                   f"{r['others_cores']:.2f} |" in md
     md = (rest / "bench.md").read_text()
     assert "user's scene" in md
     box3d = {r["label"]: r for r in other["box3d"]}
