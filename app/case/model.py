@@ -6,9 +6,10 @@ Adding a key to the case file: its entry in the schema (app/case/schema.py), its
 schema's.  A built-in viscoplastic law's keys are none of these: its LawSpec declares them
 (app/model/lawspec.py, in the law's module), and the schema, the rules and ``Viscoplastic``
 read them from the registry app/model/lawregistry.py; a built-in contact law's keys (a
-memory kernel, a slip law, a normal compliance, a friction bound) likewise by its
-ContactLawSpec (app/model/contactspec.py), read from app/model/contactregistry.py into the
-tagged sections ``Memory``, ``Slip``, ``Compliance`` and ``Friction``.
+memory kernel, a slip law, a normal compliance, a friction bound, a variant of Coulomb's
+bound) likewise by its ContactLawSpec (app/model/contactspec.py), read from
+app/model/contactregistry.py into the tagged sections ``Memory``, ``Slip``, ``Compliance``,
+``Friction`` and ``Coulomb``.
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from pathlib import Path
 
 from vpcontact.model.contactregistry import (
     BOUNDS,
+    COULOMBS,
     KERNELS,
     NORMALS,
     SLIPS,
@@ -184,23 +186,28 @@ class PythonLaw:
 
 
 @dataclass(frozen=True)
-class Coulomb:
-    """``contact.friction.coulomb``: the friction bound mu p_n (p_n the contact pressure);
-    with the static/kinetic pair (mu_k and slip_length given) mu is mu_s and the bound is
-    mu(s) p_n, mu(s) = mu_s - (mu_s - mu_k) min(s / slip_length, 1)."""
+class Coulomb(_Constants):
+    """``contact.friction.coulomb``: its variant's name in ``COULOMBS``
+    (app/model/contactregistry.py: "mu", the bound mu p_n, p_n the contact pressure;
+    "static/kinetic", mu(s) p_n, mu(s) = mu_s - (mu_s - mu_k) min(s / slip_length, 1)) and
+    its constants ({key: value}, as attributes too).  ``mu`` is the variant's coefficient
+    (mu_s of the static/kinetic law)."""
 
-    mu: float
-    mu_k: float | None = None
-    slip_length: float | None = None
+    REGISTRY = COULOMBS
+    law: str
+    constants: dict = field(default_factory=dict)
+
+    @property
+    def mu(self) -> float:
+        """The coefficient of the bound mu theta(s_n) p_n (the variant's ``CoulombLaw``)."""
+        return COULOMBS[self.law].build(self.constants).mu
 
     @property
     def title(self) -> str:
-        """The law in words: 'Coulomb friction mu p_n (mu = ..)' or, static/kinetic,
-        'Coulomb friction mu(s) p_n (mu_s = .., mu_k = .. over slip length ..)'."""
-        if self.mu_k is None:
-            return f"Coulomb friction mu p_n (mu = {self.mu:g})"
-        return (f"Coulomb friction mu(s) p_n (mu_s = {self.mu:g}, mu_k = {self.mu_k:g} over "
-                f"slip length {self.slip_length:g} m s)")
+        """The law in words (its spec's title with the constants): 'Coulomb friction mu p_n
+        (mu = ..)' or 'Coulomb friction mu(s) p_n (mu_s = .., mu_k = .. over slip length
+        ..)'."""
+        return COULOMBS[self.law].title.format(**self.constants)
 
 
 @dataclass(frozen=True)
@@ -627,10 +634,10 @@ def _friction(fr: dict) -> Friction:
 
 
 def _coulomb(c: dict) -> Coulomb:
-    """The Coulomb of contact.friction.coulomb: mu, or mu_s, mu_k and slip_length."""
-    if "mu" in c:
-        return Coulomb(float(c["mu"]))
-    return Coulomb(float(c["mu_s"]), float(c["mu_k"]), float(c["slip_length"]))
+    """The Coulomb of contact.friction.coulomb: its variant of ``COULOMBS`` chosen by its
+    keys (mu, or mu_s, mu_k and slip_length)."""
+    spec = chosen(COULOMBS, c)
+    return Coulomb(spec.name, spec.constants(c))
 
 
 def _material(material: dict) -> Material:

@@ -19,6 +19,7 @@ from vpcontact.io.errors import CaseError
 from vpcontact.meshes.rectangle import SIDES
 from vpcontact.model.contactregistry import (
     BOUNDS,
+    COULOMBS,
     KERNELS,
     NORMALS,
     SLIPS,
@@ -248,12 +249,13 @@ def _check_contact(contact: dict, dim: int, source: str) -> None:
                          source)
 
 
-def _one_law(given: dict, path: str, registry: dict, source: str) -> None:
+def _one_law(given: dict, path: str, registry: dict, source: str, last: str = ", ") -> None:
     """The keys of exactly one built-in law of a kind (app/model/contactregistry.py: the
     first whose required keys are given, else the kind's default), all its required keys,
     no other law's optional key; then the law's own checks (its ContactLawSpec's
-    ``check``)."""
-    choice = alternatives(registry)
+    ``check``).  ``last`` joins the last two keys of a law in the messages' choice
+    (``alternatives``)."""
+    choice = alternatives(registry, last)
     have = [(spec, [k for k in spec.required() if k in given]) for spec in registry.values()]
     have = [(spec, keys) for spec, keys in have if keys]
     if len(have) > 1:
@@ -323,42 +325,17 @@ def _check_friction(fr: dict, source: str) -> None:
 
 
 def _check_coulomb(fr: dict, source: str) -> None:
-    """contact.friction.coulomb: mu >= 0, or mu_s, mu_k, slip_length; not with another
-    friction law's keys."""
+    """contact.friction.coulomb: not with another friction law's keys; the keys of exactly
+    one variant (``COULOMBS``: mu >= 0, or mu_s >= mu_k >= 0 and slip_length > 0), its own
+    checks; a variant with a slip dependence (mu_s, mu_k) not with slip."""
     other = [k for k in (*builtin_keys(BOUNDS), "law", "class", "params") if k in fr]
     if other:
         raise CaseError(f"{source}: contact.friction.{other[0]}: not with coulomb (the "
                         f"Coulomb law mu p_n is the friction law; remove {', '.join(other)})")
-    c, path = fr["coulomb"], "contact.friction.coulomb"
-    pair = [k for k in ("mu_s", "mu_k", "slip_length") if k in c]
-    if "mu" in c and pair:
-        raise CaseError(f"{source}: {path}.{pair[0]}: not with mu (give mu, or mu_s, mu_k "
-                        "and slip_length; not both)")
-    if "mu" not in c and len(pair) < 3:
-        missing = next(k for k in ("mu_s", "mu_k", "slip_length") if k not in c)
-        raise CaseError(f"{source}: {path}.{'mu' if not pair else missing}: required (give "
-                        "mu, or mu_s, mu_k and slip_length)")
-    if pair:
-        _check_static_kinetic(fr, source)
-    elif c["mu"] < 0:
-        raise CaseError(f"{source}: {path}.mu: must be >= 0 (a friction coefficient), got "
-                        f"{c['mu']:g}")
-
-
-def _check_static_kinetic(fr: dict, source: str) -> None:
-    """contact.friction.coulomb: mu_s >= mu_k >= 0, slip_length > 0, not with slip."""
-    c, path = fr["coulomb"], "contact.friction.coulomb"
-    if c["mu_k"] < 0:
-        raise CaseError(f"{source}: {path}.mu_k: must be >= 0 (a friction coefficient), got "
-                        f"{c['mu_k']:g}")
-    if c["mu_s"] < c["mu_k"]:
-        raise CaseError(f"{source}: {path}.mu_s: must be >= mu_k = {c['mu_k']:g} (the static "
-                        f"coefficient is the larger), got {c['mu_s']:g}")
-    if c["slip_length"] <= 0:
-        raise CaseError(f"{source}: {path}.slip_length: must be > 0 (the accumulated slip "
-                        f"[m s] over which mu falls from mu_s to mu_k), got "
-                        f"{c['slip_length']:g}")
-    if "slip" in fr:
+    c = fr["coulomb"]
+    _one_law(c, "contact.friction.coulomb", COULOMBS, source, last=" and ")
+    spec = chosen(COULOMBS, c)
+    if "slip" in fr and spec.build(spec.constants(c)).slip is not None:
         raise CaseError(f"{source}: contact.friction.slip: not with coulomb mu_s, mu_k (the "
                         "static/kinetic pair is the slip dependence; give one of them)")
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from vpcontact.model.contactregistry import (
     BOUNDS,
+    COULOMBS,
     NORMALS,
     SLIPS,
     kernel_keys,
@@ -277,23 +278,7 @@ SCHEMA = _obj({
                            "(1 - theta_inf) exp(-s/s0) or a table, s = int_0^t |u_tau| "
                            "(absent: none; give theta_inf and s0, or table)"),
             "coulomb": _obj({
-                "mu": {"type": "number", "description": "the Coulomb friction coefficient "
-                                                         "(dimensionless, >= 0): the friction "
-                                                         "bound is mu p_n, p_n the contact "
-                                                         "pressure at the node [N/m^2] "
-                                                         "(compliance, memory and the bound's "
-                                                         "reaction); times theta(s) with slip"},
-                "mu_s": {"type": "number", "description": "the static coefficient "
-                                                           "(dimensionless, >= mu_k): the "
-                                                           "bound mu(s) p_n at s = 0 (instead "
-                                                           "of mu; with mu_k and slip_length)"},
-                "mu_k": {"type": "number", "description": "the kinetic coefficient "
-                                                           "(dimensionless, 0 <= mu_k <= "
-                                                           "mu_s): mu(s) for s >= slip_length"},
-                "slip_length": {"type": "number", "description": "the accumulated slip "
-                                                                 "s = int_0^t |u_tau| [m s] "
-                                                                 "(> 0) over which mu(s) falls "
-                                                                 "linearly from mu_s to mu_k"},
+                **key_schemas(COULOMBS),    # the Coulomb variants' keys: contactregistry.py
             }, description="Coulomb friction |sigma_tau| <= mu p_n (instead of b, c1, c2, u1 "
                            "or table): psi(rho) = mu p_n rho, regularised with solver.delta; "
                            "p_n by a fixed point in each step (needs normal_compliance or g); "

@@ -6,17 +6,18 @@
 - ``SLIPS``: the slip dependence of ``contact.friction.slip`` (app/model/contact_laws.py);
 - ``NORMALS``: the normal compliance of ``contact.normal_compliance``
   (app/model/contact_laws.py, contact_tables.py);
-- ``BOUNDS``: the friction bound of ``contact.friction`` (the same modules).
+- ``BOUNDS``: the friction bound of ``contact.friction`` (the same modules);
+- ``COULOMBS``: the variants of Coulomb's bound mu p_n of ``contact.friction.coulomb``
+  (mu; mu_s, mu_k, slip_length; app/model/coulomb.py).
 
-A law of the last three is chosen by the keys given (``chosen``): the first law (the kind's
+A law of the last four is chosen by the keys given (``chosen``): the first law (the kind's
 default) whose required keys are given, exactly one law's.  The case layer builds its schema
 of these sections (``key_schemas``, ``kernel_keys``), its rules (each spec's keys, required
 keys and checks, ``alternatives``) and the Case's tagged sections from them, the blow-up
 monitor their stress levels, the model its laws (``contact_law``, ``friction_law``,
-``slip_law``, ``memory_kernel`` below, as ``viscoplastic_law`` of
-app/model/lawregistry.py).  Coulomb's bound mu p_n (``contact.friction.coulomb``,
-app/model/coulomb.py) and a law written by the user (``law: python``,
-app/model/lawmodule.py) keep their own paths.
+``slip_law``, ``memory_kernel``, ``coulomb_law`` below, as ``viscoplastic_law`` of
+app/model/lawregistry.py).  A law written by the user (``law: python``,
+app/model/lawmodule.py) keeps its own path.
 
 Adding a built-in contact law: its class and its ``ContactLawSpec`` in a module of its own
 (or beside its kind's laws), and one entry in its registry below.
@@ -37,6 +38,7 @@ from vpcontact.model.contact_laws import (
 )
 from vpcontact.model.contact_tables import COMPLIANCE_TABLE, FRICTION_TABLE
 from vpcontact.model.contactspec import ContactLawSpec
+from vpcontact.model.coulomb import CONSTANT_MU, STATIC_KINETIC, CoulombLaw
 from vpcontact.model.laws import ScalarLaw
 from vpcontact.model.memory_kernels import EXPONENTIAL, POWER, TABLE_KERNEL, MemoryKernel
 
@@ -45,6 +47,7 @@ KERNELS: dict[str, ContactLawSpec] = {s.name: s for s in (EXPONENTIAL, POWER, TA
 SLIPS: dict[str, ContactLawSpec] = {s.name: s for s in (SLIP_WEAKENING, SLIP_TABLE)}
 NORMALS: dict[str, ContactLawSpec] = {s.name: s for s in (COMPLIANCE, COMPLIANCE_TABLE)}
 BOUNDS: dict[str, ContactLawSpec] = {s.name: s for s in (FRICTION, FRICTION_TABLE)}
+COULOMBS: dict[str, ContactLawSpec] = {s.name: s for s in (CONSTANT_MU, STATIC_KINETIC)}
 DEFAULT_KERNEL = "exponential"
 
 
@@ -52,7 +55,7 @@ def key_schemas(registry: dict[str, ContactLawSpec]) -> dict[str, dict]:
     """The schema of every key of one kind's laws.
 
     Args:
-        registry: KERNELS, SLIPS, NORMALS or BOUNDS.
+        registry: KERNELS, SLIPS, NORMALS, BOUNDS or COULOMBS.
 
     Returns:
         {key: schema}, the laws' keys in the registry's order.
@@ -95,7 +98,7 @@ def chosen(registry: dict[str, ContactLawSpec], given: dict) -> ContactLawSpec:
     the kind's default (the first).
 
     Args:
-        registry: SLIPS, NORMALS or BOUNDS.
+        registry: SLIPS, NORMALS, BOUNDS or COULOMBS.
         given: the section.
 
     Returns:
@@ -105,23 +108,30 @@ def chosen(registry: dict[str, ContactLawSpec], given: dict) -> ContactLawSpec:
     return next((s for s in specs if any(k in given for k in s.required())), specs[0])
 
 
-def alternatives(registry: dict[str, ContactLawSpec]) -> str:
+def alternatives(registry: dict[str, ContactLawSpec], last: str = ", ") -> str:
     """The laws' required keys as a choice, e.g. "b, c1, c2, u1, or table".
 
     Args:
-        registry: SLIPS, NORMALS or BOUNDS.
+        registry: SLIPS, NORMALS, BOUNDS or COULOMBS.
+        last: what joins the last two keys of a law (", "; " and ": "mu, or mu_s, mu_k and
+            slip_length").
 
     Returns:
         The text.
     """
-    return ", or ".join(", ".join(s.required()) for s in registry.values())
+    return ", or ".join(_listed(s.required(), last) for s in registry.values())
+
+
+def _listed(keys: tuple[str, ...], last: str) -> str:
+    """Keys as a list, ``last`` joining the last two."""
+    return last.join(filter(None, (", ".join(keys[:-1]), keys[-1])))
 
 
 def field_keys(registry: dict[str, ContactLawSpec]) -> dict[str, str]:
     """The keys of one kind's laws that may be fields of x, y, z (``ContactKey.field``).
 
     Args:
-        registry: KERNELS, SLIPS, NORMALS or BOUNDS.
+        registry: KERNELS, SLIPS, NORMALS, BOUNDS or COULOMBS.
 
     Returns:
         {key: what it is}, in the registry's order.
@@ -134,7 +144,7 @@ def builtin_keys(registry: dict[str, ContactLawSpec]) -> tuple[str, ...]:
     """Every key of one kind's laws.
 
     Args:
-        registry: KERNELS, SLIPS, NORMALS or BOUNDS.
+        registry: KERNELS, SLIPS, NORMALS, BOUNDS or COULOMBS.
 
     Returns:
         The keys, in the registry's order.
@@ -164,6 +174,19 @@ def memory_kernel(kind: str, b0: float, beta: float = 0.0, alpha: float = 1.0,
         raise ValueError(f"unknown kernel {kind!r}")
     given = {"beta": beta, "alpha": alpha, "tau": tau, "table": table}
     return KERNELS[kind].build({k: given[k] for k in KERNELS[kind].keys}, b0)
+
+
+def coulomb_law(coulomb) -> CoulombLaw:
+    """Coulomb's bound mu theta(s_n) p_n of a case's ``contact.friction.coulomb`` (its variant
+    in the registry ``COULOMBS``, app/model/coulomb.py).
+
+    Args:
+        coulomb: the Coulomb (its variant's name and constants).
+
+    Returns:
+        The CoulombLaw: mu and the slip dependence theta(s) or None.
+    """
+    return COULOMBS[coulomb.law].build(coulomb.constants)
 
 
 def slip_law(slip):

@@ -14,10 +14,22 @@ slip dependence theta(s_n) = 1 - (1 - mu_k / mu_s) min(s_n / L, 1)
 (``contact_laws.StaticKineticSlip``, summed by the Gamma3 slip machinery).  p_n is part of
 the state a checkpoint stores: a restarted step starts its fixed point where the
 uninterrupted run's does.
+
+The two variants of ``contact.friction.coulomb`` are declared here once, as the other
+contact laws are (``ContactLawSpec``, app/model/contactspec.py; the registry ``COULOMBS`` of
+app/model/contactregistry.py, chosen by the keys given): ``CONSTANT_MU`` (mu) and
+``STATIC_KINETIC`` (mu_s, mu_k, slip_length).  A variant's ``build`` gives its
+``CoulombLaw``: the coefficient mu of the bound mu p_n and its slip dependence theta(s_n).
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
+
+from vpcontact.io.errors import CaseError
+from vpcontact.model.contact_laws import StaticKineticSlip
+from vpcontact.model.contactspec import ContactKey, ContactLawSpec
 
 
 class CoulombPressure:
@@ -94,3 +106,67 @@ class CoulombPressure:
             state: {"p": array (m,)} or None.
         """
         self.p = np.zeros(len(self.p)) if state is None else np.array(state["p"], dtype=float)
+
+
+class CoulombLaw(NamedTuple):
+    """A Coulomb variant's law: the bound mu theta(s_n) p_n.
+
+    Attributes:
+        mu: the coefficient (mu_s of the static/kinetic law).
+        slip: its slip dependence theta(s_n) (a StaticKineticSlip), or None.
+    """
+
+    mu: float
+    slip: StaticKineticSlip | None = None
+
+
+def _nonnegative(c: dict, key: str, path: str, source: str) -> None:
+    """A friction coefficient of contact.friction.coulomb is >= 0."""
+    if c[key] < 0:
+        raise CaseError(f"{source}: {path}.{key}: must be >= 0 (a friction coefficient), got "
+                        f"{c[key]:g}")
+
+
+def _check_constant(c: dict, path: str, source: str) -> None:
+    """contact.friction.coulomb: mu >= 0."""
+    _nonnegative(c, "mu", path, source)
+
+
+def _check_static_kinetic(c: dict, path: str, source: str) -> None:
+    """contact.friction.coulomb: mu_s >= mu_k >= 0, slip_length > 0."""
+    _nonnegative(c, "mu_k", path, source)
+    if c["mu_s"] < c["mu_k"]:
+        raise CaseError(f"{source}: {path}.mu_s: must be >= mu_k = {c['mu_k']:g} (the static "
+                        f"coefficient is the larger), got {c['mu_s']:g}")
+    if c["slip_length"] <= 0:
+        raise CaseError(f"{source}: {path}.slip_length: must be > 0 (the accumulated slip "
+                        f"[m s] over which mu falls from mu_s to mu_k), got "
+                        f"{c['slip_length']:g}")
+
+
+CONSTANT_MU = ContactLawSpec(
+    name="mu", formula="mu p_n",
+    keys={"mu": ContactKey({"type": "number", "description": "the Coulomb friction coefficient "
+                            "(dimensionless, >= 0): the friction bound is mu p_n, p_n the "
+                            "contact pressure at the node [N/m^2] (compliance, memory and the "
+                            "bound's reaction); times theta(s) with slip"})},
+    build=lambda c: CoulombLaw(c["mu"]),
+    check=_check_constant,
+    title="Coulomb friction mu p_n (mu = {mu:g})")
+
+STATIC_KINETIC = ContactLawSpec(
+    name="static/kinetic", formula="mu(s) = mu_s - (mu_s - mu_k) min(s / slip_length, 1)",
+    keys={"mu_s": ContactKey({"type": "number", "description": "the static coefficient "
+                              "(dimensionless, >= mu_k): the bound mu(s) p_n at s = 0 (instead "
+                              "of mu; with mu_k and slip_length)"}),
+          "mu_k": ContactKey({"type": "number", "description": "the kinetic coefficient "
+                              "(dimensionless, 0 <= mu_k <= mu_s): mu(s) for s >= "
+                              "slip_length"}),
+          "slip_length": ContactKey({"type": "number", "description": "the accumulated slip "
+                                     "s = int_0^t |u_tau| [m s] (> 0) over which mu(s) falls "
+                                     "linearly from mu_s to mu_k"})},
+    build=lambda c: CoulombLaw(c["mu_s"], StaticKineticSlip(c["mu_s"], c["mu_k"],
+                                                            c["slip_length"])),
+    check=_check_static_kinetic,
+    title="Coulomb friction mu(s) p_n (mu_s = {mu_s:g}, mu_k = {mu_k:g} over slip length "
+          "{slip_length:g} m s)")

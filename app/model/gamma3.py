@@ -24,8 +24,8 @@ from __future__ import annotations
 import numpy as np
 from dolfinx import fem
 
-from vpcontact.model.contact_laws import SlipWeakening, StaticKineticSlip, space_field
-from vpcontact.model.contactregistry import KERNELS, slip_law
+from vpcontact.model.contact_laws import SlipWeakening, space_field
+from vpcontact.model.contactregistry import KERNELS, coulomb_law, slip_law
 from vpcontact.model.coulomb import CoulombPressure
 from vpcontact.model.memory_kernels import FieldKernel, MemoryKernel
 from vpcontact.model.primitives import NUMPY
@@ -467,8 +467,9 @@ def section_slip(fr):
         A SlipWeakening, TableSlip or StaticKineticSlip, or None.
     """
     coulomb = getattr(fr, "coulomb", None)
-    if coulomb is not None and coulomb.mu_k is not None:    # mu(s) = mu_s theta(s)
-        return StaticKineticSlip(coulomb.mu, coulomb.mu_k, coulomb.slip_length)
+    law = coulomb_law(coulomb) if coulomb is not None else None
+    if law is not None and law.slip is not None:    # mu(s) = mu_s theta(s)
+        return law.slip
     if fr is not None and fr.slip is not None:
         return slip_law(fr.slip)
     return None
