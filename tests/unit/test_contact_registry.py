@@ -14,7 +14,7 @@ import pytest
 
 from conftest import paper_raw
 from vpcontact.case import schemamemo, validate
-from vpcontact.case.model import Compliance, Friction, Memory, Slip
+from vpcontact.case.model import Compliance, Coulomb, Friction, Memory, Slip
 from vpcontact.case.pairrules import MEMORY_SHAPE
 from vpcontact.case.schema import SCHEMA
 from vpcontact.io.errors import CaseError
@@ -29,7 +29,7 @@ from vpcontact.model.contact_laws import (
     varies_in_space,
 )
 from vpcontact.model.contact_tables import TableCompliance, TableFriction
-from vpcontact.model.contactregistry import BOUNDS, KERNELS, NORMALS, SLIPS
+from vpcontact.model.contactregistry import BOUNDS, COULOMBS, KERNELS, NORMALS, SLIPS
 from vpcontact.model.contactspec import (
     EXPRESSION,
     NONNEGATIVE,
@@ -37,7 +37,8 @@ from vpcontact.model.contactspec import (
     ContactKey,
     ContactLawSpec,
 )
-from vpcontact.model.gamma3 import section_kernel
+from vpcontact.model.coulomb import CoulombLaw
+from vpcontact.model.gamma3 import section_kernel, section_slip
 from vpcontact.model.memory_kernels import ExponentialKernel, PowerKernel, TableKernel
 from vpcontact.post.divergence import _law_levels
 
@@ -45,9 +46,10 @@ CONTACT = SCHEMA["properties"]["contact"]["properties"]
 SECTIONS = {"memory": CONTACT["memory"]["properties"],
             "normal_compliance": CONTACT["normal_compliance"]["properties"],
             "friction": CONTACT["friction"]["properties"],
-            "slip": CONTACT["friction"]["properties"]["slip"]["properties"]}
+            "slip": CONTACT["friction"]["properties"]["slip"]["properties"],
+            "coulomb": CONTACT["friction"]["properties"]["coulomb"]["properties"]}
 REGISTRIES = {"memory": KERNELS, "normal_compliance": NORMALS, "friction": BOUNDS,
-              "slip": SLIPS}
+              "slip": SLIPS, "coulomb": COULOMBS}
 LAW42 = {"b": 1.0, "c1": 60.0, "c2": 60.0, "u1": 0.01}
 
 
@@ -79,6 +81,8 @@ def test_the_registries_hold_the_built_in_laws():
         {"power": ["c_nu", "m"], "table": ["table"]}
     assert {n: list(s.keys) for n, s in BOUNDS.items()} == \
         {"4.2": ["b", "c1", "c2", "u1"], "table": ["table"]}
+    assert {n: list(s.required()) for n, s in COULOMBS.items()} == \
+        {"mu": ["mu"], "static/kinetic": ["mu_s", "mu_k", "slip_length"]}
     assert [k for k, s in KERNELS.items() if s.recursive] == ["exponential"]
     assert MEMORY_SHAPE == ("kernel", "beta", "alpha", "tau", "table", "sum")
 
@@ -106,6 +110,10 @@ def test_the_schema_of_the_laws_keys_in_the_users_order():
     assert list(SECTIONS["friction"]) == ["b", "c1", "c2", "u1", "table", "slip", "coulomb",
                                           "law", "class", "params"]
     assert list(SECTIONS["slip"]) == ["theta_inf", "s0", "table"]
+    assert list(SECTIONS["coulomb"]) == ["mu", "mu_s", "mu_k", "slip_length"]
+    assert SECTIONS["coulomb"]["mu_k"] == {"type": "number", "description": "the kinetic "
+                                           "coefficient (dimensionless, 0 <= mu_k <= mu_s): "
+                                           "mu(s) for s >= slip_length"}
     assert SECTIONS["friction"]["u1"] == {"type": "number", "exclusiveMinimum": 0,
                                           "description": "slip where softening turns into "
                                                          "hardening [m]"}
@@ -130,6 +138,17 @@ def test_the_case_holds_tagged_sections():
     assert tables.friction.law == "table" and tables.friction.b is None
     coulomb = _case(friction={"coulomb": {"mu": 0.3}}).contact.friction
     assert coulomb.law is None and coulomb.b is None and coulomb.coulomb.mu == 0.3
+    assert coulomb.coulomb == Coulomb("mu", {"mu": 0.3}) and coulomb.coulomb.mu_k is None
+    assert coulomb.coulomb.title == "Coulomb friction mu p_n (mu = 0.3)"
+    sk = _case(friction={"coulomb": {"mu_s": 0.4, "mu_k": 0.3, "slip_length": 2e-4}})
+    c = sk.contact.friction.coulomb
+    assert c == Coulomb("static/kinetic", {"mu_s": 0.4, "mu_k": 0.3, "slip_length": 2e-4})
+    assert (c.mu, c.mu_s, c.mu_k, c.slip_length) == (0.4, 0.4, 0.3, 2e-4)
+    assert ("Coulomb friction mu(s) p_n (mu_s = 0.4, mu_k = 0.3 over slip length 0.0002 m s)"
+            in sk.active_terms())
+    theta = section_slip(sk.contact.friction).theta(np.array([0.0, 1e-4, 1.0]))
+    assert theta.tolist() == [1.0, 1.0 - (1.0 - 0.3 / 0.4) * 0.5, 0.3 / 0.4]
+    assert section_slip(coulomb) is None
 
 
 def test_each_law_built_from_its_section():
@@ -192,6 +211,23 @@ def test_stress_levels_of_the_blow_up_bound():
      "contact.friction: b - c1 u1 must be >= 0"),
     ({"friction": {**LAW42, "slip": {"table": [[0, 1], [0.01, 1.5]]}}},
      "contact.friction.slip.table: theta must be in [0, 1]"),
+    ({"friction": {"coulomb": {"mu": 0.3, "mu_k": 0.2}}},
+     "contact.friction.coulomb.mu_k: not with mu (give mu, or mu_s, mu_k and slip_length; "
+     "not both)"),
+    ({"friction": {"coulomb": {}}},
+     "contact.friction.coulomb.mu: required (give mu, or mu_s, mu_k and slip_length)"),
+    ({"friction": {"coulomb": {"mu_s": 0.3, "mu_k": 0.2}}},
+     "contact.friction.coulomb.slip_length: required (give mu, or mu_s, mu_k and "
+     "slip_length)"),
+    ({"friction": {"coulomb": {"mu": -0.1}}},
+     "contact.friction.coulomb.mu: must be >= 0 (a friction coefficient), got -0.1"),
+    ({"friction": {"coulomb": {"mu_s": 0.2, "mu_k": 0.3, "slip_length": 1.0}}},
+     "contact.friction.coulomb.mu_s: must be >= mu_k = 0.3 (the static coefficient is the "
+     "larger), got 0.2"),
+    ({"friction": {"coulomb": {"mu_s": 0.3, "mu_k": 0.2, "slip_length": 1.0},
+                   "slip": {"theta_inf": 0.5, "s0": 1.0}}},
+     "contact.friction.slip: not with coulomb mu_s, mu_k (the static/kinetic pair is the "
+     "slip dependence; give one of them)"),
 ])
 def test_refusals_name_the_key_and_the_allowed(contact, message):
     assert message in _refusal(**contact)
@@ -230,12 +266,19 @@ def toys(monkeypatch):
         build=lambda c, param, x: NormalCompliance(
             space_field(c["k"], x) if isinstance(c["k"], str) else param("k", c["k"])),
         levels=lambda c, r: [] if isinstance(c["k"], str) else [c["k"] * r])
-    for reg, spec in ((KERNELS, kernel), (SLIPS, slip), (BOUNDS, bound), (NORMALS, normal)):
+    coulomb = ContactLawSpec(
+        name="capped", formula="min(mu_c, 1) p_n", title="capped Coulomb (mu_c = {mu_c:g})",
+        keys={"mu_c": ContactKey({**NONNEGATIVE, "description": "the coefficient"})},
+        build=lambda c: CoulombLaw(min(c["mu_c"], 1.0)),
+        check=lambda c, path, source: None)
+    for reg, spec in ((KERNELS, kernel), (SLIPS, slip), (BOUNDS, bound), (NORMALS, normal),
+                      (COULOMBS, coulomb)):
         monkeypatch.setitem(reg, spec.name, spec)
     for section, keys in (("memory", registry.kernel_keys()),
                           ("slip", registry.key_schemas(SLIPS)),
                           ("friction", registry.key_schemas(BOUNDS)),
-                          ("normal_compliance", registry.key_schemas(NORMALS))):
+                          ("normal_compliance", registry.key_schemas(NORMALS)),
+                          ("coulomb", registry.key_schemas(COULOMBS))):
         for key, schema in keys.items():
             monkeypatch.setitem(SECTIONS[section], key, schema)
     monkeypatch.setattr(schemamemo, "passed", lambda key: False)
@@ -268,6 +311,12 @@ def test_a_new_law_is_one_spec():
     assert law.normal.c_nu.tolist() == [5.0, 10.0]
     assert varies_in_space(linear) and _law_levels(linear, 1.0, 0.1) == [1.0, 0.6, 0.6]
     assert _law_levels(_case(normal_compliance={"k": 40}).contact, 1.0, 0.1)[0] == 4.0
+    capped = _case(friction={"coulomb": {"mu_c": 1.5}})
+    fr = capped.contact.friction
+    assert fr.coulomb == Coulomb("capped", {"mu_c": 1.5}) and fr.law is None
+    assert (fr.coulomb.mu, fr.coulomb.mu_c, fr.coulomb.mu_k) == (1.0, 1.5, None)
+    assert registry.coulomb_law(fr.coulomb) == CoulombLaw(1.0) and section_slip(fr) is None
+    assert "capped Coulomb (mu_c = 1.5)" in capped.active_terms()
 
 
 @pytest.mark.usefixtures("toys")
@@ -283,6 +332,11 @@ def test_a_new_law_is_refused_by_the_same_rules():
         _refusal(friction={"law": "python", "class": "F", "tau0": 1.0})
     assert "contact.friction.tau0: not with coulomb" in \
         _refusal(friction={"coulomb": {"mu": 0.3}, "tau0": 1.0})
+    assert ("contact.friction.coulomb.mu_c: not with mu (give mu, or mu_s, mu_k and "
+            "slip_length, or mu_c; only one)") in \
+        _refusal(friction={"coulomb": {"mu": 0.3, "mu_c": 1.0}})
+    assert "contact.friction.coulomb.mu_c: -1 is less than the minimum of 0" in \
+        _refusal(friction={"coulomb": {"mu_c": -1}})
     assert ("contact.normal_compliance.k: not with c_nu (give c_nu, or table, or k; only "
             "one)") in _refusal(normal_compliance={"c_nu": 1.0, "k": 2.0})
     assert "contact.normal_compliance.k: " in _refusal(normal_compliance={"k": "5 + t"})
