@@ -2,7 +2,7 @@
 law's own module beside its class and collected by app/model/contactregistry.py (the
 viscoplastic laws' ``LawSpec`` is app/model/lawspec.py).
 
-Four kinds of contact law are chosen by the case file, each a registry of specs:
+Five kinds of contact law are chosen by the case file, each a registry of specs:
 
 - the memory kernels b(t) of ``contact.memory`` (``KERNELS``), chosen by the key ``kernel``
   (app/model/memory_kernels.py);
@@ -11,8 +11,9 @@ Four kinds of contact law are chosen by the case file, each a registry of specs:
 - the normal compliance p(r) of ``contact.normal_compliance`` (``NORMALS``), chosen by the
   keys given (c_nu with m, or table);
 - the friction bound psi'(rho) of ``contact.friction`` (``BOUNDS``), chosen by the keys given
-  (b, c1, c2, u1, or table; Coulomb's bound mu p_n and a law written by the user keep their
-  own keys, app/case/rules.py).
+  (b, c1, c2, u1, or table; a law written by the user keeps its own keys, app/case/rules.py);
+- the variants of Coulomb's bound mu p_n of ``contact.friction.coulomb`` (``COULOMBS``),
+  chosen by the keys given (mu, or mu_s, mu_k and slip_length; app/model/coulomb.py).
 
 A spec holds what the rest of the code needs to know of a law besides its values: its keys
 (``ContactKey``: the JSON schema of the value with its description, required or not), its
@@ -97,7 +98,8 @@ class ContactLawSpec:
         levels: (constants) -> [stress levels] its constants set, for the blow-up bound
             (app/post/divergence.py; a kind's further arguments as ``build``), or None.
         recursive: a memory kernel with the exact O(1) recursion of its sum.
-        title: its name in the run log's active terms, or "" (the kind's).
+        title: its name in the run log's active terms, or "" (the kind's); a Coulomb
+            variant's is a format string of its constants (e.g. "mu = {mu:g}").
         drawing: (constants) -> the ``Drawing`` of a friction bound in Fig. 2, or None.
     """
 
