@@ -203,6 +203,12 @@ class Coulomb(_Constants):
         return COULOMBS[self.law].build(self.constants).mu
 
     @property
+    def has_slip(self) -> bool:
+        """The variant's bound has a slip dependence theta(s_n) (static/kinetic: mu(s) =
+        mu_s theta(s)), so the accumulated slip s_n is a state."""
+        return COULOMBS[self.law].build(self.constants).slip is not None
+
+    @property
     def title(self) -> str:
         """The law in words (its spec's title with the constants): 'Coulomb friction mu p_n
         (mu = ..)' or 'Coulomb friction mu(s) p_n (mu_s = .., mu_k = .. over slip length

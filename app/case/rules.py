@@ -13,7 +13,7 @@ import math
 from vpcontact.case import expressions
 from vpcontact.case.anisotropy import check_material_elasticity
 from vpcontact.case.materialrules import material_sections, section_errors
-from vpcontact.case.model import case_name
+from vpcontact.case.model import Coulomb, case_name
 from vpcontact.io.casekey import GROUP_MAPS
 from vpcontact.io.errors import CaseError
 from vpcontact.meshes.rectangle import SIDES
@@ -335,7 +335,7 @@ def _check_coulomb(fr: dict, source: str) -> None:
     c = fr["coulomb"]
     _one_law(c, "contact.friction.coulomb", COULOMBS, source, last=" and ")
     spec = chosen(COULOMBS, c)
-    if "slip" in fr and spec.build(spec.constants(c)).slip is not None:
+    if "slip" in fr and Coulomb(spec.name, spec.constants(c)).has_slip:
         raise CaseError(f"{source}: contact.friction.slip: not with coulomb mu_s, mu_k (the "
                         "static/kinetic pair is the slip dependence; give one of them)")
 

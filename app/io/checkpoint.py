@@ -514,7 +514,7 @@ def _required(case) -> dict[str, int | None]:
             need["g3_xi"] = 1
         coulomb = getattr(c.friction, "coulomb", None)
         if c.friction is not None and (c.friction.slip is not None
-                                       or coulomb is not None and coulomb.mu_k is not None):
+                                       or coulomb is not None and coulomb.has_slip):
             need["g3_slip_s"] = 1
         if coulomb is not None:
             need["g3_coulomb_p"] = 1

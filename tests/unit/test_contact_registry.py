@@ -144,6 +144,7 @@ def test_the_case_holds_tagged_sections():
     c = sk.contact.friction.coulomb
     assert c == Coulomb("static/kinetic", {"mu_s": 0.4, "mu_k": 0.3, "slip_length": 2e-4})
     assert (c.mu, c.mu_s, c.mu_k, c.slip_length) == (0.4, 0.4, 0.3, 2e-4)
+    assert c.has_slip and not coulomb.coulomb.has_slip
     assert ("Coulomb friction mu(s) p_n (mu_s = 0.4, mu_k = 0.3 over slip length 0.0002 m s)"
             in sk.active_terms())
     theta = section_slip(sk.contact.friction).theta(np.array([0.0, 1e-4, 1.0]))
@@ -316,6 +317,7 @@ def test_a_new_law_is_one_spec():
     assert fr.coulomb == Coulomb("capped", {"mu_c": 1.5}) and fr.law is None
     assert (fr.coulomb.mu, fr.coulomb.mu_c, fr.coulomb.mu_k) == (1.0, 1.5, None)
     assert registry.coulomb_law(fr.coulomb) == CoulombLaw(1.0) and section_slip(fr) is None
+    assert not fr.coulomb.has_slip
     assert "capped Coulomb (mu_c = 1.5)" in capped.active_terms()
 
 
