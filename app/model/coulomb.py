@@ -109,15 +109,24 @@ class CoulombPressure:
 
 
 class CoulombLaw(NamedTuple):
-    """A Coulomb variant's law: the bound mu theta(s_n) p_n.
+    """A Coulomb variant's law: the bound mu theta(s_n) p_n; it describes itself as the
+    other laws do (``name``, ``constants()``: summary.json's "laws", app/post/lawreport.py).
 
     Attributes:
         mu: the coefficient (mu_s of the static/kinetic law).
         slip: its slip dependence theta(s_n) (a StaticKineticSlip), or None.
+        name: the law in words.
+        units: (key, value, unit) of its constants, in the case file's order.
     """
 
     mu: float
     slip: StaticKineticSlip | None = None
+    name: str = "Coulomb friction"
+    units: tuple = ()
+
+    def constants(self) -> dict:
+        """Returns: {key: (value, unit)} of the variant's constants."""
+        return {key: (value, unit) for key, value, unit in self.units}
 
 
 def _nonnegative(c: dict, key: str, path: str, source: str) -> None:
@@ -150,7 +159,8 @@ CONSTANT_MU = ContactLawSpec(
                             "(dimensionless, >= 0): the friction bound is mu p_n, p_n the "
                             "contact pressure at the node [N/m^2] (compliance, memory and the "
                             "bound's reaction); times theta(s) with slip"})},
-    build=lambda c: CoulombLaw(c["mu"]),
+    build=lambda c: CoulombLaw(c["mu"], None, "Coulomb friction mu p_n |u_tau|_delta (p_n by a "
+                               "fixed point)", (("mu", c["mu"], "-"),)),
     check=_check_constant,
     title="Coulomb friction mu p_n (mu = {mu:g})")
 
@@ -165,8 +175,12 @@ STATIC_KINETIC = ContactLawSpec(
           "slip_length": ContactKey({"type": "number", "description": "the accumulated slip "
                                      "s = int_0^t |u_tau| [m s] (> 0) over which mu(s) falls "
                                      "linearly from mu_s to mu_k"})},
-    build=lambda c: CoulombLaw(c["mu_s"], StaticKineticSlip(c["mu_s"], c["mu_k"],
-                                                            c["slip_length"])),
+    build=lambda c: CoulombLaw(
+        c["mu_s"], StaticKineticSlip(c["mu_s"], c["mu_k"], c["slip_length"]),
+        "Coulomb friction mu(s) p_n |u_tau|_delta, mu(s) = mu_s - (mu_s - mu_k) "
+        "min(s/slip_length, 1) (p_n by a fixed point)",
+        (("mu_s", c["mu_s"], "-"), ("mu_k", c["mu_k"], "-"),
+         ("slip_length", c["slip_length"], "m s"))),
     check=_check_static_kinetic,
     title="Coulomb friction mu(s) p_n (mu_s = {mu_s:g}, mu_k = {mu_k:g} over slip length "
           "{slip_length:g} m s)")

@@ -79,6 +79,7 @@ def law_report(problem, gamma3_history=None) -> dict:
 def _contact_entry(problem, section, laws, h) -> dict:
     """{"normal", "memory", "friction", "memory_kernel", "slip"} of one set of contact
     laws; the kernel and theta(s) are the Gamma3 history's ``h`` (None: the section's)."""
+    from vpcontact.model.contactregistry import coulomb_law
     from vpcontact.model.gamma3 import section_kernel, section_slip
     mk = section.memory
     kernel = h.memory.kernel if h is not None and h.memory else \
@@ -91,19 +92,8 @@ def _contact_entry(problem, section, laws, h) -> dict:
     fr = section.friction
     if getattr(fr, "coulomb", None) is not None and \
             "friction" not in problem.contact_replacements:
-        out["friction"] = _coulomb_entry(fr.coulomb)
+        out["friction"] = _entry(coulomb_law(fr.coulomb))    # its variant's own words
     return out
-
-
-def _coulomb_entry(c) -> dict:
-    """{"name", "constants"} of Coulomb friction: mu, or mu_s, mu_k over slip_length."""
-    if c.mu_k is None:
-        return {"name": "Coulomb friction mu p_n |u_tau|_delta (p_n by a fixed point)",
-                "constants": {"mu": [c.mu, "-"]}}
-    return {"name": "Coulomb friction mu(s) p_n |u_tau|_delta, mu(s) = mu_s - (mu_s - mu_k) "
-                    "min(s/slip_length, 1) (p_n by a fixed point)",
-            "constants": {"mu_s": [c.mu, "-"], "mu_k": [c.mu_k, "-"],
-                          "slip_length": [c.slip_length, "m s"]}}
 
 
 def _constants_text(entry: dict) -> str:

@@ -296,3 +296,19 @@ def test_adaptive_steps_do_not_claim_an_estimated_rate(source, scale):
     (level, text), = d.messages()
     assert level == "warning" and "adaptive steps will keep" not in text
     assert "unstable" in text
+
+
+@pytest.mark.parametrize("coulomb, line", [
+    ({"mu": 0.3}, "Coulomb friction mu p_n |u_tau|_delta (p_n by a fixed point): mu = 0.3"),
+    ({"mu_s": 0.4, "mu_k": 0.25, "slip_length": 1e-4},
+     "Coulomb friction mu(s) p_n |u_tau|_delta, mu(s) = mu_s - (mu_s - mu_k) "
+     "min(s/slip_length, 1) (p_n by a fixed point): mu_s = 0.4, mu_k = 0.25, "
+     "slip_length = 0.0001 m s")])
+def test_check_lists_coulombs_variant_in_its_own_words(coulomb, line):
+    """Each Coulomb variant describes itself (its CoulombLaw's name and constants with
+    units), as the other laws do."""
+    from vpcontact.cli.checkrun import report
+    raw = paper_raw()
+    raw["contact"]["friction"] = {"coulomb": coulomb}
+    text = "\n".join(report(make_case(raw, mesh={"n": 4}), MPI.COMM_SELF))
+    assert line in text
