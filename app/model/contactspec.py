@@ -29,11 +29,10 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from vpcontact.io.errors import CaseError
+from vpcontact.model.lawspec import NONNEGATIVE, NUMBER, POSITIVE  # noqa: F401 (re-exported)
 
-# the JSON schema of a law's constant or table (app/case/schema.py's fragments)
-NUMBER = {"type": "number"}
-POSITIVE = {"type": "number", "exclusiveMinimum": 0}
-NONNEGATIVE = {"type": "number", "minimum": 0}
+# the JSON schema of a contact law's expression or table (app/case/schema.py's fragments);
+# a constant's are the viscoplastic laws' (app/model/lawspec.py)
 EXPRESSION = {"type": "string", "minLength": 1, "maxLength": 500}
 TABLE = {"type": "array", "minItems": 1, "maxItems": 100000,
          "items": {"type": "array", "items": NUMBER, "minItems": 2, "maxItems": 2}}

@@ -175,9 +175,14 @@ class GammaSchur:
                 raise RuntimeError("the Gamma3 terms couple dofs outside the Gamma3 nodes: "
                                    "the Schur complement solver of SNES VI does not apply")
             entries = pr[inside], pc[inside], av[inside]
+        return self._on_root(entries)
+
+    def _on_root(self, arrays: tuple) -> tuple | None:
+        """Every rank's ``arrays``, each concatenated in rank order, on GAMMA3_ROOT; None
+        elsewhere (collective; serial: ``arrays`` themselves)."""
         if self.comm.size == 1:
-            return entries
-        parts = self.comm.gather(entries, root=GAMMA3_ROOT)
+            return arrays
+        parts = self.comm.gather(arrays, root=GAMMA3_ROOT)
         return None if parts is None else tuple(np.concatenate(a) for a in zip(*parts))
 
     def factor(self, rows: np.ndarray | None) -> tuple[np.ndarray, tuple] | tuple[None, None]:
@@ -204,9 +209,8 @@ class GammaSchur:
             if self.comm.allreduce(missed, op=MPI.LOR):
                 raise RuntimeError("SNES VI's inactive set misses bulk dofs: the Schur "
                                    "complement solver does not apply")
-            if self.comm.size > 1:
-                parts = self.comm.gather(gI, root=GAMMA3_ROOT)
-                gI = None if parts is None else np.sort(np.concatenate(parts))
+            gathered = self._on_root((gI,))
+            gI = None if gathered is None else np.sort(gathered[0])
         self._entries = self.gamma3_entries()
         if self.S is None:
             return None, None

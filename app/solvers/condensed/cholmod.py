@@ -134,7 +134,7 @@ class RootCondensation:
         self.factorisations = 1
 
     def condense(self, b) -> np.ndarray | None:
-        """y0 = S^-1 r (collective; ``CholmodCondensation.condense``).
+        """y0 = S^-1 r with r of ``reduce`` (collective; the solve with C on the root).
 
         Args:
             b: the right-hand side (distributed).
@@ -142,8 +142,8 @@ class RootCondensation:
         Returns:
             y0 in G order on the root; None on the others.
         """
-        self._gather(b)
-        return self._on_root(lambda: self._root.condense(self._whole))
+        r = self.reduce(b)
+        return None if r is None or self.C is None else cholesky_solve(self.C, r)
 
     def reduce(self, b) -> np.ndarray | None:
         """r = b_G - K_GI K_II^-1 b_I (collective; ``CholmodCondensation.reduce``).
